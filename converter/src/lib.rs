@@ -1,0 +1,20 @@
+//! Strata's converter: LAS/LAZ/PLY inputs into a layered-octree dataset, out of core.
+
+pub mod build;
+pub mod distribute;
+pub mod error;
+pub mod export;
+pub mod input;
+pub mod plan;
+pub mod progress;
+pub mod quantize;
+pub mod sampling;
+pub mod scan;
+pub mod synth;
+pub mod sys;
+pub mod tree;
+pub mod writers;
+
+pub use build::{ConvertOptions, ConvertSummary, convert};
+pub use error::{ConvertError, Result};
+pub use sampling::Sampling;

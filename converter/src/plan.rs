@@ -1,0 +1,160 @@
+//! Phase 2: count points on a coarse grid and cut the cube into chunks that fit in memory.
+
+use crate::error::Result;
+use crate::quantize::Quantization;
+use crate::scan::{StagingReader, staging_position};
+use indicatif::ProgressBar;
+use serde::{Deserialize, Serialize};
+use std::path::Path;
+use strata_format::{Cube, GRID_CELLS_LOG2, NodeKey};
+
+/// The counting grid has 2^7 = 128 cells per axis (8 MiB of counters).
+pub const COUNT_GRID_LOG2: u32 = 7;
+
+#[derive(Debug, Clone, Serialize, Deserialize, PartialEq)]
+pub struct Chunk {
+    pub level: u8,
+    pub x: u32,
+    pub y: u32,
+    pub z: u32,
+    pub points: u64,
+}
+
+impl Chunk {
+    pub fn key(&self) -> NodeKey {
+        NodeKey {
+            level: self.level,
+            x: self.x,
+            y: self.y,
+            z: self.z,
+        }
+    }
+}
+
+/// The integer cube holding every quantized position.
+pub fn cube_for(q: &Quantization, min: [f64; 3], max: [f64; 3]) -> Cube {
+    let lo = q.quantize(&min);
+    let hi = q.quantize(&max);
+    let extent = (0..3)
+        .map(|a| hi[a] as i64 - lo[a] as i64 + 1)
+        .max()
+        .unwrap_or(1);
+    let mut bits = 0u32;
+    while (1i64 << bits) < extent {
+        bits += 1;
+    }
+    Cube {
+        min: [lo[0] as i64, lo[1] as i64, lo[2] as i64],
+        bits: bits.max(1),
+    }
+}
+
+/// Counting-grid level and per-axis shift for a cube.
+pub fn grid_shape(cube: &Cube) -> (u32, u32) {
+    let level = COUNT_GRID_LOG2.min(cube.bits);
+    (level, cube.bits - level)
+}
+
+#[inline]
+pub fn grid_cell(p: [i32; 3], cube: &Cube, level: u32, shift: u32) -> usize {
+    let c = |a: usize| ((p[a] as i64 - cube.min[a]) >> shift) as usize;
+    (c(0) << (2 * level)) | (c(1) << level) | c(2)
+}
+
+/// Counts the staging file's points per grid cell.
+pub fn count(
+    staging: &Path,
+    stride: usize,
+    q: &Quantization,
+    cube: &Cube,
+    bar: &ProgressBar,
+) -> Result<Vec<u64>> {
+    let (level, shift) = grid_shape(cube);
+    let mut counts = vec![0u64; 1 << (3 * level)];
+    let mut reader = StagingReader::open(staging, stride)?;
+    loop {
+        let n = reader.next_batch(1 << 16)?;
+        if n == 0 {
+            break;
+        }
+        for rec in reader.buf.chunks_exact(stride) {
+            let p = q.quantize(&staging_position(rec));
+            counts[grid_cell(p, cube, level, shift)] += 1;
+        }
+        bar.inc(n as u64);
+    }
+    Ok(counts)
+}
+
+/// Splits the cube top-down until every chunk holds at most `max_points` (or is one grid cell).
+/// Returns the chunks, largest first, and a lookup table from grid cell to chunk index.
+pub fn plan_chunks(counts: &[u64], cube: &Cube, max_points: u64) -> (Vec<Chunk>, Vec<u32>) {
+    let (level, _) = grid_shape(cube);
+    // Sum counts of the cells under node `k` (level <= grid level).
+    let sum = |k: &NodeKey| -> u64 {
+        let span = 1u32 << (level - k.level as u32);
+        let mut total = 0;
+        for x in k.x * span..(k.x + 1) * span {
+            for y in k.y * span..(k.y + 1) * span {
+                let base = ((x as usize) << (2 * level)) | ((y as usize) << level);
+                let z0 = (k.z * span) as usize;
+                total += counts[base + z0..base + z0 + span as usize]
+                    .iter()
+                    .sum::<u64>();
+            }
+        }
+        total
+    };
+    let mut chunks = Vec::new();
+    let mut stack = vec![(NodeKey::ROOT, counts.iter().sum::<u64>())];
+    while let Some((k, n)) = stack.pop() {
+        if n == 0 {
+            continue;
+        }
+        if n <= max_points || k.level as u32 == level {
+            chunks.push(Chunk {
+                level: k.level,
+                x: k.x,
+                y: k.y,
+                z: k.z,
+                points: n,
+            });
+        } else {
+            for o in 0..8 {
+                let c = k.child(o);
+                let cn = sum(&c);
+                stack.push((c, cn));
+            }
+        }
+    }
+    chunks.sort_by(|a, b| b.points.cmp(&a.points).then(a.key().cmp(&b.key())));
+    let mut lut = vec![u32::MAX; counts.len()];
+    for (i, c) in chunks.iter().enumerate() {
+        let span = 1u32 << (level - c.level as u32);
+        for x in c.x * span..(c.x + 1) * span {
+            for y in c.y * span..(c.y + 1) * span {
+                for z in c.z * span..(c.z + 1) * span {
+                    lut[((x as usize) << (2 * level)) | ((y as usize) << level) | z as usize] =
+                        i as u32;
+                }
+            }
+        }
+    }
+    (chunks, lut)
+}
+
+/// Points per chunk that keep indexing inside `memory_limit` with `threads` workers.
+/// Each worker holds its chunk's rows, index arrays and compressed output; as many finished
+/// chunks again may wait for their in-order commit.
+pub fn max_chunk_points(memory_limit: u64, threads: usize, stride: usize) -> u64 {
+    const RESERVED: u64 = 96 << 20;
+    let avail = memory_limit.saturating_sub(RESERVED).max(32 << 20);
+    let per_point = (3 * stride + 48) as u64;
+    let n = avail * 6 / 10 / (threads.max(1) as u64 * per_point);
+    n.max(1 << 16)
+}
+
+/// Root spacing in real units.
+pub fn root_spacing(cube: &Cube, scale: f64) -> f64 {
+    scale * (1u64 << cube.bits) as f64 / (1u64 << GRID_CELLS_LOG2) as f64
+}

@@ -1,0 +1,174 @@
+//! The dataset's one scale and offset: the finest input resolution, and exact integer
+//! positions whenever the inputs already share a grid.
+
+use crate::input::Precision;
+
+/// What the scan learned of one input.
+#[derive(Debug, Clone)]
+pub struct SourceExtent {
+    pub precision: Precision,
+    pub min: [f64; 3],
+    pub max: [f64; 3],
+}
+
+#[derive(Debug, Clone, PartialEq)]
+pub struct Quantization {
+    pub scale: [f64; 3],
+    pub offset: [f64; 3],
+    /// Set when no scale that loses no precision fits 32-bit positions.
+    pub coarsened: bool,
+}
+
+fn pow10_floor(v: f64) -> f64 {
+    10f64.powi(v.log10().floor() as i32)
+}
+
+/// The scale that keeps a float coordinate of magnitude `max_abs` to within half its unit in
+/// the last place: the largest power of ten not above one ULP.
+fn float_scale(max_abs: f64, mantissa_bits: i32) -> f64 {
+    let m = max_abs.max(1e-30);
+    let ulp = 2f64.powi(m.log2().floor() as i32 - mantissa_bits);
+    pow10_floor(ulp)
+}
+
+/// Chooses scale and offset for inputs with the given extents (`min`/`max`: all points).
+pub fn choose(sources: &[SourceExtent], min: [f64; 3], max: [f64; 3]) -> Quantization {
+    let mut scale = [f64::INFINITY; 3];
+    for s in sources {
+        for (a, scale_a) in scale.iter_mut().enumerate() {
+            let max_abs = s.min[a].abs().max(s.max[a].abs());
+            let sa = match s.precision {
+                Precision::Scaled { scale, .. } => scale[a].abs(),
+                Precision::Float32 => float_scale(max_abs, 23),
+                Precision::Float64 => float_scale(max_abs, 52),
+                Precision::Integer => 1.0,
+            };
+            *scale_a = scale_a.min(sa);
+        }
+    }
+    // Reuse an input's offset when every scaled input sits on its grid: positions stay exact.
+    let first_scaled = sources.iter().find_map(|s| match s.precision {
+        Precision::Scaled { offset, .. } => Some(offset),
+        _ => None,
+    });
+    let mut offset = [0.0; 3];
+    for a in 0..3 {
+        let on_grid = |o: f64| {
+            let k = (o - first_scaled.map_or(0.0, |f| f[a])) / scale[a];
+            (k - k.round()).abs() < 1e-6
+        };
+        let all_on_grid = first_scaled.is_some()
+            && sources.iter().all(|s| match s.precision {
+                Precision::Scaled { offset, scale: ss } => {
+                    on_grid(offset[a]) && {
+                        let r = ss[a] / scale[a];
+                        (r - r.round()).abs() < 1e-6
+                    }
+                }
+                _ => false,
+            });
+        offset[a] = if all_on_grid {
+            first_scaled.map_or(0.0, |f| f[a])
+        } else {
+            (min[a] / scale[a]).floor() * scale[a]
+        };
+    }
+    let mut coarsened = false;
+    for a in 0..3 {
+        let fits = |off: f64, sc: f64| {
+            let lo = ((min[a] - off) / sc).round();
+            let hi = ((max[a] - off) / sc).round();
+            lo >= i32::MIN as f64 && hi <= i32::MAX as f64
+        };
+        if !fits(offset[a], scale[a]) {
+            // Move the offset to the middle of the data, in whole steps of the scale so that
+            // positions on the old grid stay on it.
+            let mid = (min[a] + max[a]) / 2.0;
+            offset[a] += ((mid - offset[a]) / scale[a]).round() * scale[a];
+        }
+        while !fits(offset[a], scale[a]) {
+            scale[a] *= 10.0;
+            coarsened = true;
+        }
+    }
+    Quantization {
+        scale,
+        offset,
+        coarsened,
+    }
+}
+
+impl Quantization {
+    #[inline]
+    pub fn quantize(&self, p: &[f64; 3]) -> [i32; 3] {
+        [
+            ((p[0] - self.offset[0]) / self.scale[0]).round() as i32,
+            ((p[1] - self.offset[1]) / self.scale[1]).round() as i32,
+            ((p[2] - self.offset[2]) / self.scale[2]).round() as i32,
+        ]
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn las(scale: f64, offset: f64, min: f64, max: f64) -> SourceExtent {
+        SourceExtent {
+            precision: Precision::Scaled {
+                scale: [scale; 3],
+                offset: [offset; 3],
+            },
+            min: [min; 3],
+            max: [max; 3],
+        }
+    }
+
+    #[test]
+    fn shared_las_grid_is_kept_exactly() {
+        let q = choose(
+            &[las(0.01, 600000.0, 636000.0, 640000.0)],
+            [636000.0; 3],
+            [640000.0; 3],
+        );
+        assert_eq!(q.scale, [0.01; 3]);
+        assert_eq!(q.offset, [600000.0; 3]);
+        let p = [636123.45, 636123.45, 636123.45];
+        let back = q.offset[0] + q.scale[0] * q.quantize(&p)[0] as f64;
+        assert!((back - p[0]).abs() < 1e-9);
+    }
+
+    #[test]
+    fn mixed_scales_take_the_finest() {
+        let q = choose(
+            &[las(0.01, 0.0, 0.0, 100.0), las(0.001, 0.0, 0.0, 100.0)],
+            [0.0; 3],
+            [100.0; 3],
+        );
+        assert_eq!(q.scale, [0.001; 3]);
+        assert!(!q.coarsened);
+    }
+
+    #[test]
+    fn float32_scale_is_below_one_ulp() {
+        let s = SourceExtent {
+            precision: Precision::Float32,
+            min: [-0.1; 3],
+            max: [0.2; 3],
+        };
+        let q = choose(&[s], [-0.1; 3], [0.2; 3]);
+        let ulp = 0.2f32.next_up() as f64 - 0.2f32 as f64;
+        assert!(
+            q.scale[0] <= ulp && q.scale[0] * 10.0 > ulp,
+            "{:?}",
+            q.scale
+        );
+    }
+
+    #[test]
+    fn huge_extents_coarsen_rather_than_overflow() {
+        let q = choose(&[las(0.0001, 0.0, -1e7, 1e7)], [-1e7; 3], [1e7; 3]);
+        assert!(q.coarsened);
+        assert!(((1e7 - q.offset[0]) / q.scale[0]) <= i32::MAX as f64);
+    }
+}

@@ -1,0 +1,200 @@
+//! Phase 1: decode every input once into a staging file of (f64 position, attribute row)
+//! records in the dataset's attribute layout, checking coordinates and measuring extents.
+
+use crate::error::{ConvertError, Result};
+use crate::input::open_source;
+use crate::quantize::SourceExtent;
+use indicatif::ProgressBar;
+use std::fs::File;
+use std::io::{BufWriter, Write};
+use std::path::{Path, PathBuf};
+use strata_format::Attribute;
+
+pub const BATCH: usize = 1 << 18;
+
+#[derive(Debug, Clone)]
+pub struct ScanResult {
+    pub attributes: Vec<Attribute>,
+    pub points: u64,
+    pub min: [f64; 3],
+    pub max: [f64; 3],
+    pub extents: Vec<SourceExtent>,
+}
+
+/// Bytes of one staging record for `attributes`.
+pub fn staging_stride(attributes: &[Attribute]) -> usize {
+    24 + attributes.iter().map(|a| a.size()).sum::<usize>()
+}
+
+/// The union of the inputs' attributes, in first-seen order. A name with two different types
+/// is an error naming both files.
+pub fn union_attributes(inputs: &[PathBuf]) -> Result<(Vec<Attribute>, u64)> {
+    let mut union: Vec<(Attribute, PathBuf)> = Vec::new();
+    let mut total = 0u64;
+    for path in inputs {
+        let src = open_source(path)?;
+        total += src.info().points;
+        for a in &src.info().attributes {
+            match union.iter().find(|(u, _)| u.name == a.name) {
+                Some((u, first)) if u.ty != a.ty || u.count != a.count => {
+                    return Err(ConvertError::input(
+                        path,
+                        format!(
+                            "attribute \"{}\" is {}x{} here but {}x{} in {}; inputs must agree on attribute types",
+                            a.name,
+                            a.count,
+                            a.ty.name(),
+                            u.count,
+                            u.ty.name(),
+                            first.display()
+                        ),
+                    ));
+                }
+                Some(_) => {}
+                None => union.push((a.clone(), path.clone())),
+            }
+        }
+    }
+    Ok((union.into_iter().map(|(a, _)| a).collect(), total))
+}
+
+pub fn scan(
+    inputs: &[PathBuf],
+    attributes: &[Attribute],
+    staging: &Path,
+    bar: &ProgressBar,
+) -> Result<ScanResult> {
+    let stride = staging_stride(attributes);
+    let file = File::create(staging)
+        .map_err(|e| ConvertError::io(staging, "cannot create staging file", e))?;
+    let mut out = BufWriter::with_capacity(8 << 20, file);
+    let mut result = ScanResult {
+        attributes: attributes.to_vec(),
+        points: 0,
+        min: [f64::INFINITY; 3],
+        max: [f64::NEG_INFINITY; 3],
+        extents: Vec::new(),
+    };
+    let mut xyz = Vec::with_capacity(BATCH);
+    let mut rows = Vec::new();
+    let mut records = Vec::with_capacity(BATCH * stride);
+    for path in inputs {
+        let mut src = open_source(path)?;
+        // (source row offset, staging offset, length) for each attribute this input has.
+        let mut copies = Vec::new();
+        let mut src_off = 0usize;
+        for a in &src.info().attributes {
+            let mut dst = 24usize;
+            for u in attributes {
+                if u.name == a.name {
+                    break;
+                }
+                dst += u.size();
+            }
+            copies.push((src_off, dst, a.size()));
+            src_off += a.size();
+        }
+        let row_len = src.info().row_len();
+        let mut extent = SourceExtent {
+            precision: src.info().precision,
+            min: [f64::INFINITY; 3],
+            max: [f64::NEG_INFINITY; 3],
+        };
+        let mut index = 0u64;
+        loop {
+            xyz.clear();
+            rows.clear();
+            let n = src.read(BATCH, &mut xyz, &mut rows)?;
+            if n == 0 {
+                break;
+            }
+            records.clear();
+            records.resize(n * stride, 0);
+            for (i, (p, rec)) in xyz.iter().zip(records.chunks_exact_mut(stride)).enumerate() {
+                for a in 0..3 {
+                    let v = p[a];
+                    if !v.is_finite() {
+                        return Err(ConvertError::input(
+                            path,
+                            format!(
+                                "point {} has a non-finite {} coordinate ({v})",
+                                index + i as u64,
+                                ["x", "y", "z"][a]
+                            ),
+                        ));
+                    }
+                    extent.min[a] = extent.min[a].min(v);
+                    extent.max[a] = extent.max[a].max(v);
+                    rec[a * 8..a * 8 + 8].copy_from_slice(&v.to_le_bytes());
+                }
+                let row = &rows[i * row_len..(i + 1) * row_len];
+                for &(s, d, len) in &copies {
+                    rec[d..d + len].copy_from_slice(&row[s..s + len]);
+                }
+            }
+            out.write_all(&records)
+                .map_err(|e| ConvertError::io(staging, "cannot write staging file", e))?;
+            index += n as u64;
+            bar.inc(n as u64);
+        }
+        result.points += index;
+        for a in 0..3 {
+            result.min[a] = result.min[a].min(extent.min[a]);
+            result.max[a] = result.max[a].max(extent.max[a]);
+        }
+        result.extents.push(extent);
+    }
+    out.flush()
+        .map_err(|e| ConvertError::io(staging, "cannot write staging file", e))?;
+    Ok(result)
+}
+
+/// Reads a staging file in batches of whole records.
+pub struct StagingReader {
+    file: File,
+    path: PathBuf,
+    stride: usize,
+    pub buf: Vec<u8>,
+}
+
+impl StagingReader {
+    pub fn open(path: &Path, stride: usize) -> Result<Self> {
+        let file =
+            File::open(path).map_err(|e| ConvertError::io(path, "cannot open staging file", e))?;
+        Ok(StagingReader {
+            file,
+            path: path.to_path_buf(),
+            stride,
+            buf: Vec::new(),
+        })
+    }
+
+    /// Fills `buf` with up to `max` records; returns how many (0 at the end).
+    pub fn next_batch(&mut self, max: usize) -> Result<usize> {
+        use std::io::Read;
+        self.buf.resize(max * self.stride, 0);
+        let mut filled = 0;
+        while filled < self.buf.len() {
+            let n = self
+                .file
+                .read(&mut self.buf[filled..])
+                .map_err(|e| ConvertError::io(&self.path, "cannot read staging file", e))?;
+            if n == 0 {
+                break;
+            }
+            filled += n;
+        }
+        self.buf.truncate(filled - filled % self.stride);
+        Ok(filled / self.stride)
+    }
+}
+
+#[inline]
+pub fn staging_position(rec: &[u8]) -> [f64; 3] {
+    let f = |o: usize| {
+        let mut b = [0u8; 8];
+        b.copy_from_slice(&rec[o..o + 8]);
+        f64::from_le_bytes(b)
+    };
+    [f(0), f(8), f(16)]
+}

@@ -1,0 +1,39 @@
+use std::path::PathBuf;
+
+/// Everything that can go wrong reading a dataset. Each message names the file and the fault.
+#[derive(Debug, thiserror::Error)]
+pub enum FormatError {
+    #[error("{}: {source}", path.display())]
+    Io {
+        path: PathBuf,
+        #[source]
+        source: std::io::Error,
+    },
+    #[error("{}: {what}", path.display())]
+    Corrupt { path: PathBuf, what: String },
+    #[error(
+        "{}: dataset format version {found} is not supported by this reader (it reads {supported})",
+        path.display()
+    )]
+    UnsupportedVersion {
+        path: PathBuf,
+        found: String,
+        supported: String,
+    },
+}
+
+impl FormatError {
+    pub fn io(path: impl Into<PathBuf>, source: std::io::Error) -> Self {
+        FormatError::Io {
+            path: path.into(),
+            source,
+        }
+    }
+
+    pub fn corrupt(path: impl Into<PathBuf>, what: impl Into<String>) -> Self {
+        FormatError::Corrupt {
+            path: path.into(),
+            what: what.into(),
+        }
+    }
+}

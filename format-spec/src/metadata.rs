@@ -1,0 +1,148 @@
+use crate::{Attribute, FormatError, RowLayout};
+use serde::{Deserialize, Serialize};
+use std::path::Path;
+
+pub const FORMAT_NAME: &str = "strata-lpc";
+pub const VERSION_MAJOR: u32 = 1;
+pub const VERSION_MINOR: u32 = 0;
+
+/// Real-world bounds of the stored points (the min and max of every coordinate).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct Bounds {
+    pub min: [f64; 3],
+    pub max: [f64; 3],
+}
+
+/// The root node's cube in integer coordinates: `[min, min + 2^bits)` on every axis.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct Cube {
+    pub min: [i64; 3],
+    pub bits: u32,
+}
+
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct FileInfo {
+    pub name: String,
+    pub size: u64,
+}
+
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Files {
+    pub hierarchy: FileInfo,
+    pub octree: FileInfo,
+}
+
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct HierarchyInfo {
+    pub root_page_offset: u64,
+    pub root_page_size: u64,
+    pub page_levels: u32,
+}
+
+/// The contents of `metadata.json`.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Metadata {
+    pub format: String,
+    pub version: [u32; 2],
+    pub points: u64,
+    pub nodes: u64,
+    /// Deepest level that holds a node (root = 0).
+    pub depth: u32,
+    pub scale: [f64; 3],
+    pub offset: [f64; 3],
+    pub bounds: Bounds,
+    pub cube: Cube,
+    /// Point spacing of the root node in real units (x axis); halves with each level.
+    pub spacing: f64,
+    pub sampling: String,
+    pub attributes: Vec<Attribute>,
+    pub files: Files,
+    pub hierarchy: HierarchyInfo,
+    #[serde(default)]
+    pub sources: Vec<String>,
+    #[serde(default)]
+    pub generator: String,
+}
+
+impl Metadata {
+    pub fn row_layout(&self) -> RowLayout {
+        RowLayout::new(self.attributes.clone())
+    }
+
+    /// Bytes per point in an uncompressed node payload.
+    pub fn point_bytes(&self) -> usize {
+        self.row_layout().stride
+    }
+
+    /// Real coordinate of an integer position.
+    pub fn to_real(&self, p: [i32; 3]) -> [f64; 3] {
+        [
+            self.offset[0] + self.scale[0] * p[0] as f64,
+            self.offset[1] + self.scale[1] * p[1] as f64,
+            self.offset[2] + self.scale[2] * p[2] as f64,
+        ]
+    }
+
+    pub fn to_json(&self) -> String {
+        // Serialising plain data with string keys cannot fail.
+        serde_json::to_string_pretty(self).unwrap_or_default()
+    }
+
+    /// Parses and checks `metadata.json`; `path` is used in error messages only.
+    pub fn from_json(bytes: &[u8], path: &Path) -> Result<Metadata, FormatError> {
+        let value: serde_json::Value = serde_json::from_slice(bytes)
+            .map_err(|e| FormatError::corrupt(path, format!("not valid JSON ({e})")))?;
+        if value.get("format").and_then(|f| f.as_str()) != Some(FORMAT_NAME) {
+            return Err(FormatError::corrupt(
+                path,
+                format!("not a Strata dataset (\"format\" is not \"{FORMAT_NAME}\")"),
+            ));
+        }
+        let version = value
+            .get("version")
+            .and_then(|v| v.as_array())
+            .map(|v| {
+                v.iter()
+                    .map(|n| n.as_u64().unwrap_or(u64::MAX))
+                    .collect::<Vec<_>>()
+            })
+            .unwrap_or_default();
+        if version.len() != 2 || version[0] != VERSION_MAJOR as u64 {
+            return Err(FormatError::UnsupportedVersion {
+                path: path.into(),
+                found: version
+                    .iter()
+                    .map(|v| v.to_string())
+                    .collect::<Vec<_>>()
+                    .join("."),
+                supported: format!("{VERSION_MAJOR}.x"),
+            });
+        }
+        let meta: Metadata = serde_json::from_value(value)
+            .map_err(|e| FormatError::corrupt(path, format!("malformed metadata ({e})")))?;
+        meta.check(path)?;
+        Ok(meta)
+    }
+
+    fn check(&self, path: &Path) -> Result<(), FormatError> {
+        let bad = |what: &str| Err(FormatError::corrupt(path, what.to_string()));
+        if self.scale.iter().any(|s| !(s.is_finite() && *s > 0.0)) {
+            return bad("scale must be finite and positive on every axis");
+        }
+        if self.offset.iter().any(|o| !o.is_finite()) {
+            return bad("offset must be finite");
+        }
+        if self.cube.bits > 32 {
+            return bad("cube.bits must be at most 32");
+        }
+        if self.hierarchy.page_levels == 0 {
+            return bad("hierarchy.page_levels must be at least 1");
+        }
+        for a in &self.attributes {
+            if a.count == 0 {
+                return bad(&format!("attribute '{}' has count 0", a.name));
+            }
+        }
+        Ok(())
+    }
+}

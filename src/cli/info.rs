@@ -1,0 +1,77 @@
+use std::path::PathBuf;
+use std::process::ExitCode;
+use strata_converter::sys::format_bytes;
+use strata_format::LocalDataset;
+
+#[derive(Debug, clap::Args)]
+pub struct Args {
+    /// The dataset directory.
+    dataset: PathBuf,
+    /// Print JSON instead of text.
+    #[arg(long)]
+    json: bool,
+}
+
+pub fn run(a: Args) -> anyhow::Result<ExitCode> {
+    let ds = LocalDataset::open(&a.dataset)?;
+    let m = ds.metadata();
+    let bytes = m.files.hierarchy.size + m.files.octree.size;
+    if a.json {
+        let attrs: Vec<serde_json::Value> = m
+            .attributes
+            .iter()
+            .map(|at| serde_json::json!({"name": at.name, "type": at.ty.name(), "count": at.count}))
+            .collect();
+        let v = serde_json::json!({
+            "points": m.points,
+            "nodes": m.nodes,
+            "depth": m.depth,
+            "bounds": {"min": m.bounds.min, "max": m.bounds.max},
+            "scale": m.scale,
+            "offset": m.offset,
+            "spacing": m.spacing,
+            "sampling": m.sampling,
+            "attributes": attrs,
+            "bytes": bytes,
+            "point_bytes": m.point_bytes(),
+            "version": format!("{}.{}", m.version[0], m.version[1]),
+            "sources": m.sources,
+        });
+        println!("{}", serde_json::to_string_pretty(&v)?);
+        return Ok(ExitCode::SUCCESS);
+    }
+    println!("dataset   {}", a.dataset.display());
+    println!("format    {} {}.{}", m.format, m.version[0], m.version[1]);
+    println!("points    {}", m.points);
+    println!("nodes     {} (depth {})", m.nodes, m.depth);
+    println!(
+        "bounds    min {:.3} {:.3} {:.3}\n          max {:.3} {:.3} {:.3}",
+        m.bounds.min[0],
+        m.bounds.min[1],
+        m.bounds.min[2],
+        m.bounds.max[0],
+        m.bounds.max[1],
+        m.bounds.max[2]
+    );
+    println!("scale     {:?}\noffset    {:?}", m.scale, m.offset);
+    println!(
+        "spacing   {:.6} at the root ({} sampling)",
+        m.spacing, m.sampling
+    );
+    println!(
+        "size      {} ({:.1} bytes/point stored, {} uncompressed)",
+        format_bytes(bytes),
+        bytes as f64 / m.points.max(1) as f64,
+        m.point_bytes()
+    );
+    println!("attributes:");
+    for at in &m.attributes {
+        let shape = if at.count > 1 {
+            format!("{}x{}", at.count, at.ty.name())
+        } else {
+            at.ty.name().to_string()
+        };
+        println!("  {:<30} {shape}", at.name);
+    }
+    Ok(ExitCode::SUCCESS)
+}

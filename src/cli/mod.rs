@@ -1,0 +1,44 @@
+mod convert;
+mod demo;
+mod export;
+mod info;
+mod synth;
+mod verify;
+
+use clap::{Parser, Subcommand};
+use std::process::ExitCode;
+
+/// Strata: billion-point laser scans on ordinary hardware.
+#[derive(Debug, Parser)]
+#[command(name = "strata", version, about, propagate_version = true)]
+pub struct Cli {
+    #[command(subcommand)]
+    command: Command,
+}
+
+#[derive(Debug, Subcommand)]
+enum Command {
+    /// Build a dataset from LAS, LAZ and PLY files.
+    Convert(convert::Args),
+    /// Print a dataset's summary: points, nodes, depth, bounds, attributes, sizes.
+    Info(info::Args),
+    /// Check a dataset's structure and every checksum; exit 1 on any fault.
+    Verify(verify::Args),
+    /// Write every point of a dataset back out as LAS, LAZ or PLY.
+    Export(export::Args),
+    /// Write a deterministic procedural scene of any size as LAS, LAZ or PLY.
+    Synth(synth::Args),
+    /// Synthesize a scene, convert it and show it.
+    Demo(demo::Args),
+}
+
+pub fn run(cli: Cli) -> anyhow::Result<ExitCode> {
+    match cli.command {
+        Command::Convert(a) => convert::run(a),
+        Command::Info(a) => info::run(a),
+        Command::Verify(a) => verify::run(a),
+        Command::Export(a) => export::run(a),
+        Command::Synth(a) => synth::run(a),
+        Command::Demo(a) => demo::run(a),
+    }
+}
