@@ -61,8 +61,16 @@ impl LasSource {
         }
         let offset_to_points = u32::from_le_bytes([head[96], head[97], head[98], head[99]]) as u64;
         let file = File::open(path).map_err(|e| ConvertError::io(path, "cannot open input", e))?;
-        let reader = Reader::new(BufReader::with_capacity(1 << 20, file))
-            .map_err(|e| ConvertError::input(path, format!("invalid LAS header ({e})")))?;
+        // Opening a LAZ file also reads its chunk table at the end of the file.
+        let compressed = format_byte & 0x80 != 0;
+        let reader = Reader::new(BufReader::with_capacity(1 << 20, file)).map_err(|e| {
+            let what = if compressed {
+                format!("LAZ point data is corrupt or truncated ({e})")
+            } else {
+                format!("invalid LAS header ({e})")
+            };
+            ConvertError::input(path, what)
+        })?;
         let header = reader.header().clone();
         let format = *header.point_format();
         let record_len = format.len() as usize;

@@ -1,0 +1,192 @@
+//! Bad input: one clear sentence naming the file and the fault, a non-zero exit, no panic, and
+//! no output that looks valid.
+
+mod common;
+use common::*;
+use std::path::{Path, PathBuf};
+
+/// Converts `input` and checks the failure; returns stderr.
+fn convert_fails(input: &Path, expect: &str) -> String {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let out = dir.path().join("ds");
+    let o = run(&["convert", s(input), "-o", s(&out)]);
+    let err = String::from_utf8_lossy(&o.stderr).to_string();
+    assert!(
+        !o.status.success(),
+        "convert of {} should fail",
+        input.display()
+    );
+    assert!(!err.contains("panicked"), "{err}");
+    assert!(
+        err.contains(input.file_name().and_then(|n| n.to_str()).unwrap_or("?")),
+        "error must name the file: {err}"
+    );
+    assert!(
+        err.to_lowercase().contains(&expect.to_lowercase()),
+        "expected {expect:?} in: {err}"
+    );
+    assert_eq!(err.trim().lines().count(), 1, "one sentence: {err}");
+    assert!(!out.exists(), "no output may appear");
+    assert!(
+        !dir.path().join("ds.strata-tmp").exists(),
+        "no work left behind"
+    );
+    err
+}
+
+fn write(dir: &Path, name: &str, bytes: &[u8]) -> PathBuf {
+    let p = dir.join(name);
+    std::fs::write(&p, bytes).expect("write");
+    p
+}
+
+fn autzen() -> Vec<u8> {
+    std::fs::read(data("autzen_trim.las")).expect("autzen")
+}
+
+#[test]
+fn missing_file() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    convert_fails(&dir.path().join("nope.las"), "does not exist");
+}
+
+#[test]
+fn directory_instead_of_file() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let d = dir.path().join("folder.las");
+    std::fs::create_dir(&d).expect("mkdir");
+    convert_fails(&d, "not a regular file");
+}
+
+#[test]
+fn truncated_las() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let b = autzen();
+    let p = write(dir.path(), "cut.las", &b[..b.len() / 2]);
+    convert_fails(&p, "truncated");
+}
+
+#[test]
+fn header_count_disagrees_with_records() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let mut b = autzen();
+    // Legacy point count at byte 107: claim fewer points than the file holds.
+    b[107..111].copy_from_slice(&100_000u32.to_le_bytes());
+    let p = write(dir.path(), "count.las", &b);
+    convert_fails(&p, "header says 100000 points but the file holds 110000");
+}
+
+#[test]
+fn truncated_laz() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let b = std::fs::read(data("autzen_trim.laz")).expect("laz");
+    let p = write(dir.path(), "cut.laz", &b[..b.len() * 2 / 3]);
+    convert_fails(&p, "corrupt or truncated");
+}
+
+#[test]
+fn unsupported_version_and_point_format() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let mut b = autzen();
+    b[25] = 9;
+    let p = write(dir.path(), "v19.las", &b);
+    convert_fails(&p, "version 1.9 is not supported");
+    let mut b = autzen();
+    b[104] = 11;
+    let p = write(dir.path(), "pf11.las", &b);
+    convert_fails(&p, "point format 11 is not supported");
+}
+
+#[test]
+fn random_bytes_with_point_cloud_names() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let junk: Vec<u8> = (0..5000u32)
+        .map(|i| (i.wrapping_mul(2654435761) >> 13) as u8)
+        .collect();
+    convert_fails(
+        &write(dir.path(), "junk.las", &junk),
+        "not a LAS or LAZ file",
+    );
+    convert_fails(
+        &write(dir.path(), "junk.laz", &junk),
+        "not a LAS or LAZ file",
+    );
+    convert_fails(&write(dir.path(), "junk.ply", &junk), "not a PLY file");
+    convert_fails(&write(dir.path(), "tiny.las", b"LASF"), "too short");
+}
+
+#[test]
+fn ply_without_z_or_with_a_bad_header() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let no_z = b"ply\nformat ascii 1.0\nelement vertex 1\nproperty float x\nproperty float y\nend_header\n1 2\n";
+    convert_fails(&write(dir.path(), "noz.ply", no_z), "no \"z\" property");
+    let bad = b"ply\nformat ascii 1.0\nelement vertex one\nproperty float x\nend_header\n";
+    convert_fails(&write(dir.path(), "bad.ply", bad), "malformed PLY header");
+    let short = b"ply\nformat binary_little_endian 1.0\nelement vertex 10\nproperty float x\nproperty float y\nproperty float z\nend_header\n\x00\x00\x00\x00";
+    convert_fails(&write(dir.path(), "short.ply", short), "truncated");
+}
+
+#[test]
+fn non_finite_coordinates() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let nan = b"ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\nproperty float z\nend_header\n0 0 0\n1 nan 1\n2 2 2\n";
+    convert_fails(
+        &write(dir.path(), "nan.ply", nan),
+        "point 1 has a non-finite y coordinate",
+    );
+    let inf = b"ply\nformat ascii 1.0\nelement vertex 2\nproperty float x\nproperty float y\nproperty float z\nend_header\n0 0 0\n1 1 inf\n";
+    convert_fails(
+        &write(dir.path(), "inf.ply", inf),
+        "non-finite z coordinate",
+    );
+}
+
+#[test]
+fn existing_output_needs_overwrite() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let out = dir.path().join("ds");
+    std::fs::create_dir(&out).expect("mkdir");
+    std::fs::write(out.join("keep.txt"), b"mine").expect("write");
+    let o = run(&["convert", s(&data("autzen_trim.las")), "-o", s(&out)]);
+    assert!(!o.status.success());
+    assert!(String::from_utf8_lossy(&o.stderr).contains("already exists (pass --overwrite"));
+    assert!(
+        out.join("keep.txt").exists(),
+        "nothing replaced without --overwrite"
+    );
+    run_ok(&[
+        "convert",
+        s(&data("autzen_trim.las")),
+        "-o",
+        s(&out),
+        "--overwrite",
+        "-q",
+    ]);
+    run_ok(&["verify", s(&out)]);
+    assert!(!out.join("keep.txt").exists());
+}
+
+#[test]
+fn disk_full_leaves_no_valid_looking_output() {
+    // A file-size limit makes writes fail the way a full disk does (EFBIG instead of ENOSPC).
+    let dir = tempfile::tempdir().expect("tempdir");
+    let out = dir.path().join("ds");
+    let script = format!(
+        "trap '' XFSZ; ulimit -f 1024; exec {} convert {} -o {}",
+        env!("CARGO_BIN_EXE_strata"),
+        s(&data("autzen_trim.las")),
+        s(&out)
+    );
+    let o = std::process::Command::new("sh")
+        .arg("-c")
+        .arg(&script)
+        .output()
+        .expect("sh");
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(!o.status.success(), "{err}");
+    assert!(err.contains("File too large"), "{err}");
+    assert!(!err.contains("panicked"));
+    assert!(!out.exists());
+    let v = run(&["verify", s(&out)]);
+    assert!(!v.status.success());
+}

@@ -1,0 +1,93 @@
+#![allow(dead_code)]
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+pub fn data(name: &str) -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("../shared/data")
+        .join(name)
+}
+
+pub fn strata() -> Command {
+    Command::new(env!("CARGO_BIN_EXE_strata"))
+}
+
+/// Runs strata with `args`; returns the output.
+pub fn run(args: &[&str]) -> Output {
+    match strata().args(args).output() {
+        Ok(o) => o,
+        Err(e) => panic!("cannot run strata: {e}"),
+    }
+}
+
+pub fn run_ok(args: &[&str]) -> Output {
+    let o = run(args);
+    assert!(
+        o.status.success(),
+        "strata {args:?} failed:\n{}",
+        String::from_utf8_lossy(&o.stderr)
+    );
+    o
+}
+
+pub fn s(p: &Path) -> &str {
+    p.to_str().expect("utf-8 path")
+}
+
+/// Every field of a LAS point that a round trip must keep, as comparable integers.
+pub type PointKey = ([i64; 3], [i64; 19]);
+
+fn las_points(path: &Path) -> (Vec<PointKey>, [f64; 3]) {
+    let mut r = las::Reader::from_path(path).expect("readable LAS");
+    let t = *r.header().transforms();
+    let scale = [t.x.scale, t.y.scale, t.z.scale];
+    let data = r.read_all().expect("all points");
+    let q = |v: f64, a: usize| (v / scale[a]).round() as i64;
+    let pts = data
+        .points()
+        .map(|p| {
+            let p = p.expect("point decodes");
+            let c = p.color.map_or([0; 3], |c| [c.red, c.green, c.blue]);
+            (
+                [q(p.x, 0), q(p.y, 1), q(p.z, 2)],
+                [
+                    p.intensity as i64,
+                    p.return_number as i64,
+                    p.number_of_returns as i64,
+                    u8::from(p.classification) as i64,
+                    p.is_synthetic as i64,
+                    p.is_key_point as i64,
+                    p.is_withheld as i64,
+                    p.is_overlap as i64,
+                    p.user_data as i64,
+                    (p.scan_angle * 1000.0).round() as i64,
+                    p.scanner_channel as i64,
+                    p.point_source_id as i64,
+                    p.gps_time.map_or(0, f64::to_bits) as i64,
+                    c[0] as i64,
+                    c[1] as i64,
+                    c[2] as i64,
+                    p.nir.unwrap_or(0) as i64,
+                    p.is_edge_of_flight_line as i64,
+                    matches!(p.scan_direction, las::point::ScanDirection::LeftToRight) as i64,
+                ],
+            )
+        })
+        .collect();
+    (pts, scale)
+}
+
+/// The points of a LAS/LAZ file as a sorted multiset, read with the `las` crate's own
+/// point decoder (independent of Strata's raw record decoding).
+pub fn las_multiset(path: &Path) -> Vec<PointKey> {
+    let mut pts = las_points(path).0;
+    pts.sort_unstable();
+    pts
+}
+
+pub fn las_scale(path: &Path) -> [f64; 3] {
+    let r = las::Reader::from_path(path).expect("readable LAS");
+    let t = r.header().transforms();
+    [t.x.scale, t.y.scale, t.z.scale]
+}

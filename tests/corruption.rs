@@ -1,0 +1,94 @@
+//! A flipped byte anywhere in a node or the hierarchy is found, and the damaged part named.
+
+mod common;
+use common::*;
+use std::path::Path;
+
+fn dataset(dir: &Path) -> std::path::PathBuf {
+    let ds = dir.join("ds");
+    run_ok(&["convert", s(&data("autzen_trim.las")), "-o", s(&ds), "-q"]);
+    ds
+}
+
+fn flip(path: &Path, at: u64) {
+    let mut bytes = std::fs::read(path).expect("read");
+    bytes[at as usize] ^= 0x10;
+    std::fs::write(path, bytes).expect("write");
+}
+
+fn verify_fails_naming(ds: &Path, part: &str) {
+    let o = run(&["verify", s(ds)]);
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(1), "verify must exit 1: {err}");
+    assert!(
+        err.contains(part),
+        "verify should name {part:?}, said: {err}"
+    );
+    assert!(!err.contains("panicked"));
+}
+
+#[test]
+fn every_node_payload_flip_is_named() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let ds = dataset(dir.path());
+    let local = strata_format::LocalDataset::open(&ds).expect("opens");
+    let nodes = local.all_nodes().expect("nodes");
+    drop(local);
+    assert!(nodes.len() > 5);
+    for n in nodes.iter().filter(|n| n.size > 0) {
+        for at in [
+            n.offset,
+            n.offset + n.size as u64 / 2,
+            n.offset + n.size as u64 - 1,
+        ] {
+            flip(&ds.join("octree.bin"), at);
+            verify_fails_naming(&ds, &format!("node {}", n.key));
+            flip(&ds.join("octree.bin"), at);
+        }
+    }
+    run_ok(&["verify", s(&ds)]);
+}
+
+#[test]
+fn every_hierarchy_byte_flip_is_caught() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let ds = dataset(dir.path());
+    let path = ds.join("hierarchy.bin");
+    let len = std::fs::metadata(&path).expect("meta").len();
+    for at in 0..len {
+        flip(&path, at);
+        let part = if at < 8 {
+            "hierarchy.bin"
+        } else {
+            "hierarchy page"
+        };
+        verify_fails_naming(&ds, part);
+        flip(&path, at);
+    }
+}
+
+#[test]
+fn truncated_or_missing_files_are_reported() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let ds = dataset(dir.path());
+    let octree = ds.join("octree.bin");
+    let bytes = std::fs::read(&octree).expect("read");
+    std::fs::write(&octree, &bytes[..bytes.len() - 100]).expect("write");
+    verify_fails_naming(&ds, "octree.bin");
+    std::fs::remove_file(ds.join("metadata.json")).expect("remove");
+    verify_fails_naming(&ds, "metadata.json");
+}
+
+#[test]
+fn newer_major_versions_are_refused_clearly() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let ds = dataset(dir.path());
+    let meta_path = ds.join("metadata.json");
+    let mut v: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(&meta_path).expect("read")).expect("json");
+    v["version"] = serde_json::json!([2, 0]);
+    std::fs::write(&meta_path, v.to_string()).expect("write");
+    let o = run(&["info", s(&ds)]);
+    assert!(!o.status.success());
+    assert!(String::from_utf8_lossy(&o.stderr).contains("version 2.0 is not supported"));
+}

@@ -1,0 +1,74 @@
+//! An interrupted conversion leaves nothing `verify` accepts, and `--resume` finishes it with
+//! exactly the dataset an uninterrupted run makes.
+
+mod common;
+use common::*;
+use std::time::{Duration, Instant};
+
+#[test]
+fn kill_9_then_resume_gives_the_same_dataset() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let las = dir.path().join("city.las");
+    run_ok(&["synth", "--points", "1500000", "-o", s(&las)]);
+    let clean = dir.path().join("clean");
+    let args = |out: &std::path::Path| {
+        vec![
+            "convert".to_string(),
+            s(&las).into(),
+            "-o".into(),
+            s(out).into(),
+            "--memory-limit".into(),
+            "64MiB".into(),
+            "--threads".into(),
+            "1".into(),
+            "-q".into(),
+        ]
+    };
+    run_ok(&args(&clean).iter().map(String::as_str).collect::<Vec<_>>());
+
+    let out = dir.path().join("ds");
+    let journal = dir.path().join("ds.strata-tmp/work/journal.jsonl");
+    let mut child = strata().args(args(&out)).spawn().expect("spawn");
+    let start = Instant::now();
+    // Kill once at least one chunk has been committed.
+    loop {
+        let lines = std::fs::read_to_string(&journal)
+            .map(|t| t.lines().count())
+            .unwrap_or(0);
+        if lines >= 1 || start.elapsed() > Duration::from_secs(60) {
+            break;
+        }
+        std::thread::sleep(Duration::from_millis(2));
+    }
+    child.kill().expect("kill -9");
+    let status = child.wait().expect("wait");
+    assert!(
+        !status.success(),
+        "the run was meant to be interrupted before it finished"
+    );
+    assert!(
+        !out.exists(),
+        "an interrupted run must not leave the dataset in place"
+    );
+    assert!(!run(&["verify", s(&out)]).status.success());
+    assert!(
+        !run(&["verify", s(&dir.path().join("ds.strata-tmp"))])
+            .status
+            .success()
+    );
+
+    let stats = dir.path().join("stats.json");
+    let mut resume = args(&out);
+    resume.extend(["--resume".to_string(), "--stats".into(), s(&stats).into()]);
+    run_ok(&resume.iter().map(String::as_str).collect::<Vec<_>>());
+    let st: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(&stats).expect("stats")).expect("json");
+    assert!(st["resumed_chunks"].as_u64().unwrap_or(0) >= 1, "{st}");
+    run_ok(&["verify", s(&out)]);
+    for f in ["octree.bin", "hierarchy.bin", "metadata.json"] {
+        assert!(
+            std::fs::read(out.join(f)).ok() == std::fs::read(clean.join(f)).ok(),
+            "{f} differs from the clean run"
+        );
+    }
+}

@@ -1,0 +1,244 @@
+//! Every input point comes out exactly once with all its attributes.
+
+mod common;
+use common::*;
+use strata_converter::input::open_source;
+
+fn convert_export_compare(input: &str, out_ext: &str, extra_args: &[&str]) {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let ds = dir.path().join("ds");
+    let out = dir.path().join(format!("out.{out_ext}"));
+    let src = data(input);
+    let mut args = vec!["convert", s(&src), "-o", s(&ds), "-q"];
+    args.extend_from_slice(extra_args);
+    run_ok(&args);
+    run_ok(&["verify", s(&ds)]);
+    run_ok(&["export", s(&ds), "-o", s(&out)]);
+    let a = las_multiset(&src);
+    let b = las_multiset(&out);
+    assert_eq!(a.len(), b.len(), "{input}: point count");
+    assert!(a == b, "{input}: exported points differ from the input");
+}
+
+#[test]
+fn autzen_las_round_trips_exactly() {
+    convert_export_compare("autzen_trim.las", "las", &[]);
+}
+
+#[test]
+fn autzen_laz_round_trips_exactly() {
+    convert_export_compare("autzen_trim.laz", "laz", &[]);
+}
+
+#[test]
+fn autzen_point_format_7_round_trips_exactly() {
+    convert_export_compare("autzen_trim_pf7.las", "las", &["--sampling", "random"]);
+}
+
+#[test]
+fn synth_split_into_many_chunks_round_trips_exactly() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let las = dir.path().join("city.las");
+    run_ok(&["synth", "--points", "300000", "-o", s(&las), "--seed", "7"]);
+    let ds = dir.path().join("ds");
+    let out = dir.path().join("back.laz");
+    // A small memory limit forces several chunks and a real top-level merge.
+    let o = run_ok(&[
+        "convert",
+        s(&las),
+        "-o",
+        s(&ds),
+        "--memory-limit",
+        "64MiB",
+        "--stats",
+        s(&dir.path().join("st.json")),
+    ]);
+    let stats: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(dir.path().join("st.json")).expect("stats"))
+            .expect("json");
+    assert!(
+        stats["chunks"].as_u64().unwrap_or(0) >= 4,
+        "{}",
+        String::from_utf8_lossy(&o.stdout)
+    );
+    run_ok(&["verify", s(&ds)]);
+    run_ok(&["export", s(&ds), "-o", s(&out)]);
+    assert!(las_multiset(&las) == las_multiset(&out));
+}
+
+#[test]
+fn autzen_las_and_laz_give_identical_datasets() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let a = dir.path().join("a");
+    let b = dir.path().join("b");
+    run_ok(&["convert", s(&data("autzen_trim.las")), "-o", s(&a), "-q"]);
+    run_ok(&["convert", s(&data("autzen_trim.laz")), "-o", s(&b), "-q"]);
+    for f in ["octree.bin", "hierarchy.bin"] {
+        assert!(
+            std::fs::read(a.join(f)).ok() == std::fs::read(b.join(f)).ok(),
+            "{f} differs"
+        );
+    }
+    let meta = |p: &std::path::Path| {
+        let mut v: serde_json::Value =
+            serde_json::from_slice(&std::fs::read(p.join("metadata.json")).expect("metadata"))
+                .expect("json");
+        v["sources"] = serde_json::Value::Null;
+        v
+    };
+    assert_eq!(meta(&a), meta(&b));
+}
+
+#[test]
+fn far_from_origin_coordinates_keep_their_precision() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let ds = dir.path().join("ds");
+    let out = dir.path().join("out.ply");
+    let src = data("autzen_trim.las");
+    run_ok(&["convert", s(&src), "-o", s(&ds), "-q"]);
+    run_ok(&["export", s(&ds), "-o", s(&out)]);
+    // Compare real coordinates, exported as doubles, to the input's.
+    let mut a = read_xyz(&src);
+    let mut b = read_xyz(&out);
+    assert_eq!(a.len(), b.len());
+    assert!(a[0][0] > 600_000.0, "autzen lies far from the origin");
+    let key = |p: &[f64; 3]| (p[0].to_bits(), p[1].to_bits(), p[2].to_bits());
+    a.sort_by_key(key);
+    b.sort_by_key(key);
+    let half = las_scale(&src)[0] / 2.0;
+    for (p, q) in a.iter().zip(&b) {
+        for k in 0..3 {
+            assert!((p[k] - q[k]).abs() <= half, "{p:?} vs {q:?}");
+        }
+    }
+}
+
+fn read_xyz(path: &std::path::Path) -> Vec<[f64; 3]> {
+    let mut src = open_source(path).expect("opens");
+    let mut xyz = Vec::new();
+    let mut rows = Vec::new();
+    while src.read(1 << 16, &mut xyz, &mut rows).expect("reads") > 0 {}
+    xyz
+}
+
+/// Reads positions and attribute rows of any input through Strata's readers.
+fn read_all(path: &std::path::Path) -> (Vec<[f64; 3]>, Vec<u8>, usize, Vec<String>) {
+    let mut src = open_source(path).expect("opens");
+    let names = src
+        .info()
+        .attributes
+        .iter()
+        .map(|a| a.name.clone())
+        .collect();
+    let row_len = src.info().row_len();
+    let mut xyz = Vec::new();
+    let mut rows = Vec::new();
+    while src.read(1 << 16, &mut xyz, &mut rows).expect("reads") > 0 {}
+    (xyz, rows, row_len, names)
+}
+
+fn ply_round_trip(input: &str) {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let ds = dir.path().join("ds");
+    let out = dir.path().join("out.ply");
+    let src = data(input);
+    run_ok(&["convert", s(&src), "-o", s(&ds), "-q"]);
+    run_ok(&["verify", s(&ds)]);
+    run_ok(&["export", s(&ds), "-o", s(&out)]);
+    let meta: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(ds.join("metadata.json")).expect("metadata"))
+            .expect("json");
+    let scale: Vec<f64> = (0..3)
+        .map(|k| meta["scale"][k].as_f64().expect("scale"))
+        .collect();
+    let (a, ra, la, na) = read_all(&src);
+    let (b, rb, lb, nb) = read_all(&out);
+    assert_eq!(na, nb, "attribute names");
+    assert_eq!(la, lb);
+    assert_eq!(a.len(), b.len());
+    // Quantize both sides to the dataset grid and compare (position, attributes) multisets.
+    let keyed = |xyz: &[[f64; 3]], rows: &[u8], len: usize| {
+        let mut v: Vec<(i64, i64, i64, Vec<u8>)> = xyz
+            .iter()
+            .enumerate()
+            .map(|(i, p)| {
+                let q = |k: usize| {
+                    ((p[k] - meta["offset"][k].as_f64().unwrap_or(0.0)) / scale[k]).round() as i64
+                };
+                (q(0), q(1), q(2), rows[i * len..(i + 1) * len].to_vec())
+            })
+            .collect();
+        v.sort_unstable();
+        v
+    };
+    let (ka, kb) = (keyed(&a, &ra, la), keyed(&b, &rb, lb));
+    let first_diff = ka.iter().zip(&kb).position(|(x, y)| x != y);
+    assert!(
+        first_diff.is_none(),
+        "{input}: points differ after round trip, first at sorted index {first_diff:?}: {:?} vs {:?}",
+        first_diff.map(|i| &ka[i]),
+        first_diff.map(|i| &kb[i])
+    );
+    // The dataset grid is below the float32 resolution of the input: no precision lost.
+    for (k, sk) in scale.iter().enumerate() {
+        let max = a.iter().fold(0f64, |m, p| m.max(p[k].abs())) as f32;
+        assert!(
+            *sk <= (max.next_up() - max) as f64,
+            "axis {k}: scale {sk} is coarser than the input's float32 step"
+        );
+    }
+}
+
+#[test]
+fn bunny_range_scans_round_trip() {
+    ply_round_trip("bunny_range_scans_merged.ply");
+}
+
+#[test]
+fn bunny_mesh_vertices_round_trip() {
+    ply_round_trip("bunny_bun_zipper.ply");
+}
+
+#[test]
+fn several_inputs_make_one_dataset_with_the_union_of_attributes() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let ds = dir.path().join("ds");
+    let out = dir.path().join("out.las");
+    let a = data("autzen_trim.las");
+    let b = data("autzen_trim_pf7.las");
+    run_ok(&["convert", s(&a), s(&b), "-o", s(&ds), "-q"]);
+    let info = run_ok(&["info", s(&ds), "--json"]);
+    let v: serde_json::Value = serde_json::from_slice(&info.stdout).expect("json");
+    assert_eq!(v["points"], 220000);
+    let names: Vec<&str> = v["attributes"]
+        .as_array()
+        .expect("attributes")
+        .iter()
+        .filter_map(|a| a["name"].as_str())
+        .collect();
+    assert!(
+        names.contains(&"scan_angle_rank")
+            && names.contains(&"scan_angle")
+            && names.contains(&"scanner_channel")
+    );
+    run_ok(&["export", s(&ds), "-o", s(&out)]);
+    assert_eq!(las_multiset(&out).len(), 220000);
+}
+
+#[test]
+fn info_json_has_the_promised_fields() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let ds = dir.path().join("ds");
+    run_ok(&["convert", s(&data("autzen_trim.laz")), "-o", s(&ds), "-q"]);
+    let o = run_ok(&["info", s(&ds), "--json"]);
+    let v: serde_json::Value = serde_json::from_slice(&o.stdout).expect("json");
+    assert_eq!(v["points"], 110000);
+    assert!(v["nodes"].as_u64().unwrap_or(0) > 1);
+    assert!(v["depth"].as_u64().unwrap_or(0) >= 1);
+    assert!(v["bounds"]["min"][0].as_f64().unwrap_or(0.0) > 636000.0);
+    assert!(
+        v["attributes"]
+            .as_array()
+            .is_some_and(|a| a.iter().any(|x| x["name"] == "rgb"))
+    );
+}

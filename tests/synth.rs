@@ -1,0 +1,57 @@
+//! Synthetic scenes are deterministic and readable in every output format.
+
+mod common;
+use common::*;
+
+#[test]
+fn same_seed_same_bytes_other_seed_other_points() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let a = dir.path().join("a.las");
+    let b = dir.path().join("b.las");
+    let c = dir.path().join("c.las");
+    run_ok(&["synth", "--points", "50k", "-o", s(&a), "--seed", "3"]);
+    run_ok(&["synth", "--points", "50k", "-o", s(&b), "--seed", "3"]);
+    run_ok(&["synth", "--points", "50k", "-o", s(&c), "--seed", "4"]);
+    assert_eq!(las_multiset(&a), las_multiset(&b));
+    assert_ne!(las_multiset(&a), las_multiset(&c));
+}
+
+#[test]
+fn scenes_have_ground_buildings_and_vegetation_with_colour() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let a = dir.path().join("city.laz");
+    run_ok(&["synth", "--points", "100000", "-o", s(&a)]);
+    let pts = las_multiset(&a);
+    assert_eq!(pts.len(), 100_000);
+    let classes: std::collections::BTreeSet<i64> = pts.iter().map(|p| p.1[3]).collect();
+    for c in [2, 6] {
+        assert!(classes.contains(&c), "class {c} missing: {classes:?}");
+    }
+    assert!(
+        classes.contains(&4) || classes.contains(&5),
+        "no vegetation"
+    );
+    assert!(pts.iter().any(|p| p.1[13] != p.1[14]), "colour varies");
+    // Far from the origin, like survey data.
+    assert!(pts[0].0[0] as f64 * 0.001 > 400_000.0);
+}
+
+#[test]
+fn ply_and_terrain_outputs_convert() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let p = dir.path().join("t.ply");
+    run_ok(&[
+        "synth",
+        "--points",
+        "20000",
+        "--scene",
+        "terrain",
+        "-o",
+        s(&p),
+    ]);
+    let ds = dir.path().join("ds");
+    run_ok(&["convert", s(&p), "-o", s(&ds), "-q"]);
+    let o = run_ok(&["info", s(&ds), "--json"]);
+    let v: serde_json::Value = serde_json::from_slice(&o.stdout).expect("json");
+    assert_eq!(v["points"], 20000);
+}
