@@ -1,0 +1,145 @@
+//! Conversion throughput against the raw decode of the same file, measured in the same run.
+//!
+//! cargo run --release -p strata-bench --bin convert-bench -- [--points 10M,100M]
+//!     [--formats las,laz] [--memory-limit 512MiB] [--dir DIR]
+//!
+//! Each conversion runs in a child process, so its peak memory (VmHWM) is its own.
+
+use anyhow::{Context, bail};
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+use strata_converter::input::open_source;
+use strata_converter::synth::{Scene, synth};
+use strata_converter::sys::{format_bytes, parse_size};
+use strata_converter::{ConvertOptions, Sampling, convert};
+
+fn parse_count(s: &str) -> anyhow::Result<u64> {
+    let t = s.trim();
+    let (n, m) = match t.chars().last() {
+        Some('k' | 'K') => (&t[..t.len() - 1], 1e3),
+        Some('m' | 'M') => (&t[..t.len() - 1], 1e6),
+        Some('g' | 'G') => (&t[..t.len() - 1], 1e9),
+        _ => (t, 1.0),
+    };
+    Ok((n.parse::<f64>().with_context(|| format!("bad count {s}"))? * m) as u64)
+}
+
+fn decode_only(path: &Path) -> anyhow::Result<(u64, f64)> {
+    let start = Instant::now();
+    let mut src = open_source(path)?;
+    let (mut xyz, mut rows) = (Vec::new(), Vec::new());
+    let mut n = 0u64;
+    loop {
+        xyz.clear();
+        rows.clear();
+        let got = src.read(1 << 18, &mut xyz, &mut rows)?;
+        if got == 0 {
+            break;
+        }
+        n += got as u64;
+    }
+    Ok((n, start.elapsed().as_secs_f64()))
+}
+
+fn child(args: &[String]) -> anyhow::Result<()> {
+    let [input, output, limit] = args else {
+        bail!("child needs IN OUT LIMIT")
+    };
+    let summary = convert(&ConvertOptions {
+        inputs: vec![PathBuf::from(input)],
+        output: PathBuf::from(output),
+        memory_limit: parse_size(limit).map_err(anyhow::Error::msg)?,
+        threads: std::thread::available_parallelism().map_or(1, |n| n.get()),
+        sampling: Sampling::Poisson,
+        overwrite: true,
+        resume: false,
+        quiet: true,
+    })?;
+    println!("{}", serde_json::to_string(&summary)?);
+    Ok(())
+}
+
+fn main() -> anyhow::Result<()> {
+    let args: Vec<String> = std::env::args().skip(1).collect();
+    if args.first().map(String::as_str) == Some("child") {
+        return child(&args[1..]);
+    }
+    let mut points = vec![10_000_000u64];
+    let mut formats = vec!["las".to_string(), "laz".to_string()];
+    let mut limit = "2GiB".to_string();
+    let mut dir = PathBuf::from("target/bench-data");
+    let mut it = args.iter();
+    while let Some(a) = it.next() {
+        let v = it.next().with_context(|| format!("{a} needs a value"))?;
+        match a.as_str() {
+            "--points" => {
+                points = v
+                    .split(',')
+                    .map(parse_count)
+                    .collect::<anyhow::Result<_>>()?
+            }
+            "--formats" => formats = v.split(',').map(String::from).collect(),
+            "--memory-limit" => limit = v.clone(),
+            "--dir" => dir = PathBuf::from(v),
+            _ => bail!("unknown option {a}"),
+        }
+    }
+    std::fs::create_dir_all(&dir)?;
+    let threads = std::thread::available_parallelism().map_or(1, |n| n.get());
+    println!(
+        "conditions: {threads} threads, memory limit {limit}, synth city scene, poisson sampling"
+    );
+    println!(
+        "| points | input | decode Mpts/s | convert Mpts/s | convert/decode time | peak memory | nodes |"
+    );
+    println!("|---|---|---|---|---|---|---|");
+    for &n in &points {
+        for f in &formats {
+            let input = dir.join(format!("city_{n}.{f}"));
+            if !input.exists() {
+                synth(&input, n, Scene::City, 1, false)?;
+            }
+            let (decoded, decode_s) = decode_only(&input)?;
+            let out = dir.join(format!("city_{n}_{f}.strata"));
+            let exe = std::env::current_exe()?;
+            let o = std::process::Command::new(exe)
+                .args([
+                    "child",
+                    &input.to_string_lossy(),
+                    &out.to_string_lossy(),
+                    &limit,
+                ])
+                .output()?;
+            if !o.status.success() {
+                bail!("conversion failed: {}", String::from_utf8_lossy(&o.stderr));
+            }
+            let s: serde_json::Value = serde_json::from_slice(&o.stdout)?;
+            let secs = s["seconds"].as_f64().unwrap_or(f64::NAN);
+            println!(
+                "| {n} | {f} | {:.2} | {:.2} | {:.2}x | {} | {} |",
+                decoded as f64 / decode_s / 1e6,
+                n as f64 / secs / 1e6,
+                secs / decode_s,
+                s["peak_memory_bytes"]
+                    .as_u64()
+                    .map_or("?".into(), format_bytes),
+                s["nodes"],
+            );
+            let phases: Vec<String> = s["phases"]
+                .as_array()
+                .into_iter()
+                .flatten()
+                .map(|p| {
+                    format!(
+                        "{} {:.2}s",
+                        p["name"].as_str().unwrap_or("?"),
+                        p["seconds"].as_f64().unwrap_or(0.0)
+                    )
+                })
+                .collect();
+            println!("|  | phases: {} | | | | | |", phases.join(", "));
+            let _ = std::fs::remove_dir_all(&out);
+        }
+    }
+    Ok(())
+}
