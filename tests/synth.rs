@@ -23,6 +23,14 @@ fn scenes_have_ground_buildings_and_vegetation_with_colour() {
     run_ok(&["synth", "--points", "100000", "-o", s(&a)]);
     let pts = las_multiset(&a);
     assert_eq!(pts.len(), 100_000);
+    let mut head = [0u8; 105];
+    std::io::Read::read_exact(&mut std::fs::File::open(&a).expect("open"), &mut head)
+        .expect("header");
+    assert_ne!(head[104] & 0x80, 0, ".laz output must be LAZ-compressed");
+    assert!(
+        std::fs::metadata(&a).expect("meta").len() < 100_000 * 34 / 2,
+        "LAZ should be well under half the LAS size"
+    );
     let classes: std::collections::BTreeSet<i64> = pts.iter().map(|p| p.1[3]).collect();
     for c in [2, 6] {
         assert!(classes.contains(&c), "class {c} missing: {classes:?}");

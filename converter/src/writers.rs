@@ -152,11 +152,16 @@ impl LasRowWriter {
                     .collect(),
             });
         }
+        // Compression follows the final name; the file is written under a ".part" name.
+        builder.point_format.is_compressed = path
+            .extension()
+            .is_some_and(|e| e.eq_ignore_ascii_case("laz"));
         let header = builder
             .into_header()
             .map_err(|e| ConvertError::output(path, format!("cannot build LAS header ({e})")))?;
         let part = part_path(path);
-        let writer = Writer::from_path(&part, header)
+        let file = File::create(&part).map_err(|e| ConvertError::io(&part, "cannot create", e))?;
+        let writer = Writer::new(BufWriter::with_capacity(1 << 20, file), header)
             .map_err(|e| ConvertError::output(&part, format!("cannot create ({e})")))?;
         Ok(LasRowWriter {
             path: path.to_path_buf(),
