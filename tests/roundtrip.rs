@@ -114,11 +114,7 @@ fn far_from_origin_coordinates_keep_their_precision() {
 }
 
 fn read_xyz(path: &std::path::Path) -> Vec<[f64; 3]> {
-    let mut src = open_source(path).expect("opens");
-    let mut xyz = Vec::new();
-    let mut rows = Vec::new();
-    while src.read(1 << 16, &mut xyz, &mut rows).expect("reads") > 0 {}
-    xyz
+    read_all(path).0
 }
 
 /// Reads positions and attribute rows of any input through Strata's readers.
