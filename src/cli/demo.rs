@@ -1,8 +1,14 @@
 use super::convert::print_summary;
 use std::path::PathBuf;
 use std::process::ExitCode;
+use std::time::Duration;
 use strata_converter::synth::{Scene, synth};
 use strata_converter::{ConvertOptions, Sampling, convert};
+use strata_viewer::Settings;
+use strata_viewer::app::{WindowOptions, run_window};
+use strata_viewer::gpu::ProjectionPath;
+use strata_viewer::headless::{RenderOptions, render};
+use strata_viewer::renderer::DEFAULT_GPU_CACHE;
 
 #[derive(Debug, clap::Args)]
 pub struct Args {
@@ -12,10 +18,13 @@ pub struct Args {
     /// Points in the synthetic scene.
     #[arg(long, default_value = "2M", value_parser = super::synth::parse_count)]
     points: u64,
+    /// Render a PNG instead of opening a window (the default where there is no display).
+    #[arg(long)]
+    png: bool,
 }
 
-/// Synthesizes a city, converts it, verifies it and prints what a viewer would open.
-/// (The viewer is a later stage; until it lands the demo ends with the dataset's summary.)
+/// Synthesizes a city, converts it, verifies it and shows it: in the viewer where there is a
+/// display, else as a rendered PNG.
 pub fn run(a: Args) -> anyhow::Result<ExitCode> {
     let dir = a
         .dir
@@ -23,9 +32,9 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
     std::fs::create_dir_all(&dir)?;
     let las = dir.join("city.laz");
     let dataset = dir.join("city.strata");
-    println!("1/3 synthesizing {} points -> {}", a.points, las.display());
+    println!("1/4 synthesizing {} points -> {}", a.points, las.display());
     synth(&las, a.points, Scene::City, 1, true)?;
-    println!("2/3 converting -> {}", dataset.display());
+    println!("2/4 converting -> {}", dataset.display());
     let summary = convert(&ConvertOptions {
         inputs: vec![las],
         output: dataset.clone(),
@@ -37,7 +46,7 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
         quiet: false,
     })?;
     print_summary(&summary);
-    println!("3/3 verifying");
+    println!("3/4 verifying");
     let report = strata_format::verify_dataset(&dataset);
     if !report.is_ok() {
         for f in &report.faults {
@@ -49,9 +58,53 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
         );
     }
     println!(
-        "ok: {} points in {} nodes verified; inspect it with `strata info {}`",
-        report.points_checked,
-        report.nodes_checked,
+        "ok: {} points in {} nodes verified",
+        report.points_checked, report.nodes_checked
+    );
+    let has_display = std::env::var_os("DISPLAY").is_some_and(|d| !d.is_empty())
+        || std::env::var_os("WAYLAND_DISPLAY").is_some_and(|d| !d.is_empty());
+    if has_display && !a.png {
+        println!("4/4 opening the viewer (close the window to end the demo)");
+        run_window(
+            &dataset,
+            WindowOptions {
+                settings: Settings::default(),
+                gpu_cache_bytes: DEFAULT_GPU_CACHE,
+                loader_threads: 4,
+                projection: ProjectionPath::Auto,
+                screenshot: None,
+                size: (1400, 860),
+            },
+        )?;
+        return Ok(ExitCode::SUCCESS);
+    }
+    let png = dir.join("city.png");
+    println!("4/4 no display: rendering {}", png.display());
+    let report = render(
+        &dataset,
+        &RenderOptions {
+            output: png.clone(),
+            camera: None,
+            width: 1280,
+            height: 720,
+            settings: Settings::default(),
+            wait_complete: true,
+            timeout: Duration::from_secs(60),
+            path: None,
+            frames: 1,
+            fps: 0.0,
+            stats: None,
+            projection: ProjectionPath::Auto,
+            gpu_cache_bytes: DEFAULT_GPU_CACHE,
+            loader_threads: 4,
+        },
+    )?;
+    let frame = report.frames.last();
+    println!(
+        "ok: {} with {} points drawn via {}; open it in the viewer with `strata view {}`",
+        png.display(),
+        frame.map_or(0, |f| f.points_drawn),
+        report.adapter,
         dataset.display()
     );
     Ok(ExitCode::SUCCESS)

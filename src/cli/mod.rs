@@ -2,8 +2,11 @@ mod convert;
 mod demo;
 mod export;
 mod info;
+mod render;
 mod synth;
 mod verify;
+mod view;
+mod view_args;
 
 use clap::{Parser, Subcommand};
 use std::process::ExitCode;
@@ -28,6 +31,10 @@ enum Command {
     Export(export::Args),
     /// Write a deterministic procedural scene of any size as LAS, LAZ or PLY.
     Synth(synth::Args),
+    /// Open a dataset in a window: stream it under a point budget, orbit and fly.
+    View(view::Args),
+    /// Render a dataset headless to PNG (one image or a fly-through), with statistics.
+    Render(render::Args),
     /// Synthesize a scene, convert it and show it.
     Demo(demo::Args),
 }
@@ -39,6 +46,8 @@ pub fn run(cli: Cli) -> anyhow::Result<ExitCode> {
         Command::Verify(a) => verify::run(a),
         Command::Export(a) => export::run(a),
         Command::Synth(a) => synth::run(a),
+        Command::View(a) => view::run(a),
+        Command::Render(a) => render::run(a),
         Command::Demo(a) => demo::run(a),
     }
 }

@@ -1,0 +1,91 @@
+use super::view_args::ViewArgs;
+use std::path::PathBuf;
+use std::process::ExitCode;
+use std::time::Duration;
+use strata_viewer::headless::{RenderOptions, render};
+
+#[derive(Debug, clap::Args)]
+pub struct Args {
+    /// The dataset directory.
+    dataset: PathBuf,
+    /// The PNG to write (a fly-through writes NAME_0000.png, NAME_0001.png, ...).
+    #[arg(short, long)]
+    output: PathBuf,
+    /// "eye=X,Y,Z;target=X,Y,Z;fov=DEG" in the dataset's coordinates (default: all in view).
+    #[arg(long)]
+    camera: Option<String>,
+    /// Image size, WIDTHxHEIGHT.
+    #[arg(long, default_value = "1280x720")]
+    size: String,
+    /// Render once every node the budget allows is resident (every frame of a fly-through).
+    #[arg(long)]
+    wait_complete: bool,
+    /// Without --wait-complete, a single image waits at most this many seconds for detail.
+    #[arg(long, default_value_t = 30.0)]
+    timeout: f64,
+    /// A fly-through: {"keyframes": [{"eye": [x,y,z], "target": [x,y,z], "fov": deg}, ...]}.
+    #[arg(long, requires = "frames")]
+    path: Option<PathBuf>,
+    /// Frames of the fly-through.
+    #[arg(long, requires = "path")]
+    frames: Option<u32>,
+    /// Pace of a fly-through that does not wait for completeness (frames per second).
+    #[arg(long, default_value_t = 30.0)]
+    fps: f32,
+    /// Write per-frame statistics as JSON.
+    #[arg(long)]
+    stats: Option<PathBuf>,
+    #[command(flatten)]
+    view: ViewArgs,
+}
+
+pub fn parse_size_wh(s: &str) -> anyhow::Result<(u32, u32)> {
+    let parsed = s
+        .split_once(['x', 'X'])
+        .and_then(|(w, h)| Some((w.trim().parse::<u32>().ok()?, h.trim().parse::<u32>().ok()?)));
+    match parsed {
+        Some((w, h)) if (16..=16384).contains(&w) && (16..=16384).contains(&h) => Ok((w, h)),
+        _ => anyhow::bail!("--size {s:?} is not WIDTHxHEIGHT with sides from 16 to 16384"),
+    }
+}
+
+pub fn run(a: Args) -> anyhow::Result<ExitCode> {
+    let (width, height) = parse_size_wh(&a.size)?;
+    if !(a.timeout.is_finite() && a.timeout >= 0.0) {
+        anyhow::bail!("--timeout {} is not a number of seconds", a.timeout);
+    }
+    let opts = RenderOptions {
+        output: a.output,
+        camera: a.camera,
+        width,
+        height,
+        settings: a.view.settings()?,
+        wait_complete: a.wait_complete,
+        timeout: Duration::from_secs_f64(a.timeout),
+        path: a.path,
+        frames: a.frames.unwrap_or(1),
+        fps: a.fps,
+        stats: a.stats,
+        projection: a.view.projection()?,
+        gpu_cache_bytes: a.view.gpu_cache,
+        loader_threads: a.view.loaders,
+    };
+    let report = render(&a.dataset, &opts)?;
+    let last = report.frames.last();
+    println!(
+        "{} image(s) via {} ({} projection): {} points in {} nodes, {} failed node(s)",
+        report.images.len(),
+        report.adapter,
+        report.projection,
+        last.map_or(0, |f| f.points_drawn),
+        last.map_or(0, |f| f.nodes_drawn),
+        last.map_or(0, |f| f.nodes_failed),
+    );
+    for e in &report.errors {
+        eprintln!("warning: {e}");
+    }
+    if last.is_some_and(|f| !f.complete) {
+        eprintln!("warning: the image was written before every wanted node arrived");
+    }
+    Ok(ExitCode::SUCCESS)
+}

@@ -1,0 +1,466 @@
+//! Headless rendering on the software adapter (lavapipe): coverage, the point budget, the two
+//! projection paths, corrupt nodes, fly-throughs, bad arguments, and the window under Xvfb.
+
+mod common;
+
+use common::{data, s, strata};
+use std::path::{Path, PathBuf};
+use std::process::Output;
+use std::sync::OnceLock;
+use strata_viewer::StreamDataset;
+use strata_viewer::headless::default_camera;
+
+const BACKGROUND: [u8; 3] = [24, 26, 32];
+
+fn gpu_run(args: &[&str]) -> Output {
+    let backend = std::env::var("WGPU_BACKEND").unwrap_or_else(|_| "vulkan".into());
+    match strata().env("WGPU_BACKEND", backend).args(args).output() {
+        Ok(o) => o,
+        Err(e) => panic!("cannot run strata: {e}"),
+    }
+}
+
+fn gpu_ok(args: &[&str]) -> Output {
+    let o = gpu_run(args);
+    assert!(
+        o.status.success(),
+        "strata {args:?} failed:\n{}",
+        String::from_utf8_lossy(&o.stderr)
+    );
+    o
+}
+
+/// Datasets built once per test binary, shared read-only by the tests.
+fn fixtures() -> &'static Path {
+    static DIR: OnceLock<PathBuf> = OnceLock::new();
+    DIR.get_or_init(|| {
+        let dir = Path::new(env!("CARGO_TARGET_TMPDIR")).join("render-fixtures");
+        // Left over from an earlier run: rebuilt so every run starts from the same files.
+        let _ = std::fs::remove_dir_all(&dir);
+        std::fs::create_dir_all(&dir).expect("fixture dir");
+        let autzen = dir.join("autzen.strata");
+        common::run_ok(&[
+            "convert",
+            s(&data("autzen_trim.laz")),
+            "-o",
+            s(&autzen),
+            "--quiet",
+        ]);
+        let bunny = dir.join("bunny.strata");
+        common::run_ok(&[
+            "convert",
+            s(&data("bunny_range_scans_merged.ply")),
+            "-o",
+            s(&bunny),
+            "--quiet",
+        ]);
+        let city_las = dir.join("city.las");
+        common::run_ok(&[
+            "synth",
+            "--points",
+            "400k",
+            "-o",
+            s(&city_las),
+            "--seed",
+            "3",
+        ]);
+        let city = dir.join("city.strata");
+        common::run_ok(&["convert", s(&city_las), "-o", s(&city), "--quiet"]);
+        dir
+    })
+}
+
+fn read_png(path: &Path) -> (u32, u32, Vec<u8>) {
+    let file = std::fs::File::open(path).expect("png exists");
+    let mut dec = png::Decoder::new(std::io::BufReader::new(file))
+        .read_info()
+        .expect("png header");
+    let mut buf = vec![0; dec.output_buffer_size().expect("png size")];
+    let info = dec.next_frame(&mut buf).expect("png data");
+    buf.truncate(info.buffer_size());
+    let rgba = match info.color_type {
+        png::ColorType::Rgba => buf,
+        png::ColorType::Rgb => buf
+            .chunks_exact(3)
+            .flat_map(|c| [c[0], c[1], c[2], 255])
+            .collect(),
+        other => panic!("unexpected PNG colour type {other:?}"),
+    };
+    (info.width, info.height, rgba)
+}
+
+fn stats(path: &Path) -> serde_json::Value {
+    serde_json::from_slice(&std::fs::read(path).expect("stats written")).expect("stats JSON")
+}
+
+fn drawn(px: &[u8]) -> bool {
+    px[..3] != BACKGROUND
+}
+
+/// The screen rectangle (x0, y0, x1, y1) that the dataset's bounds project to under the
+/// default camera.
+fn projected_bounds(dataset: &Path, w: u32, h: u32) -> (f32, f32, f32, f32) {
+    let ds = StreamDataset::open_path(dataset).expect("dataset opens");
+    let cam = default_camera(&ds);
+    let (min, max) = ds.bounds();
+    let vp = cam.projection(w as f32 / h as f32, 0.01, 1e7) * cam.view();
+    let mut r = (f32::MAX, f32::MAX, f32::MIN, f32::MIN);
+    for i in 0..8 {
+        let c = glam::Vec3::new(
+            if i & 1 == 0 { min.x } else { max.x },
+            if i & 2 == 0 { min.y } else { max.y },
+            if i & 4 == 0 { min.z } else { max.z },
+        );
+        let p = vp.project_point3(c);
+        let (x, y) = ((p.x * 0.5 + 0.5) * w as f32, (0.5 - p.y * 0.5) * h as f32);
+        r = (r.0.min(x), r.1.min(y), r.2.max(x), r.3.max(y));
+    }
+    r
+}
+
+/// Renders the default view and checks that points cover a good part of where the dataset
+/// projects and nothing outside it.
+fn check_coverage(name: &str, min_fraction: f64) {
+    let dir = fixtures();
+    let dataset = dir.join(name);
+    let out = dir.join(format!("{name}-coverage.png"));
+    gpu_ok(&[
+        "render",
+        s(&dataset),
+        "-o",
+        s(&out),
+        "--size",
+        "320x240",
+        "--pipeline",
+        "points",
+        "--wait-complete",
+    ]);
+    let (w, h, rgba) = read_png(&out);
+    assert_eq!((w, h), (320, 240));
+    let (x0, y0, x1, y1) = projected_bounds(&dataset, w, h);
+    let (mut inside, mut inside_drawn, mut outside_drawn) = (0u64, 0u64, 0u64);
+    for y in 0..h {
+        for x in 0..w {
+            let px = &rgba[((y * w + x) * 4) as usize..][..4];
+            let (fx, fy) = (x as f32 + 0.5, y as f32 + 0.5);
+            // Two pixels of slack for splats at the edge.
+            if fx >= x0 - 2.0 && fx <= x1 + 2.0 && fy >= y0 - 2.0 && fy <= y1 + 2.0 {
+                inside += 1;
+                inside_drawn += drawn(px) as u64;
+            } else {
+                outside_drawn += drawn(px) as u64;
+            }
+        }
+    }
+    let fraction = inside_drawn as f64 / inside.max(1) as f64;
+    assert_eq!(
+        outside_drawn, 0,
+        "{name}: points drawn outside the dataset's projection"
+    );
+    assert!(
+        fraction >= min_fraction,
+        "{name}: only {:.1}% of the projected bounds covered",
+        fraction * 100.0
+    );
+}
+
+#[test]
+fn autzen_covers_its_projection() {
+    check_coverage("autzen.strata", 0.25);
+}
+
+#[test]
+fn bunny_covers_its_projection() {
+    check_coverage("bunny.strata", 0.15);
+}
+
+fn render_stats(dataset: &Path, tag: &str, extra: &[&str]) -> (serde_json::Value, PathBuf) {
+    let out = dataset.with_file_name(format!("{tag}.png"));
+    let st = dataset.with_file_name(format!("{tag}.json"));
+    let mut args = vec![
+        "render",
+        s(dataset),
+        "-o",
+        s(&out),
+        "--stats",
+        s(&st),
+        "--wait-complete",
+    ];
+    args.extend_from_slice(extra);
+    gpu_ok(&args);
+    (stats(&st), out)
+}
+
+#[test]
+fn budget_is_a_ceiling_and_a_smaller_budget_draws_fewer_points() {
+    let city = fixtures().join("city.strata");
+    let drawn_with = |budget: &str| {
+        let (st, _) = render_stats(
+            &city,
+            &format!("budget-{budget}"),
+            &["--budget", budget, "--size", "800x600"],
+        );
+        let frame = &st["frames"][0];
+        let points = frame["points_drawn"].as_u64().expect("points_drawn");
+        assert!(frame["complete"].as_bool().expect("complete"));
+        for key in [
+            "nodes_drawn",
+            "frame_ms",
+            "passes",
+            "bytes_loaded",
+            "nodes_failed",
+        ] {
+            assert!(!frame[key].is_null(), "stats lack {key}");
+        }
+        points
+    };
+    let small = drawn_with("100k");
+    let large = drawn_with("1M");
+    assert!(small <= 100_000, "{small} points drawn under a 100k budget");
+    assert!(small > 0);
+    assert!(small < large, "budget 100k drew {small}, 1M drew {large}");
+    assert!(large <= 1_000_000);
+}
+
+#[test]
+fn a_small_view_loads_only_what_it_can_show() {
+    let city = fixtures().join("city.strata");
+    let (tiny, _) = render_stats(&city, "tiny-view", &["--budget", "10M", "--size", "32x32"]);
+    let (big, _) = render_stats(&city, "big-view", &["--budget", "10M", "--size", "800x600"]);
+    let points = |v: &serde_json::Value| v["frames"][0]["points_drawn"].as_u64().unwrap_or(0);
+    assert!(
+        points(&tiny) * 4 < points(&big),
+        "a 32x32 view drew {} points, an 800x600 view {}",
+        points(&tiny),
+        points(&big)
+    );
+}
+
+#[test]
+fn int64_and_int32_projection_give_identical_images() {
+    for name in ["autzen.strata", "city.strata"] {
+        let dataset = fixtures().join(name);
+        let images: Vec<Vec<u8>> = ["int64", "int32"]
+            .iter()
+            .map(|path| {
+                let (st, png) = render_stats(
+                    &dataset,
+                    &format!("{name}-{path}"),
+                    &[
+                        "--projection",
+                        path,
+                        "--size",
+                        "400x300",
+                        "--point-size",
+                        "3",
+                    ],
+                );
+                assert_eq!(st["projection"], *path);
+                read_png(&png).2
+            })
+            .collect();
+        let differing = images[0]
+            .chunks_exact(4)
+            .zip(images[1].chunks_exact(4))
+            .filter(|(a, b)| a != b)
+            .count();
+        assert_eq!(
+            differing, 0,
+            "{name}: {differing} pixels differ between int64 and int32"
+        );
+        assert!(images[0].chunks_exact(4).filter(|p| drawn(p)).count() > 1000);
+    }
+}
+
+#[test]
+fn a_corrupt_node_is_skipped_and_counted() {
+    let src = fixtures().join("autzen.strata");
+    let dir = fixtures().join("corrupt-node");
+    let dataset = dir.join("autzen.strata");
+    std::fs::create_dir_all(&dataset).expect("dir");
+    for f in ["metadata.json", "hierarchy.bin", "octree.bin"] {
+        std::fs::copy(src.join(f), dataset.join(f)).expect("copy");
+    }
+    let ds = strata_format::LocalDataset::open(&dataset).expect("opens");
+    let victim = ds
+        .all_nodes()
+        .expect("nodes")
+        .into_iter()
+        .find(|n| n.key.level == 1)
+        .expect("a level-1 node");
+    let mut octree = std::fs::read(dataset.join("octree.bin")).expect("read");
+    octree[victim.offset as usize + victim.size as usize / 2] ^= 0x5a;
+    std::fs::write(dataset.join("octree.bin"), octree).expect("write");
+
+    let out = dir.join("corrupt.png");
+    let st = dir.join("corrupt.json");
+    let o = gpu_ok(&[
+        "render",
+        s(&dataset),
+        "-o",
+        s(&out),
+        "--stats",
+        s(&st),
+        "--wait-complete",
+        "--size",
+        "200x150",
+    ]);
+    let v = stats(&st);
+    assert_eq!(v["frames"][0]["nodes_failed"], 1);
+    assert!(v["frames"][0]["points_drawn"].as_u64().unwrap_or(0) > 0);
+    let errors = v["errors"].to_string();
+    assert!(
+        errors.contains(&victim.key.name()),
+        "errors {errors} do not name node {}",
+        victim.key
+    );
+    assert!(String::from_utf8_lossy(&o.stderr).contains("checksum"));
+    assert!(out.exists());
+}
+
+#[test]
+fn fly_through_writes_numbered_frames_with_stats() {
+    let dataset = fixtures().join("city.strata");
+    let ds = StreamDataset::open_path(&dataset).expect("opens");
+    let a = ds.anchor();
+    let (min, max) = ds.bounds();
+    let c = (min + max) * 0.5;
+    let r = (max - min).length();
+    let key = |dx: f32, dy: f32| {
+        serde_json::json!({
+            "eye": [a.x + (c.x + dx * r) as f64, a.y + (c.y + dy * r) as f64, a.z + (c.z + 0.5 * r) as f64],
+            "target": [a.x + c.x as f64, a.y + c.y as f64, a.z + c.z as f64],
+            "fov": 60.0
+        })
+    };
+    let dir = fixtures().join("fly");
+    std::fs::create_dir_all(&dir).expect("dir");
+    let path = dir.join("path.json");
+    let json = serde_json::json!({"keyframes": [key(1.0, 0.0), key(0.0, 1.0), key(-1.0, 0.0)]});
+    std::fs::write(&path, json.to_string()).expect("write path");
+    let st = dir.join("fly.json");
+    gpu_ok(&[
+        "render",
+        s(&dataset),
+        "-o",
+        s(&dir.join("fly.png")),
+        "--path",
+        s(&path),
+        "--frames",
+        "4",
+        "--size",
+        "160x120",
+        "--stats",
+        s(&st),
+        "--wait-complete",
+    ]);
+    let v = stats(&st);
+    assert_eq!(v["frames"].as_array().map(Vec::len), Some(4));
+    let mut images = Vec::new();
+    for i in 0..4 {
+        let (w, h, rgba) = read_png(&dir.join(format!("fly_{i:04}.png")));
+        assert_eq!((w, h), (160, 120));
+        images.push(rgba);
+    }
+    assert_ne!(
+        images[0], images[3],
+        "the camera moved but the image did not change"
+    );
+}
+
+#[test]
+fn bad_arguments_get_one_clear_sentence() {
+    let dataset = fixtures().join("autzen.strata");
+    let out = fixtures().join("never.png");
+    let cases: [(&[&str], &str); 5] = [
+        (
+            &["render", "/nonexistent/set.strata", "-o", s(&out)],
+            "/nonexistent/set.strata",
+        ),
+        (
+            &["render", s(&dataset), "-o", s(&out), "--camera", "eye=1,2"],
+            "eye=1,2",
+        ),
+        (
+            &["render", s(&dataset), "-o", s(&out), "--size", "10x"],
+            "--size",
+        ),
+        (
+            &["render", s(&dataset), "-o", s(&out), "--pipeline", "magic"],
+            "magic",
+        ),
+        (
+            &["render", s(&dataset), "-o", s(&out), "--budget", "10"],
+            "--budget",
+        ),
+    ];
+    for (args, needle) in cases {
+        let o = gpu_run(args);
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert!(!o.status.success(), "{args:?} succeeded");
+        assert!(
+            err.contains(needle),
+            "{args:?}: message {err:?} does not mention {needle}"
+        );
+        assert!(!err.contains("panicked"), "{args:?} panicked: {err}");
+        assert!(!out.exists(), "{args:?} left an image behind");
+    }
+}
+
+#[test]
+fn window_opens_under_xvfb_and_shows_the_panel() {
+    let have_xvfb = Path::new("/usr/bin/xvfb-run").exists();
+    if !have_xvfb {
+        assert!(
+            std::env::var_os("STRATA_REQUIRE_XVFB").is_none(),
+            "xvfb-run is missing but STRATA_REQUIRE_XVFB is set"
+        );
+        eprintln!("skipping: xvfb-run is not installed");
+        return;
+    }
+    let dataset = fixtures().join("autzen.strata");
+    let shot = fixtures().join("window.png");
+    let backend = std::env::var("WGPU_BACKEND").unwrap_or_else(|_| "vulkan".into());
+    let o = std::process::Command::new("xvfb-run")
+        .args(["-a", "-s", "-screen 0 1400x900x24"])
+        .arg(env!("CARGO_BIN_EXE_strata"))
+        .args([
+            "view",
+            s(&dataset),
+            "--size",
+            "1000x640",
+            "--screenshot",
+            s(&shot),
+            "--screenshot-after",
+            "20",
+        ])
+        .env("WGPU_BACKEND", backend)
+        .output()
+        .expect("xvfb-run runs");
+    assert!(
+        o.status.success(),
+        "view failed: {}",
+        String::from_utf8_lossy(&o.stderr)
+    );
+    let (w, h, rgba) = read_png(&shot);
+    assert_eq!((w, h), (1000, 640));
+    let px = |x: u32, y: u32| &rgba[((y * w + x) * 4) as usize..][..3];
+    // The panel (left 280 px) holds text: many distinct light pixels on a dark panel.
+    let panel_light = (0..h)
+        .flat_map(|y| (0..270).map(move |x| (x, y)))
+        .filter(|&(x, y)| px(x, y).iter().all(|&c| c > 150))
+        .count();
+    assert!(
+        panel_light > 500,
+        "the panel shows no text ({panel_light} light pixels)"
+    );
+    // The scene shows points beside it.
+    let scene_drawn = (0..h)
+        .flat_map(|y| (300..w).map(move |x| (x, y)))
+        .filter(|&(x, y)| px(x, y) != BACKGROUND)
+        .count();
+    assert!(
+        scene_drawn > 5000,
+        "the scene shows {scene_drawn} drawn pixels"
+    );
+}

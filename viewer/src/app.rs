@@ -1,0 +1,392 @@
+//! `strata view`: the window. The same `Renderer` as headless draws into a texture that egui
+//! shows beside the panel of settings and live statistics.
+
+use crate::camera::Camera;
+use crate::gpu::{GpuContext, ProjectionPath};
+use crate::headless::{default_camera, write_png};
+use crate::renderer::{FrameStats, Renderer};
+use crate::settings::{ColourMode, MAX_BUDGET, MIN_BUDGET, Pipeline, Settings, SizeMode};
+use crate::{StreamDataset, ViewerError};
+use eframe::egui;
+use std::path::{Path, PathBuf};
+use std::sync::Arc;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::time::Instant;
+
+pub struct WindowOptions {
+    pub settings: Settings,
+    pub gpu_cache_bytes: u64,
+    pub loader_threads: usize,
+    pub projection: ProjectionPath,
+    /// Save a screenshot of the whole window after this many frames, then close (for tests
+    /// and documentation).
+    pub screenshot: Option<(PathBuf, u32)>,
+    pub size: (u32, u32),
+}
+
+struct ViewerApp {
+    renderer: Renderer,
+    camera: Camera,
+    home: Camera,
+    settings: Settings,
+    texture: Option<(egui::TextureId, u32, u32)>,
+    stats: FrameStats,
+    frames: u32,
+    last_frame: Instant,
+    io_rate: f64,
+    frame_ms_avg: f64,
+    scene_size: f32,
+    screenshot: Option<(PathBuf, u32)>,
+    screenshot_done: Arc<AtomicBool>,
+    screenshot_error: Arc<std::sync::Mutex<Option<String>>>,
+}
+
+/// Opens the window and runs until it is closed.
+pub fn run_window(location: &Path, opts: WindowOptions) -> Result<(), ViewerError> {
+    let ds = Arc::new(StreamDataset::open_path(location)?);
+    let ctx = Arc::new(GpuContext::new(opts.projection)?);
+    let renderer = Renderer::new(
+        ctx.clone(),
+        ds.clone(),
+        opts.gpu_cache_bytes,
+        opts.loader_threads,
+    )?;
+    let home = default_camera(&ds);
+    let (min, max) = ds.bounds();
+    let screenshot_error = Arc::new(std::sync::Mutex::new(None));
+    let app = ViewerApp {
+        renderer,
+        camera: home,
+        home,
+        settings: opts.settings,
+        texture: None,
+        stats: FrameStats::default(),
+        frames: 0,
+        last_frame: Instant::now(),
+        io_rate: 0.0,
+        frame_ms_avg: 0.0,
+        scene_size: (max - min).length().max(1e-3),
+        screenshot: opts.screenshot,
+        screenshot_done: Arc::new(AtomicBool::new(false)),
+        screenshot_error: screenshot_error.clone(),
+    };
+    let native = eframe::NativeOptions {
+        viewport: egui::ViewportBuilder::default()
+            .with_title(format!("Strata: {}", ds.location()))
+            .with_inner_size([opts.size.0 as f32, opts.size.1 as f32]),
+        renderer: eframe::Renderer::Wgpu,
+        wgpu_options: eframe::egui_wgpu::WgpuConfiguration {
+            wgpu_setup: eframe::egui_wgpu::WgpuSetup::Existing(
+                eframe::egui_wgpu::WgpuSetupExisting {
+                    instance: ctx.instance.clone(),
+                    adapter: ctx.adapter.clone(),
+                    device: ctx.device.clone(),
+                    queue: ctx.queue.clone(),
+                },
+            ),
+            ..Default::default()
+        },
+        ..Default::default()
+    };
+    eframe::run_native("strata", native, Box::new(move |_cc| Ok(Box::new(app))))
+        .map_err(|e| ViewerError::Gpu(format!("cannot open the window: {e}")))?;
+    match screenshot_error.lock().map(|mut e| e.take()) {
+        Ok(Some(e)) => Err(ViewerError::Gpu(e)),
+        _ => Ok(()),
+    }
+}
+
+impl eframe::App for ViewerApp {
+    fn ui(&mut self, ui: &mut egui::Ui, frame: &mut eframe::Frame) {
+        let ctx = ui.ctx().clone();
+        egui::Panel::left("settings")
+            .resizable(false)
+            .exact_size(280.0)
+            .show(ui, |ui| self.panel(ui));
+        egui::CentralPanel::default()
+            .frame(egui::Frame::NONE)
+            .show(ui, |ui| self.scene(ui, frame));
+        self.take_screenshot(&ctx);
+        if !self.stats.complete || self.screenshot.is_some() {
+            ctx.request_repaint();
+        }
+    }
+}
+
+impl ViewerApp {
+    fn panel(&mut self, ui: &mut egui::Ui) {
+        ui.heading("Strata");
+        ui.label(self.renderer.dataset().location());
+        ui.separator();
+
+        ui.label("Point budget");
+        let mut log_budget = (self.settings.budget as f64).log10();
+        let slider = egui::Slider::new(
+            &mut log_budget,
+            (MIN_BUDGET as f64).log10()..=(MAX_BUDGET as f64).log10(),
+        )
+        .show_value(false);
+        if ui.add(slider).changed() {
+            self.settings.budget = 10f64.powf(log_budget).round() as u64;
+        }
+        ui.label(format!("{} points", group_digits(self.settings.budget)));
+
+        ui.label("Pipeline");
+        ui.horizontal(|ui| {
+            for p in Pipeline::ALL {
+                ui.radio_value(&mut self.settings.pipeline, p, p.name());
+            }
+        });
+        if self.settings.pipeline == Pipeline::Edl {
+            ui.add(
+                egui::Slider::new(&mut self.settings.edl_strength, 0.1..=4.0).text("EDL strength"),
+            );
+            ui.add(egui::Slider::new(&mut self.settings.edl_radius, 1.0..=4.0).text("EDL radius"));
+        }
+
+        ui.label("Point size");
+        ui.add(egui::Slider::new(&mut self.settings.point_size, 0.5..=10.0));
+        let mut attenuate = self.settings.size_mode == SizeMode::Attenuated;
+        if ui
+            .checkbox(&mut attenuate, "size by point spacing")
+            .changed()
+        {
+            self.settings.size_mode = if attenuate {
+                SizeMode::Attenuated
+            } else {
+                SizeMode::Fixed
+            };
+        }
+
+        ui.label("Colour");
+        egui::Grid::new("colour").num_columns(2).show(ui, |ui| {
+            for (i, c) in ColourMode::ALL.into_iter().enumerate() {
+                ui.radio_value(&mut self.settings.colour, c, c.name());
+                if i % 2 == 1 {
+                    ui.end_row();
+                }
+            }
+        });
+        ui.add(egui::Slider::new(&mut self.settings.min_spacing_px, 0.5..=4.0).text("detail (px)"));
+        if ui.button("Reset view (R)").clicked() {
+            self.camera = self.home;
+        }
+        ui.separator();
+
+        let s = &self.stats;
+        ui.heading("Statistics");
+        egui::Grid::new("stats").num_columns(2).show(ui, |ui| {
+            let mut row = |k: &str, v: String| {
+                ui.label(k);
+                ui.label(v);
+                ui.end_row();
+            };
+            row("frame", format!("{:.1} ms", self.frame_ms_avg));
+            row("points drawn", group_digits(s.points_drawn));
+            row("nodes drawn", s.nodes_drawn.to_string());
+            row("nodes visible", s.nodes_visible.to_string());
+            row("nodes resident", s.nodes_resident.to_string());
+            row(
+                "in flight / queued",
+                format!("{} / {}", s.nodes_in_flight, s.nodes_queued),
+            );
+            row("failed", s.nodes_failed.to_string());
+            row(
+                "GPU memory",
+                format!("{:.0} MiB", s.gpu_bytes as f64 / (1 << 20) as f64),
+            );
+            row("I/O", format!("{:.1} MB/s", self.io_rate / 1e6));
+            for (pass, ms) in &s.passes {
+                row(&format!("GPU {pass}"), format!("{ms:.2} ms"));
+            }
+        });
+        ui.label(if s.complete {
+            "complete"
+        } else {
+            "streaming..."
+        });
+        ui.separator();
+        ui.label(&self.renderer.context().adapter_name);
+        ui.label(
+            egui::RichText::new(self.camera.to_spec(self.renderer.dataset().anchor())).small(),
+        );
+    }
+
+    fn scene(&mut self, ui: &mut egui::Ui, frame: &mut eframe::Frame) {
+        let rect = ui.available_rect_before_wrap();
+        let response = ui.allocate_rect(rect, egui::Sense::click_and_drag());
+        self.navigate(ui, &response, rect);
+
+        let ppp = ui.ctx().pixels_per_point();
+        let w = (rect.width() * ppp).round().max(1.0) as u32;
+        let h = (rect.height() * ppp).round().max(1.0) as u32;
+        let now = Instant::now();
+        let dt = now.duration_since(self.last_frame).as_secs_f64().max(1e-6);
+        self.last_frame = now;
+        let stats = self.renderer.frame(&self.camera, w, h, &self.settings);
+        self.frame_ms_avg = self.frame_ms_avg * 0.9 + dt * 1e3 * 0.1;
+        self.io_rate = self.io_rate * 0.9 + stats.bytes_loaded as f64 / dt * 0.1;
+        self.stats = stats;
+        self.frames += 1;
+
+        let Some(state) = frame.wgpu_render_state() else {
+            return;
+        };
+        let Some(output) = self.renderer.output() else {
+            return;
+        };
+        let stale = self.texture.is_none_or(|(_, tw, th)| tw != w || th != h);
+        if stale {
+            let view = output.create_view(&Default::default());
+            let mut egui_renderer = state.renderer.write();
+            if let Some((old, _, _)) = self.texture.take() {
+                egui_renderer.free_texture(&old);
+            }
+            let id = egui_renderer.register_native_texture(
+                &state.device,
+                &view,
+                wgpu::FilterMode::Nearest,
+            );
+            self.texture = Some((id, w, h));
+        }
+        if let Some((id, _, _)) = self.texture {
+            ui.painter().image(
+                id,
+                rect,
+                egui::Rect::from_min_max(egui::pos2(0.0, 0.0), egui::pos2(1.0, 1.0)),
+                egui::Color32::WHITE,
+            );
+        }
+    }
+
+    fn navigate(&mut self, ui: &egui::Ui, response: &egui::Response, rect: egui::Rect) {
+        let size = rect.size();
+        if response.dragged_by(egui::PointerButton::Primary) && !ui.input(|i| i.modifiers.shift) {
+            let d = response.drag_delta();
+            self.camera.orbit(d.x / size.x * 4.0, d.y / size.y * 3.0);
+        } else if response.dragged_by(egui::PointerButton::Secondary)
+            || response.dragged_by(egui::PointerButton::Middle)
+            || response.dragged_by(egui::PointerButton::Primary)
+        {
+            let d = response.drag_delta();
+            self.camera.pan(d.x / size.y, d.y / size.y);
+        }
+        if response.hovered() {
+            let scroll = ui.input(|i| i.smooth_scroll_delta.y);
+            if scroll != 0.0 {
+                self.camera.zoom((-scroll * 0.002).exp());
+            }
+        }
+        if response.double_clicked()
+            && let Some(pos) = response.interact_pointer_pos()
+        {
+            self.focus(pos, rect, ui.ctx().pixels_per_point());
+        }
+        let dt = ui.input(|i| i.stable_dt).min(0.1);
+        let fast = if ui.input(|i| i.modifiers.shift) {
+            4.0
+        } else {
+            1.0
+        };
+        let step = self.scene_size * 0.25 * dt * fast;
+        let keys = ui.input(|i| {
+            let k = |key| if i.key_down(key) { 1.0 } else { 0.0 };
+            (
+                k(egui::Key::W) - k(egui::Key::S),
+                k(egui::Key::D) - k(egui::Key::A),
+                k(egui::Key::E) - k(egui::Key::Q),
+                i.key_pressed(egui::Key::R),
+            )
+        });
+        if ui.ctx().egui_wants_keyboard_input() {
+            return;
+        }
+        if keys.0 != 0.0 || keys.1 != 0.0 || keys.2 != 0.0 {
+            self.camera.fly(keys.0 * step, keys.1 * step, keys.2 * step);
+            ui.ctx().request_repaint();
+        }
+        if keys.3 {
+            self.camera = self.home;
+        }
+    }
+
+    /// Centres the view on the point under the cursor (the nearest drawn pixel within 8).
+    fn focus(&mut self, pos: egui::Pos2, rect: egui::Rect, ppp: f32) {
+        let Ok(depths) = self.renderer.read_depths() else {
+            return;
+        };
+        let Some((_, w, h)) = self.texture else {
+            return;
+        };
+        let px = ((pos.x - rect.min.x) * ppp) as i32;
+        let py = ((pos.y - rect.min.y) * ppp) as i32;
+        let mut best: Option<(i32, i32, f32)> = None;
+        for dy in -8..=8 {
+            for dx in -8..=8 {
+                let (x, y) = (px + dx, py + dy);
+                if x < 0 || y < 0 || x >= w as i32 || y >= h as i32 {
+                    continue;
+                }
+                if let Some(d) = depths[(y as u32 * w + x as u32) as usize]
+                    && best
+                        .is_none_or(|b| dx * dx + dy * dy < (b.0 - px).pow(2) + (b.1 - py).pow(2))
+                {
+                    best = Some((x, y, d));
+                }
+            }
+        }
+        let Some((x, y, depth)) = best else { return };
+        let view = self.camera.view();
+        let aspect = w as f32 / h as f32;
+        let inv = (self.camera.projection(aspect, 0.1, 10.0) * view).inverse();
+        let ndc = glam::Vec2::new(
+            (x as f32 + 0.5) / w as f32 * 2.0 - 1.0,
+            1.0 - (y as f32 + 0.5) / h as f32 * 2.0,
+        );
+        let far = inv.project_point3(ndc.extend(1.0));
+        let dir = (far - self.camera.eye).normalize_or_zero();
+        let forward = self.camera.forward();
+        let point = self.camera.eye + dir * (depth / dir.dot(forward).max(1e-3));
+        let offset = (self.camera.eye - point) * 0.5;
+        self.camera.target = point;
+        self.camera.eye = point + offset;
+    }
+
+    fn take_screenshot(&mut self, ctx: &egui::Context) {
+        let Some((path, after)) = &self.screenshot else {
+            return;
+        };
+        if self.screenshot_done.load(Ordering::Acquire) {
+            ctx.send_viewport_cmd(egui::ViewportCommand::Close);
+            return;
+        }
+        if self.frames == *after {
+            let path = path.clone();
+            let done = self.screenshot_done.clone();
+            let error = self.screenshot_error.clone();
+            let repaint = ctx.clone();
+            ctx.request_screenshot(move |image| {
+                let rgba: Vec<u8> = image.pixels.iter().flat_map(|c| c.to_array()).collect();
+                if let Err(e) = write_png(&path, image.size[0] as u32, image.size[1] as u32, &rgba)
+                    && let Ok(mut slot) = error.lock()
+                {
+                    *slot = Some(e.to_string());
+                }
+                done.store(true, Ordering::Release);
+                repaint.request_repaint();
+            });
+        }
+    }
+}
+
+fn group_digits(n: u64) -> String {
+    let s = n.to_string();
+    let mut out = String::new();
+    for (i, c) in s.chars().enumerate() {
+        if i > 0 && (s.len() - i).is_multiple_of(3) {
+            out.push(',');
+        }
+        out.push(c);
+    }
+    out
+}

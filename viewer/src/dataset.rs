@@ -1,0 +1,270 @@
+//! An open dataset seen through a `Source`: metadata, hierarchy pages on demand, and nodes decoded
+//! into the GPU point format.
+
+use crate::{MmapSource, Source, ViewerError};
+use glam::{DVec3, Vec3};
+use std::path::Path;
+use std::sync::Arc;
+use strata_format::{
+    AttrType, DatasetFile, GRID_CELLS_LOG2, HierarchyPage, Metadata, NodeColumns, NodeInfo,
+    NodeKey, PageRef, RowLayout, decode_node, decode_page,
+};
+
+/// One node ready for upload: per point `[x, y, z, colour]` (f32 bits, then packed RGBA8) and
+/// `intensity16 | classification << 16`.
+pub struct GpuNode {
+    pub key: NodeKey,
+    pub points: Vec<[u32; 4]>,
+    pub attributes: Vec<u32>,
+    /// Stored (compressed) bytes read for this node.
+    pub bytes_read: u64,
+}
+
+/// How stored attributes become colours; decided once from the root node.
+#[derive(Debug, Clone, Copy)]
+struct ColourSource {
+    rgb: Option<(usize, AttrType)>,
+    rgb_shift: u32,
+    intensity: Option<(usize, AttrType)>,
+    intensity_max: f64,
+    classification: Option<(usize, AttrType)>,
+}
+
+pub struct StreamDataset {
+    source: Arc<dyn Source>,
+    metadata: Metadata,
+    layout: RowLayout,
+    anchor: DVec3,
+    colour: ColourSource,
+}
+
+impl StreamDataset {
+    /// Opens a local dataset directory.
+    pub fn open_path(dir: &Path) -> Result<StreamDataset, ViewerError> {
+        let (source, metadata) = MmapSource::open(dir)?;
+        StreamDataset::from_source(Arc::new(source), metadata)
+    }
+
+    /// Opens a dataset from any source whose metadata has been read; reads the root page and
+    /// root node to learn the colour encoding.
+    pub fn from_source(
+        source: Arc<dyn Source>,
+        metadata: Metadata,
+    ) -> Result<StreamDataset, ViewerError> {
+        let layout = metadata.row_layout();
+        let edge = (1u64 << metadata.cube.bits) as f64;
+        let anchor = DVec3::from_array(std::array::from_fn(|i| {
+            metadata.offset[i] + metadata.scale[i] * (metadata.cube.min[i] as f64 + edge * 0.5)
+        }));
+        let find = |name: &str| layout.index_of(name).map(|i| (i, layout.attributes[i].ty));
+        let mut ds = StreamDataset {
+            source,
+            colour: ColourSource {
+                rgb: find("rgb").filter(|_| {
+                    layout
+                        .index_of("rgb")
+                        .is_some_and(|i| layout.attributes[i].count == 3)
+                }),
+                rgb_shift: 0,
+                intensity: find("intensity"),
+                intensity_max: 1.0,
+                classification: find("classification"),
+            },
+            metadata,
+            layout,
+            anchor,
+        };
+        let root_page = ds.load_page(&ds.root_page())?;
+        if let Some((_, root)) = root_page.entries.first()
+            && root.point_count > 0
+        {
+            let info = strata_format::node_infos(&root_page)
+                .next()
+                .ok_or_else(|| ViewerError::source(ds.location(), "root page has no root node"))?;
+            let columns = ds.read_columns(&info)?;
+            ds.colour = ds.learn_colour(&columns);
+        }
+        Ok(ds)
+    }
+
+    pub fn location(&self) -> String {
+        self.source.location()
+    }
+
+    pub fn metadata(&self) -> &Metadata {
+        &self.metadata
+    }
+
+    /// Real-world position of the anchor that all viewer coordinates are relative to.
+    pub fn anchor(&self) -> DVec3 {
+        self.anchor
+    }
+
+    pub fn has_rgb(&self) -> bool {
+        self.colour.rgb.is_some()
+    }
+
+    /// Bounds of the stored points relative to the anchor.
+    pub fn bounds(&self) -> (Vec3, Vec3) {
+        let b = &self.metadata.bounds;
+        (
+            (DVec3::from_array(b.min) - self.anchor).as_vec3(),
+            (DVec3::from_array(b.max) - self.anchor).as_vec3(),
+        )
+    }
+
+    /// A node's cube relative to the anchor: minimum corner and edge length.
+    pub fn node_cube(&self, key: NodeKey) -> (Vec3, f32) {
+        let m = &self.metadata;
+        let (min, edge) = key.int_bounds(m.cube.min, m.cube.bits);
+        let real = DVec3::from_array(std::array::from_fn(|i| {
+            m.offset[i] + m.scale[i] * min[i] as f64
+        }));
+        (
+            (real - self.anchor).as_vec3(),
+            (edge as f64 * m.scale[0]) as f32,
+        )
+    }
+
+    /// Distance between a node's points in world units (one sampling cell).
+    pub fn node_spacing(&self, key: NodeKey) -> f32 {
+        let (_, edge) = self.node_cube(key);
+        edge / (1u32 << GRID_CELLS_LOG2) as f32
+    }
+
+    pub fn root_page(&self) -> PageRef {
+        PageRef {
+            root: NodeKey::ROOT,
+            offset: self.metadata.hierarchy.root_page_offset,
+            size: self.metadata.hierarchy.root_page_size,
+            checksum: None,
+        }
+    }
+
+    pub fn load_page(&self, page: &PageRef) -> Result<HierarchyPage, ViewerError> {
+        let bytes = self
+            .source
+            .read(DatasetFile::Hierarchy, page.offset, page.size)?;
+        decode_page(&bytes, page, self.metadata.hierarchy.page_levels).map_err(|e| {
+            ViewerError::source(
+                format!("{}/{}", self.location(), DatasetFile::Hierarchy.name()),
+                format!(
+                    "hierarchy page at byte {} (nodes under {}): {e}",
+                    page.offset, page.root
+                ),
+            )
+        })
+    }
+
+    fn read_columns(&self, info: &NodeInfo) -> Result<NodeColumns, ViewerError> {
+        let payload = self
+            .source
+            .read(DatasetFile::Octree, info.offset, info.size as u64)?;
+        decode_node(
+            &payload,
+            info.point_count as usize,
+            info.checksum,
+            &self.layout,
+        )
+        .map_err(|e| {
+            ViewerError::source(
+                format!("{}/{}", self.location(), DatasetFile::Octree.name()),
+                format!("node {}: {e}", info.key),
+            )
+        })
+    }
+
+    /// Reads, verifies, decompresses and converts one node.
+    pub fn load_node(&self, info: &NodeInfo) -> Result<GpuNode, ViewerError> {
+        let columns = self.read_columns(info)?;
+        Ok(self.to_gpu(info, &columns))
+    }
+
+    fn learn_colour(&self, root: &NodeColumns) -> ColourSource {
+        let mut c = self.colour;
+        if let Some((i, ty)) = c.rgb {
+            let col = root.attribute(&self.layout, i);
+            let max = col
+                .chunks_exact(ty.size())
+                .map(|v| ty.read_f64(v))
+                .fold(0.0, f64::max);
+            // 16-bit LAS colour is often 8-bit values stored in 16 bits.
+            c.rgb_shift = if ty.size() >= 2 && max > 255.0 { 8 } else { 0 };
+        }
+        if let Some((i, ty)) = c.intensity {
+            let mut values: Vec<f64> = root
+                .attribute(&self.layout, i)
+                .chunks_exact(ty.size())
+                .map(|v| ty.read_f64(v))
+                .collect();
+            values.sort_by(f64::total_cmp);
+            // The 99th percentile: a few saturated returns should not darken everything.
+            let p99 = values
+                .get(values.len().saturating_sub(1) * 99 / 100)
+                .copied()
+                .unwrap_or(1.0);
+            c.intensity_max = if p99 > 0.0 { p99 } else { 1.0 };
+        }
+        c
+    }
+
+    fn to_gpu(&self, info: &NodeInfo, cols: &NodeColumns) -> GpuNode {
+        let n = cols.count;
+        let m = &self.metadata;
+        let base = DVec3::from_array(m.offset) - self.anchor;
+        let scale = DVec3::from_array(m.scale);
+        let column = |c: usize| &cols.bytes[c * n * 4..(c + 1) * n * 4];
+        let (xs, ys, zs) = (column(0), column(1), column(2));
+        let read_i32 = |b: &[u8], i: usize| {
+            i32::from_le_bytes([b[i * 4], b[i * 4 + 1], b[i * 4 + 2], b[i * 4 + 3]]) as f64
+        };
+        let c = &self.colour;
+        let rgb = c.rgb.map(|(i, ty)| (cols.attribute(&self.layout, i), ty));
+        let intensity = c
+            .intensity
+            .map(|(i, ty)| (cols.attribute(&self.layout, i), ty));
+        let class = c
+            .classification
+            .map(|(i, ty)| (cols.attribute(&self.layout, i), ty));
+        let mut points = Vec::with_capacity(n);
+        let mut attributes = Vec::with_capacity(n);
+        for p in 0..n {
+            let x = base.x + scale.x * read_i32(xs, p);
+            let y = base.y + scale.y * read_i32(ys, p);
+            let z = base.z + scale.z * read_i32(zs, p);
+            let colour = match rgb {
+                Some((col, ty)) => {
+                    let s = ty.size();
+                    let ch = |k: usize| {
+                        let v = ty.read_f64(&col[(p * 3 + k) * s..(p * 3 + k + 1) * s]) as u32;
+                        (v >> c.rgb_shift).min(255)
+                    };
+                    ch(0) | (ch(1) << 8) | (ch(2) << 16) | (255 << 24)
+                }
+                None => 0xffc8_c8c8,
+            };
+            let inten = intensity.map_or(0, |(col, ty)| {
+                let s = ty.size();
+                let v = ty.read_f64(&col[p * s..(p + 1) * s]) / c.intensity_max;
+                (v.clamp(0.0, 1.0) * 65535.0) as u32
+            });
+            let cls = class.map_or(0, |(col, ty)| {
+                let s = ty.size();
+                ty.read_f64(&col[p * s..(p + 1) * s]) as u32 & 0xff
+            });
+            points.push([
+                (x as f32).to_bits(),
+                (y as f32).to_bits(),
+                (z as f32).to_bits(),
+                colour,
+            ]);
+            attributes.push(inten | (cls << 16));
+        }
+        GpuNode {
+            key: info.key,
+            points,
+            attributes,
+            bytes_read: info.size as u64,
+        }
+    }
+}

@@ -1,0 +1,44 @@
+use std::path::PathBuf;
+use strata_format::FormatError;
+
+/// Everything the viewer can report. Each message names the thing (file, URL, adapter) and the fault.
+#[derive(Debug, thiserror::Error)]
+pub enum ViewerError {
+    #[error(transparent)]
+    Format(#[from] FormatError),
+    #[error("{location}: {what}")]
+    Source { location: String, what: String },
+    #[error(
+        "no GPU adapter available ({0}); install a Vulkan driver (mesa-vulkan-drivers) or set WGPU_BACKEND"
+    )]
+    NoAdapter(String),
+    #[error("GPU: {0}")]
+    Gpu(String),
+    #[error("{}: {what}", path.display())]
+    Output { path: PathBuf, what: String },
+    #[error("{what}: {input:?}")]
+    Argument { input: String, what: String },
+}
+
+impl ViewerError {
+    pub fn source(location: impl Into<String>, what: impl Into<String>) -> Self {
+        ViewerError::Source {
+            location: location.into(),
+            what: what.into(),
+        }
+    }
+
+    pub fn output(path: impl Into<PathBuf>, what: impl std::fmt::Display) -> Self {
+        ViewerError::Output {
+            path: path.into(),
+            what: what.to_string(),
+        }
+    }
+
+    pub fn argument(input: impl Into<String>, what: impl Into<String>) -> Self {
+        ViewerError::Argument {
+            input: input.into(),
+            what: what.into(),
+        }
+    }
+}

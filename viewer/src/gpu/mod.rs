@@ -1,0 +1,9 @@
+//! Everything on the GPU: device, node cache, compute passes and pass timing.
+
+pub mod cache;
+pub mod context;
+pub mod passes;
+pub mod timing;
+
+pub use cache::NodeCache;
+pub use context::{GpuContext, ProjectionPath};

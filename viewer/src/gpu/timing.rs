@@ -1,0 +1,135 @@
+//! GPU time per pass from timestamp queries, read back without stalling the frame: results
+//! arrive a frame or two later in a window, at once when the caller waits for the GPU.
+
+use std::collections::BTreeMap;
+use std::sync::Arc;
+use std::sync::atomic::{AtomicU8, Ordering};
+
+const MAX_PASSES: u32 = 16;
+const IDLE: u8 = 0;
+const MAPPING: u8 = 1;
+const MAPPED: u8 = 2;
+
+pub struct Timer {
+    queries: Option<Queries>,
+    names: Vec<String>,
+    /// Names of the passes in the readback buffer while it is being mapped.
+    in_readback: Vec<String>,
+    last: BTreeMap<String, f64>,
+}
+
+struct Queries {
+    set: wgpu::QuerySet,
+    resolve: wgpu::Buffer,
+    readback: wgpu::Buffer,
+    state: Arc<AtomicU8>,
+    period_ns: f32,
+}
+
+impl Timer {
+    pub fn new(device: &wgpu::Device, queue: &wgpu::Queue, enabled: bool) -> Timer {
+        let queries = enabled.then(|| {
+            let bytes = MAX_PASSES as u64 * 2 * 8;
+            Queries {
+                set: device.create_query_set(&wgpu::QuerySetDescriptor {
+                    label: Some("pass timestamps"),
+                    ty: wgpu::QueryType::Timestamp,
+                    count: MAX_PASSES * 2,
+                }),
+                resolve: device.create_buffer(&wgpu::BufferDescriptor {
+                    label: Some("timestamp resolve"),
+                    size: bytes,
+                    usage: wgpu::BufferUsages::QUERY_RESOLVE | wgpu::BufferUsages::COPY_SRC,
+                    mapped_at_creation: false,
+                }),
+                readback: device.create_buffer(&wgpu::BufferDescriptor {
+                    label: Some("timestamp readback"),
+                    size: bytes,
+                    usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
+                    mapped_at_creation: false,
+                }),
+                state: Arc::new(AtomicU8::new(IDLE)),
+                period_ns: queue.get_timestamp_period(),
+            }
+        });
+        Timer {
+            queries,
+            names: Vec::new(),
+            in_readback: Vec::new(),
+            last: BTreeMap::new(),
+        }
+    }
+
+    pub fn begin_frame(&mut self) {
+        self.names.clear();
+    }
+
+    /// Timestamp writes for a pass named `name`, when timing is available this frame.
+    pub fn pass(&mut self, name: &str) -> Option<wgpu::ComputePassTimestampWrites<'_>> {
+        let q = self.queries.as_ref()?;
+        if q.state.load(Ordering::Acquire) != IDLE || self.names.len() as u32 >= MAX_PASSES {
+            return None;
+        }
+        let i = self.names.len() as u32;
+        self.names.push(name.to_string());
+        Some(wgpu::ComputePassTimestampWrites {
+            query_set: &q.set,
+            beginning_of_pass_write_index: Some(2 * i),
+            end_of_pass_write_index: Some(2 * i + 1),
+        })
+    }
+
+    /// After the passes: resolve the queries into the readback buffer.
+    pub fn resolve(&mut self, encoder: &mut wgpu::CommandEncoder) {
+        let Some(q) = &self.queries else { return };
+        if self.names.is_empty() || q.state.load(Ordering::Acquire) != IDLE {
+            return;
+        }
+        let n = self.names.len() as u32 * 2;
+        encoder.resolve_query_set(&q.set, 0..n, &q.resolve, 0);
+        encoder.copy_buffer_to_buffer(&q.resolve, 0, &q.readback, 0, n as u64 * 8);
+    }
+
+    /// After submitting: start mapping the readback buffer.
+    pub fn after_submit(&mut self) {
+        let Some(q) = &self.queries else { return };
+        if self.names.is_empty() || q.state.load(Ordering::Acquire) != IDLE {
+            return;
+        }
+        q.state.store(MAPPING, Ordering::Release);
+        self.in_readback = std::mem::take(&mut self.names);
+        let state = q.state.clone();
+        q.readback
+            .slice(..)
+            .map_async(wgpu::MapMode::Read, move |result| {
+                state.store(
+                    if result.is_ok() { MAPPED } else { IDLE },
+                    Ordering::Release,
+                );
+            });
+    }
+
+    /// Collects a finished readback, if any (call after polling the device).
+    pub fn collect(&mut self) {
+        let Some(q) = &self.queries else { return };
+        if q.state.load(Ordering::Acquire) != MAPPED {
+            return;
+        }
+        if let Ok(data) = q.readback.slice(..).get_mapped_range() {
+            let stamps: &[u64] = bytemuck::cast_slice(&data);
+            self.last.clear();
+            for (i, name) in self.in_readback.iter().enumerate() {
+                let (a, b) = (stamps[2 * i], stamps[2 * i + 1]);
+                let ms = b.saturating_sub(a) as f64 * q.period_ns as f64 / 1e6;
+                *self.last.entry(name.clone()).or_insert(0.0) += ms;
+            }
+        }
+        q.readback.unmap();
+        q.state.store(IDLE, Ordering::Release);
+    }
+
+    /// The most recent complete set of pass times (ms).
+    pub fn last(&self) -> &BTreeMap<String, f64> {
+        &self.last
+    }
+}

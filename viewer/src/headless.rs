@@ -1,0 +1,255 @@
+//! `strata render`: the viewer's frame loop without a window, writing PNGs and statistics.
+
+use crate::camera::Camera;
+use crate::gpu::{GpuContext, ProjectionPath};
+use crate::renderer::{FrameStats, Renderer};
+use crate::settings::Settings;
+use crate::{StreamDataset, ViewerError};
+use serde::{Deserialize, Serialize};
+use std::path::{Path, PathBuf};
+use std::sync::Arc;
+use std::time::{Duration, Instant};
+
+pub struct RenderOptions {
+    pub output: PathBuf,
+    pub camera: Option<String>,
+    pub width: u32,
+    pub height: u32,
+    pub settings: Settings,
+    /// Each image waits until every node the budget allows is resident.
+    pub wait_complete: bool,
+    /// A single image without `wait_complete` waits at most this long for detail.
+    pub timeout: Duration,
+    pub path: Option<PathBuf>,
+    pub frames: u32,
+    /// Frame pacing of a fly-through that does not wait for completeness.
+    pub fps: f32,
+    pub stats: Option<PathBuf>,
+    pub projection: ProjectionPath,
+    pub gpu_cache_bytes: u64,
+    pub loader_threads: usize,
+}
+
+#[derive(Debug, Serialize)]
+pub struct RenderReport {
+    pub dataset: String,
+    pub adapter: String,
+    pub projection: &'static str,
+    pub width: u32,
+    pub height: u32,
+    pub budget: u64,
+    pub pipeline: &'static str,
+    pub open_ms: f64,
+    pub time_to_first_image_ms: Option<f64>,
+    pub images: Vec<String>,
+    pub frames: Vec<FrameStats>,
+    pub errors: Vec<String>,
+}
+
+#[derive(Debug, Deserialize)]
+struct PathFile {
+    keyframes: Vec<Keyframe>,
+}
+
+#[derive(Debug, Deserialize)]
+struct Keyframe {
+    eye: [f64; 3],
+    target: [f64; 3],
+    #[serde(default)]
+    fov: Option<f32>,
+}
+
+pub const DEFAULT_FOV_DEG: f32 = 50.0;
+
+/// The whole dataset in view.
+pub fn default_camera(ds: &StreamDataset) -> Camera {
+    let (min, max) = ds.bounds();
+    Camera::fit(min, max, DEFAULT_FOV_DEG.to_radians())
+}
+
+/// Opens the dataset and the GPU, renders, writes images and statistics.
+pub fn render(location: &Path, opts: &RenderOptions) -> Result<RenderReport, ViewerError> {
+    let t0 = Instant::now();
+    let ds = Arc::new(StreamDataset::open_path(location)?);
+    let ctx = Arc::new(GpuContext::new(opts.projection)?);
+    render_with(ds, ctx, opts, t0)
+}
+
+pub fn render_with(
+    ds: Arc<StreamDataset>,
+    ctx: Arc<GpuContext>,
+    opts: &RenderOptions,
+    t0: Instant,
+) -> Result<RenderReport, ViewerError> {
+    let cameras = cameras(&ds, opts)?;
+    let mut renderer = Renderer::new(
+        ctx.clone(),
+        ds.clone(),
+        opts.gpu_cache_bytes,
+        opts.loader_threads,
+    )?;
+    let open_ms = t0.elapsed().as_secs_f64() * 1e3;
+    let mut report = RenderReport {
+        dataset: ds.location(),
+        adapter: ctx.adapter_name.clone(),
+        projection: if ctx.int64_atomics { "int64" } else { "int32" },
+        width: opts.width,
+        height: opts.height,
+        budget: opts.settings.budget,
+        pipeline: opts.settings.pipeline.name(),
+        open_ms,
+        time_to_first_image_ms: None,
+        images: Vec::new(),
+        frames: Vec::new(),
+        errors: Vec::new(),
+    };
+    let fly_through = cameras.len() > 1;
+    for (i, camera) in cameras.iter().enumerate() {
+        let frame_start = Instant::now();
+        let stats = loop {
+            let mut stats = renderer.frame(camera, opts.width, opts.height, &opts.settings);
+            renderer.wait_gpu()?;
+            stats.passes = renderer.pass_times();
+            stats.frame_ms = frame_start.elapsed().as_secs_f64() * 1e3;
+            if report.time_to_first_image_ms.is_none() && stats.points_drawn > 0 {
+                report.time_to_first_image_ms = Some(t0.elapsed().as_secs_f64() * 1e3);
+            }
+            let done = if opts.wait_complete {
+                stats.complete
+            } else if fly_through {
+                true
+            } else {
+                stats.complete || frame_start.elapsed() > opts.timeout
+            };
+            if done {
+                break stats;
+            }
+            renderer.wait_for_loads(Duration::from_millis(20));
+        };
+        // One more frame after the last load so the timestamps describe the final picture.
+        let stats = if opts.wait_complete || !fly_through {
+            let mut s = renderer.frame(camera, opts.width, opts.height, &opts.settings);
+            renderer.wait_gpu()?;
+            s.passes = renderer.pass_times();
+            s.bytes_loaded += stats.bytes_loaded;
+            s
+        } else {
+            stats
+        };
+        let out = if fly_through {
+            numbered(&opts.output, i)
+        } else {
+            opts.output.clone()
+        };
+        let (w, h, rgba) = renderer.read_image()?;
+        write_png(&out, w, h, &rgba)?;
+        report.images.push(out.display().to_string());
+        report.frames.push(stats);
+        if fly_through && !opts.wait_complete && opts.fps > 0.0 {
+            let period = Duration::from_secs_f32(1.0 / opts.fps);
+            if let Some(rest) = period.checked_sub(frame_start.elapsed()) {
+                std::thread::sleep(rest);
+            }
+        }
+    }
+    report.errors = renderer.errors().to_vec();
+    if let Some(path) = &opts.stats {
+        let json = serde_json::to_string_pretty(&report)
+            .map_err(|e| ViewerError::output(path, format!("cannot encode statistics: {e}")))?;
+        write_atomic(path, json.as_bytes())?;
+    }
+    Ok(report)
+}
+
+fn cameras(ds: &StreamDataset, opts: &RenderOptions) -> Result<Vec<Camera>, ViewerError> {
+    let anchor = ds.anchor();
+    let default = default_camera(ds);
+    let Some(path) = &opts.path else {
+        return Ok(vec![match &opts.camera {
+            Some(spec) => Camera::parse(spec, anchor, default)?,
+            None => default,
+        }]);
+    };
+    let text = std::fs::read_to_string(path).map_err(|e| {
+        ViewerError::argument(
+            path.display().to_string(),
+            format!("cannot read the camera path ({e})"),
+        )
+    })?;
+    let file: PathFile = serde_json::from_str(&text).map_err(|e| {
+        ViewerError::argument(
+            path.display().to_string(),
+            format!("not a camera path ({e}); expected {{\"keyframes\": [{{\"eye\": [x,y,z], \"target\": [x,y,z], \"fov\": deg}}, ...]}}"),
+        )
+    })?;
+    let keys: Vec<Camera> = file
+        .keyframes
+        .iter()
+        .map(|k| {
+            let spec = format!(
+                "eye={},{},{};target={},{},{};fov={}",
+                k.eye[0],
+                k.eye[1],
+                k.eye[2],
+                k.target[0],
+                k.target[1],
+                k.target[2],
+                k.fov.unwrap_or(DEFAULT_FOV_DEG)
+            );
+            Camera::parse(&spec, anchor, default)
+                .map_err(|e| ViewerError::argument(path.display().to_string(), e.to_string()))
+        })
+        .collect::<Result<_, _>>()?;
+    if keys.len() < 2 || opts.frames < 2 {
+        return Err(ViewerError::argument(
+            path.display().to_string(),
+            "a fly-through needs at least two keyframes and --frames 2 or more",
+        ));
+    }
+    let n = opts.frames as usize;
+    Ok((0..n)
+        .map(|i| {
+            let t = i as f32 / (n - 1) as f32 * (keys.len() - 1) as f32;
+            let seg = (t.floor() as usize).min(keys.len() - 2);
+            keys[seg].lerp(&keys[seg + 1], t - seg as f32)
+        })
+        .collect())
+}
+
+fn numbered(path: &Path, i: usize) -> PathBuf {
+    let stem = path
+        .file_stem()
+        .map(|s| s.to_string_lossy().to_string())
+        .unwrap_or_else(|| "frame".into());
+    path.with_file_name(format!("{stem}_{i:04}.png"))
+}
+
+/// Writes a PNG through a temporary name, so a failed write leaves no image that looks valid.
+pub fn write_png(path: &Path, width: u32, height: u32, rgba: &[u8]) -> Result<(), ViewerError> {
+    let mut bytes = Vec::new();
+    {
+        let mut enc = png::Encoder::new(&mut bytes, width, height);
+        enc.set_color(png::ColorType::Rgba);
+        enc.set_depth(png::BitDepth::Eight);
+        let mut w = enc
+            .write_header()
+            .map_err(|e| ViewerError::output(path, format!("cannot encode PNG ({e})")))?;
+        w.write_image_data(rgba)
+            .map_err(|e| ViewerError::output(path, format!("cannot encode PNG ({e})")))?;
+    }
+    write_atomic(path, &bytes)
+}
+
+fn write_atomic(path: &Path, bytes: &[u8]) -> Result<(), ViewerError> {
+    let mut tmp = path.as_os_str().to_owned();
+    tmp.push(".part");
+    let tmp = PathBuf::from(tmp);
+    std::fs::write(&tmp, bytes).map_err(|e| {
+        let _ = std::fs::remove_file(&tmp);
+        ViewerError::output(path, format!("cannot write ({e})"))
+    })?;
+    std::fs::rename(&tmp, path).map_err(|e| {
+        let _ = std::fs::remove_file(&tmp);
+        ViewerError::output(path, format!("cannot write ({e})"))
+    })
+}

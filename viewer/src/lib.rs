@@ -1,0 +1,21 @@
+//! The Strata viewer: streams a dataset under a per-frame point budget and renders it with
+//! compute-shader projection, in a window (egui) or headless (PNG).
+
+pub mod app;
+pub mod camera;
+pub mod dataset;
+mod error;
+pub mod gpu;
+pub mod headless;
+pub mod loader;
+pub mod lod;
+pub mod renderer;
+pub mod settings;
+mod source;
+
+pub use camera::Camera;
+pub use dataset::StreamDataset;
+pub use error::ViewerError;
+pub use renderer::{FrameStats, Renderer};
+pub use settings::{ColourMode, Pipeline, Settings};
+pub use source::{MmapSource, Source};

@@ -1,0 +1,182 @@
+//! Loader threads: fetch, verify, decompress and convert nodes and hierarchy pages off the render
+//! thread. The render thread replaces the wanted list every frame; what the camera has left
+//! behind is dropped before a thread takes it.
+
+use crate::ViewerError;
+use crate::dataset::{GpuNode, StreamDataset};
+use crossbeam_channel::{Receiver, Sender, unbounded};
+use std::collections::HashSet;
+use std::sync::{Arc, Condvar, Mutex, PoisonError};
+use std::thread::JoinHandle;
+use strata_format::{HierarchyPage, NodeInfo, NodeKey, PageRef};
+
+#[derive(Debug, Clone, Copy)]
+pub enum Job {
+    Node(NodeInfo),
+    Page(PageRef),
+}
+
+/// Identifies a job independently of its payload.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub enum JobKey {
+    Node(NodeKey),
+    Page(NodeKey),
+}
+
+impl Job {
+    pub fn key(&self) -> JobKey {
+        match self {
+            Job::Node(n) => JobKey::Node(n.key),
+            Job::Page(p) => JobKey::Page(p.root),
+        }
+    }
+}
+
+pub enum Done {
+    Node(GpuNode),
+    NodeFailed(NodeKey, ViewerError),
+    Page(HierarchyPage),
+    PageFailed(NodeKey, ViewerError),
+}
+
+#[derive(Default)]
+struct Queue {
+    /// Lowest priority first, so `pop` takes the most important.
+    pending: Vec<Job>,
+    in_flight: HashSet<JobKey>,
+    shutdown: bool,
+}
+
+struct Shared {
+    queue: Mutex<Queue>,
+    wake: Condvar,
+}
+
+pub struct Loader {
+    shared: Arc<Shared>,
+    results: Receiver<Done>,
+    threads: Vec<JoinHandle<()>>,
+}
+
+impl Loader {
+    pub fn new(dataset: Arc<StreamDataset>, threads: usize) -> Loader {
+        let shared = Arc::new(Shared {
+            queue: Mutex::new(Queue::default()),
+            wake: Condvar::new(),
+        });
+        let (tx, rx) = unbounded();
+        let threads = (0..threads.max(1))
+            .map(|_| {
+                let shared = shared.clone();
+                let tx = tx.clone();
+                let ds = dataset.clone();
+                std::thread::spawn(move || worker(&shared, &ds, &tx))
+            })
+            .collect();
+        Loader {
+            shared,
+            results: rx,
+            threads,
+        }
+    }
+
+    /// Replaces the wanted jobs (most important first). Jobs already in flight are not
+    /// repeated; jobs no longer wanted are dropped unless a thread has taken them.
+    pub fn set_wanted(&self, jobs: impl IntoIterator<Item = Job>) {
+        let mut q = self
+            .shared
+            .queue
+            .lock()
+            .unwrap_or_else(PoisonError::into_inner);
+        let mut pending: Vec<Job> = jobs
+            .into_iter()
+            .filter(|j| !q.in_flight.contains(&j.key()))
+            .collect();
+        pending.reverse();
+        q.pending = pending;
+        drop(q);
+        self.shared.wake.notify_all();
+    }
+
+    pub fn is_busy(&self, key: JobKey) -> bool {
+        let q = self
+            .shared
+            .queue
+            .lock()
+            .unwrap_or_else(PoisonError::into_inner);
+        q.in_flight.contains(&key) || q.pending.iter().any(|j| j.key() == key)
+    }
+
+    /// Jobs queued and in flight.
+    pub fn counts(&self) -> (usize, usize) {
+        let q = self
+            .shared
+            .queue
+            .lock()
+            .unwrap_or_else(PoisonError::into_inner);
+        (q.pending.len(), q.in_flight.len())
+    }
+
+    /// Finished jobs, without waiting.
+    pub fn finished(&self) -> impl Iterator<Item = Done> + '_ {
+        self.results.try_iter()
+    }
+
+    /// Waits up to `timeout` for one finished job.
+    pub fn wait_finished(&self, timeout: std::time::Duration) -> Option<Done> {
+        self.results.recv_timeout(timeout).ok()
+    }
+}
+
+impl Drop for Loader {
+    fn drop(&mut self) {
+        self.shared
+            .queue
+            .lock()
+            .unwrap_or_else(PoisonError::into_inner)
+            .shutdown = true;
+        self.shared.wake.notify_all();
+        for t in self.threads.drain(..) {
+            // A loader thread that panicked has nothing left to clean up.
+            let _ = t.join();
+        }
+    }
+}
+
+fn worker(shared: &Shared, ds: &StreamDataset, tx: &Sender<Done>) {
+    loop {
+        let job = {
+            let mut q = shared.queue.lock().unwrap_or_else(PoisonError::into_inner);
+            loop {
+                if q.shutdown {
+                    return;
+                }
+                if let Some(job) = q.pending.pop() {
+                    q.in_flight.insert(job.key());
+                    break job;
+                }
+                q = shared.wake.wait(q).unwrap_or_else(PoisonError::into_inner);
+            }
+        };
+        let done = match job {
+            Job::Node(info) => match ds.load_node(&info) {
+                Ok(node) => Done::Node(node),
+                Err(e) => Done::NodeFailed(info.key, e),
+            },
+            Job::Page(page) => match ds.load_page(&page) {
+                Ok(p) => Done::Page(p),
+                Err(e) => Done::PageFailed(page.root, e),
+            },
+        };
+        let receiver_gone = tx.send(done).is_err();
+        shared
+            .queue
+            .lock()
+            .unwrap_or_else(PoisonError::into_inner)
+            .in_flight
+            .remove(&job.key());
+        if receiver_gone {
+            return;
+        }
+    }
+}

@@ -1,0 +1,194 @@
+//! The known part of the hierarchy, and the per-frame choice of nodes under the point budget.
+
+use crate::camera::{Camera, Frustum};
+use crate::dataset::StreamDataset;
+use glam::Vec3;
+use std::cmp::Ordering;
+use std::collections::{BinaryHeap, HashMap, HashSet};
+use strata_format::{EntryKind, HierarchyPage, NodeInfo, NodeKey, PageRef, node_infos};
+
+/// Nodes described by the hierarchy pages loaded so far, and the pages not yet loaded.
+#[derive(Default)]
+pub struct Tree {
+    nodes: HashMap<NodeKey, NodeInfo>,
+    unloaded_pages: HashMap<NodeKey, PageRef>,
+}
+
+impl Tree {
+    pub fn add_page(&mut self, page: &HierarchyPage) {
+        for info in node_infos(page) {
+            self.unloaded_pages.remove(&info.key);
+            self.nodes.insert(info.key, info);
+        }
+        for (key, entry) in &page.entries {
+            if entry.kind == EntryKind::Proxy && !self.nodes.contains_key(key) {
+                self.unloaded_pages.insert(
+                    *key,
+                    PageRef {
+                        root: *key,
+                        offset: entry.offset,
+                        size: entry.size as u64,
+                        checksum: Some(entry.checksum),
+                    },
+                );
+            }
+        }
+    }
+
+    /// A page that failed to load: its subtree is left out for the rest of the session.
+    pub fn drop_page(&mut self, root: NodeKey) {
+        self.unloaded_pages.remove(&root);
+    }
+
+    pub fn node(&self, key: NodeKey) -> Option<&NodeInfo> {
+        self.nodes.get(&key)
+    }
+
+    pub fn known_nodes(&self) -> usize {
+        self.nodes.len()
+    }
+}
+
+/// What the view asks for.
+#[derive(Debug, Clone, Copy)]
+pub struct SelectionParams {
+    pub budget: u64,
+    pub width: u32,
+    pub height: u32,
+    /// Stop refining where a node's point spacing projects below this many pixels.
+    pub min_spacing_px: f32,
+}
+
+/// The outcome of one selection: what to draw and what to fetch, most important first.
+#[derive(Debug, Default)]
+pub struct Selection {
+    /// Resident nodes to draw.
+    pub draw: Vec<NodeKey>,
+    /// Points in `draw`.
+    pub draw_points: u64,
+    /// Nodes the view wants that are not resident, with their priority.
+    pub missing_nodes: Vec<(NodeInfo, f32)>,
+    /// Hierarchy pages the view wants, with their priority.
+    pub missing_pages: Vec<(PageRef, f32)>,
+    /// Points of every node chosen under the budget, resident or not.
+    pub chosen_points: u64,
+}
+
+#[derive(PartialEq)]
+struct Candidate {
+    priority: f32,
+    key: NodeKey,
+}
+
+impl Eq for Candidate {}
+
+impl Ord for Candidate {
+    fn cmp(&self, other: &Self) -> Ordering {
+        self.priority
+            .total_cmp(&other.priority)
+            .then_with(|| other.key.cmp(&self.key))
+    }
+}
+
+impl PartialOrd for Candidate {
+    fn partial_cmp(&self, other: &Self) -> Option<Ordering> {
+        Some(self.cmp(other))
+    }
+}
+
+/// Chooses nodes by projected size until the budget is reached. Children are visited only
+/// below resident nodes, so detail arrives coarse to fine, and only where the parent's point
+/// spacing is still coarser than `min_spacing_px` on screen.
+pub fn select(
+    tree: &Tree,
+    ds: &StreamDataset,
+    camera: &Camera,
+    params: &SelectionParams,
+    resident: impl Fn(NodeKey) -> bool,
+    failed: &HashSet<NodeKey>,
+) -> Selection {
+    let aspect = params.width as f32 / params.height.max(1) as f32;
+    let (near, far) = clip_range(ds, camera);
+    let frustum = Frustum::from_view_proj(camera.projection(aspect, near, far) * camera.view());
+    let focal = camera.focal_px(params.height);
+    let mut out = Selection::default();
+    let mut heap = BinaryHeap::new();
+    if tree.node(NodeKey::ROOT).is_some() {
+        heap.push(Candidate {
+            priority: f32::MAX,
+            key: NodeKey::ROOT,
+        });
+    }
+    while let Some(Candidate { priority, key }) = heap.pop() {
+        let Some(info) = tree.node(key) else { continue };
+        let count = info.point_count as u64;
+        if out.chosen_points + count > params.budget {
+            break;
+        }
+        out.chosen_points += count;
+        let is_failed = failed.contains(&key);
+        if !is_failed && !resident(key) {
+            out.missing_nodes.push((*info, priority));
+            continue;
+        }
+        if !is_failed {
+            out.draw.push(key);
+            out.draw_points += count;
+        }
+        let (min, edge) = ds.node_cube(key);
+        let distance = box_distance(camera.eye, min, min + Vec3::splat(edge)).max(near);
+        if ds.node_spacing(key) / distance * focal < params.min_spacing_px {
+            continue;
+        }
+        for octant in 0..8u8 {
+            if info.child_mask & (1 << octant) == 0 {
+                continue;
+            }
+            let child = key.child(octant);
+            let (cmin, cedge) = ds.node_cube(child);
+            let cmax = cmin + Vec3::splat(cedge);
+            if !frustum.intersects_box(cmin, cmax) {
+                continue;
+            }
+            let priority = node_priority(camera.eye, cmin, cedge, focal);
+            if tree.node(child).is_some() {
+                heap.push(Candidate {
+                    priority,
+                    key: child,
+                });
+            } else if let Some(page) = tree.unloaded_pages.get(&child) {
+                out.missing_pages.push((*page, priority));
+            }
+        }
+    }
+    out
+}
+
+/// Projected size in pixels; the node holding the camera comes before everything else.
+fn node_priority(eye: Vec3, min: Vec3, edge: f32, focal: f32) -> f32 {
+    let max = min + Vec3::splat(edge);
+    if eye.cmpge(min).all() && eye.cmple(max).all() {
+        return f32::MAX / 2.0;
+    }
+    let centre = min + Vec3::splat(edge * 0.5);
+    let radius = edge * 0.866;
+    let distance = (centre - eye).length().max(radius * 0.5);
+    radius / distance * focal
+}
+
+fn box_distance(p: Vec3, min: Vec3, max: Vec3) -> f32 {
+    (p.clamp(min, max) - p).length()
+}
+
+/// Automatic near and far planes that enclose the dataset's bounds as seen from the eye.
+pub fn clip_range(ds: &StreamDataset, camera: &Camera) -> (f32, f32) {
+    let (min, max) = ds.bounds();
+    let radius = ((max - min) * 0.5).length().max(1e-3);
+    let centre = (min + max) * 0.5;
+    let to_centre = (centre - camera.eye).length();
+    let far = (to_centre + radius) * 1.01;
+    let nearest = box_distance(camera.eye, min, max);
+    // Inside the bounds the nearest surface can be close: keep the ratio far/near bounded.
+    let near = (nearest * 0.9).max(far * 1e-5);
+    (near, far)
+}

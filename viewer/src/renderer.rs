@@ -1,0 +1,455 @@
+//! One frame of the viewer, the same in the window and headless: take what the loaders
+//! finished, upload it, choose nodes under the budget, ask for what is missing, and draw what is
+//! resident. Nothing here waits for I/O.
+
+use crate::ViewerError;
+use crate::camera::Camera;
+use crate::dataset::{GpuNode, StreamDataset};
+use crate::gpu::GpuContext;
+use crate::gpu::cache::{InsertError, NodeCache};
+use crate::gpu::passes::{ArenaDraw, FrameDraw, FrameUniforms, GpuRange, Passes, Screen};
+use crate::gpu::timing::Timer;
+use crate::loader::{Done, Job, Loader};
+use crate::lod::{Selection, SelectionParams, Tree, clip_range, select};
+use crate::settings::{Pipeline, Settings, SizeMode};
+use serde::Serialize;
+use std::collections::{BTreeMap, HashSet, VecDeque};
+use std::sync::Arc;
+use std::time::Instant;
+use strata_format::NodeKey;
+
+/// Statistics of one frame, as `--stats` writes them and the panel shows them.
+#[derive(Debug, Clone, Default, Serialize)]
+pub struct FrameStats {
+    pub frame: u64,
+    pub points_drawn: u64,
+    pub nodes_drawn: usize,
+    /// CPU time of the frame, including waiting for the GPU where the caller waited.
+    pub frame_ms: f64,
+    /// GPU ms per pass (from timestamp queries; empty where the adapter has none).
+    pub passes: BTreeMap<String, f64>,
+    /// Stored bytes that arrived from the loaders during this frame.
+    pub bytes_loaded: u64,
+    pub bytes_loaded_total: u64,
+    /// Nodes that could not be loaded (corrupt, unreadable), over the whole session.
+    pub nodes_failed: usize,
+    pub pages_failed: usize,
+    pub nodes_visible: usize,
+    pub nodes_resident: usize,
+    pub nodes_in_flight: usize,
+    pub nodes_queued: usize,
+    pub gpu_bytes: u64,
+    /// Every node the view and budget call for is resident and drawn.
+    pub complete: bool,
+}
+
+pub struct Renderer {
+    ctx: Arc<GpuContext>,
+    ds: Arc<StreamDataset>,
+    tree: Tree,
+    loader: Loader,
+    cache: NodeCache,
+    passes: Passes,
+    screen: Option<Screen>,
+    timer: Timer,
+    failed: HashSet<NodeKey>,
+    pages_failed: usize,
+    errors: Vec<String>,
+    uploads: VecDeque<GpuNode>,
+    last_drawn: HashSet<NodeKey>,
+    frame: u64,
+    bytes_total: u64,
+}
+
+/// GPU memory for the node cache unless told otherwise.
+pub const DEFAULT_GPU_CACHE: u64 = 2 << 30;
+
+impl Renderer {
+    pub fn new(
+        ctx: Arc<GpuContext>,
+        ds: Arc<StreamDataset>,
+        gpu_cache_bytes: u64,
+        loader_threads: usize,
+    ) -> Result<Renderer, ViewerError> {
+        let mut tree = Tree::default();
+        tree.add_page(&ds.load_page(&ds.root_page())?);
+        let loader = Loader::new(ds.clone(), loader_threads);
+        let cache = NodeCache::new(ctx.max_binding(), gpu_cache_bytes);
+        let passes = Passes::new(&ctx);
+        let timer = Timer::new(&ctx.device, &ctx.queue, ctx.timestamps);
+        Ok(Renderer {
+            ctx,
+            ds,
+            tree,
+            loader,
+            cache,
+            passes,
+            screen: None,
+            timer,
+            failed: HashSet::new(),
+            pages_failed: 0,
+            errors: Vec::new(),
+            uploads: VecDeque::new(),
+            last_drawn: HashSet::new(),
+            frame: 0,
+            bytes_total: 0,
+        })
+    }
+
+    pub fn dataset(&self) -> &Arc<StreamDataset> {
+        &self.ds
+    }
+
+    pub fn context(&self) -> &Arc<GpuContext> {
+        &self.ctx
+    }
+
+    /// Messages of the loads that failed, oldest first.
+    pub fn errors(&self) -> &[String] {
+        &self.errors
+    }
+
+    pub fn output(&self) -> Option<&wgpu::Texture> {
+        self.screen.as_ref().map(|s| &s.output)
+    }
+
+    /// Blocks until a loader finishes something or `timeout` passes (headless use only).
+    pub fn wait_for_loads(&mut self, timeout: std::time::Duration) {
+        if let Some(done) = self.loader.wait_finished(timeout) {
+            self.accept(done, &mut 0);
+        }
+    }
+
+    fn accept(&mut self, done: Done, bytes: &mut u64) {
+        match done {
+            Done::Node(node) => {
+                *bytes += node.bytes_read;
+                self.uploads.push_back(node);
+            }
+            Done::NodeFailed(key, e) => {
+                self.failed.insert(key);
+                self.errors.push(e.to_string());
+            }
+            Done::Page(page) => self.tree.add_page(&page),
+            Done::PageFailed(root, e) => {
+                self.tree.drop_page(root);
+                self.pages_failed += 1;
+                self.errors.push(e.to_string());
+            }
+        }
+    }
+
+    /// Renders one frame of `width` x `height` into the output texture.
+    pub fn frame(
+        &mut self,
+        camera: &Camera,
+        width: u32,
+        height: u32,
+        settings: &Settings,
+    ) -> FrameStats {
+        let start = Instant::now();
+        self.frame += 1;
+        let (width, height) = (width.max(1), height.max(1));
+        let mut bytes = 0u64;
+        let finished: Vec<Done> = self.loader.finished().collect();
+        for done in finished {
+            self.accept(done, &mut bytes);
+        }
+        self.bytes_total += bytes;
+        self.upload(settings);
+
+        let params = SelectionParams {
+            budget: settings.budget,
+            width,
+            height,
+            min_spacing_px: settings.min_spacing_px,
+        };
+        let cache = &self.cache;
+        let sel = select(
+            &self.tree,
+            &self.ds,
+            camera,
+            &params,
+            |k| cache.contains(k),
+            &self.failed,
+        );
+        self.request(&sel);
+        self.cache.touch(&sel.draw, self.frame);
+        self.last_drawn = sel.draw.iter().copied().collect();
+
+        self.draw(camera, width, height, settings, &sel);
+        self.timer.collect();
+
+        let (queued, in_flight) = self.loader.counts();
+        FrameStats {
+            frame: self.frame,
+            points_drawn: sel.draw_points,
+            nodes_drawn: sel.draw.len(),
+            frame_ms: start.elapsed().as_secs_f64() * 1e3,
+            passes: self.timer.last().clone(),
+            bytes_loaded: bytes,
+            bytes_loaded_total: self.bytes_total,
+            nodes_failed: self.failed.len(),
+            pages_failed: self.pages_failed,
+            nodes_visible: sel.draw.len() + sel.missing_nodes.len(),
+            nodes_resident: self.cache.resident_nodes(),
+            nodes_in_flight: in_flight,
+            nodes_queued: queued,
+            gpu_bytes: self.cache.gpu_bytes(),
+            complete: sel.missing_nodes.is_empty()
+                && sel.missing_pages.is_empty()
+                && self.uploads.is_empty(),
+        }
+    }
+
+    fn upload(&mut self, settings: &Settings) {
+        let mut budget = settings.upload_points_per_frame.unwrap_or(u64::MAX);
+        while let Some(node) = self.uploads.front() {
+            let n = node.points.len() as u64;
+            if n > budget && budget != settings.upload_points_per_frame.unwrap_or(u64::MAX) {
+                break;
+            }
+            budget = budget.saturating_sub(n);
+            let Some(node) = self.uploads.pop_front() else {
+                break;
+            };
+            match self.cache.insert(
+                &self.ctx.device,
+                &self.ctx.queue,
+                &node,
+                self.frame,
+                &self.last_drawn,
+            ) {
+                Ok(()) => {}
+                // The cache holds only what is on screen: the node waits to be asked for again.
+                Err(InsertError::Full) => {}
+                Err(InsertError::TooLarge {
+                    points,
+                    arena_points,
+                }) => {
+                    self.failed.insert(node.key);
+                    self.errors.push(format!(
+                        "{}: node {} has {points} points, more than a GPU arena holds ({arena_points})",
+                        self.ds.location(),
+                        node.key
+                    ));
+                }
+            }
+        }
+    }
+
+    fn request(&self, sel: &Selection) {
+        let mut jobs: Vec<(f32, Job)> = sel
+            .missing_pages
+            .iter()
+            .map(|(p, pr)| (*pr, Job::Page(*p)))
+            .chain(sel.missing_nodes.iter().map(|(n, pr)| (*pr, Job::Node(*n))))
+            .filter(|(_, j)| match j {
+                Job::Node(n) => !self.uploads.iter().any(|u| u.key == n.key),
+                Job::Page(_) => true,
+            })
+            .collect();
+        jobs.sort_by(|a, b| b.0.total_cmp(&a.0));
+        self.loader.set_wanted(jobs.into_iter().map(|(_, j)| j));
+    }
+
+    fn draw(
+        &mut self,
+        camera: &Camera,
+        width: u32,
+        height: u32,
+        settings: &Settings,
+        sel: &Selection,
+    ) {
+        if self
+            .screen
+            .as_ref()
+            .is_none_or(|s| s.width != width || s.height != height)
+        {
+            self.screen = Some(self.passes.screen(&self.ctx.device, width, height));
+        }
+        let Some(screen) = &self.screen else { return };
+        let mut per_arena: BTreeMap<u32, Vec<GpuRange>> = BTreeMap::new();
+        for key in &sel.draw {
+            if let Some(slot) = self.cache.slot(*key) {
+                per_arena.entry(slot.arena).or_default().push(GpuRange {
+                    start: slot.start,
+                    count: slot.count,
+                    first_group: 0,
+                    spacing: self.ds.node_spacing(*key),
+                });
+            }
+        }
+        let draws: Vec<ArenaDraw> = per_arena
+            .into_iter()
+            .map(|(arena, ranges)| ArenaDraw { arena, ranges })
+            .collect();
+        let aspect = width as f32 / height as f32;
+        let (near, far) = clip_range(&self.ds, camera);
+        let view_proj = camera.projection(aspect, near, far) * camera.view();
+        let (bmin, bmax) = self.ds.bounds();
+        let [r, g, b] = settings.background;
+        let uniforms = FrameUniforms {
+            view_proj: view_proj.to_cols_array_2d(),
+            width,
+            height,
+            point_size: settings.point_size,
+            size_mode: match settings.size_mode {
+                SizeMode::Fixed => 0,
+                SizeMode::Attenuated => 1,
+            },
+            focal_px: camera.focal_px(height),
+            colour_mode: if settings.colour == crate::settings::ColourMode::Rgb
+                && !self.ds.has_rgb()
+            {
+                crate::settings::ColourMode::Elevation.shader_code()
+            } else {
+                settings.colour.shader_code()
+            },
+            z_min: bmin.z,
+            z_max: bmax.z,
+            arena_shift: self.cache.arena_shift,
+            edl_strength: match settings.pipeline {
+                Pipeline::Edl => settings.edl_strength.max(1e-3),
+                Pipeline::Points => 0.0,
+            },
+            edl_radius: settings.edl_radius,
+            background: r as u32 | (g as u32) << 8 | (b as u32) << 16 | 255 << 24,
+        };
+        let mut encoder = self
+            .ctx
+            .device
+            .create_command_encoder(&wgpu::CommandEncoderDescriptor {
+                label: Some("frame"),
+            });
+        self.timer.begin_frame();
+        self.passes.encode(
+            &self.ctx,
+            &mut encoder,
+            screen,
+            &self.cache,
+            &FrameDraw {
+                uniforms: &uniforms,
+                arenas: &draws,
+            },
+            &mut self.timer,
+        );
+        self.timer.resolve(&mut encoder);
+        self.ctx.queue.submit([encoder.finish()]);
+        self.timer.after_submit();
+        // Non-blocking: lets map callbacks of earlier frames run.
+        let _ = self.ctx.device.poll(wgpu::PollType::Poll);
+    }
+
+    /// Waits for the GPU to finish the submitted work (headless and benchmarks).
+    pub fn wait_gpu(&mut self) -> Result<(), ViewerError> {
+        self.ctx
+            .device
+            .poll(wgpu::PollType::wait_indefinitely())
+            .map_err(|e| ViewerError::Gpu(format!("waiting for the GPU failed: {e}")))?;
+        self.timer.collect();
+        Ok(())
+    }
+
+    /// The latest pass times (after `wait_gpu`).
+    pub fn pass_times(&self) -> BTreeMap<String, f64> {
+        self.timer.last().clone()
+    }
+
+    /// Reads the output image back as tightly packed RGBA8 rows.
+    pub fn read_image(&self) -> Result<(u32, u32, Vec<u8>), ViewerError> {
+        let screen = self
+            .screen
+            .as_ref()
+            .ok_or_else(|| ViewerError::Gpu("no frame has been rendered".into()))?;
+        let (w, h) = (screen.width, screen.height);
+        let row = w * 4;
+        let padded = row.div_ceil(256) * 256;
+        let buffer = self.ctx.device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("image readback"),
+            size: padded as u64 * h as u64,
+            usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        });
+        let mut encoder = self
+            .ctx
+            .device
+            .create_command_encoder(&wgpu::CommandEncoderDescriptor {
+                label: Some("readback"),
+            });
+        encoder.copy_texture_to_buffer(
+            screen.output.as_image_copy(),
+            wgpu::TexelCopyBufferInfo {
+                buffer: &buffer,
+                layout: wgpu::TexelCopyBufferLayout {
+                    offset: 0,
+                    bytes_per_row: Some(padded),
+                    rows_per_image: Some(h),
+                },
+            },
+            wgpu::Extent3d {
+                width: w,
+                height: h,
+                depth_or_array_layers: 1,
+            },
+        );
+        self.ctx.queue.submit([encoder.finish()]);
+        let data = map_read(&self.ctx, &buffer)?;
+        let mut out = Vec::with_capacity((row * h) as usize);
+        for y in 0..h as usize {
+            out.extend_from_slice(&data[y * padded as usize..y * padded as usize + row as usize]);
+        }
+        Ok((w, h, out))
+    }
+
+    /// Linear depth per pixel (`None` where nothing was drawn), for picking and tests.
+    pub fn read_depths(&self) -> Result<Vec<Option<f32>>, ViewerError> {
+        let screen = self
+            .screen
+            .as_ref()
+            .ok_or_else(|| ViewerError::Gpu("no frame has been rendered".into()))?;
+        let size = screen.width as u64 * screen.height as u64 * 4;
+        let buffer = self.ctx.device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("depth readback"),
+            size,
+            usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        });
+        let mut encoder = self
+            .ctx
+            .device
+            .create_command_encoder(&wgpu::CommandEncoderDescriptor {
+                label: Some("depth readback"),
+            });
+        encoder.copy_buffer_to_buffer(&screen.depths, 0, &buffer, 0, size);
+        self.ctx.queue.submit([encoder.finish()]);
+        let data = map_read(&self.ctx, &buffer)?;
+        Ok(data
+            .chunks_exact(4)
+            .map(|b| {
+                let bits = u32::from_le_bytes([b[0], b[1], b[2], b[3]]);
+                (bits != u32::MAX).then(|| f32::from_bits(bits))
+            })
+            .collect())
+    }
+}
+
+fn map_read(ctx: &GpuContext, buffer: &wgpu::Buffer) -> Result<Vec<u8>, ViewerError> {
+    let (tx, rx) = std::sync::mpsc::channel();
+    buffer.slice(..).map_async(wgpu::MapMode::Read, move |r| {
+        let _ = tx.send(r);
+    });
+    ctx.device
+        .poll(wgpu::PollType::wait_indefinitely())
+        .map_err(|e| ViewerError::Gpu(format!("waiting for the GPU failed: {e}")))?;
+    rx.recv()
+        .map_err(|_| ViewerError::Gpu("readback was dropped".into()))?
+        .map_err(|e| ViewerError::Gpu(format!("readback failed: {e}")))?;
+    let data = buffer
+        .slice(..)
+        .get_mapped_range()
+        .map_err(|e| ViewerError::Gpu(format!("readback failed: {e}")))?
+        .to_vec();
+    buffer.unmap();
+    Ok(data)
+}

@@ -1,0 +1,115 @@
+//! Where dataset bytes come from. The viewer reads through this trait only, so a memory-mapped
+//! directory and an HTTP server are interchangeable.
+
+use crate::ViewerError;
+use memmap2::Mmap;
+use std::fs::File;
+use std::path::{Path, PathBuf};
+use strata_format::{DatasetFile, FormatError, HIERARCHY_MAGIC, Metadata, OCTREE_MAGIC};
+
+/// Byte ranges of a dataset's files. Implementations are shared by the loader threads.
+pub trait Source: Send + Sync {
+    /// A human-readable location (path or URL) for messages.
+    fn location(&self) -> String;
+    /// The whole `metadata.json`.
+    fn metadata_bytes(&self) -> Result<Vec<u8>, ViewerError>;
+    /// `len` bytes at `offset` of a binary file.
+    fn read(&self, file: DatasetFile, offset: u64, len: u64) -> Result<Vec<u8>, ViewerError>;
+}
+
+/// A local dataset directory with `hierarchy.bin` and `octree.bin` memory-mapped.
+pub struct MmapSource {
+    dir: PathBuf,
+    hierarchy: Mmap,
+    octree: Mmap,
+}
+
+impl MmapSource {
+    pub fn open(dir: &Path) -> Result<(MmapSource, Metadata), ViewerError> {
+        if !dir.is_dir() {
+            return Err(FormatError::corrupt(
+                dir,
+                "is not a dataset directory (expected a directory holding metadata.json)",
+            )
+            .into());
+        }
+        let meta_path = dir.join(DatasetFile::Metadata.name());
+        let bytes = std::fs::read(&meta_path).map_err(|e| FormatError::io(&meta_path, e))?;
+        let metadata = Metadata::from_json(&bytes, &meta_path)?;
+        let hierarchy = map_checked(
+            &dir.join(&metadata.files.hierarchy.name),
+            HIERARCHY_MAGIC,
+            metadata.files.hierarchy.size,
+        )?;
+        let octree = map_checked(
+            &dir.join(&metadata.files.octree.name),
+            OCTREE_MAGIC,
+            metadata.files.octree.size,
+        )?;
+        Ok((
+            MmapSource {
+                dir: dir.to_path_buf(),
+                hierarchy,
+                octree,
+            },
+            metadata,
+        ))
+    }
+}
+
+impl Source for MmapSource {
+    fn location(&self) -> String {
+        self.dir.display().to_string()
+    }
+
+    fn metadata_bytes(&self) -> Result<Vec<u8>, ViewerError> {
+        let path = self.dir.join(DatasetFile::Metadata.name());
+        std::fs::read(&path).map_err(|e| FormatError::io(&path, e).into())
+    }
+
+    fn read(&self, file: DatasetFile, offset: u64, len: u64) -> Result<Vec<u8>, ViewerError> {
+        let map = match file {
+            DatasetFile::Hierarchy => &self.hierarchy,
+            DatasetFile::Octree => &self.octree,
+            DatasetFile::Metadata => return self.metadata_bytes(),
+        };
+        let end = offset.checked_add(len).filter(|&e| e <= map.len() as u64);
+        match end {
+            Some(end) => Ok(map[offset as usize..end as usize].to_vec()),
+            None => Err(FormatError::corrupt(
+                self.dir.join(file.name()),
+                format!(
+                    "range of {len} bytes at byte {offset} lies past the end ({} bytes)",
+                    map.len()
+                ),
+            )
+            .into()),
+        }
+    }
+}
+
+fn map_checked(path: &Path, magic: &[u8; 8], expected_size: u64) -> Result<Mmap, FormatError> {
+    let file = File::open(path).map_err(|e| FormatError::io(path, e))?;
+    // SAFETY: the dataset is read-only by contract (written once, renamed into place); a file
+    // truncated under us would fault, which is why sizes are checked against the metadata first.
+    let map = unsafe { Mmap::map(&file) }.map_err(|e| FormatError::io(path, e))?;
+    if map.len() as u64 != expected_size {
+        return Err(FormatError::corrupt(
+            path,
+            format!(
+                "file is {} bytes but metadata.json says {expected_size} (truncated or replaced)",
+                map.len()
+            ),
+        ));
+    }
+    if map.get(..8) != Some(&magic[..]) {
+        return Err(FormatError::corrupt(
+            path,
+            format!(
+                "does not start with the {:?} magic",
+                String::from_utf8_lossy(magic)
+            ),
+        ));
+    }
+    Ok(map)
+}
