@@ -66,7 +66,7 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
     if has_display && !a.png {
         println!("4/4 opening the viewer (close the window to end the demo)");
         run_window(
-            &dataset,
+            &dataset.to_string_lossy(),
             WindowOptions {
                 settings: Settings::default(),
                 gpu_cache_bytes: DEFAULT_GPU_CACHE,
@@ -74,6 +74,7 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
                 projection: ProjectionPath::Auto,
                 screenshot: None,
                 size: (1400, 860),
+                token: None,
             },
         )?;
         return Ok(ExitCode::SUCCESS);
@@ -81,7 +82,7 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
     let png = dir.join("city.png");
     println!("4/4 no display: rendering {}", png.display());
     let report = render(
-        &dataset,
+        &dataset.to_string_lossy(),
         &RenderOptions {
             output: png.clone(),
             camera: None,
@@ -97,6 +98,7 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
             projection: ProjectionPath::Auto,
             gpu_cache_bytes: DEFAULT_GPU_CACHE,
             loader_threads: 4,
+            token: None,
         },
     )?;
     let frame = report.frames.last();

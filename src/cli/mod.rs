@@ -3,6 +3,7 @@ mod demo;
 mod export;
 mod info;
 mod render;
+mod serve;
 mod synth;
 mod verify;
 mod view;
@@ -31,6 +32,8 @@ enum Command {
     Export(export::Args),
     /// Write a deterministic procedural scene of any size as LAS, LAZ or PLY.
     Synth(synth::Args),
+    /// Serve a directory of datasets over HTTP (read-only, byte ranges, optional token).
+    Serve(serve::Args),
     /// Open a dataset in a window: stream it under a point budget, orbit and fly.
     View(view::Args),
     /// Render a dataset headless to PNG (one image or a fly-through), with statistics.
@@ -46,6 +49,7 @@ pub fn run(cli: Cli) -> anyhow::Result<ExitCode> {
         Command::Verify(a) => verify::run(a),
         Command::Export(a) => export::run(a),
         Command::Synth(a) => synth::run(a),
+        Command::Serve(a) => serve::run_serve(a),
         Command::View(a) => view::run(a),
         Command::Render(a) => render::run(a),
         Command::Demo(a) => demo::run(a),

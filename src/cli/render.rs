@@ -6,8 +6,8 @@ use strata_viewer::headless::{RenderOptions, render};
 
 #[derive(Debug, clap::Args)]
 pub struct Args {
-    /// The dataset directory.
-    dataset: PathBuf,
+    /// The dataset: a directory, or http://HOST:PORT/DATASET.
+    dataset: String,
     /// The PNG to write (a fly-through writes NAME_0000.png, NAME_0001.png, ...).
     #[arg(short, long)]
     output: PathBuf,
@@ -20,7 +20,8 @@ pub struct Args {
     /// Render once every node the budget allows is resident (every frame of a fly-through).
     #[arg(long)]
     wait_complete: bool,
-    /// Without --wait-complete, a single image waits at most this many seconds for detail.
+    /// Seconds a single image waits for detail; with --wait-complete, seconds without any
+    /// progress (a server gone away) before the image is written with what there is.
     #[arg(long, default_value_t = 30.0)]
     timeout: f64,
     /// A fly-through: {"keyframes": [{"eye": [x,y,z], "target": [x,y,z], "fov": deg}, ...]}.
@@ -69,6 +70,7 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
         projection: a.view.projection()?,
         gpu_cache_bytes: a.view.gpu_cache,
         loader_threads: a.view.loaders,
+        token: a.view.token.clone(),
     };
     let report = render(&a.dataset, &opts)?;
     let last = report.frames.last();
@@ -84,8 +86,14 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
     for e in &report.errors {
         eprintln!("warning: {e}");
     }
-    if last.is_some_and(|f| !f.complete) {
-        eprintln!("warning: the image was written before every wanted node arrived");
+    if let Some(e) = &report.fetch_error {
+        eprintln!("warning: {e}");
+    }
+    if let Some(f) = last.filter(|f| !f.complete) {
+        eprintln!(
+            "warning: the image was written with {} wanted node(s) missing ({} unavailable)",
+            f.nodes_missing, f.nodes_unavailable
+        );
     }
     Ok(ExitCode::SUCCESS)
 }

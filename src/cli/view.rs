@@ -6,8 +6,8 @@ use strata_viewer::app::{WindowOptions, run_window};
 
 #[derive(Debug, clap::Args)]
 pub struct Args {
-    /// The dataset directory.
-    dataset: PathBuf,
+    /// The dataset: a directory, or http://HOST:PORT/DATASET.
+    dataset: String,
     /// Window size, WIDTHxHEIGHT.
     #[arg(long, default_value = "1400x860")]
     size: String,
@@ -31,6 +31,7 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
             projection: a.view.projection()?,
             screenshot: a.screenshot.map(|p| (p, a.screenshot_after.max(1))),
             size,
+            token: a.view.token.clone(),
         },
     )?;
     Ok(ExitCode::SUCCESS)

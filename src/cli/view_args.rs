@@ -28,6 +28,9 @@ pub struct ViewArgs {
     /// Projection path: auto (64-bit atomics where available), int64 or int32.
     #[arg(long, default_value = "auto")]
     pub projection: String,
+    /// Bearer token for a dataset served with `strata serve --token`.
+    #[arg(long)]
+    pub token: Option<String>,
     /// Loader threads fetching and decompressing nodes.
     #[arg(long, default_value_t = 4)]
     pub loaders: usize,

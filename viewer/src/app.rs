@@ -6,9 +6,9 @@ use crate::gpu::{GpuContext, ProjectionPath};
 use crate::headless::{default_camera, write_png};
 use crate::renderer::{FrameStats, Renderer};
 use crate::settings::{ColourMode, MAX_BUDGET, MIN_BUDGET, Pipeline, Settings, SizeMode};
-use crate::{StreamDataset, ViewerError};
+use crate::{HttpOptions, StreamDataset, ViewerError};
 use eframe::egui;
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::Instant;
@@ -22,6 +22,7 @@ pub struct WindowOptions {
     /// and documentation).
     pub screenshot: Option<(PathBuf, u32)>,
     pub size: (u32, u32),
+    pub token: Option<String>,
 }
 
 struct ViewerApp {
@@ -42,8 +43,12 @@ struct ViewerApp {
 }
 
 /// Opens the window and runs until it is closed.
-pub fn run_window(location: &Path, opts: WindowOptions) -> Result<(), ViewerError> {
-    let ds = Arc::new(StreamDataset::open_path(location)?);
+pub fn run_window(location: &str, opts: WindowOptions) -> Result<(), ViewerError> {
+    let http = HttpOptions {
+        token: opts.token.clone(),
+        ..HttpOptions::default()
+    };
+    let ds = Arc::new(StreamDataset::open(location, http)?);
     let ctx = Arc::new(GpuContext::new(opts.projection)?);
     let renderer = Renderer::new(
         ctx.clone(),
@@ -191,6 +196,10 @@ impl ViewerApp {
                 format!("{} / {}", s.nodes_in_flight, s.nodes_queued),
             );
             row("failed", s.nodes_failed.to_string());
+            row(
+                "unavailable",
+                format!("{} ({} fetch errors)", s.nodes_unavailable, s.fetch_errors),
+            );
             row(
                 "GPU memory",
                 format!("{:.0} MiB", s.gpu_bytes as f64 / (1 << 20) as f64),

@@ -1,7 +1,7 @@
 //! An open dataset seen through a `Source`: metadata, hierarchy pages on demand, and nodes decoded
 //! into the GPU point format.
 
-use crate::{MmapSource, Source, ViewerError};
+use crate::{HttpOptions, HttpSource, MmapSource, Source, ViewerError};
 use glam::{DVec3, Vec3};
 use std::path::Path;
 use std::sync::Arc;
@@ -39,6 +39,16 @@ pub struct StreamDataset {
 }
 
 impl StreamDataset {
+    /// Opens `http://HOST:PORT/DATASET` or a local dataset directory.
+    pub fn open(location: &str, http: HttpOptions) -> Result<StreamDataset, ViewerError> {
+        if location.starts_with("http://") || location.starts_with("https://") {
+            let (source, metadata) = HttpSource::open(location, http)?;
+            StreamDataset::from_source(Arc::new(source), metadata)
+        } else {
+            StreamDataset::open_path(Path::new(location))
+        }
+    }
+
     /// Opens a local dataset directory.
     pub fn open_path(dir: &Path) -> Result<StreamDataset, ViewerError> {
         let (source, metadata) = MmapSource::open(dir)?;

@@ -8,6 +8,9 @@ pub enum ViewerError {
     Format(#[from] FormatError),
     #[error("{location}: {what}")]
     Source { location: String, what: String },
+    /// A remote source did not answer (after retries); the same request may work later.
+    #[error("{location}: {what}")]
+    Unavailable { location: String, what: String },
     #[error(
         "no GPU adapter available ({0}); install a Vulkan driver (mesa-vulkan-drivers) or set WGPU_BACKEND"
     )]
@@ -26,6 +29,19 @@ impl ViewerError {
             location: location.into(),
             what: what.into(),
         }
+    }
+
+    pub fn unavailable(location: impl Into<String>, what: impl Into<String>) -> Self {
+        ViewerError::Unavailable {
+            location: location.into(),
+            what: what.into(),
+        }
+    }
+
+    /// Whether retrying later can succeed (a server that went away) rather than never (a
+    /// corrupt node).
+    pub fn is_transient(&self) -> bool {
+        matches!(self, ViewerError::Unavailable { .. })
     }
 
     pub fn output(path: impl Into<PathBuf>, what: impl std::fmt::Display) -> Self {

@@ -4,7 +4,7 @@ use crate::camera::Camera;
 use crate::gpu::{GpuContext, ProjectionPath};
 use crate::renderer::{FrameStats, Renderer};
 use crate::settings::Settings;
-use crate::{StreamDataset, ViewerError};
+use crate::{HttpOptions, StreamDataset, ViewerError};
 use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
@@ -28,6 +28,7 @@ pub struct RenderOptions {
     pub projection: ProjectionPath,
     pub gpu_cache_bytes: u64,
     pub loader_threads: usize,
+    pub token: Option<String>,
 }
 
 #[derive(Debug, Serialize)]
@@ -44,6 +45,8 @@ pub struct RenderReport {
     pub images: Vec<String>,
     pub frames: Vec<FrameStats>,
     pub errors: Vec<String>,
+    /// The last fetch that found no server, when some did.
+    pub fetch_error: Option<String>,
 }
 
 #[derive(Debug, Deserialize)]
@@ -67,10 +70,15 @@ pub fn default_camera(ds: &StreamDataset) -> Camera {
     Camera::fit(min, max, DEFAULT_FOV_DEG.to_radians())
 }
 
-/// Opens the dataset and the GPU, renders, writes images and statistics.
-pub fn render(location: &Path, opts: &RenderOptions) -> Result<RenderReport, ViewerError> {
+/// Opens the dataset (a directory or an http:// URL) and the GPU, renders, writes images and
+/// statistics.
+pub fn render(location: &str, opts: &RenderOptions) -> Result<RenderReport, ViewerError> {
     let t0 = Instant::now();
-    let ds = Arc::new(StreamDataset::open_path(location)?);
+    let http = HttpOptions {
+        token: opts.token.clone(),
+        ..HttpOptions::default()
+    };
+    let ds = Arc::new(StreamDataset::open(location, http)?);
     let ctx = Arc::new(GpuContext::new(opts.projection)?);
     render_with(ds, ctx, opts, t0)
 }
@@ -102,10 +110,13 @@ pub fn render_with(
         images: Vec::new(),
         frames: Vec::new(),
         errors: Vec::new(),
+        fetch_error: None,
     };
     let fly_through = cameras.len() > 1;
     for (i, camera) in cameras.iter().enumerate() {
         let frame_start = Instant::now();
+        let mut last_progress = Instant::now();
+        let mut drawn_before = 0;
         let stats = loop {
             let mut stats = renderer.frame(camera, opts.width, opts.height, &opts.settings);
             renderer.wait_gpu()?;
@@ -114,8 +125,14 @@ pub fn render_with(
             if report.time_to_first_image_ms.is_none() && stats.points_drawn > 0 {
                 report.time_to_first_image_ms = Some(t0.elapsed().as_secs_f64() * 1e3);
             }
+            if stats.bytes_loaded > 0 || stats.points_drawn != drawn_before {
+                last_progress = Instant::now();
+            }
+            drawn_before = stats.points_drawn;
+            // Waiting for completeness ends early only when nothing arrives for `timeout`
+            // (a server that went away): the image shows what there is.
             let done = if opts.wait_complete {
-                stats.complete
+                stats.complete || last_progress.elapsed() > opts.timeout
             } else if fly_through {
                 true
             } else {
@@ -153,6 +170,7 @@ pub fn render_with(
         }
     }
     report.errors = renderer.errors().to_vec();
+    report.fetch_error = renderer.last_fetch_error().map(str::to_string);
     if let Some(path) = &opts.stats {
         let json = serde_json::to_string_pretty(&report)
             .map_err(|e| ViewerError::output(path, format!("cannot encode statistics: {e}")))?;

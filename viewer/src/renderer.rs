@@ -9,13 +9,13 @@ use crate::gpu::GpuContext;
 use crate::gpu::cache::{InsertError, NodeCache};
 use crate::gpu::passes::{ArenaDraw, FrameDraw, FrameUniforms, GpuRange, Passes, Screen};
 use crate::gpu::timing::Timer;
-use crate::loader::{Done, Job, Loader};
+use crate::loader::{Done, Job, JobKey, Loader};
 use crate::lod::{Selection, SelectionParams, Tree, clip_range, select};
 use crate::settings::{Pipeline, Settings, SizeMode};
 use serde::Serialize;
-use std::collections::{BTreeMap, HashSet, VecDeque};
+use std::collections::{BTreeMap, HashMap, HashSet, VecDeque};
 use std::sync::Arc;
-use std::time::Instant;
+use std::time::{Duration, Instant};
 use strata_format::NodeKey;
 
 /// Statistics of one frame, as `--stats` writes them and the panel shows them.
@@ -34,6 +34,12 @@ pub struct FrameStats {
     /// Nodes that could not be loaded (corrupt, unreadable), over the whole session.
     pub nodes_failed: usize,
     pub pages_failed: usize,
+    /// Nodes the view wants that are not resident yet.
+    pub nodes_missing: usize,
+    /// Of those, nodes whose source did not answer; they are asked for again later.
+    pub nodes_unavailable: usize,
+    /// Fetches that failed for want of an answer (server gone, timeouts), over the session.
+    pub fetch_errors: u64,
     pub nodes_visible: usize,
     pub nodes_resident: usize,
     pub nodes_in_flight: usize,
@@ -56,10 +62,16 @@ pub struct Renderer {
     pages_failed: usize,
     errors: Vec<String>,
     uploads: VecDeque<GpuNode>,
+    retry_after: HashMap<JobKey, Instant>,
+    fetch_errors: u64,
+    last_fetch_error: Option<String>,
     last_drawn: HashSet<NodeKey>,
     frame: u64,
     bytes_total: u64,
 }
+
+/// How long a node or page whose source did not answer waits before it is asked for again.
+const RETRY_PAUSE: Duration = Duration::from_millis(500);
 
 /// GPU memory for the node cache unless told otherwise.
 pub const DEFAULT_GPU_CACHE: u64 = 2 << 30;
@@ -90,6 +102,9 @@ impl Renderer {
             pages_failed: 0,
             errors: Vec::new(),
             uploads: VecDeque::new(),
+            retry_after: HashMap::new(),
+            fetch_errors: 0,
+            last_fetch_error: None,
             last_drawn: HashSet::new(),
             frame: 0,
             bytes_total: 0,
@@ -126,17 +141,33 @@ impl Renderer {
                 *bytes += node.bytes_read;
                 self.uploads.push_back(node);
             }
+            Done::NodeFailed(key, e) if e.is_transient() => self.unavailable(JobKey::Node(key), e),
             Done::NodeFailed(key, e) => {
                 self.failed.insert(key);
                 self.errors.push(e.to_string());
             }
             Done::Page(page) => self.tree.add_page(&page),
+            Done::PageFailed(root, e) if e.is_transient() => {
+                self.unavailable(JobKey::Page(root), e)
+            }
             Done::PageFailed(root, e) => {
                 self.tree.drop_page(root);
                 self.pages_failed += 1;
                 self.errors.push(e.to_string());
             }
         }
+    }
+
+    /// A fetch that found no server: try again after a pause, keep drawing what is resident.
+    fn unavailable(&mut self, key: JobKey, e: ViewerError) {
+        self.fetch_errors += 1;
+        self.last_fetch_error = Some(e.to_string());
+        self.retry_after.insert(key, Instant::now() + RETRY_PAUSE);
+    }
+
+    /// The most recent fetch that found no server, if any.
+    pub fn last_fetch_error(&self) -> Option<&str> {
+        self.last_fetch_error.as_deref()
     }
 
     /// Renders one frame of `width` x `height` into the output texture.
@@ -191,6 +222,13 @@ impl Renderer {
             bytes_loaded_total: self.bytes_total,
             nodes_failed: self.failed.len(),
             pages_failed: self.pages_failed,
+            nodes_missing: sel.missing_nodes.len(),
+            nodes_unavailable: sel
+                .missing_nodes
+                .iter()
+                .filter(|(n, _)| self.retry_after.contains_key(&JobKey::Node(n.key)))
+                .count(),
+            fetch_errors: self.fetch_errors,
             nodes_visible: sel.draw.len() + sel.missing_nodes.len(),
             nodes_resident: self.cache.resident_nodes(),
             nodes_in_flight: in_flight,
@@ -238,7 +276,9 @@ impl Renderer {
         }
     }
 
-    fn request(&self, sel: &Selection) {
+    fn request(&mut self, sel: &Selection) {
+        let now = Instant::now();
+        self.retry_after.retain(|_, t| *t > now);
         let mut jobs: Vec<(f32, Job)> = sel
             .missing_pages
             .iter()
@@ -248,6 +288,7 @@ impl Renderer {
                 Job::Node(n) => !self.uploads.iter().any(|u| u.key == n.key),
                 Job::Page(_) => true,
             })
+            .filter(|(_, j)| self.retry_after.get(&j.key()).is_none_or(|t| *t <= now))
             .collect();
         jobs.sort_by(|a, b| b.0.total_cmp(&a.0));
         self.loader.set_wanted(jobs.into_iter().map(|(_, j)| j));

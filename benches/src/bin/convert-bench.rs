@@ -8,21 +8,11 @@
 use anyhow::{Context, bail};
 use std::path::{Path, PathBuf};
 use std::time::Instant;
+use strata_bench::parse_count;
 use strata_converter::input::open_source;
 use strata_converter::synth::{Scene, synth};
 use strata_converter::sys::{format_bytes, parse_size};
 use strata_converter::{ConvertOptions, Sampling, convert};
-
-fn parse_count(s: &str) -> anyhow::Result<u64> {
-    let t = s.trim();
-    let (n, m) = match t.chars().last() {
-        Some('k' | 'K') => (&t[..t.len() - 1], 1e3),
-        Some('m' | 'M') => (&t[..t.len() - 1], 1e6),
-        Some('g' | 'G') => (&t[..t.len() - 1], 1e9),
-        _ => (t, 1.0),
-    };
-    Ok((n.parse::<f64>().with_context(|| format!("bad count {s}"))? * m) as u64)
-}
 
 fn decode_only(path: &Path) -> anyhow::Result<(u64, f64)> {
     let start = Instant::now();

@@ -13,9 +13,8 @@ use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 use std::time::{Duration, Instant};
-use strata_converter::synth::{Scene, synth};
+use strata_bench::{bench_dir, ensure_city_dataset, parse_count};
 use strata_converter::sys::peak_rss_bytes;
-use strata_converter::{ConvertOptions, Sampling, convert};
 use strata_viewer::gpu::{GpuContext, ProjectionPath};
 use strata_viewer::headless::default_camera;
 use strata_viewer::{Pipeline, Renderer, Settings, StreamDataset};
@@ -37,17 +36,6 @@ struct Run {
     points_drawn: u64,
     nodes_drawn: usize,
     peak_rss: u64,
-}
-
-fn parse_count(s: &str) -> anyhow::Result<u64> {
-    let t = s.trim();
-    let (n, m) = match t.chars().last() {
-        Some('k' | 'K') => (&t[..t.len() - 1], 1e3),
-        Some('m' | 'M') => (&t[..t.len() - 1], 1e6),
-        Some('g' | 'G') => (&t[..t.len() - 1], 1e9),
-        _ => (t, 1.0),
-    };
-    Ok((n.parse::<f64>().with_context(|| format!("bad count {s}"))? * m) as u64)
 }
 
 fn median(v: &mut [f64]) -> f64 {
@@ -138,31 +126,6 @@ fn child(args: &[String]) -> anyhow::Result<()> {
     Ok(())
 }
 
-fn ensure_dataset(points: u64, dir: &Path) -> anyhow::Result<PathBuf> {
-    let dataset = dir.join(format!("city_{points}.strata"));
-    if dataset.join("metadata.json").exists() {
-        return Ok(dataset);
-    }
-    std::fs::create_dir_all(dir)?;
-    let las = dir.join(format!("city_{points}.las"));
-    if !las.exists() {
-        eprintln!("synthesizing {points} points -> {}", las.display());
-        synth(&las, points, Scene::City, 1, true)?;
-    }
-    eprintln!("converting -> {}", dataset.display());
-    convert(&ConvertOptions {
-        inputs: vec![las],
-        output: dataset.clone(),
-        memory_limit: 2 << 30,
-        threads: std::thread::available_parallelism().map_or(1, |n| n.get()),
-        sampling: Sampling::Poisson,
-        overwrite: true,
-        resume: false,
-        quiet: true,
-    })?;
-    Ok(dataset)
-}
-
 fn main() -> anyhow::Result<()> {
     let args: Vec<String> = std::env::args().skip(1).collect();
     if args.first().map(String::as_str) == Some("--child") {
@@ -200,10 +163,7 @@ fn main() -> anyhow::Result<()> {
     }
     let dataset = match dataset {
         Some(d) => d,
-        None => {
-            let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../target/bench-data");
-            ensure_dataset(points, &dir)?
-        }
+        None => ensure_city_dataset(points, &bench_dir())?,
     };
     let meta = strata_format::LocalDataset::open(&dataset)?;
     let exe = std::env::current_exe()?;

@@ -1,0 +1,49 @@
+//! Helpers the benchmark binaries share.
+
+use anyhow::Context;
+use std::path::{Path, PathBuf};
+use strata_converter::synth::{Scene, synth};
+use strata_converter::{ConvertOptions, Sampling, convert};
+
+/// Parses `100000`, `100k`, `10M`, `1G`.
+pub fn parse_count(s: &str) -> anyhow::Result<u64> {
+    let t = s.trim();
+    let (n, m) = match t.chars().last() {
+        Some('k' | 'K') => (&t[..t.len() - 1], 1e3),
+        Some('m' | 'M') => (&t[..t.len() - 1], 1e6),
+        Some('g' | 'G') => (&t[..t.len() - 1], 1e9),
+        _ => (t, 1.0),
+    };
+    Ok((n.parse::<f64>().with_context(|| format!("bad count {s}"))? * m) as u64)
+}
+
+/// Where benchmarks keep their generated inputs (`target/bench-data`).
+pub fn bench_dir() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("../target/bench-data")
+}
+
+/// A converted synthetic city of `points` points in `dir`, built (and kept) on first use.
+pub fn ensure_city_dataset(points: u64, dir: &Path) -> anyhow::Result<PathBuf> {
+    let dataset = dir.join(format!("city_{points}.strata"));
+    if dataset.join("metadata.json").exists() {
+        return Ok(dataset);
+    }
+    std::fs::create_dir_all(dir)?;
+    let las = dir.join(format!("city_{points}.las"));
+    if !las.exists() {
+        eprintln!("synthesizing {points} points -> {}", las.display());
+        synth(&las, points, Scene::City, 1, true)?;
+    }
+    eprintln!("converting -> {}", dataset.display());
+    convert(&ConvertOptions {
+        inputs: vec![las],
+        output: dataset.clone(),
+        memory_limit: 2 << 30,
+        threads: std::thread::available_parallelism().map_or(1, |n| n.get()),
+        sampling: Sampling::Poisson,
+        overwrite: true,
+        resume: false,
+        quiet: true,
+    })?;
+    Ok(dataset)
+}

@@ -1,0 +1,461 @@
+//! `strata serve` and remote datasets: bytes served equal bytes on disk, refusals, validators,
+//! renders over HTTP (from strata serve and from nginx) equal renders from disk, a server killed
+//! mid-stream, timeouts and graceful shutdown.
+
+mod common;
+#[path = "common/http.rs"]
+mod http;
+
+use common::{data, s};
+use std::io::{BufRead, BufReader, Read, Write};
+use std::path::{Path, PathBuf};
+use std::process::{Child, Command, Stdio};
+use std::sync::OnceLock;
+use std::time::{Duration, Instant};
+
+fn fixtures() -> &'static Path {
+    static DIR: OnceLock<PathBuf> = OnceLock::new();
+    DIR.get_or_init(|| {
+        let dir = Path::new(env!("CARGO_TARGET_TMPDIR")).join("serve-fixtures");
+        let _ = std::fs::remove_dir_all(&dir);
+        let root = dir.join("root");
+        std::fs::create_dir_all(&root).expect("fixture dir");
+        common::run_ok(&[
+            "convert",
+            s(&data("autzen_trim.laz")),
+            "-o",
+            s(&root.join("autzen.strata")),
+            "--quiet",
+        ]);
+        let las = dir.join("city.las");
+        common::run_ok(&["synth", "--points", "400k", "-o", s(&las), "--seed", "5"]);
+        common::run_ok(&[
+            "convert",
+            s(&las),
+            "-o",
+            s(&root.join("city.strata")),
+            "--quiet",
+        ]);
+        std::fs::write(dir.join("secret.txt"), "TOP-SECRET-CONTENT").expect("secret");
+        std::os::unix::fs::symlink(&dir, root.join("escape")).expect("symlink");
+        dir
+    })
+}
+
+fn root() -> PathBuf {
+    fixtures().join("root")
+}
+
+struct Server {
+    child: Child,
+    addr: String,
+    log: BufReader<std::process::ChildStderr>,
+}
+
+impl Server {
+    fn start(extra: &[&str]) -> Server {
+        let mut child = common::strata()
+            .args(["serve", s(&root()), "--bind", "127.0.0.1:0"])
+            .args(extra)
+            .stdout(Stdio::piped())
+            .stderr(Stdio::piped())
+            .spawn()
+            .expect("server starts");
+        let mut first = String::new();
+        BufReader::new(child.stdout.take().expect("stdout"))
+            .read_line(&mut first)
+            .expect("banner");
+        let addr = first
+            .split("http://")
+            .nth(1)
+            .and_then(|r| r.split('/').next())
+            .unwrap_or_else(|| panic!("no address in {first:?}"))
+            .to_string();
+        let log = BufReader::new(child.stderr.take().expect("stderr"));
+        Server { child, addr, log }
+    }
+
+    fn url(&self, dataset: &str) -> String {
+        format!("http://{}/{dataset}", self.addr)
+    }
+}
+
+impl Drop for Server {
+    fn drop(&mut self) {
+        let _ = self.child.kill();
+        let _ = self.child.wait();
+    }
+}
+
+fn gpu(args: &[&str]) -> std::process::Output {
+    let backend = std::env::var("WGPU_BACKEND").unwrap_or_else(|_| "vulkan".into());
+    common::strata()
+        .env("WGPU_BACKEND", backend)
+        .args(args)
+        .output()
+        .expect("strata runs")
+}
+
+fn pixels(path: &Path) -> Vec<u8> {
+    let dec = png::Decoder::new(std::io::BufReader::new(
+        std::fs::File::open(path).expect("png"),
+    ));
+    let mut r = dec.read_info().expect("png header");
+    let mut buf = vec![0; r.output_buffer_size().expect("size")];
+    let info = r.next_frame(&mut buf).expect("png data");
+    buf.truncate(info.buffer_size());
+    buf
+}
+
+#[test]
+fn random_ranges_equal_the_bytes_on_disk() {
+    let server = Server::start(&["--quiet"]);
+    let file = root().join("city.strata/octree.bin");
+    let disk = std::fs::read(&file).expect("read");
+    let len = disk.len() as u64;
+    let mut seed = 0x9e3779b97f4a7c15u64;
+    let mut next = || {
+        seed ^= seed << 13;
+        seed ^= seed >> 7;
+        seed ^= seed << 17;
+        seed
+    };
+    for _ in 0..40 {
+        let a = next() % len;
+        let b = (a + next() % 200_000).min(len - 1);
+        let r = http::request(
+            &server.addr,
+            "GET",
+            "/city.strata/octree.bin",
+            &[("Range", &format!("bytes={a}-{b}"))],
+        );
+        assert_eq!(r.status, 206);
+        assert_eq!(
+            r.header("Content-Range"),
+            Some(format!("bytes {a}-{b}/{len}").as_str())
+        );
+        assert_eq!(
+            r.body,
+            disk[a as usize..=b as usize],
+            "bytes {a}-{b} differ"
+        );
+    }
+    let suffix = http::request(
+        &server.addr,
+        "GET",
+        "/city.strata/octree.bin",
+        &[("Range", "bytes=-100")],
+    );
+    assert_eq!(suffix.body, disk[disk.len() - 100..]);
+    let whole = http::request(&server.addr, "GET", "/city.strata/octree.bin", &[]);
+    assert_eq!(whole.status, 200);
+    assert_eq!(whole.body, disk);
+    assert_eq!(whole.header("Accept-Ranges"), Some("bytes"));
+}
+
+#[test]
+fn head_validators_multirange_and_listing() {
+    let server = Server::start(&["--quiet", "--cors", "*"]);
+    let head = http::request(&server.addr, "HEAD", "/autzen.strata/metadata.json", &[]);
+    let meta_len = std::fs::metadata(root().join("autzen.strata/metadata.json"))
+        .expect("meta")
+        .len();
+    assert_eq!(head.status, 200);
+    assert!(head.body.is_empty());
+    assert_eq!(
+        head.header("Content-Length"),
+        Some(meta_len.to_string().as_str())
+    );
+    assert!(head.header("Last-Modified").is_some());
+    assert!(head.header("Cache-Control").is_some());
+    assert_eq!(head.header("Access-Control-Allow-Origin"), Some("*"));
+    let etag = head.header("ETag").expect("etag").to_string();
+    let again = http::request(
+        &server.addr,
+        "GET",
+        "/autzen.strata/metadata.json",
+        &[("If-None-Match", &etag)],
+    );
+    assert_eq!(again.status, 304);
+    let multi = http::request(
+        &server.addr,
+        "GET",
+        "/autzen.strata/octree.bin",
+        &[("Range", "bytes=0-1,5-9")],
+    );
+    assert_eq!(multi.status, 416);
+    let past = http::request(
+        &server.addr,
+        "GET",
+        "/autzen.strata/metadata.json",
+        &[("Range", &format!("bytes={meta_len}-"))],
+    );
+    assert_eq!(past.status, 416);
+    assert_eq!(
+        past.header("Content-Range"),
+        Some(format!("bytes */{meta_len}").as_str())
+    );
+    let post = http::request(&server.addr, "POST", "/autzen.strata/metadata.json", &[]);
+    assert_eq!(post.status, 405);
+    let list = http::request(&server.addr, "GET", "/", &[]);
+    let v: serde_json::Value = serde_json::from_slice(&list.body).expect("listing JSON");
+    let names: Vec<&str> = v
+        .as_array()
+        .expect("array")
+        .iter()
+        .filter_map(|d| d["name"].as_str())
+        .collect();
+    assert_eq!(names, ["autzen.strata", "city.strata"]);
+    assert_eq!(v[0]["points"], 110_000);
+}
+
+#[test]
+fn traversal_and_missing_tokens_are_refused() {
+    let server = Server::start(&["--quiet", "--token", "s3cret"]);
+    let auth = [("Authorization", "Bearer s3cret")];
+    assert_eq!(
+        http::request(&server.addr, "GET", "/autzen.strata/metadata.json", &auth).status,
+        200
+    );
+    for (path, headers) in [
+        ("/autzen.strata/metadata.json", &[][..]),
+        (
+            "/autzen.strata/metadata.json",
+            &[("Authorization", "Bearer wrong")][..],
+        ),
+        ("/", &[("Authorization", "Basic czNjcmV0")][..]),
+    ] {
+        let r = http::request(&server.addr, "GET", path, headers);
+        assert_eq!(r.status, 401, "{path} {headers:?}");
+        assert!(r.header("WWW-Authenticate").is_some());
+    }
+    for path in [
+        "/../secret.txt",
+        "/autzen.strata/../../secret.txt",
+        "/%2e%2e/secret.txt",
+        "/%2E%2E%2Fsecret.txt",
+        "/autzen.strata%2f..%2f..%2fsecret.txt",
+        "//etc/passwd",
+        "/escape/secret.txt",
+        "/.hidden",
+    ] {
+        let r = http::request(&server.addr, "GET", path, &auth);
+        assert!(
+            (400..500).contains(&r.status),
+            "{path} answered {}",
+            r.status
+        );
+        assert!(
+            !String::from_utf8_lossy(&r.body).contains("TOP-SECRET"),
+            "{path} leaked"
+        );
+    }
+}
+
+fn render_pair(url: &str, local: &Path, tag: &str, extra: &[&str]) {
+    let dir = fixtures();
+    let (a, b) = (
+        dir.join(format!("{tag}-http.png")),
+        dir.join(format!("{tag}-disk.png")),
+    );
+    for (src, out) in [(url.to_string(), &a), (local.display().to_string(), &b)] {
+        let mut args = vec![
+            "render",
+            &src,
+            "-o",
+            s(out),
+            "--size",
+            "320x240",
+            "--wait-complete",
+        ];
+        args.extend_from_slice(extra);
+        let o = gpu(&args);
+        assert!(
+            o.status.success(),
+            "render {src}: {}",
+            String::from_utf8_lossy(&o.stderr)
+        );
+    }
+    assert_eq!(
+        pixels(&a),
+        pixels(&b),
+        "{tag}: render over HTTP differs from disk"
+    );
+}
+
+#[test]
+fn render_over_http_equals_render_from_disk() {
+    let server = Server::start(&["--quiet", "--token", "t0k"]);
+    render_pair(
+        &server.url("city.strata"),
+        &root().join("city.strata"),
+        "serve",
+        &["--token", "t0k"],
+    );
+    let o = gpu(&[
+        "render",
+        &server.url("city.strata"),
+        "-o",
+        s(&fixtures().join("no-token.png")),
+    ]);
+    assert!(!o.status.success());
+    assert!(String::from_utf8_lossy(&o.stderr).contains("401"));
+}
+
+#[test]
+fn render_from_nginx_equals_render_from_disk() {
+    let Some(nginx) = ["/usr/sbin/nginx", "/usr/bin/nginx"]
+        .into_iter()
+        .find(|p| Path::new(p).exists())
+    else {
+        assert!(
+            std::env::var_os("STRATA_REQUIRE_NGINX").is_none(),
+            "nginx is missing but STRATA_REQUIRE_NGINX is set"
+        );
+        eprintln!("skipping: nginx is not installed");
+        return;
+    };
+    let port = std::net::TcpListener::bind("127.0.0.1:0")
+        .expect("port")
+        .local_addr()
+        .expect("addr")
+        .port();
+    let prefix = fixtures().join("nginx");
+    std::fs::create_dir_all(prefix.join("logs")).expect("nginx dir");
+    let conf = prefix.join("nginx.conf");
+    std::fs::write(
+        &conf,
+        format!(
+            "master_process off;\nworker_processes 1;\nerror_log {p}/logs/error.log;\npid {p}/nginx.pid;\n\
+             events {{ worker_connections 64; }}\n\
+             http {{\n  access_log off;\n  client_body_temp_path {p}/tmp;\n  proxy_temp_path {p}/tmp;\n  fastcgi_temp_path {p}/tmp;\n  uwsgi_temp_path {p}/tmp;\n  scgi_temp_path {p}/tmp;\n\
+               server {{ listen 127.0.0.1:{port}; root {root}; }}\n}}\n",
+            p = prefix.display(),
+            root = root().display()
+        ),
+    )
+    .expect("nginx.conf");
+    let child = Command::new(nginx)
+        .args([
+            "-p",
+            s(&prefix),
+            "-c",
+            s(&conf),
+            "-g",
+            "daemon off; user root;",
+        ])
+        .stdin(Stdio::null())
+        .stdout(Stdio::null())
+        .stderr(Stdio::null())
+        .spawn()
+        .expect("nginx starts");
+    // One process (master_process off), stopped even when an assertion fails.
+    let _nginx = KillOnDrop(child);
+    let addr = format!("127.0.0.1:{port}");
+    let deadline = Instant::now() + Duration::from_secs(10);
+    while std::net::TcpStream::connect(&addr).is_err() {
+        assert!(Instant::now() < deadline, "nginx did not start");
+        std::thread::sleep(Duration::from_millis(50));
+    }
+    render_pair(
+        &format!("http://{addr}/autzen.strata"),
+        &root().join("autzen.strata"),
+        "nginx",
+        &[],
+    );
+}
+
+struct KillOnDrop(Child);
+
+impl Drop for KillOnDrop {
+    fn drop(&mut self) {
+        let _ = self.0.kill();
+        let _ = self.0.wait();
+    }
+}
+
+#[test]
+fn a_server_killed_mid_stream_leaves_a_render_of_what_arrived() {
+    let mut server = Server::start(&[]);
+    let out = fixtures().join("killed.png");
+    let stats = fixtures().join("killed.json");
+    let backend = std::env::var("WGPU_BACKEND").unwrap_or_else(|_| "vulkan".into());
+    let render = common::strata()
+        .env("WGPU_BACKEND", backend)
+        .args([
+            "render",
+            &server.url("city.strata"),
+            "-o",
+            s(&out),
+            "--stats",
+            s(&stats),
+            "--size",
+            "1280x720",
+            "--budget",
+            "10M",
+            "--wait-complete",
+            "--timeout",
+            "3",
+        ])
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .expect("render starts");
+    // Kill the server once a few nodes have gone out.
+    let mut nodes_served = 0;
+    let mut line = String::new();
+    while nodes_served < 4 {
+        line.clear();
+        if server.log.read_line(&mut line).expect("log") == 0 {
+            break;
+        }
+        if line.contains("octree.bin") {
+            nodes_served += 1;
+        }
+    }
+    server.child.kill().expect("kill server");
+    let o = render.wait_with_output().expect("render ends");
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(o.status.success(), "render failed: {err}");
+    assert!(!err.contains("panicked"));
+    let v: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(&stats).expect("stats")).expect("json");
+    let f = &v["frames"][0];
+    assert_eq!(
+        f["complete"], false,
+        "the render completed before the server died"
+    );
+    assert!(f["nodes_missing"].as_u64().unwrap_or(0) > 0);
+    assert!(
+        f["points_drawn"].as_u64().unwrap_or(0) > 0,
+        "nothing drawn of what arrived"
+    );
+    assert!(err.contains("missing"), "no report of missing nodes: {err}");
+    assert!(out.exists());
+}
+
+#[test]
+fn slow_clients_are_cut_off_and_sigterm_stops_gracefully() {
+    let mut server = Server::start(&["--quiet", "--header-timeout", "1", "--idle-timeout", "2"]);
+    let mut slow = std::net::TcpStream::connect(&server.addr).expect("connect");
+    slow.write_all(b"GET / HTTP/1.1\r\nHost: x\r\n")
+        .expect("partial request");
+    slow.set_read_timeout(Some(Duration::from_secs(8)))
+        .expect("timeout");
+    let start = Instant::now();
+    let mut buf = [0u8; 256];
+    let n = slow.read(&mut buf).unwrap_or(0);
+    assert!(
+        start.elapsed() < Duration::from_secs(6),
+        "a slow client held its connection"
+    );
+    assert!(n == 0 || String::from_utf8_lossy(&buf[..n]).contains("408"));
+
+    let status = Command::new("kill")
+        .args(["-TERM", &server.child.id().to_string()])
+        .status()
+        .expect("kill runs");
+    assert!(status.success());
+    let exit = server.child.wait().expect("server exits");
+    assert!(exit.success(), "server exited with {exit:?} on SIGTERM");
+}
