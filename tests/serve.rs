@@ -459,3 +459,63 @@ fn slow_clients_are_cut_off_and_sigterm_stops_gracefully() {
     let exit = server.child.wait().expect("server exits");
     assert!(exit.success(), "server exited with {exit:?} on SIGTERM");
 }
+
+#[test]
+fn a_render_picks_up_again_when_the_server_returns() {
+    let mut server = Server::start(&[]);
+    let addr = server.addr.clone();
+    let out = fixtures().join("returned.png");
+    let stats = fixtures().join("returned.json");
+    let backend = std::env::var("WGPU_BACKEND").unwrap_or_else(|_| "vulkan".into());
+    let render = common::strata()
+        .env("WGPU_BACKEND", backend)
+        .args([
+            "render",
+            &server.url("city.strata"),
+            "-o",
+            s(&out),
+            "--stats",
+            s(&stats),
+            "--size",
+            "1280x720",
+            "--budget",
+            "10M",
+            "--wait-complete",
+            "--timeout",
+            "30",
+        ])
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .expect("render starts");
+    let mut served = 0;
+    let mut line = String::new();
+    while served < 4 {
+        line.clear();
+        if server.log.read_line(&mut line).expect("log") == 0 {
+            break;
+        }
+        served += line.contains("octree.bin") as u32;
+    }
+    server.child.kill().expect("kill server");
+    let _ = server.child.wait();
+    std::thread::sleep(Duration::from_millis(1500));
+    // The same address again: the client's retries find it.
+    let back = common::strata()
+        .args(["serve", s(&root()), "--bind", &addr, "--quiet"])
+        .stdout(Stdio::null())
+        .stderr(Stdio::null())
+        .spawn()
+        .expect("server restarts");
+    let _back = KillOnDrop(back);
+    let o = render.wait_with_output().expect("render ends");
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let v: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(&stats).expect("stats")).expect("json");
+    let f = &v["frames"][0];
+    assert_eq!(f["complete"], true, "the render did not pick up: {f}");
+    assert!(
+        f["fetch_errors"].as_u64().unwrap_or(0) > 0,
+        "the server was never missed: {f}"
+    );
+}
