@@ -30,6 +30,10 @@ struct Run {
     streaming_frames: usize,
     streaming_median_ms: f64,
     streaming_max_ms: f64,
+    fly_frames: usize,
+    fly_median_ms: f64,
+    fly_max_ms: f64,
+    fly_mb_loaded: f64,
     steady_median_ms: f64,
     steady_gpu_ms: f64,
     project_ms: f64,
@@ -37,6 +41,9 @@ struct Run {
     nodes_drawn: usize,
     peak_rss: u64,
 }
+
+/// Frames of the fly phase (two seconds at 60 Hz).
+const FLY_FRAMES: usize = 120;
 
 fn median(v: &mut [f64]) -> f64 {
     v.sort_by(f64::total_cmp);
@@ -104,6 +111,25 @@ fn child(args: &[String]) -> anyhow::Result<()> {
         );
         last = Some(s);
     }
+    // Flying: the budget is full and the camera moves every frame, so nodes stream in and out
+    // while the drawn count stays near the budget. This is where hitches would show.
+    let mut fly = Vec::new();
+    let mut fly_bytes = 0u64;
+    let mut moving = camera;
+    for i in 0..FLY_FRAMES {
+        let start = Instant::now();
+        moving.orbit(0.01, 0.0);
+        if i < FLY_FRAMES / 2 {
+            moving.zoom(0.995);
+        }
+        let s = r.frame(&moving, w, h, &settings);
+        r.wait_gpu()?;
+        fly.push(start.elapsed().as_secs_f64() * 1e3);
+        fly_bytes += s.bytes_loaded;
+        if let Some(rest) = period.checked_sub(start.elapsed()) {
+            std::thread::sleep(rest);
+        }
+    }
     let last = last.context("no frame")?;
     let run = Run {
         adapter: ctx.adapter_name.clone(),
@@ -115,6 +141,10 @@ fn child(args: &[String]) -> anyhow::Result<()> {
         streaming_frames: streaming.len(),
         streaming_median_ms: median(&mut streaming.clone()),
         streaming_max_ms: streaming.iter().copied().fold(0.0, f64::max),
+        fly_frames: fly.len(),
+        fly_median_ms: median(&mut fly.clone()),
+        fly_max_ms: fly.iter().copied().fold(0.0, f64::max),
+        fly_mb_loaded: fly_bytes as f64 / 1e6,
         steady_median_ms: median(&mut steady),
         steady_gpu_ms: median(&mut gpu),
         project_ms: median(&mut project),
@@ -206,12 +236,12 @@ fn main() -> anyhow::Result<()> {
         std::thread::available_parallelism().map_or(1, |n| n.get()),
     );
     println!(
-        "| budget | points drawn | nodes | open ms | first image ms | complete ms | streaming frame median / max ms | frame ms (complete) | points/s (whole frame) | GPU ms (timestamps) | project ms (timestamps) | peak RSS |"
+        "| budget | points drawn | nodes | open ms | first image ms | complete ms | filling: frame median / max ms | flying: frame median / max ms, MB loaded | frame ms (complete) | points/s (whole frame) | GPU ms (timestamps) | project ms (timestamps) | peak RSS |"
     );
-    println!("|---|---|---|---|---|---|---|---|---|---|---|---|");
+    println!("|---|---|---|---|---|---|---|---|---|---|---|---|---|");
     for r in &runs {
         println!(
-            "| {} | {} | {} | {:.0} | {:.0} | {:.0} | {:.1} / {:.1} ({} frames) | {:.1} | {:.1} M | {:.1} | {:.2} | {:.0} MiB |",
+            "| {} | {} | {} | {:.0} | {:.0} | {:.0} | {:.1} / {:.1} ({} frames) | {:.1} / {:.1}, {:.1} MB | {:.1} | {:.1} M | {:.1} | {:.2} | {:.0} MiB |",
             r.budget,
             r.points_drawn,
             r.nodes_drawn,
@@ -221,6 +251,9 @@ fn main() -> anyhow::Result<()> {
             r.streaming_median_ms,
             r.streaming_max_ms,
             r.streaming_frames,
+            r.fly_median_ms,
+            r.fly_max_ms,
+            r.fly_mb_loaded,
             r.steady_median_ms,
             r.points_drawn as f64 / (r.steady_median_ms * 1e3).max(1e-9),
             r.steady_gpu_ms,
