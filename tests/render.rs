@@ -464,3 +464,72 @@ fn window_opens_under_xvfb_and_shows_the_panel() {
         "the scene shows {scene_drawn} drawn pixels"
     );
 }
+
+#[test]
+fn a_small_gpu_cache_evicts_and_still_completes_every_frame() {
+    let dataset = fixtures().join("city.strata");
+    let ds = StreamDataset::open_path(&dataset).expect("opens");
+    let a = ds.anchor();
+    let (min, max) = ds.bounds();
+    let (c, r) = ((min + max) * 0.5, (max - min).length());
+    // Close views of opposite corners: each needs detail the other does not.
+    let key = |x: f32, y: f32| {
+        let t = glam::Vec3::new(
+            min.x + (max.x - min.x) * x,
+            min.y + (max.y - min.y) * y,
+            c.z,
+        );
+        serde_json::json!({
+            "eye": [a.x + (t.x - 0.05 * r) as f64, a.y + (t.y - 0.05 * r) as f64, a.z + (c.z + 0.08 * r) as f64],
+            "target": [a.x + t.x as f64, a.y + t.y as f64, a.z + t.z as f64],
+            "fov": 60.0
+        })
+    };
+    let dir = fixtures().join("small-cache");
+    std::fs::create_dir_all(&dir).expect("dir");
+    let path = dir.join("path.json");
+    let json =
+        serde_json::json!({"keyframes": [key(0.15, 0.15), key(0.85, 0.85), key(0.15, 0.85)]});
+    std::fs::write(&path, json.to_string()).expect("path");
+    let st = dir.join("stats.json");
+    let cache = 4u64 << 20;
+    gpu_ok(&[
+        "render",
+        s(&dataset),
+        "-o",
+        s(&dir.join("f.png")),
+        "--path",
+        s(&path),
+        "--frames",
+        "3",
+        "--size",
+        "400x300",
+        "--budget",
+        "1M",
+        "--gpu-cache",
+        "4MiB",
+        "--wait-complete",
+        "--stats",
+        s(&st),
+    ]);
+    let v = stats(&st);
+    let frames = v["frames"].as_array().expect("frames");
+    assert_eq!(frames.len(), 3);
+    let mut loaded_after_first = 0;
+    for (i, f) in frames.iter().enumerate() {
+        assert_eq!(f["complete"], true, "frame {i} incomplete: {f}");
+        assert!(
+            f["gpu_bytes"].as_u64().unwrap_or(u64::MAX) <= cache,
+            "frame {i} over the cache: {f}"
+        );
+        assert!(f["points_drawn"].as_u64().unwrap_or(0) > 0);
+        if i > 0 {
+            loaded_after_first += f["bytes_loaded"].as_u64().unwrap_or(0);
+        }
+    }
+    // The later views needed nodes again or anew: the cache evicted and reloaded.
+    assert!(loaded_after_first > 0);
+    let resident = frames[2]["nodes_resident"].as_u64().unwrap_or(0);
+    let total = v["frames"][0]["nodes_visible"].as_u64().unwrap_or(0);
+    assert!(resident > 0 && total > 0);
+}

@@ -190,7 +190,9 @@ impl Renderer {
         self.upload(settings);
 
         let params = SelectionParams {
-            budget: settings.budget,
+            // More than the cache holds would evict what the same frame draws, for ever; a
+            // 10 % margin leaves room for fragmentation.
+            budget: settings.budget.min(self.cache.capacity_points() / 10 * 9),
             width,
             height,
             min_spacing_px: settings.min_spacing_px,
@@ -261,13 +263,10 @@ impl Renderer {
                 Ok(()) => {}
                 // The cache holds only what is on screen: the node waits to be asked for again.
                 Err(InsertError::Full) => {}
-                Err(InsertError::TooLarge {
-                    points,
-                    arena_points,
-                }) => {
+                Err(InsertError::TooLarge { points, capacity }) => {
                     self.failed.insert(node.key);
                     self.errors.push(format!(
-                        "{}: node {} has {points} points, more than a GPU arena holds ({arena_points})",
+                        "{}: node {} has {points} points, more than the GPU cache holds ({capacity}); raise --gpu-cache",
                         self.ds.location(),
                         node.key
                     ));
@@ -312,10 +311,10 @@ impl Renderer {
         let Some(screen) = &self.screen else { return };
         let mut per_arena: BTreeMap<u32, Vec<GpuRange>> = BTreeMap::new();
         for key in &sel.draw {
-            if let Some(slot) = self.cache.slot(*key) {
-                per_arena.entry(slot.arena).or_default().push(GpuRange {
-                    start: slot.start,
-                    count: slot.count,
+            for p in self.cache.pieces(*key).unwrap_or_default() {
+                per_arena.entry(p.arena).or_default().push(GpuRange {
+                    start: p.start,
+                    count: p.count,
                     first_group: 0,
                     spacing: self.ds.node_spacing(*key),
                 });

@@ -1,6 +1,7 @@
 //! GPU node cache: nodes live in a few large arena buffers (each within the adapter's storage
-//! binding limit), allocated first-fit and evicted least-recently-drawn first under a memory
-//! budget.
+//! binding limit) and are evicted least-recently-drawn first under a memory budget. A node
+//! takes one free range when one is large enough, else several pieces: projection draws ranges,
+//! not nodes, so fragmentation never refuses a node while the free space adds up.
 
 use crate::dataset::GpuNode;
 use std::collections::{HashMap, HashSet};
@@ -18,11 +19,17 @@ pub struct Arena {
     free: Vec<(u32, u32)>,
 }
 
-#[derive(Debug, Clone, Copy)]
-pub struct Slot {
+/// Points `start..start + count` of arena `arena`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Piece {
     pub arena: u32,
     pub start: u32,
     pub count: u32,
+}
+
+#[derive(Debug, Clone)]
+pub struct Slot {
+    pub pieces: Vec<Piece>,
     last_used: u64,
 }
 
@@ -38,8 +45,8 @@ pub struct NodeCache {
 pub enum InsertError {
     /// Nothing can be evicted to make room (everything resident is on screen).
     Full,
-    /// The node is larger than an arena.
-    TooLarge { points: usize, arena_points: u32 },
+    /// The node is larger than the whole cache.
+    TooLarge { points: usize, capacity: u64 },
 }
 
 impl NodeCache {
@@ -58,12 +65,18 @@ impl NodeCache {
         1 << self.arena_shift
     }
 
+    /// Points the cache can hold at most: whole arenas within the memory budget (at least one).
+    pub fn capacity_points(&self) -> u64 {
+        let arena_bytes = self.arena_points() as u64 * GPU_POINT_BYTES;
+        (self.budget_bytes / arena_bytes).max(1) * self.arena_points() as u64
+    }
+
     pub fn contains(&self, key: NodeKey) -> bool {
         self.slots.contains_key(&key)
     }
 
-    pub fn slot(&self, key: NodeKey) -> Option<Slot> {
-        self.slots.get(&key).copied()
+    pub fn pieces(&self, key: NodeKey) -> Option<&[Piece]> {
+        self.slots.get(&key).map(|s| s.pieces.as_slice())
     }
 
     pub fn resident_nodes(&self) -> usize {
@@ -71,7 +84,11 @@ impl NodeCache {
     }
 
     pub fn resident_points(&self) -> u64 {
-        self.slots.values().map(|s| s.count as u64).sum()
+        self.slots
+            .values()
+            .flat_map(|s| &s.pieces)
+            .map(|p| p.count as u64)
+            .sum()
     }
 
     /// GPU memory held by the arenas.
@@ -97,17 +114,17 @@ impl NodeCache {
         protect: &HashSet<NodeKey>,
     ) -> Result<(), InsertError> {
         let count = node.points.len();
-        if count > self.arena_points() as usize {
+        if count as u64 > self.capacity_points() {
             return Err(InsertError::TooLarge {
                 points: count,
-                arena_points: self.arena_points(),
+                capacity: self.capacity_points(),
             });
         }
         if let Some(old) = self.slots.remove(&node.key) {
-            self.release(old);
+            self.release(&old);
         }
         let count = count as u32;
-        let (arena, start) = loop {
+        let pieces = loop {
             if let Some(found) = self.allocate(count) {
                 break found;
             }
@@ -123,29 +140,32 @@ impl NodeCache {
                 .min_by_key(|(k, s)| (s.last_used, std::cmp::Reverse(k.level)))
                 .map(|(k, _)| *k);
             match victim.and_then(|k| self.slots.remove(&k)) {
-                Some(slot) => self.release(slot),
+                Some(slot) => self.release(&slot),
                 None => return Err(InsertError::Full),
             }
         };
-        let a = &self.arenas[arena as usize];
-        if count > 0 {
-            queue.write_buffer(
-                &a.points,
-                start as u64 * 16,
-                bytemuck::cast_slice(&node.points),
-            );
-            queue.write_buffer(
-                &a.attributes,
-                start as u64 * 4,
-                bytemuck::cast_slice(&node.attributes),
-            );
+        let mut done = 0usize;
+        for p in &pieces {
+            let a = &self.arenas[p.arena as usize];
+            let range = done..done + p.count as usize;
+            if !range.is_empty() {
+                queue.write_buffer(
+                    &a.points,
+                    p.start as u64 * 16,
+                    bytemuck::cast_slice(&node.points[range.clone()]),
+                );
+                queue.write_buffer(
+                    &a.attributes,
+                    p.start as u64 * 4,
+                    bytemuck::cast_slice(&node.attributes[range]),
+                );
+            }
+            done += p.count as usize;
         }
         self.slots.insert(
             node.key,
             Slot {
-                arena,
-                start,
-                count,
+                pieces,
                 last_used: frame,
             },
         );
@@ -169,35 +189,99 @@ impl NodeCache {
         }
     }
 
-    fn allocate(&mut self, count: u32) -> Option<(u32, u32)> {
+    /// One free range that holds `count` points if there is one, else pieces from the largest
+    /// free ranges; `None` when the free space does not add up.
+    fn allocate(&mut self, count: u32) -> Option<Vec<Piece>> {
         let count = count.max(1);
         for (ai, arena) in self.arenas.iter_mut().enumerate() {
             if let Some(i) = arena.free.iter().position(|&(_, len)| len >= count) {
-                let (start, len) = arena.free[i];
-                if len == count {
-                    arena.free.remove(i);
-                } else {
-                    arena.free[i] = (start + count, len - count);
-                }
-                return Some((ai as u32, start));
+                return Some(vec![take(&mut arena.free, i, count, ai as u32)]);
             }
         }
-        None
+        let free: u64 = self
+            .arenas
+            .iter()
+            .flat_map(|a| &a.free)
+            .map(|&(_, len)| len as u64)
+            .sum();
+        if free < count as u64 {
+            return None;
+        }
+        let mut pieces = Vec::new();
+        let mut left = count;
+        while left > 0 {
+            let (ai, i, len) = self
+                .arenas
+                .iter()
+                .enumerate()
+                .flat_map(|(ai, a)| {
+                    a.free
+                        .iter()
+                        .enumerate()
+                        .map(move |(i, &(_, len))| (ai, i, len))
+                })
+                .max_by_key(|&(_, _, len)| len)?;
+            let n = left.min(len);
+            pieces.push(take(&mut self.arenas[ai].free, i, n, ai as u32));
+            left -= n;
+        }
+        Some(pieces)
     }
 
-    fn release(&mut self, slot: Slot) {
-        let free = &mut self.arenas[slot.arena as usize].free;
-        let len = slot.count.max(1);
-        let at = free.partition_point(|&(s, _)| s < slot.start);
-        free.insert(at, (slot.start, len));
-        // Coalesce with the next and the previous range.
-        if at + 1 < free.len() && free[at].0 + free[at].1 == free[at + 1].0 {
-            free[at].1 += free[at + 1].1;
-            free.remove(at + 1);
+    fn release(&mut self, slot: &Slot) {
+        for p in &slot.pieces {
+            release_range(
+                &mut self.arenas[p.arena as usize].free,
+                p.start,
+                p.count.max(1),
+            );
         }
-        if at > 0 && free[at - 1].0 + free[at - 1].1 == free[at].0 {
-            free[at - 1].1 += free[at].1;
-            free.remove(at);
-        }
+    }
+}
+
+/// Takes `n` points from the front of free range `i`.
+fn take(free: &mut Vec<(u32, u32)>, i: usize, n: u32, arena: u32) -> Piece {
+    let (start, len) = free[i];
+    if len == n {
+        free.remove(i);
+    } else {
+        free[i] = (start + n, len - n);
+    }
+    Piece {
+        arena,
+        start,
+        count: n,
+    }
+}
+
+/// Returns a range to a sorted free list, merging it with its neighbours.
+fn release_range(free: &mut Vec<(u32, u32)>, start: u32, len: u32) {
+    let at = free.partition_point(|&(s, _)| s < start);
+    free.insert(at, (start, len));
+    if at + 1 < free.len() && free[at].0 + free[at].1 == free[at + 1].0 {
+        free[at].1 += free[at + 1].1;
+        free.remove(at + 1);
+    }
+    if at > 0 && free[at - 1].0 + free[at - 1].1 == free[at].0 {
+        free[at - 1].1 += free[at].1;
+        free.remove(at);
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn free_ranges_merge_back_into_one() {
+        let mut free = vec![(0u32, 100u32)];
+        let a = take(&mut free, 0, 30, 0);
+        let b = take(&mut free, 0, 30, 0);
+        assert_eq!((a.start, b.start), (0, 30));
+        assert_eq!(free, vec![(60, 40)]);
+        release_range(&mut free, a.start, a.count);
+        assert_eq!(free, vec![(0, 30), (60, 40)]);
+        release_range(&mut free, b.start, b.count);
+        assert_eq!(free, vec![(0, 100)]);
     }
 }
