@@ -6,6 +6,13 @@
 @group(0) @binding(3) var output: texture_storage_2d<rgba8unorm, write>;
 
 const NO_DEPTH: f32 = -1e30;
+// Eight neighbours at 45 degree steps on the unit circle.
+const DIRECTIONS = array<vec2<f32>, 8>(
+    vec2<f32>(1.0, 0.0), vec2<f32>(0.70710678, 0.70710678),
+    vec2<f32>(0.0, 1.0), vec2<f32>(-0.70710678, 0.70710678),
+    vec2<f32>(-1.0, 0.0), vec2<f32>(-0.70710678, -0.70710678),
+    vec2<f32>(0.0, -1.0), vec2<f32>(0.70710678, -0.70710678),
+);
 
 fn log_depth(x: i32, y: i32) -> f32 {
     if x < 0 || y < 0 || x >= i32(frame.width) || y >= i32(frame.height) {
@@ -34,9 +41,9 @@ fn main(@builtin(global_invocation_id) id: vec3<u32>) {
         let r = frame.edl_radius;
         var response = 0.0;
         for (var k = 0; k < 8; k++) {
-            let angle = f32(k) * 0.78539816;
-            let nx = i32(id.x) + i32(round(cos(angle) * r));
-            let ny = i32(id.y) + i32(round(sin(angle) * r));
+            let offset = round(DIRECTIONS[k] * r);
+            let nx = i32(id.x) + i32(offset.x);
+            let ny = i32(id.y) + i32(offset.y);
             let nd = log_depth(nx, ny);
             if nd != NO_DEPTH {
                 response += max(0.0, ld - nd);
