@@ -107,7 +107,9 @@ impl eframe::App for ViewerApp {
         egui::Panel::left("settings")
             .resizable(false)
             .exact_size(280.0)
-            .show(ui, |ui| self.panel(ui));
+            .show(ui, |ui| {
+                egui::ScrollArea::vertical().show(ui, |ui| self.panel(ui));
+            });
         egui::CentralPanel::default()
             .frame(egui::Frame::NONE)
             .show(ui, |ui| self.scene(ui, frame));
