@@ -533,3 +533,29 @@ fn a_small_gpu_cache_evicts_and_still_completes_every_frame() {
     let total = v["frames"][0]["nodes_visible"].as_u64().unwrap_or(0);
     assert!(resident > 0 && total > 0);
 }
+
+#[test]
+fn demo_synthesizes_converts_and_renders_without_a_display() {
+    let dir = fixtures().join("demo");
+    let backend = std::env::var("WGPU_BACKEND").unwrap_or_else(|_| "vulkan".into());
+    let o = strata()
+        .env("WGPU_BACKEND", backend)
+        .env_remove("DISPLAY")
+        .env_remove("WAYLAND_DISPLAY")
+        .args(["demo", "--dir", s(&dir), "--points", "200k"])
+        .output()
+        .expect("demo runs");
+    assert!(
+        o.status.success(),
+        "demo failed: {}",
+        String::from_utf8_lossy(&o.stderr)
+    );
+    let (w, h, rgba) = read_png(&dir.join("city.png"));
+    assert_eq!((w, h), (1280, 720));
+    let drawn_px = rgba.chunks_exact(4).filter(|p| drawn(p)).count();
+    assert!(
+        drawn_px > 50_000,
+        "the demo image shows {drawn_px} drawn pixels"
+    );
+    assert!(String::from_utf8_lossy(&o.stdout).contains("points drawn"));
+}
