@@ -273,6 +273,46 @@ fn int64_and_int32_projection_give_identical_images() {
 }
 
 #[test]
+fn fused_and_separate_finish_passes_give_identical_images() {
+    let dataset = fixtures().join("city.strata");
+    for (projection, colour) in [
+        ("int64", "rgb"),
+        ("int32", "elevation"),
+        ("int64", "classification"),
+    ] {
+        let images: Vec<Vec<u8>> = [&[][..], &["--separate-passes"][..]]
+            .iter()
+            .enumerate()
+            .map(|(i, extra)| {
+                let tag = format!("finish-{projection}-{colour}-{i}");
+                let mut args = vec![
+                    "--projection",
+                    projection,
+                    "--colour",
+                    colour,
+                    "--size",
+                    "320x200",
+                ];
+                args.extend_from_slice(extra);
+                let (st, png) = render_stats(&dataset, &tag, &args);
+                let passes = st["frames"][0]["passes"].to_string();
+                if i == 1 {
+                    assert!(
+                        !passes.contains("finish"),
+                        "separate passes ran the fused one: {passes}"
+                    );
+                }
+                read_png(&png).2
+            })
+            .collect();
+        assert!(
+            images[0] == images[1],
+            "{projection}/{colour}: fused and separate passes differ"
+        );
+    }
+}
+
+#[test]
 fn a_corrupt_node_is_skipped_and_counted() {
     let src = fixtures().join("autzen.strata");
     let dir = fixtures().join("corrupt-node");

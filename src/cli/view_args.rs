@@ -28,6 +28,9 @@ pub struct ViewArgs {
     /// Projection path: auto (64-bit atomics where available), int64 or int32.
     #[arg(long, default_value = "auto")]
     pub projection: String,
+    /// Resolve and shade in separate passes instead of the fused one (to compare them).
+    #[arg(long)]
+    pub separate_passes: bool,
     /// Bearer token for a dataset served with `strata serve --token`.
     #[arg(long)]
     pub token: Option<String>,
@@ -57,6 +60,7 @@ impl ViewArgs {
                 SizeMode::Fixed
             },
             colour: ColourMode::parse(&self.colour).context("--colour")?,
+            fused_finish: !self.separate_passes,
             ..Settings::default()
         })
     }

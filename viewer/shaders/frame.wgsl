@@ -15,6 +15,8 @@ struct Frame {
     edl_strength: f32,
     edl_radius: f32,
     background: u32,
+    // Arena of each of the fused finish pass's four binding slots.
+    arena_slots: vec4<u32>,
 }
 
 // ranges[0] is a header: start = arena index, count = number of ranges that follow.

@@ -355,6 +355,7 @@ impl Renderer {
             },
             edl_radius: settings.edl_radius,
             background: r as u32 | (g as u32) << 8 | (b as u32) << 16 | 255 << 24,
+            arena_slots: [u32::MAX; 4],
         };
         let mut encoder = self
             .ctx
@@ -371,6 +372,7 @@ impl Renderer {
             &FrameDraw {
                 uniforms: &uniforms,
                 arenas: &draws,
+                allow_fused: settings.fused_finish,
             },
             &mut self.timer,
         );
@@ -448,7 +450,13 @@ impl Renderer {
             .screen
             .as_ref()
             .ok_or_else(|| ViewerError::Gpu("no frame has been rendered".into()))?;
-        let size = screen.width as u64 * screen.height as u64 * 4;
+        // On the int64 path the depth plane is the high word of each key (the fused finish
+        // pass never writes a separate depth buffer).
+        let (source, stride) = match &screen.keys {
+            Some(keys) => (keys, 8),
+            None => (&screen.depths, 4),
+        };
+        let size = screen.width as u64 * screen.height as u64 * stride as u64;
         let buffer = self.ctx.device.create_buffer(&wgpu::BufferDescriptor {
             label: Some("depth readback"),
             size,
@@ -461,12 +469,13 @@ impl Renderer {
             .create_command_encoder(&wgpu::CommandEncoderDescriptor {
                 label: Some("depth readback"),
             });
-        encoder.copy_buffer_to_buffer(&screen.depths, 0, &buffer, 0, size);
+        encoder.copy_buffer_to_buffer(source, 0, &buffer, 0, size);
         self.ctx.queue.submit([encoder.finish()]);
         let data = map_read(&self.ctx, &buffer)?;
         Ok(data
-            .chunks_exact(4)
+            .chunks_exact(stride)
             .map(|b| {
+                let b = &b[stride - 4..];
                 let bits = u32::from_le_bytes([b[0], b[1], b[2], b[3]]);
                 (bits != u32::MAX).then(|| f32::from_bits(bits))
             })

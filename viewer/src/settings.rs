@@ -91,6 +91,8 @@ pub struct Settings {
     pub background: [u8; 3],
     /// GPU uploads per frame are capped so frames stay even while streaming (None: no cap).
     pub upload_points_per_frame: Option<u64>,
+    /// Resolve and shade in one pass where the frame allows (off: separate passes, to compare).
+    pub fused_finish: bool,
 }
 
 impl Default for Settings {
@@ -106,6 +108,7 @@ impl Default for Settings {
             min_spacing_px: 1.0,
             background: [24, 26, 32],
             upload_points_per_frame: Some(4_000_000),
+            fused_finish: true,
         }
     }
 }

@@ -51,8 +51,8 @@ fn median(v: &mut [f64]) -> f64 {
 }
 
 fn child(args: &[String]) -> anyhow::Result<()> {
-    let [dataset, budget, w, h, frames, detail, pipeline] = args else {
-        bail!("child needs DATASET BUDGET W H FRAMES DETAIL PIPELINE")
+    let [dataset, budget, w, h, frames, detail, pipeline, fused] = args else {
+        bail!("child needs DATASET BUDGET W H FRAMES DETAIL PIPELINE FUSED")
     };
     let (w, h): (u32, u32) = (w.parse()?, h.parse()?);
     let frames: usize = frames.parse()?;
@@ -66,6 +66,7 @@ fn child(args: &[String]) -> anyhow::Result<()> {
         budget: budget.parse()?,
         min_spacing_px: detail.parse()?,
         pipeline: Pipeline::parse(pipeline)?,
+        fused_finish: fused == "fused",
         ..Settings::default()
     };
     // Streaming, paced like a 60 Hz window.
@@ -167,6 +168,7 @@ fn main() -> anyhow::Result<()> {
     let mut frames = 10usize;
     let mut detail = "1.0".to_string();
     let mut pipeline = "edl".to_string();
+    let mut fused = "fused";
     let mut dataset: Option<PathBuf> = None;
     let mut it = args.iter();
     while let Some(a) = it.next() {
@@ -187,6 +189,7 @@ fn main() -> anyhow::Result<()> {
             "--frames" => frames = value()?.parse()?,
             "--detail" => detail = value()?.clone(),
             "--pipeline" => pipeline = value()?.clone(),
+            "--separate-passes" => fused = "separate",
             "--dataset" => dataset = Some(PathBuf::from(value()?)),
             other => bail!("unknown argument {other}"),
         }
@@ -209,6 +212,7 @@ fn main() -> anyhow::Result<()> {
                 frames.to_string(),
                 detail.clone(),
                 pipeline.clone(),
+                fused.to_string(),
             ])
             .output()?;
         if !out.status.success() {
@@ -224,12 +228,13 @@ fn main() -> anyhow::Result<()> {
     }
     let adapter = runs.first().map_or("?", |r| r.adapter.as_str());
     println!(
-        "\n{} points ({} nodes), {}x{}, pipeline {}, detail {} px, adapter {} ({}), {} cores\n",
+        "\n{} points ({} nodes), {}x{}, pipeline {} ({} passes), detail {} px, adapter {} ({}), {} cores\n",
         meta.metadata().points,
         meta.metadata().nodes,
         size.0,
         size.1,
         pipeline,
+        fused,
         detail,
         adapter,
         runs.first().map_or("?", |r| r.projection.as_str()),

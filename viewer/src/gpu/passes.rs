@@ -26,6 +26,8 @@ pub struct FrameUniforms {
     pub edl_strength: f32,
     pub edl_radius: f32,
     pub background: u32,
+    /// Arena bound to each slot of the fused finish pass (set by `encode`).
+    pub arena_slots: [u32; 4],
 }
 
 /// One node's points inside an arena, as the projection shader reads it.
@@ -74,13 +76,20 @@ pub struct Passes {
     index32: wgpu::ComputePipeline,
     resolve: wgpu::ComputePipeline,
     shade: wgpu::ComputePipeline,
+    /// Resolve and shade in one pass, for frames within `FINISH_SLOTS` arenas; `None` where the
+    /// adapter allows too few storage buffers per stage.
+    finish: Option<wgpu::ComputePipeline>,
 }
+
+/// Arenas the fused finish pass binds at once (two storage buffers each).
+const FINISH_SLOTS: usize = 4;
 
 /// The per-pixel buffers and the output image for one viewport size.
 pub struct Screen {
     pub width: u32,
     pub height: u32,
-    keys: Option<wgpu::Buffer>,
+    /// The 64-bit (depth, index) per pixel, on the int64 path.
+    pub keys: Option<wgpu::Buffer>,
     pub depths: wgpu::Buffer,
     indices: wgpu::Buffer,
     colours: wgpu::Buffer,
@@ -92,6 +101,7 @@ pub struct Screen {
 pub struct FrameDraw<'a> {
     pub uniforms: &'a FrameUniforms,
     pub arenas: &'a [ArenaDraw],
+    pub allow_fused: bool,
 }
 
 /// What one arena draws this frame.
@@ -104,6 +114,8 @@ impl Passes {
     pub fn new(ctx: &GpuContext) -> Passes {
         let d = &ctx.device;
         let project = include_str!("../../shaders/project.wgsl");
+        let colour = include_str!("../../shaders/colour.wgsl");
+        let edl = include_str!("../../shaders/edl.wgsl");
         let int64 = ctx.int64_atomics;
         Passes {
             int64,
@@ -127,8 +139,26 @@ impl Passes {
                 "project index32",
                 &[include_str!("../../shaders/emit_index32.wgsl"), project],
             ),
-            resolve: pipeline(d, "resolve", &[include_str!("../../shaders/resolve.wgsl")]),
-            shade: pipeline(d, "shade", &[include_str!("../../shaders/shade.wgsl")]),
+            resolve: pipeline(
+                d,
+                "resolve",
+                &[colour, include_str!("../../shaders/resolve.wgsl")],
+            ),
+            shade: pipeline(d, "shade", &[edl, include_str!("../../shaders/shade.wgsl")]),
+            finish: (d.limits().max_storage_buffers_per_shader_stage as usize
+                >= 2 * FINISH_SLOTS + 2)
+                .then(|| {
+                    let keys = if int64 {
+                        include_str!("../../shaders/keys_int64.wgsl")
+                    } else {
+                        include_str!("../../shaders/keys_int32.wgsl")
+                    };
+                    pipeline(
+                        d,
+                        "finish",
+                        &[keys, colour, edl, include_str!("../../shaders/finish.wgsl")],
+                    )
+                }),
         }
     }
 
@@ -186,10 +216,18 @@ impl Passes {
         frame: &FrameDraw,
         timer: &mut Timer,
     ) {
-        let (uniforms, draws) = (frame.uniforms, frame.arenas);
+        let draws = frame.arenas;
+        let fused = self
+            .finish
+            .as_ref()
+            .filter(|_| frame.allow_fused && (1..=FINISH_SLOTS).contains(&draws.len()));
+        let mut uniforms = *frame.uniforms;
+        for (k, slot) in uniforms.arena_slots.iter_mut().enumerate() {
+            *slot = draws.get(k).map_or(u32::MAX, |d| d.arena);
+        }
         let device = &ctx.device;
         ctx.queue
-            .write_buffer(&screen.uniforms, 0, bytemuck::bytes_of(uniforms));
+            .write_buffer(&screen.uniforms, 0, bytemuck::bytes_of(&uniforms));
         let arena_groups: Vec<(wgpu::Buffer, u32, u32)> = draws
             .iter()
             .map(|d| {
@@ -318,6 +356,75 @@ impl Passes {
                     &[&screen.depths, &screen.indices],
                 );
             }
+        }
+        if let Some(finish) = fused {
+            let view = screen.output.create_view(&Default::default());
+            let mut entries = vec![
+                wgpu::BindGroupEntry {
+                    binding: 0,
+                    resource: screen.uniforms.as_entire_binding(),
+                },
+                wgpu::BindGroupEntry {
+                    binding: 3,
+                    resource: wgpu::BindingResource::TextureView(&view),
+                },
+            ];
+            match &screen.keys {
+                Some(keys) => entries.push(wgpu::BindGroupEntry {
+                    binding: 1,
+                    resource: keys.as_entire_binding(),
+                }),
+                None => {
+                    entries.push(wgpu::BindGroupEntry {
+                        binding: 1,
+                        resource: screen.depths.as_entire_binding(),
+                    });
+                    entries.push(wgpu::BindGroupEntry {
+                        binding: 2,
+                        resource: screen.indices.as_entire_binding(),
+                    });
+                }
+            }
+            let fb = device.create_bind_group(&wgpu::BindGroupDescriptor {
+                label: Some("finish"),
+                layout: &finish.get_bind_group_layout(0),
+                entries: &entries,
+            });
+            // Unused slots repeat the first arena: every binding must hold a buffer.
+            let arena_entries: Vec<wgpu::BindGroupEntry> = (0..FINISH_SLOTS)
+                .flat_map(|k| {
+                    let a = &cache.arenas[draws.get(k).unwrap_or(&draws[0]).arena as usize];
+                    [
+                        wgpu::BindGroupEntry {
+                            binding: 2 * k as u32,
+                            resource: a.points.as_entire_binding(),
+                        },
+                        wgpu::BindGroupEntry {
+                            binding: 2 * k as u32 + 1,
+                            resource: a.attributes.as_entire_binding(),
+                        },
+                    ]
+                })
+                .collect();
+            let ab = device.create_bind_group(&wgpu::BindGroupDescriptor {
+                label: Some("finish arenas"),
+                layout: &finish.get_bind_group_layout(1),
+                entries: &arena_entries,
+            });
+            let name = if uniforms.edl_strength > 0.0 {
+                "finish+edl"
+            } else {
+                "finish"
+            };
+            let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
+                label: Some(name),
+                timestamp_writes: timer.pass(name),
+            });
+            pass.set_pipeline(finish);
+            pass.set_bind_group(0, &fb, &[]);
+            pass.set_bind_group(1, &ab, &[]);
+            pass.dispatch_workgroups(gx, gy, 1);
+            return;
         }
         if let (Some(unpack), Some(keys)) = (&self.unpack, &screen.keys) {
             let fb = frame_bind(unpack, &[keys, &screen.depths, &screen.indices]);
