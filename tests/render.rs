@@ -101,7 +101,7 @@ fn drawn(px: &[u8]) -> bool {
 /// default camera.
 fn projected_bounds(dataset: &Path, w: u32, h: u32) -> (f32, f32, f32, f32) {
     let ds = StreamDataset::open_path(dataset).expect("dataset opens");
-    let cam = default_camera(&ds);
+    let cam = default_camera(&ds, w, h);
     let (min, max) = ds.bounds();
     let vp = cam.projection(w as f32 / h as f32, 0.01, 1e7) * cam.view();
     let mut r = (f32::MAX, f32::MAX, f32::MIN, f32::MIN);

@@ -56,7 +56,8 @@ pub fn run_window(location: &str, opts: WindowOptions) -> Result<(), ViewerError
         opts.gpu_cache_bytes,
         opts.loader_threads,
     )?;
-    let home = default_camera(&ds);
+    // The scene's part of the window: all but the 280-point panel.
+    let home = default_camera(&ds, opts.size.0.saturating_sub(280).max(1), opts.size.1);
     let (min, max) = ds.bounds();
     let screenshot_error = Arc::new(std::sync::Mutex::new(None));
     let app = ViewerApp {

@@ -17,8 +17,8 @@ pub struct Camera {
 
 impl Camera {
     /// A view of the whole box from the south-west and above, its corners filling about 90 %
-    /// of a square view's height.
-    pub fn fit(min: Vec3, max: Vec3, fov_y: f32) -> Camera {
+    /// of a view of `aspect` (width / height).
+    pub fn fit(min: Vec3, max: Vec3, fov_y: f32, aspect: f32) -> Camera {
         let centre = (min + max) * 0.5;
         let radius = ((max - min) * 0.5).length().max(1e-3);
         let dir = Vec3::new(-0.45, -0.75, 0.6).normalize();
@@ -30,7 +30,8 @@ impl Camera {
         };
         // The bounding sphere is loose for flat scans: pull in until the corners touch 90 %.
         for _ in 0..6 {
-            let vp = cam.projection(1.0, distance * 1e-3, distance * 10.0) * cam.view();
+            let vp =
+                cam.projection(aspect.max(0.05), distance * 1e-3, distance * 10.0) * cam.view();
             let extent = (0..8)
                 .map(|i| {
                     let c = Vec3::new(
@@ -241,7 +242,7 @@ mod tests {
     #[test]
     fn parses_and_prints_real_world_cameras() {
         let anchor = DVec3::new(636_000.0, 849_000.0, 400.0);
-        let default = Camera::fit(Vec3::splat(-10.0), Vec3::splat(10.0), 1.0);
+        let default = Camera::fit(Vec3::splat(-10.0), Vec3::splat(10.0), 1.0, 1.0);
         let cam = Camera::parse(
             "eye=636100,849000,500; target=636000,849000,400;fov=45",
             anchor,
@@ -261,7 +262,7 @@ mod tests {
             "eye=a,b,c",
         ] {
             let shifted = DVec3::new(1.0, 2.0, 3.0);
-            let base = Camera::fit(Vec3::ZERO, Vec3::ONE, 1.0);
+            let base = Camera::fit(Vec3::ZERO, Vec3::ONE, 1.0, 1.0);
             let base = Camera {
                 target: Vec3::ZERO,
                 eye: Vec3::new(5.0, 0.0, 0.0),
@@ -273,7 +274,7 @@ mod tests {
 
     #[test]
     fn fitted_view_sees_the_box_and_culls_what_is_behind() {
-        let cam = Camera::fit(Vec3::splat(-1.0), Vec3::splat(1.0), 0.8);
+        let cam = Camera::fit(Vec3::splat(-1.0), Vec3::splat(1.0), 0.8, 1.5);
         let vp = cam.projection(1.0, 0.01, 100.0) * cam.view();
         let f = Frustum::from_view_proj(vp);
         assert!(f.intersects_box(Vec3::splat(-1.0), Vec3::splat(1.0)));

@@ -64,10 +64,11 @@ struct Keyframe {
 
 pub const DEFAULT_FOV_DEG: f32 = 50.0;
 
-/// The whole dataset in view.
-pub fn default_camera(ds: &StreamDataset) -> Camera {
+/// The whole dataset in view, for a view of `width` x `height`.
+pub fn default_camera(ds: &StreamDataset, width: u32, height: u32) -> Camera {
     let (min, max) = ds.bounds();
-    Camera::fit(min, max, DEFAULT_FOV_DEG.to_radians())
+    let aspect = width as f32 / height.max(1) as f32;
+    Camera::fit(min, max, DEFAULT_FOV_DEG.to_radians(), aspect)
 }
 
 /// Opens the dataset (a directory or an http:// URL) and the GPU, renders, writes images and
@@ -181,7 +182,7 @@ pub fn render_with(
 
 fn cameras(ds: &StreamDataset, opts: &RenderOptions) -> Result<Vec<Camera>, ViewerError> {
     let anchor = ds.anchor();
-    let default = default_camera(ds);
+    let default = default_camera(ds, opts.width, opts.height);
     let Some(path) = &opts.path else {
         return Ok(vec![match &opts.camera {
             Some(spec) => Camera::parse(spec, anchor, default)?,

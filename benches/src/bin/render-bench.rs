@@ -61,7 +61,7 @@ fn child(args: &[String]) -> anyhow::Result<()> {
     let ctx = Arc::new(GpuContext::new(ProjectionPath::Auto)?);
     let mut r = Renderer::new(ctx.clone(), ds.clone(), 6 << 30, 4)?;
     let open_ms = t0.elapsed().as_secs_f64() * 1e3;
-    let camera = default_camera(&ds);
+    let camera = default_camera(&ds, w, h);
     let settings = Settings {
         budget: budget.parse()?,
         min_spacing_px: detail.parse()?,
