@@ -66,6 +66,8 @@ pub struct Renderer {
     fetch_errors: u64,
     last_fetch_error: Option<String>,
     last_drawn: HashSet<NodeKey>,
+    /// The last frame projected through the 64-bit keys (else the 32-bit planes).
+    last_int64: bool,
     frame: u64,
     bytes_total: u64,
 }
@@ -106,6 +108,7 @@ impl Renderer {
             fetch_errors: 0,
             last_fetch_error: None,
             last_drawn: HashSet::new(),
+            last_int64: false,
             frame: 0,
             bytes_total: 0,
         })
@@ -364,6 +367,7 @@ impl Renderer {
                 label: Some("frame"),
             });
         self.timer.begin_frame();
+        self.last_int64 = screen.keys.is_some() && !settings.force_int32;
         self.passes.encode(
             &self.ctx,
             &mut encoder,
@@ -373,6 +377,7 @@ impl Renderer {
                 uniforms: &uniforms,
                 arenas: &draws,
                 allow_fused: settings.fused_finish,
+                force_int32: settings.force_int32,
             },
             &mut self.timer,
         );
@@ -453,8 +458,8 @@ impl Renderer {
         // On the int64 path the depth plane is the high word of each key (the fused finish
         // pass never writes a separate depth buffer).
         let (source, stride) = match &screen.keys {
-            Some(keys) => (keys, 8),
-            None => (&screen.depths, 4),
+            Some(keys) if self.last_int64 => (keys, 8),
+            _ => (&screen.depths, 4),
         };
         let size = screen.width as u64 * screen.height as u64 * stride as u64;
         let buffer = self.ctx.device.create_buffer(&wgpu::BufferDescriptor {

@@ -93,6 +93,8 @@ pub struct Settings {
     pub upload_points_per_frame: Option<u64>,
     /// Resolve and shade in one pass where the frame allows (off: separate passes, to compare).
     pub fused_finish: bool,
+    /// Use the two-pass 32-bit projection even on a device with 64-bit atomics.
+    pub force_int32: bool,
 }
 
 impl Default for Settings {
@@ -109,6 +111,7 @@ impl Default for Settings {
             background: [24, 26, 32],
             upload_points_per_frame: Some(4_000_000),
             fused_finish: true,
+            force_int32: false,
         }
     }
 }

@@ -79,6 +79,8 @@ pub struct Passes {
     /// Resolve and shade in one pass, for frames within `FINISH_SLOTS` arenas; `None` where the
     /// adapter allows too few storage buffers per stage.
     finish: Option<wgpu::ComputePipeline>,
+    /// The fused pass reading the 32-bit planes, on a 64-bit device (for `force_int32`).
+    finish32: Option<wgpu::ComputePipeline>,
 }
 
 /// Arenas the fused finish pass binds at once (two storage buffers each).
@@ -102,6 +104,9 @@ pub struct FrameDraw<'a> {
     pub uniforms: &'a FrameUniforms,
     pub arenas: &'a [ArenaDraw],
     pub allow_fused: bool,
+    /// Take the two-pass 32-bit projection even where 64-bit atomics are available (to
+    /// compare both paths on the same resident nodes).
+    pub force_int32: bool,
 }
 
 /// What one arena draws this frame.
@@ -116,6 +121,9 @@ impl Passes {
         let project = include_str!("../../shaders/project.wgsl");
         let colour = include_str!("../../shaders/colour.wgsl");
         let edl = include_str!("../../shaders/edl.wgsl");
+        let finish = include_str!("../../shaders/finish.wgsl");
+        let fits_finish =
+            d.limits().max_storage_buffers_per_shader_stage as usize >= 2 * FINISH_SLOTS + 2;
         let int64 = ctx.int64_atomics;
         Passes {
             int64,
@@ -145,20 +153,18 @@ impl Passes {
                 &[colour, include_str!("../../shaders/resolve.wgsl")],
             ),
             shade: pipeline(d, "shade", &[edl, include_str!("../../shaders/shade.wgsl")]),
-            finish: (d.limits().max_storage_buffers_per_shader_stage as usize
-                >= 2 * FINISH_SLOTS + 2)
-                .then(|| {
-                    let keys = if int64 {
-                        include_str!("../../shaders/keys_int64.wgsl")
-                    } else {
-                        include_str!("../../shaders/keys_int32.wgsl")
-                    };
-                    pipeline(
-                        d,
-                        "finish",
-                        &[keys, colour, edl, include_str!("../../shaders/finish.wgsl")],
-                    )
-                }),
+            finish: fits_finish.then(|| {
+                let keys = if int64 {
+                    include_str!("../../shaders/keys_int64.wgsl")
+                } else {
+                    include_str!("../../shaders/keys_int32.wgsl")
+                };
+                pipeline(d, "finish", &[keys, colour, edl, finish])
+            }),
+            finish32: (fits_finish && int64).then(|| {
+                let keys = include_str!("../../shaders/keys_int32.wgsl");
+                pipeline(d, "finish int32", &[keys, colour, edl, finish])
+            }),
         }
     }
 
@@ -217,10 +223,14 @@ impl Passes {
         timer: &mut Timer,
     ) {
         let draws = frame.arenas;
-        let fused = self
-            .finish
-            .as_ref()
-            .filter(|_| frame.allow_fused && (1..=FINISH_SLOTS).contains(&draws.len()));
+        let keys = screen.keys.as_ref().filter(|_| !frame.force_int32);
+        let finish = if keys.is_some() || screen.keys.is_none() {
+            self.finish.as_ref()
+        } else {
+            self.finish32.as_ref()
+        };
+        let fused =
+            finish.filter(|_| frame.allow_fused && (1..=FINISH_SLOTS).contains(&draws.len()));
         let mut uniforms = *frame.uniforms;
         for (k, slot) in uniforms.arena_slots.iter_mut().enumerate() {
             *slot = draws.get(k).map_or(u32::MAX, |d| d.arena);
@@ -302,7 +312,7 @@ impl Passes {
 
         // Clear.
         {
-            let targets: Vec<&wgpu::Buffer> = match &screen.keys {
+            let targets: Vec<&wgpu::Buffer> = match keys {
                 Some(k) => vec![k],
                 None => vec![&screen.depths, &screen.indices],
             };
@@ -346,7 +356,7 @@ impl Passes {
                     pass.dispatch_workgroups(x, y, 1);
                 }
             };
-        match (&self.project64, &screen.keys) {
+        match (&self.project64, keys) {
             (Some(p64), Some(keys)) => project("project", p64, &[keys]),
             _ => {
                 project("project_depth", &self.depth32, &[&screen.depths]);
@@ -369,7 +379,7 @@ impl Passes {
                     resource: wgpu::BindingResource::TextureView(&view),
                 },
             ];
-            match &screen.keys {
+            match keys {
                 Some(keys) => entries.push(wgpu::BindGroupEntry {
                     binding: 1,
                     resource: keys.as_entire_binding(),
@@ -426,7 +436,7 @@ impl Passes {
             pass.dispatch_workgroups(gx, gy, 1);
             return;
         }
-        if let (Some(unpack), Some(keys)) = (&self.unpack, &screen.keys) {
+        if let (Some(unpack), Some(keys)) = (&self.unpack, keys) {
             let fb = frame_bind(unpack, &[keys, &screen.depths, &screen.indices]);
             let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
                 label: Some("unpack"),
