@@ -390,53 +390,52 @@ impl Drop for KillOnDrop {
     }
 }
 
-#[test]
-fn a_server_killed_mid_stream_leaves_a_render_of_what_arrived() {
-    let mut server = Server::start(&[]);
-    let out = fixtures().join("killed.png");
-    let stats = fixtures().join("killed.json");
+/// Starts a `--wait-complete` render of the city through `server` with `timeout` seconds of
+/// patience, and kills the server once it has served 4 nodes. Returns the running render.
+fn render_then_kill_server(server: &mut Server, tag: &str, timeout: &str) -> Child {
+    let out = fixtures().join(format!("{tag}.png"));
+    let stats = fixtures().join(format!("{tag}.json"));
     let backend = std::env::var("WGPU_BACKEND").unwrap_or_else(|_| "vulkan".into());
+    let url = server.url("city.strata");
     let render = common::strata()
         .env("WGPU_BACKEND", backend)
-        .args([
-            "render",
-            &server.url("city.strata"),
-            "-o",
-            s(&out),
-            "--stats",
-            s(&stats),
-            "--size",
-            "1280x720",
-            "--budget",
-            "10M",
-            "--wait-complete",
-            "--timeout",
-            "3",
-        ])
+        .args(["render", &url, "-o", s(&out), "--stats", s(&stats)])
+        .args(["--size", "1280x720", "--budget", "10M", "--wait-complete"])
+        .args(["--timeout", timeout])
         .stdout(Stdio::piped())
         .stderr(Stdio::piped())
         .spawn()
         .expect("render starts");
-    // Kill the server once a few nodes have gone out.
-    let mut nodes_served = 0;
+    let mut served = 0;
     let mut line = String::new();
-    while nodes_served < 4 {
+    while served < 4 {
         line.clear();
         if server.log.read_line(&mut line).expect("log") == 0 {
             break;
         }
-        if line.contains("octree.bin") {
-            nodes_served += 1;
-        }
+        served += line.contains("octree.bin") as u32;
     }
     server.child.kill().expect("kill server");
+    let _ = server.child.wait();
+    render
+}
+
+fn frame_stats(tag: &str) -> serde_json::Value {
+    let path = fixtures().join(format!("{tag}.json"));
+    let v: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(&path).expect("stats")).expect("json");
+    v["frames"][0].clone()
+}
+
+#[test]
+fn a_server_killed_mid_stream_leaves_a_render_of_what_arrived() {
+    let mut server = Server::start(&[]);
+    let render = render_then_kill_server(&mut server, "killed", "3");
     let o = render.wait_with_output().expect("render ends");
     let err = String::from_utf8_lossy(&o.stderr);
     assert!(o.status.success(), "render failed: {err}");
     assert!(!err.contains("panicked"));
-    let v: serde_json::Value =
-        serde_json::from_slice(&std::fs::read(&stats).expect("stats")).expect("json");
-    let f = &v["frames"][0];
+    let f = frame_stats("killed");
     assert_eq!(
         f["complete"], false,
         "the render completed before the server died"
@@ -447,7 +446,7 @@ fn a_server_killed_mid_stream_leaves_a_render_of_what_arrived() {
         "nothing drawn of what arrived"
     );
     assert!(err.contains("missing"), "no report of missing nodes: {err}");
-    assert!(out.exists());
+    assert!(fixtures().join("killed.png").exists());
 }
 
 #[test]
@@ -480,41 +479,7 @@ fn slow_clients_are_cut_off_and_sigterm_stops_gracefully() {
 fn a_render_picks_up_again_when_the_server_returns() {
     let mut server = Server::start(&[]);
     let addr = server.addr.clone();
-    let out = fixtures().join("returned.png");
-    let stats = fixtures().join("returned.json");
-    let backend = std::env::var("WGPU_BACKEND").unwrap_or_else(|_| "vulkan".into());
-    let render = common::strata()
-        .env("WGPU_BACKEND", backend)
-        .args([
-            "render",
-            &server.url("city.strata"),
-            "-o",
-            s(&out),
-            "--stats",
-            s(&stats),
-            "--size",
-            "1280x720",
-            "--budget",
-            "10M",
-            "--wait-complete",
-            "--timeout",
-            "30",
-        ])
-        .stdout(Stdio::piped())
-        .stderr(Stdio::piped())
-        .spawn()
-        .expect("render starts");
-    let mut served = 0;
-    let mut line = String::new();
-    while served < 4 {
-        line.clear();
-        if server.log.read_line(&mut line).expect("log") == 0 {
-            break;
-        }
-        served += line.contains("octree.bin") as u32;
-    }
-    server.child.kill().expect("kill server");
-    let _ = server.child.wait();
+    let render = render_then_kill_server(&mut server, "returned", "30");
     std::thread::sleep(Duration::from_millis(1500));
     // The same address again: the client's retries find it.
     let back = common::strata()
@@ -526,9 +491,7 @@ fn a_render_picks_up_again_when_the_server_returns() {
     let _back = KillOnDrop(back);
     let o = render.wait_with_output().expect("render ends");
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
-    let v: serde_json::Value =
-        serde_json::from_slice(&std::fs::read(&stats).expect("stats")).expect("json");
-    let f = &v["frames"][0];
+    let f = frame_stats("returned");
     assert_eq!(f["complete"], true, "the render did not pick up: {f}");
     assert!(
         f["fetch_errors"].as_u64().unwrap_or(0) > 0,

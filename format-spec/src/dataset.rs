@@ -100,12 +100,7 @@ impl LocalDataset {
     }
 
     pub fn root_page(&self) -> PageRef {
-        PageRef {
-            root: NodeKey::ROOT,
-            offset: self.metadata.hierarchy.root_page_offset,
-            size: self.metadata.hierarchy.root_page_size,
-            checksum: None,
-        }
+        self.metadata.root_page()
     }
 
     /// Reads and decodes one hierarchy page.
@@ -176,6 +171,26 @@ pub fn node_infos(page: &HierarchyPage) -> impl Iterator<Item = NodeInfo> + '_ {
 fn open_checked(path: &Path, magic: &[u8; 8], expected_size: u64) -> Result<File, FormatError> {
     let file = File::open(path).map_err(|e| FormatError::io(path, e))?;
     let len = file.metadata().map_err(|e| FormatError::io(path, e))?.len();
+    let head = if len >= 8 {
+        read_range(&file, path, 0, 8)?
+    } else {
+        Vec::new()
+    };
+    check_file_head(path, len, &head, magic, expected_size)?;
+    Ok(file)
+}
+
+/// Checks a binary dataset file's length against `metadata.json` and its first bytes against
+/// its magic. `path` names the file (or URL) in the message. Every reader (local, mmap, HTTP)
+/// applies the same check.
+pub fn check_file_head(
+    path: impl AsRef<Path>,
+    len: u64,
+    head: &[u8],
+    magic: &[u8; 8],
+    expected_size: u64,
+) -> Result<(), FormatError> {
+    let path = path.as_ref();
     if len != expected_size {
         return Err(FormatError::corrupt(
             path,
@@ -184,8 +199,7 @@ fn open_checked(path: &Path, magic: &[u8; 8], expected_size: u64) -> Result<File
             ),
         ));
     }
-    let head = read_range(&file, path, 0, 8)?;
-    if head != magic {
+    if head.get(..8) != Some(&magic[..]) {
         return Err(FormatError::corrupt(
             path,
             format!(
@@ -194,7 +208,7 @@ fn open_checked(path: &Path, magic: &[u8; 8], expected_size: u64) -> Result<File
             ),
         ));
     }
-    Ok(file)
+    Ok(())
 }
 
 fn read_range(file: &File, path: &Path, offset: u64, len: u64) -> Result<Vec<u8>, FormatError> {

@@ -14,7 +14,7 @@ mod node_key;
 mod verify;
 
 pub use attribute::{AttrType, Attribute, RowLayout, row_position};
-pub use dataset::{DatasetFile, LocalDataset, NodeInfo, node_infos};
+pub use dataset::{DatasetFile, LocalDataset, NodeInfo, check_file_head, node_infos};
 pub use error::FormatError;
 pub use hierarchy::{
     ENTRY_SIZE, EntryKind, HIERARCHY_MAGIC, HierarchyPage, NodeRecord, PAGE_LEVELS, PageEntry,

@@ -1,4 +1,4 @@
-use crate::{Attribute, FormatError, RowLayout};
+use crate::{Attribute, FormatError, NodeKey, PageRef, RowLayout};
 use serde::{Deserialize, Serialize};
 use std::path::Path;
 
@@ -67,6 +67,16 @@ pub struct Metadata {
 impl Metadata {
     pub fn row_layout(&self) -> RowLayout {
         RowLayout::new(self.attributes.clone())
+    }
+
+    /// Where the root hierarchy page lies in `hierarchy.bin`.
+    pub fn root_page(&self) -> PageRef {
+        PageRef {
+            root: NodeKey::ROOT,
+            offset: self.hierarchy.root_page_offset,
+            size: self.hierarchy.root_page_size,
+            checksum: None,
+        }
     }
 
     /// Bytes per point in an uncompressed node payload.

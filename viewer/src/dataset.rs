@@ -67,14 +67,15 @@ impl StreamDataset {
             metadata.offset[i] + metadata.scale[i] * (metadata.cube.min[i] as f64 + edge * 0.5)
         }));
         let find = |name: &str| layout.index_of(name).map(|i| (i, layout.attributes[i].ty));
+        // Colour is only usable as three components.
+        let rgb = layout
+            .index_of("rgb")
+            .filter(|&i| layout.attributes[i].count == 3)
+            .map(|i| (i, layout.attributes[i].ty));
         let mut ds = StreamDataset {
             source,
             colour: ColourSource {
-                rgb: find("rgb").filter(|_| {
-                    layout
-                        .index_of("rgb")
-                        .is_some_and(|i| layout.attributes[i].count == 3)
-                }),
+                rgb,
                 rgb_shift: 0,
                 intensity: find("intensity"),
                 intensity_max: 1.0,
@@ -143,12 +144,7 @@ impl StreamDataset {
     }
 
     pub fn root_page(&self) -> PageRef {
-        PageRef {
-            root: NodeKey::ROOT,
-            offset: self.metadata.hierarchy.root_page_offset,
-            size: self.metadata.hierarchy.root_page_size,
-            checksum: None,
-        }
+        self.metadata.root_page()
     }
 
     pub fn load_page(&self, page: &PageRef) -> Result<HierarchyPage, ViewerError> {

@@ -12,7 +12,7 @@ use hyper_util::client::legacy::connect::HttpConnector;
 use hyper_util::rt::TokioExecutor;
 use std::sync::Arc;
 use std::time::Duration;
-use strata_format::{DatasetFile, FormatError, Metadata};
+use strata_format::{DatasetFile, Metadata, check_file_head};
 use tokio::sync::Semaphore;
 
 pub struct HttpOptions {
@@ -83,18 +83,19 @@ impl HttpSource {
             (DatasetFile::Hierarchy, metadata.files.hierarchy.size),
             (DatasetFile::Octree, metadata.files.octree.size),
         ] {
-            let head = source.fetch(file, Some((0, 8)))?;
-            let magic: &[u8] = match file {
+            let (head, len) = source.fetch_sized(file, Some((0, 8)))?;
+            let magic = match file {
                 DatasetFile::Hierarchy => strata_format::HIERARCHY_MAGIC,
                 _ => strata_format::OCTREE_MAGIC,
             };
-            if head != magic || expected < 8 {
-                return Err(FormatError::corrupt(
-                    format!("{}/{}", source.base, file.name()),
-                    "does not start with the Strata magic",
-                )
-                .into());
-            }
+            // A server that gives no Content-Range total leaves the length to the node checksums.
+            check_file_head(
+                source.url(file),
+                len.unwrap_or(expected),
+                &head,
+                magic,
+                expected,
+            )?;
         }
         Ok((source, metadata))
     }
@@ -105,6 +106,16 @@ impl HttpSource {
 
     /// GET a file, or `range = (offset, len)` of it, retrying transient failures.
     fn fetch(&self, file: DatasetFile, range: Option<(u64, u64)>) -> Result<Vec<u8>, ViewerError> {
+        self.fetch_sized(file, range).map(|(body, _)| body)
+    }
+
+    /// As `fetch`, with the file's whole length where the answer tells it (the total of
+    /// `Content-Range`, or the body of a whole-file answer).
+    fn fetch_sized(
+        &self,
+        file: DatasetFile,
+        range: Option<(u64, u64)>,
+    ) -> Result<(Vec<u8>, Option<u64>), ViewerError> {
         let url = self.url(file);
         let mut delay = Duration::from_millis(100);
         let mut attempt = 0;
@@ -127,7 +138,11 @@ impl HttpSource {
         }
     }
 
-    async fn fetch_once(&self, url: &str, range: Option<(u64, u64)>) -> Result<Vec<u8>, Failure> {
+    async fn fetch_once(
+        &self,
+        url: &str,
+        range: Option<(u64, u64)>,
+    ) -> Result<(Vec<u8>, Option<u64>), Failure> {
         let _slot = self
             .slots
             .acquire()
@@ -153,28 +168,35 @@ impl HttpSource {
                 .await
                 .map_err(|e| Failure::Transient(format!("request failed ({e})")))?;
             let status = resp.status();
+            let total = resp
+                .headers()
+                .get(header::CONTENT_RANGE)
+                .and_then(|v| v.to_str().ok())
+                .and_then(|v| v.rsplit_once('/'))
+                .and_then(|(_, t)| t.trim().parse::<u64>().ok());
             let body = resp
                 .into_body()
                 .collect()
                 .await
                 .map_err(|e| Failure::Transient(format!("body interrupted ({e})")))?
                 .to_bytes();
-            Ok::<_, Failure>((status, body))
+            Ok::<_, Failure>((status, body, total))
         };
-        let (status, body) = tokio::time::timeout(self.opts.timeout, work)
+        let (status, body, total) = tokio::time::timeout(self.opts.timeout, work)
             .await
             .map_err(|_| {
                 Failure::Transient(format!("no answer within {:?}", self.opts.timeout))
             })??;
         match (status, range) {
             (StatusCode::PARTIAL_CONTENT, Some((_, len))) if body.len() as u64 == len => {
-                Ok(body.to_vec())
+                Ok((body.to_vec(), total))
             }
             // A server that ignores Range sends the whole file: take the part we asked for.
-            (StatusCode::OK, Some((offset, len))) if body.len() as u64 >= offset + len => {
-                Ok(body[offset as usize..(offset + len) as usize].to_vec())
-            }
-            (StatusCode::OK, None) => Ok(body.to_vec()),
+            (StatusCode::OK, Some((offset, len))) if body.len() as u64 >= offset + len => Ok((
+                body[offset as usize..(offset + len) as usize].to_vec(),
+                Some(body.len() as u64),
+            )),
+            (StatusCode::OK, None) => Ok((body.to_vec(), Some(body.len() as u64))),
             (StatusCode::UNAUTHORIZED | StatusCode::FORBIDDEN, _) => Err(Failure::Permanent(
                 format!("HTTP {status}: the server refused access (check --token)"),
             )),

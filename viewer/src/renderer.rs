@@ -247,11 +247,14 @@ impl Renderer {
 
     fn upload(&mut self, settings: &Settings) {
         let mut budget = settings.upload_points_per_frame.unwrap_or(u64::MAX);
+        let mut first = true;
         while let Some(node) = self.uploads.front() {
             let n = node.points.len() as u64;
-            if n > budget && budget != settings.upload_points_per_frame.unwrap_or(u64::MAX) {
+            // At least one node per frame, however large, so uploads always progress.
+            if n > budget && !first {
                 break;
             }
+            first = false;
             budget = budget.saturating_sub(n);
             let Some(node) = self.uploads.pop_front() else {
                 break;
@@ -281,13 +284,14 @@ impl Renderer {
     fn request(&mut self, sel: &Selection) {
         let now = Instant::now();
         self.retry_after.retain(|_, t| *t > now);
+        let waiting: HashSet<NodeKey> = self.uploads.iter().map(|u| u.key).collect();
         let mut jobs: Vec<(f32, Job)> = sel
             .missing_pages
             .iter()
             .map(|(p, pr)| (*pr, Job::Page(*p)))
             .chain(sel.missing_nodes.iter().map(|(n, pr)| (*pr, Job::Node(*n))))
             .filter(|(_, j)| match j {
-                Job::Node(n) => !self.uploads.iter().any(|u| u.key == n.key),
+                Job::Node(n) => !waiting.contains(&n.key),
                 Job::Page(_) => true,
             })
             .filter(|(_, j)| self.retry_after.get(&j.key()).is_none_or(|t| *t <= now))

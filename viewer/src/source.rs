@@ -5,7 +5,9 @@ use crate::ViewerError;
 use memmap2::Mmap;
 use std::fs::File;
 use std::path::{Path, PathBuf};
-use strata_format::{DatasetFile, FormatError, HIERARCHY_MAGIC, Metadata, OCTREE_MAGIC};
+use strata_format::{
+    DatasetFile, FormatError, HIERARCHY_MAGIC, Metadata, OCTREE_MAGIC, check_file_head,
+};
 
 /// Byte ranges of a dataset's files. Implementations are shared by the loader threads.
 pub trait Source: Send + Sync {
@@ -93,23 +95,6 @@ fn map_checked(path: &Path, magic: &[u8; 8], expected_size: u64) -> Result<Mmap,
     // SAFETY: the dataset is read-only by contract (written once, renamed into place); a file
     // truncated under us would fault, which is why sizes are checked against the metadata first.
     let map = unsafe { Mmap::map(&file) }.map_err(|e| FormatError::io(path, e))?;
-    if map.len() as u64 != expected_size {
-        return Err(FormatError::corrupt(
-            path,
-            format!(
-                "file is {} bytes but metadata.json says {expected_size} (truncated or replaced)",
-                map.len()
-            ),
-        ));
-    }
-    if map.get(..8) != Some(&magic[..]) {
-        return Err(FormatError::corrupt(
-            path,
-            format!(
-                "does not start with the {:?} magic",
-                String::from_utf8_lossy(magic)
-            ),
-        ));
-    }
+    check_file_head(path, map.len() as u64, &map, magic, expected_size)?;
     Ok(map)
 }
