@@ -472,7 +472,7 @@ fn fly_through_writes_numbered_frames_with_stats() {
 fn bad_arguments_get_one_clear_sentence() {
     let dataset = fixtures().join("autzen.strata");
     let out = fixtures().join("never.png");
-    let cases: [(&[&str], &str); 5] = [
+    let cases: [(&[&str], &str); 6] = [
         (
             &["render", "/nonexistent/set.strata", "-o", s(&out)],
             "/nonexistent/set.strata",
@@ -493,6 +493,7 @@ fn bad_arguments_get_one_clear_sentence() {
             &["render", s(&dataset), "-o", s(&out), "--budget", "10"],
             "--budget",
         ),
+        (&["render", s(&dataset), "-o", s(&out), "--s0=-1"], "--s0"),
     ];
     for (args, needle) in cases {
         let o = gpu_run(args);
@@ -663,4 +664,89 @@ fn demo_synthesizes_converts_and_renders_without_a_display() {
         "the demo image shows {drawn_px} drawn pixels"
     );
     assert!(String::from_utf8_lossy(&o.stdout).contains("points drawn"));
+}
+
+/// Drawn pixels inside and outside the dataset's projected bounds (with `slack` pixels).
+fn drawn_in_and_out(dataset: &Path, png: &Path, slack: f32) -> (u64, u64) {
+    let (w, h, rgba) = read_png(png);
+    let (x0, y0, x1, y1) = projected_bounds(dataset, w, h);
+    let (mut inside, mut outside) = (0u64, 0u64);
+    for y in 0..h {
+        for x in 0..w {
+            let px = &rgba[((y * w + x) * 4) as usize..][..4];
+            let (fx, fy) = (x as f32 + 0.5, y as f32 + 0.5);
+            let within =
+                fx >= x0 - slack && fx <= x1 + slack && fy >= y0 - slack && fy <= y1 + slack;
+            if drawn(px) {
+                if within {
+                    inside += 1;
+                } else {
+                    outside += 1;
+                }
+            }
+        }
+    }
+    (inside, outside)
+}
+
+#[test]
+fn pyramid_fills_the_holes_of_sparse_points_and_times_its_passes() {
+    let dataset = fixtures().join("autzen.strata");
+    let size = ["--size", "640x480"];
+    let (_, points_png) = render_stats(
+        &dataset,
+        "pyramid-vs-points",
+        &[
+            size[0],
+            size[1],
+            "--pipeline",
+            "points",
+            "--point-size",
+            "1",
+        ],
+    );
+    let (st, pyramid_png) = render_stats(
+        &dataset,
+        "pyramid",
+        &[size[0], size[1], "--pipeline", "pyramid"],
+    );
+    let (points_in, _) = drawn_in_and_out(&dataset, &points_png, 2.0);
+    let (pyramid_in, pyramid_out) = drawn_in_and_out(&dataset, &pyramid_png, 4.0);
+    // One-pixel points leave gaps between scan lines and under the trees; the pull-push
+    // fills them (about 1.27 times the pixels on lavapipe).
+    assert!(
+        pyramid_in as f64 >= points_in as f64 * 1.15,
+        "pyramid drew {pyramid_in} pixels, points {points_in}"
+    );
+    assert_eq!(pyramid_out, 0, "the fill spread outside the dataset");
+    let frame = &st["frames"][0];
+    let s0 = frame["s0"].as_f64().expect("s0 in the stats");
+    // Autzen's points are a few feet apart.
+    assert!(s0.is_finite() && s0 > 0.1 && s0 < 50.0, "s0 {s0}");
+    let passes = frame["passes"].as_object().expect("passes");
+    if !passes.is_empty() {
+        for name in [
+            "project",
+            "pyramid",
+            "hpr",
+            "pull",
+            "push",
+            "normals",
+            "pyramid shade",
+        ] {
+            let ms = passes.get(name).and_then(|v| v.as_f64());
+            assert!(
+                ms.is_some_and(|v| v.is_finite() && v >= 0.0),
+                "pass {name}: {ms:?} in {passes:?}"
+            );
+        }
+    }
+    // A given s0 is used as given, and a tenfold larger one changes the picture.
+    let (st, big_png) = render_stats(
+        &dataset,
+        "pyramid-s0",
+        &[size[0], size[1], "--pipeline", "pyramid", "--s0", "30"],
+    );
+    assert_eq!(st["frames"][0]["s0"].as_f64(), Some(30.0));
+    assert_ne!(read_png(&big_png).2, read_png(&pyramid_png).2);
 }

@@ -1,4 +1,6 @@
-//! Helpers the benchmark binaries share.
+//! Helpers the benchmark binaries share, and the quality harness.
+
+pub mod quality;
 
 use anyhow::Context;
 use std::path::{Path, PathBuf};

@@ -46,19 +46,21 @@ fn mix(mut z: u64) -> u64 {
     z ^ (z >> 31)
 }
 
-struct Rng(u64);
+/// A deterministic generator, seeded by a seed and two stream numbers (also used by the
+/// quality harness to sample meshes).
+pub struct Rng(u64);
 
 impl Rng {
-    fn new(seed: u64, a: u64, b: u64) -> Rng {
+    pub fn new(seed: u64, a: u64, b: u64) -> Rng {
         Rng(mix(seed ^ mix(a ^ mix(b))))
     }
-    fn next(&mut self) -> u64 {
+    pub fn next_u64(&mut self) -> u64 {
         self.0 = mix(self.0);
         self.0
     }
     /// Uniform in [0, 1).
-    fn unit(&mut self) -> f64 {
-        (self.next() >> 11) as f64 / (1u64 << 53) as f64
+    pub fn unit(&mut self) -> f64 {
+        (self.next_u64() >> 11) as f64 / (1u64 << 53) as f64
     }
 }
 
@@ -108,7 +110,7 @@ impl World {
         let x0 = bx as f64 * BLOCK + 8.0 + r.unit() * (BLOCK - 16.0 - w).max(0.0);
         let y0 = by as f64 * BLOCK + 8.0 + r.unit() * (BLOCK - 16.0 - d).max(0.0);
         let height = 6.0 + r.unit().powi(2) * 60.0;
-        let shade = 120 + (r.next() % 100) as u16;
+        let shade = 120 + (r.next_u64() % 100) as u16;
         Some(Building {
             x0,
             y0,
@@ -153,11 +155,11 @@ impl World {
         // Walls: a random block's building, a random side.
         if self.scene == Scene::City && pick < 0.15 {
             let blocks = (self.side / BLOCK).ceil().max(1.0) as u64;
-            let bx = (r.next() % blocks) as i64;
-            let by = (r.next() % blocks) as i64;
+            let bx = (r.next_u64() % blocks) as i64;
+            let by = (r.next_u64() % blocks) as i64;
             if let Some(b) = self.building(bx, by) {
                 let t = r.unit();
-                let (x, y) = match r.next() % 4 {
+                let (x, y) = match r.next_u64() % 4 {
                     0 => (b.x0 + t * (b.x1 - b.x0), b.y0),
                     1 => (b.x0 + t * (b.x1 - b.x0), b.y1),
                     2 => (b.x0, b.y0 + t * (b.y1 - b.y0)),
@@ -170,7 +172,7 @@ impl World {
                     b.colour[1] / 2 + 18000,
                     b.colour[2] / 2 + 16000,
                 ];
-                return ([x, y, z], 6, c, 900 + (r.next() % 400) as u16, 1, 1);
+                return ([x, y, z], 6, c, 900 + (r.next_u64() % 400) as u16, 1, 1);
             }
         }
         let x = r.unit() * self.side;
@@ -187,7 +189,7 @@ impl World {
                 [x, y, gc + b.height],
                 6,
                 b.colour,
-                1500 + (r.next() % 500) as u16,
+                1500 + (r.next_u64() % 500) as u16,
                 1,
                 1,
             );
@@ -203,13 +205,13 @@ impl World {
                 let gt = self.ground(t.x, t.y);
                 let top = r.unit() < 0.7;
                 let z = gt + t.crown + if top { h } else { -h * 0.6 };
-                let green = 90 + (r.next() % 80) as u16;
+                let green = 90 + (r.next_u64() % 80) as u16;
                 let ret = if top { 1 } else { 2 };
                 return (
                     [x, y, z],
                     if t.crown > 7.0 { 5 } else { 4 },
                     [30 * 256, green * 256, 40 * 256],
-                    400 + (r.next() % 300) as u16,
+                    400 + (r.next_u64() % 300) as u16,
                     ret,
                     2,
                 );
@@ -217,13 +219,13 @@ impl World {
         }
         let asphalt = self.scene == Scene::City && ((x % BLOCK) < 8.0 || (y % BLOCK) < 8.0);
         let c = if asphalt {
-            let v = 70 + (r.next() % 30) as u16;
+            let v = 70 + (r.next_u64() % 30) as u16;
             [v * 256, v * 256, v * 256]
         } else {
-            let v = (r.next() % 40) as u16;
+            let v = (r.next_u64() % 40) as u16;
             [(110 + v) * 256, (130 + v) * 256, (70 + v / 2) * 256]
         };
-        ([x, y, g], 2, c, 600 + (r.next() % 600) as u16, 1, 1)
+        ([x, y, g], 2, c, 600 + (r.next_u64() % 600) as u16, 1, 1)
     }
 }
 

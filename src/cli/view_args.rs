@@ -10,9 +10,17 @@ pub struct ViewArgs {
     /// Points drawn per frame at most (100k to 100M; 5M, 800k, ...).
     #[arg(long, default_value = "5M", value_parser = super::synth::parse_count)]
     pub budget: u64,
-    /// Render pipeline: points or edl.
+    /// Render pipeline: points, edl or pyramid (hidden-point removal, pull-push fill and
+    /// deferred shading, paper 003).
     #[arg(long, default_value = "edl")]
     pub pipeline: String,
+    /// The pyramid pipeline's metric scale s0, in dataset units: about the point spacing
+    /// (default: estimated from the nodes drawn each frame).
+    #[arg(long)]
+    pub s0: Option<f32>,
+    /// Eye-dome lighting on top of the pyramid pipeline's shading.
+    #[arg(long)]
+    pub pyramid_edl: bool,
     /// Point size in pixels (or, with --attenuate, in multiples of the point spacing).
     #[arg(long, default_value_t = 2.0)]
     pub point_size: f32,
@@ -50,8 +58,13 @@ impl ViewArgs {
         if !(self.point_size.is_finite() && (0.1..=15.0).contains(&self.point_size)) {
             anyhow::bail!("--point-size {} is outside 0.1 to 15", self.point_size);
         }
+        if let Some(s0) = self.s0.filter(|s| !(s.is_finite() && *s > 0.0)) {
+            anyhow::bail!("--s0 {s0} is not a positive length");
+        }
         Ok(Settings {
             budget: self.budget,
+            s0: self.s0,
+            pyramid_edl: self.pyramid_edl,
             pipeline: Pipeline::parse(&self.pipeline).context("--pipeline")?,
             point_size: self.point_size,
             size_mode: if self.attenuate {

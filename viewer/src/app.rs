@@ -37,6 +37,8 @@ struct ViewerApp {
     io_rate: f64,
     frame_ms_avg: f64,
     scene_size: f32,
+    /// The last automatic s0, which the manual s0 slider is centred on.
+    s0_auto: Option<f32>,
     screenshot: Option<(PathBuf, u32)>,
     screenshot_done: Arc<AtomicBool>,
     screenshot_error: Arc<std::sync::Mutex<Option<String>>>,
@@ -65,6 +67,7 @@ pub fn run_window(location: &str, opts: WindowOptions) -> Result<(), ViewerError
         camera: home,
         home,
         settings: opts.settings,
+        s0_auto: None,
         texture: None,
         stats: FrameStats::default(),
         frames: 0,
@@ -122,6 +125,37 @@ impl eframe::App for ViewerApp {
 }
 
 impl ViewerApp {
+    /// s0, automatic or set on a log scale around the last automatic value, and EDL on top.
+    fn pyramid_controls(&mut self, ui: &mut egui::Ui) {
+        if self.settings.s0.is_none() {
+            self.s0_auto = self.stats.s0.or(self.s0_auto);
+        }
+        let mut auto = self.settings.s0.is_none();
+        if ui
+            .checkbox(&mut auto, "s0 from the point spacing")
+            .changed()
+        {
+            self.settings.s0 = if auto {
+                None
+            } else {
+                Some(self.s0_auto.unwrap_or(self.scene_size * 1e-3))
+            };
+        }
+        if let Some(s0) = self.settings.s0.as_mut() {
+            let centre = self.s0_auto.unwrap_or(*s0).max(1e-9).log10();
+            let mut log_s0 = s0.max(1e-9).log10();
+            let slider =
+                egui::Slider::new(&mut log_s0, centre - 1.5..=centre + 1.5).show_value(false);
+            if ui.add(slider).changed() {
+                *s0 = 10f32.powf(log_s0);
+            }
+        }
+        if let Some(s0) = self.settings.s0.or(self.stats.s0) {
+            ui.label(format!("s0 = {s0:.4}"));
+        }
+        ui.checkbox(&mut self.settings.pyramid_edl, "EDL on top");
+    }
+
     fn panel(&mut self, ui: &mut egui::Ui) {
         ui.heading("Strata");
         ui.label(self.renderer.dataset().location());
@@ -145,7 +179,12 @@ impl ViewerApp {
                 ui.radio_value(&mut self.settings.pipeline, p, p.name());
             }
         });
-        if self.settings.pipeline == Pipeline::Edl {
+        if self.settings.pipeline == Pipeline::Pyramid {
+            self.pyramid_controls(ui);
+        }
+        if self.settings.pipeline == Pipeline::Edl
+            || (self.settings.pipeline == Pipeline::Pyramid && self.settings.pyramid_edl)
+        {
             ui.add(
                 egui::Slider::new(&mut self.settings.edl_strength, 0.1..=4.0).text("EDL strength"),
             );

@@ -192,3 +192,36 @@ pub fn clip_range(ds: &StreamDataset, camera: &Camera) -> (f32, f32) {
     let near = (nearest * 0.9).max(far * 1e-5);
     (near, far)
 }
+
+/// The metric spacing of the points drawn, for the pyramid pipeline's default s0: the median,
+/// over the finest drawn node at each place, of its edge over the square root of the points
+/// that cover it (its own, plus a quarter of its parent's per level up, since a surface crossing
+/// a cube takes about a quarter of its parent's area). `None` when nothing is drawn.
+pub fn drawn_spacing(tree: &Tree, ds: &StreamDataset, draw: &[NodeKey]) -> Option<f32> {
+    let drawn: HashSet<NodeKey> = draw.iter().copied().collect();
+    let has_drawn_child: HashSet<NodeKey> = draw.iter().filter_map(|k| k.parent()).collect();
+    let mut spacings: Vec<f32> = draw
+        .iter()
+        .filter(|k| !has_drawn_child.contains(k))
+        .filter_map(|&key| {
+            let mut cover = 0.0f64;
+            let mut share = 1.0f64;
+            let mut at = Some(key);
+            while let Some(k) = at {
+                if drawn.contains(&k) {
+                    cover += tree.node(k).map_or(0.0, |n| n.point_count as f64) * share;
+                }
+                share *= 0.25;
+                at = k.parent();
+            }
+            let (_, edge) = ds.node_cube(key);
+            (cover >= 1.0).then(|| edge / cover.sqrt() as f32)
+        })
+        .collect();
+    if spacings.is_empty() {
+        return None;
+    }
+    let mid = spacings.len() / 2;
+    let (_, median, _) = spacings.select_nth_unstable_by(mid, f32::total_cmp);
+    Some(*median)
+}

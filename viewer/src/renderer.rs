@@ -8,9 +8,11 @@ use crate::dataset::{GpuNode, StreamDataset};
 use crate::gpu::GpuContext;
 use crate::gpu::cache::{InsertError, NodeCache};
 use crate::gpu::passes::{ArenaDraw, FrameDraw, FrameUniforms, GpuRange, Passes, Screen};
+use crate::gpu::pyramid::PyramidFrame;
+use crate::gpu::readback::{read_buffer, read_texture};
 use crate::gpu::timing::Timer;
 use crate::loader::{Done, Job, JobKey, Loader};
-use crate::lod::{Selection, SelectionParams, Tree, clip_range, select};
+use crate::lod::{Selection, SelectionParams, Tree, clip_range, drawn_spacing, select};
 use crate::settings::{Pipeline, Settings, SizeMode};
 use serde::Serialize;
 use std::collections::{BTreeMap, HashMap, HashSet, VecDeque};
@@ -45,6 +47,9 @@ pub struct FrameStats {
     pub nodes_in_flight: usize,
     pub nodes_queued: usize,
     pub gpu_bytes: u64,
+    /// The pyramid pipeline's s0 this frame (given, or estimated from the nodes drawn).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub s0: Option<f32>,
     /// Every node the view and budget call for is resident and drawn.
     pub complete: bool,
 }
@@ -68,6 +73,8 @@ pub struct Renderer {
     last_drawn: HashSet<NodeKey>,
     /// The last frame projected through the 64-bit keys (else the 32-bit planes).
     last_int64: bool,
+    /// The last frame ran the pyramid pipeline (its surface buffer holds the result).
+    last_pyramid: bool,
     frame: u64,
     bytes_total: u64,
 }
@@ -109,6 +116,7 @@ impl Renderer {
             last_fetch_error: None,
             last_drawn: HashSet::new(),
             last_int64: false,
+            last_pyramid: false,
             frame: 0,
             bytes_total: 0,
         })
@@ -213,7 +221,14 @@ impl Renderer {
         self.cache.touch(&sel.draw, self.frame);
         self.last_drawn = sel.draw.iter().copied().collect();
 
-        self.draw(camera, width, height, settings, &sel);
+        let s0 = (settings.pipeline == Pipeline::Pyramid)
+            .then(|| {
+                settings
+                    .s0
+                    .or_else(|| drawn_spacing(&self.tree, &self.ds, &sel.draw))
+            })
+            .flatten();
+        self.draw(camera, width, height, settings, &sel, s0);
         self.timer.collect();
 
         let (queued, in_flight) = self.loader.counts();
@@ -239,6 +254,7 @@ impl Renderer {
             nodes_in_flight: in_flight,
             nodes_queued: queued,
             gpu_bytes: self.cache.gpu_bytes(),
+            s0,
             complete: sel.missing_nodes.is_empty()
                 && sel.missing_pages.is_empty()
                 && self.uploads.is_empty(),
@@ -307,6 +323,7 @@ impl Renderer {
         height: u32,
         settings: &Settings,
         sel: &Selection,
+        s0: Option<f32>,
     ) {
         if self
             .screen
@@ -314,6 +331,14 @@ impl Renderer {
             .is_none_or(|s| s.width != width || s.height != height)
         {
             self.screen = Some(self.passes.screen(&self.ctx.device, width, height));
+        }
+        let pyramid = settings.pipeline == Pipeline::Pyramid;
+        if let Some(screen) = self
+            .screen
+            .as_mut()
+            .filter(|s| pyramid && s.pyramid.is_none())
+        {
+            screen.pyramid = Some(self.passes.pyramid_targets(&self.ctx.device, screen));
         }
         let Some(screen) = &self.screen else { return };
         let mut per_arena: BTreeMap<u32, Vec<GpuRange>> = BTreeMap::new();
@@ -358,7 +383,8 @@ impl Renderer {
             arena_shift: self.cache.arena_shift,
             edl_strength: match settings.pipeline {
                 Pipeline::Edl => settings.edl_strength.max(1e-3),
-                Pipeline::Points => 0.0,
+                Pipeline::Pyramid if settings.pyramid_edl => settings.edl_strength.max(1e-3),
+                Pipeline::Points | Pipeline::Pyramid => 0.0,
             },
             edl_radius: settings.edl_radius,
             background: r as u32 | (g as u32) << 8 | (b as u32) << 16 | 255 << 24,
@@ -372,6 +398,15 @@ impl Renderer {
             });
         self.timer.begin_frame();
         self.last_int64 = screen.keys.is_some() && !settings.force_int32;
+        self.last_pyramid = pyramid;
+        let focal_px = camera.focal_px(height);
+        // Without points there is no scale; any positive s0 leaves an empty frame empty.
+        let pyramid_frame = pyramid.then(|| PyramidFrame {
+            s0: s0.unwrap_or(1.0),
+            fov_y: camera.fov_y,
+            far,
+            focal_px,
+        });
         self.passes.encode(
             &self.ctx,
             &mut encoder,
@@ -382,6 +417,7 @@ impl Renderer {
                 arenas: &draws,
                 allow_fused: settings.fused_finish,
                 force_int32: settings.force_int32,
+                pyramid: pyramid_frame,
             },
             &mut self.timer,
         );
@@ -413,101 +449,80 @@ impl Renderer {
             .screen
             .as_ref()
             .ok_or_else(|| ViewerError::Gpu("no frame has been rendered".into()))?;
-        let (w, h) = (screen.width, screen.height);
-        let row = w * 4;
-        let padded = row.div_ceil(256) * 256;
-        let buffer = self.ctx.device.create_buffer(&wgpu::BufferDescriptor {
-            label: Some("image readback"),
-            size: padded as u64 * h as u64,
-            usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
-            mapped_at_creation: false,
-        });
-        let mut encoder = self
-            .ctx
-            .device
-            .create_command_encoder(&wgpu::CommandEncoderDescriptor {
-                label: Some("readback"),
-            });
-        encoder.copy_texture_to_buffer(
-            screen.output.as_image_copy(),
-            wgpu::TexelCopyBufferInfo {
-                buffer: &buffer,
-                layout: wgpu::TexelCopyBufferLayout {
-                    offset: 0,
-                    bytes_per_row: Some(padded),
-                    rows_per_image: Some(h),
-                },
-            },
-            wgpu::Extent3d {
-                width: w,
-                height: h,
-                depth_or_array_layers: 1,
-            },
-        );
-        self.ctx.queue.submit([encoder.finish()]);
-        let data = map_read(&self.ctx, &buffer)?;
-        let mut out = Vec::with_capacity((row * h) as usize);
-        for y in 0..h as usize {
-            out.extend_from_slice(&data[y * padded as usize..y * padded as usize + row as usize]);
-        }
-        Ok((w, h, out))
+        let rgba = read_texture(&self.ctx, &screen.output, 4)?;
+        Ok((screen.width, screen.height, rgba))
     }
 
     /// Linear depth per pixel (`None` where nothing was drawn), for picking and tests.
     pub fn read_depths(&self) -> Result<Vec<Option<f32>>, ViewerError> {
+        Ok(self
+            .read_surface()?
+            .into_iter()
+            .map(|p| p.map(|p| p.depth))
+            .collect())
+    }
+
+    /// The surface the last frame shows, per pixel: its linear depth, and its view-space normal
+    /// where the pipeline estimates one (`pyramid`). `None` where the frame shows background.
+    pub fn read_surface(&self) -> Result<Vec<Option<SurfacePixel>>, ViewerError> {
         let screen = self
             .screen
             .as_ref()
             .ok_or_else(|| ViewerError::Gpu("no frame has been rendered".into()))?;
+        let pixels = screen.width as u64 * screen.height as u64;
+        if let Some(p) = screen.pyramid.as_ref().filter(|_| self.last_pyramid) {
+            let data = read_buffer(&self.ctx, &p.surface, pixels * 8)?;
+            return Ok(data
+                .chunks_exact(8)
+                .map(|b| {
+                    let depth = u32::from_le_bytes([b[0], b[1], b[2], b[3]]);
+                    let normal = u32::from_le_bytes([b[4], b[5], b[6], b[7]]);
+                    (depth != u32::MAX).then(|| SurfacePixel {
+                        depth: f32::from_bits(depth),
+                        normal: Some(decode_octahedral(normal)),
+                    })
+                })
+                .collect());
+        }
         // On the int64 path the depth plane is the high word of each key (the fused finish
         // pass never writes a separate depth buffer).
         let (source, stride) = match &screen.keys {
             Some(keys) if self.last_int64 => (keys, 8),
             _ => (&screen.depths, 4),
         };
-        let size = screen.width as u64 * screen.height as u64 * stride as u64;
-        let buffer = self.ctx.device.create_buffer(&wgpu::BufferDescriptor {
-            label: Some("depth readback"),
-            size,
-            usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
-            mapped_at_creation: false,
-        });
-        let mut encoder = self
-            .ctx
-            .device
-            .create_command_encoder(&wgpu::CommandEncoderDescriptor {
-                label: Some("depth readback"),
-            });
-        encoder.copy_buffer_to_buffer(source, 0, &buffer, 0, size);
-        self.ctx.queue.submit([encoder.finish()]);
-        let data = map_read(&self.ctx, &buffer)?;
+        let data = read_buffer(&self.ctx, source, pixels * stride as u64)?;
         Ok(data
             .chunks_exact(stride)
             .map(|b| {
                 let b = &b[stride - 4..];
                 let bits = u32::from_le_bytes([b[0], b[1], b[2], b[3]]);
-                (bits != u32::MAX).then(|| f32::from_bits(bits))
+                (bits != u32::MAX).then(|| SurfacePixel {
+                    depth: f32::from_bits(bits),
+                    normal: None,
+                })
             })
             .collect())
     }
 }
 
-fn map_read(ctx: &GpuContext, buffer: &wgpu::Buffer) -> Result<Vec<u8>, ViewerError> {
-    let (tx, rx) = std::sync::mpsc::channel();
-    buffer.slice(..).map_async(wgpu::MapMode::Read, move |r| {
-        let _ = tx.send(r);
-    });
-    ctx.device
-        .poll(wgpu::PollType::wait_indefinitely())
-        .map_err(|e| ViewerError::Gpu(format!("waiting for the GPU failed: {e}")))?;
-    rx.recv()
-        .map_err(|_| ViewerError::Gpu("readback was dropped".into()))?
-        .map_err(|e| ViewerError::Gpu(format!("readback failed: {e}")))?;
-    let data = buffer
-        .slice(..)
-        .get_mapped_range()
-        .map_err(|e| ViewerError::Gpu(format!("readback failed: {e}")))?
-        .to_vec();
-    buffer.unmap();
-    Ok(data)
+/// One pixel of the surface a frame shows.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct SurfacePixel {
+    /// Linear depth along the view axis, in dataset units.
+    pub depth: f32,
+    /// Unit normal in view space (x right, y up, z towards the viewer).
+    pub normal: Option<[f32; 3]>,
+}
+
+/// Inverse of `encode_normal` in pyramid.wgsl (two snorm16 octahedral coordinates).
+fn decode_octahedral(e: u32) -> [f32; 3] {
+    let snorm = |v: u32| ((v & 0xffff) as u16 as i16 as f32 / 32767.0).clamp(-1.0, 1.0);
+    let (px, py) = (snorm(e), snorm(e >> 16));
+    let mut n = glam::Vec3::new(px, py, 1.0 - px.abs() - py.abs());
+    if n.z < 0.0 {
+        let (x, y) = (n.x, n.y);
+        n.x = (1.0 - y.abs()) * if x >= 0.0 { 1.0 } else { -1.0 };
+        n.y = (1.0 - x.abs()) * if y >= 0.0 { 1.0 } else { -1.0 };
+    }
+    n.normalize_or_zero().to_array()
 }

@@ -7,15 +7,18 @@ use crate::ViewerError;
 pub enum Pipeline {
     Points,
     Edl,
+    /// Paper 003: hidden-point removal, pull-push fill, pyramid normals, deferred shading.
+    Pyramid,
 }
 
 impl Pipeline {
-    pub const ALL: [Pipeline; 2] = [Pipeline::Points, Pipeline::Edl];
+    pub const ALL: [Pipeline; 3] = [Pipeline::Points, Pipeline::Edl, Pipeline::Pyramid];
 
     pub fn name(self) -> &'static str {
         match self {
             Pipeline::Points => "points",
             Pipeline::Edl => "edl",
+            Pipeline::Pyramid => "pyramid",
         }
     }
 
@@ -23,7 +26,9 @@ impl Pipeline {
         Pipeline::ALL
             .into_iter()
             .find(|p| p.name() == s)
-            .ok_or_else(|| ViewerError::argument(s, "unknown pipeline (expected points or edl)"))
+            .ok_or_else(|| {
+                ViewerError::argument(s, "unknown pipeline (expected points, edl or pyramid)")
+            })
     }
 }
 
@@ -95,6 +100,11 @@ pub struct Settings {
     pub fused_finish: bool,
     /// Use the two-pass 32-bit projection even on a device with 64-bit atomics.
     pub force_int32: bool,
+    /// The pyramid pipeline's metric sampling scale s0 in dataset units; `None` takes it from
+    /// the nodes drawn.
+    pub s0: Option<f32>,
+    /// Eye-dome lighting on top of the pyramid pipeline's shading.
+    pub pyramid_edl: bool,
 }
 
 impl Default for Settings {
@@ -112,6 +122,8 @@ impl Default for Settings {
             upload_points_per_frame: Some(4_000_000),
             fused_finish: true,
             force_int32: false,
+            s0: None,
+            pyramid_edl: false,
         }
     }
 }

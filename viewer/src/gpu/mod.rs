@@ -3,6 +3,8 @@
 pub mod cache;
 pub mod context;
 pub mod passes;
+pub mod pyramid;
+pub mod readback;
 pub mod timing;
 
 pub use cache::NodeCache;

@@ -2,6 +2,7 @@
 //! 32-bit passes), unpack, per-arena resolve, and the final shading into the output image.
 
 use super::cache::NodeCache;
+use super::pyramid::{PyramidFrame, PyramidInputs, PyramidPasses, PyramidTargets};
 use super::timing::Timer;
 use crate::gpu::GpuContext;
 use bytemuck::{Pod, Zeroable};
@@ -43,7 +44,7 @@ pub struct GpuRange {
 const GROUP_SIZE: u32 = 256;
 const MAX_GROUPS_X: u32 = 65535;
 
-fn module(device: &wgpu::Device, label: &str, parts: &[&str]) -> wgpu::ShaderModule {
+pub(crate) fn module(device: &wgpu::Device, label: &str, parts: &[&str]) -> wgpu::ShaderModule {
     let mut src = String::from(FRAME_WGSL);
     for p in parts {
         src.push('\n');
@@ -81,6 +82,7 @@ pub struct Passes {
     finish: Option<wgpu::ComputePipeline>,
     /// The fused pass reading the 32-bit planes, on a 64-bit device (for `force_int32`).
     finish32: Option<wgpu::ComputePipeline>,
+    pyramid: PyramidPasses,
 }
 
 /// Arenas the fused finish pass binds at once (two storage buffers each).
@@ -97,6 +99,8 @@ pub struct Screen {
     colours: wgpu::Buffer,
     pub output: wgpu::Texture,
     uniforms: wgpu::Buffer,
+    /// The pyramid pipeline's buffers, made on its first frame at this size.
+    pub pyramid: Option<PyramidTargets>,
 }
 
 /// Everything one frame draws.
@@ -107,6 +111,8 @@ pub struct FrameDraw<'a> {
     /// Take the two-pass 32-bit projection even where 64-bit atomics are available (to
     /// compare both paths on the same resident nodes).
     pub force_int32: bool,
+    /// Run the pyramid pipeline after resolve in place of the final shading.
+    pub pyramid: Option<PyramidFrame>,
 }
 
 /// What one arena draws this frame.
@@ -165,6 +171,7 @@ impl Passes {
                 let keys = include_str!("../../shaders/keys_int32.wgsl");
                 pipeline(d, "finish int32", &[keys, colour, edl, finish])
             }),
+            pyramid: PyramidPasses::new(d),
         }
     }
 
@@ -209,7 +216,13 @@ impl Passes {
                 usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
                 mapped_at_creation: false,
             }),
+            pyramid: None,
         }
+    }
+
+    /// The pyramid pipeline's buffers for `screen`'s size.
+    pub fn pyramid_targets(&self, device: &wgpu::Device, screen: &Screen) -> PyramidTargets {
+        self.pyramid.targets(device, screen.width, screen.height)
     }
 
     /// Encodes every pass of one frame. Pass GPU times go to `timer` under their names.
@@ -229,8 +242,11 @@ impl Passes {
         } else {
             self.finish32.as_ref()
         };
-        let fused =
-            finish.filter(|_| frame.allow_fused && (1..=FINISH_SLOTS).contains(&draws.len()));
+        let fused = finish.filter(|_| {
+            frame.allow_fused
+                && frame.pyramid.is_none()
+                && (1..=FINISH_SLOTS).contains(&draws.len())
+        });
         let mut uniforms = *frame.uniforms;
         for (k, slot) in uniforms.arena_slots.iter_mut().enumerate() {
             *slot = draws.get(k).map_or(u32::MAX, |d| d.arena);
@@ -468,6 +484,24 @@ impl Passes {
             }
         }
 
+        if let (Some(pyramid), Some(targets)) = (&frame.pyramid, &screen.pyramid) {
+            self.pyramid.encode(
+                device,
+                &ctx.queue,
+                encoder,
+                targets,
+                &PyramidInputs {
+                    frame_uniforms: &screen.uniforms,
+                    depths: &screen.depths,
+                    colours: &screen.colours,
+                    output: &screen.output,
+                },
+                pyramid,
+                timer,
+            );
+            return;
+        }
+
         // Shade into the output image.
         {
             let view = screen.output.create_view(&Default::default());
@@ -509,7 +543,7 @@ impl Passes {
     }
 }
 
-fn pixel_groups(width: u32, height: u32) -> (u32, u32) {
+pub(crate) fn pixel_groups(width: u32, height: u32) -> (u32, u32) {
     (width.div_ceil(16), height.div_ceil(16))
 }
 

@@ -1,0 +1,392 @@
+//! The quality-versus-speed harness: renders ground-truth meshes and point sets of them through
+//! every pipeline under the same cameras, and writes quality.csv, a Markdown summary, charts and
+//! side-by-side images.
+//!
+//! cargo run --release -p strata-bench --bin quality -- --out DIR [--quick] [--size WxH]
+
+use anyhow::{Context, bail};
+use glam::DVec3;
+use std::path::{Path, PathBuf};
+use std::sync::Arc;
+use std::time::{Duration, Instant};
+use strata_bench::quality::mesh::y_up_to_z_up;
+use strata_bench::quality::metrics::{Frame, compare};
+use strata_bench::quality::reference::{ReferenceImage, ReferenceRenderer};
+use strata_bench::quality::report::{Row, charts, init_fonts, side_by_side, summary, write_csv};
+use strata_bench::quality::sample::{PointSet, load_scan, sample_mesh, write_ply};
+use strata_bench::quality::scenes::{CLAY, Points, Scene, View, scenes};
+use strata_converter::{ConvertOptions, Sampling, convert};
+use strata_viewer::gpu::{GpuContext, ProjectionPath};
+use strata_viewer::lod::clip_range;
+use strata_viewer::settings::SizeMode;
+use strata_viewer::{Camera, Pipeline, Renderer, Settings, StreamDataset};
+
+struct Args {
+    out: PathBuf,
+    quick: bool,
+    width: u32,
+    height: u32,
+    data: PathBuf,
+}
+
+fn parse_args() -> anyhow::Result<Args> {
+    let mut out = None;
+    let mut quick = false;
+    let mut size = None;
+    let mut data = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../shared/data");
+    let mut it = std::env::args().skip(1);
+    while let Some(a) = it.next() {
+        match a.as_str() {
+            "--out" => out = it.next().map(PathBuf::from),
+            "--quick" => quick = true,
+            "--size" => size = it.next(),
+            "--data" => {
+                data = it
+                    .next()
+                    .map(PathBuf::from)
+                    .context("--data needs a directory")?
+            }
+            other => bail!(
+                "unknown argument {other:?} (expected --out DIR [--quick] [--size WxH] [--data DIR])"
+            ),
+        }
+    }
+    let out = out.context("--out DIR is required")?;
+    let (width, height) = match size {
+        Some(s) => {
+            let (w, h) = s.split_once('x').context("--size is WxH")?;
+            (
+                w.parse().context("--size width")?,
+                h.parse().context("--size height")?,
+            )
+        }
+        None if quick => (320, 240),
+        None => (960, 720),
+    };
+    if !(16..=4096).contains(&width) || !(16..=4096).contains(&height) {
+        bail!("--size {width}x{height} is outside 16 to 4096 pixels");
+    }
+    Ok(Args {
+        out,
+        quick,
+        width,
+        height,
+        data,
+    })
+}
+
+/// One pipeline configuration of the comparison.
+struct Config {
+    pipeline: Pipeline,
+    setting: String,
+    point_size: f32,
+    /// s0 as a multiple of the automatic estimate (pyramid only).
+    s0_factor: Option<f32>,
+}
+
+fn configs(full: bool) -> Vec<Config> {
+    let mut v = vec![
+        Config {
+            pipeline: Pipeline::Points,
+            setting: "1px".into(),
+            point_size: 1.0,
+            s0_factor: None,
+        },
+        Config {
+            pipeline: Pipeline::Points,
+            setting: "2px".into(),
+            point_size: 2.0,
+            s0_factor: None,
+        },
+        Config {
+            pipeline: Pipeline::Edl,
+            setting: "2px".into(),
+            point_size: 2.0,
+            s0_factor: None,
+        },
+        Config {
+            pipeline: Pipeline::Pyramid,
+            setting: "s0=auto".into(),
+            point_size: 1.0,
+            s0_factor: Some(1.0),
+        },
+    ];
+    if full {
+        for f in [0.5f32, 2.0] {
+            v.push(Config {
+                pipeline: Pipeline::Pyramid,
+                setting: format!("s0=auto×{f}"),
+                point_size: 1.0,
+                s0_factor: Some(f),
+            });
+        }
+    }
+    v
+}
+
+const BUDGET: u64 = 20_000_000;
+const MAX_POINTS: usize = 4_000_000;
+
+fn main() -> anyhow::Result<()> {
+    let args = parse_args()?;
+    std::fs::create_dir_all(args.out.join("images"))
+        .with_context(|| format!("cannot create {}", args.out.display()))?;
+    init_fonts()?;
+    let ctx = Arc::new(GpuContext::new(ProjectionPath::Auto)?);
+    let work = tempfile::tempdir_in(&args.out).context("cannot make a work directory")?;
+    let scenes = scenes(&args.data, args.quick)?;
+    let started = Instant::now();
+    let mut rows = Vec::new();
+    for scene in &scenes {
+        let focal = args.height as f32 * 0.5 / (scene.views[0].fov_deg.to_radians() * 0.5).tan();
+        let (lo, hi) = scene.mesh.bounds();
+        let diagonal = (hi - lo).length();
+        let (densities, noises): (&[f64], &[f64]) = match (scene.stability, args.quick) {
+            (false, false) => (&[4.0, 1.0, 0.25, 0.1, 0.02], &[0.0, 0.002, 0.005]),
+            (false, true) => (&[1.0, 0.1], &[0.0]),
+            (true, false) => (&[1.0, 0.1, 0.02], &[0.0, 0.005]),
+            (true, true) => (&[0.25], &[0.0]),
+        };
+        let sets: Vec<(f64, f64, PointSet)> = match &scene.points {
+            Points::Scan(path) => {
+                let scan = load_scan(path, y_up_to_z_up, CLAY)?;
+                let density = scan.positions.len() as f64 / screen_area(scene, focal);
+                vec![(density, 0.0, scan)]
+            }
+            Points::Sampled => densities
+                .iter()
+                .flat_map(|&d| noises.iter().map(move |&n| (d, n)))
+                .map(|(d, n)| {
+                    let set = sample_mesh(
+                        &scene.mesh,
+                        scene.views[0].eye,
+                        focal,
+                        d,
+                        n as f32 * diagonal,
+                        7,
+                        MAX_POINTS,
+                    );
+                    (d, n, set)
+                })
+                .collect(),
+        };
+        for (density, noise, set) in sets {
+            eprintln!(
+                "{}: density {density:.3}, noise {noise}, {} points",
+                scene.name,
+                set.positions.len()
+            );
+            let dataset = convert_points(work.path(), &set)?;
+            let ds = Arc::new(StreamDataset::open_path(&dataset)?);
+            let reference = ReferenceRenderer::new(&ctx, &scene.mesh, ds.anchor());
+            let mut renderer = Renderer::new(ctx.clone(), ds.clone(), 1 << 30, 2)?;
+            for (vi, view) in scene.views.iter().enumerate() {
+                let camera = camera_of(view, ds.anchor());
+                let frames = render_view(
+                    &mut renderer,
+                    &reference,
+                    &ctx,
+                    &camera,
+                    &args,
+                    scene.stability,
+                )?;
+                let mut images: Vec<Vec<u8>> = vec![frames.reference.rgba.clone()];
+                for (config, rgba, metrics, gpu_ms) in frames.results {
+                    images.push(rgba);
+                    rows.push(Row {
+                        scene: scene.name.clone(),
+                        view: vi,
+                        pipeline: config.pipeline.name().into(),
+                        setting: config.setting,
+                        density,
+                        noise,
+                        metrics,
+                        gpu_ms,
+                        stability: scene.stability,
+                    });
+                }
+                if vi == 0 && noise == 0.0 {
+                    let name = format!("{}_d{density:.3}.png", scene.name);
+                    let refs: Vec<&[u8]> = images.iter().take(5).map(Vec::as_slice).collect();
+                    side_by_side(
+                        &args.out.join("images").join(name),
+                        args.width,
+                        args.height,
+                        &refs,
+                    )?;
+                }
+            }
+            drop(renderer);
+            std::fs::remove_dir_all(&dataset).ok();
+        }
+    }
+    let bad: Vec<&Row> = rows
+        .iter()
+        .filter(|r| r.values().iter().any(|v| !v.is_finite()))
+        .collect();
+    write_csv(&args.out.join("quality.csv"), &rows)?;
+    charts(&args.out, &rows)?;
+    let conditions = format!(
+        "{} frames at {}x{} on {} ({} projection), budget {BUDGET} points, every point drawn (LOD detail 0); {:.0} s.",
+        rows.len(),
+        args.width,
+        args.height,
+        ctx.adapter_name,
+        if ctx.int64_atomics { "int64" } else { "int32" },
+        started.elapsed().as_secs_f64()
+    );
+    let (md, targets_met) = summary(&rows, &conditions);
+    std::fs::write(args.out.join("summary.md"), &md)?;
+    println!("{md}");
+    println!(
+        "wrote {} (quality.csv, summary.md, quality_vs_time.png, quality_vs_density.png, quality_vs_noise.png, images/)",
+        args.out.display()
+    );
+    if !targets_met {
+        println!("note: some frames miss the quality targets (listed above)");
+    }
+    if !bad.is_empty() {
+        bail!("{} rows hold NaN or Inf, first: {:?}", bad.len(), bad[0]);
+    }
+    Ok(())
+}
+
+/// The mesh's area in pixels as seen from the first view, facing the eye: the measure that
+/// sampled densities are given in.
+fn screen_area(scene: &Scene, focal: f32) -> f64 {
+    let eye = scene.views[0].eye;
+    scene
+        .mesh
+        .triangles
+        .iter()
+        .map(|t| {
+            let c = scene.mesh.corners(*t);
+            let centroid = (c[0] + c[1] + c[2]) / 3.0;
+            let k = focal as f64 / (centroid - eye).length().max(1e-6) as f64;
+            strata_bench::quality::mesh::triangle_area(c) as f64 * k * k
+        })
+        .sum()
+}
+
+fn camera_of(view: &View, anchor: DVec3) -> Camera {
+    Camera {
+        eye: (view.eye.as_dvec3() - anchor).as_vec3(),
+        target: (view.target.as_dvec3() - anchor).as_vec3(),
+        fov_y: view.fov_deg.to_radians(),
+    }
+}
+
+fn convert_points(dir: &Path, set: &PointSet) -> anyhow::Result<PathBuf> {
+    let ply = dir.join("points.ply");
+    write_ply(&ply, set)?;
+    let dataset = dir.join("points.strata");
+    convert(&ConvertOptions {
+        inputs: vec![ply.clone()],
+        output: dataset.clone(),
+        memory_limit: 1 << 30,
+        threads: std::thread::available_parallelism().map_or(1, |n| n.get()),
+        sampling: Sampling::Poisson,
+        overwrite: true,
+        resume: false,
+        quiet: true,
+    })?;
+    std::fs::remove_file(&ply).ok();
+    Ok(dataset)
+}
+
+struct ViewFrames {
+    reference: ReferenceImage,
+    results: Vec<(
+        Config,
+        Vec<u8>,
+        strata_bench::quality::metrics::Metrics,
+        f64,
+    )>,
+}
+
+fn render_view(
+    renderer: &mut Renderer,
+    reference: &ReferenceRenderer,
+    ctx: &GpuContext,
+    camera: &Camera,
+    args: &Args,
+    stability: bool,
+) -> anyhow::Result<ViewFrames> {
+    let (w, h) = (args.width, args.height);
+    let base = Settings {
+        budget: BUDGET,
+        min_spacing_px: 0.0,
+        upload_points_per_frame: None,
+        ..Settings::default()
+    };
+    // Load everything the view needs.
+    let start = Instant::now();
+    loop {
+        let stats = renderer.frame(camera, w, h, &base);
+        renderer.wait_gpu()?;
+        if stats.complete {
+            break;
+        }
+        if start.elapsed() > Duration::from_secs(120) {
+            bail!("the view did not finish loading in 120 s");
+        }
+        renderer.wait_for_loads(Duration::from_millis(50));
+    }
+    let aspect = w as f32 / h as f32;
+    let (near, far) = clip_range(renderer.dataset(), camera);
+    let reference_image = reference.render(
+        ctx,
+        camera.view(),
+        camera.projection(aspect, near, far),
+        w,
+        h,
+        base.background,
+    )?;
+    let tan_y = (camera.fov_y * 0.5).tan();
+    let tan_half = [tan_y * aspect, tan_y];
+    let mut auto_s0 = None;
+    let mut results = Vec::new();
+    for config in configs(!args.quick && !stability) {
+        let mut settings = Settings {
+            pipeline: config.pipeline,
+            point_size: config.point_size,
+            size_mode: SizeMode::Fixed,
+            ..base
+        };
+        if let (Some(f), Some(s0)) = (config.s0_factor, auto_s0) {
+            settings.s0 = Some(s0 * f);
+        }
+        // Twice: the second frame's pass times are of a warm pipeline.
+        renderer.frame(camera, w, h, &settings);
+        renderer.wait_gpu()?;
+        let stats = renderer.frame(camera, w, h, &settings);
+        renderer.wait_gpu()?;
+        if config.pipeline == Pipeline::Pyramid && auto_s0.is_none() {
+            auto_s0 = stats.s0;
+        }
+        let gpu_ms: f64 = renderer.pass_times().values().sum();
+        let (_, _, rgba) = renderer.read_image()?;
+        let surface = renderer
+            .read_surface()?
+            .into_iter()
+            .map(|p| p.map(|p| (p.depth, p.normal.map(glam::Vec3::from_array))))
+            .collect();
+        let frame = Frame {
+            width: w,
+            height: h,
+            rgba: &rgba,
+            surface,
+        };
+        let metrics = compare(
+            &reference_image.rgba,
+            &reference_image.surface,
+            &frame,
+            tan_half,
+        );
+        results.push((config, rgba, metrics, gpu_ms));
+    }
+    Ok(ViewFrames {
+        reference: reference_image,
+        results,
+    })
+}

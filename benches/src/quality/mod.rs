@@ -1,0 +1,10 @@
+//! The quality-versus-speed harness (`--bin quality`): ground-truth meshes, point sets sampled
+//! from them, the reference renderer, the metrics and the report.
+
+pub mod mesh;
+pub mod metrics;
+pub mod reference;
+pub mod report;
+pub mod sample;
+pub mod scenes;
+pub mod shapes;

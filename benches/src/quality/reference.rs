@@ -1,0 +1,331 @@
+//! The ground truth: a mesh drawn with wgpu triangles under the viewer's camera and with the
+//! pyramid pipeline's headlight shading, into a colour image and a surface image (view-space
+//! normal and linear depth per pixel).
+
+use super::mesh::Mesh;
+use bytemuck::{Pod, Zeroable};
+use glam::Mat4;
+use strata_viewer::gpu::GpuContext;
+use strata_viewer::gpu::pyramid::LIGHTING_WGSL;
+use strata_viewer::gpu::readback::read_texture;
+use wgpu::util::DeviceExt;
+
+const SHADER: &str = r#"
+struct Uniforms {
+    view_proj: mat4x4<f32>,
+    view: mat4x4<f32>,
+}
+@group(0) @binding(0) var<uniform> u: Uniforms;
+@group(0) @binding(1) var albedo_map: texture_2d<f32>;
+@group(0) @binding(2) var albedo_sampler: sampler;
+
+struct In {
+    @location(0) position: vec3<f32>,
+    @location(1) normal: vec3<f32>,
+    @location(2) colour: vec3<f32>,
+    @location(3) uv: vec2<f32>,
+}
+
+struct Out {
+    @builtin(position) clip: vec4<f32>,
+    @location(0) view_pos: vec3<f32>,
+    @location(1) view_normal: vec3<f32>,
+    @location(2) colour: vec3<f32>,
+    @location(3) uv: vec2<f32>,
+}
+
+@vertex
+fn vs(v: In) -> Out {
+    var o: Out;
+    o.clip = u.view_proj * vec4<f32>(v.position, 1.0);
+    o.view_pos = (u.view * vec4<f32>(v.position, 1.0)).xyz;
+    o.view_normal = (u.view * vec4<f32>(v.normal, 0.0)).xyz;
+    o.colour = v.colour;
+    o.uv = v.uv;
+    return o;
+}
+
+struct Targets {
+    @location(0) colour: vec4<f32>,
+    @location(1) surface: vec4<f32>,
+}
+
+@fragment
+fn fs(f: Out) -> Targets {
+    let albedo = f.colour * textureSample(albedo_map, albedo_sampler, vec2<f32>(f.uv.x, 1.0 - f.uv.y)).rgb;
+    var n = normalize(f.view_normal);
+    let v = normalize(-f.view_pos);
+    if dot(n, v) < 0.0 {
+        n = -n;
+    }
+    var t: Targets;
+    t.colour = vec4<f32>(clamp(headlight(albedo, n, v), vec3<f32>(0.0), vec3<f32>(1.0)), 1.0);
+    t.surface = vec4<f32>(n, -f.view_pos.z);
+    return t;
+}
+"#;
+
+#[repr(C)]
+#[derive(Clone, Copy, Pod, Zeroable)]
+struct Vertex {
+    position: [f32; 3],
+    normal: [f32; 3],
+    colour: [f32; 3],
+    uv: [f32; 2],
+}
+
+#[repr(C)]
+#[derive(Clone, Copy, Pod, Zeroable)]
+struct Uniforms {
+    view_proj: [[f32; 4]; 4],
+    view: [[f32; 4]; 4],
+}
+
+/// What the reference shows at each pixel.
+pub struct ReferenceImage {
+    pub width: u32,
+    pub height: u32,
+    pub rgba: Vec<u8>,
+    /// View-space unit normal (facing the eye) and linear depth; `None` on background.
+    pub surface: Vec<Option<([f32; 3], f32)>>,
+}
+
+/// A mesh uploaded once, drawn from any camera.
+pub struct ReferenceRenderer {
+    pipeline: wgpu::RenderPipeline,
+    vertices: wgpu::Buffer,
+    indices: wgpu::Buffer,
+    index_count: u32,
+    texture_view: wgpu::TextureView,
+    sampler: wgpu::Sampler,
+}
+
+const COLOUR_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Rgba8Unorm;
+const SURFACE_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Rgba32Float;
+const DEPTH_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Depth32Float;
+
+impl ReferenceRenderer {
+    /// `offset` is subtracted from every position: the dataset's anchor, so that the mesh and
+    /// the points share coordinates.
+    pub fn new(ctx: &GpuContext, mesh: &Mesh, offset: glam::DVec3) -> ReferenceRenderer {
+        let device = &ctx.device;
+        let normals = mesh.vertex_normals();
+        let vertices: Vec<Vertex> = (0..mesh.positions.len())
+            .map(|i| Vertex {
+                position: (mesh.positions[i].as_dvec3() - offset).as_vec3().to_array(),
+                normal: normals[i].to_array(),
+                colour: mesh.colours[i].to_array(),
+                uv: mesh.uvs[i].to_array(),
+            })
+            .collect();
+        let indices: Vec<u32> = mesh.triangles.iter().flatten().copied().collect();
+        let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
+            label: Some("reference mesh"),
+            source: wgpu::ShaderSource::Wgsl(format!("{LIGHTING_WGSL}\n{SHADER}").into()),
+        });
+        let pipeline = device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
+            label: Some("reference mesh"),
+            layout: None,
+            vertex: wgpu::VertexState {
+                module: &module,
+                entry_point: Some("vs"),
+                compilation_options: Default::default(),
+                buffers: &[Some(wgpu::VertexBufferLayout {
+                    array_stride: std::mem::size_of::<Vertex>() as u64,
+                    step_mode: wgpu::VertexStepMode::Vertex,
+                    attributes: &wgpu::vertex_attr_array![0 => Float32x3, 1 => Float32x3, 2 => Float32x3, 3 => Float32x2],
+                })],
+            },
+            primitive: wgpu::PrimitiveState {
+                cull_mode: None,
+                ..Default::default()
+            },
+            depth_stencil: Some(wgpu::DepthStencilState {
+                format: DEPTH_FORMAT,
+                depth_write_enabled: Some(true),
+                depth_compare: Some(wgpu::CompareFunction::Less),
+                stencil: Default::default(),
+                bias: Default::default(),
+            }),
+            multisample: Default::default(),
+            fragment: Some(wgpu::FragmentState {
+                module: &module,
+                entry_point: Some("fs"),
+                compilation_options: Default::default(),
+                targets: &[Some(COLOUR_FORMAT.into()), Some(SURFACE_FORMAT.into())],
+            }),
+            multiview_mask: None,
+            cache: None,
+        });
+        let tex = &mesh.texture;
+        let texture = device.create_texture_with_data(
+            &ctx.queue,
+            &wgpu::TextureDescriptor {
+                label: Some("albedo"),
+                size: wgpu::Extent3d {
+                    width: tex.width,
+                    height: tex.height,
+                    depth_or_array_layers: 1,
+                },
+                mip_level_count: 1,
+                sample_count: 1,
+                dimension: wgpu::TextureDimension::D2,
+                format: wgpu::TextureFormat::Rgba8Unorm,
+                usage: wgpu::TextureUsages::TEXTURE_BINDING,
+                view_formats: &[],
+            },
+            wgpu::util::TextureDataOrder::LayerMajor,
+            &tex.rgba,
+        );
+        ReferenceRenderer {
+            pipeline,
+            vertices: device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                label: Some("reference vertices"),
+                contents: bytemuck::cast_slice(&vertices),
+                usage: wgpu::BufferUsages::VERTEX,
+            }),
+            indices: device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                label: Some("reference indices"),
+                contents: bytemuck::cast_slice(&indices),
+                usage: wgpu::BufferUsages::INDEX,
+            }),
+            index_count: indices.len() as u32,
+            texture_view: texture.create_view(&Default::default()),
+            sampler: device.create_sampler(&wgpu::SamplerDescriptor {
+                mag_filter: wgpu::FilterMode::Linear,
+                min_filter: wgpu::FilterMode::Linear,
+                address_mode_u: wgpu::AddressMode::Repeat,
+                address_mode_v: wgpu::AddressMode::Repeat,
+                ..Default::default()
+            }),
+        }
+    }
+
+    pub fn render(
+        &self,
+        ctx: &GpuContext,
+        view: Mat4,
+        projection: Mat4,
+        width: u32,
+        height: u32,
+        background: [u8; 3],
+    ) -> anyhow::Result<ReferenceImage> {
+        let device = &ctx.device;
+        let target = |label: &str, format: wgpu::TextureFormat| {
+            device.create_texture(&wgpu::TextureDescriptor {
+                label: Some(label),
+                size: wgpu::Extent3d {
+                    width,
+                    height,
+                    depth_or_array_layers: 1,
+                },
+                mip_level_count: 1,
+                sample_count: 1,
+                dimension: wgpu::TextureDimension::D2,
+                format,
+                usage: wgpu::TextureUsages::RENDER_ATTACHMENT | wgpu::TextureUsages::COPY_SRC,
+                view_formats: &[],
+            })
+        };
+        let colour = target("reference colour", COLOUR_FORMAT);
+        let surface = target("reference surface", SURFACE_FORMAT);
+        let depth = target("reference depth", DEPTH_FORMAT);
+        let uniforms = Uniforms {
+            view_proj: (projection * view).to_cols_array_2d(),
+            view: view.to_cols_array_2d(),
+        };
+        let ubuf = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+            label: Some("reference uniforms"),
+            contents: bytemuck::bytes_of(&uniforms),
+            usage: wgpu::BufferUsages::UNIFORM,
+        });
+        let bind = device.create_bind_group(&wgpu::BindGroupDescriptor {
+            label: Some("reference"),
+            layout: &self.pipeline.get_bind_group_layout(0),
+            entries: &[
+                wgpu::BindGroupEntry {
+                    binding: 0,
+                    resource: ubuf.as_entire_binding(),
+                },
+                wgpu::BindGroupEntry {
+                    binding: 1,
+                    resource: wgpu::BindingResource::TextureView(&self.texture_view),
+                },
+                wgpu::BindGroupEntry {
+                    binding: 2,
+                    resource: wgpu::BindingResource::Sampler(&self.sampler),
+                },
+            ],
+        });
+        let mut encoder = device.create_command_encoder(&Default::default());
+        {
+            let [r, g, b] = background.map(|c| c as f64 / 255.0);
+            let colour_view = colour.create_view(&Default::default());
+            let surface_view = surface.create_view(&Default::default());
+            let depth_view = depth.create_view(&Default::default());
+            let mut pass = encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
+                label: Some("reference"),
+                color_attachments: &[
+                    Some(wgpu::RenderPassColorAttachment {
+                        view: &colour_view,
+                        depth_slice: None,
+                        resolve_target: None,
+                        ops: wgpu::Operations {
+                            load: wgpu::LoadOp::Clear(wgpu::Color { r, g, b, a: 1.0 }),
+                            store: wgpu::StoreOp::Store,
+                        },
+                    }),
+                    Some(wgpu::RenderPassColorAttachment {
+                        view: &surface_view,
+                        depth_slice: None,
+                        resolve_target: None,
+                        ops: wgpu::Operations {
+                            load: wgpu::LoadOp::Clear(wgpu::Color {
+                                r: 0.0,
+                                g: 0.0,
+                                b: 0.0,
+                                a: -1.0,
+                            }),
+                            store: wgpu::StoreOp::Store,
+                        },
+                    }),
+                ],
+                depth_stencil_attachment: Some(wgpu::RenderPassDepthStencilAttachment {
+                    view: &depth_view,
+                    depth_ops: Some(wgpu::Operations {
+                        load: wgpu::LoadOp::Clear(1.0),
+                        store: wgpu::StoreOp::Store,
+                    }),
+                    stencil_ops: None,
+                }),
+                timestamp_writes: None,
+                occlusion_query_set: None,
+                multiview_mask: None,
+            });
+            pass.set_pipeline(&self.pipeline);
+            pass.set_bind_group(0, &bind, &[]);
+            pass.set_vertex_buffer(0, self.vertices.slice(..));
+            pass.set_index_buffer(self.indices.slice(..), wgpu::IndexFormat::Uint32);
+            pass.draw_indexed(0..self.index_count, 0, 0..1);
+        }
+        ctx.queue.submit([encoder.finish()]);
+        let rgba = read_texture(ctx, &colour, 4)?;
+        let raw = read_texture(ctx, &surface, 16)?;
+        let surface = raw
+            .chunks_exact(16)
+            .map(|b| {
+                let f = |k: usize| {
+                    f32::from_le_bytes([b[4 * k], b[4 * k + 1], b[4 * k + 2], b[4 * k + 3]])
+                };
+                let d = f(3);
+                (d > 0.0).then(|| ([f(0), f(1), f(2)], d))
+            })
+            .collect();
+        Ok(ReferenceImage {
+            width,
+            height,
+            rgba,
+            surface,
+        })
+    }
+}

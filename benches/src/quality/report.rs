@@ -1,0 +1,369 @@
+//! The harness's outputs: quality.csv, the Markdown summary, the charts and the side-by-side
+//! images.
+
+use super::metrics::Metrics;
+use anyhow::Context;
+use plotters::prelude::*;
+use std::collections::BTreeMap;
+use std::fmt::Write as _;
+use std::path::Path;
+
+#[derive(Debug, Clone)]
+pub struct Row {
+    pub scene: String,
+    pub view: usize,
+    pub pipeline: String,
+    pub setting: String,
+    pub density: f64,
+    pub noise: f64,
+    pub metrics: Metrics,
+    pub gpu_ms: f64,
+    pub stability: bool,
+}
+
+impl Row {
+    pub fn label(&self) -> String {
+        format!("{} {}", self.pipeline, self.setting)
+    }
+
+    pub fn values(&self) -> [f64; 9] {
+        let m = &self.metrics;
+        [
+            self.density,
+            self.noise,
+            m.psnr,
+            m.ssim,
+            m.depth_err,
+            m.normal_err_deg,
+            m.hole_rate,
+            m.leak_rate,
+            self.gpu_ms,
+        ]
+    }
+}
+
+pub fn write_csv(path: &Path, rows: &[Row]) -> anyhow::Result<()> {
+    let mut out = String::from(
+        "scene,pipeline,setting,density,noise,psnr,ssim,depth_err,normal_err_deg,hole_rate,leak_rate,gpu_ms\n",
+    );
+    for r in rows {
+        let v = r.values();
+        let _ = writeln!(
+            out,
+            "{}/view{},{},{},{:.4},{:.4},{:.3},{:.4},{:.5},{:.2},{:.4},{:.4},{:.3}",
+            r.scene,
+            r.view,
+            r.pipeline,
+            r.setting,
+            v[0],
+            v[1],
+            v[2],
+            v[3],
+            v[4],
+            v[5],
+            v[6],
+            v[7],
+            v[8]
+        );
+    }
+    std::fs::write(path, out).with_context(|| format!("{}", path.display()))
+}
+
+/// Means of the metrics over `rows`, grouped by `key`, in key order.
+fn group_means<K: Ord>(rows: &[&Row], key: impl Fn(&Row) -> K) -> BTreeMap<K, [f64; 9]> {
+    let mut sums: BTreeMap<K, ([f64; 9], usize)> = BTreeMap::new();
+    for r in rows {
+        let e = sums.entry(key(r)).or_insert(([0.0; 9], 0));
+        for (s, v) in e.0.iter_mut().zip(r.values()) {
+            *s += v;
+        }
+        e.1 += 1;
+    }
+    sums.into_iter()
+        .map(|(k, (s, n))| (k, s.map(|v| v / n as f64)))
+        .collect()
+}
+
+/// The pipelines' colours in every chart.
+fn colour_of(label: &str) -> RGBColor {
+    match label {
+        l if l.starts_with("points 1px") => RGBColor(120, 120, 120),
+        l if l.starts_with("points") => RGBColor(60, 60, 60),
+        l if l.starts_with("edl") => RGBColor(30, 110, 200),
+        l if l.contains("×0.5") => RGBColor(240, 150, 60),
+        l if l.contains("×2") => RGBColor(160, 40, 20),
+        _ => RGBColor(220, 60, 40),
+    }
+}
+
+fn plot_err<E: std::fmt::Debug>(e: E) -> anyhow::Error {
+    anyhow::anyhow!("drawing a chart failed: {e:?}")
+}
+
+/// Registers the chart font (egui's default sans, already a dependency of the viewer).
+pub fn init_fonts() -> anyhow::Result<()> {
+    plotters::style::register_font(
+        "sans-serif",
+        FontStyle::Normal,
+        epaint_default_fonts::UBUNTU_LIGHT,
+    )
+    .map_err(|_| anyhow::anyhow!("the chart font is not a valid font"))
+}
+
+type Series = Vec<(String, Vec<(f64, f64)>)>;
+
+/// A chart of one or more panels, each a set of labelled series (lines, or single marks).
+fn chart(
+    path: &Path,
+    title: &str,
+    x_desc: &str,
+    log_x: bool,
+    panels: &[(&str, Series)],
+) -> anyhow::Result<()> {
+    let (w, h) = (640 * panels.len() as u32, 480u32);
+    let mut buf = vec![255u8; (w * h * 3) as usize];
+    {
+        let root = BitMapBackend::with_buffer(&mut buf, (w, h)).into_drawing_area();
+        root.fill(&WHITE).map_err(plot_err)?;
+        let root = root.titled(title, ("sans-serif", 22)).map_err(plot_err)?;
+        let areas = root.split_evenly((1, panels.len()));
+        for (area, (y_desc, series)) in areas.iter().zip(panels) {
+            let pts: Vec<(f64, f64)> = series.iter().flat_map(|s| s.1.clone()).collect();
+            if pts.is_empty() {
+                continue;
+            }
+            let fx = |v: f64| if log_x { v.max(1e-6).log10() } else { v };
+            let (mut x0, mut x1) = pts.iter().fold((f64::MAX, f64::MIN), |(a, b), p| {
+                (a.min(fx(p.0)), b.max(fx(p.0)))
+            });
+            let (mut y0, mut y1) = pts
+                .iter()
+                .fold((f64::MAX, f64::MIN), |(a, b), p| (a.min(p.1), b.max(p.1)));
+            let (px, py) = (((x1 - x0) * 0.08).max(1e-3), ((y1 - y0) * 0.08).max(1e-3));
+            (x0, x1, y0, y1) = (x0 - px, x1 + px, y0 - py, y1 + py);
+            let mut c = ChartBuilder::on(area)
+                .margin(12)
+                .x_label_area_size(40)
+                .y_label_area_size(56)
+                .build_cartesian_2d(x0..x1, y0..y1)
+                .map_err(plot_err)?;
+            c.configure_mesh()
+                .x_desc(if log_x {
+                    format!("{x_desc} (log10)")
+                } else {
+                    x_desc.to_string()
+                })
+                .y_desc(*y_desc)
+                .draw()
+                .map_err(plot_err)?;
+            for (label, points) in series {
+                let colour = colour_of(label);
+                let xy: Vec<(f64, f64)> = points.iter().map(|p| (fx(p.0), p.1)).collect();
+                if xy.len() > 1 {
+                    c.draw_series(LineSeries::new(xy.clone(), colour.stroke_width(2)))
+                        .map_err(plot_err)?;
+                }
+                c.draw_series(xy.iter().map(|p| Circle::new(*p, 5, colour.filled())))
+                    .map_err(plot_err)?
+                    .label(label.as_str())
+                    .legend(move |(x, y)| Circle::new((x + 8, y), 5, colour.filled()));
+            }
+            c.configure_series_labels()
+                .background_style(WHITE.mix(0.85))
+                .border_style(BLACK)
+                .draw()
+                .map_err(plot_err)?;
+        }
+        root.present().map_err(plot_err)?;
+    }
+    write_png_rgb(path, w, h, &buf)
+}
+
+fn write_png_rgb(path: &Path, w: u32, h: u32, rgb: &[u8]) -> anyhow::Result<()> {
+    let file = std::fs::File::create(path).with_context(|| format!("{}", path.display()))?;
+    let mut enc = png::Encoder::new(std::io::BufWriter::new(file), w, h);
+    enc.set_color(png::ColorType::Rgb);
+    enc.set_depth(png::BitDepth::Eight);
+    enc.write_header()?.write_image_data(rgb)?;
+    Ok(())
+}
+
+/// Images side by side (all the same size), RGBA, as one PNG.
+pub fn side_by_side(path: &Path, w: u32, h: u32, images: &[&[u8]]) -> anyhow::Result<()> {
+    let total = w * images.len() as u32;
+    let mut rgb = vec![0u8; (total * h * 3) as usize];
+    for (k, img) in images.iter().enumerate() {
+        for y in 0..h as usize {
+            for x in 0..w as usize {
+                let s = (y * w as usize + x) * 4;
+                let d = (y * total as usize + k * w as usize + x) * 3;
+                rgb[d..d + 3].copy_from_slice(&img[s..s + 3]);
+            }
+        }
+    }
+    write_png_rgb(path, total, h, &rgb)
+}
+
+fn series_by_label(rows: &[&Row], x: impl Fn(&Row) -> f64, metric: usize) -> Series {
+    let mut by_label: BTreeMap<String, Vec<&Row>> = BTreeMap::new();
+    for r in rows {
+        by_label.entry(r.label()).or_default().push(r);
+    }
+    by_label
+        .into_iter()
+        .map(|(label, rs)| {
+            let means = group_means(&rs, |r| (x(r) * 1e6).round() as i64);
+            let pts = means
+                .into_iter()
+                .map(|(k, v)| (k as f64 / 1e6, v[metric]))
+                .collect();
+            (label, pts)
+        })
+        .collect()
+}
+
+const PSNR: usize = 2;
+const SSIM: usize = 3;
+const HOLES: usize = 6;
+const GPU_MS: usize = 8;
+
+pub fn charts(dir: &Path, rows: &[Row]) -> anyhow::Result<()> {
+    let main: Vec<&Row> = rows.iter().filter(|r| !r.stability).collect();
+    // Quality against time: one mark per pipeline and setting, means over the main scenes.
+    let means = group_means(&main, Row::label);
+    let marks = |metric: usize| -> Series {
+        means
+            .iter()
+            .map(|(l, v)| (l.clone(), vec![(v[GPU_MS], v[metric])]))
+            .collect()
+    };
+    chart(
+        &dir.join("quality_vs_time.png"),
+        "Quality against GPU time (means over bunny, spot and the bunny scans)",
+        "GPU ms per frame",
+        false,
+        &[("PSNR (dB)", marks(PSNR)), ("SSIM", marks(SSIM))],
+    )?;
+    let sampled: Vec<&Row> = main
+        .iter()
+        .copied()
+        .filter(|r| r.scene != "bunny_scans" && r.noise == 0.0)
+        .collect();
+    chart(
+        &dir.join("quality_vs_density.png"),
+        "Quality against density (bunny and spot sampled, no noise)",
+        "points per pixel",
+        true,
+        &[
+            ("PSNR (dB)", series_by_label(&sampled, |r| r.density, PSNR)),
+            ("hole rate", series_by_label(&sampled, |r| r.density, HOLES)),
+        ],
+    )?;
+    let min_density = main
+        .iter()
+        .filter(|r| r.scene != "bunny_scans")
+        .map(|r| r.density)
+        .fold(f64::MAX, f64::min);
+    let noisy: Vec<&Row> = main
+        .iter()
+        .copied()
+        .filter(|r| r.scene != "bunny_scans" && r.density > min_density)
+        .collect();
+    chart(
+        &dir.join("quality_vs_noise.png"),
+        "Quality against noise (bunny and spot sampled)",
+        "noise sigma / bounding diagonal",
+        false,
+        &[
+            ("PSNR (dB)", series_by_label(&noisy, |r| r.noise, PSNR)),
+            ("SSIM", series_by_label(&noisy, |r| r.noise, SSIM)),
+        ],
+    )?;
+    Ok(())
+}
+
+/// The Markdown summary: means per scene and pipeline, and the targets checked.
+pub fn summary(rows: &[Row], conditions: &str) -> (String, bool) {
+    let mut md = String::from("# Quality against speed\n\n");
+    let _ = writeln!(md, "{conditions}\n");
+    md.push_str("Means over views, densities and noise levels.\n\n");
+    md.push_str("| scene | pipeline | setting | PSNR dB | SSIM | depth err | normal err ° | holes | leaks | GPU ms |\n|---|---|---|---|---|---|---|---|---|---|\n");
+    let all: Vec<&Row> = rows.iter().collect();
+    for ((scene, label), v) in group_means(&all, |r| (r.scene.clone(), r.label())) {
+        let (p, s) = label.split_once(' ').unwrap_or((&label, ""));
+        let _ = writeln!(
+            md,
+            "| {scene} | {p} | {s} | {:.2} | {:.3} | {:.4} | {:.1} | {:.3} | {:.3} | {:.1} |",
+            v[PSNR], v[SSIM], v[4], v[5], v[HOLES], v[7], v[GPU_MS]
+        );
+    }
+    let (targets, ok) = check_targets(rows);
+    md.push_str("\n## Targets\n\n");
+    md.push_str(&targets);
+    (md, ok)
+}
+
+/// On the bunny scans and at every sampled density where `points 1px` leaves holes, `pyramid`
+/// must have at most half its hole rate and a higher PSNR and SSIM than every `points` and
+/// `edl` setting. Compared per frame (scene, view, density, noise).
+fn check_targets(rows: &[Row]) -> (String, bool) {
+    let mut frames: BTreeMap<(String, usize, i64, i64), Vec<&Row>> = BTreeMap::new();
+    for r in rows.iter().filter(|r| !r.stability) {
+        let key = (
+            r.scene.clone(),
+            r.view,
+            (r.density * 1e6) as i64,
+            (r.noise * 1e6) as i64,
+        );
+        frames.entry(key).or_default().push(r);
+    }
+    let mut out = String::new();
+    let mut ok = true;
+    let (mut checked, mut failed) = (0, 0);
+    for ((scene, view, _, _), rs) in &frames {
+        let find = |label: &str| rs.iter().find(|r| r.label() == label);
+        let (Some(points), Some(pyramid)) = (find("points 1px"), find("pyramid s0=auto")) else {
+            continue;
+        };
+        if scene != "bunny_scans" && points.metrics.hole_rate < 0.01 {
+            continue;
+        }
+        checked += 1;
+        let rivals: Vec<&&Row> = rs
+            .iter()
+            .filter(|r| r.pipeline == "points" || r.pipeline == "edl")
+            .collect();
+        let pm = &pyramid.metrics;
+        let holes_ok = pm.hole_rate <= 0.5 * points.metrics.hole_rate;
+        let psnr_ok = rivals.iter().all(|r| pm.psnr > r.metrics.psnr);
+        let ssim_ok = rivals.iter().all(|r| pm.ssim > r.metrics.ssim);
+        if !(holes_ok && psnr_ok && ssim_ok) {
+            failed += 1;
+            ok = false;
+            let _ = writeln!(
+                out,
+                "- MISSED {scene} view {view} density {:.3} noise {:.4}: pyramid holes {:.3} vs points {:.3}, PSNR {:.2} vs best rival {:.2}, SSIM {:.3} vs {:.3}",
+                points.density,
+                points.noise,
+                pm.hole_rate,
+                points.metrics.hole_rate,
+                pm.psnr,
+                rivals
+                    .iter()
+                    .map(|r| r.metrics.psnr)
+                    .fold(f64::MIN, f64::max),
+                pm.ssim,
+                rivals
+                    .iter()
+                    .map(|r| r.metrics.ssim)
+                    .fold(f64::MIN, f64::max),
+            );
+        }
+    }
+    let _ = writeln!(
+        out,
+        "\n{} of {checked} frames meet the quality targets (pyramid holes at most half of points 1px; PSNR and SSIM above every points and edl setting).",
+        checked - failed
+    );
+    (out, ok)
+}

@@ -1,0 +1,120 @@
+//! Point sets for the harness: a mesh sampled at a density given in points per screen pixel,
+//! with optional Gaussian noise, and the real bunny scans; written as binary PLY for `convert`.
+
+use super::mesh::Mesh;
+use anyhow::{Context, bail};
+use glam::Vec3;
+use ply_rs_bw::parser::Parser;
+use ply_rs_bw::ply::{DefaultElement, Property};
+use std::io::Write;
+use std::path::Path;
+use strata_converter::synth::Rng;
+
+pub struct PointSet {
+    pub positions: Vec<Vec3>,
+    /// Albedo, 0..1.
+    pub colours: Vec<Vec3>,
+}
+
+/// Samples `mesh` uniformly in screen space as seen from `eye` (focal length `focal_px`):
+/// `density` points per pixel of a surface facing the eye, so a triangle gets points in
+/// proportion to its area over its squared distance. Noise is isotropic Gaussian with standard
+/// deviation `sigma`. At most `max_points`.
+pub fn sample_mesh(
+    mesh: &Mesh,
+    eye: Vec3,
+    focal_px: f32,
+    density: f64,
+    sigma: f32,
+    seed: u64,
+    max_points: usize,
+) -> PointSet {
+    let mut cdf = Vec::with_capacity(mesh.triangles.len());
+    let mut total = 0.0f64;
+    for t in &mesh.triangles {
+        let c = mesh.corners(*t);
+        let centroid = (c[0] + c[1] + c[2]) / 3.0;
+        let px_per_unit = focal_px as f64 / (centroid - eye).length().max(1e-6) as f64;
+        total += super::mesh::triangle_area(c) as f64 * px_per_unit * px_per_unit;
+        cdf.push(total);
+    }
+    let n = ((density * total).round() as usize).clamp(1, max_points);
+    let mut rng = Rng::new(seed, 0x5a3e, n as u64);
+    let mut out = PointSet {
+        positions: Vec::with_capacity(n),
+        colours: Vec::with_capacity(n),
+    };
+    for _ in 0..n {
+        let pick = rng.unit() * total;
+        let ti = cdf.partition_point(|&c| c <= pick).min(cdf.len() - 1);
+        let t = mesh.triangles[ti];
+        let (mut u, mut v) = (rng.unit() as f32, rng.unit() as f32);
+        if u + v > 1.0 {
+            (u, v) = (1.0 - u, 1.0 - v);
+        }
+        let w = Vec3::new(1.0 - u - v, u, v);
+        let [a, b, c] = mesh.corners(t);
+        let mut p = a * w.x + b * w.y + c * w.z;
+        if sigma > 0.0 {
+            p += Vec3::new(gauss(&mut rng), gauss(&mut rng), gauss(&mut rng)) * sigma;
+        }
+        out.positions.push(p);
+        out.colours.push(mesh.albedo(t, w));
+    }
+    out
+}
+
+/// Standard normal, by Box-Muller.
+fn gauss(rng: &mut Rng) -> f32 {
+    let u1 = rng.unit().max(1e-12);
+    let u2 = rng.unit();
+    ((-2.0 * u1.ln()).sqrt() * (std::f64::consts::TAU * u2).cos()) as f32
+}
+
+/// The x, y, z of a PLY point cloud, mapped by `map`, all in one colour.
+pub fn load_scan(
+    path: &Path,
+    map: impl Fn(Vec3) -> Vec3,
+    colour: Vec3,
+) -> anyhow::Result<PointSet> {
+    let mut file = std::fs::File::open(path).with_context(|| format!("{}", path.display()))?;
+    let ply = Parser::<DefaultElement>::new()
+        .read_ply(&mut file)
+        .with_context(|| format!("{}: not a readable PLY", path.display()))?;
+    let scalar = |p: Option<&Property>| match p {
+        Some(Property::Float(v)) => Some(*v),
+        Some(Property::Double(v)) => Some(*v as f32),
+        _ => None,
+    };
+    let mut positions = Vec::new();
+    for v in ply.payload.get("vertex").into_iter().flatten() {
+        let (Some(x), Some(y), Some(z)) =
+            (scalar(v.get("x")), scalar(v.get("y")), scalar(v.get("z")))
+        else {
+            bail!("{}: a vertex lacks float x, y, z", path.display());
+        };
+        positions.push(map(Vec3::new(x, y, z)));
+    }
+    let colours = vec![colour; positions.len()];
+    Ok(PointSet { positions, colours })
+}
+
+/// Binary little-endian PLY: x, y, z as float, red, green, blue as uchar.
+pub fn write_ply(path: &Path, points: &PointSet) -> anyhow::Result<()> {
+    let file = std::fs::File::create(path).with_context(|| format!("{}", path.display()))?;
+    let mut w = std::io::BufWriter::new(file);
+    write!(
+        w,
+        "ply\nformat binary_little_endian 1.0\nelement vertex {}\nproperty float x\nproperty float y\nproperty float z\nproperty uchar red\nproperty uchar green\nproperty uchar blue\nend_header\n",
+        points.positions.len()
+    )?;
+    for (p, c) in points.positions.iter().zip(&points.colours) {
+        for v in p.to_array() {
+            w.write_all(&v.to_le_bytes())?;
+        }
+        let rgb = (*c * 255.0).round().clamp(Vec3::ZERO, Vec3::splat(255.0));
+        w.write_all(&[rgb.x as u8, rgb.y as u8, rgb.z as u8])?;
+    }
+    w.flush()?;
+    Ok(())
+}

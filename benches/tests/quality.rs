@@ -1,0 +1,91 @@
+//! The quality harness end to end in its quick mode on the software adapter: every output is
+//! written, every number is finite, and on the bunny the pyramid pipeline fills what one-pixel
+//! points leave open.
+
+use std::collections::HashMap;
+use std::process::Command;
+
+#[test]
+fn quick_run_writes_the_table_the_charts_and_the_images() {
+    let out = tempfile::tempdir().expect("temp dir");
+    let backend = std::env::var("WGPU_BACKEND").unwrap_or_else(|_| "vulkan".into());
+    let run = Command::new(env!("CARGO_BIN_EXE_quality"))
+        .env("WGPU_BACKEND", backend)
+        .args(["--quick", "--out"])
+        .arg(out.path())
+        .output()
+        .expect("quality runs");
+    let stderr = String::from_utf8_lossy(&run.stderr);
+    assert!(run.status.success(), "quality failed:\n{stderr}");
+    assert!(!stderr.contains("panicked"), "{stderr}");
+
+    let csv = std::fs::read_to_string(out.path().join("quality.csv")).expect("quality.csv");
+    let mut lines = csv.lines();
+    assert_eq!(
+        lines.next(),
+        Some(
+            "scene,pipeline,setting,density,noise,psnr,ssim,depth_err,normal_err_deg,hole_rate,leak_rate,gpu_ms"
+        )
+    );
+    let rows: Vec<Vec<&str>> = lines.map(|l| l.split(',').collect()).collect();
+    assert!(rows.len() >= 30, "only {} rows", rows.len());
+    for r in &rows {
+        assert_eq!(r.len(), 12, "{r:?}");
+        for v in &r[3..] {
+            let x: f64 = v.parse().unwrap_or(f64::NAN);
+            assert!(x.is_finite(), "{r:?}");
+        }
+    }
+    for scene in [
+        "bunny_scans",
+        "bunny",
+        "spot",
+        "grazing",
+        "thin",
+        "near_far",
+        "nested",
+    ] {
+        assert!(
+            rows.iter().any(|r| r[0].starts_with(scene)),
+            "no rows for {scene}"
+        );
+    }
+    // Per (scene, density): hole rate of points 1px and pyramid on the sampled bunny.
+    let mut holes: HashMap<(String, String), (f64, f64)> = HashMap::new();
+    for r in rows.iter().filter(|r| r[0].starts_with("bunny/")) {
+        let e = holes.entry((r[0].into(), r[3].into())).or_default();
+        let rate: f64 = r[9].parse().unwrap_or(f64::NAN);
+        match (r[1], r[2]) {
+            ("points", "1px") => e.0 = rate,
+            ("pyramid", "s0=auto") => e.1 = rate,
+            _ => {}
+        }
+    }
+    assert!(!holes.is_empty());
+    for ((scene, density), (points, pyramid)) in holes {
+        assert!(
+            pyramid <= points * 0.5 + 1e-9,
+            "{scene} at density {density}: pyramid holes {pyramid}, points {points}"
+        );
+    }
+    for chart in [
+        "quality_vs_time.png",
+        "quality_vs_density.png",
+        "quality_vs_noise.png",
+    ] {
+        let bytes = std::fs::read(out.path().join(chart)).expect("chart written");
+        assert!(
+            bytes.starts_with(b"\x89PNG") && bytes.len() > 10_000,
+            "{chart}"
+        );
+    }
+    let summary = std::fs::read_to_string(out.path().join("summary.md")).expect("summary.md");
+    assert!(
+        summary.contains("| bunny_scans | pyramid | s0=auto |"),
+        "{summary}"
+    );
+    let images = std::fs::read_dir(out.path().join("images"))
+        .expect("images")
+        .count();
+    assert!(images >= 5, "{images} side-by-side images");
+}

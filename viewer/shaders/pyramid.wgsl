@@ -1,0 +1,91 @@
+// Shared by the passes of the pyramid pipeline (paper 003): its uniforms, its buffers and the
+// conversions between pixels, depths and view-space points. Every level of a pyramid lives in
+// one buffer; `pyr.table[l]` gives the level's offset, width and height.
+
+struct Pyramid {
+    // tan of half the horizontal and vertical field of view.
+    tan_half: vec2<f32>,
+    far: f32,
+    // s_hpr * focal length in pixels: the HPR neighbourhood level at depth z is log2(hpr_scale / z).
+    hpr_scale: f32,
+    // The same for the normal estimation radius.
+    normal_scale: f32,
+    threshold: f32,
+    levels: u32,
+    coarse_level: u32,
+    table: array<vec4<u32>, 16>,
+}
+
+struct Level {
+    index: u32,
+    pad0: u32,
+    pad1: u32,
+    pad2: u32,
+}
+
+@group(0) @binding(0) var<uniform> frame: Frame;
+@group(0) @binding(1) var<uniform> pyr: Pyramid;
+@group(0) @binding(2) var<uniform> level: Level;
+// The projection's nearest depth per pixel and the colour resolved for it.
+@group(1) @binding(0) var<storage, read> depths: array<u32>;
+@group(1) @binding(1) var<storage, read> colours: array<u32>;
+// Min-depth point pyramid: (depth bits, level-0 pixel of the point).
+@group(1) @binding(2) var<storage, read_write> pts: array<vec2<u32>>;
+// Pull-push pyramid: (depth, weight) and colour.
+@group(1) @binding(3) var<storage, read_write> fill: array<vec2<f32>>;
+@group(1) @binding(4) var<storage, read_write> fill_colour: array<u32>;
+// Normal pyramid, octahedral-encoded; 0 where a level has no surface.
+@group(1) @binding(5) var<storage, read_write> normals: array<u32>;
+// Per pixel: LABEL_POINT, LABEL_HOLE or LABEL_BACKGROUND.
+@group(1) @binding(6) var<storage, read_write> labels: array<u32>;
+// Per pixel, the shaded surface: (depth bits or EMPTY, octahedral normal).
+@group(1) @binding(7) var<storage, read_write> surface: array<vec2<u32>>;
+@group(1) @binding(8) var output: texture_storage_2d<rgba8unorm, write>;
+
+const LABEL_POINT: u32 = 0u;
+const LABEL_HOLE: u32 = 1u;
+const LABEL_BACKGROUND: u32 = 2u;
+const NO_NORMAL: u32 = 0u;
+
+fn level_offset(l: u32) -> u32 {
+    return pyr.table[l].x;
+}
+
+fn level_size(l: u32) -> vec2<u32> {
+    return pyr.table[l].yz;
+}
+
+// The view-space point at level-0 pixel coordinates `px` (pixel centres at .5) and linear depth d.
+fn view_point(px: vec2<f32>, d: f32) -> vec3<f32> {
+    let size = vec2<f32>(f32(frame.width), f32(frame.height));
+    let ndc = vec2<f32>(px.x / size.x * 2.0 - 1.0, 1.0 - px.y / size.y * 2.0);
+    return vec3<f32>(ndc * pyr.tan_half * d, -d);
+}
+
+// The view-space point of a point-pyramid entry.
+fn entry_point(e: vec2<u32>) -> vec3<f32> {
+    let p = vec2<f32>(f32(e.y % frame.width), f32(e.y / frame.width)) + 0.5;
+    return view_point(p, bitcast<f32>(e.x));
+}
+
+fn oct_wrap(v: vec2<f32>) -> vec2<f32> {
+    return (1.0 - abs(v.yx)) * select(vec2<f32>(-1.0), vec2<f32>(1.0), v >= vec2<f32>(0.0));
+}
+
+fn encode_normal(n: vec3<f32>) -> u32 {
+    var p = n.xy / (abs(n.x) + abs(n.y) + abs(n.z));
+    if n.z < 0.0 {
+        p = oct_wrap(p);
+    }
+    // Never NO_NORMAL: (0, 0) encodes to a non-zero pattern.
+    return pack2x16snorm(p) | select(0u, 1u, pack2x16snorm(p) == NO_NORMAL);
+}
+
+fn decode_normal(e: u32) -> vec3<f32> {
+    let p = unpack2x16snorm(e);
+    var n = vec3<f32>(p, 1.0 - abs(p.x) - abs(p.y));
+    if n.z < 0.0 {
+        n = vec3<f32>(oct_wrap(n.xy), n.z);
+    }
+    return normalize(n);
+}

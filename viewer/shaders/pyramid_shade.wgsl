@@ -1,0 +1,66 @@
+// Deferred shading of the reconstructed surface: background where the HPR found visible
+// background, else the filled colour lit by the headlight with the normal interpolated between
+// the two pyramid levels nearest the pixel's normal radius (bilinear within each level). EDL
+// may darken it on top. Writes the output image and the per-pixel surface for readback.
+
+fn pixel_depth(i: u32) -> u32 {
+    if labels[i] == LABEL_BACKGROUND || fill[i].y < 1.0 {
+        return EMPTY;
+    }
+    return bitcast<u32>(fill[i].x);
+}
+
+fn level_normal(l: u32, px: vec2<f32>) -> vec3<f32> {
+    let size = vec2<i32>(level_size(l));
+    let off = level_offset(l);
+    let u = px / f32(1u << l) - 0.5;
+    let base = vec2<i32>(floor(u));
+    let t = u - vec2<f32>(base);
+    var n = vec3<f32>(0.0);
+    for (var dy = 0; dy < 2; dy++) {
+        for (var dx = 0; dx < 2; dx++) {
+            let c = clamp(base + vec2<i32>(dx, dy), vec2<i32>(0), size - 1);
+            let e = normals[off + u32(c.y * size.x + c.x)];
+            if e != NO_NORMAL {
+                let b = select(1.0 - t.x, t.x, dx == 1) * select(1.0 - t.y, t.y, dy == 1);
+                n += decode_normal(e) * b;
+            }
+        }
+    }
+    return n;
+}
+
+@compute @workgroup_size(16, 16)
+fn main(@builtin(global_invocation_id) id: vec3<u32>) {
+    if id.x >= frame.width || id.y >= frame.height {
+        return;
+    }
+    let i = id.y * frame.width + id.x;
+    let d = pixel_depth(i);
+    if d == EMPTY {
+        textureStore(output, vec2<i32>(id.xy), unpack4x8unorm(frame.background));
+        surface[i] = vec2<u32>(EMPTY, NO_NORMAL);
+        return;
+    }
+    let depth = bitcast<f32>(d);
+    let px = vec2<f32>(id.xy) + 0.5;
+    let p = view_point(px, depth);
+    let v = normalize(-p);
+    let top = f32(pyr.levels - 1u);
+    let lambda = clamp(log2(max(pyr.normal_scale / depth, 1e-6)), 0.0, top);
+    let l0 = u32(floor(lambda));
+    let l1 = min(l0 + 1u, pyr.levels - 1u);
+    var n = mix(level_normal(l0, px), level_normal(l1, px), lambda - f32(l0));
+    // No measured surface around at that scale: take the nearest finer level that has one.
+    for (var l = i32(l0) - 1; l >= 0 && !(length(n) > 1e-6); l--) {
+        n = level_normal(u32(l), px);
+    }
+    if !(length(n) > 1e-6) {
+        n = v;
+    }
+    n = normalize(n);
+    let albedo = unpack4x8unorm(fill_colour[i]).rgb;
+    let rgb = headlight(albedo, n, v) * edl_factor(id.xy, d);
+    textureStore(output, vec2<i32>(id.xy), vec4<f32>(clamp(rgb, vec3<f32>(0.0), vec3<f32>(1.0)), 1.0));
+    surface[i] = vec2<u32>(d, encode_normal(n));
+}

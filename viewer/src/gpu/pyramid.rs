@@ -1,0 +1,344 @@
+//! The `pyramid` pipeline of paper 003 (Bouchiba, Deschaud, Goulette 2018), run on the depth
+//! and colour planes the projection and resolve passes leave: a min-depth point pyramid, the
+//! pyramidal hidden-point removal, pull-push filling of depth and colour, a normal per level of
+//! the filled depth pyramid, and deferred headlight shading.
+
+use super::passes::{module, pixel_groups};
+use super::timing::Timer;
+use bytemuck::{Pod, Zeroable};
+
+/// The paper's HPR neighbourhood size, in multiples of s0 (its section 3.1.2).
+pub const HPR_SCALE_S0: f32 = 10.0;
+/// Mean sector occlusion below which a pixel is a hole (the paper's 0.1 for all datasets).
+pub const HPR_THRESHOLD: f32 = 0.1;
+/// The pyramid level whose min depth decides each pixel's HPR neighbourhood (the paper's 4th).
+pub const COARSE_LEVEL: u32 = 4;
+/// Radius of the surface the normals are estimated over, in multiples of s0. The paper leaves
+/// it open; four sample spacings smooth scanner noise without rounding off edges much.
+pub const NORMAL_SCALE_S0: f32 = 4.0;
+const MAX_LEVELS: usize = 16;
+
+/// The headlight Blinn-Phong the pipeline shades with, for renderers that must match it.
+pub const LIGHTING_WGSL: &str = include_str!("../../shaders/lighting.wgsl");
+
+/// Everything the pyramid passes need to know of the frame beyond `FrameUniforms`.
+#[derive(Debug, Clone, Copy)]
+pub struct PyramidFrame {
+    /// The metric scale of the point sampling, in dataset units.
+    pub s0: f32,
+    pub fov_y: f32,
+    pub far: f32,
+    pub focal_px: f32,
+}
+
+#[repr(C)]
+#[derive(Debug, Clone, Copy, Pod, Zeroable)]
+struct PyramidUniforms {
+    tan_half: [f32; 2],
+    far: f32,
+    hpr_scale: f32,
+    normal_scale: f32,
+    threshold: f32,
+    levels: u32,
+    coarse_level: u32,
+    table: [[u32; 4]; MAX_LEVELS],
+}
+
+/// The compiled passes, shared by every viewport size.
+pub struct PyramidPasses {
+    frame_layout: wgpu::BindGroupLayout,
+    data_layout: wgpu::BindGroupLayout,
+    base: wgpu::ComputePipeline,
+    down: wgpu::ComputePipeline,
+    hpr: wgpu::ComputePipeline,
+    pull: wgpu::ComputePipeline,
+    push: wgpu::ComputePipeline,
+    normals: wgpu::ComputePipeline,
+    shade: wgpu::ComputePipeline,
+}
+
+/// The pyramids for one viewport size.
+pub struct PyramidTargets {
+    width: u32,
+    height: u32,
+    /// Per level: offset into the pyramid buffers, width, height.
+    levels: Vec<[u32; 3]>,
+    pts: wgpu::Buffer,
+    fill: wgpu::Buffer,
+    fill_colour: wgpu::Buffer,
+    normals: wgpu::Buffer,
+    labels: wgpu::Buffer,
+    /// Per pixel (depth bits or EMPTY, octahedral normal), for readback.
+    pub surface: wgpu::Buffer,
+    params: wgpu::Buffer,
+    level_uniforms: Vec<wgpu::Buffer>,
+}
+
+/// The pixel buffers of the screen that the pyramid reads and writes.
+pub struct PyramidInputs<'a> {
+    pub frame_uniforms: &'a wgpu::Buffer,
+    pub depths: &'a wgpu::Buffer,
+    pub colours: &'a wgpu::Buffer,
+    pub output: &'a wgpu::Texture,
+}
+
+fn uniform_entry(binding: u32) -> wgpu::BindGroupLayoutEntry {
+    wgpu::BindGroupLayoutEntry {
+        binding,
+        visibility: wgpu::ShaderStages::COMPUTE,
+        ty: wgpu::BindingType::Buffer {
+            ty: wgpu::BufferBindingType::Uniform,
+            has_dynamic_offset: false,
+            min_binding_size: None,
+        },
+        count: None,
+    }
+}
+
+fn storage_entry(binding: u32, read_only: bool) -> wgpu::BindGroupLayoutEntry {
+    wgpu::BindGroupLayoutEntry {
+        binding,
+        visibility: wgpu::ShaderStages::COMPUTE,
+        ty: wgpu::BindingType::Buffer {
+            ty: wgpu::BufferBindingType::Storage { read_only },
+            has_dynamic_offset: false,
+            min_binding_size: None,
+        },
+        count: None,
+    }
+}
+
+impl PyramidPasses {
+    pub fn new(device: &wgpu::Device) -> PyramidPasses {
+        let frame_layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+            label: Some("pyramid frame"),
+            entries: &[uniform_entry(0), uniform_entry(1), uniform_entry(2)],
+        });
+        let mut data_entries = vec![storage_entry(0, true), storage_entry(1, true)];
+        data_entries.extend((2..8).map(|b| storage_entry(b, false)));
+        data_entries.push(wgpu::BindGroupLayoutEntry {
+            binding: 8,
+            visibility: wgpu::ShaderStages::COMPUTE,
+            ty: wgpu::BindingType::StorageTexture {
+                access: wgpu::StorageTextureAccess::WriteOnly,
+                format: wgpu::TextureFormat::Rgba8Unorm,
+                view_dimension: wgpu::TextureViewDimension::D2,
+            },
+            count: None,
+        });
+        let data_layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+            label: Some("pyramid data"),
+            entries: &data_entries,
+        });
+        let layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+            label: Some("pyramid"),
+            bind_group_layouts: &[Some(&frame_layout), Some(&data_layout)],
+            immediate_size: 0,
+        });
+        let common = include_str!("../../shaders/pyramid.wgsl");
+        let make = |label: &str, parts: &[&str]| {
+            let mut all = vec![common];
+            all.extend_from_slice(parts);
+            let m = module(device, label, &all);
+            device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
+                label: Some(label),
+                layout: Some(&layout),
+                module: &m,
+                entry_point: Some("main"),
+                compilation_options: Default::default(),
+                cache: None,
+            })
+        };
+        PyramidPasses {
+            base: make(
+                "pyramid base",
+                &[include_str!("../../shaders/pyramid_base.wgsl")],
+            ),
+            down: make(
+                "pyramid down",
+                &[include_str!("../../shaders/pyramid_down.wgsl")],
+            ),
+            hpr: make("hpr", &[include_str!("../../shaders/pyramid_hpr.wgsl")]),
+            pull: make("pull", &[include_str!("../../shaders/pyramid_pull.wgsl")]),
+            push: make("push", &[include_str!("../../shaders/pyramid_push.wgsl")]),
+            normals: make(
+                "normals",
+                &[include_str!("../../shaders/pyramid_normals.wgsl")],
+            ),
+            shade: make(
+                "pyramid shade",
+                &[
+                    LIGHTING_WGSL,
+                    include_str!("../../shaders/edl.wgsl"),
+                    include_str!("../../shaders/pyramid_shade.wgsl"),
+                ],
+            ),
+            frame_layout,
+            data_layout,
+        }
+    }
+
+    pub fn targets(&self, device: &wgpu::Device, width: u32, height: u32) -> PyramidTargets {
+        let mut levels = Vec::new();
+        let (mut w, mut h, mut offset) = (width.max(1), height.max(1), 0u32);
+        loop {
+            levels.push([offset, w, h]);
+            offset += w * h;
+            if (w == 1 && h == 1) || levels.len() == MAX_LEVELS {
+                break;
+            }
+            w = w.div_ceil(2);
+            h = h.div_ceil(2);
+        }
+        let cells = offset as u64;
+        let pixels = width as u64 * height as u64;
+        let buffer = |label: &str, bytes: u64| {
+            device.create_buffer(&wgpu::BufferDescriptor {
+                label: Some(label),
+                size: bytes.max(16),
+                usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
+                mapped_at_creation: false,
+            })
+        };
+        let uniform = |label: &str, bytes: u64| {
+            device.create_buffer(&wgpu::BufferDescriptor {
+                label: Some(label),
+                size: bytes,
+                usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
+                mapped_at_creation: false,
+            })
+        };
+        let level_uniforms = (0..levels.len())
+            .map(|_| uniform("pyramid level", 16))
+            .collect();
+        PyramidTargets {
+            width,
+            height,
+            pts: buffer("point pyramid", cells * 8),
+            fill: buffer("pull-push pyramid", cells * 8),
+            fill_colour: buffer("pull-push colours", cells * 4),
+            normals: buffer("normal pyramid", cells * 4),
+            labels: buffer("hpr labels", pixels * 4),
+            surface: buffer("surface", pixels * 8),
+            params: uniform(
+                "pyramid uniforms",
+                std::mem::size_of::<PyramidUniforms>() as u64,
+            ),
+            level_uniforms,
+            levels,
+        }
+    }
+
+    /// Encodes the pyramid passes after projection and resolve; they write the output image.
+    #[allow(clippy::too_many_arguments)]
+    pub fn encode(
+        &self,
+        device: &wgpu::Device,
+        queue: &wgpu::Queue,
+        encoder: &mut wgpu::CommandEncoder,
+        t: &PyramidTargets,
+        inputs: &PyramidInputs,
+        frame: &PyramidFrame,
+        timer: &mut Timer,
+    ) {
+        let top = t.levels.len() as u32 - 1;
+        let tan_y = (frame.fov_y * 0.5).tan();
+        let mut params = PyramidUniforms {
+            tan_half: [tan_y * t.width as f32 / t.height.max(1) as f32, tan_y],
+            far: frame.far,
+            hpr_scale: HPR_SCALE_S0 * frame.s0 * frame.focal_px,
+            normal_scale: NORMAL_SCALE_S0 * frame.s0 * frame.focal_px,
+            threshold: HPR_THRESHOLD,
+            levels: t.levels.len() as u32,
+            coarse_level: COARSE_LEVEL.min(top),
+            table: [[0; 4]; MAX_LEVELS],
+        };
+        for (slot, l) in params.table.iter_mut().zip(&t.levels) {
+            *slot = [l[0], l[1], l[2], 0];
+        }
+        queue.write_buffer(&t.params, 0, bytemuck::bytes_of(&params));
+        for (i, u) in t.level_uniforms.iter().enumerate() {
+            queue.write_buffer(u, 0, bytemuck::cast_slice(&[i as u32, 0, 0, 0]));
+        }
+        let frame_groups: Vec<wgpu::BindGroup> = t
+            .level_uniforms
+            .iter()
+            .map(|u| {
+                device.create_bind_group(&wgpu::BindGroupDescriptor {
+                    label: Some("pyramid frame"),
+                    layout: &self.frame_layout,
+                    entries: &[
+                        wgpu::BindGroupEntry {
+                            binding: 0,
+                            resource: inputs.frame_uniforms.as_entire_binding(),
+                        },
+                        wgpu::BindGroupEntry {
+                            binding: 1,
+                            resource: t.params.as_entire_binding(),
+                        },
+                        wgpu::BindGroupEntry {
+                            binding: 2,
+                            resource: u.as_entire_binding(),
+                        },
+                    ],
+                })
+            })
+            .collect();
+        let view = inputs.output.create_view(&Default::default());
+        let buffers = [
+            inputs.depths,
+            inputs.colours,
+            &t.pts,
+            &t.fill,
+            &t.fill_colour,
+            &t.normals,
+            &t.labels,
+            &t.surface,
+        ];
+        let mut entries: Vec<wgpu::BindGroupEntry> = buffers
+            .iter()
+            .enumerate()
+            .map(|(i, b)| wgpu::BindGroupEntry {
+                binding: i as u32,
+                resource: b.as_entire_binding(),
+            })
+            .collect();
+        entries.push(wgpu::BindGroupEntry {
+            binding: 8,
+            resource: wgpu::BindingResource::TextureView(&view),
+        });
+        let data = device.create_bind_group(&wgpu::BindGroupDescriptor {
+            label: Some("pyramid data"),
+            layout: &self.data_layout,
+            entries: &entries,
+        });
+        let level_groups = |l: usize| {
+            let [_, w, h] = t.levels[l];
+            pixel_groups(w, h)
+        };
+        let mut run =
+            |name: &str, pipe: &wgpu::ComputePipeline, steps: &mut dyn Iterator<Item = usize>| {
+                let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
+                    label: Some(name),
+                    timestamp_writes: timer.pass(name),
+                });
+                pass.set_pipeline(pipe);
+                pass.set_bind_group(1, &data, &[]);
+                for l in steps {
+                    pass.set_bind_group(0, &frame_groups[l], &[]);
+                    let (x, y) = level_groups(l);
+                    pass.dispatch_workgroups(x, y, 1);
+                }
+            };
+        let levels = t.levels.len();
+        // Level 0 is the full screen.
+        let screen = || std::iter::once(0usize);
+        run("pyramid", &self.base, &mut screen());
+        run("pyramid", &self.down, &mut (1..levels));
+        run("hpr", &self.hpr, &mut screen());
+        run("pull", &self.pull, &mut (1..levels));
+        run("push", &self.push, &mut (0..levels).rev());
+        run("normals", &self.normals, &mut (0..levels));
+        run("pyramid shade", &self.shade, &mut screen());
+    }
+}
