@@ -37,15 +37,21 @@ pub fn ensure_city_dataset(points: u64, dir: &Path) -> anyhow::Result<PathBuf> {
         synth(&las, points, Scene::City, 1, true)?;
     }
     eprintln!("converting -> {}", dataset.display());
+    convert_quietly(&las, &dataset, 2 << 30)?;
+    Ok(dataset)
+}
+
+/// Converts one input with the default sampling on all cores, replacing `output`, silently.
+pub fn convert_quietly(input: &Path, output: &Path, memory_limit: u64) -> anyhow::Result<()> {
     convert(&ConvertOptions {
-        inputs: vec![las],
-        output: dataset.clone(),
-        memory_limit: 2 << 30,
+        inputs: vec![input.to_path_buf()],
+        output: output.to_path_buf(),
+        memory_limit,
         threads: std::thread::available_parallelism().map_or(1, |n| n.get()),
         sampling: Sampling::Poisson,
         overwrite: true,
         resume: false,
         quiet: true,
     })?;
-    Ok(dataset)
+    Ok(())
 }

@@ -9,13 +9,13 @@ use glam::DVec3;
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 use std::time::{Duration, Instant};
+use strata_bench::convert_quietly;
 use strata_bench::quality::mesh::y_up_to_z_up;
 use strata_bench::quality::metrics::{Frame, compare};
 use strata_bench::quality::reference::{ReferenceImage, ReferenceRenderer};
 use strata_bench::quality::report::{Row, charts, init_fonts, side_by_side, summary, write_csv};
 use strata_bench::quality::sample::{PointSet, load_scan, sample_mesh, write_ply};
 use strata_bench::quality::scenes::{CLAY, Points, Scene, View, scenes};
-use strata_converter::{ConvertOptions, Sampling, convert};
 use strata_viewer::gpu::{GpuContext, ProjectionPath};
 use strata_viewer::lod::clip_range;
 use strata_viewer::settings::SizeMode;
@@ -280,16 +280,7 @@ fn convert_points(dir: &Path, set: &PointSet) -> anyhow::Result<PathBuf> {
     let ply = dir.join("points.ply");
     write_ply(&ply, set)?;
     let dataset = dir.join("points.strata");
-    convert(&ConvertOptions {
-        inputs: vec![ply.clone()],
-        output: dataset.clone(),
-        memory_limit: 1 << 30,
-        threads: std::thread::available_parallelism().map_or(1, |n| n.get()),
-        sampling: Sampling::Poisson,
-        overwrite: true,
-        resume: false,
-        quiet: true,
-    })?;
+    convert_quietly(&ply, &dataset, 1 << 30)?;
     std::fs::remove_file(&ply).ok();
     Ok(dataset)
 }
