@@ -6,6 +6,7 @@
 use super::passes::{module, pixel_groups};
 use super::timing::Timer;
 use bytemuck::{Pod, Zeroable};
+use wgpu::util::DeviceExt;
 
 /// The paper's HPR neighbourhood size, in multiples of s0 (its section 3.1.2).
 pub const HPR_SCALE_S0: f32 = 10.0;
@@ -208,8 +209,15 @@ impl PyramidPasses {
                 mapped_at_creation: false,
             })
         };
-        let level_uniforms = (0..levels.len())
-            .map(|_| uniform("pyramid level", 16))
+        // Each level's index never changes: written once here, not every frame.
+        let level_uniforms = (0..levels.len() as u32)
+            .map(|i| {
+                device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                    label: Some("pyramid level"),
+                    contents: bytemuck::cast_slice(&[i, 0, 0, 0]),
+                    usage: wgpu::BufferUsages::UNIFORM,
+                })
+            })
             .collect();
         PyramidTargets {
             width,
@@ -257,9 +265,6 @@ impl PyramidPasses {
             *slot = [l[0], l[1], l[2], 0];
         }
         queue.write_buffer(&t.params, 0, bytemuck::bytes_of(&params));
-        for (i, u) in t.level_uniforms.iter().enumerate() {
-            queue.write_buffer(u, 0, bytemuck::cast_slice(&[i as u32, 0, 0, 0]));
-        }
         let frame_groups: Vec<wgpu::BindGroup> = t
             .level_uniforms
             .iter()
