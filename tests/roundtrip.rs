@@ -66,6 +66,45 @@ fn synth_split_into_many_chunks_round_trips_exactly() {
     assert!(las_multiset(&las) == las_multiset(&out));
 }
 
+/// Header bounds that miss some points (a real fault of some writers): the converter must
+/// notice, measure the bounds itself, keep every point and say so.
+#[test]
+fn wrong_header_bounds_are_measured_instead() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    for ext in ["las", "laz"] {
+        let src = dir.path().join(format!("city.{ext}"));
+        run_ok(&["synth", "--points", "50000", "-o", s(&src), "--seed", "3"]);
+        let mut bytes = std::fs::read(&src).expect("read");
+        // LAS header: max and min of x, y, z as f64 pairs from byte 179. Claim a box far
+        // smaller than the points', so that the cube chosen from it cannot hold them.
+        let f = |b: &[u8], o: usize| f64::from_le_bytes(b[o..o + 8].try_into().expect("8"));
+        let max_x = f(&bytes, 179);
+        for axis in 0..3 {
+            let at = 179 + 16 * axis;
+            let (max, min) = (f(&bytes, at), f(&bytes, at + 8));
+            let narrow = min + (max - min) / 1000.0;
+            bytes[at..at + 8].copy_from_slice(&narrow.to_le_bytes());
+        }
+        std::fs::write(&src, &bytes).expect("write");
+        let ds = dir.path().join(format!("ds_{ext}"));
+        let out = dir.path().join(format!("back_{ext}.las"));
+        let o = run_ok(&["convert", s(&src), "-o", s(&ds)]);
+        let said =
+            String::from_utf8_lossy(&o.stderr).to_string() + &String::from_utf8_lossy(&o.stdout);
+        assert!(
+            said.contains("outside the bounds the header declares"),
+            "{said}"
+        );
+        run_ok(&["verify", s(&ds)]);
+        run_ok(&["export", s(&ds), "-o", s(&out)]);
+        assert!(las_multiset(&src) == las_multiset(&out), "{ext}");
+        let info = run_ok(&["info", s(&ds), "--json"]);
+        let info: serde_json::Value = serde_json::from_slice(&info.stdout).expect("json");
+        let real_max = info["bounds"]["max"][0].as_f64().unwrap_or(0.0);
+        assert!((real_max - max_x).abs() < 0.01, "{real_max} vs {max_x}");
+    }
+}
+
 #[test]
 fn autzen_las_and_laz_give_identical_datasets() {
     let dir = tempfile::tempdir().expect("tempdir");

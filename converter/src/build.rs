@@ -2,15 +2,20 @@
 //! only when complete. Chunks commit in plan order, so output is byte-for-byte reproducible,
 //! and a journal of committed chunks lets `--resume` pick up after an interruption.
 
-use crate::distribute::{chunk_path, distribute};
+use crate::distribute::{Distribution, chunk_path, distribute};
 use crate::error::{ConvertError, Result};
-use crate::plan::{Chunk, count, cube_for, max_chunk_points, plan_chunks, root_spacing};
+use crate::input::las::LasSource;
+use crate::input::{PointSource, Precision};
+use crate::merge::TopMerge;
+use crate::plan::{Chunk, Counts, count, cube_for, max_chunk_points, plan_chunks, root_spacing};
 use crate::progress::Progress;
-use crate::quantize::{Quantization, choose};
+use crate::quantize::{Quantization, SourceExtent, choose};
+use crate::rows::{RecordToRow, RowInput};
 use crate::sampling::Sampling;
 use crate::scan::{scan, staging_stride, union_attributes};
+use crate::staging::{decode_to_rows, quantize_staging};
 use crate::sys::peak_rss_bytes;
-use crate::tree::{FinishedNode, OpenNode, TreeBuilder, merge_top};
+use crate::tree::{ChunkMemory, FinishedNode, OpenNode, TreeBuilder};
 use serde::{Deserialize, Serialize};
 use std::collections::BTreeMap;
 use std::fs::{self, File, OpenOptions};
@@ -187,7 +192,16 @@ fn run(opts: &ConvertOptions, tmp: &Path, threads: usize) -> Result<ConvertSumma
                 .map_err(io_err(&chunk_dir, "cannot create work directory"))?;
             fs::create_dir_all(&roots_dir)
                 .map_err(io_err(&roots_dir, "cannot create work directory"))?;
-            let plan = prepare(opts, &work, &chunk_dir, threads, &progress, &mut phases, fp)?;
+            let plan = prepare(
+                opts,
+                &work,
+                &chunk_dir,
+                threads,
+                &progress,
+                &mut phases,
+                &mut warnings,
+                fp,
+            )?;
             let mut f =
                 File::create(&octree_path).map_err(io_err(&octree_path, "cannot create"))?;
             f.write_all(OCTREE_MAGIC)
@@ -249,13 +263,6 @@ fn run(opts: &ConvertOptions, tmp: &Path, threads: usize) -> Result<ConvertSumma
 
     // Merge the levels above the chunks.
     let t = Instant::now();
-    let mut roots = Vec::with_capacity(plan.chunks.len());
-    for (entry, chunk) in journal.iter().zip(&plan.chunks) {
-        let p = roots_dir.join(format!("c{}.bin", entry.chunk));
-        let rows = fs::read(&p).map_err(io_err(&p, "cannot read chunk root"))?;
-        roots.push((chunk.key(), rows, entry.root_mask));
-    }
-    let top = merge_top(roots, &layout, plan.cube, sampling);
     let mut records: BTreeMap<NodeKey, NodeRecord> = BTreeMap::new();
     for j in &journal {
         for &(level, x, y, z, count, offset, size, checksum, child_mask) in &j.nodes {
@@ -272,17 +279,24 @@ fn run(opts: &ConvertOptions, tmp: &Path, threads: usize) -> Result<ConvertSumma
         }
     }
     let mut at = journal.last().map_or(OCTREE_MAGIC.len() as u64, |j| j.end);
-    for n in &top {
+    let roots: Vec<(NodeKey, u8)> = journal
+        .iter()
+        .zip(&plan.chunks)
+        .map(|(entry, chunk)| (chunk.key(), entry.root_mask))
+        .collect();
+    let load = |i: usize| {
+        let p = roots_dir.join(format!("c{}.bin", journal[i].chunk));
+        fs::read(&p).map_err(io_err(&p, "cannot read chunk root"))
+    };
+    let emit = |n: FinishedNode| {
         octree
             .write_all(&n.payload)
             .map_err(io_err(&octree_path, "cannot write"))?;
-        records.insert(n.key, record_of(n, at));
+        records.insert(n.key, record_of(&n, at));
         at += n.payload.len() as u64;
-    }
-    octree
-        .sync_all()
-        .map_err(io_err(&octree_path, "cannot sync"))?;
-    drop(octree);
+        Ok(())
+    };
+    TopMerge::new(&roots, &layout, plan.cube, sampling, load, emit).run()?;
     phases.push(PhaseTime {
         name: "merge",
         seconds: t.elapsed().as_secs_f64(),
@@ -290,6 +304,10 @@ fn run(opts: &ConvertOptions, tmp: &Path, threads: usize) -> Result<ConvertSumma
 
     // Hierarchy, metadata, and the rename that makes the dataset appear.
     let t = Instant::now();
+    octree
+        .sync_all()
+        .map_err(io_err(&octree_path, "cannot sync"))?;
+    drop(octree);
     let (hier, root_off, root_size) = build_hierarchy(&records, PAGE_LEVELS);
     let hier_path = tmp.join(DatasetFile::Hierarchy.name());
     let mut hf = File::create(&hier_path).map_err(io_err(&hier_path, "cannot create"))?;
@@ -403,7 +421,157 @@ fn record_of(n: &FinishedNode, offset: u64) -> NodeRecord {
     }
 }
 
-/// Scan, quantize, count, plan and distribute.
+/// Every input as rows the count and distribute phases can read, with the dataset's scale,
+/// offset and cube.
+struct Staged {
+    inputs: Vec<RowInput>,
+    q: Quantization,
+    cube: Cube,
+    /// What decoding already counted: the inputs in the work directory.
+    counted: Counts,
+}
+
+/// LAS and LAZ inputs: scale, offset and cube from their headers, so uncompressed records are
+/// read in place and LAZ is decoded only once. `None` when an input is not LAS or LAZ, or a
+/// header's bounds are unusable.
+fn stage_from_headers(
+    opts: &ConvertOptions,
+    layout: &RowLayout,
+    work: &Path,
+    progress: &Progress,
+    phases: &mut Vec<PhaseTime>,
+    warnings: &mut Vec<String>,
+) -> Result<Option<Staged>> {
+    let is_las = |p: &PathBuf| {
+        p.extension()
+            .and_then(|e| e.to_str())
+            .is_some_and(|e| e.eq_ignore_ascii_case("las") || e.eq_ignore_ascii_case("laz"))
+    };
+    if !opts.inputs.iter().all(is_las) {
+        return Ok(None);
+    }
+    let mut sources = Vec::new();
+    let mut extents = Vec::new();
+    let (mut min, mut max) = ([f64::INFINITY; 3], [f64::NEG_INFINITY; 3]);
+    for path in &opts.inputs {
+        let src = LasSource::open(path)?;
+        let (lo, hi) = src.header_bounds();
+        if (0..3).any(|a| !lo[a].is_finite() || !hi[a].is_finite() || lo[a] > hi[a]) {
+            return Ok(None);
+        }
+        let (scale, offset) = src.transform();
+        // One step of the input's grid on each side absorbs bounds written rounded.
+        let lo = [0, 1, 2].map(|a| lo[a] - scale[a].abs());
+        let hi = [0, 1, 2].map(|a| hi[a] + scale[a].abs());
+        for a in 0..3 {
+            min[a] = min[a].min(lo[a]);
+            max[a] = max[a].max(hi[a]);
+        }
+        extents.push(SourceExtent {
+            precision: Precision::Scaled { scale, offset },
+            min: lo,
+            max: hi,
+        });
+        sources.push(src);
+    }
+    let q = choose(&extents, min, max);
+    let cube = cube_for(&q, min, max);
+    let t = Instant::now();
+    let compressed: u64 = sources
+        .iter()
+        .filter(|s| s.records_at().is_none())
+        .map(|s| s.info().points)
+        .sum();
+    let bar = progress.phase("read", compressed, "points");
+    let mut inputs = Vec::new();
+    let mut counted = Counts::new(&cube);
+    for (i, mut src) in sources.into_iter().enumerate() {
+        let conv = RecordToRow::new(&src, layout, &q, &cube);
+        let input = match src.records_at() {
+            Some(start) => RowInput {
+                path: src.info().path.clone(),
+                start,
+                record_len: src.record_len(),
+                records: src.info().points,
+                convert: Some(conv),
+            },
+            None => {
+                let staging = work.join(format!("rows{i}.bin"));
+                match decode_to_rows(&mut src, &conv, layout.stride, &staging, &mut counted, &bar) {
+                    Err(ConvertError::OutsideHeaderBounds { path, record }) => {
+                        warnings.push(bounds_warning(&path, record));
+                        remove_staging(&inputs, work)?;
+                        let _ = fs::remove_file(&staging);
+                        return Ok(None);
+                    }
+                    r => r?,
+                }
+            }
+        };
+        inputs.push(input);
+    }
+    bar.finish_and_clear();
+    if compressed > 0 {
+        phases.push(PhaseTime {
+            name: "read",
+            seconds: t.elapsed().as_secs_f64(),
+        });
+    }
+    Ok(Some(Staged {
+        inputs,
+        q,
+        cube,
+        counted,
+    }))
+}
+
+/// Any inputs: decode into f64 positions, measure, then quantize into rows.
+fn stage_measured(
+    opts: &ConvertOptions,
+    attributes: &[Attribute],
+    layout: &RowLayout,
+    work: &Path,
+    progress: &Progress,
+    phases: &mut Vec<PhaseTime>,
+    declared: u64,
+) -> Result<Staged> {
+    let t = Instant::now();
+    let staging = work.join("staging.bin");
+    let bar = progress.phase("read", declared, "points");
+    let scanned = scan(&opts.inputs, attributes, &staging, &bar)?;
+    bar.finish_and_clear();
+    if scanned.points == 0 {
+        return Err(ConvertError::input(
+            &opts.inputs[0],
+            "the inputs hold no points",
+        ));
+    }
+    let q = choose(&scanned.extents, scanned.min, scanned.max);
+    let cube = cube_for(&q, scanned.min, scanned.max);
+    let rows = work.join("rows.bin");
+    let input = quantize_staging(
+        &staging,
+        staging_stride(attributes),
+        &q,
+        layout.stride,
+        &rows,
+        &bar,
+    )?;
+    fs::remove_file(&staging).map_err(io_err(&staging, "cannot remove staging file"))?;
+    phases.push(PhaseTime {
+        name: "read",
+        seconds: t.elapsed().as_secs_f64(),
+    });
+    Ok(Staged {
+        inputs: vec![input],
+        q,
+        counted: Counts::new(&cube),
+        cube,
+    })
+}
+
+/// Read, count, plan and distribute.
+#[allow(clippy::too_many_arguments)]
 fn prepare(
     opts: &ConvertOptions,
     work: &Path,
@@ -411,80 +579,122 @@ fn prepare(
     threads: usize,
     progress: &Progress,
     phases: &mut Vec<PhaseTime>,
+    warnings: &mut Vec<String>,
     fingerprint: String,
 ) -> Result<Plan> {
-    let t = Instant::now();
     let (attributes, declared) = union_attributes(&opts.inputs)?;
-    let staging = work.join("staging.bin");
-    let bar = progress.phase("read", declared, "points");
-    let scanned = scan(&opts.inputs, &attributes, &staging, &bar)?;
-    bar.finish_and_clear();
-    phases.push(PhaseTime {
-        name: "read",
-        seconds: t.elapsed().as_secs_f64(),
-    });
-    if scanned.points == 0 {
+    let layout = RowLayout::new(attributes.clone());
+    let from_headers = stage_from_headers(opts, &layout, work, progress, phases, warnings)?;
+    let t = Instant::now();
+    // Inputs read in place are counted here; decoded ones were counted as they were decoded.
+    let count_rest = |staged: &mut Staged| {
+        let rest: Vec<&RowInput> = staged
+            .inputs
+            .iter()
+            .filter(|i| !i.path.starts_with(work))
+            .collect();
+        let bar = progress.phase("count", rest.iter().map(|i| i.records).sum(), "points");
+        let r = count(&rest, &mut staged.counted, threads, &bar);
+        bar.finish_and_clear();
+        r
+    };
+    let mut counted = None;
+    if let Some(mut staged) = from_headers {
+        match count_rest(&mut staged) {
+            Err(ConvertError::OutsideHeaderBounds { path, record }) => {
+                warnings.push(bounds_warning(&path, record));
+                remove_staging(&staged.inputs, work)?;
+            }
+            r => counted = Some(r.map(|_| staged)?),
+        }
+    }
+    let staged = match counted {
+        Some(s) => s,
+        None => {
+            let mut staged =
+                stage_measured(opts, &attributes, &layout, work, progress, phases, declared)?;
+            let bar = progress.phase("count", declared, "points");
+            let all: Vec<&RowInput> = staged.inputs.iter().collect();
+            let mut counts = Counts::new(&staged.cube);
+            count(&all, &mut counts, threads, &bar)?;
+            bar.finish_and_clear();
+            staged.counted = counts;
+            staged
+        }
+    };
+    let counts = &staged.counted;
+    let points: u64 = staged.inputs.iter().map(|i| i.records).sum();
+    if points == 0 {
         return Err(ConvertError::input(
             &opts.inputs[0],
             "the inputs hold no points",
         ));
     }
-    if scanned.points > u32::MAX as u64 * 64 {
+    if points > u32::MAX as u64 * 64 {
         return Err(ConvertError::Usage(format!(
-            "{} points is more than this converter supports",
-            scanned.points
+            "{points} points is more than this converter supports"
         )));
     }
-    let q = choose(&scanned.extents, scanned.min, scanned.max);
-    let cube = cube_for(&q, scanned.min, scanned.max);
-    let stride = staging_stride(&attributes);
-    let layout = RowLayout::new(attributes.clone());
-
-    let t = Instant::now();
-    let bar = progress.phase("count", scanned.points, "points");
-    let counts = count(&staging, stride, &q, &cube, &bar)?;
-    bar.finish_and_clear();
-    let max_chunk = max_chunk_points(opts.memory_limit, threads, layout.stride);
-    let (chunks, lut) = plan_chunks(&counts, &cube, max_chunk);
-    drop(counts);
+    // Several chunks per worker keep the workers busy to the end; the memory limit caps them.
+    let balanced = (points / (threads as u64 * 4)).max(1 << 20);
+    let max_chunk = max_chunk_points(opts.memory_limit, threads, layout.stride).min(balanced);
+    let (chunks, lut) = plan_chunks(&counts.cells, &staged.cube, max_chunk);
     phases.push(PhaseTime {
         name: "count",
         seconds: t.elapsed().as_secs_f64(),
     });
 
     let t = Instant::now();
-    let bar = progress.phase("distribute", scanned.points, "points");
-    let buffer_budget = (opts.memory_limit / 6).min(256 << 20);
+    let bar = progress.phase("distribute", points, "points");
     distribute(
-        &staging,
-        stride,
-        layout.stride,
-        &q,
-        &cube,
-        &lut,
-        chunks.len(),
-        chunk_dir,
-        buffer_budget,
+        &Distribution {
+            inputs: &staged.inputs,
+            stride: layout.stride,
+            cube: &staged.cube,
+            lut: &lut,
+            chunk_count: chunks.len(),
+            chunk_dir,
+            buffer_budget: (opts.memory_limit / 6).min(256 << 20),
+            threads,
+        },
         &bar,
     )?;
     bar.finish_and_clear();
-    fs::remove_file(&staging).map_err(io_err(&staging, "cannot remove staging file"))?;
+    remove_staging(&staged.inputs, work)?;
     phases.push(PhaseTime {
         name: "distribute",
         seconds: t.elapsed().as_secs_f64(),
     });
+    let q = staged.q;
+    let to_real =
+        |p: [i32; 3]| -> [f64; 3] { [0, 1, 2].map(|a| q.offset[a] + q.scale[a] * p[a] as f64) };
     Ok(Plan {
         fingerprint,
         attributes,
-        points: scanned.points,
+        points,
         scale: q.scale,
         offset: q.offset,
         coarsened: q.coarsened,
-        min: scanned.min,
-        max: scanned.max,
-        cube,
+        min: to_real(counts.min),
+        max: to_real(counts.max),
+        cube: staged.cube,
         chunks,
     })
+}
+
+fn bounds_warning(path: &Path, record: u64) -> String {
+    format!(
+        "{}: point {record} lies outside the bounds the header declares; bounds measured from the points instead",
+        path.display()
+    )
+}
+
+/// Removes the staging files among `inputs` (those in the work directory).
+fn remove_staging(inputs: &[RowInput], work: &Path) -> Result<()> {
+    for i in inputs.iter().filter(|i| i.path.starts_with(work)) {
+        fs::remove_file(&i.path).map_err(io_err(&i.path, "cannot remove staging file"))?;
+    }
+    Ok(())
 }
 
 /// The valid prefix of the journal: whole lines for chunks 0, 1, 2... in order.
@@ -565,6 +775,7 @@ fn index_chunks(
     std::thread::scope(|scope| {
         for _ in 0..threads {
             scope.spawn(|| {
+                let mut memory: Option<ChunkMemory> = None;
                 loop {
                     if abort.load(Ordering::SeqCst) {
                         return;
@@ -583,20 +794,15 @@ fn index_chunks(
                             };
                         }
                     }
-                    let path = chunk_path(chunk_dir, i);
-                    let rows = match fs::read(&path) {
-                        Ok(r) => r,
-                        Err(e) => {
-                            return fail(&state, ConvertError::io(&path, "cannot read chunk", e));
-                        }
-                    };
-                    let count = rows.len() / layout.stride;
-                    let mut builder = TreeBuilder::new(&rows, layout, plan.cube, sampling);
-                    let root: OpenNode =
-                        builder.build(plan.chunks[i].key(), (0..count as u32).collect());
+                    let mut mem = memory.take().unwrap_or_default();
+                    if let Err(e) = read_chunk(chunk_dir, i, threads, &mut mem.rows) {
+                        return fail(&state, e);
+                    }
+                    let mut builder = TreeBuilder::with_memory(mem, layout, plan.cube, sampling);
+                    let root: OpenNode = builder.build_chunk(plan.chunks[i].key());
                     let root_rows = builder.rows_of(&root);
                     let finished = std::mem::take(&mut builder.finished);
-                    drop(rows);
+                    memory = Some(builder.into_memory());
                     let Ok(mut s) = state.lock() else { return };
                     s.ready.insert(i, (finished, root_rows, root.child_mask));
                     while let Some(done) = {
@@ -617,7 +823,9 @@ fn index_chunks(
                         ) {
                             Ok(entry) => {
                                 s.entries.push(entry);
-                                let _ = fs::remove_file(chunk_path(chunk_dir, idx));
+                                for part in 0..threads {
+                                    let _ = fs::remove_file(chunk_path(chunk_dir, idx, part));
+                                }
                                 bar.inc(plan.chunks[idx].points);
                                 s.next += 1;
                             }
@@ -640,6 +848,30 @@ fn index_chunks(
         return Err(e);
     }
     Ok(s.entries)
+}
+
+/// A chunk's rows: its part files in order (a part with no rows has no file).
+fn read_chunk(dir: &Path, chunk: usize, parts: usize, rows: &mut Vec<u8>) -> Result<()> {
+    let paths: Vec<PathBuf> = (0..parts).map(|p| chunk_path(dir, chunk, p)).collect();
+    let total: u64 = paths
+        .iter()
+        .filter_map(|p| fs::metadata(p).ok())
+        .map(|m| m.len())
+        .sum();
+    rows.clear();
+    rows.reserve(total as usize);
+    for path in paths {
+        match File::open(&path) {
+            Ok(mut f) => {
+                use std::io::Read;
+                f.read_to_end(rows)
+                    .map_err(io_err(&path, "cannot read chunk"))?;
+            }
+            Err(e) if e.kind() == std::io::ErrorKind::NotFound => {}
+            Err(e) => return Err(ConvertError::io(&path, "cannot read chunk", e)),
+        }
+    }
+    Ok(())
 }
 
 #[allow(clippy::too_many_arguments)]

@@ -1,76 +1,88 @@
-//! Phase 3: stream the staging file into one file per chunk, positions now quantized.
+//! Phase 3: stream every input's rows into chunk files. Each of the `threads` workers takes
+//! the same part of every input and writes its own file per chunk, so a chunk's rows are its
+//! part files read in order: the input order, whatever the timing.
 
 use crate::error::{ConvertError, Result};
 use crate::plan::{grid_cell, grid_shape};
-use crate::quantize::Quantization;
-use crate::scan::{StagingReader, staging_position};
+use crate::rows::RowInput;
 use indicatif::ProgressBar;
 use std::fs::OpenOptions;
 use std::io::Write;
 use std::path::{Path, PathBuf};
-use strata_format::Cube;
+use strata_format::{Cube, row_position};
 
-pub fn chunk_path(dir: &Path, index: usize) -> PathBuf {
-    dir.join(format!("c{index}.bin"))
+/// The file holding part `part` of chunk `index`.
+pub fn chunk_path(dir: &Path, index: usize, part: usize) -> PathBuf {
+    dir.join(format!("c{index}_{part}.bin"))
 }
 
-/// Appends buffered rows to a chunk file. Files are opened per flush, so any number of chunks
-/// works within the process's file-descriptor limit.
-fn flush(dir: &Path, index: usize, buf: &mut Vec<u8>) -> Result<()> {
+/// Appends buffered rows to a chunk part file. Files are opened per flush, so any number of
+/// chunks works within the process's file-descriptor limit.
+fn flush(path: &Path, buf: &mut Vec<u8>) -> Result<()> {
     if buf.is_empty() {
         return Ok(());
     }
-    let path = chunk_path(dir, index);
     let mut f = OpenOptions::new()
         .create(true)
         .append(true)
-        .open(&path)
-        .map_err(|e| ConvertError::io(&path, "cannot open chunk file", e))?;
+        .open(path)
+        .map_err(|e| ConvertError::io(path, "cannot open chunk file", e))?;
     f.write_all(buf)
-        .map_err(|e| ConvertError::io(&path, "cannot write chunk file", e))?;
+        .map_err(|e| ConvertError::io(path, "cannot write chunk file", e))?;
     buf.clear();
     Ok(())
 }
 
-#[allow(clippy::too_many_arguments)]
-pub fn distribute(
-    staging: &Path,
-    staging_stride: usize,
-    row_stride: usize,
-    q: &Quantization,
-    cube: &Cube,
-    lut: &[u32],
-    chunk_count: usize,
-    chunk_dir: &Path,
-    buffer_budget: u64,
-    bar: &ProgressBar,
-) -> Result<()> {
-    let (level, shift) = grid_shape(cube);
-    let per_chunk = (buffer_budget / chunk_count.max(1) as u64).clamp(16 << 10, 4 << 20) as usize;
-    let mut buffers: Vec<Vec<u8>> = vec![Vec::new(); chunk_count];
-    let mut reader = StagingReader::open(staging, staging_stride)?;
-    let attr_len = row_stride - 12;
-    loop {
-        let n = reader.next_batch(1 << 16)?;
-        if n == 0 {
-            break;
-        }
-        for rec in reader.buf.chunks_exact(staging_stride) {
-            let p = q.quantize(&staging_position(rec));
-            let chunk = lut[grid_cell(p, cube, level, shift)] as usize;
-            let buf = &mut buffers[chunk];
-            buf.extend_from_slice(&p[0].to_le_bytes());
-            buf.extend_from_slice(&p[1].to_le_bytes());
-            buf.extend_from_slice(&p[2].to_le_bytes());
-            buf.extend_from_slice(&rec[24..24 + attr_len]);
-            if buf.len() >= per_chunk {
-                flush(chunk_dir, chunk, buf)?;
+pub struct Distribution<'a> {
+    pub inputs: &'a [RowInput],
+    pub stride: usize,
+    pub cube: &'a Cube,
+    pub lut: &'a [u32],
+    pub chunk_count: usize,
+    pub chunk_dir: &'a Path,
+    /// Bytes of row buffers, all workers together.
+    pub buffer_budget: u64,
+    pub threads: usize,
+}
+
+pub fn distribute(d: &Distribution, bar: &ProgressBar) -> Result<()> {
+    let results: Vec<Result<()>> = std::thread::scope(|scope| {
+        let workers: Vec<_> = (0..d.threads)
+            .map(|part| scope.spawn(move || distribute_part(d, part, bar)))
+            .collect();
+        workers
+            .into_iter()
+            .map(|w| {
+                w.join().unwrap_or_else(|_| {
+                    Err(ConvertError::Usage("a distribute worker panicked".into()))
+                })
+            })
+            .collect()
+    });
+    results.into_iter().collect()
+}
+
+fn distribute_part(d: &Distribution, part: usize, bar: &ProgressBar) -> Result<()> {
+    let (level, shift) = grid_shape(d.cube);
+    let per_chunk = (d.buffer_budget / (d.chunk_count.max(1) * d.threads.max(1)) as u64)
+        .clamp(16 << 10, 4 << 20) as usize;
+    let mut buffers: Vec<Vec<u8>> = vec![Vec::new(); d.chunk_count];
+    for input in d.inputs {
+        input.for_each_rows(input.part(part, d.threads), d.stride, |rows| {
+            for row in rows.chunks_exact(d.stride) {
+                let chunk = d.lut[grid_cell(row_position(row), d.cube, level, shift)] as usize;
+                let buf = &mut buffers[chunk];
+                buf.extend_from_slice(row);
+                if buf.len() >= per_chunk {
+                    flush(&chunk_path(d.chunk_dir, chunk, part), buf)?;
+                }
             }
-        }
-        bar.inc(n as u64);
+            bar.inc((rows.len() / d.stride) as u64);
+            Ok(())
+        })?;
     }
     for (i, buf) in buffers.iter_mut().enumerate() {
-        flush(chunk_dir, i, buf)?;
+        flush(&chunk_path(d.chunk_dir, i, part), buf)?;
     }
     Ok(())
 }

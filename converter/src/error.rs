@@ -19,6 +19,10 @@ pub enum ConvertError {
     Format(#[from] strata_format::FormatError),
     #[error("{0}")]
     Usage(String),
+    /// A LAS point lies outside the bounds its header declares. The conversion catches this
+    /// and measures the bounds itself, so a user never sees it.
+    #[error("{}: point {record} lies outside the bounds the header declares", path.display())]
+    OutsideHeaderBounds { path: PathBuf, record: u64 },
 }
 
 impl ConvertError {

@@ -1,12 +1,11 @@
 //! Phase 2: count points on a coarse grid and cut the cube into chunks that fit in memory.
 
-use crate::error::Result;
+use crate::error::{ConvertError, Result};
 use crate::quantize::Quantization;
-use crate::scan::{StagingReader, staging_position};
+use crate::rows::RowInput;
 use indicatif::ProgressBar;
 use serde::{Deserialize, Serialize};
-use std::path::Path;
-use strata_format::{Cube, GRID_CELLS_LOG2, NodeKey};
+use strata_format::{Cube, GRID_CELLS_LOG2, NodeKey, row_position};
 
 /// The counting grid has 2^7 = 128 cells per axis (8 MiB of counters).
 pub const COUNT_GRID_LOG2: u32 = 7;
@@ -61,29 +60,93 @@ pub fn grid_cell(p: [i32; 3], cube: &Cube, level: u32, shift: u32) -> usize {
     (c(0) << (2 * level)) | (c(1) << level) | c(2)
 }
 
-/// Counts the staging file's points per grid cell.
-pub fn count(
-    staging: &Path,
-    stride: usize,
-    q: &Quantization,
-    cube: &Cube,
-    bar: &ProgressBar,
-) -> Result<Vec<u64>> {
-    let (level, shift) = grid_shape(cube);
-    let mut counts = vec![0u64; 1 << (3 * level)];
-    let mut reader = StagingReader::open(staging, stride)?;
-    loop {
-        let n = reader.next_batch(1 << 16)?;
-        if n == 0 {
-            break;
+/// What the count phase learns: points per grid cell, and the extent of the positions.
+#[derive(Debug, Clone)]
+pub struct Counts {
+    pub cells: Vec<u64>,
+    pub min: [i32; 3],
+    pub max: [i32; 3],
+    cube: Cube,
+    level: u32,
+    shift: u32,
+}
+
+impl Counts {
+    pub fn new(cube: &Cube) -> Self {
+        let (level, shift) = grid_shape(cube);
+        Counts {
+            cells: vec![0; 1 << (3 * level)],
+            min: [i32::MAX; 3],
+            max: [i32::MIN; 3],
+            cube: *cube,
+            level,
+            shift,
         }
-        for rec in reader.buf.chunks_exact(stride) {
-            let p = q.quantize(&staging_position(rec));
-            counts[grid_cell(p, cube, level, shift)] += 1;
-        }
-        bar.inc(n as u64);
     }
-    Ok(counts)
+
+    /// Counts a position inside the cube.
+    #[inline]
+    pub fn add(&mut self, p: [i32; 3]) {
+        for (a, &v) in p.iter().enumerate() {
+            self.min[a] = self.min[a].min(v);
+            self.max[a] = self.max[a].max(v);
+        }
+        self.cells[grid_cell(p, &self.cube, self.level, self.shift)] += 1;
+    }
+
+    pub fn merge(&mut self, other: &Counts) {
+        for (a, b) in self.cells.iter_mut().zip(&other.cells) {
+            *a += b;
+        }
+        for a in 0..3 {
+            self.min[a] = self.min[a].min(other.min[a]);
+            self.max[a] = self.max[a].max(other.max[a]);
+        }
+    }
+}
+
+/// Counts the rows of `inputs` per grid cell into `total`, `threads` parts of each input at
+/// once.
+pub fn count(
+    inputs: &[&RowInput],
+    total: &mut Counts,
+    threads: usize,
+    bar: &ProgressBar,
+) -> Result<()> {
+    let cube = total.cube;
+    let parts: Vec<Result<Counts>> = std::thread::scope(|scope| {
+        let workers: Vec<_> = (0..threads)
+            .map(|t| {
+                scope.spawn(move || {
+                    let mut c = Counts::new(&cube);
+                    for input in inputs {
+                        input.for_each_raw(input.part(t, threads), |raw, first| {
+                            for (i, rec) in raw.chunks_exact(input.record_len).enumerate() {
+                                c.add(match &input.convert {
+                                    Some(conv) => conv.position(rec, first + i as u64)?,
+                                    None => row_position(rec),
+                                });
+                            }
+                            bar.inc((raw.len() / input.record_len) as u64);
+                            Ok(())
+                        })?;
+                    }
+                    Ok(c)
+                })
+            })
+            .collect();
+        workers
+            .into_iter()
+            .map(|w| {
+                w.join()
+                    .unwrap_or_else(|_| Err(ConvertError::Usage("a count worker panicked".into())))
+            })
+            .collect()
+    });
+    for part in parts {
+        total.merge(&part?);
+    }
+    Ok(())
 }
 
 /// Splits the cube top-down until every chunk holds at most `max_points` (or is one grid cell).

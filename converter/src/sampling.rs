@@ -2,7 +2,7 @@
 //! node, so an inner node holds a spatially even subsample at its level's spacing.
 
 use serde::{Deserialize, Serialize};
-use strata_format::{GRID_CELLS_LOG2, row_position};
+use strata_format::GRID_CELLS_LOG2;
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, Default)]
 #[serde(rename_all = "lowercase")]
@@ -23,11 +23,10 @@ impl Sampling {
     }
 }
 
-/// Marks which `candidates` (row indices) the node at integer corner `node_min` with edge
-/// `2^node_bits` keeps. Returns one flag per candidate.
+/// Marks which `candidates` (indices into `pos`) the node at integer corner `node_min` with
+/// edge `2^node_bits` keeps. Returns one flag per candidate.
 pub fn select(
-    rows: &[u8],
-    stride: usize,
+    pos: &[[i32; 3]],
     candidates: &[u32],
     node_min: [i64; 3],
     node_bits: u32,
@@ -49,8 +48,7 @@ pub fn select(
         Sampling::Random => {
             let mut taken = vec![0u64; (1usize << (3 * cell_bits)).div_ceil(64)];
             for (i, &idx) in candidates.iter().enumerate() {
-                let at = idx as usize * stride;
-                let (cell, _) = cell_of(row_position(&rows[at..at + 12]));
+                let (cell, _) = cell_of(pos[idx as usize]);
                 let (w, b) = ((cell >> 6) as usize, cell & 63);
                 if taken[w] & (1 << b) == 0 {
                     taken[w] |= 1 << b;
@@ -71,8 +69,7 @@ pub fn select(
                 .iter()
                 .enumerate()
                 .map(|(i, &idx)| {
-                    let at = idx as usize * stride;
-                    let (cell, r) = cell_of(row_position(&rows[at..at + 12]));
+                    let (cell, r) = cell_of(pos[idx as usize]);
                     let d = |a: usize| (r[a] & mask) as f32 + 0.5 - half;
                     let dist = d(0) * d(0) + d(1) * d(1) + d(2) * d(2);
                     (((cell as u64) << 32) | dist.to_bits() as u64, i as u32)
@@ -92,16 +89,60 @@ pub fn select(
     keep
 }
 
+/// `select` for candidates already in Morton order within the node (see `morton`), where each
+/// sampling cell is one run: a single pass, no sort. Ties keep the first point met, as `select`.
+pub fn select_ordered(
+    pos: &[[i32; 3]],
+    candidates: &[u32],
+    node_min: [i64; 3],
+    node_bits: u32,
+    method: Sampling,
+) -> Vec<bool> {
+    let cell_shift = node_bits.saturating_sub(GRID_CELLS_LOG2);
+    let mask = (1i64 << cell_shift) - 1;
+    let half = if cell_shift == 0 {
+        0.0
+    } else {
+        (1u64 << cell_shift) as f32 / 2.0
+    };
+    let mut keep = vec![false; candidates.len()];
+    let mut last = [i64::MIN; 3];
+    let mut best: Option<(usize, f32)> = None;
+    for (i, &idx) in candidates.iter().enumerate() {
+        let p = pos[idx as usize];
+        let r = [0, 1, 2].map(|a| p[a] as i64 - node_min[a]);
+        let cell = r.map(|v| v >> cell_shift);
+        let new_cell = cell != last;
+        if new_cell {
+            if let Some((b, _)) = best.take() {
+                keep[b] = true;
+            }
+            last = cell;
+        }
+        match method {
+            Sampling::Random => {
+                if new_cell {
+                    keep[i] = true;
+                }
+            }
+            Sampling::Poisson => {
+                let d = |a: usize| (r[a] & mask) as f32 + 0.5 - half;
+                let dist = d(0) * d(0) + d(1) * d(1) + d(2) * d(2);
+                if best.is_none_or(|(_, bd)| dist < bd) {
+                    best = Some((i, dist));
+                }
+            }
+        }
+    }
+    if let Some((b, _)) = best {
+        keep[b] = true;
+    }
+    keep
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    fn rows(points: &[[i32; 3]]) -> Vec<u8> {
-        points
-            .iter()
-            .flat_map(|p| p.iter().flat_map(|v| v.to_le_bytes()))
-            .collect()
-    }
 
     #[test]
     fn keeps_one_point_per_cell_nearest_the_centre() {
@@ -113,11 +154,18 @@ mod tests {
             [9, 0, 0],
             [1000, 1000, 1000],
         ];
-        let r = rows(&pts);
+        let r = pts;
         let idx: Vec<u32> = (0..pts.len() as u32).collect();
-        let keep = select(&r, 12, &idx, [0, 0, 0], 10, Sampling::Poisson);
+        let keep = select(&r, &idx, [0, 0, 0], 10, Sampling::Poisson);
         assert_eq!(keep, vec![false, true, false, true, true]);
-        let keep = select(&r, 12, &idx, [0, 0, 0], 10, Sampling::Random);
+        let keep = select(&r, &idx, [0, 0, 0], 10, Sampling::Random);
         assert_eq!(keep, vec![true, false, false, true, true]);
+        // The same points are in Morton order already: cells 0, 0, 0, 1, far.
+        for method in [Sampling::Poisson, Sampling::Random] {
+            assert_eq!(
+                select_ordered(&r, &idx, [0, 0, 0], 10, method),
+                select(&r, &idx, [0, 0, 0], 10, method)
+            );
+        }
     }
 }

@@ -1,8 +1,9 @@
 //! Building a layered octree over rows held in memory: leaves keep all their points, and each
 //! inner node takes its subsample from its children, so every point is stored exactly once.
 
-use crate::sampling::{Sampling, select};
-use strata_format::{Cube, NodeKey, RowLayout, encode_node, row_position};
+use crate::morton::{SortScratch, sort_positions};
+use crate::sampling::{Sampling, select_ordered};
+use strata_format::{Cube, GRID_CELLS_LOG2, NodeKey, RowLayout, encode_node_rows, row_position};
 
 /// Nodes hold at most this many points before they split.
 pub const LEAF_MAX: usize = 20_000;
@@ -27,8 +28,26 @@ pub struct OpenNode {
     pub child_mask: u8,
 }
 
+/// The big buffers of one chunk's build, kept by a worker from chunk to chunk so the kernel
+/// need not hand out (and zero) fresh pages for every chunk.
+#[derive(Debug, Default)]
+pub struct ChunkMemory {
+    /// The chunk's rows, as read.
+    pub rows: Vec<u8>,
+    sorted: Vec<u8>,
+    pos: Vec<[i32; 3]>,
+    order: Vec<u32>,
+    sort: SortScratch,
+}
+
+/// Nodes are built over `pos`, the rows' positions, which sorting reorders (with `order`, the
+/// row each entry came from).
 pub struct TreeBuilder<'a> {
-    pub rows: &'a [u8],
+    pub rows: Vec<u8>,
+    pub pos: Vec<[i32; 3]>,
+    pub order: Vec<u32>,
+    spare_rows: Vec<u8>,
+    sort: SortScratch,
     pub layout: &'a RowLayout,
     pub cube: Cube,
     pub sampling: Sampling,
@@ -36,9 +55,30 @@ pub struct TreeBuilder<'a> {
 }
 
 impl<'a> TreeBuilder<'a> {
-    pub fn new(rows: &'a [u8], layout: &'a RowLayout, cube: Cube, sampling: Sampling) -> Self {
+    /// A builder over `memory.rows`, reusing the rest of `memory`.
+    pub fn with_memory(
+        memory: ChunkMemory,
+        layout: &'a RowLayout,
+        cube: Cube,
+        sampling: Sampling,
+    ) -> Self {
+        let ChunkMemory {
+            rows,
+            sorted,
+            mut pos,
+            mut order,
+            sort,
+        } = memory;
+        pos.clear();
+        pos.extend(rows.chunks_exact(layout.stride).map(row_position));
+        order.clear();
+        order.extend(0..pos.len() as u32);
         TreeBuilder {
             rows,
+            pos,
+            order,
+            spare_rows: sorted,
+            sort,
             layout,
             cube,
             sampling,
@@ -46,41 +86,76 @@ impl<'a> TreeBuilder<'a> {
         }
     }
 
-    fn position(&self, idx: u32) -> [i32; 3] {
-        let at = idx as usize * self.layout.stride;
-        row_position(&self.rows[at..at + 12])
+    /// Builds the subtree of chunk `key` over all rows; every node below `key` is finished,
+    /// `key` itself is returned open. The rows are reordered (Morton order) on the way.
+    pub fn build_chunk(&mut self, key: NodeKey) -> OpenNode {
+        let n = self.pos.len();
+        let (min, _) = key.int_bounds(self.cube.min, self.cube.bits);
+        let bits = self.cube.bits - key.level as u32;
+        let shift = sort_positions(&mut self.pos, &mut self.order, min, bits, &mut self.sort);
+        // Rows in the same order make every later gather (sampling, encoding) a forward scan.
+        let stride = self.layout.stride;
+        let sorted = &mut self.spare_rows;
+        sorted.clear();
+        for &i in &self.order {
+            let at = i as usize * stride;
+            sorted.extend_from_slice(&self.rows[at..at + stride]);
+        }
+        std::mem::swap(&mut self.rows, sorted);
+        self.order
+            .iter_mut()
+            .enumerate()
+            .for_each(|(j, o)| *o = j as u32);
+        self.build(key, 0, n, shift)
     }
 
-    /// Builds the subtree of `key` over the rows `idx`; every node below `key` is finished,
-    /// `key` itself is returned open.
-    pub fn build(&mut self, key: NodeKey, idx: Vec<u32>) -> OpenNode {
+    /// Builds the subtree of `key` over rows `start..end`, which are in Morton order at
+    /// resolution `shift` (positions differing only below bit `shift` may be in any order).
+    fn build(&mut self, key: NodeKey, start: usize, end: usize, shift: u32) -> OpenNode {
         let node_bits = self.cube.bits - key.level as u32;
-        if idx.len() <= LEAF_MAX || node_bits == 0 || key.level >= MAX_LEVEL {
+        if end - start <= LEAF_MAX || node_bits == 0 || key.level >= MAX_LEVEL {
             return OpenNode {
                 key,
-                points: idx,
+                points: (start as u32..end as u32).collect(),
                 child_mask: 0,
             };
         }
         let (min, _) = key.int_bounds(self.cube.min, self.cube.bits);
-        let half = node_bits - 1;
-        let mut parts: [Vec<u32>; 8] = Default::default();
-        for &i in &idx {
-            let p = self.position(i);
-            let b = |a: usize| (((p[a] as i64 - min[a]) >> half) & 1) as usize;
-            parts[(b(0) << 2) | (b(1) << 1) | b(2)].push(i);
+        let mut shift = shift;
+        // This node's sampling cells and its children must be runs of the order; a chunk
+        // wider than the key's 21 bits per axis reorders its deep nodes on their own.
+        if shift > node_bits.saturating_sub(GRID_CELLS_LOG2) {
+            let (pos, order) = (&mut self.pos[start..end], &mut self.order[start..end]);
+            shift = sort_positions(pos, order, min, node_bits, &mut self.sort);
         }
-        drop(idx);
+        let half = node_bits - 1;
+        let octant = |p: [i32; 3]| {
+            let b = |a: usize| (((p[a] as i64 - min[a]) >> half) & 1) as u8;
+            (b(0) << 2) | (b(1) << 1) | b(2)
+        };
         let mut children = Vec::new();
-        for (o, part) in parts.into_iter().enumerate() {
-            if !part.is_empty() {
-                children.push(self.build(key.child(o as u8), part));
+        let mut lo = start;
+        for o in 0..8u8 {
+            // The first row past octant `o`: octants rise along the order.
+            let (mut a, mut b) = (lo, end);
+            while a < b {
+                let mid = (a + b) / 2;
+                if octant(self.pos[mid]) <= o {
+                    a = mid + 1;
+                } else {
+                    b = mid;
+                }
             }
+            if a > lo {
+                children.push(self.build(key.child(o), lo, a, shift));
+            }
+            lo = a;
         }
         self.adopt(key, children)
     }
 
-    /// Gives `key` its sample of its children's points, then finishes the children.
+    /// Gives `key` its sample of its children's points (in Morton order, see `build`, so
+    /// sampling is one pass), then finishes the children.
     pub fn adopt(&mut self, key: NodeKey, mut children: Vec<OpenNode>) -> OpenNode {
         let node_bits = self.cube.bits - key.level as u32;
         let (min, _) = key.int_bounds(self.cube.min, self.cube.bits);
@@ -88,14 +163,7 @@ impl<'a> TreeBuilder<'a> {
             .iter()
             .flat_map(|c| c.points.iter().copied())
             .collect();
-        let keep = select(
-            self.rows,
-            self.layout.stride,
-            &candidates,
-            min,
-            node_bits,
-            self.sampling,
-        );
+        let keep = select_ordered(&self.pos, &candidates, min, node_bits, self.sampling);
         let mut points = Vec::new();
         let mut at = 0;
         for c in &mut children {
@@ -127,13 +195,12 @@ impl<'a> TreeBuilder<'a> {
 
     /// Encodes a node whose points are final.
     pub fn finish(&mut self, node: OpenNode) {
-        let stride = self.layout.stride;
-        let mut gathered = Vec::with_capacity(node.points.len() * stride);
-        for &i in &node.points {
-            let at = i as usize * stride;
-            gathered.extend_from_slice(&self.rows[at..at + stride]);
-        }
-        let (payload, crc) = encode_node(&gathered, self.layout);
+        let which: Vec<u32> = node
+            .points
+            .iter()
+            .map(|&j| self.order[j as usize])
+            .collect();
+        let (payload, crc) = encode_node_rows(&self.rows, &which, self.layout);
         self.finished.push(FinishedNode {
             key: node.key,
             point_count: node.points.len() as u32,
@@ -143,63 +210,25 @@ impl<'a> TreeBuilder<'a> {
         });
     }
 
+    /// The buffers back, for the next chunk.
+    pub fn into_memory(self) -> ChunkMemory {
+        ChunkMemory {
+            rows: self.rows,
+            sorted: self.spare_rows,
+            pos: self.pos,
+            order: self.order,
+            sort: self.sort,
+        }
+    }
+
     /// The rows of an open node, copied out.
     pub fn rows_of(&self, node: &OpenNode) -> Vec<u8> {
         let stride = self.layout.stride;
         let mut out = Vec::with_capacity(node.points.len() * stride);
-        for &i in &node.points {
-            let at = i as usize * stride;
+        for &j in &node.points {
+            let at = self.order[j as usize] as usize * stride;
             out.extend_from_slice(&self.rows[at..at + stride]);
         }
         out
     }
-}
-
-/// The top of the tree, above the chunks: each chunk's root rows and child mask go in, every
-/// node from the chunk roots up to the dataset root comes out finished.
-pub fn merge_top(
-    roots: Vec<(NodeKey, Vec<u8>, u8)>,
-    layout: &RowLayout,
-    cube: Cube,
-    sampling: Sampling,
-) -> Vec<FinishedNode> {
-    use std::collections::{BTreeMap, BTreeSet};
-    let stride = layout.stride;
-    let mut rows = Vec::new();
-    let mut open: BTreeMap<NodeKey, OpenNode> = BTreeMap::new();
-    for (key, r, mask) in roots {
-        let first = (rows.len() / stride) as u32;
-        let n = (r.len() / stride) as u32;
-        rows.extend_from_slice(&r);
-        open.insert(
-            key,
-            OpenNode {
-                key,
-                points: (first..first + n).collect(),
-                child_mask: mask,
-            },
-        );
-    }
-    let mut ancestors: BTreeSet<NodeKey> = BTreeSet::new();
-    for k in open.keys() {
-        let mut p = k.parent();
-        while let Some(a) = p {
-            ancestors.insert(a);
-            p = a.parent();
-        }
-    }
-    let mut builder = TreeBuilder::new(&rows, layout, cube, sampling);
-    let mut by_depth: Vec<NodeKey> = ancestors.into_iter().collect();
-    by_depth.sort_by(|a, b| b.level.cmp(&a.level).then(a.cmp(b)));
-    for key in by_depth {
-        let children: Vec<OpenNode> = (0..8u8)
-            .filter_map(|o| open.remove(&key.child(o)))
-            .collect();
-        let node = builder.adopt(key, children);
-        open.insert(key, node);
-    }
-    if let Some(root) = open.remove(&NodeKey::ROOT) {
-        builder.finish(root);
-    }
-    builder.finished
 }

@@ -24,7 +24,9 @@ pub use metadata::{
     Bounds, Cube, FORMAT_NAME, FileInfo, Files, HierarchyInfo, Metadata, VERSION_MAJOR,
     VERSION_MINOR,
 };
-pub use node_codec::{NodeColumns, NodeDecodeError, OCTREE_MAGIC, decode_node, encode_node};
+pub use node_codec::{
+    NodeColumns, NodeDecodeError, OCTREE_MAGIC, decode_node, encode_node, encode_node_rows,
+};
 pub use node_key::NodeKey;
 pub use verify::{Fault, VerifyReport, verify_dataset};
 

@@ -8,7 +8,13 @@ pub const OCTREE_MAGIC: &[u8; 8] = b"STRATAOC";
 /// Encodes rows (each `layout.stride` bytes) into a stored node payload. Returns the payload and
 /// its CRC-32.
 pub fn encode_node(rows: &[u8], layout: &RowLayout) -> (Vec<u8>, u32) {
-    let columns = rows_to_columns(rows, layout);
+    let n = rows.len() / layout.stride;
+    encode_node_rows(rows, &(0..n as u32).collect::<Vec<_>>(), layout)
+}
+
+/// `encode_node` of the rows numbered `which` in `rows`, without gathering them first.
+pub fn encode_node_rows(rows: &[u8], which: &[u32], layout: &RowLayout) -> (Vec<u8>, u32) {
+    let columns = rows_to_columns(rows, which, layout);
     let payload = lz4_flex::block::compress(&columns);
     let crc = crc32fast::hash(&payload);
     (payload, crc)
@@ -112,14 +118,23 @@ pub fn decode_node(
 
 /// Column order: for each field (x, y, z, attributes...), that field of every point in turn.
 /// Column-major payloads compress markedly better than rows with LZ4.
-fn rows_to_columns(rows: &[u8], layout: &RowLayout) -> Vec<u8> {
+fn rows_to_columns(rows: &[u8], which: &[u32], layout: &RowLayout) -> Vec<u8> {
     let stride = layout.stride;
-    let n = rows.len() / stride;
-    let mut out = vec![0u8; rows.len()];
+    let n = which.len();
+    let mut out = vec![0u8; n * stride];
     let mut write_field = |field_offset: usize, size: usize| {
         let dst = &mut out[field_offset * n..field_offset * n + size * n];
-        for (d, row) in dst.chunks_exact_mut(size).zip(rows.chunks_exact(stride)) {
-            d.copy_from_slice(&row[field_offset..field_offset + size]);
+        match size {
+            1 => gather::<1>(dst, rows, which, stride, field_offset),
+            2 => gather::<2>(dst, rows, which, stride, field_offset),
+            4 => gather::<4>(dst, rows, which, stride, field_offset),
+            8 => gather::<8>(dst, rows, which, stride, field_offset),
+            _ => {
+                for (d, &i) in dst.chunks_exact_mut(size).zip(which) {
+                    let at = i as usize * stride + field_offset;
+                    d.copy_from_slice(&rows[at..at + size]);
+                }
+            }
         }
     };
     write_field(0, 4);
@@ -129,6 +144,14 @@ fn rows_to_columns(rows: &[u8], layout: &RowLayout) -> Vec<u8> {
         write_field(*o, a.size());
     }
     out
+}
+
+/// One field of the chosen rows into a column; a fixed size makes each copy a single move.
+fn gather<const N: usize>(dst: &mut [u8], rows: &[u8], which: &[u32], stride: usize, at: usize) {
+    for (d, &i) in dst.chunks_exact_mut(N).zip(which) {
+        let o = i as usize * stride + at;
+        d.copy_from_slice(&rows[o..o + N]);
+    }
 }
 
 #[cfg(test)]

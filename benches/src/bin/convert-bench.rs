@@ -1,9 +1,11 @@
 //! Conversion throughput against the raw decode of the same file, measured in the same run.
 //!
 //! cargo run --release -p strata-bench --bin convert-bench -- [--points 10M,100M]
-//!     [--formats las,laz] [--memory-limit 512MiB] [--dir DIR]
+//!     [--formats las,laz] [--memory-limit 512MiB] [--dir DIR] [--runs 3]
 //!
-//! Each conversion runs in a child process, so its peak memory (VmHWM) is its own.
+//! Each conversion runs in a child process, so its peak memory (VmHWM) is its own. Every run
+//! starts after `sync`, so no earlier run's dirty pages are written back during it, and the
+//! table shows the median of the runs (all of them are listed).
 
 use anyhow::{Context, bail};
 use std::path::{Path, PathBuf};
@@ -29,6 +31,11 @@ fn decode_only(path: &Path) -> anyhow::Result<(u64, f64)> {
         n += got as u64;
     }
     Ok((n, start.elapsed().as_secs_f64()))
+}
+
+/// Flushes dirty pages so that writeback from earlier work does not land inside a timed run.
+fn settle() {
+    let _ = std::process::Command::new("sync").status();
 }
 
 fn child(args: &[String]) -> anyhow::Result<()> {
@@ -58,6 +65,7 @@ fn main() -> anyhow::Result<()> {
     let mut formats = vec!["las".to_string(), "laz".to_string()];
     let mut limit = "2GiB".to_string();
     let mut dir = PathBuf::from("target/bench-data");
+    let mut runs = 3usize;
     let mut it = args.iter();
     while let Some(a) = it.next() {
         let v = it.next().with_context(|| format!("{a} needs a value"))?;
@@ -71,6 +79,7 @@ fn main() -> anyhow::Result<()> {
             "--formats" => formats = v.split(',').map(String::from).collect(),
             "--memory-limit" => limit = v.clone(),
             "--dir" => dir = PathBuf::from(v),
+            "--runs" => runs = v.parse::<usize>().context("--runs needs a count")?.max(1),
             _ => bail!("unknown option {a}"),
         }
     }
@@ -80,7 +89,7 @@ fn main() -> anyhow::Result<()> {
         "conditions: {threads} threads, memory limit {limit}, synth city scene, poisson sampling"
     );
     println!(
-        "| points | input | decode Mpts/s | convert Mpts/s | convert/decode time | peak memory | nodes |"
+        "| points | input | decode Mpts/s | convert Mpts/s (median) | convert/decode time | peak memory | nodes |"
     );
     println!("|---|---|---|---|---|---|---|");
     for &n in &points {
@@ -89,26 +98,38 @@ fn main() -> anyhow::Result<()> {
             if !input.exists() {
                 synth(&input, n, Scene::City, 1, false)?;
             }
+            settle();
             let (decoded, decode_s) = decode_only(&input)?;
             let out = dir.join(format!("city_{n}_{f}.strata"));
-            let exe = std::env::current_exe()?;
-            let o = std::process::Command::new(exe)
-                .args([
-                    "child",
-                    &input.to_string_lossy(),
-                    &out.to_string_lossy(),
-                    &limit,
-                ])
-                .output()?;
-            if !o.status.success() {
-                bail!("conversion failed: {}", String::from_utf8_lossy(&o.stderr));
+            let mut results: Vec<serde_json::Value> = Vec::new();
+            for _ in 0..runs {
+                settle();
+                let o = std::process::Command::new(std::env::current_exe()?)
+                    .args([
+                        "child",
+                        &input.to_string_lossy(),
+                        &out.to_string_lossy(),
+                        &limit,
+                    ])
+                    .output()?;
+                if !o.status.success() {
+                    bail!("conversion failed: {}", String::from_utf8_lossy(&o.stderr));
+                }
+                results.push(serde_json::from_slice(&o.stdout)?);
             }
-            let s: serde_json::Value = serde_json::from_slice(&o.stdout)?;
-            let secs = s["seconds"].as_f64().unwrap_or(f64::NAN);
+            let secs_of = |v: &serde_json::Value| v["seconds"].as_f64().unwrap_or(f64::NAN);
+            results.sort_by(|a, b| secs_of(a).total_cmp(&secs_of(b)));
+            let all: Vec<String> = results
+                .iter()
+                .map(|r| format!("{:.2}", n as f64 / secs_of(r) / 1e6))
+                .collect();
+            let s = &results[results.len() / 2];
+            let secs = secs_of(s);
             println!(
-                "| {n} | {f} | {:.2} | {:.2} | {:.2}x | {} | {} |",
+                "| {n} | {f} | {:.2} | {:.2} (runs: {}) | {:.2}x | {} | {} |",
                 decoded as f64 / decode_s / 1e6,
                 n as f64 / secs / 1e6,
+                all.join(", "),
                 secs / decode_s,
                 s["peak_memory_bytes"]
                     .as_u64()

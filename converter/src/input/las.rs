@@ -18,6 +18,8 @@ pub struct LasSource {
     remaining: u64,
     read_so_far: u64,
     compressed: bool,
+    data_offset: u64,
+    header_bounds: ([f64; 3], [f64; 3]),
 }
 
 const LAS_HEADER_MIN: u64 = 227;
@@ -122,6 +124,8 @@ impl LasSource {
             ));
         }
         let data = PointDataBuilder::new().for_header(&header).build();
+        let b = header.bounds();
+        let header_bounds = ([b.min.x, b.min.y, b.min.z], [b.max.x, b.max.y, b.max.z]);
         Ok(LasSource {
             info: SourceInfo {
                 path: path.to_path_buf(),
@@ -138,7 +142,66 @@ impl LasSource {
             remaining: points,
             read_so_far: 0,
             compressed: format.is_compressed,
+            data_offset: offset_to_points,
+            header_bounds,
         })
+    }
+}
+
+impl LasSource {
+    /// Decodes up to `max` point records and returns their raw bytes (`record_len` each);
+    /// empty at the end.
+    pub fn read_records(&mut self, max: usize) -> Result<&[u8]> {
+        let n = (max as u64).min(self.remaining);
+        if n == 0 {
+            return Ok(&[]);
+        }
+        let got = self.reader.fill_points(n, &mut self.data).map_err(|e| {
+            let kind = if self.compressed { "LAZ" } else { "LAS" };
+            ConvertError::input(
+                &self.info.path,
+                format!(
+                    "{kind} point data is corrupt or truncated after point {} ({e})",
+                    self.read_so_far
+                ),
+            )
+        })?;
+        if got == 0 {
+            return Err(ConvertError::input(
+                &self.info.path,
+                format!(
+                    "header says {} points but the data ends after {}",
+                    self.info.points, self.read_so_far
+                ),
+            ));
+        }
+        self.remaining -= got;
+        self.read_so_far += got;
+        Ok(&self.data.raw_bytes()[..got as usize * self.record_len])
+    }
+
+    /// The field ops that turn a record into this source's attribute row.
+    pub fn ops(&self) -> &[FieldOp] {
+        &self.ops
+    }
+
+    pub fn record_len(&self) -> usize {
+        self.record_len
+    }
+
+    /// Where uncompressed point records start in the file; `None` for LAZ.
+    pub fn records_at(&self) -> Option<u64> {
+        (!self.compressed).then_some(self.data_offset)
+    }
+
+    /// The bounds the header declares (real units), not checked against the points.
+    pub fn header_bounds(&self) -> ([f64; 3], [f64; 3]) {
+        self.header_bounds
+    }
+
+    /// Scale and offset of the records' integer positions.
+    pub fn transform(&self) -> ([f64; 3], [f64; 3]) {
+        (self.scale, self.offset)
     }
 }
 
@@ -164,29 +227,7 @@ impl PointSource for LasSource {
     }
 
     fn read(&mut self, max: usize, xyz: &mut Vec<[f64; 3]>, rows: &mut Vec<u8>) -> Result<usize> {
-        let n = (max as u64).min(self.remaining);
-        if n == 0 {
-            return Ok(0);
-        }
-        let got = self.reader.fill_points(n, &mut self.data).map_err(|e| {
-            let kind = if self.compressed { "LAZ" } else { "LAS" };
-            ConvertError::input(
-                &self.info.path,
-                format!(
-                    "{kind} point data is corrupt or truncated after point {} ({e})",
-                    self.read_so_far
-                ),
-            )
-        })? as usize;
-        if got == 0 {
-            return Err(ConvertError::input(
-                &self.info.path,
-                format!(
-                    "header says {} points but the data ends after {}",
-                    self.info.points, self.read_so_far
-                ),
-            ));
-        }
+        let got = self.read_records(max)?.len() / self.record_len;
         let row_len = self.info.row_len();
         let base = rows.len();
         rows.resize(base + got * row_len, 0);
@@ -205,8 +246,6 @@ impl PointSource for LasSource {
             ]);
             record_to_row(&self.ops, rec, row);
         }
-        self.remaining -= got as u64;
-        self.read_so_far += got as u64;
         Ok(got)
     }
 }

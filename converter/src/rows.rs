@@ -1,0 +1,219 @@
+//! Dataset rows (12 bytes of quantized position, then the dataset's attributes) straight from
+//! LAS point records, and the files the count and distribute phases read rows from.
+
+use crate::error::{ConvertError, Result};
+use crate::input::PointSource;
+use crate::input::las::LasSource;
+use crate::input::las_layout::FieldOp;
+use crate::quantize::Quantization;
+use std::fs::File;
+use std::ops::Range;
+use std::os::unix::fs::FileExt;
+use std::path::PathBuf;
+use strata_format::{Cube, RowLayout};
+
+/// Turns one LAS input's point records into dataset rows, checking that every position falls
+/// inside the cube chosen from the headers.
+#[derive(Debug, Clone)]
+pub struct RecordToRow {
+    path: PathBuf,
+    ops: Vec<FieldOp>,
+    /// dataset integer = record integer + shift, when the input sits on the dataset's grid.
+    shift: Option<[i64; 3]>,
+    /// Otherwise dataset integer = round(base + ratio * record integer).
+    ratio: [f64; 3],
+    base: [f64; 3],
+    lo: [i64; 3],
+    hi: [i64; 3],
+}
+
+impl RecordToRow {
+    pub fn new(src: &LasSource, layout: &RowLayout, q: &Quantization, cube: &Cube) -> Self {
+        let attributes = &src.info().attributes;
+        // Each source attribute has one op, in order; point it at the dataset row.
+        let ops = src
+            .ops()
+            .iter()
+            .zip(attributes)
+            .map(|(op, a)| {
+                let row = layout
+                    .attributes
+                    .iter()
+                    .position(|u| u.name == a.name)
+                    .map_or(0, |i| layout.offsets[i]);
+                match *op {
+                    FieldOp::Copy { record, len, .. } => FieldOp::Copy { record, row, len },
+                    FieldOp::Bits {
+                        record,
+                        shift,
+                        mask,
+                        ..
+                    } => FieldOp::Bits {
+                        record,
+                        shift,
+                        mask,
+                        row,
+                    },
+                }
+            })
+            .collect();
+        let (scale, offset) = src.transform();
+        let ratio = [0, 1, 2].map(|a| scale[a] / q.scale[a]);
+        let base = [0, 1, 2].map(|a| (offset[a] - q.offset[a]) / q.scale[a]);
+        let whole = |v: f64| (v - v.round()).abs() < 1e-9;
+        let shift = (0..3)
+            .all(|a| ratio[a] == 1.0 && whole(base[a]))
+            .then(|| base.map(|b| b.round() as i64));
+        let edge = 1i64 << cube.bits;
+        RecordToRow {
+            path: src.info().path.clone(),
+            ops,
+            shift,
+            ratio,
+            base,
+            lo: cube.min,
+            hi: cube.min.map(|m| m + edge - 1),
+        }
+    }
+
+    /// The dataset position of record number `index`, `rec` its bytes.
+    #[inline]
+    pub fn position(&self, rec: &[u8], index: u64) -> Result<[i32; 3]> {
+        let mut p = [0i32; 3];
+        for (a, out) in p.iter_mut().enumerate() {
+            let o = 4 * a;
+            let raw = i32::from_le_bytes([rec[o], rec[o + 1], rec[o + 2], rec[o + 3]]) as i64;
+            let v = match self.shift {
+                Some(s) => raw + s[a],
+                None => (self.base[a] + self.ratio[a] * raw as f64).round() as i64,
+            };
+            if v < self.lo[a] || v > self.hi[a] {
+                return Err(ConvertError::OutsideHeaderBounds {
+                    path: self.path.clone(),
+                    record: index,
+                });
+            }
+            *out = v as i32;
+        }
+        Ok(p)
+    }
+
+    /// Converts whole records of `record_len` bytes into rows of `stride` bytes (attributes
+    /// this input lacks stay zero). `first` numbers the first record.
+    pub fn convert(
+        &self,
+        records: &[u8],
+        record_len: usize,
+        first: u64,
+        rows: &mut Vec<u8>,
+        stride: usize,
+    ) -> Result<()> {
+        let n = records.len() / record_len;
+        rows.clear();
+        rows.resize(n * stride, 0);
+        for (i, (rec, row)) in records
+            .chunks_exact(record_len)
+            .zip(rows.chunks_exact_mut(stride))
+            .enumerate()
+        {
+            let p = self.position(rec, first + i as u64)?;
+            for a in 0..3 {
+                row[4 * a..4 * a + 4].copy_from_slice(&p[a].to_le_bytes());
+            }
+            for op in &self.ops {
+                match *op {
+                    FieldOp::Copy {
+                        record: r,
+                        row: w,
+                        len,
+                    } => copy_field(&mut row[w..w + len], &rec[r..r + len]),
+                    FieldOp::Bits {
+                        record: r,
+                        shift,
+                        mask,
+                        row: w,
+                    } => row[w] = (rec[r] >> shift) & mask,
+                }
+            }
+        }
+        Ok(())
+    }
+}
+
+/// `dst.copy_from_slice(src)` with the common field sizes as single moves.
+#[inline]
+fn copy_field(dst: &mut [u8], src: &[u8]) {
+    match dst.len() {
+        1 => dst[0] = src[0],
+        2 => dst.copy_from_slice(&src[..2]),
+        4 => dst.copy_from_slice(&src[..4]),
+        8 => dst.copy_from_slice(&src[..8]),
+        _ => dst.copy_from_slice(src),
+    }
+}
+
+/// A file of fixed-length records the count and distribute phases read: an uncompressed LAS
+/// input read in place (`convert` set), or a staging file that already holds rows.
+#[derive(Debug, Clone)]
+pub struct RowInput {
+    pub path: PathBuf,
+    pub start: u64,
+    pub record_len: usize,
+    pub records: u64,
+    pub convert: Option<RecordToRow>,
+}
+
+/// Records per read.
+const BATCH: u64 = 1 << 16;
+
+impl RowInput {
+    /// Records `0..records` split into `parts` ranges, in order.
+    pub fn part(&self, part: usize, parts: usize) -> Range<u64> {
+        let at = |k: usize| self.records * k as u64 / parts as u64;
+        at(part)..at(part + 1)
+    }
+
+    /// Calls `each(records, first)` on the raw records of `range`, in batches.
+    pub fn for_each_raw(
+        &self,
+        range: Range<u64>,
+        mut each: impl FnMut(&[u8], u64) -> Result<()>,
+    ) -> Result<()> {
+        let file =
+            File::open(&self.path).map_err(|e| ConvertError::io(&self.path, "cannot open", e))?;
+        let mut raw = Vec::new();
+        let mut at = range.start;
+        while at < range.end {
+            let n = (range.end - at).min(BATCH);
+            raw.resize(n as usize * self.record_len, 0);
+            file.read_exact_at(&mut raw, self.start + at * self.record_len as u64)
+                .map_err(|e| {
+                    ConvertError::io(
+                        &self.path,
+                        format!("cannot read records {at}..{}", at + n),
+                        e,
+                    )
+                })?;
+            each(&raw, at)?;
+            at += n;
+        }
+        Ok(())
+    }
+
+    /// Calls `each(rows)` on the rows of `range`, in batches.
+    pub fn for_each_rows(
+        &self,
+        range: Range<u64>,
+        stride: usize,
+        mut each: impl FnMut(&[u8]) -> Result<()>,
+    ) -> Result<()> {
+        let mut rows = Vec::new();
+        self.for_each_raw(range, |raw, first| match &self.convert {
+            Some(c) => {
+                c.convert(raw, self.record_len, first, &mut rows, stride)?;
+                each(&rows)
+            }
+            None => each(raw),
+        })
+    }
+}
