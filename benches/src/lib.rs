@@ -5,7 +5,7 @@ pub mod quality;
 use anyhow::Context;
 use std::path::{Path, PathBuf};
 use strata_converter::synth::{Scene, synth};
-use strata_converter::{ConvertOptions, Sampling, convert};
+use strata_converter::{ConvertOptions, ConvertSummary, Sampling, convert};
 
 /// Parses `100000`, `100k`, `10M`, `1G`.
 pub fn parse_count(s: &str) -> anyhow::Result<u64> {
@@ -42,8 +42,12 @@ pub fn ensure_city_dataset(points: u64, dir: &Path) -> anyhow::Result<PathBuf> {
 }
 
 /// Converts one input with the default sampling on all cores, replacing `output`, silently.
-pub fn convert_quietly(input: &Path, output: &Path, memory_limit: u64) -> anyhow::Result<()> {
-    convert(&ConvertOptions {
+pub fn convert_quietly(
+    input: &Path,
+    output: &Path,
+    memory_limit: u64,
+) -> anyhow::Result<ConvertSummary> {
+    Ok(convert(&ConvertOptions {
         inputs: vec![input.to_path_buf()],
         output: output.to_path_buf(),
         memory_limit,
@@ -52,6 +56,5 @@ pub fn convert_quietly(input: &Path, output: &Path, memory_limit: u64) -> anyhow
         overwrite: true,
         resume: false,
         quiet: true,
-    })?;
-    Ok(())
+    })?)
 }

@@ -4,7 +4,7 @@
 use crate::error::{ConvertError, Result};
 use crate::input::PointSource;
 use crate::input::las::LasSource;
-use crate::input::las_layout::FieldOp;
+use crate::input::las_layout::{FieldOp, record_to_row};
 use crate::quantize::Quantization;
 use std::fs::File;
 use std::ops::Range;
@@ -30,7 +30,7 @@ pub struct RecordToRow {
 impl RecordToRow {
     pub fn new(src: &LasSource, layout: &RowLayout, q: &Quantization, cube: &Cube) -> Self {
         let attributes = &src.info().attributes;
-        // Each source attribute has one op, in order; point it at the dataset row.
+        // Each source attribute has one op, in order; point it at the dataset row's attributes.
         let ops = src
             .ops()
             .iter()
@@ -40,7 +40,7 @@ impl RecordToRow {
                     .attributes
                     .iter()
                     .position(|u| u.name == a.name)
-                    .map_or(0, |i| layout.offsets[i]);
+                    .map_or(0, |i| layout.offsets[i] - RowLayout::POSITION_BYTES);
                 match *op {
                     FieldOp::Copy { record, len, .. } => FieldOp::Copy { record, row, len },
                     FieldOp::Bits {
@@ -120,35 +120,9 @@ impl RecordToRow {
             for a in 0..3 {
                 row[4 * a..4 * a + 4].copy_from_slice(&p[a].to_le_bytes());
             }
-            for op in &self.ops {
-                match *op {
-                    FieldOp::Copy {
-                        record: r,
-                        row: w,
-                        len,
-                    } => copy_field(&mut row[w..w + len], &rec[r..r + len]),
-                    FieldOp::Bits {
-                        record: r,
-                        shift,
-                        mask,
-                        row: w,
-                    } => row[w] = (rec[r] >> shift) & mask,
-                }
-            }
+            record_to_row(&self.ops, rec, &mut row[RowLayout::POSITION_BYTES..]);
         }
         Ok(())
-    }
-}
-
-/// `dst.copy_from_slice(src)` with the common field sizes as single moves.
-#[inline]
-fn copy_field(dst: &mut [u8], src: &[u8]) {
-    match dst.len() {
-        1 => dst[0] = src[0],
-        2 => dst.copy_from_slice(&src[..2]),
-        4 => dst.copy_from_slice(&src[..4]),
-        8 => dst.copy_from_slice(&src[..8]),
-        _ => dst.copy_from_slice(src),
     }
 }
 

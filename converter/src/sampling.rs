@@ -23,6 +23,41 @@ impl Sampling {
     }
 }
 
+/// A node's sampling grid: `2^shift`-unit cells from its corner.
+struct CellGrid {
+    min: [i64; 3],
+    shift: u32,
+    mask: i64,
+    half: f32,
+}
+
+impl CellGrid {
+    fn new(node_min: [i64; 3], node_bits: u32) -> Self {
+        let shift = node_bits.saturating_sub(GRID_CELLS_LOG2);
+        CellGrid {
+            min: node_min,
+            shift,
+            mask: (1i64 << shift) - 1,
+            half: if shift == 0 {
+                0.0
+            } else {
+                (1u64 << shift) as f32 / 2.0
+            },
+        }
+    }
+
+    /// The cell (per axis) of `p`, and its squared distance from that cell's centre.
+    #[inline]
+    fn locate(&self, p: [i32; 3]) -> ([i64; 3], f32) {
+        let r = [0, 1, 2].map(|a| p[a] as i64 - self.min[a]);
+        let d = |a: usize| (r[a] & self.mask) as f32 + 0.5 - self.half;
+        (
+            r.map(|v| v >> self.shift),
+            d(0) * d(0) + d(1) * d(1) + d(2) * d(2),
+        )
+    }
+}
+
 /// Marks which `candidates` (indices into `pos`) the node at integer corner `node_min` with
 /// edge `2^node_bits` keeps. Returns one flag per candidate.
 pub fn select(
@@ -32,16 +67,12 @@ pub fn select(
     node_bits: u32,
     method: Sampling,
 ) -> Vec<bool> {
-    let cell_shift = node_bits.saturating_sub(GRID_CELLS_LOG2);
-    let cell_bits = node_bits - cell_shift;
-    let cell_of = |p: [i32; 3]| -> (u32, [i64; 3]) {
-        let r = [
-            p[0] as i64 - node_min[0],
-            p[1] as i64 - node_min[1],
-            p[2] as i64 - node_min[2],
-        ];
-        let c = |a: usize| (r[a] >> cell_shift) as u32;
-        ((c(0) << (2 * cell_bits)) | (c(1) << cell_bits) | c(2), r)
+    let grid = CellGrid::new(node_min, node_bits);
+    let cell_bits = node_bits - grid.shift;
+    let cell_of = |p: [i32; 3]| -> (u32, f32) {
+        let (c, dist) = grid.locate(p);
+        let c = c.map(|v| v as u32);
+        ((c[0] << (2 * cell_bits)) | (c[1] << cell_bits) | c[2], dist)
     };
     let mut keep = vec![false; candidates.len()];
     match method {
@@ -57,21 +88,13 @@ pub fn select(
             }
         }
         Sampling::Poisson => {
-            let half = if cell_shift == 0 {
-                0.0
-            } else {
-                (1u64 << cell_shift) as f32 / 2.0
-            };
-            let mask = (1i64 << cell_shift) - 1;
             // (cell << 32 | distance bits, candidate): non-negative f32 bits sort like the
             // floats, so sorting puts each cell's nearest-to-centre point first.
             let mut order: Vec<(u64, u32)> = candidates
                 .iter()
                 .enumerate()
                 .map(|(i, &idx)| {
-                    let (cell, r) = cell_of(pos[idx as usize]);
-                    let d = |a: usize| (r[a] & mask) as f32 + 0.5 - half;
-                    let dist = d(0) * d(0) + d(1) * d(1) + d(2) * d(2);
+                    let (cell, dist) = cell_of(pos[idx as usize]);
                     (((cell as u64) << 32) | dist.to_bits() as u64, i as u32)
                 })
                 .collect();
@@ -98,20 +121,12 @@ pub fn select_ordered(
     node_bits: u32,
     method: Sampling,
 ) -> Vec<bool> {
-    let cell_shift = node_bits.saturating_sub(GRID_CELLS_LOG2);
-    let mask = (1i64 << cell_shift) - 1;
-    let half = if cell_shift == 0 {
-        0.0
-    } else {
-        (1u64 << cell_shift) as f32 / 2.0
-    };
+    let grid = CellGrid::new(node_min, node_bits);
     let mut keep = vec![false; candidates.len()];
     let mut last = [i64::MIN; 3];
     let mut best: Option<(usize, f32)> = None;
     for (i, &idx) in candidates.iter().enumerate() {
-        let p = pos[idx as usize];
-        let r = [0, 1, 2].map(|a| p[a] as i64 - node_min[a]);
-        let cell = r.map(|v| v >> cell_shift);
+        let (cell, dist) = grid.locate(pos[idx as usize]);
         let new_cell = cell != last;
         if new_cell {
             if let Some((b, _)) = best.take() {
@@ -126,8 +141,6 @@ pub fn select_ordered(
                 }
             }
             Sampling::Poisson => {
-                let d = |a: usize| (r[a] & mask) as f32 + 0.5 - half;
-                let dist = d(0) * d(0) + d(1) * d(1) + d(2) * d(2);
                 if best.is_none_or(|(_, bd)| dist < bd) {
                     best = Some((i, dist));
                 }

@@ -232,3 +232,66 @@ impl<'a> TreeBuilder<'a> {
         out
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::synth::Rng;
+    use strata_format::decode_node;
+
+    /// A chunk of a 2^30-unit cube whose points crowd into a corner a few thousand units wide:
+    /// nodes far below the chunk hold more than LEAF_MAX points, finer than the chunk's sort
+    /// key can tell apart, so they must sort their own rows again.
+    #[test]
+    fn deep_dense_nodes_keep_every_point_once_and_sample_one_per_cell() {
+        let layout = RowLayout::new(Vec::new());
+        let cube = Cube {
+            min: [0, 0, 0],
+            bits: 30,
+        };
+        let mut rng = Rng::new(11, 0, 0);
+        let points: Vec<[i32; 3]> = (0..60_000)
+            .map(|_| [0, 1, 2].map(|_| (rng.unit() * 4096.0) as i32))
+            .collect();
+        let rows: Vec<u8> = points
+            .iter()
+            .flat_map(|p| p.iter().flat_map(|v| v.to_le_bytes()))
+            .collect();
+        for sampling in [Sampling::Poisson, Sampling::Random] {
+            let memory = ChunkMemory {
+                rows: rows.clone(),
+                ..ChunkMemory::default()
+            };
+            let mut builder = TreeBuilder::with_memory(memory, &layout, cube, sampling);
+            let root = builder.build_chunk(NodeKey::ROOT);
+            builder.finish(root);
+            let mut seen = Vec::new();
+            let mut deepest = 0;
+            for n in &builder.finished {
+                let cols = decode_node(&n.payload, n.point_count as usize, n.crc, &layout)
+                    .expect("decodes");
+                let (min, edge) = n.key.int_bounds(cube.min, cube.bits);
+                let cell = (edge >> GRID_CELLS_LOG2).max(1);
+                let mut cells = std::collections::HashSet::new();
+                for i in 0..cols.count {
+                    let p = cols.position(i);
+                    assert!(
+                        (0..3).all(|a| (p[a] as i64) >= min[a] && (p[a] as i64) < min[a] + edge)
+                    );
+                    if n.child_mask != 0 {
+                        let c = [0, 1, 2].map(|a| (p[a] as i64 - min[a]) / cell);
+                        assert!(cells.insert(c), "{:?}: two points in one cell", n.key);
+                    }
+                    seen.push(p);
+                }
+                deepest = deepest.max(n.key.level);
+            }
+            // 4096 units of a 2^30 cube: leaves sit below level 18, past the 12-bit key.
+            assert!(deepest > 18, "deepest level {deepest}");
+            let mut expect = points.clone();
+            expect.sort();
+            seen.sort();
+            assert_eq!(seen, expect, "{sampling:?}");
+        }
+    }
+}

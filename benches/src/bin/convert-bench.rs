@@ -10,11 +10,10 @@
 use anyhow::{Context, bail};
 use std::path::{Path, PathBuf};
 use std::time::Instant;
-use strata_bench::parse_count;
+use strata_bench::{convert_quietly, parse_count};
 use strata_converter::input::open_source;
 use strata_converter::synth::{Scene, synth};
 use strata_converter::sys::{format_bytes, parse_size};
-use strata_converter::{ConvertOptions, Sampling, convert};
 
 fn decode_only(path: &Path) -> anyhow::Result<(u64, f64)> {
     let start = Instant::now();
@@ -42,16 +41,11 @@ fn child(args: &[String]) -> anyhow::Result<()> {
     let [input, output, limit] = args else {
         bail!("child needs IN OUT LIMIT")
     };
-    let summary = convert(&ConvertOptions {
-        inputs: vec![PathBuf::from(input)],
-        output: PathBuf::from(output),
-        memory_limit: parse_size(limit).map_err(anyhow::Error::msg)?,
-        threads: std::thread::available_parallelism().map_or(1, |n| n.get()),
-        sampling: Sampling::Poisson,
-        overwrite: true,
-        resume: false,
-        quiet: true,
-    })?;
+    let summary = convert_quietly(
+        Path::new(input),
+        Path::new(output),
+        parse_size(limit).map_err(anyhow::Error::msg)?,
+    )?;
     println!("{}", serde_json::to_string(&summary)?);
     Ok(())
 }

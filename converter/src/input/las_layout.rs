@@ -325,7 +325,7 @@ pub fn record_to_row(ops: &[FieldOp], record: &[u8], row: &mut [u8]) {
                 record: r,
                 row: w,
                 len,
-            } => row[w..w + len].copy_from_slice(&record[r..r + len]),
+            } => copy_field(&mut row[w..w + len], &record[r..r + len]),
             FieldOp::Bits {
                 record: r,
                 shift,
@@ -333,6 +333,19 @@ pub fn record_to_row(ops: &[FieldOp], record: &[u8], row: &mut [u8]) {
                 row: w,
             } => row[w] = (record[r] >> shift) & mask,
         }
+    }
+}
+
+/// `dst.copy_from_slice(src)` with the common field sizes as single moves (a copy of unknown
+/// length is a call to memmove, which dominated per-record conversion).
+#[inline]
+fn copy_field(dst: &mut [u8], src: &[u8]) {
+    match dst.len() {
+        1 => dst[0] = src[0],
+        2 => dst.copy_from_slice(&src[..2]),
+        4 => dst.copy_from_slice(&src[..4]),
+        8 => dst.copy_from_slice(&src[..8]),
+        _ => dst.copy_from_slice(src),
     }
 }
 
