@@ -472,7 +472,7 @@ fn fly_through_writes_numbered_frames_with_stats() {
 fn bad_arguments_get_one_clear_sentence() {
     let dataset = fixtures().join("autzen.strata");
     let out = fixtures().join("never.png");
-    let cases: [(&[&str], &str); 6] = [
+    let cases: [(&[&str], &str); 7] = [
         (
             &["render", "/nonexistent/set.strata", "-o", s(&out)],
             "/nonexistent/set.strata",
@@ -494,6 +494,17 @@ fn bad_arguments_get_one_clear_sentence() {
             "--budget",
         ),
         (&["render", s(&dataset), "-o", s(&out), "--s0=-1"], "--s0"),
+        (
+            &[
+                "render",
+                s(&dataset),
+                "-o",
+                s(&out),
+                "--pass-clock",
+                "sundial",
+            ],
+            "sundial",
+        ),
     ];
     for (args, needle) in cases {
         let o = gpu_run(args);
@@ -741,6 +752,38 @@ fn pyramid_fills_the_holes_of_sparse_points_and_times_its_passes() {
             );
         }
     }
+    // By the wall clock every pass is timed, and the passes, run one after another inside
+    // the frame, take no longer than the frame.
+    let (st, _) = render_stats(
+        &dataset,
+        "pyramid-wall",
+        &[
+            size[0],
+            size[1],
+            "--pipeline",
+            "pyramid",
+            "--pass-clock",
+            "wall",
+        ],
+    );
+    let frame = &st["frames"][0];
+    assert_eq!(frame["pass_clock"], "wall");
+    let passes = frame["passes"].as_object().expect("passes");
+    for name in [
+        "clear", "project", "resolve", "pyramid", "hpr", "pull", "push", "normals",
+    ] {
+        let ms = passes.get(name).and_then(|v| v.as_f64());
+        assert!(
+            ms.is_some_and(|v| v.is_finite() && v > 0.0),
+            "pass {name}: {ms:?} in {passes:?}"
+        );
+    }
+    let sum: f64 = passes.values().filter_map(|v| v.as_f64()).sum();
+    let frame_ms = frame["frame_ms"].as_f64().expect("frame_ms");
+    assert!(
+        sum <= frame_ms,
+        "passes {sum} ms in a frame of {frame_ms} ms"
+    );
     // A given s0 is used as given, and a tenfold larger one changes the picture.
     let (st, big_png) = render_stats(
         &dataset,

@@ -2,7 +2,7 @@
 
 use anyhow::Context;
 use strata_viewer::gpu::ProjectionPath;
-use strata_viewer::settings::{MAX_BUDGET, MIN_BUDGET, SizeMode};
+use strata_viewer::settings::{MAX_BUDGET, MIN_BUDGET, PassClock, SizeMode};
 use strata_viewer::{ColourMode, Pipeline, Settings};
 
 #[derive(Debug, clap::Args)]
@@ -39,6 +39,11 @@ pub struct ViewArgs {
     /// Resolve and shade in separate passes instead of the fused one (to compare them).
     #[arg(long)]
     pub separate_passes: bool,
+    /// Clock for the per-pass GPU times: auto (the wall clock on CPU adapters such as
+    /// lavapipe, whose timestamps misplace work), timestamps, or wall (each pass submitted
+    /// alone and waited for).
+    #[arg(long, default_value = "auto")]
+    pub pass_clock: String,
     /// Bearer token for a dataset served with `strata serve --token`.
     #[arg(long)]
     pub token: Option<String>,
@@ -74,6 +79,7 @@ impl ViewArgs {
             },
             colour: ColourMode::parse(&self.colour).context("--colour")?,
             fused_finish: !self.separate_passes,
+            pass_clock: PassClock::parse(&self.pass_clock).context("--pass-clock")?,
             ..Settings::default()
         })
     }

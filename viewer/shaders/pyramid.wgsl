@@ -3,8 +3,9 @@
 // one buffer; `pyr.table[l]` gives the level's offset, width and height.
 
 struct Pyramid {
-    // tan of half the horizontal and vertical field of view.
-    tan_half: vec2<f32>,
+    // Level-0 pixel coordinates to view-space x/y at depth 1: px * pixel_scale + pixel_bias.
+    pixel_scale: vec2<f32>,
+    pixel_bias: vec2<f32>,
     far: f32,
     // s_hpr * focal length in pixels: the HPR neighbourhood level at depth z is log2(hpr_scale / z).
     hpr_scale: f32,
@@ -13,6 +14,7 @@ struct Pyramid {
     threshold: f32,
     levels: u32,
     coarse_level: u32,
+    pad: vec2<u32>,
     table: array<vec4<u32>, 16>,
 }
 
@@ -29,7 +31,7 @@ struct Level {
 // The projection's nearest depth per pixel and the colour resolved for it.
 @group(1) @binding(0) var<storage, read> depths: array<u32>;
 @group(1) @binding(1) var<storage, read> colours: array<u32>;
-// Min-depth point pyramid: (depth bits, level-0 pixel of the point).
+// Min-depth point pyramid: (depth bits, level-0 pixel of the point as x | y << 16).
 @group(1) @binding(2) var<storage, read_write> pts: array<vec2<u32>>;
 // Pull-push pyramid: (depth, weight) and colour.
 @group(1) @binding(3) var<storage, read_write> fill: array<vec2<f32>>;
@@ -57,14 +59,18 @@ fn level_size(l: u32) -> vec2<u32> {
 
 // The view-space point at level-0 pixel coordinates `px` (pixel centres at .5) and linear depth d.
 fn view_point(px: vec2<f32>, d: f32) -> vec3<f32> {
-    let size = vec2<f32>(f32(frame.width), f32(frame.height));
-    let ndc = vec2<f32>(px.x / size.x * 2.0 - 1.0, 1.0 - px.y / size.y * 2.0);
-    return vec3<f32>(ndc * pyr.tan_half * d, -d);
+    return vec3<f32>((px * pyr.pixel_scale + pyr.pixel_bias) * d, -d);
 }
 
-// The view-space point of a point-pyramid entry.
+// 16 bits a coordinate: no adapter allows textures 65536 pixels wide.
+fn pack_pixel(p: vec2<u32>) -> u32 {
+    return p.x | (p.y << 16u);
+}
+
+// The view-space point of a point-pyramid entry. The pixel is packed, not a linear index: the
+// HPR pass unpacks eight of them per level per pixel, and a division costs far more than a shift.
 fn entry_point(e: vec2<u32>) -> vec3<f32> {
-    let p = vec2<f32>(f32(e.y % frame.width), f32(e.y / frame.width)) + 0.5;
+    let p = vec2<f32>(vec2<u32>(e.y & 0xffffu, e.y >> 16u)) + 0.5;
     return view_point(p, bitcast<f32>(e.x));
 }
 

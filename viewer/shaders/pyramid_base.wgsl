@@ -6,5 +6,5 @@ fn main(@builtin(global_invocation_id) id: vec3<u32>) {
     }
     let i = id.y * frame.width + id.x;
     let d = depths[i];
-    pts[i] = vec2<u32>(select(d, bitcast<u32>(pyr.far), d == EMPTY), i);
+    pts[i] = vec2<u32>(select(d, bitcast<u32>(pyr.far), d == EMPTY), pack_pixel(id.xy));
 }

@@ -247,6 +247,9 @@ impl ViewerApp {
                 format!("{:.0} MiB", s.gpu_bytes as f64 / (1 << 20) as f64),
             );
             row("I/O", format!("{:.1} MB/s", self.io_rate / 1e6));
+            if !s.passes.is_empty() {
+                row("pass clock", s.pass_clock.to_string());
+            }
             for (pass, ms) in &s.passes {
                 row(&format!("GPU {pass}"), format!("{ms:.2} ms"));
             }

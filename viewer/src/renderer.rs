@@ -10,7 +10,7 @@ use crate::gpu::cache::{InsertError, NodeCache};
 use crate::gpu::passes::{ArenaDraw, FrameDraw, FrameUniforms, GpuRange, Passes, Screen};
 use crate::gpu::pyramid::PyramidFrame;
 use crate::gpu::readback::{read_buffer, read_texture};
-use crate::gpu::timing::Timer;
+use crate::gpu::timing::{PassClock, Timer};
 use crate::loader::{Done, Job, JobKey, Loader};
 use crate::lod::{Selection, SelectionParams, Tree, clip_range, drawn_spacing, select};
 use crate::settings::{Pipeline, Settings, SizeMode};
@@ -28,8 +28,11 @@ pub struct FrameStats {
     pub nodes_drawn: usize,
     /// CPU time of the frame, including waiting for the GPU where the caller waited.
     pub frame_ms: f64,
-    /// GPU ms per pass (from timestamp queries; empty where the adapter has none).
+    /// GPU ms per pass, by `pass_clock`.
     pub passes: BTreeMap<String, f64>,
+    /// "timestamps" (queries inside the frame) or "wall" (each pass submitted alone and
+    /// waited for).
+    pub pass_clock: &'static str,
     /// Stored bytes that arrived from the loaders during this frame.
     pub bytes_loaded: u64,
     pub bytes_loaded_total: u64,
@@ -238,6 +241,11 @@ impl Renderer {
             nodes_drawn: sel.draw.len(),
             frame_ms: start.elapsed().as_secs_f64() * 1e3,
             passes: self.timer.last().clone(),
+            pass_clock: if self.wall_clock(settings) {
+                PassClock::Wall.name()
+            } else {
+                PassClock::Timestamps.name()
+            },
             bytes_loaded: bytes,
             bytes_loaded_total: self.bytes_total,
             nodes_failed: self.failed.len(),
@@ -396,7 +404,7 @@ impl Renderer {
             .create_command_encoder(&wgpu::CommandEncoderDescriptor {
                 label: Some("frame"),
             });
-        self.timer.begin_frame();
+        self.timer.begin_frame(self.wall_clock(settings));
         self.last_int64 = screen.keys.is_some() && !settings.force_int32;
         self.last_pyramid = pyramid;
         let focal_px = camera.focal_px(height);
@@ -426,6 +434,18 @@ impl Renderer {
         self.timer.after_submit();
         // Non-blocking: lets map callbacks of earlier frames run.
         let _ = self.ctx.device.poll(wgpu::PollType::Poll);
+    }
+
+    /// Whether `settings` time the passes by the wall clock on this adapter.
+    fn wall_clock(&self, settings: &Settings) -> bool {
+        match settings.pass_clock {
+            PassClock::Wall => true,
+            PassClock::Timestamps => false,
+            PassClock::Auto => {
+                !self.ctx.timestamps
+                    || self.ctx.adapter.get_info().device_type == wgpu::DeviceType::Cpu
+            }
+        }
     }
 
     /// Waits for the GPU to finish the submitted work (headless and benchmarks).

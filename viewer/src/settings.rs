@@ -2,6 +2,7 @@
 //! the command line.
 
 use crate::ViewerError;
+pub use crate::gpu::timing::PassClock;
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Pipeline {
@@ -105,6 +106,8 @@ pub struct Settings {
     pub s0: Option<f32>,
     /// Eye-dome lighting on top of the pyramid pipeline's shading.
     pub pyramid_edl: bool,
+    /// The clock the per-pass GPU times are taken with.
+    pub pass_clock: PassClock,
 }
 
 impl Default for Settings {
@@ -124,6 +127,7 @@ impl Default for Settings {
             force_int32: false,
             s0: None,
             pyramid_edl: false,
+            pass_clock: PassClock::Auto,
         }
     }
 }

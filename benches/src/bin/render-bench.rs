@@ -3,13 +3,15 @@
 //! several point budgets.
 //!
 //! cargo run --release -p strata-bench --bin render-bench -- [--points 100M] [--budgets 1M,5M,20M]
-//!     [--size 1280x720] [--frames 10] [--detail 1.0] [--dataset DIR]
+//!     [--size 1280x720] [--frames 10] [--detail 1.0] [--dataset DIR] [--pipeline edl]
+//!     [--separate-passes] [--pass-clock auto|timestamps|wall] [--camera "eye=..;target=..;fov=.."]
 //!
 //! Each budget runs in a child process, so its peak memory is its own. The adapter is whatever
 //! wgpu picks (WGPU_BACKEND=vulkan for lavapipe on machines without a GPU).
 
 use anyhow::{Context, bail};
 use serde::{Deserialize, Serialize};
+use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 use std::time::{Duration, Instant};
@@ -17,7 +19,8 @@ use strata_bench::{bench_dir, ensure_city_dataset, parse_count};
 use strata_converter::sys::peak_rss_bytes;
 use strata_viewer::gpu::{GpuContext, ProjectionPath};
 use strata_viewer::headless::default_camera;
-use strata_viewer::{Pipeline, Renderer, Settings, StreamDataset};
+use strata_viewer::settings::PassClock;
+use strata_viewer::{Camera, Pipeline, Renderer, Settings, StreamDataset};
 
 #[derive(Debug, Serialize, Deserialize)]
 struct Run {
@@ -37,6 +40,9 @@ struct Run {
     steady_median_ms: f64,
     steady_gpu_ms: f64,
     project_ms: f64,
+    /// Median ms per pass over the steady frames.
+    passes: BTreeMap<String, f64>,
+    pass_clock: String,
     points_drawn: u64,
     nodes_drawn: usize,
     peak_rss: u64,
@@ -51,8 +57,20 @@ fn median(v: &mut [f64]) -> f64 {
 }
 
 fn child(args: &[String]) -> anyhow::Result<()> {
-    let [dataset, budget, w, h, frames, detail, pipeline, fused] = args else {
-        bail!("child needs DATASET BUDGET W H FRAMES DETAIL PIPELINE FUSED")
+    let [
+        dataset,
+        budget,
+        w,
+        h,
+        frames,
+        detail,
+        pipeline,
+        fused,
+        clock,
+        camera,
+    ] = args
+    else {
+        bail!("child needs DATASET BUDGET W H FRAMES DETAIL PIPELINE FUSED CLOCK CAMERA")
     };
     let (w, h): (u32, u32) = (w.parse()?, h.parse()?);
     let frames: usize = frames.parse()?;
@@ -61,12 +79,16 @@ fn child(args: &[String]) -> anyhow::Result<()> {
     let ctx = Arc::new(GpuContext::new(ProjectionPath::Auto)?);
     let mut r = Renderer::new(ctx.clone(), ds.clone(), 6 << 30, 4)?;
     let open_ms = t0.elapsed().as_secs_f64() * 1e3;
-    let camera = default_camera(&ds, w, h);
+    let camera = match camera.as_str() {
+        "" => default_camera(&ds, w, h),
+        spec => Camera::parse(spec, ds.anchor(), default_camera(&ds, w, h))?,
+    };
     let settings = Settings {
         budget: budget.parse()?,
         min_spacing_px: detail.parse()?,
         pipeline: Pipeline::parse(pipeline)?,
         fused_finish: fused == "fused",
+        pass_clock: PassClock::parse(clock)?,
         ..Settings::default()
     };
     // Streaming, paced like a 60 Hz window.
@@ -95,6 +117,7 @@ fn child(args: &[String]) -> anyhow::Result<()> {
     let mut steady = Vec::new();
     let mut gpu = Vec::new();
     let mut project = Vec::new();
+    let mut per_pass: BTreeMap<String, Vec<f64>> = BTreeMap::new();
     let mut last = None;
     for _ in 0..frames.max(1) {
         let start = Instant::now();
@@ -102,6 +125,9 @@ fn child(args: &[String]) -> anyhow::Result<()> {
         r.wait_gpu()?;
         steady.push(start.elapsed().as_secs_f64() * 1e3);
         let passes = r.pass_times();
+        for (name, ms) in &passes {
+            per_pass.entry(name.clone()).or_default().push(*ms);
+        }
         gpu.push(passes.values().sum());
         project.push(
             passes
@@ -149,6 +175,11 @@ fn child(args: &[String]) -> anyhow::Result<()> {
         steady_median_ms: median(&mut steady),
         steady_gpu_ms: median(&mut gpu),
         project_ms: median(&mut project),
+        passes: per_pass
+            .into_iter()
+            .map(|(name, mut v)| (name, median(&mut v)))
+            .collect(),
+        pass_clock: last.pass_clock.to_string(),
         points_drawn: last.points_drawn,
         nodes_drawn: last.nodes_drawn,
         peak_rss: peak_rss_bytes().unwrap_or(0),
@@ -169,6 +200,8 @@ fn main() -> anyhow::Result<()> {
     let mut detail = "1.0".to_string();
     let mut pipeline = "edl".to_string();
     let mut fused = "fused";
+    let mut clock = "auto".to_string();
+    let mut camera = String::new();
     let mut dataset: Option<PathBuf> = None;
     let mut it = args.iter();
     while let Some(a) = it.next() {
@@ -190,6 +223,8 @@ fn main() -> anyhow::Result<()> {
             "--detail" => detail = value()?.clone(),
             "--pipeline" => pipeline = value()?.clone(),
             "--separate-passes" => fused = "separate",
+            "--pass-clock" => clock = value()?.clone(),
+            "--camera" => camera = value()?.clone(),
             "--dataset" => dataset = Some(PathBuf::from(value()?)),
             other => bail!("unknown argument {other}"),
         }
@@ -213,6 +248,8 @@ fn main() -> anyhow::Result<()> {
                 detail.clone(),
                 pipeline.clone(),
                 fused.to_string(),
+                clock.clone(),
+                camera.clone(),
             ])
             .output()?;
         if !out.status.success() {
@@ -227,6 +264,7 @@ fn main() -> anyhow::Result<()> {
         runs.push(run);
     }
     let adapter = runs.first().map_or("?", |r| r.adapter.as_str());
+    let clock = runs.first().map_or("?", |r| r.pass_clock.as_str());
     println!(
         "\n{} points ({} nodes), {}x{}, pipeline {} ({} passes), detail {} px, adapter {} ({}), {} cores\n",
         meta.metadata().points,
@@ -241,7 +279,7 @@ fn main() -> anyhow::Result<()> {
         std::thread::available_parallelism().map_or(1, |n| n.get()),
     );
     println!(
-        "| budget | points drawn | nodes | open ms | first image ms | complete ms | filling: frame median / max ms | flying: frame median / max ms, MB loaded | frame ms (complete) | points/s (whole frame) | GPU ms (timestamps) | project ms (timestamps) | peak RSS |"
+        "| budget | points drawn | nodes | open ms | first image ms | complete ms | filling: frame median / max ms | flying: frame median / max ms, MB loaded | frame ms (complete) | points/s (whole frame) | GPU ms ({clock}) | project ms ({clock}) | peak RSS |"
     );
     println!("|---|---|---|---|---|---|---|---|---|---|---|---|---|");
     for r in &runs {
@@ -265,6 +303,15 @@ fn main() -> anyhow::Result<()> {
             r.project_ms,
             r.peak_rss as f64 / (1 << 20) as f64,
         );
+    }
+    println!("\nMedian ms per pass ({clock} clock), complete view:\n");
+    for r in &runs {
+        let passes: Vec<String> = r
+            .passes
+            .iter()
+            .map(|(name, ms)| format!("{name} {ms:.2}"))
+            .collect();
+        println!("- budget {}: {}", r.budget, passes.join(", "));
     }
     Ok(())
 }

@@ -332,9 +332,10 @@ impl Passes {
                 Some(k) => vec![k],
                 None => vec![&screen.depths, &screen.indices],
             };
+            let timestamp_writes = timer.pass(encoder, "clear");
             let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
                 label: Some("clear"),
-                timestamp_writes: timer.pass("clear"),
+                timestamp_writes,
             });
             pass.set_pipeline(&self.clear);
             for t in targets {
@@ -357,9 +358,10 @@ impl Passes {
         let mut project =
             |name: &str, pipe: &wgpu::ComputePipeline, frame_buffers: &[&wgpu::Buffer]| {
                 let fb = frame_bind(pipe, frame_buffers);
+                let timestamp_writes = timer.pass(encoder, name);
                 let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
                     label: Some(name),
-                    timestamp_writes: timer.pass(name),
+                    timestamp_writes,
                 });
                 pass.set_pipeline(pipe);
                 pass.set_bind_group(0, &fb, &[]);
@@ -442,9 +444,10 @@ impl Passes {
             } else {
                 "finish"
             };
+            let timestamp_writes = timer.pass(encoder, name);
             let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
                 label: Some(name),
-                timestamp_writes: timer.pass(name),
+                timestamp_writes,
             });
             pass.set_pipeline(finish);
             pass.set_bind_group(0, &fb, &[]);
@@ -454,9 +457,10 @@ impl Passes {
         }
         if let (Some(unpack), Some(keys)) = (&self.unpack, keys) {
             let fb = frame_bind(unpack, &[keys, &screen.depths, &screen.indices]);
+            let timestamp_writes = timer.pass(encoder, "unpack");
             let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
                 label: Some("unpack"),
-                timestamp_writes: timer.pass("unpack"),
+                timestamp_writes,
             });
             pass.set_pipeline(unpack);
             pass.set_bind_group(0, &fb, &[]);
@@ -469,9 +473,10 @@ impl Passes {
                 &self.resolve,
                 &[&screen.depths, &screen.indices, &screen.colours],
             );
+            let timestamp_writes = timer.pass(encoder, "resolve");
             let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
                 label: Some("resolve"),
-                timestamp_writes: timer.pass("resolve"),
+                timestamp_writes,
             });
             pass.set_pipeline(&self.resolve);
             pass.set_bind_group(0, &fb, &[]);
@@ -532,9 +537,10 @@ impl Passes {
             } else {
                 "shade"
             };
+            let timestamp_writes = timer.pass(encoder, name);
             let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
                 label: Some(name),
-                timestamp_writes: timer.pass(name),
+                timestamp_writes,
             });
             pass.set_pipeline(&self.shade);
             pass.set_bind_group(0, &bg, &[]);

@@ -35,13 +35,15 @@ pub struct PyramidFrame {
 #[repr(C)]
 #[derive(Debug, Clone, Copy, Pod, Zeroable)]
 struct PyramidUniforms {
-    tan_half: [f32; 2],
+    pixel_scale: [f32; 2],
+    pixel_bias: [f32; 2],
     far: f32,
     hpr_scale: f32,
     normal_scale: f32,
     threshold: f32,
     levels: u32,
     coarse_level: u32,
+    pad: [u32; 2],
     table: [[u32; 4]; MAX_LEVELS],
 }
 
@@ -251,14 +253,17 @@ impl PyramidPasses {
     ) {
         let top = t.levels.len() as u32 - 1;
         let tan_y = (frame.fov_y * 0.5).tan();
+        let tan_x = tan_y * t.width as f32 / t.height.max(1) as f32;
         let mut params = PyramidUniforms {
-            tan_half: [tan_y * t.width as f32 / t.height.max(1) as f32, tan_y],
+            pixel_scale: [2.0 * tan_x / t.width as f32, -2.0 * tan_y / t.height as f32],
+            pixel_bias: [-tan_x, tan_y],
             far: frame.far,
             hpr_scale: HPR_SCALE_S0 * frame.s0 * frame.focal_px,
             normal_scale: NORMAL_SCALE_S0 * frame.s0 * frame.focal_px,
             threshold: HPR_THRESHOLD,
             levels: t.levels.len() as u32,
             coarse_level: COARSE_LEVEL.min(top),
+            pad: [0; 2],
             table: [[0; 4]; MAX_LEVELS],
         };
         for (slot, l) in params.table.iter_mut().zip(&t.levels) {
@@ -323,9 +328,10 @@ impl PyramidPasses {
         };
         let mut run =
             |name: &str, pipe: &wgpu::ComputePipeline, steps: &mut dyn Iterator<Item = usize>| {
+                let timestamp_writes = timer.pass(encoder, name);
                 let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
                     label: Some(name),
-                    timestamp_writes: timer.pass(name),
+                    timestamp_writes,
                 });
                 pass.set_pipeline(pipe);
                 pass.set_bind_group(1, &data, &[]);

@@ -1,9 +1,46 @@
-//! GPU time per pass from timestamp queries, read back without stalling the frame: results
-//! arrive a frame or two later in a window, at once when the caller waits for the GPU.
+//! GPU time per pass, by one of two clocks. Timestamp queries are read back without stalling
+//! the frame: results arrive a frame or two later in a window, at once when the caller waits
+//! for the GPU. The wall clock submits every pass alone and waits for it, for adapters whose
+//! timestamps do not bracket the work: lavapipe runs a dispatch asynchronously after its pass
+//! has ended, so its timestamps charge a pass's work to whichever later pass waits for it.
 
+use crate::ViewerError;
 use std::collections::BTreeMap;
 use std::sync::Arc;
 use std::sync::atomic::{AtomicU8, Ordering};
+use std::time::Instant;
+
+/// Which clock times the passes.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum PassClock {
+    /// The wall clock on CPU adapters, timestamp queries elsewhere.
+    Auto,
+    /// Timestamp queries inside one submission per frame.
+    Timestamps,
+    /// Each pass submitted alone and waited for; slows the frame by one round trip per pass.
+    Wall,
+}
+
+impl PassClock {
+    pub const ALL: [PassClock; 3] = [PassClock::Auto, PassClock::Timestamps, PassClock::Wall];
+
+    pub fn name(self) -> &'static str {
+        match self {
+            PassClock::Auto => "auto",
+            PassClock::Timestamps => "timestamps",
+            PassClock::Wall => "wall",
+        }
+    }
+
+    pub fn parse(s: &str) -> Result<PassClock, ViewerError> {
+        PassClock::ALL
+            .into_iter()
+            .find(|c| c.name() == s)
+            .ok_or_else(|| {
+                ViewerError::argument(s, "unknown pass clock (expected auto, timestamps or wall)")
+            })
+    }
+}
 
 const MAX_PASSES: u32 = 16;
 const IDLE: u8 = 0;
@@ -12,6 +49,12 @@ const MAPPED: u8 = 2;
 
 pub struct Timer {
     queries: Option<Queries>,
+    device: wgpu::Device,
+    queue: wgpu::Queue,
+    /// This frame's passes are timed by the wall clock.
+    wall: bool,
+    /// Under the wall clock: the pass submitted last and when the GPU was idle before it.
+    open: Option<(String, Instant)>,
     names: Vec<String>,
     /// Names of the passes in the readback buffer while it is being mapped.
     in_readback: Vec<String>,
@@ -54,18 +97,38 @@ impl Timer {
         });
         Timer {
             queries,
+            device: device.clone(),
+            queue: queue.clone(),
+            wall: false,
+            open: None,
             names: Vec::new(),
             in_readback: Vec::new(),
             last: BTreeMap::new(),
         }
     }
 
-    pub fn begin_frame(&mut self) {
+    /// `wall`: time this frame's passes by the wall clock.
+    pub fn begin_frame(&mut self, wall: bool) {
         self.names.clear();
+        self.wall = wall;
+        if wall {
+            self.last.clear();
+        }
     }
 
-    /// Timestamp writes for a pass named `name`, when timing is available this frame.
-    pub fn pass(&mut self, name: &str) -> Option<wgpu::ComputePassTimestampWrites<'_>> {
+    /// Call before encoding a pass named `name` into `encoder`: the timestamp writes for it,
+    /// when timestamps time this frame. Under the wall clock it submits what `encoder` holds
+    /// and waits, so the pass starts on an idle GPU.
+    pub fn pass(
+        &mut self,
+        encoder: &mut wgpu::CommandEncoder,
+        name: &str,
+    ) -> Option<wgpu::ComputePassTimestampWrites<'_>> {
+        if self.wall {
+            self.submit_and_wait(encoder);
+            self.open = Some((name.to_string(), Instant::now()));
+            return None;
+        }
         let q = self.queries.as_ref()?;
         if q.state.load(Ordering::Acquire) != IDLE || self.names.len() as u32 >= MAX_PASSES {
             return None;
@@ -79,8 +142,30 @@ impl Timer {
         })
     }
 
-    /// After the passes: resolve the queries into the readback buffer.
+    /// Submits the passes encoded so far, waits for them, and charges the time since the last
+    /// pass began to that pass.
+    fn submit_and_wait(&mut self, encoder: &mut wgpu::CommandEncoder) {
+        let fresh = self
+            .device
+            .create_command_encoder(&wgpu::CommandEncoderDescriptor {
+                label: Some("frame"),
+            });
+        let done = std::mem::replace(encoder, fresh);
+        self.queue.submit([done.finish()]);
+        // A failed wait leaves the time short; the frame's own wait reports the failure.
+        let _ = self.device.poll(wgpu::PollType::wait_indefinitely());
+        if let Some((name, start)) = self.open.take() {
+            *self.last.entry(name).or_insert(0.0) += start.elapsed().as_secs_f64() * 1e3;
+        }
+    }
+
+    /// After the passes: under the wall clock, finish timing the last pass; with timestamps,
+    /// resolve the queries into the readback buffer.
     pub fn resolve(&mut self, encoder: &mut wgpu::CommandEncoder) {
+        if self.wall {
+            self.submit_and_wait(encoder);
+            return;
+        }
         let Some(q) = &self.queries else { return };
         if self.names.is_empty() || q.state.load(Ordering::Acquire) != IDLE {
             return;
@@ -115,7 +200,9 @@ impl Timer {
         if q.state.load(Ordering::Acquire) != MAPPED {
             return;
         }
-        if let Ok(data) = q.readback.slice(..).get_mapped_range() {
+        // A readback left from a timestamped frame does not describe a wall-clock one.
+        if self.wall {
+        } else if let Ok(data) = q.readback.slice(..).get_mapped_range() {
             let stamps: &[u64] = bytemuck::cast_slice(&data);
             self.last.clear();
             for (i, name) in self.in_readback.iter().enumerate() {
