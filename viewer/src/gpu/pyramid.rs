@@ -15,8 +15,10 @@ pub const HPR_THRESHOLD: f32 = 0.1;
 /// The pyramid level whose min depth decides each pixel's HPR neighbourhood (the paper's 4th).
 pub const COARSE_LEVEL: u32 = 4;
 /// Radius of the surface the normals are estimated over, in multiples of s0. The paper leaves
-/// it open; four sample spacings smooth scanner noise without rounding off edges much.
-pub const NORMAL_SCALE_S0: f32 = 4.0;
+/// it open. Measured with the quality harness (960x720): on the real bunny scans 4·s0 gives
+/// 21.5 dB / SSIM 0.74, 8·s0 21.8 dB / 0.82, 12·s0 20.7 dB / 0.75; on the noisy sampled meshes
+/// SSIM keeps rising with the radius, at the cost of rounded edges on clean ones.
+pub const NORMAL_SCALE_S0: f32 = 8.0;
 const MAX_LEVELS: usize = 16;
 
 /// The headlight Blinn-Phong the pipeline shades with, for renderers that must match it.

@@ -201,8 +201,9 @@ impl Timer {
             return;
         }
         // A readback left from a timestamped frame does not describe a wall-clock one.
-        if self.wall {
-        } else if let Ok(data) = q.readback.slice(..).get_mapped_range() {
+        if !self.wall
+            && let Ok(data) = q.readback.slice(..).get_mapped_range()
+        {
             let stamps: &[u64] = bytemuck::cast_slice(&data);
             self.last.clear();
             for (i, name) in self.in_readback.iter().enumerate() {
