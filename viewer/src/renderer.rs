@@ -66,6 +66,8 @@ pub struct Renderer {
     passes: Passes,
     screen: Option<Screen>,
     timer: Timer,
+    /// `PassClock::Auto` means the wall clock here: a CPU adapter, or no timestamp queries.
+    auto_wall_clock: bool,
     failed: HashSet<NodeKey>,
     pages_failed: usize,
     errors: Vec<String>,
@@ -101,6 +103,8 @@ impl Renderer {
         let cache = NodeCache::new(ctx.max_binding(), gpu_cache_bytes);
         let passes = Passes::new(&ctx);
         let timer = Timer::new(&ctx.device, &ctx.queue, ctx.timestamps);
+        let auto_wall_clock =
+            !ctx.timestamps || ctx.adapter.get_info().device_type == wgpu::DeviceType::Cpu;
         Ok(Renderer {
             ctx,
             ds,
@@ -110,6 +114,7 @@ impl Renderer {
             passes,
             screen: None,
             timer,
+            auto_wall_clock,
             failed: HashSet::new(),
             pages_failed: 0,
             errors: Vec::new(),
@@ -441,10 +446,7 @@ impl Renderer {
         match settings.pass_clock {
             PassClock::Wall => true,
             PassClock::Timestamps => false,
-            PassClock::Auto => {
-                !self.ctx.timestamps
-                    || self.ctx.adapter.get_info().device_type == wgpu::DeviceType::Cpu
-            }
+            PassClock::Auto => self.auto_wall_clock,
         }
     }
 

@@ -229,6 +229,8 @@ fn main() -> anyhow::Result<()> {
             other => bail!("unknown argument {other}"),
         }
     }
+    // Checked here once rather than failing in every budget's child.
+    PassClock::parse(&clock)?;
     let dataset = match dataset {
         Some(d) => d,
         None => ensure_city_dataset(points, &bench_dir())?,
