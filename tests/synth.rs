@@ -63,3 +63,48 @@ fn ply_and_terrain_outputs_convert() {
     let v: serde_json::Value = serde_json::from_slice(&o.stdout).expect("json");
     assert_eq!(v["points"], 20000);
 }
+
+#[test]
+fn noise_moves_every_point_by_about_its_deviation_and_nothing_else() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let exact = dir.path().join("exact.las");
+    let noisy = dir.path().join("noisy.las");
+    run_ok(&["synth", "--points", "20k", "-o", s(&exact)]);
+    run_ok(&[
+        "synth",
+        "--points",
+        "20k",
+        "--noise",
+        "0.05",
+        "-o",
+        s(&noisy),
+    ]);
+    // Points keep their order; LAS integers are millimetres.
+    let (a, b) = (las_points(&exact).0, las_points(&noisy).0);
+    assert_eq!(a.len(), b.len());
+    let mut squares = 0.0;
+    for (p, q) in a.iter().zip(&b) {
+        assert_eq!(p.1, q.1, "noise changed an attribute");
+        for c in 0..3 {
+            squares += ((q.0[c] - p.0[c]) as f64 * 0.001).powi(2);
+        }
+    }
+    let deviation = (squares / (3 * a.len()) as f64).sqrt();
+    assert!(
+        (deviation - 0.05).abs() < 0.005,
+        "deviation {deviation} m for --noise 0.05"
+    );
+    let bad = run(&[
+        "synth",
+        "--points",
+        "1k",
+        "--noise=-1",
+        "-o",
+        s(&noisy),
+        "--overwrite",
+    ]);
+    assert!(!bad.status.success());
+    let stderr = String::from_utf8_lossy(&bad.stderr);
+    assert!(stderr.contains("--noise"), "{stderr}");
+    assert!(!stderr.contains("panicked"), "{stderr}");
+}

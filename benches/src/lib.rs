@@ -34,7 +34,7 @@ pub fn ensure_city_dataset(points: u64, dir: &Path) -> anyhow::Result<PathBuf> {
     let las = dir.join(format!("city_{points}.las"));
     if !las.exists() {
         eprintln!("synthesizing {points} points -> {}", las.display());
-        synth(&las, points, Scene::City, 1, true)?;
+        synth(&las, points, Scene::City, 1, 0.0, true)?;
     }
     eprintln!("converting -> {}", dataset.display());
     convert_quietly(&las, &dataset, 2 << 30)?;

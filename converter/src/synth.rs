@@ -62,6 +62,12 @@ impl Rng {
     pub fn unit(&mut self) -> f64 {
         (self.next_u64() >> 11) as f64 / (1u64 << 53) as f64
     }
+    /// Standard normal, by Box-Muller.
+    pub fn gaussian(&mut self) -> f64 {
+        let u1 = self.unit().max(1e-12);
+        let u2 = self.unit();
+        (-2.0 * u1.ln()).sqrt() * (std::f64::consts::TAU * u2).cos()
+    }
 }
 
 struct Building {
@@ -234,10 +240,23 @@ pub fn synth_layout() -> RowLayout {
     RowLayout::new(las_fields(3, &[]).0)
 }
 
-/// Writes `points` points of `scene` to `output` (.las, .laz or .ply).
-pub fn synth(output: &Path, points: u64, scene: Scene, seed: u64, overwrite: bool) -> Result<()> {
+/// Writes `points` points of `scene` to `output` (.las, .laz or .ply), each moved by isotropic
+/// Gaussian noise of deviation `noise` metres (a scanner's ranging noise) when above 0.
+pub fn synth(
+    output: &Path,
+    points: u64,
+    scene: Scene,
+    seed: u64,
+    noise: f64,
+    overwrite: bool,
+) -> Result<()> {
     if points == 0 {
         return Err(ConvertError::Usage("--points must be at least 1".into()));
+    }
+    if !(noise >= 0.0 && noise.is_finite()) {
+        return Err(ConvertError::Usage(format!(
+            "--noise {noise} is not a deviation in metres (0 or more)"
+        )));
     }
     let layout = synth_layout();
     let world = World {
@@ -267,7 +286,15 @@ pub fn synth(output: &Path, points: u64, scene: Scene, seed: u64, overwrite: boo
             .enumerate()
             .for_each(|(k, row)| {
                 let i = start + k as u64;
-                let (p, class, rgb, intensity, ret, nret) = world.point(i);
+                let (mut p, class, rgb, intensity, ret, nret) = world.point(i);
+                let strip = (p[1] / 250.0).floor().max(0.0) as u16;
+                if noise > 0.0 {
+                    // A stream of its own: the noiseless scene stays the same file.
+                    let mut r = Rng::new(seed, i, 0x4015E);
+                    for c in &mut p {
+                        *c += noise * r.gaussian();
+                    }
+                }
                 for a in 0..3 {
                     let q = (p[a] / SCALE).round() as i32;
                     row[a * 4..a * 4 + 4].copy_from_slice(&q.to_le_bytes());
@@ -281,7 +308,6 @@ pub fn synth(output: &Path, points: u64, scene: Scene, seed: u64, overwrite: boo
                 for c in 0..3 {
                     row[o_rgb + 2 * c..o_rgb + 2 * c + 2].copy_from_slice(&rgb[c].to_le_bytes());
                 }
-                let strip = (p[1] / 250.0).floor().max(0.0) as u16;
                 row[o_psid..o_psid + 2].copy_from_slice(&strip.to_le_bytes());
             });
         writer.write_rows(&rows)?;

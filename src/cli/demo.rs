@@ -33,7 +33,7 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
     let las = dir.join("city.laz");
     let dataset = dir.join("city.strata");
     println!("1/4 synthesizing {} points -> {}", a.points, las.display());
-    synth(&las, a.points, Scene::City, 1, true)?;
+    synth(&las, a.points, Scene::City, 1, 0.0, true)?;
     println!("2/4 converting -> {}", dataset.display());
     let summary = convert(&ConvertOptions {
         inputs: vec![las],

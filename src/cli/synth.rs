@@ -16,6 +16,10 @@ pub struct Args {
     /// Seed: the same seed and arguments always give the same file.
     #[arg(long, default_value_t = 1)]
     seed: u64,
+    /// Gaussian noise added to every coordinate, as a deviation in metres (a scanner's
+    /// ranging noise; 0 leaves the scene exact).
+    #[arg(long, default_value_t = 0.0)]
+    noise: f64,
     /// Replace the output if it exists.
     #[arg(long)]
     overwrite: bool,
@@ -42,7 +46,7 @@ pub fn parse_count(s: &str) -> Result<u64, String> {
 pub fn run(a: Args) -> anyhow::Result<ExitCode> {
     let scene = Scene::parse(&a.scene).unwrap_or(Scene::City);
     let start = std::time::Instant::now();
-    synth(&a.output, a.points, scene, a.seed, a.overwrite)?;
+    synth(&a.output, a.points, scene, a.seed, a.noise, a.overwrite)?;
     let s = start.elapsed().as_secs_f64();
     println!(
         "wrote {} points ({} scene, seed {}) -> {} in {s:.2} s ({:.2} M points/s)",

@@ -38,7 +38,7 @@ pub fn s(p: &Path) -> &str {
 /// Every field of a LAS point that a round trip must keep, as comparable integers.
 pub type PointKey = ([i64; 3], [i64; 19]);
 
-fn las_points(path: &Path) -> (Vec<PointKey>, [f64; 3]) {
+pub fn las_points(path: &Path) -> (Vec<PointKey>, [f64; 3]) {
     let mut r = las::Reader::from_path(path).expect("readable LAS");
     let t = *r.header().transforms();
     let scale = [t.x.scale, t.y.scale, t.z.scale];

@@ -14,7 +14,10 @@ struct Pyramid {
     threshold: f32,
     levels: u32,
     coarse_level: u32,
-    pad: vec2<u32>,
+    s0: f32,
+    // The depth noise's normal level at depth z is 0.5 log2(noise_scale / z); written on the
+    // GPU by the noise estimate each frame, 0 before it.
+    noise_scale: f32,
     table: array<vec4<u32>, 16>,
 }
 

@@ -1,7 +1,8 @@
 // Deferred shading of the reconstructed surface: background where the HPR found visible
 // background, else the filled colour lit by the headlight with the normal interpolated between
-// the two pyramid levels nearest the pixel's normal radius (bilinear within each level). EDL
-// may darken it on top. Writes the output image and the per-pixel surface for readback.
+// the two pyramid levels nearest the pixel's normal radius, or the coarser level the frame's
+// depth noise calls for (bilinear within each level). EDL may darken it on top. Writes the
+// output image and the per-pixel surface for readback.
 
 fn pixel_depth(i: u32) -> u32 {
     if labels[i] == LABEL_BACKGROUND || fill[i].y < 1.0 {
@@ -47,7 +48,10 @@ fn main(@builtin(global_invocation_id) id: vec3<u32>) {
     let p = view_point(px, depth);
     let v = normalize(-p);
     let top = f32(pyr.levels - 1u);
-    let lambda = clamp(log2(max(pyr.normal_scale / depth, 1e-6)), 0.0, top);
+    // The level of the normal radius, or coarser where the depth noise needs more averaging.
+    let spacing_level = log2(max(pyr.normal_scale / depth, 1e-6));
+    let noise_level = 0.5 * log2(max(pyr.noise_scale / depth, 1e-12));
+    let lambda = clamp(max(spacing_level, noise_level), 0.0, top);
     let l0 = u32(floor(lambda));
     let l1 = min(l0 + 1u, pyr.levels - 1u);
     var n = mix(level_normal(l0, px), level_normal(l1, px), lambda - f32(l0));

@@ -154,6 +154,10 @@ pub fn render_with(
         } else {
             stats
         };
+        let stats = FrameStats {
+            depth_noise: renderer.read_depth_noise()?,
+            ..stats
+        };
         let out = if fly_through {
             numbered(&opts.output, i)
         } else {

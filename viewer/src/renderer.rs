@@ -53,6 +53,11 @@ pub struct FrameStats {
     /// The pyramid pipeline's s0 this frame (given, or estimated from the nodes drawn).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub s0: Option<f32>,
+    /// The pyramid pipeline's estimate of the depth noise of the visible points, as a
+    /// deviation in dataset units (0: too few neighbouring points to tell). Headless only:
+    /// reading it back waits for the GPU.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub depth_noise: Option<f32>,
     /// Every node the view and budget call for is resident and drawn.
     pub complete: bool,
 }
@@ -268,6 +273,7 @@ impl Renderer {
             nodes_queued: queued,
             gpu_bytes: self.cache.gpu_bytes(),
             s0,
+            depth_noise: None,
             complete: sel.missing_nodes.is_empty()
                 && sel.missing_pages.is_empty()
                 && self.uploads.is_empty(),
@@ -473,6 +479,15 @@ impl Renderer {
             .ok_or_else(|| ViewerError::Gpu("no frame has been rendered".into()))?;
         let rgba = read_texture(&self.ctx, &screen.output, 4)?;
         Ok((screen.width, screen.height, rgba))
+    }
+
+    /// The depth noise the pyramid pipeline measured in the last frame, as a deviation in
+    /// dataset units; `None` when the last frame was drawn by another pipeline.
+    pub fn read_depth_noise(&self) -> Result<Option<f32>, ViewerError> {
+        match self.screen.as_ref().and_then(|s| s.pyramid.as_ref()) {
+            Some(p) if self.last_pyramid => Ok(Some(p.read_depth_noise(&self.ctx)?)),
+            _ => Ok(None),
+        }
     }
 
     /// Linear depth per pixel (`None` where nothing was drawn), for picking and tests.

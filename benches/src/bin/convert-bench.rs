@@ -90,7 +90,7 @@ fn main() -> anyhow::Result<()> {
         for f in &formats {
             let input = dir.join(format!("city_{n}.{f}"));
             if !input.exists() {
-                synth(&input, n, Scene::City, 1, false)?;
+                synth(&input, n, Scene::City, 1, 0.0, false)?;
             }
             settle();
             let (decoded, decode_s) = decode_only(&input)?;

@@ -3,6 +3,7 @@
 //! side-by-side images.
 //!
 //! cargo run --release -p strata-bench --bin quality -- --out DIR [--quick] [--size WxH]
+//!     [--scenes NAME,NAME]
 
 use anyhow::{Context, bail};
 use glam::DVec3;
@@ -27,12 +28,15 @@ struct Args {
     width: u32,
     height: u32,
     data: PathBuf,
+    /// Only the scenes of these names; all when empty.
+    scenes: Vec<String>,
 }
 
 fn parse_args() -> anyhow::Result<Args> {
     let mut out = None;
     let mut quick = false;
     let mut size = None;
+    let mut only = Vec::new();
     let mut data = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../shared/data");
     let mut it = std::env::args().skip(1);
     while let Some(a) = it.next() {
@@ -40,6 +44,10 @@ fn parse_args() -> anyhow::Result<Args> {
             "--out" => out = it.next().map(PathBuf::from),
             "--quick" => quick = true,
             "--size" => size = it.next(),
+            "--scenes" => {
+                let list = it.next().context("--scenes needs a comma-separated list")?;
+                only = list.split(',').map(str::to_owned).collect();
+            }
             "--data" => {
                 data = it
                     .next()
@@ -47,7 +55,7 @@ fn parse_args() -> anyhow::Result<Args> {
                     .context("--data needs a directory")?
             }
             other => bail!(
-                "unknown argument {other:?} (expected --out DIR [--quick] [--size WxH] [--data DIR])"
+                "unknown argument {other:?} (expected --out DIR [--quick] [--size WxH] [--data DIR] [--scenes NAME,NAME])"
             ),
         }
     }
@@ -72,6 +80,7 @@ fn parse_args() -> anyhow::Result<Args> {
         width,
         height,
         data,
+        scenes: only,
     })
 }
 
@@ -134,7 +143,21 @@ fn main() -> anyhow::Result<()> {
     init_fonts()?;
     let ctx = Arc::new(GpuContext::new(ProjectionPath::Auto)?);
     let work = tempfile::tempdir_in(&args.out).context("cannot make a work directory")?;
-    let scenes = scenes(&args.data, args.quick)?;
+    let mut scenes = scenes(&args.data, args.quick)?;
+    if !args.scenes.is_empty() {
+        if let Some(unknown) = args
+            .scenes
+            .iter()
+            .find(|n| !scenes.iter().any(|s| &s.name == *n))
+        {
+            let known: Vec<&str> = scenes.iter().map(|s| s.name.as_str()).collect();
+            bail!(
+                "--scenes: no scene is named {unknown:?} (there are {})",
+                known.join(", ")
+            );
+        }
+        scenes.retain(|s| args.scenes.contains(&s.name));
+    }
     let started = Instant::now();
     let mut rows = Vec::new();
     for scene in &scenes {

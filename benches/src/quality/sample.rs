@@ -56,19 +56,13 @@ pub fn sample_mesh(
         let [a, b, c] = mesh.corners(t);
         let mut p = a * w.x + b * w.y + c * w.z;
         if sigma > 0.0 {
-            p += Vec3::new(gauss(&mut rng), gauss(&mut rng), gauss(&mut rng)) * sigma;
+            let (x, y, z) = (rng.gaussian(), rng.gaussian(), rng.gaussian());
+            p += Vec3::new(x as f32, y as f32, z as f32) * sigma;
         }
         out.positions.push(p);
         out.colours.push(mesh.albedo(t, w));
     }
     out
-}
-
-/// Standard normal, by Box-Muller.
-fn gauss(rng: &mut Rng) -> f32 {
-    let u1 = rng.unit().max(1e-12);
-    let u2 = rng.unit();
-    ((-2.0 * u1.ln()).sqrt() * (std::f64::consts::TAU * u2).cos()) as f32
 }
 
 /// The x, y, z of a PLY point cloud, mapped by `map`, all in one colour.
