@@ -32,27 +32,43 @@ fn main(@builtin(global_invocation_id) id: vec3<u32>) {
     let z = max(bitcast<f32>(coarse.x), 1e-6);
     let top = i32(pyr.levels) - 1;
     let reach = clamp(i32(round(log2(pyr.hpr_scale / z))), 1, max(top, 1));
-    // Sectors 0-3 and 4-7, counter-clockwise from +x.
-    var s03 = vec4<f32>(1.0);
-    var s47 = vec4<f32>(1.0);
-    for (var l = 0; l <= reach; l++) {
-        let size = vec2<i32>(level_size(u32(l)));
-        let off = level_offset(u32(l));
-        let p = vec2<i32>(id.xy) >> vec2<u32>(u32(l));
-        s03 = min(s03, vec4<f32>(
-            occlusion(x, p + vec2<i32>(1, 0), size, off),
-            occlusion(x, p + vec2<i32>(1, 1), size, off),
-            occlusion(x, p + vec2<i32>(0, 1), size, off),
-            occlusion(x, p + vec2<i32>(-1, 1), size, off),
-        ));
-        s47 = min(s47, vec4<f32>(
-            occlusion(x, p + vec2<i32>(-1, 0), size, off),
-            occlusion(x, p + vec2<i32>(-1, -1), size, off),
-            occlusion(x, p + vec2<i32>(0, -1), size, off),
-            occlusion(x, p + vec2<i32>(1, -1), size, off),
-        ));
+    // The ring of every level up to `reach` lies inside the 3x3 block of cells around the pixel
+    // at `reach`. Where that block holds only the far plane (background away from any surface,
+    // most of the image in an overview), nothing occludes and the eight sectors can be skipped.
+    let top_size = vec2<i32>(level_size(u32(reach)));
+    let top_off = level_offset(u32(reach));
+    let top_cell = vec2<i32>(id.xy) >> vec2<u32>(u32(reach));
+    var nearest = EMPTY;
+    for (var dy = -1; dy <= 1; dy++) {
+        for (var dx = -1; dx <= 1; dx++) {
+            let cell = clamp(top_cell + vec2<i32>(dx, dy), vec2<i32>(0), top_size - 1);
+            nearest = min(nearest, pts[top_off + u32(cell.y * top_size.x + cell.x)].x);
+        }
     }
-    let mean = dot(s03 + s47, vec4<f32>(0.125));
+    var mean = 1.0;
+    if nearest < bitcast<u32>(pyr.far) {
+        // Sectors 0-3 and 4-7, counter-clockwise from +x.
+        var s03 = vec4<f32>(1.0);
+        var s47 = vec4<f32>(1.0);
+        for (var l = 0; l <= reach; l++) {
+            let size = vec2<i32>(level_size(u32(l)));
+            let off = level_offset(u32(l));
+            let p = vec2<i32>(id.xy) >> vec2<u32>(u32(l));
+            s03 = min(s03, vec4<f32>(
+                occlusion(x, p + vec2<i32>(1, 0), size, off),
+                occlusion(x, p + vec2<i32>(1, 1), size, off),
+                occlusion(x, p + vec2<i32>(0, 1), size, off),
+                occlusion(x, p + vec2<i32>(-1, 1), size, off),
+            ));
+            s47 = min(s47, vec4<f32>(
+                occlusion(x, p + vec2<i32>(-1, 0), size, off),
+                occlusion(x, p + vec2<i32>(-1, -1), size, off),
+                occlusion(x, p + vec2<i32>(0, -1), size, off),
+                occlusion(x, p + vec2<i32>(1, -1), size, off),
+            ));
+        }
+        mean = dot(s03 + s47, vec4<f32>(0.125));
+    }
     let visible = mean >= pyr.threshold;
     let d = depths[i];
     var label = LABEL_HOLE;
