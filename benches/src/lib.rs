@@ -7,6 +7,15 @@ use std::path::{Path, PathBuf};
 use strata_converter::synth::{Scene, synth};
 use strata_converter::{ConvertOptions, ConvertSummary, Sampling, convert};
 
+/// Where the command line asks for help (`--help` or `-h`), prints `usage` and returns true.
+pub fn answered_help(usage: &str) -> bool {
+    let asked = std::env::args().skip(1).any(|a| a == "--help" || a == "-h");
+    if asked {
+        println!("{usage}");
+    }
+    asked
+}
+
 /// Parses `100000`, `100k`, `10M`, `1G`.
 pub fn parse_count(s: &str) -> anyhow::Result<u64> {
     let t = s.trim();

@@ -1,7 +1,6 @@
 //! Conversion throughput against the raw decode of the same file, measured in the same run.
 //!
-//! cargo run --release -p strata-bench --bin convert-bench -- [--points 10M,100M]
-//!     [--formats las,laz] [--memory-limit 512MiB] [--dir DIR] [--runs 3]
+//! Options: `USAGE` below, or `--help`.
 //!
 //! Each conversion runs in a child process, so its peak memory (VmHWM) is its own. Every run
 //! starts after `sync`, so no earlier run's dirty pages are written back during it, and the
@@ -50,7 +49,13 @@ fn child(args: &[String]) -> anyhow::Result<()> {
     Ok(())
 }
 
+const USAGE: &str = "cargo run --release -p strata-bench --bin convert-bench -- [--points 10M,100M]\n    \
+       [--formats las,laz] [--memory-limit 512MiB] [--dir DIR] [--runs 3]";
+
 fn main() -> anyhow::Result<()> {
+    if strata_bench::answered_help(USAGE) {
+        return Ok(());
+    }
     let args: Vec<String> = std::env::args().skip(1).collect();
     if args.first().map(String::as_str) == Some("child") {
         return child(&args[1..]);

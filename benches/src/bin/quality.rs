@@ -2,8 +2,7 @@
 //! every pipeline under the same cameras, and writes quality.csv, a Markdown summary, charts and
 //! side-by-side images.
 //!
-//! cargo run --release -p strata-bench --bin quality -- --out DIR [--quick] [--size WxH]
-//!     [--scenes NAME,NAME]
+//! Options: `USAGE` below, or `--help`.
 
 use anyhow::{Context, bail};
 use glam::DVec3;
@@ -54,9 +53,7 @@ fn parse_args() -> anyhow::Result<Args> {
                     .map(PathBuf::from)
                     .context("--data needs a directory")?
             }
-            other => bail!(
-                "unknown argument {other:?} (expected --out DIR [--quick] [--size WxH] [--data DIR] [--scenes NAME,NAME])"
-            ),
+            other => bail!("unknown argument {other:?}; usage: {USAGE}"),
         }
     }
     let out = out.context("--out DIR is required")?;
@@ -136,7 +133,13 @@ fn configs(full: bool) -> Vec<Config> {
 const BUDGET: u64 = 20_000_000;
 const MAX_POINTS: usize = 4_000_000;
 
+const USAGE: &str = "cargo run --release -p strata-bench --bin quality -- --out DIR [--quick] [--size WxH]\n    \
+       [--scenes NAME,NAME] [--data DIR]";
+
 fn main() -> anyhow::Result<()> {
+    if strata_bench::answered_help(USAGE) {
+        return Ok(());
+    }
     let args = parse_args()?;
     std::fs::create_dir_all(args.out.join("images"))
         .with_context(|| format!("cannot create {}", args.out.display()))?;

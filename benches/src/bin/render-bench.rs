@@ -2,9 +2,7 @@
 //! frame times while streaming and once complete, GPU ms per pass, and peak process memory, at
 //! several point budgets.
 //!
-//! cargo run --release -p strata-bench --bin render-bench -- [--points 100M] [--budgets 1M,5M,20M]
-//!     [--size 1280x720] [--frames 10] [--detail 1.0] [--dataset DIR] [--pipeline edl]
-//!     [--separate-passes] [--pass-clock auto|timestamps|wall] [--camera "eye=..;target=..;fov=.."]
+//! Options: `USAGE` below, or `--help`.
 //!
 //! Each budget runs in a child process, so its peak memory is its own. The adapter is whatever
 //! wgpu picks (WGPU_BACKEND=vulkan for lavapipe on machines without a GPU).
@@ -188,7 +186,14 @@ fn child(args: &[String]) -> anyhow::Result<()> {
     Ok(())
 }
 
+const USAGE: &str = "cargo run --release -p strata-bench --bin render-bench -- [--points 100M] [--budgets 1M,5M,20M]\n    \
+       [--size 1280x720] [--frames 10] [--detail 1.0] [--dataset DIR] [--pipeline edl]\n    \
+       [--separate-passes] [--pass-clock auto|timestamps|wall] [--camera \"eye=..;target=..;fov=..\"]";
+
 fn main() -> anyhow::Result<()> {
+    if strata_bench::answered_help(USAGE) {
+        return Ok(());
+    }
     let args: Vec<String> = std::env::args().skip(1).collect();
     if args.first().map(String::as_str) == Some("--child") {
         return child(&args[1..]);

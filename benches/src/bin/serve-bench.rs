@@ -3,8 +3,7 @@
 //! server's memory, and, in the same run, the rate of reading the same ranges from the local
 //! file (pread on every core) as the ratio.
 //!
-//! cargo run --release -p strata-bench --bin serve-bench -- [--clients 64,256] [--seconds 10]
-//!     [--points 10M] [--dataset DIR]
+//! Options: `USAGE` below, or `--help`.
 
 use anyhow::{Context, bail};
 use bytes::Bytes;
@@ -150,7 +149,13 @@ fn local_load(
     Ok(results.iter().fold((0, 0), |a, b| (a.0 + b.0, a.1 + b.1)))
 }
 
+const USAGE: &str = "cargo run --release -p strata-bench --bin serve-bench -- [--clients 64,256] [--seconds 10]\n    \
+       [--points 10M] [--dataset DIR]";
+
 fn main() -> anyhow::Result<()> {
+    if strata_bench::answered_help(USAGE) {
+        return Ok(());
+    }
     let mut clients = vec![64usize, 256];
     let mut seconds = 10u64;
     let mut points = 10_000_000u64;
