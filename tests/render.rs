@@ -240,6 +240,24 @@ fn a_small_view_loads_only_what_it_can_show() {
 /// applied to the settings: the same resident nodes in the same GPU placement, so equivalent
 /// paths must give identical images (an exact depth tie resolves by placement, which differs
 /// between processes). `None` where the adapter has no 64-bit atomics.
+/// Draws frames until every node the view calls for is resident (a minute at most).
+fn frame_until_complete(
+    r: &mut strata_viewer::Renderer,
+    camera: &strata_viewer::Camera,
+    w: u32,
+    h: u32,
+    settings: &strata_viewer::Settings,
+) {
+    let deadline = std::time::Instant::now() + std::time::Duration::from_secs(60);
+    while !r.frame(camera, w, h, settings).complete {
+        assert!(
+            std::time::Instant::now() < deadline,
+            "the view never completed"
+        );
+        r.wait_for_loads(std::time::Duration::from_millis(20));
+    }
+}
+
 fn same_frame_two_ways(
     dataset: &Path,
     base: strata_viewer::Settings,
@@ -262,14 +280,7 @@ fn same_frame_two_ways(
     let (w, h) = (400, 300);
     let camera = default_camera(&ds, w, h);
     let settings = Settings { ..base };
-    let deadline = std::time::Instant::now() + std::time::Duration::from_secs(60);
-    while !r.frame(&camera, w, h, &settings).complete {
-        assert!(
-            std::time::Instant::now() < deadline,
-            "the view never completed"
-        );
-        r.wait_for_loads(std::time::Duration::from_millis(20));
-    }
+    frame_until_complete(&mut r, &camera, w, h, &settings);
     let mut image = |settings: &Settings| {
         r.frame(&camera, w, h, settings);
         r.wait_gpu().expect("GPU");
@@ -863,4 +874,52 @@ fn pyramid_measures_depth_noise_and_shades_noisy_points_smoothly() {
         much_rough < 2.0 * clean_rough,
         "noisy shading roughness {much_rough}, clean {clean_rough}"
     );
+    window_readbacks_deliver(&dir.path().join("terrain-1.strata"));
+}
+
+/// What the window shows without ever waiting for the GPU, the timestamped pass times and the
+/// depth noise, arrives through the non-blocking readbacks: once the GPU has caught up, the
+/// next frame's stats carry this view's depth noise, as the blocking readback gives it.
+fn window_readbacks_deliver(dataset: &Path) {
+    use std::sync::Arc;
+    use strata_viewer::gpu::{GpuContext, ProjectionPath};
+    use strata_viewer::settings::PassClock;
+    use strata_viewer::{Pipeline, Renderer, Settings};
+    let ds = Arc::new(StreamDataset::open_path(dataset).expect("dataset opens"));
+    let ctx = Arc::new(GpuContext::new(ProjectionPath::Auto).expect("GPU adapter"));
+    let timestamps = ctx.timestamps;
+    let mut r = Renderer::new(ctx, ds.clone(), 1 << 30, 4).expect("renderer");
+    let (w, h) = (320, 240);
+    let camera = default_camera(&ds, w, h);
+    let settings = Settings {
+        pipeline: Pipeline::Pyramid,
+        pass_clock: PassClock::Timestamps,
+        ..Settings::default()
+    };
+    frame_until_complete(&mut r, &camera, w, h, &settings);
+    // The readback may have been busy with an earlier, incomplete frame when the complete one
+    // was drawn: one more frame, whose copy the wait brings back.
+    r.wait_gpu().expect("GPU");
+    r.frame(&camera, w, h, &settings);
+    r.wait_gpu().expect("GPU");
+    let stats = r.frame(&camera, w, h, &settings);
+    r.wait_gpu().expect("GPU");
+    let exact = r.read_depth_noise().expect("readback");
+    assert!(exact.is_some_and(|n| n > 0.0), "depth noise {exact:?}");
+    assert_eq!(stats.depth_noise, exact, "the window's depth noise");
+    if timestamps {
+        let passes = r.pass_times();
+        for name in ["project", "hpr", "pull", "push", "normals"] {
+            let ms = passes.get(name);
+            assert!(
+                ms.is_some_and(|v| v.is_finite() && *v >= 0.0),
+                "timestamped pass {name}: {ms:?} in {passes:?}"
+            );
+        }
+    }
+    let points = Settings {
+        pipeline: Pipeline::Points,
+        ..settings
+    };
+    assert_eq!(r.frame(&camera, w, h, &points).depth_noise, None);
 }

@@ -153,6 +153,13 @@ impl ViewerApp {
         if let Some(s0) = self.settings.s0.or(self.stats.s0) {
             ui.label(format!("s0 = {s0:.4}"));
         }
+        // The normals widen where the noise needs it; seeing σ beside s0 tells a user whether
+        // a rough surface is the scan's noise or too small an s0.
+        match self.stats.depth_noise {
+            Some(sigma) if sigma > 0.0 => ui.label(format!("depth noise σ = {sigma:.4}")),
+            Some(_) => ui.label("depth noise: too few neighbouring points"),
+            None => ui.label("depth noise: measuring..."),
+        };
         ui.checkbox(&mut self.settings.pyramid_edl, "EDL on top");
     }
 

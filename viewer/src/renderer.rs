@@ -6,9 +6,10 @@ use crate::ViewerError;
 use crate::camera::Camera;
 use crate::dataset::{GpuNode, StreamDataset};
 use crate::gpu::GpuContext;
+use crate::gpu::async_readback::AsyncReadback;
 use crate::gpu::cache::{InsertError, NodeCache};
 use crate::gpu::passes::{ArenaDraw, FrameDraw, FrameUniforms, GpuRange, Passes, Screen};
-use crate::gpu::pyramid::PyramidFrame;
+use crate::gpu::pyramid::{PyramidFrame, depth_noise_from};
 use crate::gpu::readback::{read_buffer, read_texture};
 use crate::gpu::timing::{PassClock, Timer};
 use crate::loader::{Done, Job, JobKey, Loader};
@@ -54,8 +55,9 @@ pub struct FrameStats {
     #[serde(skip_serializing_if = "Option::is_none")]
     pub s0: Option<f32>,
     /// The pyramid pipeline's estimate of the depth noise of the visible points, as a
-    /// deviation in dataset units (0: too few neighbouring points to tell). Headless only:
-    /// reading it back waits for the GPU.
+    /// deviation in dataset units (0: too few neighbouring points to tell). In a window the
+    /// latest that has arrived, a frame or more behind; headless, this frame's (read back
+    /// after waiting for the GPU).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub depth_noise: Option<f32>,
     /// Every node the view and budget call for is resident and drawn.
@@ -71,6 +73,9 @@ pub struct Renderer {
     passes: Passes,
     screen: Option<Screen>,
     timer: Timer,
+    /// The depth noise on its way back for the stats, and the latest that arrived.
+    noise_readback: AsyncReadback,
+    depth_noise: Option<f32>,
     /// `PassClock::Auto` means the wall clock here: a CPU adapter, or no timestamp queries.
     auto_wall_clock: bool,
     failed: HashSet<NodeKey>,
@@ -108,6 +113,7 @@ impl Renderer {
         let cache = NodeCache::new(ctx.max_binding(), gpu_cache_bytes);
         let passes = Passes::new(&ctx);
         let timer = Timer::new(&ctx.device, &ctx.queue, ctx.timestamps);
+        let noise_readback = AsyncReadback::new(&ctx.device, "depth noise readback", 4);
         let auto_wall_clock =
             !ctx.timestamps || ctx.adapter.get_info().device_type == wgpu::DeviceType::Cpu;
         Ok(Renderer {
@@ -118,6 +124,8 @@ impl Renderer {
             cache,
             passes,
             screen: None,
+            noise_readback,
+            depth_noise: None,
             timer,
             auto_wall_clock,
             failed: HashSet::new(),
@@ -242,7 +250,10 @@ impl Renderer {
             })
             .flatten();
         self.draw(camera, width, height, settings, &sel, s0);
-        self.timer.collect();
+        self.collect_readbacks();
+        if settings.pipeline != Pipeline::Pyramid {
+            self.depth_noise = None;
+        }
 
         let (queued, in_flight) = self.loader.counts();
         FrameStats {
@@ -273,7 +284,7 @@ impl Renderer {
             nodes_queued: queued,
             gpu_bytes: self.cache.gpu_bytes(),
             s0,
-            depth_noise: None,
+            depth_noise: self.depth_noise,
             complete: sel.missing_nodes.is_empty()
                 && sel.missing_pages.is_empty()
                 && self.uploads.is_empty(),
@@ -441,8 +452,12 @@ impl Renderer {
             &mut self.timer,
         );
         self.timer.resolve(&mut encoder);
+        if let Some(p) = screen.pyramid.as_ref().filter(|_| pyramid) {
+            p.record_depth_noise(&mut encoder, &mut self.noise_readback);
+        }
         self.ctx.queue.submit([encoder.finish()]);
         self.timer.after_submit();
+        self.noise_readback.after_submit();
         // Non-blocking: lets map callbacks of earlier frames run.
         let _ = self.ctx.device.poll(wgpu::PollType::Poll);
     }
@@ -462,8 +477,16 @@ impl Renderer {
             .device
             .poll(wgpu::PollType::wait_indefinitely())
             .map_err(|e| ViewerError::Gpu(format!("waiting for the GPU failed: {e}")))?;
-        self.timer.collect();
+        self.collect_readbacks();
         Ok(())
+    }
+
+    /// Takes what arrived of the pass times and the depth noise (after polling the device).
+    fn collect_readbacks(&mut self) {
+        self.timer.collect();
+        if let Some(bytes) = self.noise_readback.take() {
+            self.depth_noise = depth_noise_from(&bytes);
+        }
     }
 
     /// The latest pass times (after `wait_gpu`).

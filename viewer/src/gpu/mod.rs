@@ -1,5 +1,6 @@
 //! Everything on the GPU: device, node cache, compute passes and pass timing.
 
+pub mod async_readback;
 pub mod cache;
 pub mod context;
 pub mod passes;

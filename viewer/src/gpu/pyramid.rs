@@ -4,6 +4,7 @@
 //! the filled depth pyramid, and deferred headlight shading.
 
 use super::GpuContext;
+use super::async_readback::AsyncReadback;
 use super::passes::{module, pixel_groups};
 use super::readback::read_buffer;
 use super::timing::Timer;
@@ -60,6 +61,8 @@ struct PyramidUniforms {
 /// and the deviation follow them in the same buffer.
 const NOISE_BINS: u64 = 80;
 const NOISE_BYTES: u64 = (NOISE_BINS + 2) * 4;
+/// Where the noise estimate leaves σ: after the bins and the noise scale.
+const NOISE_SIGMA_AT: u64 = (NOISE_BINS + 1) * 4;
 
 /// The compiled passes, shared by every viewport size.
 pub struct PyramidPasses {
@@ -137,13 +140,27 @@ impl PyramidTargets {
     /// (0 where too few neighbouring points were visible to tell). Waits for the GPU.
     pub fn read_depth_noise(&self, ctx: &GpuContext) -> Result<f32, ViewerError> {
         let bytes = read_buffer(ctx, &self.noise, NOISE_BYTES)?;
-        let at = (NOISE_BINS as usize + 1) * 4;
-        let word = bytes
-            .get(at..at + 4)
-            .and_then(|b| <[u8; 4]>::try_from(b).ok())
-            .ok_or_else(|| ViewerError::Gpu("the depth-noise readback came back short".into()))?;
-        Ok(f32::from_le_bytes(word))
+        bytes
+            .get(NOISE_SIGMA_AT as usize..)
+            .and_then(depth_noise_from)
+            .ok_or_else(|| ViewerError::Gpu("the depth-noise readback came back short".into()))
     }
+
+    /// Records a copy of this frame's depth noise into `readback`, if it is free, for the
+    /// window, which must not wait for it; `depth_noise_from` reads what arrives.
+    pub fn record_depth_noise(
+        &self,
+        encoder: &mut wgpu::CommandEncoder,
+        readback: &mut AsyncReadback,
+    ) {
+        readback.record(encoder, &self.noise, NOISE_SIGMA_AT, 4);
+    }
+}
+
+/// The depth noise in the first four bytes of a readback of the noise estimate's σ.
+pub fn depth_noise_from(bytes: &[u8]) -> Option<f32> {
+    let word = <[u8; 4]>::try_from(bytes.get(..4)?).ok()?;
+    Some(f32::from_le_bytes(word))
 }
 
 impl PyramidPasses {

@@ -4,10 +4,9 @@
 //! timestamps do not bracket the work: lavapipe runs a dispatch asynchronously after its pass
 //! has ended, so its timestamps charge a pass's work to whichever later pass waits for it.
 
+use super::async_readback::AsyncReadback;
 use crate::ViewerError;
 use std::collections::BTreeMap;
-use std::sync::Arc;
-use std::sync::atomic::{AtomicU8, Ordering};
 use std::time::Instant;
 
 /// Which clock times the passes.
@@ -43,9 +42,6 @@ impl PassClock {
 }
 
 const MAX_PASSES: u32 = 16;
-const IDLE: u8 = 0;
-const MAPPING: u8 = 1;
-const MAPPED: u8 = 2;
 
 pub struct Timer {
     queries: Option<Queries>,
@@ -64,8 +60,7 @@ pub struct Timer {
 struct Queries {
     set: wgpu::QuerySet,
     resolve: wgpu::Buffer,
-    readback: wgpu::Buffer,
-    state: Arc<AtomicU8>,
+    readback: AsyncReadback,
     period_ns: f32,
 }
 
@@ -85,13 +80,7 @@ impl Timer {
                     usage: wgpu::BufferUsages::QUERY_RESOLVE | wgpu::BufferUsages::COPY_SRC,
                     mapped_at_creation: false,
                 }),
-                readback: device.create_buffer(&wgpu::BufferDescriptor {
-                    label: Some("timestamp readback"),
-                    size: bytes,
-                    usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
-                    mapped_at_creation: false,
-                }),
-                state: Arc::new(AtomicU8::new(IDLE)),
+                readback: AsyncReadback::new(device, "timestamp readback", bytes),
                 period_ns: queue.get_timestamp_period(),
             }
         });
@@ -130,7 +119,7 @@ impl Timer {
             return None;
         }
         let q = self.queries.as_ref()?;
-        if q.state.load(Ordering::Acquire) != IDLE || self.names.len() as u32 >= MAX_PASSES {
+        if !q.readback.is_idle() || self.names.len() as u32 >= MAX_PASSES {
             return None;
         }
         let i = self.names.len() as u32;
@@ -166,54 +155,45 @@ impl Timer {
             self.submit_and_wait(encoder);
             return;
         }
-        let Some(q) = &self.queries else { return };
-        if self.names.is_empty() || q.state.load(Ordering::Acquire) != IDLE {
+        let Some(q) = &mut self.queries else { return };
+        if self.names.is_empty() {
             return;
         }
         let n = self.names.len() as u32 * 2;
         encoder.resolve_query_set(&q.set, 0..n, &q.resolve, 0);
-        encoder.copy_buffer_to_buffer(&q.resolve, 0, &q.readback, 0, n as u64 * 8);
+        q.readback.record(encoder, &q.resolve, 0, u64::from(n) * 8);
     }
 
     /// After submitting: start mapping the readback buffer.
     pub fn after_submit(&mut self) {
-        let Some(q) = &self.queries else { return };
-        if self.names.is_empty() || q.state.load(Ordering::Acquire) != IDLE {
-            return;
+        let Some(q) = &mut self.queries else { return };
+        if q.readback.after_submit() {
+            self.in_readback = std::mem::take(&mut self.names);
         }
-        q.state.store(MAPPING, Ordering::Release);
-        self.in_readback = std::mem::take(&mut self.names);
-        let state = q.state.clone();
-        q.readback
-            .slice(..)
-            .map_async(wgpu::MapMode::Read, move |result| {
-                state.store(
-                    if result.is_ok() { MAPPED } else { IDLE },
-                    Ordering::Release,
-                );
-            });
     }
 
     /// Collects a finished readback, if any (call after polling the device).
     pub fn collect(&mut self) {
-        let Some(q) = &self.queries else { return };
-        if q.state.load(Ordering::Acquire) != MAPPED {
+        let Some(q) = &mut self.queries else { return };
+        let Some(data) = q.readback.take() else {
+            return;
+        };
+        // A readback left from a timestamped frame does not describe a wall-clock one.
+        if self.wall {
             return;
         }
-        // A readback left from a timestamped frame does not describe a wall-clock one.
-        if !self.wall
-            && let Ok(data) = q.readback.slice(..).get_mapped_range()
-        {
-            let stamps: &[u64] = bytemuck::cast_slice(&data);
-            self.last.clear();
-            for (i, name) in self.in_readback.iter().enumerate() {
-                let (a, b) = (stamps[2 * i], stamps[2 * i + 1]);
-                let ms = b.saturating_sub(a) as f64 * q.period_ns as f64 / 1e6;
-                *self.last.entry(name.clone()).or_insert(0.0) += ms;
-            }
+        let stamps: Vec<u64> = data
+            .chunks_exact(8)
+            .filter_map(|b| <[u8; 8]>::try_from(b).ok().map(u64::from_le_bytes))
+            .collect();
+        self.last.clear();
+        for (i, name) in self.in_readback.iter().enumerate() {
+            let (Some(&a), Some(&b)) = (stamps.get(2 * i), stamps.get(2 * i + 1)) else {
+                break;
+            };
+            let ms = b.saturating_sub(a) as f64 * q.period_ns as f64 / 1e6;
+            *self.last.entry(name.clone()).or_insert(0.0) += ms;
         }
-        q.readback.unmap();
-        q.state.store(IDLE, Ordering::Release);
     }
 
     /// The most recent complete set of pass times (ms).
