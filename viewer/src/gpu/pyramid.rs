@@ -57,6 +57,31 @@ struct PyramidUniforms {
     table: [[u32; 4]; MAX_LEVELS],
 }
 
+impl PyramidUniforms {
+    fn new(t: &PyramidTargets, frame: &PyramidFrame) -> PyramidUniforms {
+        let top = t.levels.len() as u32 - 1;
+        let tan_y = (frame.fov_y * 0.5).tan();
+        let tan_x = tan_y * t.width as f32 / t.height.max(1) as f32;
+        let mut params = PyramidUniforms {
+            pixel_scale: [2.0 * tan_x / t.width as f32, -2.0 * tan_y / t.height as f32],
+            pixel_bias: [-tan_x, tan_y],
+            far: frame.far,
+            hpr_scale: HPR_SCALE_S0 * frame.s0 * frame.focal_px,
+            normal_scale: NORMAL_SCALE_S0 * frame.s0 * frame.focal_px,
+            threshold: HPR_THRESHOLD,
+            levels: t.levels.len() as u32,
+            coarse_level: COARSE_LEVEL.min(top),
+            s0: frame.s0,
+            noise_scale: 0.0,
+            table: [[0; 4]; MAX_LEVELS],
+        };
+        for (slot, l) in params.table.iter_mut().zip(&t.levels) {
+            *slot = [l[0], l[1], l[2], 0];
+        }
+        params
+    }
+}
+
 /// Bins of the depth-noise histogram (`NOISE_BINS` in pyramid_noise.wgsl); the noise scale
 /// and the deviation follow them in the same buffer.
 const NOISE_BINS: u64 = 80;
@@ -338,25 +363,7 @@ impl PyramidPasses {
         frame: &PyramidFrame,
         timer: &mut Timer,
     ) {
-        let top = t.levels.len() as u32 - 1;
-        let tan_y = (frame.fov_y * 0.5).tan();
-        let tan_x = tan_y * t.width as f32 / t.height.max(1) as f32;
-        let mut params = PyramidUniforms {
-            pixel_scale: [2.0 * tan_x / t.width as f32, -2.0 * tan_y / t.height as f32],
-            pixel_bias: [-tan_x, tan_y],
-            far: frame.far,
-            hpr_scale: HPR_SCALE_S0 * frame.s0 * frame.focal_px,
-            normal_scale: NORMAL_SCALE_S0 * frame.s0 * frame.focal_px,
-            threshold: HPR_THRESHOLD,
-            levels: t.levels.len() as u32,
-            coarse_level: COARSE_LEVEL.min(top),
-            s0: frame.s0,
-            noise_scale: 0.0,
-            table: [[0; 4]; MAX_LEVELS],
-        };
-        for (slot, l) in params.table.iter_mut().zip(&t.levels) {
-            *slot = [l[0], l[1], l[2], 0];
-        }
+        let params = PyramidUniforms::new(t, frame);
         queue.write_buffer(&t.params, 0, bytemuck::bytes_of(&params));
         let frame_groups: Vec<wgpu::BindGroup> = t
             .level_uniforms
@@ -471,7 +478,16 @@ impl PyramidPasses {
             &data,
             &mut (1..levels).map(at),
         );
-        run(e, tm, "hpr", &self.hpr, &data, &mut [at(0)].into_iter());
+        // One HPR invocation labels a 2x2 block of pixels: level 1's grid.
+        let hpr_groups = (0, level_groups(1.min(levels - 1)));
+        run(
+            e,
+            tm,
+            "hpr",
+            &self.hpr,
+            &data,
+            &mut [hpr_groups].into_iter(),
+        );
         // The noise estimate reaches the shading's uniforms by a copy on the GPU: the frame
         // never waits for it.
         e.clear_buffer(&t.noise, 0, None);
@@ -522,3 +538,7 @@ impl PyramidPasses {
         );
     }
 }
+
+#[cfg(test)]
+#[path = "pyramid_hpr_tests.rs"]
+mod hpr_tests;
