@@ -319,6 +319,12 @@ fn main() -> anyhow::Result<()> {
             .map(|(name, ms)| format!("{name} {ms:.2}"))
             .collect();
         println!("- budget {}: {}", r.budget, passes.join(", "));
+        // Paper 003 reports its HPR pass about as fast as the projection; that is our target.
+        if let (Some(hpr), Some(&project)) = (r.passes.get("hpr"), r.passes.get("project"))
+            && project > 0.0
+        {
+            println!("  HPR over projection: {:.2}", hpr / project);
+        }
     }
     Ok(())
 }
