@@ -209,13 +209,18 @@ fn hpr_labels_match_the_per_pixel_definition() {
     let labels: &[u32] = bytemuck::cast_slice(&bytes);
 
     let expected = reference(&depths, w, h, &PyramidUniforms::new(&targets, &frame));
-    let mut wrong = Vec::new();
+    let (mut wrong, mut on_threshold) = (Vec::new(), 0usize);
     for (i, (&got, &(want, margin))) in labels.iter().zip(&expected).enumerate() {
         // Single against double precision may only part where the mean sits on the threshold.
         if got != want && margin > 1e-4 {
             wrong.push((i as u32 % w, i as u32 / w, got, want));
         }
+        on_threshold += usize::from(got != want && margin <= 1e-4);
     }
+    assert!(
+        on_threshold <= labels.len() / 1000,
+        "{on_threshold} labels differ from the reference at the threshold"
+    );
     assert!(
         wrong.is_empty(),
         "{} of {} labels differ from the reference (x, y, gpu, reference): {:?}",
