@@ -478,8 +478,9 @@ impl PyramidPasses {
             &data,
             &mut (1..levels).map(at),
         );
-        // One HPR invocation labels a 2x2 block of pixels: level 1's grid.
-        let hpr_groups = (0, level_groups(1.min(levels - 1)));
+        // One HPR invocation labels a 4x4 block of pixels, a workgroup 8x8 blocks.
+        let [_, w0, h0] = t.levels[0];
+        let hpr_groups = (0, (w0.div_ceil(32), h0.div_ceil(32)));
         run(
             e,
             tm,

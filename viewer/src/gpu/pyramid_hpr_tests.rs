@@ -1,7 +1,7 @@
 //! The GPU hidden-point removal against a direct CPU reading of paper 003, 3.1.2: per pixel,
 //! the eight-cell ring on every level of the min-depth pyramid up to equation 1's level, the
 //! most occluding neighbour per sector, and the mean against the threshold. The shader labels
-//! a 2x2 block per invocation with shared reads; this pins it to the per-pixel definition.
+//! a 4x4 block per invocation with shared reads; this pins it to the per-pixel definition.
 
 use super::*;
 use crate::gpu::passes::FrameUniforms;
@@ -137,7 +137,7 @@ fn reference(depths: &[u32], w: u32, h: u32, p: &PyramidUniforms) -> Vec<(u32, f
 
 #[test]
 fn hpr_labels_match_the_per_pixel_definition() {
-    // Odd sizes: the last 2x2 blocks hang over the right and bottom edges.
+    // Odd sizes: the last 4x4 blocks hang over the right and bottom edges.
     let (w, h) = (203u32, 151u32);
     let ctx = GpuContext::new(ProjectionPath::Auto).expect("GPU adapter");
     let (device, queue) = (&ctx.device, &ctx.queue);
