@@ -66,7 +66,8 @@ alias Cells0 = array<array<vec4<f32>, 6>, 6>;
 // Level 1's 4x4 cells around the block's 2x2 cells, by rows.
 alias Cells1 = array<array<vec4<f32>, 4>, 4>;
 
-// Cells (a, b), the neighbours from cell (a + 1, b + 1), in sector order.
+// The ring, in sector order, of cell (a + 1, b + 1) of `q`: the level-0 ring of block pixel
+// (a, b).
 fn ring0(q: Cells0, a: i32, b: i32) -> array<vec4<f32>, 8> {
     return array<vec4<f32>, 8>(
         q[b + 1][a + 2], q[b + 2][a + 2], q[b + 2][a + 1], q[b + 2][a],
@@ -74,6 +75,8 @@ fn ring0(q: Cells0, a: i32, b: i32) -> array<vec4<f32>, 8> {
     );
 }
 
+// As ring0 on level 1's cells (WGSL has no generics): the ring of the block's level-1 cell
+// (a, b).
 fn ring1(q: Cells1, a: i32, b: i32) -> array<vec4<f32>, 8> {
     return array<vec4<f32>, 8>(
         q[b + 1][a + 2], q[b + 2][a + 2], q[b + 2][a + 1], q[b + 2][a],
@@ -93,6 +96,7 @@ fn cells6(p: vec2<i32>, size: vec2<i32>, off: u32) -> array<vec4<f32>, 6> {
     );
 }
 
+// As cells6, four cells.
 fn cells4(p: vec2<i32>, size: vec2<i32>, off: u32) -> array<vec4<f32>, 4> {
     return array<vec4<f32>, 4>(
         neighbour(p, size, off),
