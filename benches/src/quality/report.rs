@@ -112,6 +112,26 @@ pub fn init_fonts() -> anyhow::Result<()> {
 
 type Series = Vec<(String, Vec<(f64, f64)>)>;
 
+/// Width of the strip beside each panel that holds its legend: inside the plot, a legend hid
+/// the marks under it.
+const LEGEND_W: u32 = 170;
+
+/// A panel's legend: per series its mark and label, top-down.
+fn draw_legend<DB: DrawingBackend>(
+    area: &DrawingArea<DB, plotters::coord::Shift>,
+    series: &Series,
+) -> anyhow::Result<()> {
+    for (i, (label, _)) in series.iter().enumerate() {
+        let y = 60 + 22 * i as i32;
+        area.draw(&Circle::new((10, y), 5, colour_of(label).filled()))
+            .map_err(plot_err)?;
+        let style = ("sans-serif", 14).into_font().color(&BLACK);
+        area.draw(&Text::new(label.as_str(), (22, y - 7), style))
+            .map_err(plot_err)?;
+    }
+    Ok(())
+}
+
 /// A chart of one or more panels, each a set of labelled series (lines, or single marks).
 fn chart(
     path: &Path,
@@ -120,14 +140,16 @@ fn chart(
     log_x: bool,
     panels: &[(&str, Series)],
 ) -> anyhow::Result<()> {
-    let (w, h) = (640 * panels.len() as u32, 480u32);
+    let (w, h) = ((640 + LEGEND_W) * panels.len() as u32, 480u32);
     let mut buf = vec![255u8; (w * h * 3) as usize];
     {
         let root = BitMapBackend::with_buffer(&mut buf, (w, h)).into_drawing_area();
         root.fill(&WHITE).map_err(plot_err)?;
         let root = root.titled(title, ("sans-serif", 22)).map_err(plot_err)?;
         let areas = root.split_evenly((1, panels.len()));
-        for (area, (y_desc, series)) in areas.iter().zip(panels) {
+        for (panel, (y_desc, series)) in areas.iter().zip(panels) {
+            let (area, legend) = panel.split_horizontally(panel.dim_in_pixel().0 - LEGEND_W);
+            draw_legend(&legend, series)?;
             let pts: Vec<(f64, f64)> = series.iter().flat_map(|s| s.1.clone()).collect();
             if pts.is_empty() {
                 continue;
@@ -141,7 +163,7 @@ fn chart(
                 .fold((f64::MAX, f64::MIN), |(a, b), p| (a.min(p.1), b.max(p.1)));
             let (px, py) = (((x1 - x0) * 0.08).max(1e-3), ((y1 - y0) * 0.08).max(1e-3));
             (x0, x1, y0, y1) = (x0 - px, x1 + px, y0 - py, y1 + py);
-            let mut c = ChartBuilder::on(area)
+            let mut c = ChartBuilder::on(&area)
                 .margin(12)
                 .x_label_area_size(40)
                 .y_label_area_size(56)
@@ -164,15 +186,8 @@ fn chart(
                         .map_err(plot_err)?;
                 }
                 c.draw_series(xy.iter().map(|p| Circle::new(*p, 5, colour.filled())))
-                    .map_err(plot_err)?
-                    .label(label.as_str())
-                    .legend(move |(x, y)| Circle::new((x + 8, y), 5, colour.filled()));
+                    .map_err(plot_err)?;
             }
-            c.configure_series_labels()
-                .background_style(WHITE.mix(0.85))
-                .border_style(BLACK)
-                .draw()
-                .map_err(plot_err)?;
         }
         root.present().map_err(plot_err)?;
     }
