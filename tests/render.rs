@@ -3,32 +3,13 @@
 
 mod common;
 
-use common::{data, s, strata};
+use common::{data, gpu_ok, gpu_run, read_png, s, strata};
 use std::path::{Path, PathBuf};
-use std::process::Output;
 use std::sync::OnceLock;
 use strata_viewer::StreamDataset;
 use strata_viewer::headless::default_camera;
 
 const BACKGROUND: [u8; 3] = [24, 26, 32];
-
-fn gpu_run(args: &[&str]) -> Output {
-    let backend = std::env::var("WGPU_BACKEND").unwrap_or_else(|_| "vulkan".into());
-    match strata().env("WGPU_BACKEND", backend).args(args).output() {
-        Ok(o) => o,
-        Err(e) => panic!("cannot run strata: {e}"),
-    }
-}
-
-fn gpu_ok(args: &[&str]) -> Output {
-    let o = gpu_run(args);
-    assert!(
-        o.status.success(),
-        "strata {args:?} failed:\n{}",
-        String::from_utf8_lossy(&o.stderr)
-    );
-    o
-}
 
 /// Datasets built once per test binary, shared read-only by the tests.
 fn fixtures() -> &'static Path {
@@ -68,25 +49,6 @@ fn fixtures() -> &'static Path {
         common::run_ok(&["convert", s(&city_las), "-o", s(&city), "--quiet"]);
         dir
     })
-}
-
-fn read_png(path: &Path) -> (u32, u32, Vec<u8>) {
-    let file = std::fs::File::open(path).expect("png exists");
-    let mut dec = png::Decoder::new(std::io::BufReader::new(file))
-        .read_info()
-        .expect("png header");
-    let mut buf = vec![0; dec.output_buffer_size().expect("png size")];
-    let info = dec.next_frame(&mut buf).expect("png data");
-    buf.truncate(info.buffer_size());
-    let rgba = match info.color_type {
-        png::ColorType::Rgba => buf,
-        png::ColorType::Rgb => buf
-            .chunks_exact(3)
-            .flat_map(|c| [c[0], c[1], c[2], 255])
-            .collect(),
-        other => panic!("unexpected PNG colour type {other:?}"),
-    };
-    (info.width, info.height, rgba)
 }
 
 fn stats(path: &Path) -> serde_json::Value {
@@ -249,7 +211,7 @@ fn frame_until_complete(
     settings: &strata_viewer::Settings,
 ) {
     let deadline = std::time::Instant::now() + std::time::Duration::from_secs(60);
-    while !r.frame(camera, w, h, settings).complete {
+    while !r.frame(camera, w, h, settings).expect("frame").complete {
         assert!(
             std::time::Instant::now() < deadline,
             "the view never completed"
@@ -282,11 +244,11 @@ fn same_frame_two_ways(
     let settings = Settings { ..base };
     frame_until_complete(&mut r, &camera, w, h, &settings);
     let mut image = |settings: &Settings| {
-        r.frame(&camera, w, h, settings);
+        r.frame(&camera, w, h, settings).expect("frame");
         r.wait_gpu().expect("GPU");
         r.read_image().expect("image").2
     };
-    let (mut sa, mut sb) = (settings, settings);
+    let (mut sa, mut sb) = (settings.clone(), settings);
     a(&mut sa);
     b(&mut sb);
     Some((image(&sa), image(&sb)))
@@ -783,7 +745,7 @@ fn pyramid_fills_the_holes_of_sparse_points_and_times_its_passes() {
     );
     assert_eq!(pyramid_out, 0, "the fill spread outside the dataset");
     let frame = &st["frames"][0];
-    let s0 = frame["s0"].as_f64().expect("s0 in the stats");
+    let s0 = frame["params"]["s0"].as_f64().expect("s0 in the stats");
     // Autzen's points are a few feet apart.
     assert!(s0.is_finite() && s0 > 0.1 && s0 < 50.0, "s0 {s0}");
     let passes = frame["passes"].as_object().expect("passes");
@@ -842,7 +804,7 @@ fn pyramid_fills_the_holes_of_sparse_points_and_times_its_passes() {
         "pyramid-s0",
         &[size[0], size[1], "--pipeline", "pyramid", "--s0", "30"],
     );
-    assert_eq!(st["frames"][0]["s0"].as_f64(), Some(30.0));
+    assert_eq!(st["frames"][0]["params"]["s0"].as_f64(), Some(30.0));
     assert_ne!(read_png(&big_png).2, read_png(&pyramid_png).2);
 }
 
@@ -893,7 +855,7 @@ fn pyramid_measures_depth_noise_and_shades_noisy_points_smoothly() {
                 "classification",
             ],
         );
-        let measured = st["frames"][0]["depth_noise"]
+        let measured = st["frames"][0]["measures"]["depth_noise"]
             .as_f64()
             .expect("depth_noise in the pyramid's stats");
         let (w, _, rgba) = read_png(&png);
@@ -924,8 +886,9 @@ fn pyramid_measures_depth_noise_and_shades_noisy_points_smoothly() {
 fn window_readbacks_deliver(dataset: &Path) {
     use std::sync::Arc;
     use strata_viewer::gpu::{GpuContext, ProjectionPath};
+    use strata_viewer::pipelines::find;
     use strata_viewer::settings::PassClock;
-    use strata_viewer::{Pipeline, Renderer, Settings};
+    use strata_viewer::{Renderer, Settings};
     let ds = Arc::new(StreamDataset::open_path(dataset).expect("dataset opens"));
     let ctx = Arc::new(GpuContext::new(ProjectionPath::Auto).expect("GPU adapter"));
     let timestamps = ctx.timestamps;
@@ -933,7 +896,7 @@ fn window_readbacks_deliver(dataset: &Path) {
     let (w, h) = (320, 240);
     let camera = default_camera(&ds, w, h);
     let settings = Settings {
-        pipeline: Pipeline::Pyramid,
+        pipeline: find("pyramid").expect("registered"),
         pass_clock: PassClock::Timestamps,
         ..Settings::default()
     };
@@ -941,26 +904,35 @@ fn window_readbacks_deliver(dataset: &Path) {
     // The readback may have been busy with an earlier, incomplete frame when the complete one
     // was drawn: one more frame, whose copy the wait brings back.
     r.wait_gpu().expect("GPU");
-    r.frame(&camera, w, h, &settings);
+    r.frame(&camera, w, h, &settings).expect("frame");
     r.wait_gpu().expect("GPU");
-    let stats = r.frame(&camera, w, h, &settings);
+    let stats = r.frame(&camera, w, h, &settings).expect("frame");
     r.wait_gpu().expect("GPU");
-    let exact = r.read_depth_noise().expect("readback");
+    let exact = r
+        .read_measures()
+        .expect("readback")
+        .get("depth_noise")
+        .copied();
     assert!(exact.is_some_and(|n| n > 0.0), "depth noise {exact:?}");
-    assert_eq!(stats.depth_noise, exact, "the window's depth noise");
+    assert_eq!(
+        stats.measures.get("depth_noise").copied(),
+        exact,
+        "the window's depth noise"
+    );
     if timestamps {
         let passes = r.pass_times();
         for name in ["project", "hpr", "pull", "push", "normals"] {
             let ms = passes.get(name);
             assert!(
-                ms.is_some_and(|v| v.is_finite() && *v >= 0.0),
+                ms.is_some_and(|v| v.is_finite() && v >= 0.0),
                 "timestamped pass {name}: {ms:?} in {passes:?}"
             );
         }
     }
     let points = Settings {
-        pipeline: Pipeline::Points,
+        pipeline: find("points").expect("registered"),
         ..settings
     };
-    assert_eq!(r.frame(&camera, w, h, &points).depth_noise, None);
+    let stats = r.frame(&camera, w, h, &points).expect("frame");
+    assert!(stats.measures.is_empty(), "{:?}", stats.measures);
 }

@@ -2,6 +2,7 @@ mod convert;
 mod demo;
 mod export;
 mod info;
+mod pipelines;
 mod render;
 mod serve;
 mod synth;
@@ -38,6 +39,8 @@ enum Command {
     View(view::Args),
     /// Render a dataset headless to PNG (one image or a fly-through), with statistics.
     Render(render::Args),
+    /// List the render pipelines with their parameters.
+    Pipelines(pipelines::Args),
     /// Synthesize a scene, convert it and show it.
     Demo(demo::Args),
 }
@@ -52,6 +55,7 @@ pub fn run(cli: Cli) -> anyhow::Result<ExitCode> {
         Command::Serve(a) => serve::run_serve(a),
         Command::View(a) => view::run(a),
         Command::Render(a) => render::run(a),
+        Command::Pipelines(a) => pipelines::run(a),
         Command::Demo(a) => demo::run(a),
     }
 }

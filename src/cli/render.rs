@@ -45,8 +45,8 @@ pub fn parse_size_wh(s: &str) -> anyhow::Result<(u32, u32)> {
         .split_once(['x', 'X'])
         .and_then(|(w, h)| Some((w.trim().parse::<u32>().ok()?, h.trim().parse::<u32>().ok()?)));
     match parsed {
-        Some((w, h)) if (16..=16384).contains(&w) && (16..=16384).contains(&h) => Ok((w, h)),
-        _ => anyhow::bail!("--size {s:?} is not WIDTHxHEIGHT with sides from 16 to 16384"),
+        Some((w, h)) if (1..=16384).contains(&w) && (1..=16384).contains(&h) => Ok((w, h)),
+        _ => anyhow::bail!("--size {s:?} is not WIDTHxHEIGHT with sides from 1 to 16384"),
     }
 }
 

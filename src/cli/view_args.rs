@@ -3,22 +3,25 @@
 use anyhow::Context;
 use strata_viewer::gpu::ProjectionPath;
 use strata_viewer::settings::{MAX_BUDGET, MIN_BUDGET, PassClock, SizeMode};
-use strata_viewer::{ColourMode, Pipeline, Settings};
+use strata_viewer::{ColourMode, Settings};
 
 #[derive(Debug, clap::Args)]
 pub struct ViewArgs {
     /// Points drawn per frame at most (100k to 100M; 5M, 800k, ...).
     #[arg(long, default_value = "5M", value_parser = super::synth::parse_count)]
     pub budget: u64,
-    /// Render pipeline: points, edl or pyramid (hidden-point removal, pull-push fill and
-    /// deferred shading, paper 003).
-    #[arg(long, default_value = "edl")]
+    /// Render pipeline (`strata pipelines` lists them with their parameters).
+    #[arg(long, default_value = strata_viewer::pipelines::DEFAULT_PIPELINE)]
     pub pipeline: String,
-    /// The pyramid pipeline's metric scale s0, in dataset units: about the point spacing
-    /// (default: estimated from the nodes drawn each frame).
+    /// A parameter of the chosen pipeline, NAME=VALUE (repeatable; `strata pipelines` lists
+    /// them, with their ranges).
+    #[arg(long = "set", value_name = "NAME=VALUE")]
+    pub set: Vec<String>,
+    /// Shorthand for `--set s0=VALUE` (the pyramid pipeline's metric scale, in dataset units;
+    /// default: the spacing of the nodes drawn).
     #[arg(long)]
-    pub s0: Option<f32>,
-    /// Eye-dome lighting on top of the pyramid pipeline's shading.
+    pub s0: Option<String>,
+    /// Shorthand for `--set edl=1` (eye-dome lighting on top of the pyramid's shading).
     #[arg(long)]
     pub pyramid_edl: bool,
     /// Point size in pixels (or, with --attenuate, in multiples of the point spacing).
@@ -63,14 +66,8 @@ impl ViewArgs {
         if !(self.point_size.is_finite() && (0.1..=15.0).contains(&self.point_size)) {
             anyhow::bail!("--point-size {} is outside 0.1 to 15", self.point_size);
         }
-        if let Some(s0) = self.s0.filter(|s| !(s.is_finite() && *s > 0.0)) {
-            anyhow::bail!("--s0 {s0} is not a positive length");
-        }
-        Ok(Settings {
+        let mut settings = Settings {
             budget: self.budget,
-            s0: self.s0,
-            pyramid_edl: self.pyramid_edl,
-            pipeline: Pipeline::parse(&self.pipeline).context("--pipeline")?,
             point_size: self.point_size,
             size_mode: if self.attenuate {
                 SizeMode::Attenuated
@@ -81,7 +78,22 @@ impl ViewArgs {
             fused_finish: !self.separate_passes,
             pass_clock: PassClock::parse(&self.pass_clock).context("--pass-clock")?,
             ..Settings::default()
-        })
+        };
+        settings
+            .set_pipeline(&self.pipeline)
+            .context("--pipeline")?;
+        let shorthands = [
+            self.s0.as_ref().map(|v| ("--s0", format!("s0={v}"))),
+            self.pyramid_edl
+                .then(|| ("--pyramid-edl", "edl=1".to_string())),
+        ];
+        for (flag, assignment) in shorthands.into_iter().flatten() {
+            settings.set_param(&assignment).context(flag)?;
+        }
+        for assignment in &self.set {
+            settings.set_param(assignment).context("--set")?;
+        }
+        Ok(settings)
     }
 
     pub fn projection(&self) -> anyhow::Result<ProjectionPath> {

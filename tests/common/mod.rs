@@ -31,6 +31,54 @@ pub fn run_ok(args: &[&str]) -> Output {
     o
 }
 
+/// Runs strata on the GPU (lavapipe unless WGPU_BACKEND says otherwise).
+pub fn gpu_run(args: &[&str]) -> Output {
+    let backend = std::env::var("WGPU_BACKEND").unwrap_or_else(|_| "vulkan".into());
+    // Mesa's window-system probe complains on stderr without one; tests read stderr.
+    let runtime = Path::new(env!("CARGO_TARGET_TMPDIR")).join("xdg-runtime");
+    let _ = std::fs::create_dir_all(&runtime);
+    let mut cmd = strata();
+    cmd.env("WGPU_BACKEND", backend)
+        .env("XDG_RUNTIME_DIR", &runtime);
+    match cmd.args(args).output() {
+        Ok(o) => o,
+        Err(e) => panic!("cannot run strata: {e}"),
+    }
+}
+
+pub fn gpu_ok(args: &[&str]) -> Output {
+    let o = gpu_run(args);
+    assert!(
+        o.status.success(),
+        "strata {args:?} failed:\n{}",
+        String::from_utf8_lossy(&o.stderr)
+    );
+    o
+}
+
+/// A PNG as RGBA rows.
+pub fn read_png(path: &Path) -> (u32, u32, Vec<u8>) {
+    let file = match std::fs::File::open(path) {
+        Ok(f) => f,
+        Err(e) => panic!("{}: {e}", path.display()),
+    };
+    let mut dec = png::Decoder::new(std::io::BufReader::new(file))
+        .read_info()
+        .expect("png header");
+    let mut buf = vec![0; dec.output_buffer_size().expect("png size")];
+    let info = dec.next_frame(&mut buf).expect("png data");
+    buf.truncate(info.buffer_size());
+    let rgba = match info.color_type {
+        png::ColorType::Rgba => buf,
+        png::ColorType::Rgb => buf
+            .chunks_exact(3)
+            .flat_map(|c| [c[0], c[1], c[2], 255])
+            .collect(),
+        other => panic!("unexpected PNG colour type {other:?}"),
+    };
+    (info.width, info.height, rgba)
+}
+
 pub fn s(p: &Path) -> &str {
     p.to_str().expect("utf-8 path")
 }

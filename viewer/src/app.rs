@@ -4,8 +4,10 @@
 use crate::camera::Camera;
 use crate::gpu::{GpuContext, ProjectionPath};
 use crate::headless::{default_camera, write_png};
+use crate::pipelines::REGISTRY;
+use crate::pipelines::params::{ParamSpec, ParamValue, Scale};
 use crate::renderer::{FrameStats, Renderer};
-use crate::settings::{ColourMode, MAX_BUDGET, MIN_BUDGET, Pipeline, Settings, SizeMode};
+use crate::settings::{ColourMode, MAX_BUDGET, MIN_BUDGET, Settings, SizeMode};
 use crate::{HttpOptions, StreamDataset, ViewerError};
 use eframe::egui;
 use std::path::PathBuf;
@@ -37,8 +39,12 @@ struct ViewerApp {
     io_rate: f64,
     frame_ms_avg: f64,
     scene_size: f32,
-    /// The last automatic s0, which the manual s0 slider is centred on.
-    s0_auto: Option<f32>,
+    /// The last value of each automatic parameter, which its manual slider is centred on.
+    auto_values: std::collections::HashMap<(&'static str, &'static str), f32>,
+    /// The frame failed (a GPU fault, a lost device): shown in the panel, nothing drawn.
+    error: Option<String>,
+    /// The size the scene is rendered at, where the adapter holds less than the window asks.
+    reduced: Option<(u32, u32, u32, u32)>,
     screenshot: Option<(PathBuf, u32)>,
     screenshot_done: Arc<AtomicBool>,
     screenshot_error: Arc<std::sync::Mutex<Option<String>>>,
@@ -67,7 +73,9 @@ pub fn run_window(location: &str, opts: WindowOptions) -> Result<(), ViewerError
         camera: home,
         home,
         settings: opts.settings,
-        s0_auto: None,
+        auto_values: Default::default(),
+        error: None,
+        reduced: None,
         texture: None,
         stats: FrameStats::default(),
         frames: 0,
@@ -125,42 +133,95 @@ impl eframe::App for ViewerApp {
 }
 
 impl ViewerApp {
-    /// s0, automatic or set on a log scale around the last automatic value, and EDL on top.
-    fn pyramid_controls(&mut self, ui: &mut egui::Ui) {
-        if self.settings.s0.is_none() {
-            self.s0_auto = self.stats.s0.or(self.s0_auto);
+    /// The chosen pipeline's parameters, from its table in the registry, and what it measured.
+    fn pipeline_controls(&mut self, ui: &mut egui::Ui) {
+        let info = self.settings.pipeline;
+        ui.label(egui::RichText::new(info.description).small());
+        if let Some(paper) = info.paper {
+            ui.label(egui::RichText::new(format!("paper {paper}")).small());
         }
-        let mut auto = self.settings.s0.is_none();
-        if ui
-            .checkbox(&mut auto, "s0 from the point spacing")
-            .changed()
-        {
-            self.settings.s0 = if auto {
-                None
-            } else {
-                Some(self.s0_auto.unwrap_or(self.scene_size * 1e-3))
-            };
+        for spec in info.params {
+            if spec.auto.is_some()
+                && let Some(v) = self.stats.params.get(spec.name)
+                && self.settings.params.get(info, spec) == ParamValue::Auto
+            {
+                self.auto_values.insert((info.name, spec.name), *v);
+            }
+            self.param_control(ui, spec);
         }
-        if let Some(s0) = self.settings.s0.as_mut() {
-            let centre = self.s0_auto.unwrap_or(*s0).max(1e-9).log10();
-            let mut log_s0 = s0.max(1e-9).log10();
-            let slider =
-                egui::Slider::new(&mut log_s0, centre - 1.5..=centre + 1.5).show_value(false);
-            if ui.add(slider).changed() {
-                *s0 = 10f32.powf(log_s0);
+        for (name, value) in &self.stats.measures {
+            ui.label(format!("{name} = {value:.4}"));
+        }
+    }
+
+    fn param_control(&mut self, ui: &mut egui::Ui, spec: &'static ParamSpec) {
+        let info = self.settings.pipeline;
+        let value = self.settings.params.get(info, spec);
+        let set = |app: &mut ViewerApp, v| app.settings.params.set(info, spec, v);
+        if spec.scale == Scale::Toggle {
+            let mut on = value == ParamValue::Value(1.0);
+            if ui
+                .checkbox(&mut on, spec.name)
+                .on_hover_text(spec.help)
+                .changed()
+            {
+                set(self, ParamValue::Value(if on { 1.0 } else { 0.0 }));
+            }
+            return;
+        }
+        let last_auto = self.auto_values.get(&(info.name, spec.name)).copied();
+        if spec.auto.is_some() {
+            let mut auto = value == ParamValue::Auto;
+            let label = format!("{} automatic", spec.name);
+            if ui
+                .checkbox(&mut auto, label)
+                .on_hover_text(spec.help)
+                .changed()
+            {
+                let manual = last_auto.unwrap_or(spec.default).clamp(spec.min, spec.max);
+                set(
+                    self,
+                    if auto {
+                        ParamValue::Auto
+                    } else {
+                        ParamValue::Value(manual)
+                    },
+                );
             }
         }
-        if let Some(s0) = self.settings.s0.or(self.stats.s0) {
-            ui.label(format!("s0 = {s0:.4}"));
-        }
-        // The normals widen where the noise needs it; seeing σ beside s0 tells a user whether
-        // a rough surface is the scan's noise or too small an s0.
-        match self.stats.depth_noise {
-            Some(sigma) if sigma > 0.0 => ui.label(format!("depth noise σ = {sigma:.4}")),
-            Some(_) => ui.label("depth noise: too few neighbouring points"),
-            None => ui.label("depth noise: measuring..."),
+        let ParamValue::Value(mut v) = self.settings.params.get(info, spec) else {
+            if let Some(v) = self.stats.params.get(spec.name) {
+                ui.label(format!("{} = {v:.4}", spec.name));
+            }
+            return;
         };
-        ui.checkbox(&mut self.settings.pyramid_edl, "EDL on top");
+        let changed = match spec.scale {
+            Scale::Log => {
+                // Lengths span orders of magnitude: three decades around the automatic value.
+                let centre = last_auto.unwrap_or(v).max(spec.min.max(1e-12)).log10();
+                let range = (centre - 1.5).max(spec.min.max(1e-12).log10())
+                    ..=(centre + 1.5).min(spec.max.log10());
+                let mut log_v = v.max(1e-12).log10();
+                let slider = egui::Slider::new(&mut log_v, range).show_value(false);
+                let changed = ui.add(slider).on_hover_text(spec.help).changed();
+                v = 10f32.powf(log_v);
+                ui.label(format!("{} = {v:.4}", spec.name));
+                changed
+            }
+            Scale::Integer => {
+                let slider = egui::Slider::new(&mut v, spec.min..=spec.max)
+                    .step_by(1.0)
+                    .text(spec.name);
+                ui.add(slider).on_hover_text(spec.help).changed()
+            }
+            _ => {
+                let slider = egui::Slider::new(&mut v, spec.min..=spec.max).text(spec.name);
+                ui.add(slider).on_hover_text(spec.help).changed()
+            }
+        };
+        if changed {
+            set(self, ParamValue::Value(v.clamp(spec.min, spec.max)));
+        }
     }
 
     fn panel(&mut self, ui: &mut egui::Ui) {
@@ -181,22 +242,19 @@ impl ViewerApp {
         ui.label(format!("{} points", group_digits(self.settings.budget)));
 
         ui.label("Pipeline");
-        ui.horizontal(|ui| {
-            for p in Pipeline::ALL {
-                ui.radio_value(&mut self.settings.pipeline, p, p.name());
+        ui.horizontal_wrapped(|ui| {
+            for p in REGISTRY {
+                let chosen = std::ptr::eq(self.settings.pipeline, *p);
+                if ui
+                    .radio(chosen, p.name)
+                    .on_hover_text(p.description)
+                    .clicked()
+                {
+                    self.settings.pipeline = p;
+                }
             }
         });
-        if self.settings.pipeline == Pipeline::Pyramid {
-            self.pyramid_controls(ui);
-        }
-        if self.settings.pipeline == Pipeline::Edl
-            || (self.settings.pipeline == Pipeline::Pyramid && self.settings.pyramid_edl)
-        {
-            ui.add(
-                egui::Slider::new(&mut self.settings.edl_strength, 0.1..=4.0).text("EDL strength"),
-            );
-            ui.add(egui::Slider::new(&mut self.settings.edl_radius, 1.0..=4.0).text("EDL radius"));
-        }
+        self.pipeline_controls(ui);
 
         ui.label("Point size");
         ui.add(egui::Slider::new(&mut self.settings.point_size, 0.5..=10.0));
@@ -227,6 +285,15 @@ impl ViewerApp {
         }
         ui.separator();
 
+        if let Some(e) = &self.error {
+            ui.colored_label(egui::Color32::LIGHT_RED, e);
+        }
+        if let Some((w, h, rw, rh)) = self.reduced {
+            ui.colored_label(
+                egui::Color32::YELLOW,
+                format!("rendering at {rw}x{rh} of {w}x{h}: the adapter holds no larger image"),
+            );
+        }
         let s = &self.stats;
         ui.heading("Statistics");
         egui::Grid::new("stats").num_columns(2).show(ui, |ui| {
@@ -257,7 +324,7 @@ impl ViewerApp {
             if !s.passes.is_empty() {
                 row("pass clock", s.pass_clock.to_string());
             }
-            for (pass, ms) in &s.passes {
+            for (pass, ms) in s.passes.iter() {
                 row(&format!("GPU {pass}"), format!("{ms:.2} ms"));
             }
         });
@@ -284,10 +351,20 @@ impl ViewerApp {
         let now = Instant::now();
         let dt = now.duration_since(self.last_frame).as_secs_f64().max(1e-6);
         self.last_frame = now;
-        let stats = self.renderer.frame(&self.camera, w, h, &self.settings);
-        self.frame_ms_avg = self.frame_ms_avg * 0.9 + dt * 1e3 * 0.1;
-        self.io_rate = self.io_rate * 0.9 + stats.bytes_loaded as f64 / dt * 0.1;
-        self.stats = stats;
+        // A window larger than the adapter holds renders at the largest size of its shape
+        // that fits, scaled up to the window.
+        let (rw, rh) = self.renderer.fit_size(self.settings.pipeline, w, h);
+        self.reduced = ((rw, rh) != (w, h)).then_some((w, h, rw, rh));
+        let (w, h) = (rw, rh);
+        match self.renderer.frame(&self.camera, w, h, &self.settings) {
+            Ok(stats) => {
+                self.frame_ms_avg = self.frame_ms_avg * 0.9 + dt * 1e3 * 0.1;
+                self.io_rate = self.io_rate * 0.9 + stats.bytes_loaded as f64 / dt * 0.1;
+                self.stats = stats;
+                self.error = None;
+            }
+            Err(e) => self.error = Some(e.to_string()),
+        }
         self.frames += 1;
 
         let Some(state) = frame.wgpu_render_state() else {
@@ -341,7 +418,7 @@ impl ViewerApp {
         if response.double_clicked()
             && let Some(pos) = response.interact_pointer_pos()
         {
-            self.focus(pos, rect, ui.ctx().pixels_per_point());
+            self.focus(pos, rect);
         }
         let dt = ui.input(|i| i.stable_dt).min(0.1);
         let fast = if ui.input(|i| i.modifiers.shift) {
@@ -372,15 +449,16 @@ impl ViewerApp {
     }
 
     /// Centres the view on the point under the cursor (the nearest drawn pixel within 8).
-    fn focus(&mut self, pos: egui::Pos2, rect: egui::Rect, ppp: f32) {
+    fn focus(&mut self, pos: egui::Pos2, rect: egui::Rect) {
         let Ok(depths) = self.renderer.read_depths() else {
             return;
         };
         let Some((_, w, h)) = self.texture else {
             return;
         };
-        let px = ((pos.x - rect.min.x) * ppp) as i32;
-        let py = ((pos.y - rect.min.y) * ppp) as i32;
+        // The image may be smaller than the window (the adapter's limits): scale to it.
+        let px = ((pos.x - rect.min.x) / rect.width().max(1.0) * w as f32) as i32;
+        let py = ((pos.y - rect.min.y) / rect.height().max(1.0) * h as f32) as i32;
         let mut best: Option<(i32, i32, f32)> = None;
         for dy in -8..=8 {
             for dx in -8..=8 {

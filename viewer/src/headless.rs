@@ -97,6 +97,8 @@ pub fn render_with(
         opts.gpu_cache_bytes,
         opts.loader_threads,
     )?;
+    // Before anything is loaded or drawn: a size the adapter cannot hold is refused at once.
+    renderer.check_size(opts.settings.pipeline, opts.width, opts.height)?;
     let open_ms = t0.elapsed().as_secs_f64() * 1e3;
     let mut report = RenderReport {
         dataset: ds.location(),
@@ -105,7 +107,7 @@ pub fn render_with(
         width: opts.width,
         height: opts.height,
         budget: opts.settings.budget,
-        pipeline: opts.settings.pipeline.name(),
+        pipeline: opts.settings.pipeline.name,
         open_ms,
         time_to_first_image_ms: None,
         images: Vec::new(),
@@ -119,7 +121,7 @@ pub fn render_with(
         let mut last_progress = Instant::now();
         let mut drawn_before = 0;
         let stats = loop {
-            let mut stats = renderer.frame(camera, opts.width, opts.height, &opts.settings);
+            let mut stats = renderer.frame(camera, opts.width, opts.height, &opts.settings)?;
             renderer.wait_gpu()?;
             stats.passes = renderer.pass_times();
             stats.frame_ms = frame_start.elapsed().as_secs_f64() * 1e3;
@@ -146,7 +148,7 @@ pub fn render_with(
         };
         // One more frame after the last load so the timestamps describe the final picture.
         let stats = if opts.wait_complete || !fly_through {
-            let mut s = renderer.frame(camera, opts.width, opts.height, &opts.settings);
+            let mut s = renderer.frame(camera, opts.width, opts.height, &opts.settings)?;
             renderer.wait_gpu()?;
             s.passes = renderer.pass_times();
             s.bytes_loaded += stats.bytes_loaded;
@@ -155,7 +157,7 @@ pub fn render_with(
             stats
         };
         let stats = FrameStats {
-            depth_noise: renderer.read_depth_noise()?,
+            measures: renderer.read_measures()?,
             ..stats
         };
         let out = if fly_through {

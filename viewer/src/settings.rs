@@ -3,35 +3,8 @@
 
 use crate::ViewerError;
 pub use crate::gpu::timing::PassClock;
-
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum Pipeline {
-    Points,
-    Edl,
-    /// Paper 003: hidden-point removal, pull-push fill, pyramid normals, deferred shading.
-    Pyramid,
-}
-
-impl Pipeline {
-    pub const ALL: [Pipeline; 3] = [Pipeline::Points, Pipeline::Edl, Pipeline::Pyramid];
-
-    pub fn name(self) -> &'static str {
-        match self {
-            Pipeline::Points => "points",
-            Pipeline::Edl => "edl",
-            Pipeline::Pyramid => "pyramid",
-        }
-    }
-
-    pub fn parse(s: &str) -> Result<Pipeline, ViewerError> {
-        Pipeline::ALL
-            .into_iter()
-            .find(|p| p.name() == s)
-            .ok_or_else(|| {
-                ViewerError::argument(s, "unknown pipeline (expected points, edl or pyramid)")
-            })
-    }
-}
+use crate::pipelines::params::ParamValues;
+use crate::pipelines::{self, PipelineInfo};
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum ColourMode {
@@ -83,15 +56,16 @@ pub enum SizeMode {
     Attenuated,
 }
 
-#[derive(Debug, Clone, Copy)]
+#[derive(Clone)]
 pub struct Settings {
     pub budget: u64,
-    pub pipeline: Pipeline,
+    /// The render pipeline, from `pipelines::REGISTRY`.
+    pub pipeline: &'static PipelineInfo,
+    /// Every pipeline's parameter values (the active one's are used).
+    pub params: ParamValues,
     pub point_size: f32,
     pub size_mode: SizeMode,
     pub colour: ColourMode,
-    pub edl_strength: f32,
-    pub edl_radius: f32,
     /// Refinement stops where a node's point spacing projects below this many pixels.
     pub min_spacing_px: f32,
     pub background: [u8; 3],
@@ -101,11 +75,6 @@ pub struct Settings {
     pub fused_finish: bool,
     /// Use the two-pass 32-bit projection even on a device with 64-bit atomics.
     pub force_int32: bool,
-    /// The pyramid pipeline's metric sampling scale s0 in dataset units; `None` takes it from
-    /// the nodes drawn.
-    pub s0: Option<f32>,
-    /// Eye-dome lighting on top of the pyramid pipeline's shading.
-    pub pyramid_edl: bool,
     /// The clock the per-pass GPU times are taken with.
     pub pass_clock: PassClock,
 }
@@ -114,21 +83,49 @@ impl Default for Settings {
     fn default() -> Settings {
         Settings {
             budget: 5_000_000,
-            pipeline: Pipeline::Edl,
+            pipeline: pipelines::REGISTRY
+                .iter()
+                .copied()
+                .find(|p| p.name == pipelines::DEFAULT_PIPELINE)
+                .unwrap_or(pipelines::REGISTRY[0]),
+            params: ParamValues::default(),
             point_size: 2.0,
             size_mode: SizeMode::Fixed,
             colour: ColourMode::Rgb,
-            edl_strength: 1.0,
-            edl_radius: 1.4,
             min_spacing_px: 1.0,
             background: [24, 26, 32],
             upload_points_per_frame: Some(4_000_000),
             fused_finish: true,
             force_int32: false,
-            s0: None,
-            pyramid_edl: false,
             pass_clock: PassClock::Auto,
         }
+    }
+}
+
+impl Settings {
+    /// Chooses the pipeline `name`; the error lists the registered ones.
+    pub fn set_pipeline(&mut self, name: &str) -> Result<(), ViewerError> {
+        self.pipeline = pipelines::find(name)?;
+        Ok(())
+    }
+
+    /// Sets a parameter of the chosen pipeline from `NAME=VALUE`; an unknown name or a value
+    /// out of range is refused with a sentence that names it.
+    pub fn set_param(&mut self, assignment: &str) -> Result<(), ViewerError> {
+        let (name, value) = assignment
+            .split_once('=')
+            .ok_or_else(|| ViewerError::argument(assignment, "expected NAME=VALUE"))?;
+        self.params.set_text(self.pipeline, name.trim(), value)
+    }
+}
+
+impl std::fmt::Debug for Settings {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("Settings")
+            .field("budget", &self.budget)
+            .field("pipeline", &self.pipeline.name)
+            .field("params", &self.params)
+            .finish_non_exhaustive()
     }
 }
 

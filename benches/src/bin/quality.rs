@@ -18,8 +18,9 @@ use strata_bench::quality::sample::{PointSet, load_scan, sample_mesh, write_ply}
 use strata_bench::quality::scenes::{CLAY, Points, Scene, View, scenes};
 use strata_viewer::gpu::{GpuContext, ProjectionPath};
 use strata_viewer::lod::clip_range;
+use strata_viewer::pipelines::{PipelineInfo, find};
 use strata_viewer::settings::SizeMode;
-use strata_viewer::{Camera, Pipeline, Renderer, Settings, StreamDataset};
+use strata_viewer::{Camera, Renderer, Settings, StreamDataset};
 
 struct Args {
     out: PathBuf,
@@ -83,35 +84,35 @@ fn parse_args() -> anyhow::Result<Args> {
 
 /// One pipeline configuration of the comparison.
 struct Config {
-    pipeline: Pipeline,
+    pipeline: &'static PipelineInfo,
     setting: String,
     point_size: f32,
     /// s0 as a multiple of the automatic estimate (pyramid only).
     s0_factor: Option<f32>,
 }
 
-fn configs(full: bool) -> Vec<Config> {
+fn configs(full: bool) -> anyhow::Result<Vec<Config>> {
     let mut v = vec![
         Config {
-            pipeline: Pipeline::Points,
+            pipeline: find("points")?,
             setting: "1px".into(),
             point_size: 1.0,
             s0_factor: None,
         },
         Config {
-            pipeline: Pipeline::Points,
+            pipeline: find("points")?,
             setting: "2px".into(),
             point_size: 2.0,
             s0_factor: None,
         },
         Config {
-            pipeline: Pipeline::Edl,
+            pipeline: find("edl")?,
             setting: "2px".into(),
             point_size: 2.0,
             s0_factor: None,
         },
         Config {
-            pipeline: Pipeline::Pyramid,
+            pipeline: find("pyramid")?,
             setting: "s0=auto".into(),
             point_size: 1.0,
             s0_factor: Some(1.0),
@@ -120,14 +121,14 @@ fn configs(full: bool) -> Vec<Config> {
     if full {
         for f in [0.5f32, 2.0] {
             v.push(Config {
-                pipeline: Pipeline::Pyramid,
+                pipeline: find("pyramid")?,
                 setting: format!("s0=auto×{f}"),
                 point_size: 1.0,
                 s0_factor: Some(f),
             });
         }
     }
-    v
+    Ok(v)
 }
 
 const BUDGET: u64 = 20_000_000;
@@ -222,7 +223,7 @@ fn main() -> anyhow::Result<()> {
                     rows.push(Row {
                         scene: scene.name.clone(),
                         view: vi,
-                        pipeline: config.pipeline.name().into(),
+                        pipeline: config.pipeline.name.into(),
                         setting: config.setting,
                         density,
                         noise,
@@ -339,7 +340,7 @@ fn render_view(
     // Load everything the view needs.
     let start = Instant::now();
     loop {
-        let stats = renderer.frame(camera, w, h, &base);
+        let stats = renderer.frame(camera, w, h, &base)?;
         renderer.wait_gpu()?;
         if stats.complete {
             break;
@@ -363,25 +364,25 @@ fn render_view(
     let tan_half = [tan_y * aspect, tan_y];
     let mut auto_s0 = None;
     let mut results = Vec::new();
-    for config in configs(!args.quick && !stability) {
+    for config in configs(!args.quick && !stability)? {
         let mut settings = Settings {
             pipeline: config.pipeline,
             point_size: config.point_size,
             size_mode: SizeMode::Fixed,
-            ..base
+            ..base.clone()
         };
         if let (Some(f), Some(s0)) = (config.s0_factor, auto_s0) {
-            settings.s0 = Some(s0 * f);
+            settings.set_param(&format!("s0={}", s0 * f))?;
         }
         // Twice: the second frame's pass times are of a warm pipeline.
-        renderer.frame(camera, w, h, &settings);
+        renderer.frame(camera, w, h, &settings)?;
         renderer.wait_gpu()?;
-        let stats = renderer.frame(camera, w, h, &settings);
+        let stats = renderer.frame(camera, w, h, &settings)?;
         renderer.wait_gpu()?;
-        if config.pipeline == Pipeline::Pyramid && auto_s0.is_none() {
-            auto_s0 = stats.s0;
+        if config.s0_factor.is_some() && auto_s0.is_none() {
+            auto_s0 = stats.params.get("s0").copied();
         }
-        let gpu_ms: f64 = renderer.pass_times().values().sum();
+        let gpu_ms: f64 = renderer.pass_times().iter().map(|(_, ms)| ms).sum();
         let (_, _, rgba) = renderer.read_image()?;
         let surface = renderer
             .read_surface()?

@@ -18,7 +18,7 @@ use strata_converter::sys::peak_rss_bytes;
 use strata_viewer::gpu::{GpuContext, ProjectionPath};
 use strata_viewer::headless::default_camera;
 use strata_viewer::settings::PassClock;
-use strata_viewer::{Camera, Pipeline, Renderer, Settings, StreamDataset};
+use strata_viewer::{Camera, Renderer, Settings, StreamDataset};
 
 #[derive(Debug, Serialize, Deserialize)]
 struct Run {
@@ -66,6 +66,7 @@ fn child(args: &[String]) -> anyhow::Result<()> {
         fused,
         clock,
         camera,
+        sets @ ..,
     ] = args
     else {
         bail!("child needs DATASET BUDGET W H FRAMES DETAIL PIPELINE FUSED CLOCK CAMERA")
@@ -81,21 +82,24 @@ fn child(args: &[String]) -> anyhow::Result<()> {
         "" => default_camera(&ds, w, h),
         spec => Camera::parse(spec, ds.anchor(), default_camera(&ds, w, h))?,
     };
-    let settings = Settings {
+    let mut settings = Settings {
         budget: budget.parse()?,
         min_spacing_px: detail.parse()?,
-        pipeline: Pipeline::parse(pipeline)?,
         fused_finish: fused == "fused",
         pass_clock: PassClock::parse(clock)?,
         ..Settings::default()
     };
+    settings.set_pipeline(pipeline)?;
+    for s in sets {
+        settings.set_param(s)?;
+    }
     // Streaming, paced like a 60 Hz window.
     let period = Duration::from_secs_f64(1.0 / 60.0);
     let mut streaming = Vec::new();
     let mut first_image_ms = None;
     let complete_ms = loop {
         let start = Instant::now();
-        let s = r.frame(&camera, w, h, &settings);
+        let s = r.frame(&camera, w, h, &settings)?;
         r.wait_gpu()?;
         let ms = start.elapsed().as_secs_f64() * 1e3;
         if s.points_drawn > 0 && first_image_ms.is_none() {
@@ -119,14 +123,14 @@ fn child(args: &[String]) -> anyhow::Result<()> {
     let mut last = None;
     for _ in 0..frames.max(1) {
         let start = Instant::now();
-        let s = r.frame(&camera, w, h, &settings);
+        let s = r.frame(&camera, w, h, &settings)?;
         r.wait_gpu()?;
         steady.push(start.elapsed().as_secs_f64() * 1e3);
         let passes = r.pass_times();
-        for (name, ms) in &passes {
-            per_pass.entry(name.clone()).or_default().push(*ms);
+        for (name, ms) in passes.iter() {
+            per_pass.entry(name.to_string()).or_default().push(ms);
         }
-        gpu.push(passes.values().sum());
+        gpu.push(passes.iter().map(|(_, ms)| ms).sum());
         project.push(
             passes
                 .iter()
@@ -147,7 +151,7 @@ fn child(args: &[String]) -> anyhow::Result<()> {
         if i < FLY_FRAMES / 2 {
             moving.zoom(0.995);
         }
-        let s = r.frame(&moving, w, h, &settings);
+        let s = r.frame(&moving, w, h, &settings)?;
         r.wait_gpu()?;
         fly.push(start.elapsed().as_secs_f64() * 1e3);
         fly_bytes += s.bytes_loaded;
@@ -188,7 +192,8 @@ fn child(args: &[String]) -> anyhow::Result<()> {
 
 const USAGE: &str = "cargo run --release -p strata-bench --bin render-bench -- [--points 100M] [--budgets 1M,5M,20M]\n    \
        [--size 1280x720] [--frames 10] [--detail 1.0] [--dataset DIR] [--pipeline edl]\n    \
-       [--separate-passes] [--pass-clock auto|timestamps|wall] [--camera \"eye=..;target=..;fov=..\"]";
+       [--separate-passes] [--pass-clock auto|timestamps|wall] [--camera \"eye=..;target=..;fov=..\"]\n    \
+       [--set NAME=VALUE]...";
 
 fn main() -> anyhow::Result<()> {
     if strata_bench::answered_help(USAGE) {
@@ -208,6 +213,7 @@ fn main() -> anyhow::Result<()> {
     let mut clock = "auto".to_string();
     let mut camera = String::new();
     let mut dataset: Option<PathBuf> = None;
+    let mut sets: Vec<String> = Vec::new();
     let mut it = args.iter();
     while let Some(a) = it.next() {
         let mut value = || it.next().with_context(|| format!("{a} needs a value"));
@@ -231,6 +237,7 @@ fn main() -> anyhow::Result<()> {
             "--pass-clock" => clock = value()?.clone(),
             "--camera" => camera = value()?.clone(),
             "--dataset" => dataset = Some(PathBuf::from(value()?)),
+            "--set" => sets.push(value()?.clone()),
             other => bail!("unknown argument {other}"),
         }
     }
@@ -258,6 +265,7 @@ fn main() -> anyhow::Result<()> {
                 clock.clone(),
                 camera.clone(),
             ])
+            .args(&sets)
             .output()?;
         if !out.status.success() {
             bail!(

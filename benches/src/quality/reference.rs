@@ -6,8 +6,8 @@ use super::mesh::Mesh;
 use bytemuck::{Pod, Zeroable};
 use glam::Mat4;
 use strata_viewer::gpu::GpuContext;
-use strata_viewer::gpu::pyramid::LIGHTING_WGSL;
 use strata_viewer::gpu::readback::read_texture;
+use strata_viewer::pipelines::LIGHTING_WGSL;
 use wgpu::util::DeviceExt;
 
 const SHADER: &str = r#"

@@ -1,6 +1,20 @@
 //! The wgpu instance, adapter and device, with the optional features the pipelines use.
 
 use crate::ViewerError;
+use std::sync::{Arc, Mutex};
+use std::time::Duration;
+
+/// The longest the viewer waits for the GPU to finish submitted work before it reports the
+/// device as hung instead of waiting for ever.
+pub const GPU_WAIT_LIMIT: Duration = Duration::from_secs(120);
+
+/// A wait for the most recent submission, bounded by `GPU_WAIT_LIMIT`.
+pub fn bounded_wait() -> wgpu::PollType {
+    wgpu::PollType::Wait {
+        submission_index: None,
+        timeout: Some(GPU_WAIT_LIMIT),
+    }
+}
 
 /// Which projection path to use.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -20,6 +34,9 @@ pub struct GpuContext {
     pub int64_atomics: bool,
     pub timestamps: bool,
     pub adapter_name: String,
+    /// The first GPU fault no error scope caught (validation, out of memory, internal), or the
+    /// loss of the device; wgpu's default would panic.
+    fault: Arc<Mutex<Option<String>>>,
 }
 
 impl GpuContext {
@@ -72,7 +89,25 @@ impl GpuContext {
         }))
         .map_err(|e| ViewerError::Gpu(format!("cannot open a device: {e}")))?;
         let info = adapter.get_info();
+        let fault = Arc::new(Mutex::new(None::<String>));
+        let keep = |fault: &Arc<Mutex<Option<String>>>, what: String| {
+            if let Ok(mut slot) = fault.lock() {
+                slot.get_or_insert(what);
+            }
+        };
+        let on_error = fault.clone();
+        device.on_uncaptured_error(Arc::new(move |e: wgpu::Error| {
+            keep(&on_error, describe(&e));
+        }));
+        let on_lost = fault.clone();
+        device.set_device_lost_callback(move |reason, message| {
+            // Dropping the device at exit also calls this; only a loss is a fault.
+            if reason != wgpu::DeviceLostReason::Destroyed {
+                keep(&on_lost, format!("the GPU device was lost ({message})"));
+            }
+        });
         Ok(GpuContext {
+            fault,
             instance,
             adapter,
             device,
@@ -83,8 +118,104 @@ impl GpuContext {
         })
     }
 
+    /// The GPU fault that happened outside any error scope since the last call, if any.
+    pub fn take_fault(&self) -> Option<ViewerError> {
+        let fault = self.fault.lock().ok()?.take()?;
+        Some(ViewerError::Gpu(fault))
+    }
+
+    /// Runs `f` inside validation and out-of-memory error scopes: a fault comes back as an
+    /// error, with `what` saying what was being done.
+    pub fn scoped<T>(&self, what: &str, f: impl FnOnce() -> T) -> Result<T, ViewerError> {
+        let oom = self.device.push_error_scope(wgpu::ErrorFilter::OutOfMemory);
+        let validation = self.device.push_error_scope(wgpu::ErrorFilter::Validation);
+        let value = f();
+        let invalid = pollster::block_on(validation.pop());
+        let out_of_memory = pollster::block_on(oom.pop());
+        match invalid.or(out_of_memory) {
+            Some(e) => Err(ViewerError::Gpu(format!("{what}: {}", describe(&e)))),
+            None => Ok(value),
+        }
+    }
+
+    /// Waits for the submitted work, at most `GPU_WAIT_LIMIT`, and reports any fault.
+    pub fn wait(&self) -> Result<(), ViewerError> {
+        let waited = self.device.poll(bounded_wait());
+        if let Some(fault) = self.take_fault() {
+            return Err(fault);
+        }
+        waited.map(|_| ()).map_err(|e| match e {
+            wgpu::PollError::Timeout => ViewerError::Gpu(format!(
+                "the GPU did not finish its work within {} s; the device hangs or was lost",
+                GPU_WAIT_LIMIT.as_secs()
+            )),
+            other => ViewerError::Gpu(format!("waiting for the GPU failed: {other}")),
+        })
+    }
+
     /// Largest storage buffer binding the device allows.
     pub fn max_binding(&self) -> u64 {
         self.device.limits().max_storage_buffer_binding_size
+    }
+}
+
+/// One line for a wgpu error: the kind and the innermost description (wgpu's own text spans
+/// several lines with the whole chain).
+fn describe(e: &wgpu::Error) -> String {
+    let (kind, text) = match e {
+        wgpu::Error::OutOfMemory { .. } => ("out of GPU memory", String::new()),
+        wgpu::Error::Validation { description, .. } => ("validation error", description.clone()),
+        wgpu::Error::Internal { description, .. } => ("internal GPU error", description.clone()),
+    };
+    let text: Vec<&str> = text
+        .lines()
+        .map(str::trim)
+        .filter(|l| !l.is_empty())
+        .collect();
+    if text.is_empty() {
+        kind.to_string()
+    } else {
+        format!("{kind} ({})", text.join(" "))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A buffer wgpu refuses: mappable for reading and storage at once needs a feature the
+    /// device was not opened with.
+    fn invalid_buffer(ctx: &GpuContext) -> wgpu::Buffer {
+        ctx.device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("invalid"),
+            size: 64,
+            usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::STORAGE,
+            mapped_at_creation: false,
+        })
+    }
+
+    #[test]
+    fn a_validation_error_inside_a_scope_is_an_error_value() {
+        let ctx = GpuContext::new(ProjectionPath::Auto).expect("GPU adapter");
+        let e = ctx
+            .scoped("making a test buffer", || invalid_buffer(&ctx))
+            .expect_err("the invalid buffer is refused");
+        let text = e.to_string();
+        assert!(
+            text.contains("making a test buffer: validation error"),
+            "{text}"
+        );
+        assert_eq!(text.lines().count(), 1, "{text}");
+        assert!(ctx.take_fault().is_none(), "the scope caught it");
+        ctx.wait().expect("the device still works");
+    }
+
+    #[test]
+    fn a_fault_outside_any_scope_is_kept_instead_of_panicking() {
+        let ctx = GpuContext::new(ProjectionPath::Auto).expect("GPU adapter");
+        let _ = invalid_buffer(&ctx);
+        let fault = ctx.take_fault().expect("the fault was recorded");
+        assert!(fault.to_string().contains("validation error"), "{fault}");
+        assert!(ctx.take_fault().is_none(), "taken once");
     }
 }

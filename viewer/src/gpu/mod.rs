@@ -1,10 +1,9 @@
-//! Everything on the GPU: device, node cache, compute passes and pass timing.
+//! The GPU's shared parts: device, node cache, readbacks and pass timing (the passes
+//! themselves live with their pipelines, under `pipelines`).
 
 pub mod async_readback;
 pub mod cache;
 pub mod context;
-pub mod passes;
-pub mod pyramid;
 pub mod readback;
 pub mod timing;
 

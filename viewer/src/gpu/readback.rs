@@ -77,9 +77,7 @@ fn map_read(ctx: &GpuContext, buffer: &wgpu::Buffer) -> Result<Vec<u8>, ViewerEr
     buffer.slice(..).map_async(wgpu::MapMode::Read, move |r| {
         let _ = tx.send(r);
     });
-    ctx.device
-        .poll(wgpu::PollType::wait_indefinitely())
-        .map_err(|e| ViewerError::Gpu(format!("waiting for the GPU failed: {e}")))?;
+    ctx.wait()?;
     rx.recv()
         .map_err(|_| ViewerError::Gpu("readback was dropped".into()))?
         .map_err(|e| ViewerError::Gpu(format!("readback failed: {e}")))?;

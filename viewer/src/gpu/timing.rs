@@ -6,7 +6,7 @@
 
 use super::async_readback::AsyncReadback;
 use crate::ViewerError;
-use std::collections::BTreeMap;
+use serde::ser::{Serialize, SerializeMap, Serializer};
 use std::time::Instant;
 
 /// Which clock times the passes.
@@ -41,9 +41,49 @@ impl PassClock {
     }
 }
 
-const MAX_PASSES: u32 = 16;
+/// GPU ms per pass, in the order the passes first ran this frame (a pass that runs more than
+/// once under one name adds up). Written to JSON as an object in that order.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct PassTimes(Vec<(String, f64)>);
+
+impl PassTimes {
+    pub fn add(&mut self, name: &str, ms: f64) {
+        match self.0.iter_mut().find(|(n, _)| n == name) {
+            Some((_, t)) => *t += ms,
+            None => self.0.push((name.to_string(), ms)),
+        }
+    }
+
+    pub fn get(&self, name: &str) -> Option<f64> {
+        self.0.iter().find(|(n, _)| n == name).map(|(_, t)| *t)
+    }
+
+    pub fn iter(&self) -> impl Iterator<Item = (&str, f64)> {
+        self.0.iter().map(|(n, t)| (n.as_str(), *t))
+    }
+
+    pub fn is_empty(&self) -> bool {
+        self.0.is_empty()
+    }
+
+    pub fn clear(&mut self) {
+        self.0.clear();
+    }
+}
+
+impl Serialize for PassTimes {
+    fn serialize<S: Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
+        let mut map = s.serialize_map(Some(self.0.len()))?;
+        for (name, ms) in &self.0 {
+            map.serialize_entry(name, ms)?;
+        }
+        map.end()
+    }
+}
 
 pub struct Timer {
+    /// Passes one frame can time (timestamp pairs in the query set).
+    capacity: u32,
     queries: Option<Queries>,
     device: wgpu::Device,
     queue: wgpu::Queue,
@@ -54,7 +94,9 @@ pub struct Timer {
     names: Vec<String>,
     /// Names of the passes in the readback buffer while it is being mapped.
     in_readback: Vec<String>,
-    last: BTreeMap<String, f64>,
+    last: PassTimes,
+    /// A wait of the wall clock that failed, for the frame to report.
+    poll_error: Option<String>,
 }
 
 struct Queries {
@@ -65,14 +107,15 @@ struct Queries {
 }
 
 impl Timer {
-    pub fn new(device: &wgpu::Device, queue: &wgpu::Queue, enabled: bool) -> Timer {
+    /// `capacity`: the most passes one frame times (the registry's `max_timed_passes`).
+    pub fn new(device: &wgpu::Device, queue: &wgpu::Queue, enabled: bool, capacity: u32) -> Timer {
         let queries = enabled.then(|| {
-            let bytes = MAX_PASSES as u64 * 2 * 8;
+            let bytes = capacity as u64 * 2 * 8;
             Queries {
                 set: device.create_query_set(&wgpu::QuerySetDescriptor {
                     label: Some("pass timestamps"),
                     ty: wgpu::QueryType::Timestamp,
-                    count: MAX_PASSES * 2,
+                    count: capacity * 2,
                 }),
                 resolve: device.create_buffer(&wgpu::BufferDescriptor {
                     label: Some("timestamp resolve"),
@@ -85,6 +128,7 @@ impl Timer {
             }
         });
         Timer {
+            capacity,
             queries,
             device: device.clone(),
             queue: queue.clone(),
@@ -92,7 +136,8 @@ impl Timer {
             open: None,
             names: Vec::new(),
             in_readback: Vec::new(),
-            last: BTreeMap::new(),
+            last: PassTimes::default(),
+            poll_error: None,
         }
     }
 
@@ -119,7 +164,7 @@ impl Timer {
             return None;
         }
         let q = self.queries.as_ref()?;
-        if !q.readback.is_idle() || self.names.len() as u32 >= MAX_PASSES {
+        if !q.readback.is_idle() || self.names.len() as u32 >= self.capacity {
             return None;
         }
         let i = self.names.len() as u32;
@@ -141,10 +186,11 @@ impl Timer {
             });
         let done = std::mem::replace(encoder, fresh);
         self.queue.submit([done.finish()]);
-        // A failed wait leaves the time short; the frame's own wait reports the failure.
-        let _ = self.device.poll(wgpu::PollType::wait_indefinitely());
+        if let Err(e) = self.device.poll(super::context::bounded_wait()) {
+            self.poll_error = Some(e.to_string());
+        }
         if let Some((name, start)) = self.open.take() {
-            *self.last.entry(name).or_insert(0.0) += start.elapsed().as_secs_f64() * 1e3;
+            self.last.add(&name, start.elapsed().as_secs_f64() * 1e3);
         }
     }
 
@@ -192,12 +238,17 @@ impl Timer {
                 break;
             };
             let ms = b.saturating_sub(a) as f64 * q.period_ns as f64 / 1e6;
-            *self.last.entry(name.clone()).or_insert(0.0) += ms;
+            self.last.add(name, ms);
         }
     }
 
+    /// A failed wait of the wall clock since the last call, if any.
+    pub fn take_poll_error(&mut self) -> Option<String> {
+        self.poll_error.take()
+    }
+
     /// The most recent complete set of pass times (ms).
-    pub fn last(&self) -> &BTreeMap<String, f64> {
+    pub fn last(&self) -> &PassTimes {
         &self.last
     }
 }

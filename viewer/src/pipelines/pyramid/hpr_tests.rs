@@ -4,8 +4,8 @@
 //! a 4x4 block per invocation with shared reads; this pins it to the per-pixel definition.
 
 use super::*;
-use crate::gpu::passes::FrameUniforms;
 use crate::gpu::{GpuContext, ProjectionPath};
+use crate::pipelines::projection::FrameUniforms;
 
 const EMPTY: u32 = u32::MAX;
 const LABEL_POINT: u32 = 0;
@@ -184,7 +184,7 @@ fn hpr_labels_match_the_per_pixel_definition() {
         far: 100.0,
         focal_px: h as f32 * 0.5 / (fov_y * 0.5).tan(),
     };
-    let pyramid = PyramidPasses::new(device);
+    let pyramid = PyramidPasses::new(device).expect("pyramid passes");
     let targets = pyramid.targets(device, w, h);
     let inputs = PyramidInputs {
         frame_uniforms: &uniforms,
@@ -192,7 +192,7 @@ fn hpr_labels_match_the_per_pixel_definition() {
         colours: &colours,
         output: &output,
     };
-    let mut timer = Timer::new(device, queue, false);
+    let mut timer = Timer::new(device, queue, false, 32);
     timer.begin_frame(false);
     let mut encoder = device.create_command_encoder(&Default::default());
     pyramid.encode(

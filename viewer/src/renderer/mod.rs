@@ -6,63 +6,27 @@ use crate::ViewerError;
 use crate::camera::Camera;
 use crate::dataset::{GpuNode, StreamDataset};
 use crate::gpu::GpuContext;
-use crate::gpu::async_readback::AsyncReadback;
 use crate::gpu::cache::{InsertError, NodeCache};
-use crate::gpu::passes::{ArenaDraw, FrameDraw, FrameUniforms, GpuRange, Passes, Screen};
-use crate::gpu::pyramid::{PyramidFrame, depth_noise_from};
-use crate::gpu::readback::{read_buffer, read_texture};
 use crate::gpu::timing::{PassClock, Timer};
 use crate::loader::{Done, Job, JobKey, Loader};
 use crate::lod::{Selection, SelectionParams, Tree, clip_range, drawn_spacing, select};
-use crate::settings::{Pipeline, Settings, SizeMode};
-use serde::Serialize;
+use crate::pipelines::params::ResolvedParams;
+use crate::pipelines::projection::{
+    ArenaDraw, FrameDraw, FrameUniforms, GpuRange, Projection, Screen, check_screen,
+    largest_fitting,
+};
+use crate::pipelines::{self, Pipeline, PipelineFrame, PipelineInfo, ScreenBuffer, ViewFrame};
+use crate::settings::{Settings, SizeMode};
 use std::collections::{BTreeMap, HashMap, HashSet, VecDeque};
+
+mod readback;
+mod stats;
+
+pub use readback::SurfacePixel;
+pub use stats::FrameStats;
 use std::sync::Arc;
 use std::time::{Duration, Instant};
 use strata_format::NodeKey;
-
-/// Statistics of one frame, as `--stats` writes them and the panel shows them.
-#[derive(Debug, Clone, Default, Serialize)]
-pub struct FrameStats {
-    pub frame: u64,
-    pub points_drawn: u64,
-    pub nodes_drawn: usize,
-    /// CPU time of the frame, including waiting for the GPU where the caller waited.
-    pub frame_ms: f64,
-    /// GPU ms per pass, by `pass_clock`.
-    pub passes: BTreeMap<String, f64>,
-    /// "timestamps" (queries inside the frame) or "wall" (each pass submitted alone and
-    /// waited for).
-    pub pass_clock: &'static str,
-    /// Stored bytes that arrived from the loaders during this frame.
-    pub bytes_loaded: u64,
-    pub bytes_loaded_total: u64,
-    /// Nodes that could not be loaded (corrupt, unreadable), over the whole session.
-    pub nodes_failed: usize,
-    pub pages_failed: usize,
-    /// Nodes the view wants that are not resident yet.
-    pub nodes_missing: usize,
-    /// Of those, nodes whose source did not answer; they are asked for again later.
-    pub nodes_unavailable: usize,
-    /// Fetches that failed for want of an answer (server gone, timeouts), over the session.
-    pub fetch_errors: u64,
-    pub nodes_visible: usize,
-    pub nodes_resident: usize,
-    pub nodes_in_flight: usize,
-    pub nodes_queued: usize,
-    pub gpu_bytes: u64,
-    /// The pyramid pipeline's s0 this frame (given, or estimated from the nodes drawn).
-    #[serde(skip_serializing_if = "Option::is_none")]
-    pub s0: Option<f32>,
-    /// The pyramid pipeline's estimate of the depth noise of the visible points, as a
-    /// deviation in dataset units (0: too few neighbouring points to tell). In a window the
-    /// latest that has arrived, a frame or more behind; headless, this frame's (read back
-    /// after waiting for the GPU).
-    #[serde(skip_serializing_if = "Option::is_none")]
-    pub depth_noise: Option<f32>,
-    /// Every node the view and budget call for is resident and drawn.
-    pub complete: bool,
-}
 
 pub struct Renderer {
     ctx: Arc<GpuContext>,
@@ -70,12 +34,15 @@ pub struct Renderer {
     tree: Tree,
     loader: Loader,
     cache: NodeCache,
-    passes: Passes,
+    projection: Projection,
+    /// Pipelines compiled so far, by name; only the active one holds screen buffers.
+    pipelines: HashMap<&'static str, Box<dyn Pipeline>>,
+    /// The pipeline whose screen buffers exist.
+    active: Option<&'static str>,
     screen: Option<Screen>,
     timer: Timer,
-    /// The depth noise on its way back for the stats, and the latest that arrived.
-    noise_readback: AsyncReadback,
-    depth_noise: Option<f32>,
+    /// What the active pipeline measured, latest first arrived.
+    measures: BTreeMap<&'static str, f32>,
     /// `PassClock::Auto` means the wall clock here: a CPU adapter, or no timestamp queries.
     auto_wall_clock: bool,
     failed: HashSet<NodeKey>,
@@ -88,8 +55,8 @@ pub struct Renderer {
     last_drawn: HashSet<NodeKey>,
     /// The last frame projected through the 64-bit keys (else the 32-bit planes).
     last_int64: bool,
-    /// The last frame ran the pyramid pipeline (its surface buffer holds the result).
-    last_pyramid: bool,
+    /// The last frame's view-projection, for pipelines that keep the previous frame.
+    previous_view_proj: Option<glam::Mat4>,
     frame: u64,
     bytes_total: u64,
 }
@@ -111,9 +78,13 @@ impl Renderer {
         tree.add_page(&ds.load_page(&ds.root_page())?);
         let loader = Loader::new(ds.clone(), loader_threads);
         let cache = NodeCache::new(ctx.max_binding(), gpu_cache_bytes);
-        let passes = Passes::new(&ctx);
-        let timer = Timer::new(&ctx.device, &ctx.queue, ctx.timestamps);
-        let noise_readback = AsyncReadback::new(&ctx.device, "depth noise readback", 4);
+        let projection = ctx.scoped("compiling the projection", || Projection::new(&ctx))??;
+        let timer = Timer::new(
+            &ctx.device,
+            &ctx.queue,
+            ctx.timestamps,
+            pipelines::max_timed_passes(),
+        );
         let auto_wall_clock =
             !ctx.timestamps || ctx.adapter.get_info().device_type == wgpu::DeviceType::Cpu;
         Ok(Renderer {
@@ -122,11 +93,12 @@ impl Renderer {
             tree,
             loader,
             cache,
-            passes,
+            projection,
+            pipelines: HashMap::new(),
+            active: None,
             screen: None,
-            noise_readback,
-            depth_noise: None,
             timer,
+            measures: BTreeMap::new(),
             auto_wall_clock,
             failed: HashSet::new(),
             pages_failed: 0,
@@ -137,7 +109,7 @@ impl Renderer {
             last_fetch_error: None,
             last_drawn: HashSet::new(),
             last_int64: false,
-            last_pyramid: false,
+            previous_view_proj: None,
             frame: 0,
             bytes_total: 0,
         })
@@ -202,14 +174,76 @@ impl Renderer {
         self.last_fetch_error.as_deref()
     }
 
-    /// Renders one frame of `width` x `height` into the output texture.
+    /// The buffers a `width` x `height` frame of `pipeline` needs.
+    fn screen_buffers(
+        &self,
+        pipeline: &PipelineInfo,
+        width: u32,
+        height: u32,
+    ) -> Vec<ScreenBuffer> {
+        let mut b = self.projection.screen_buffers(width, height);
+        if let Some(p) = self.pipelines.get(pipeline.name) {
+            b.extend(p.screen_buffers(width, height));
+        }
+        b
+    }
+
+    /// Whether a `width` x `height` frame of `pipeline` fits the adapter, in one sentence
+    /// naming the size, the buffer and the limit where it does not.
+    pub fn check_size(
+        &mut self,
+        pipeline: &'static PipelineInfo,
+        width: u32,
+        height: u32,
+    ) -> Result<(), ViewerError> {
+        self.pipeline(pipeline)?;
+        let limits = self.ctx.device.limits();
+        check_screen(
+            &limits,
+            width,
+            height,
+            &self.screen_buffers(pipeline, width, height),
+        )
+        .map_err(|e| {
+            let (w, h) = self.fit_size(pipeline, width, height);
+            ViewerError::Gpu(format!(
+                "{e} on {}; the largest image of that shape it holds is {w}x{h}",
+                self.ctx.adapter_name
+            ))
+        })
+    }
+
+    /// The largest size of the shape of `width` x `height`, at most that, that a frame of
+    /// `pipeline` can have on this adapter (the window renders at that and scales up).
+    pub fn fit_size(&self, pipeline: &PipelineInfo, width: u32, height: u32) -> (u32, u32) {
+        let limits = self.ctx.device.limits();
+        largest_fitting(width.max(1), height.max(1), |w, h| {
+            check_screen(&limits, w, h, &self.screen_buffers(pipeline, w, h)).is_ok()
+        })
+    }
+
+    /// The compiled pipeline `info`, compiling it on first use.
+    fn pipeline(&mut self, info: &'static PipelineInfo) -> Result<(), ViewerError> {
+        if !self.pipelines.contains_key(info.name) {
+            let what = format!("compiling the {} pipeline", info.name);
+            let p = self.ctx.scoped(&what, || (info.create)(&self.ctx))??;
+            self.pipelines.insert(info.name, p);
+        }
+        Ok(())
+    }
+
+    /// Renders one frame of `width` x `height` into the output texture. A GPU fault, a lost
+    /// device or a size the adapter cannot hold is an error, never a panic.
     pub fn frame(
         &mut self,
         camera: &Camera,
         width: u32,
         height: u32,
         settings: &Settings,
-    ) -> FrameStats {
+    ) -> Result<FrameStats, ViewerError> {
+        if let Some(fault) = self.ctx.take_fault() {
+            return Err(fault);
+        }
         let start = Instant::now();
         self.frame += 1;
         let (width, height) = (width.max(1), height.max(1));
@@ -242,25 +276,23 @@ impl Renderer {
         self.cache.touch(&sel.draw, self.frame);
         self.last_drawn = sel.draw.iter().copied().collect();
 
-        let s0 = (settings.pipeline == Pipeline::Pyramid)
-            .then(|| {
-                settings
-                    .s0
-                    .or_else(|| drawn_spacing(&self.tree, &self.ds, &sel.draw))
-            })
-            .flatten();
-        self.draw(camera, width, height, settings, &sel, s0);
+        let info = settings.pipeline;
+        let (tree, ds) = (&self.tree, &self.ds);
+        let resolved = ResolvedParams::resolve(&settings.params, info, || {
+            drawn_spacing(tree, ds, &sel.draw)
+        });
+        self.draw(camera, width, height, settings, &sel, &resolved)?;
         self.collect_readbacks();
-        if settings.pipeline != Pipeline::Pyramid {
-            self.depth_noise = None;
-        }
 
         let (queued, in_flight) = self.loader.counts();
-        FrameStats {
+        Ok(FrameStats {
             frame: self.frame,
             points_drawn: sel.draw_points,
             nodes_drawn: sel.draw.len(),
             frame_ms: start.elapsed().as_secs_f64() * 1e3,
+            pipeline: info.name,
+            params: resolved.iter().collect(),
+            measures: self.measures.clone(),
             passes: self.timer.last().clone(),
             pass_clock: if self.wall_clock(settings) {
                 PassClock::Wall.name()
@@ -283,12 +315,10 @@ impl Renderer {
             nodes_in_flight: in_flight,
             nodes_queued: queued,
             gpu_bytes: self.cache.gpu_bytes(),
-            s0,
-            depth_noise: self.depth_noise,
             complete: sel.missing_nodes.is_empty()
                 && sel.missing_pages.is_empty()
                 && self.uploads.is_empty(),
-        }
+        })
     }
 
     fn upload(&mut self, settings: &Settings) {
@@ -346,6 +376,55 @@ impl Renderer {
         self.loader.set_wanted(jobs.into_iter().map(|(_, j)| j));
     }
 
+    /// Makes the screen and the active pipeline's buffers for this size and pipeline.
+    fn prepare_screen(
+        &mut self,
+        info: &'static PipelineInfo,
+        width: u32,
+        height: u32,
+    ) -> Result<(), ViewerError> {
+        self.check_size(info, width, height)?;
+        let resized = self
+            .screen
+            .as_ref()
+            .is_none_or(|s| s.width != width || s.height != height);
+        let previous_missing = info.previous_frame
+            && self
+                .screen
+                .as_ref()
+                .is_some_and(|s| s.previous_depths.is_none());
+        if resized || previous_missing {
+            // Free the old planes before making the new ones: both at once may not fit.
+            self.screen = None;
+            self.previous_view_proj = None;
+            let (ctx, projection) = (&self.ctx, &self.projection);
+            let screen = ctx.scoped(&format!("making a {width}x{height} screen"), || {
+                projection.screen(&ctx.device, width, height, info.previous_frame)
+            })?;
+            self.screen = Some(screen);
+        }
+        if resized || self.active != Some(info.name) {
+            if let Some(old) = self.active.take().and_then(|n| self.pipelines.get_mut(n)) {
+                old.release_targets();
+            }
+            self.measures.clear();
+            let (Some(screen), Some(p)) = (&self.screen, self.pipelines.get_mut(info.name)) else {
+                return Err(ViewerError::Gpu(format!(
+                    "the {} pipeline is not ready",
+                    info.name
+                )));
+            };
+            let what = format!(
+                "making the {} pipeline's {width}x{height} buffers",
+                info.name
+            );
+            self.ctx
+                .scoped(&what, || p.make_targets(&self.ctx.device, screen))?;
+            self.active = Some(info.name);
+        }
+        Ok(())
+    }
+
     fn draw(
         &mut self,
         camera: &Camera,
@@ -353,24 +432,10 @@ impl Renderer {
         height: u32,
         settings: &Settings,
         sel: &Selection,
-        s0: Option<f32>,
-    ) {
-        if self
-            .screen
-            .as_ref()
-            .is_none_or(|s| s.width != width || s.height != height)
-        {
-            self.screen = Some(self.passes.screen(&self.ctx.device, width, height));
-        }
-        let pyramid = settings.pipeline == Pipeline::Pyramid;
-        if let Some(screen) = self
-            .screen
-            .as_mut()
-            .filter(|s| pyramid && s.pyramid.is_none())
-        {
-            screen.pyramid = Some(self.passes.pyramid_targets(&self.ctx.device, screen));
-        }
-        let Some(screen) = &self.screen else { return };
+        params: &ResolvedParams,
+    ) -> Result<(), ViewerError> {
+        let info = settings.pipeline;
+        self.prepare_screen(info, width, height)?;
         let mut per_arena: BTreeMap<u32, Vec<GpuRange>> = BTreeMap::new();
         for key in &sel.draw {
             for p in self.cache.pieces(*key).unwrap_or_default() {
@@ -391,7 +456,7 @@ impl Renderer {
         let view_proj = camera.projection(aspect, near, far) * camera.view();
         let (bmin, bmax) = self.ds.bounds();
         let [r, g, b] = settings.background;
-        let uniforms = FrameUniforms {
+        let mut uniforms = FrameUniforms {
             view_proj: view_proj.to_cols_array_2d(),
             width,
             height,
@@ -411,55 +476,81 @@ impl Renderer {
             z_min: bmin.z,
             z_max: bmax.z,
             arena_shift: self.cache.arena_shift,
-            edl_strength: match settings.pipeline {
-                Pipeline::Edl => settings.edl_strength.max(1e-3),
-                Pipeline::Pyramid if settings.pyramid_edl => settings.edl_strength.max(1e-3),
-                Pipeline::Points | Pipeline::Pyramid => 0.0,
-            },
-            edl_radius: settings.edl_radius,
+            edl_strength: 0.0,
+            edl_radius: 0.0,
             background: r as u32 | (g as u32) << 8 | (b as u32) << 16 | 255 << 24,
             arena_slots: [u32::MAX; 4],
         };
-        let mut encoder = self
-            .ctx
-            .device
-            .create_command_encoder(&wgpu::CommandEncoderDescriptor {
-                label: Some("frame"),
-            });
-        self.timer.begin_frame(self.wall_clock(settings));
-        self.last_int64 = screen.keys.is_some() && !settings.force_int32;
-        self.last_pyramid = pyramid;
-        let focal_px = camera.focal_px(height);
-        // Without points there is no scale; any positive s0 leaves an empty frame empty.
-        let pyramid_frame = pyramid.then(|| PyramidFrame {
-            s0: s0.unwrap_or(1.0),
+        let wall = self.wall_clock(settings);
+        let (Some(screen), Some(pipeline)) = (&self.screen, self.pipelines.get_mut(info.name))
+        else {
+            return Err(ViewerError::Gpu(format!(
+                "the {} pipeline is not ready",
+                info.name
+            )));
+        };
+        pipeline.uniforms(params, &mut uniforms);
+        let view = ViewFrame {
+            view_proj,
+            previous_view_proj: self.previous_view_proj,
             fov_y: camera.fov_y,
+            near,
             far,
-            focal_px,
-        });
-        self.passes.encode(
-            &self.ctx,
-            &mut encoder,
-            screen,
-            &self.cache,
-            &FrameDraw {
-                uniforms: &uniforms,
-                arenas: &draws,
-                allow_fused: settings.fused_finish,
-                force_int32: settings.force_int32,
-                pyramid: pyramid_frame,
-            },
-            &mut self.timer,
-        );
-        self.timer.resolve(&mut encoder);
-        if let Some(p) = screen.pyramid.as_ref().filter(|_| pyramid) {
-            p.record_depth_noise(&mut encoder, &mut self.noise_readback);
+            focal_px: camera.focal_px(height),
+        };
+        let (ctx, projection, cache, timer) =
+            (&self.ctx, &self.projection, &self.cache, &mut self.timer);
+        let int64 = screen.keys.is_some() && !settings.force_int32;
+        ctx.scoped(&format!("drawing with the {} pipeline", info.name), || {
+            let mut encoder = ctx
+                .device
+                .create_command_encoder(&wgpu::CommandEncoderDescriptor {
+                    label: Some("frame"),
+                });
+            timer.begin_frame(wall);
+            let finished = projection.encode(
+                ctx,
+                &mut encoder,
+                screen,
+                cache,
+                &FrameDraw {
+                    uniforms: &uniforms,
+                    arenas: &draws,
+                    allow_fused: settings.fused_finish,
+                    force_int32: settings.force_int32,
+                    fused: pipeline.fused(params),
+                },
+                timer,
+            );
+            if !finished {
+                let frame = PipelineFrame {
+                    ctx,
+                    screen,
+                    params,
+                    view: &view,
+                };
+                pipeline.encode(&frame, &mut encoder, timer)?;
+            }
+            if info.previous_frame {
+                screen.keep_depths(&mut encoder);
+            }
+            timer.resolve(&mut encoder);
+            ctx.queue.submit([encoder.finish()]);
+            timer.after_submit();
+            pipeline.after_submit();
+            Ok::<(), ViewerError>(())
+        })??;
+        self.last_int64 = int64;
+        self.previous_view_proj = Some(view_proj);
+        if let Some(e) = self.timer.take_poll_error() {
+            return Err(ViewerError::Gpu(format!("waiting for the GPU failed: {e}")));
         }
-        self.ctx.queue.submit([encoder.finish()]);
-        self.timer.after_submit();
-        self.noise_readback.after_submit();
         // Non-blocking: lets map callbacks of earlier frames run.
-        let _ = self.ctx.device.poll(wgpu::PollType::Poll);
+        self.ctx
+            .device
+            .poll(wgpu::PollType::Poll)
+            .map_err(|e| ViewerError::Gpu(format!("polling the GPU failed: {e}")))?;
+        Ok(())
     }
 
     /// Whether `settings` time the passes by the wall clock on this adapter.
@@ -473,116 +564,16 @@ impl Renderer {
 
     /// Waits for the GPU to finish the submitted work (headless and benchmarks).
     pub fn wait_gpu(&mut self) -> Result<(), ViewerError> {
-        self.ctx
-            .device
-            .poll(wgpu::PollType::wait_indefinitely())
-            .map_err(|e| ViewerError::Gpu(format!("waiting for the GPU failed: {e}")))?;
+        self.ctx.wait()?;
         self.collect_readbacks();
         Ok(())
     }
 
-    /// Takes what arrived of the pass times and the depth noise (after polling the device).
+    /// Takes what arrived of the pass times and the pipeline's measures (after polling).
     fn collect_readbacks(&mut self) {
         self.timer.collect();
-        if let Some(bytes) = self.noise_readback.take() {
-            self.depth_noise = depth_noise_from(&bytes);
+        if let Some(p) = self.active.and_then(|n| self.pipelines.get_mut(n)) {
+            self.measures = p.measures();
         }
     }
-
-    /// The latest pass times (after `wait_gpu`).
-    pub fn pass_times(&self) -> BTreeMap<String, f64> {
-        self.timer.last().clone()
-    }
-
-    /// Reads the output image back as tightly packed RGBA8 rows.
-    pub fn read_image(&self) -> Result<(u32, u32, Vec<u8>), ViewerError> {
-        let screen = self
-            .screen
-            .as_ref()
-            .ok_or_else(|| ViewerError::Gpu("no frame has been rendered".into()))?;
-        let rgba = read_texture(&self.ctx, &screen.output, 4)?;
-        Ok((screen.width, screen.height, rgba))
-    }
-
-    /// The depth noise the pyramid pipeline measured in the last frame, as a deviation in
-    /// dataset units; `None` when the last frame was drawn by another pipeline.
-    pub fn read_depth_noise(&self) -> Result<Option<f32>, ViewerError> {
-        match self.screen.as_ref().and_then(|s| s.pyramid.as_ref()) {
-            Some(p) if self.last_pyramid => Ok(Some(p.read_depth_noise(&self.ctx)?)),
-            _ => Ok(None),
-        }
-    }
-
-    /// Linear depth per pixel (`None` where nothing was drawn), for picking and tests.
-    pub fn read_depths(&self) -> Result<Vec<Option<f32>>, ViewerError> {
-        Ok(self
-            .read_surface()?
-            .into_iter()
-            .map(|p| p.map(|p| p.depth))
-            .collect())
-    }
-
-    /// The surface the last frame shows, per pixel: its linear depth, and its view-space normal
-    /// where the pipeline estimates one (`pyramid`). `None` where the frame shows background.
-    pub fn read_surface(&self) -> Result<Vec<Option<SurfacePixel>>, ViewerError> {
-        let screen = self
-            .screen
-            .as_ref()
-            .ok_or_else(|| ViewerError::Gpu("no frame has been rendered".into()))?;
-        let pixels = screen.width as u64 * screen.height as u64;
-        if let Some(p) = screen.pyramid.as_ref().filter(|_| self.last_pyramid) {
-            let data = read_buffer(&self.ctx, &p.surface, pixels * 8)?;
-            return Ok(data
-                .chunks_exact(8)
-                .map(|b| {
-                    let depth = u32::from_le_bytes([b[0], b[1], b[2], b[3]]);
-                    let normal = u32::from_le_bytes([b[4], b[5], b[6], b[7]]);
-                    (depth != u32::MAX).then(|| SurfacePixel {
-                        depth: f32::from_bits(depth),
-                        normal: Some(decode_octahedral(normal)),
-                    })
-                })
-                .collect());
-        }
-        // On the int64 path the depth plane is the high word of each key (the fused finish
-        // pass never writes a separate depth buffer).
-        let (source, stride) = match &screen.keys {
-            Some(keys) if self.last_int64 => (keys, 8),
-            _ => (&screen.depths, 4),
-        };
-        let data = read_buffer(&self.ctx, source, pixels * stride as u64)?;
-        Ok(data
-            .chunks_exact(stride)
-            .map(|b| {
-                let b = &b[stride - 4..];
-                let bits = u32::from_le_bytes([b[0], b[1], b[2], b[3]]);
-                (bits != u32::MAX).then(|| SurfacePixel {
-                    depth: f32::from_bits(bits),
-                    normal: None,
-                })
-            })
-            .collect())
-    }
-}
-
-/// One pixel of the surface a frame shows.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct SurfacePixel {
-    /// Linear depth along the view axis, in dataset units.
-    pub depth: f32,
-    /// Unit normal in view space (x right, y up, z towards the viewer).
-    pub normal: Option<[f32; 3]>,
-}
-
-/// Inverse of `encode_normal` in pyramid.wgsl (two snorm16 octahedral coordinates).
-fn decode_octahedral(e: u32) -> [f32; 3] {
-    let snorm = |v: u32| ((v & 0xffff) as u16 as i16 as f32 / 32767.0).clamp(-1.0, 1.0);
-    let (px, py) = (snorm(e), snorm(e >> 16));
-    let mut n = glam::Vec3::new(px, py, 1.0 - px.abs() - py.abs());
-    if n.z < 0.0 {
-        let (x, y) = (n.x, n.y);
-        n.x = (1.0 - y.abs()) * if x >= 0.0 { 1.0 } else { -1.0 };
-        n.y = (1.0 - x.abs()) * if y >= 0.0 { 1.0 } else { -1.0 };
-    }
-    n.normalize_or_zero().to_array()
 }

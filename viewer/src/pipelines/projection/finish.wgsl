@@ -1,7 +1,8 @@
 // The fused last pass when a frame's points lie in at most four arenas: per pixel, fetch the
-// nearest point's attributes from its arena, colour it, apply eye-dome lighting and write the
-// output image. Replaces unpack, resolve and shade (three full-screen passes) with one.
-// `pixel_depth` and `pixel_index` come from the projection path's prelude.
+// nearest point's attributes from its arena, colour it, shade it with the pipeline's
+// `shade_pixel` and write the output image. Replaces unpack, resolve and shade (three
+// full-screen passes) with one. `pixel_depth` and `pixel_index` come from the projection
+// path's prelude.
 @group(0) @binding(0) var<uniform> frame: Frame;
 @group(0) @binding(3) var output: texture_storage_2d<rgba8unorm, write>;
 @group(1) @binding(0) var<storage, read> points0: array<vec4<u32>>;
@@ -55,5 +56,5 @@ fn main(@builtin(global_invocation_id) id: vec3<u32>) {
     // give the same image.
     let colour = vec4<f32>(point_colour(point_at(slot, local), attribute_at(slot, local)), 1.0);
     let rgb = unpack4x8unorm(pack4x8unorm(colour)).rgb;
-    textureStore(output, vec2<i32>(id.xy), vec4<f32>(rgb * edl_factor(id.xy, d), 1.0));
+    textureStore(output, vec2<i32>(id.xy), vec4<f32>(shade_pixel(id.xy, d, rgb), 1.0));
 }

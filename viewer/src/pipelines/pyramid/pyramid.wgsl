@@ -2,6 +2,9 @@
 // conversions between pixels, depths and view-space points. Every level of a pyramid lives in
 // one buffer; `pyr.table[l]` gives the level's offset, width and height.
 
+// Pyramid levels at most (`MAX_LEVELS` in passes.rs).
+const MAX_LEVELS: u32 = 16u;
+
 struct Pyramid {
     // Level-0 pixel coordinates to view-space x/y at depth 1: px * pixel_scale + pixel_bias.
     pixel_scale: vec2<f32>,
@@ -18,7 +21,7 @@ struct Pyramid {
     // The depth noise's normal level at depth z is 0.5 log2(noise_scale / z); written on the
     // GPU by the noise estimate each frame, 0 before it.
     noise_scale: f32,
-    table: array<vec4<u32>, 16>,
+    table: array<vec4<u32>, MAX_LEVELS>,
 }
 
 struct Level {

@@ -1,14 +1,18 @@
-//! The `pyramid` pipeline of paper 003 (Bouchiba, Deschaud, Goulette 2018), run on the depth
-//! and colour planes the projection and resolve passes leave: a min-depth point pyramid, the
-//! pyramidal hidden-point removal, pull-push filling of depth and colour, a normal per level of
-//! the filled depth pyramid, and deferred headlight shading.
+//! The passes of paper 003 (Bouchiba, Deschaud, Goulette 2018), run on the depth and colour
+//! planes the projection and resolve passes leave: a min-depth point pyramid, the pyramidal
+//! hidden-point removal, pull-push filling of depth and colour, a normal per level of the
+//! filled depth pyramid, and deferred headlight shading.
 
-use super::GpuContext;
-use super::async_readback::AsyncReadback;
-use super::passes::{module, pixel_groups};
-use super::readback::read_buffer;
-use super::timing::Timer;
 use crate::ViewerError;
+use crate::gpu::GpuContext;
+use crate::gpu::async_readback::AsyncReadback;
+use crate::gpu::readback::read_buffer;
+use crate::gpu::timing::Timer;
+use crate::pipelines::LIGHTING_WGSL;
+use crate::pipelines::ScreenBuffer;
+use crate::pipelines::edl::EDL_WGSL;
+use crate::pipelines::projection::pixel_groups;
+use crate::pipelines::shader::ShaderSource;
 use bytemuck::{Pod, Zeroable};
 use wgpu::util::DeviceExt;
 
@@ -25,10 +29,11 @@ pub const COARSE_LEVEL: u32 = 4;
 /// (a larger radius rounds off edges; without the noise estimate it was the only defence
 /// against noisy normals).
 pub const NORMAL_SCALE_S0: f32 = 4.0;
-const MAX_LEVELS: usize = 16;
+/// Pyramid levels at most (`MAX_LEVELS` in pyramid.wgsl).
+pub const MAX_LEVELS: usize = 16;
 
-/// The headlight Blinn-Phong the pipeline shades with, for renderers that must match it.
-pub const LIGHTING_WGSL: &str = include_str!("../../shaders/lighting.wgsl");
+const COMMON_WGSL: &str = include_str!("pyramid.wgsl");
+const NOISE_WGSL: &str = include_str!("pyramid_noise.wgsl");
 
 /// Everything the pyramid passes need to know of the frame beyond `FrameUniforms`.
 #[derive(Debug, Clone, Copy)]
@@ -42,7 +47,7 @@ pub struct PyramidFrame {
 
 #[repr(C)]
 #[derive(Debug, Clone, Copy, Pod, Zeroable)]
-struct PyramidUniforms {
+pub(crate) struct PyramidUniforms {
     pixel_scale: [f32; 2],
     pixel_bias: [f32; 2],
     far: f32,
@@ -84,10 +89,26 @@ impl PyramidUniforms {
 
 /// Bins of the depth-noise histogram (`NOISE_BINS` in pyramid_noise.wgsl); the noise scale
 /// and the deviation follow them in the same buffer.
-const NOISE_BINS: u64 = 80;
+pub const NOISE_BINS: u64 = 80;
 const NOISE_BYTES: u64 = (NOISE_BINS + 2) * 4;
 /// Where the noise estimate leaves σ: after the bins and the noise scale.
 const NOISE_SIGMA_AT: u64 = (NOISE_BINS + 1) * 4;
+
+/// Per level of a `width` x `height` pyramid: offset into the pyramid buffers, width, height.
+fn level_table(width: u32, height: u32) -> Vec<[u32; 3]> {
+    let mut levels = Vec::new();
+    let (mut w, mut h, mut offset) = (width.max(1), height.max(1), 0u32);
+    loop {
+        levels.push([offset, w, h]);
+        offset += w * h;
+        if (w == 1 && h == 1) || levels.len() == MAX_LEVELS {
+            break;
+        }
+        w = w.div_ceil(2);
+        h = h.div_ceil(2);
+    }
+    levels
+}
 
 /// The compiled passes, shared by every viewport size.
 pub struct PyramidPasses {
@@ -109,8 +130,8 @@ pub struct PyramidPasses {
 
 /// The pyramids for one viewport size.
 pub struct PyramidTargets {
-    width: u32,
-    height: u32,
+    pub width: u32,
+    pub height: u32,
     /// Per level: offset into the pyramid buffers, width, height.
     levels: Vec<[u32; 3]>,
     pts: wgpu::Buffer,
@@ -188,8 +209,32 @@ pub fn depth_noise_from(bytes: &[u8]) -> Option<f32> {
     Some(f32::from_le_bytes(word))
 }
 
+/// Every module the pyramid compiles, as it composes them.
+pub fn shaders() -> Vec<ShaderSource> {
+    let pass = |label, part| ShaderSource::new(label, &[COMMON_WGSL, part]);
+    vec![
+        ShaderSource::new("noise histogram", &[COMMON_WGSL, NOISE_WGSL]).with_entry("histogram"),
+        ShaderSource::new("noise estimate", &[COMMON_WGSL, NOISE_WGSL]).with_entry("estimate"),
+        pass("pyramid base", include_str!("pyramid_base.wgsl")),
+        pass("pyramid down", include_str!("pyramid_down.wgsl")),
+        pass("hpr", include_str!("pyramid_hpr.wgsl")),
+        pass("pull", include_str!("pyramid_pull.wgsl")),
+        pass("push", include_str!("pyramid_push.wgsl")),
+        pass("normals", include_str!("pyramid_normals.wgsl")),
+        ShaderSource::new(
+            "pyramid shade",
+            &[
+                COMMON_WGSL,
+                LIGHTING_WGSL,
+                EDL_WGSL,
+                include_str!("pyramid_shade.wgsl"),
+            ],
+        ),
+    ]
+}
+
 impl PyramidPasses {
-    pub fn new(device: &wgpu::Device) -> PyramidPasses {
+    pub fn new(device: &wgpu::Device) -> Result<PyramidPasses, ViewerError> {
         let frame_layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
             label: Some("pyramid frame"),
             entries: &[uniform_entry(0), uniform_entry(1), uniform_entry(2)],
@@ -227,76 +272,50 @@ impl PyramidPasses {
         };
         let layout = pipeline_layout(&[Some(&frame_layout), Some(&data_layout)]);
         let noise_pipeline_layout = pipeline_layout(&[Some(&frame_layout), Some(&noise_layout)]);
-        let common = include_str!("../../shaders/pyramid.wgsl");
-        let compile = |label: &str, parts: &[&str], layout: &wgpu::PipelineLayout, entry: &str| {
-            let mut all = vec![common];
-            all.extend_from_slice(parts);
-            let m = module(device, label, &all);
-            device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
-                label: Some(label),
-                layout: Some(layout),
-                module: &m,
-                entry_point: Some(entry),
-                compilation_options: Default::default(),
-                cache: None,
-            })
+        let compile = |label: &str, layout: &wgpu::PipelineLayout| {
+            shaders()
+                .into_iter()
+                .find(|s| s.label == label)
+                .map(|s| s.compute(device, Some(layout)))
+                .ok_or_else(|| ViewerError::Gpu(format!("no pyramid shader named {label}")))
         };
-        let make = |label: &str, parts: &[&str]| compile(label, parts, &layout, "main");
-        let noise_wgsl = include_str!("../../shaders/pyramid_noise.wgsl");
-        PyramidPasses {
-            noise_histogram: compile(
-                "noise histogram",
-                &[noise_wgsl],
-                &noise_pipeline_layout,
-                "histogram",
-            ),
-            noise_estimate: compile(
-                "noise estimate",
-                &[noise_wgsl],
-                &noise_pipeline_layout,
-                "estimate",
-            ),
+        let make = |label: &str| compile(label, &layout);
+        Ok(PyramidPasses {
+            noise_histogram: compile("noise histogram", &noise_pipeline_layout)?,
+            noise_estimate: compile("noise estimate", &noise_pipeline_layout)?,
             noise_layout,
-            base: make(
-                "pyramid base",
-                &[include_str!("../../shaders/pyramid_base.wgsl")],
-            ),
-            down: make(
-                "pyramid down",
-                &[include_str!("../../shaders/pyramid_down.wgsl")],
-            ),
-            hpr: make("hpr", &[include_str!("../../shaders/pyramid_hpr.wgsl")]),
-            pull: make("pull", &[include_str!("../../shaders/pyramid_pull.wgsl")]),
-            push: make("push", &[include_str!("../../shaders/pyramid_push.wgsl")]),
-            normals: make(
-                "normals",
-                &[include_str!("../../shaders/pyramid_normals.wgsl")],
-            ),
-            shade: make(
-                "pyramid shade",
-                &[
-                    LIGHTING_WGSL,
-                    include_str!("../../shaders/edl.wgsl"),
-                    include_str!("../../shaders/pyramid_shade.wgsl"),
-                ],
-            ),
+            base: make("pyramid base")?,
+            down: make("pyramid down")?,
+            hpr: make("hpr")?,
+            pull: make("pull")?,
+            push: make("push")?,
+            normals: make("normals")?,
+            shade: make("pyramid shade")?,
             frame_layout,
             data_layout,
-        }
+        })
+    }
+
+    /// The buffers `targets` creates for a `width` x `height` screen.
+    pub fn screen_buffers(width: u32, height: u32) -> Vec<ScreenBuffer> {
+        let cells = level_table(width, height)
+            .last()
+            .map_or(0, |l| l[0] as u64 + l[1] as u64 * l[2] as u64);
+        let pixels = width as u64 * height as u64;
+        let b = |label, bytes| ScreenBuffer { label, bytes };
+        vec![
+            b("point pyramid", cells * 8),
+            b("pull-push pyramid", cells * 8),
+            b("pull-push colours", cells * 4),
+            b("normal pyramid", cells * 4),
+            b("HPR labels", pixels * 4),
+            b("surface", pixels * 8),
+        ]
     }
 
     pub fn targets(&self, device: &wgpu::Device, width: u32, height: u32) -> PyramidTargets {
-        let mut levels = Vec::new();
-        let (mut w, mut h, mut offset) = (width.max(1), height.max(1), 0u32);
-        loop {
-            levels.push([offset, w, h]);
-            offset += w * h;
-            if (w == 1 && h == 1) || levels.len() == MAX_LEVELS {
-                break;
-            }
-            w = w.div_ceil(2);
-            h = h.div_ceil(2);
-        }
+        let levels = level_table(width, height);
+        let offset = levels.last().map_or(0, |l| l[0] + l[1] * l[2]);
         let cells = offset as u64;
         let pixels = width as u64 * height as u64;
         let buffer = |label: &str, bytes: u64| {
@@ -541,5 +560,31 @@ impl PyramidPasses {
 }
 
 #[cfg(test)]
-#[path = "pyramid_hpr_tests.rs"]
+#[path = "hpr_tests.rs"]
 mod hpr_tests;
+
+/// `PyramidUniforms`' size and field offsets, for the check against pyramid.wgsl.
+#[cfg(test)]
+pub(crate) fn uniforms_layout() -> (u32, Vec<(String, u32)>) {
+    macro_rules! fields {
+        ($($f:ident),*) => {
+            vec![$((stringify!($f).to_string(), std::mem::offset_of!(PyramidUniforms, $f) as u32)),*]
+        };
+    }
+    (
+        std::mem::size_of::<PyramidUniforms>() as u32,
+        fields!(
+            pixel_scale,
+            pixel_bias,
+            far,
+            hpr_scale,
+            normal_scale,
+            threshold,
+            levels,
+            coarse_level,
+            s0,
+            noise_scale,
+            table
+        ),
+    )
+}

@@ -1,5 +1,5 @@
-// Final pass of the general path into the output image: the resolved colour, with eye-dome
-// lighting when edl_strength > 0.
+// The separate-pass shading of the resolved planes into the output image: background where no
+// point landed, else the pipeline's `shade_pixel` of the resolved colour.
 @group(0) @binding(0) var<uniform> frame: Frame;
 @group(0) @binding(1) var<storage, read> depths: array<u32>;
 @group(0) @binding(2) var<storage, read> colours: array<u32>;
@@ -20,6 +20,6 @@ fn main(@builtin(global_invocation_id) id: vec3<u32>) {
         textureStore(output, vec2<i32>(id.xy), unpack4x8unorm(frame.background));
         return;
     }
-    let c = unpack4x8unorm(colours[i]).rgb * edl_factor(id.xy, d);
+    let c = shade_pixel(id.xy, d, unpack4x8unorm(colours[i]).rgb);
     textureStore(output, vec2<i32>(id.xy), vec4<f32>(c, 1.0));
 }

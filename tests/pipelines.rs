@@ -1,0 +1,242 @@
+//! The pipeline registry as a user meets it: `strata pipelines`, `--set` for every parameter,
+//! and image sizes from 1x1 to past the adapter's limits with every pipeline, never a panic.
+
+mod common;
+
+use common::{data, gpu_run, s};
+use std::path::{Path, PathBuf};
+use std::process::Output;
+use std::sync::OnceLock;
+
+fn text(o: &Output) -> String {
+    format!(
+        "{}{}",
+        String::from_utf8_lossy(&o.stdout),
+        String::from_utf8_lossy(&o.stderr)
+    )
+}
+
+fn dataset() -> &'static Path {
+    static DIR: OnceLock<PathBuf> = OnceLock::new();
+    DIR.get_or_init(|| {
+        let dir = Path::new(env!("CARGO_TARGET_TMPDIR")).join("pipelines-fixture");
+        let _ = std::fs::remove_dir_all(&dir);
+        std::fs::create_dir_all(&dir).expect("fixture dir");
+        let out = dir.join("autzen.strata");
+        common::run_ok(&[
+            "convert",
+            s(&data("autzen_trim.laz")),
+            "-o",
+            s(&out),
+            "--quiet",
+        ]);
+        out
+    })
+}
+
+fn registry() -> Vec<serde_json::Value> {
+    let o = common::run_ok(&["pipelines", "--json"]);
+    let v: serde_json::Value = serde_json::from_slice(&o.stdout).expect("JSON");
+    v.as_array().expect("a list").clone()
+}
+
+#[test]
+fn pipelines_lists_every_pipeline_with_its_parameters() {
+    let list = registry();
+    let names: Vec<&str> = list.iter().filter_map(|p| p["name"].as_str()).collect();
+    assert_eq!(names, ["points", "edl", "pyramid"]);
+    let pyramid = &list[2];
+    assert!(
+        pyramid["paper"]
+            .as_str()
+            .is_some_and(|p| p.starts_with("003"))
+    );
+    assert_eq!(pyramid["lighting"], "headlight Blinn-Phong");
+    let params: Vec<&str> = pyramid["params"]
+        .as_array()
+        .expect("params")
+        .iter()
+        .filter_map(|p| p["name"].as_str())
+        .collect();
+    assert_eq!(params, ["s0", "edl", "edl_strength", "edl_radius"]);
+    assert_eq!(pyramid["params"][0]["default"], "auto");
+    assert!(
+        pyramid["passes"]
+            .as_array()
+            .is_some_and(|p| p.iter().any(|n| n == "hpr"))
+    );
+    let plain = common::run_ok(&["pipelines"]);
+    let plain = String::from_utf8_lossy(&plain.stdout);
+    assert!(plain.contains("--set edl_strength=VALUE"), "{plain}");
+}
+
+#[test]
+fn set_takes_any_parameter_and_names_a_wrong_one() {
+    let ds = dataset();
+    let dir = ds.parent().expect("parent");
+    let out = dir.join("set.png");
+    let stats = dir.join("set.json");
+    let o = gpu_run(&[
+        "render",
+        s(ds),
+        "-o",
+        s(&out),
+        "--size",
+        "64x48",
+        "--pipeline",
+        "edl",
+        "--set",
+        "edl_strength=2.5",
+        "--set",
+        "edl_radius=2",
+        "--stats",
+        s(&stats),
+    ]);
+    assert!(o.status.success(), "{}", text(&o));
+    let st: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(&stats).expect("stats")).expect("JSON");
+    let frame = &st["frames"][0];
+    assert_eq!(frame["pipeline"], "edl");
+    assert_eq!(frame["params"]["edl_strength"].as_f64(), Some(2.5));
+    assert_eq!(frame["params"]["edl_radius"].as_f64(), Some(2.0));
+    // The stats list the passes in the order they ran.
+    let passes: Vec<&String> = frame["passes"]
+        .as_object()
+        .expect("passes")
+        .keys()
+        .collect();
+    if let Some(first) = passes.first() {
+        assert_eq!(first.as_str(), "clear", "{passes:?}");
+    }
+
+    for (args, names) in [
+        (
+            &["--pipeline", "edl", "--set", "glow=1"][..],
+            &["glow", "edl_strength"][..],
+        ),
+        (
+            &["--pipeline", "edl", "--set", "edl_strength=9"],
+            &["edl_strength", "0.1", "4"],
+        ),
+        (
+            &["--pipeline", "edl", "--set", "edl_radius=wide"],
+            &["edl_radius"],
+        ),
+        (
+            &["--pipeline", "edl", "--set", "edl_radius"],
+            &["NAME=VALUE"],
+        ),
+        (
+            &["--pipeline", "points", "--set", "s0=1"],
+            &["points", "no parameters"],
+        ),
+        (&["--pipeline", "edl", "--s0", "1"], &["--s0", "s0"]),
+        (&["--pipeline", "pyramid", "--s0=-1"], &["--s0", "s0"]),
+        (
+            &["--pipeline", "pyramid", "--set", "edl=0.5"],
+            &["edl", "whole"],
+        ),
+    ] {
+        let mut all = vec!["render", s(ds), "-o", s(&out), "--size", "64x48"];
+        all.extend_from_slice(args);
+        let o = gpu_run(&all);
+        let t = text(&o);
+        assert!(!o.status.success(), "{args:?} was accepted");
+        assert!(!t.contains("panicked"), "{t}");
+        assert_eq!(
+            t.trim().lines().count(),
+            1,
+            "{args:?}: not one sentence: {t}"
+        );
+        for n in names {
+            assert!(t.contains(n), "{args:?}: {t:?} does not name {n}");
+        }
+    }
+    // Shorthands and automatic values.
+    let o = gpu_run(&[
+        "render",
+        s(ds),
+        "-o",
+        s(&out),
+        "--size",
+        "64x48",
+        "--pipeline",
+        "pyramid",
+        "--pyramid-edl",
+        "--set",
+        "s0=auto",
+        "--stats",
+        s(&stats),
+    ]);
+    assert!(o.status.success(), "{}", text(&o));
+    let st: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(&stats).expect("stats")).expect("JSON");
+    let params = &st["frames"][0]["params"];
+    assert_eq!(params["edl"].as_f64(), Some(1.0));
+    assert!(params["s0"].as_f64().is_some_and(|v| v > 0.0), "{params}");
+}
+
+#[test]
+fn every_size_with_every_pipeline_renders_or_is_refused_in_one_sentence() {
+    let ds = dataset();
+    let dir = ds.parent().expect("parent");
+    for p in registry() {
+        let name = p["name"].as_str().expect("name");
+        for size in ["1x1", "17x3", "8192x8192", "16384x16384"] {
+            let out = dir.join(format!("size_{name}_{size}.png"));
+            let _ = std::fs::remove_file(&out);
+            let o = gpu_run(&[
+                "render",
+                s(ds),
+                "-o",
+                s(&out),
+                "--size",
+                size,
+                "--pipeline",
+                name,
+                "--timeout",
+                "5",
+            ]);
+            let t = text(&o);
+            assert!(!t.contains("panicked"), "{name} {size}: {t}");
+            if o.status.success() {
+                assert!(out.exists(), "{name} {size}: no image");
+            } else {
+                // Refused before anything was drawn: the size, the limit, and no image.
+                assert!(t.contains(size), "{name} {size}: {t}");
+                assert!(
+                    t.contains("MiB") || t.contains("side"),
+                    "{name} {size}: {t}"
+                );
+                assert_eq!(t.trim().lines().count(), 1, "{name} {size}: {t}");
+                assert!(!out.exists(), "{name} {size}: an image was left");
+            }
+        }
+    }
+    // Sizes no adapter renders are refused by the command line.
+    for size in ["0x10", "16385x16", "axb"] {
+        let o = gpu_run(&["render", s(ds), "-o", "x.png", "--size", size]);
+        assert!(!o.status.success(), "{size}");
+        assert!(!text(&o).contains("panicked"), "{}", text(&o));
+    }
+}
+
+#[test]
+fn the_software_adapter_refuses_8192_squared_with_the_limit() {
+    // lavapipe binds at most 128 MiB of storage: an 8192x8192 frame (512 MiB of 64-bit keys)
+    // cannot exist there. Where an adapter holds it, there is nothing to refuse.
+    let ds = dataset();
+    let out = ds.parent().expect("parent").join("huge.png");
+    let o = gpu_run(&["render", s(ds), "-o", s(&out), "--size", "8192x8192"]);
+    if o.status.success() {
+        eprintln!("this adapter holds an 8192x8192 frame; nothing to refuse");
+        return;
+    }
+    let t = text(&o);
+    assert!(t.contains("an image of 8192x8192 needs a"), "{t}");
+    assert!(
+        t.contains("the largest image of that shape it holds is"),
+        "{t}"
+    );
+    assert!(!out.exists());
+}

@@ -1,0 +1,221 @@
+//! The render pipelines. Each is a module of its own (Rust and WGSL side by side) and one line
+//! of `REGISTRY`; the renderer knows them only through `PipelineInfo` and `Pipeline`. Every
+//! pipeline starts from the shared projection (`projection`): clear, project, and either a
+//! fused finish with the pipeline's shading or the resolved depth and colour planes that the
+//! pipeline's own passes read.
+
+pub mod edl;
+pub mod params;
+pub mod points;
+pub mod projection;
+pub mod pyramid;
+pub mod shader;
+#[cfg(test)]
+mod shader_tests;
+
+use crate::ViewerError;
+use crate::gpu::GpuContext;
+use crate::gpu::timing::Timer;
+use crate::renderer::SurfacePixel;
+use params::{ParamSpec, ResolvedParams};
+use projection::{FusedFinish, Screen};
+use shader::ShaderSource;
+use std::collections::BTreeMap;
+
+/// The registry: the one place a pipeline is added. The first is the panel's first choice;
+/// the order is the order `strata pipelines` lists them in.
+pub static REGISTRY: &[&PipelineInfo] = &[&points::INFO, &edl::INFO, &pyramid::INFO];
+
+/// The shared headlight Blinn-Phong (`headlight(albedo, n, v)`), so that two pipelines and the
+/// quality harness's reference meshes shade the same surface the same way.
+pub const LIGHTING_WGSL: &str = include_str!("lighting.wgsl");
+
+/// The pipeline a viewer starts with.
+pub const DEFAULT_PIPELINE: &str = "edl";
+
+/// The light a pipeline shades with, so that the quality harness scores its shaded image
+/// against a reference lit the same way.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Lighting {
+    /// The points' own colours, unlit.
+    None,
+    /// Eye-dome lighting: colours darkened by depth differences to the neighbours.
+    EyeDome,
+    /// Blinn-Phong with the light at the eye (`lighting.wgsl`).
+    Headlight,
+}
+
+impl Lighting {
+    pub fn name(self) -> &'static str {
+        match self {
+            Lighting::None => "none",
+            Lighting::EyeDome => "eye-dome",
+            Lighting::Headlight => "headlight Blinn-Phong",
+        }
+    }
+}
+
+/// Per-point data a pipeline needs beyond position and colour. The node cache uploads a
+/// stream only while a pipeline that asks for it is active.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum PointStream {
+    Normals,
+    Radius,
+    /// A value per point that the pipeline writes and reads again next frame.
+    Kept {
+        bytes: u32,
+    },
+}
+
+/// What a pipeline declares; `strata pipelines` prints it.
+pub struct PipelineInfo {
+    pub name: &'static str,
+    pub description: &'static str,
+    /// The paper it implements (a file under shared/papers), where it has one.
+    pub paper: Option<&'static str>,
+    pub lighting: Lighting,
+    pub params: &'static [ParamSpec],
+    pub streams: &'static [PointStream],
+    /// Its timed passes in the order they run, after the projection's.
+    pub passes: &'static [&'static str],
+    /// It reads the previous frame's view-projection and depth (temporal coherence).
+    pub previous_frame: bool,
+    /// Compiles its GPU passes.
+    pub create: fn(&GpuContext) -> Result<Box<dyn Pipeline>, ViewerError>,
+    /// Every shader module it compiles, composed as it compiles them (for validation without
+    /// a GPU); `int64`: the device has 64-bit atomics.
+    pub shaders: fn(int64: bool) -> Vec<ShaderSource>,
+}
+
+impl PipelineInfo {
+    /// The parameter `name`; the error lists the ones there are.
+    pub fn param(&self, name: &str) -> Result<&'static ParamSpec, ViewerError> {
+        self.params.iter().find(|p| p.name == name).ok_or_else(|| {
+            let known: Vec<&str> = self.params.iter().map(|p| p.name).collect();
+            let what = if known.is_empty() {
+                format!("the {} pipeline has no parameters", self.name)
+            } else {
+                format!(
+                    "the {} pipeline has no such parameter (it has {})",
+                    self.name,
+                    known.join(", ")
+                )
+            };
+            ViewerError::argument(name, what)
+        })
+    }
+}
+
+/// The registered pipeline `name`.
+pub fn find(name: &str) -> Result<&'static PipelineInfo, ViewerError> {
+    REGISTRY
+        .iter()
+        .copied()
+        .find(|p| p.name == name)
+        .ok_or_else(|| {
+            let names: Vec<&str> = REGISTRY.iter().map(|p| p.name).collect();
+            ViewerError::argument(
+                name,
+                format!("unknown pipeline (expected {})", names.join(", ")),
+            )
+        })
+}
+
+/// The most passes one frame times: the projection's and the longest pipeline's, twice over
+/// for passes that run more than once under one name.
+pub fn max_timed_passes() -> u32 {
+    let longest = REGISTRY.iter().map(|p| p.passes.len()).max().unwrap_or(0);
+    2 * (projection::PASSES.len() + longest) as u32
+}
+
+/// The view of one frame, for the pipeline's passes.
+#[derive(Debug, Clone, Copy)]
+pub struct ViewFrame {
+    pub view_proj: glam::Mat4,
+    /// The previous frame's, for pipelines that declare `previous_frame`.
+    pub previous_view_proj: Option<glam::Mat4>,
+    pub fov_y: f32,
+    pub near: f32,
+    pub far: f32,
+    pub focal_px: f32,
+}
+
+/// What a pipeline's passes read and write in one frame.
+pub struct PipelineFrame<'a> {
+    pub ctx: &'a GpuContext,
+    pub screen: &'a Screen,
+    pub params: &'a ResolvedParams,
+    pub view: &'a ViewFrame,
+}
+
+/// A buffer a pipeline allocates per screen, for checking a size against the adapter's limits
+/// before anything is created.
+#[derive(Debug, Clone, Copy)]
+pub struct ScreenBuffer {
+    pub label: &'static str,
+    pub bytes: u64,
+}
+
+/// A pipeline's compiled passes and per-screen buffers.
+pub trait Pipeline {
+    fn info(&self) -> &'static PipelineInfo;
+
+    /// The pass that resolves and shades at once for frames within the fused pass's arenas,
+    /// and its name; `None` where the pipeline needs the resolved planes.
+    fn fused(&self, params: &ResolvedParams) -> Option<(&FusedFinish, &'static str)> {
+        let _ = params;
+        None
+    }
+
+    /// Sets the frame uniforms the pipeline's shading reads (eye-dome lighting).
+    fn uniforms(&self, params: &ResolvedParams, uniforms: &mut projection::FrameUniforms) {
+        let _ = (params, uniforms);
+    }
+
+    /// The buffers `make_targets` would create for a `width` x `height` screen.
+    fn screen_buffers(&self, width: u32, height: u32) -> Vec<ScreenBuffer> {
+        let _ = (width, height);
+        Vec::new()
+    }
+
+    /// Creates the per-screen buffers for `screen`'s size (after the size was checked).
+    fn make_targets(&mut self, device: &wgpu::Device, screen: &Screen) {
+        let _ = (device, screen);
+    }
+
+    /// Frees the per-screen buffers: another pipeline was chosen.
+    fn release_targets(&mut self) {}
+
+    /// Encodes the passes after the projection resolved the depth and colour planes; they
+    /// write `screen.output`.
+    fn encode(
+        &mut self,
+        frame: &PipelineFrame,
+        encoder: &mut wgpu::CommandEncoder,
+        timer: &mut Timer,
+    ) -> Result<(), ViewerError>;
+
+    /// After the frame was submitted: start mapping readbacks.
+    fn after_submit(&mut self) {}
+
+    /// What the pipeline measured that has arrived so far, without waiting (the window).
+    fn measures(&mut self) -> BTreeMap<&'static str, f32> {
+        BTreeMap::new()
+    }
+
+    /// What the pipeline measured in the last frame, waiting for the GPU (headless).
+    fn read_measures(&self, ctx: &GpuContext) -> Result<BTreeMap<&'static str, f32>, ViewerError> {
+        let _ = ctx;
+        Ok(BTreeMap::new())
+    }
+
+    /// The surface of the last frame where the pipeline reconstructs one (depth and normal per
+    /// pixel); `None`: the projection's nearest points are the surface.
+    fn read_surface(
+        &self,
+        ctx: &GpuContext,
+    ) -> Option<Result<Vec<Option<SurfacePixel>>, ViewerError>> {
+        let _ = ctx;
+        None
+    }
+}

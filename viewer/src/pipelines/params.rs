@@ -1,0 +1,193 @@
+//! A pipeline's parameters: one table per pipeline that the panel, the command line
+//! (`--set NAME=VALUE`), the statistics and the quality harness all read.
+
+use super::PipelineInfo;
+use crate::ViewerError;
+use std::collections::BTreeMap;
+
+/// How a parameter's value moves on the panel's slider.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Scale {
+    Linear,
+    /// Slider on a log scale: lengths in dataset units, spanning orders of magnitude.
+    Log,
+    /// Whole numbers only.
+    Integer,
+    /// 0 (off) or 1 (on): a checkbox.
+    Toggle,
+}
+
+/// Where a parameter left automatic takes its value each frame.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Auto {
+    /// The mean point spacing of the nodes drawn (paper 003's s0, and others' defaults).
+    DrawnSpacing,
+}
+
+#[derive(Debug, Clone, Copy)]
+pub struct ParamSpec {
+    pub name: &'static str,
+    pub help: &'static str,
+    pub default: f32,
+    pub min: f32,
+    pub max: f32,
+    pub scale: Scale,
+    /// The parameter may be left automatic (its default then), set with `NAME=auto`.
+    pub auto: Option<Auto>,
+}
+
+impl ParamSpec {
+    /// Checks a value against the range and the scale; the error names the parameter.
+    pub fn check(&self, pipeline: &str, value: f32) -> Result<f32, ViewerError> {
+        let whole = matches!(self.scale, Scale::Integer | Scale::Toggle);
+        if !value.is_finite() || value < self.min || value > self.max {
+            return Err(ViewerError::argument(
+                format!("{}={value}", self.name),
+                format!(
+                    "{pipeline}'s parameter {} takes {} to {}",
+                    self.name, self.min, self.max
+                ),
+            ));
+        }
+        if whole && value.fract() != 0.0 {
+            return Err(ViewerError::argument(
+                format!("{}={value}", self.name),
+                format!("{pipeline}'s parameter {} takes whole numbers", self.name),
+            ));
+        }
+        Ok(value)
+    }
+
+    /// The value as the panel and `--set` show it.
+    pub fn describe(&self) -> String {
+        let range = match self.scale {
+            Scale::Toggle => "0 or 1".to_string(),
+            _ => format!("{} to {}", self.min, self.max),
+        };
+        let default = if self.auto.is_some() {
+            "auto".to_string()
+        } else {
+            format!("{}", self.default)
+        };
+        format!("{range}, default {default}")
+    }
+}
+
+/// A value given for a parameter.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum ParamValue {
+    Auto,
+    Value(f32),
+}
+
+/// The values set for every pipeline's parameters; a parameter not set has its default.
+/// Kept per pipeline, so switching pipelines in the panel keeps each one's settings.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct ParamValues {
+    set: BTreeMap<(&'static str, &'static str), ParamValue>,
+}
+
+impl ParamValues {
+    /// Sets `name` of `pipeline` from text (`NAME=VALUE` of `--set`): a number, `auto` where
+    /// the parameter allows it, and `on`/`off`/`true`/`false` for toggles.
+    pub fn set_text(
+        &mut self,
+        pipeline: &'static PipelineInfo,
+        name: &str,
+        text: &str,
+    ) -> Result<(), ViewerError> {
+        let spec = pipeline.param(name)?;
+        let text = text.trim();
+        let value = match text {
+            "auto" if spec.auto.is_some() => ParamValue::Auto,
+            "on" | "true" if spec.scale == Scale::Toggle => ParamValue::Value(1.0),
+            "off" | "false" if spec.scale == Scale::Toggle => ParamValue::Value(0.0),
+            _ => {
+                let v: f32 = text.parse().map_err(|_| {
+                    ViewerError::argument(
+                        format!("{name}={text}"),
+                        format!(
+                            "{}'s parameter {name} takes a number ({})",
+                            pipeline.name,
+                            spec.describe()
+                        ),
+                    )
+                })?;
+                ParamValue::Value(spec.check(pipeline.name, v)?)
+            }
+        };
+        self.set.insert((pipeline.name, spec.name), value);
+        Ok(())
+    }
+
+    /// Sets a checked value (the panel's sliders stay within range).
+    pub fn set(&mut self, pipeline: &'static PipelineInfo, spec: &ParamSpec, value: ParamValue) {
+        self.set.insert((pipeline.name, spec.name), value);
+    }
+
+    /// The value given for `spec` of `pipeline`, or its default.
+    pub fn get(&self, pipeline: &PipelineInfo, spec: &ParamSpec) -> ParamValue {
+        match self.set.get(&(pipeline.name, spec.name)) {
+            Some(v) => *v,
+            None if spec.auto.is_some() => ParamValue::Auto,
+            None => ParamValue::Value(spec.default),
+        }
+    }
+}
+
+/// One frame's parameter values, automatic ones resolved; what a pipeline encodes with and
+/// what `--stats` records.
+#[derive(Debug, Clone, Default)]
+pub struct ResolvedParams {
+    values: BTreeMap<&'static str, f32>,
+}
+
+impl ResolvedParams {
+    /// Resolves `pipeline`'s parameters; `spacing` is the mean point spacing of the nodes
+    /// drawn (`None` with nothing drawn, where an automatic value stays unknown).
+    pub fn resolve(
+        values: &ParamValues,
+        pipeline: &PipelineInfo,
+        spacing: impl FnOnce() -> Option<f32>,
+    ) -> ResolvedParams {
+        let mut spacing = Some(spacing);
+        let mut spacing_value = None;
+        let mut out = BTreeMap::new();
+        for spec in pipeline.params {
+            let v = match values.get(pipeline, spec) {
+                ParamValue::Value(v) => Some(v),
+                ParamValue::Auto => match spec.auto {
+                    Some(Auto::DrawnSpacing) => {
+                        if let Some(f) = spacing.take() {
+                            spacing_value = f();
+                        }
+                        spacing_value
+                    }
+                    None => Some(spec.default),
+                },
+            };
+            if let Some(v) = v {
+                out.insert(spec.name, v);
+            }
+        }
+        ResolvedParams { values: out }
+    }
+
+    /// The value of `name`, `None` where it is automatic and could not be resolved.
+    pub fn get(&self, name: &str) -> Option<f32> {
+        self.values.get(name).copied()
+    }
+
+    pub fn get_or(&self, name: &str, fallback: f32) -> f32 {
+        self.get(name).unwrap_or(fallback)
+    }
+
+    /// A toggle's state.
+    pub fn on(&self, name: &str) -> bool {
+        self.get(name).is_some_and(|v| v != 0.0)
+    }
+
+    pub fn iter(&self) -> impl Iterator<Item = (&'static str, f32)> + '_ {
+        self.values.iter().map(|(k, v)| (*k, *v))
+    }
+}

@@ -1,0 +1,438 @@
+//! The projection every pipeline starts from: clear, project (64-bit atomicMin, or two 32-bit
+//! passes), then either a fused finish that resolves and shades in one pass (with the
+//! pipeline's shading), or unpack and a per-arena resolve into depth and colour planes that
+//! the pipeline's own passes read.
+
+mod bind;
+mod screen;
+
+pub use screen::{Screen, ScreenLimitError, check_screen, largest_fitting};
+
+use super::ScreenBuffer;
+use super::shader::ShaderSource;
+use crate::gpu::GpuContext;
+use crate::gpu::cache::NodeCache;
+use crate::gpu::timing::Timer;
+use bind::{ArenaGroup, arena_bind, frame_bind};
+use bytemuck::{Pod, Zeroable};
+
+pub const FRAME_WGSL: &str = include_str!("frame.wgsl");
+const CLEAR_WGSL: &str = include_str!("clear.wgsl");
+const PROJECT_WGSL: &str = include_str!("project.wgsl");
+const EMIT_INT64_WGSL: &str = include_str!("emit_int64.wgsl");
+const EMIT_DEPTH32_WGSL: &str = include_str!("emit_depth32.wgsl");
+const EMIT_INDEX32_WGSL: &str = include_str!("emit_index32.wgsl");
+const UNPACK_WGSL: &str = include_str!("unpack.wgsl");
+/// The colouring modes (RGB, intensity, classification, elevation) of a resolved point.
+pub const COLOUR_WGSL: &str = include_str!("colour.wgsl");
+const RESOLVE_WGSL: &str = include_str!("resolve.wgsl");
+const KEYS_INT64_WGSL: &str = include_str!("keys_int64.wgsl");
+const KEYS_INT32_WGSL: &str = include_str!("keys_int32.wgsl");
+const FINISH_WGSL: &str = include_str!("finish.wgsl");
+const SHADE_PLANES_WGSL: &str = include_str!("shade_planes.wgsl");
+
+/// The projection's timed passes, in the order they can run.
+pub const PASSES: [&str; 6] = [
+    "clear",
+    "project",
+    "project_depth",
+    "project_index",
+    "unpack",
+    "resolve",
+];
+
+/// The per-frame uniforms, laid out as `Frame` in frame.wgsl.
+#[repr(C)]
+#[derive(Debug, Clone, Copy, Pod, Zeroable)]
+pub struct FrameUniforms {
+    pub view_proj: [[f32; 4]; 4],
+    pub width: u32,
+    pub height: u32,
+    pub point_size: f32,
+    pub size_mode: u32,
+    pub focal_px: f32,
+    pub colour_mode: u32,
+    pub z_min: f32,
+    pub z_max: f32,
+    pub arena_shift: u32,
+    pub edl_strength: f32,
+    pub edl_radius: f32,
+    pub background: u32,
+    /// Arena bound to each slot of the fused finish pass (set by `encode`).
+    pub arena_slots: [u32; 4],
+}
+
+/// One node's points inside an arena, as the projection shader reads it (`Range`).
+#[repr(C)]
+#[derive(Debug, Clone, Copy, Pod, Zeroable)]
+pub struct GpuRange {
+    pub start: u32,
+    pub count: u32,
+    pub first_group: u32,
+    pub spacing: f32,
+}
+
+/// Threads per projection workgroup (`GROUP_SIZE` in frame.wgsl).
+pub const GROUP_SIZE: u32 = 256;
+/// The pixel value of a depth or key plane where no point landed (`EMPTY` in frame.wgsl).
+pub const EMPTY: u32 = u32::MAX;
+const MAX_GROUPS_X: u32 = 65535;
+/// Arenas the fused finish pass binds at once (two storage buffers each).
+pub const FINISH_SLOTS: usize = 4;
+
+/// Everything one frame draws.
+pub struct FrameDraw<'a> {
+    pub uniforms: &'a FrameUniforms,
+    pub arenas: &'a [ArenaDraw],
+    pub allow_fused: bool,
+    /// Take the two-pass 32-bit projection even where 64-bit atomics are available (to
+    /// compare both paths on the same resident nodes).
+    pub force_int32: bool,
+    /// The pipeline's fused finish and its pass name, where it has one.
+    pub fused: Option<(&'a FusedFinish, &'static str)>,
+}
+
+/// What one arena draws this frame.
+pub struct ArenaDraw {
+    pub arena: u32,
+    pub ranges: Vec<GpuRange>,
+}
+
+/// The projection's compiled passes.
+pub struct Projection {
+    int64: bool,
+    clear: wgpu::ComputePipeline,
+    project64: Option<wgpu::ComputePipeline>,
+    unpack: Option<wgpu::ComputePipeline>,
+    depth32: wgpu::ComputePipeline,
+    index32: wgpu::ComputePipeline,
+    resolve: wgpu::ComputePipeline,
+}
+
+/// Every module the projection compiles, as it composes them.
+pub fn shaders(int64: bool) -> Vec<ShaderSource> {
+    let mut s = vec![
+        ShaderSource::new("clear", &[CLEAR_WGSL]),
+        ShaderSource::new("project depth32", &[EMIT_DEPTH32_WGSL, PROJECT_WGSL]),
+        ShaderSource::new("project index32", &[EMIT_INDEX32_WGSL, PROJECT_WGSL]),
+        ShaderSource::new("resolve", &[COLOUR_WGSL, RESOLVE_WGSL]),
+    ];
+    if int64 {
+        s.push(ShaderSource::new(
+            "project int64",
+            &[EMIT_INT64_WGSL, PROJECT_WGSL],
+        ));
+        s.push(ShaderSource::new("unpack", &[UNPACK_WGSL]));
+    }
+    s
+}
+
+fn compile(ctx: &GpuContext, label: &str) -> Option<wgpu::ComputePipeline> {
+    shaders(ctx.int64_atomics)
+        .into_iter()
+        .find(|s| s.label == label)
+        .map(|s| s.compute(&ctx.device, None))
+}
+
+impl Projection {
+    pub fn new(ctx: &GpuContext) -> Result<Projection, crate::ViewerError> {
+        let need = |label: &str| {
+            compile(ctx, label)
+                .ok_or_else(|| crate::ViewerError::Gpu(format!("no shader named {label}")))
+        };
+        Ok(Projection {
+            int64: ctx.int64_atomics,
+            clear: need("clear")?,
+            project64: compile(ctx, "project int64"),
+            unpack: compile(ctx, "unpack"),
+            depth32: need("project depth32")?,
+            index32: need("project index32")?,
+            resolve: need("resolve")?,
+        })
+    }
+
+    /// The buffers a `width` x `height` screen needs, for the limits check.
+    pub fn screen_buffers(&self, width: u32, height: u32) -> Vec<ScreenBuffer> {
+        Screen::buffers(self.int64, width, height)
+    }
+
+    pub fn screen(&self, device: &wgpu::Device, width: u32, height: u32, previous: bool) -> Screen {
+        Screen::new(device, self.int64, width, height, previous)
+    }
+
+    /// Encodes clear and projection, then the fused finish where `fused` is given and the
+    /// frame allows it (returns true: the output image is written), else unpack and resolve
+    /// into the depth and colour planes (returns false: the pipeline shades).
+    pub fn encode(
+        &self,
+        ctx: &GpuContext,
+        encoder: &mut wgpu::CommandEncoder,
+        screen: &Screen,
+        cache: &NodeCache,
+        frame: &FrameDraw,
+        timer: &mut Timer,
+    ) -> bool {
+        let draws = frame.arenas;
+        let keys = screen.keys.as_ref().filter(|_| !frame.force_int32);
+        let fused = frame
+            .fused
+            .and_then(|(f, name)| {
+                let pipe = if keys.is_some() || screen.keys.is_none() {
+                    f.finish.as_ref()
+                } else {
+                    f.finish32.as_ref()
+                };
+                pipe.map(|p| (p, name))
+            })
+            .filter(|_| frame.allow_fused && (1..=FINISH_SLOTS).contains(&draws.len()));
+        let mut uniforms = *frame.uniforms;
+        for (k, slot) in uniforms.arena_slots.iter_mut().enumerate() {
+            *slot = draws.get(k).map_or(u32::MAX, |d| d.arena);
+        }
+        let device = &ctx.device;
+        ctx.queue
+            .write_buffer(&screen.uniforms, 0, bytemuck::bytes_of(&uniforms));
+        let arena_groups: Vec<ArenaGroup> = draws
+            .iter()
+            .map(|d| ArenaGroup::new(device, d, GROUP_SIZE))
+            .collect();
+        let (gx, gy) = pixel_groups(screen.width, screen.height);
+
+        // Clear.
+        {
+            let targets: Vec<&wgpu::Buffer> = match keys {
+                Some(k) => vec![k],
+                None => vec![&screen.depths, &screen.indices],
+            };
+            let timestamp_writes = timer.pass(encoder, "clear");
+            let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
+                label: Some("clear"),
+                timestamp_writes,
+            });
+            pass.set_pipeline(&self.clear);
+            for t in targets {
+                let words = (t.size() / 4) as u32;
+                let bg = device.create_bind_group(&wgpu::BindGroupDescriptor {
+                    label: Some("clear"),
+                    layout: &self.clear.get_bind_group_layout(0),
+                    entries: &[wgpu::BindGroupEntry {
+                        binding: 0,
+                        resource: t.as_entire_binding(),
+                    }],
+                });
+                pass.set_bind_group(0, &bg, &[]);
+                let (x, y) = split_groups(words.div_ceil(GROUP_SIZE));
+                pass.dispatch_workgroups(x, y, 1);
+            }
+        }
+
+        // Projection.
+        let mut project =
+            |name: &str, pipe: &wgpu::ComputePipeline, frame_buffers: &[&wgpu::Buffer]| {
+                let fb = frame_bind(device, screen, pipe, frame_buffers);
+                let timestamp_writes = timer.pass(encoder, name);
+                let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
+                    label: Some(name),
+                    timestamp_writes,
+                });
+                pass.set_pipeline(pipe);
+                pass.set_bind_group(0, &fb, &[]);
+                for g in &arena_groups {
+                    if g.groups == 0 {
+                        continue;
+                    }
+                    pass.set_bind_group(1, &arena_bind(device, cache, pipe, g, false), &[]);
+                    let (x, y) = split_groups(g.groups);
+                    pass.dispatch_workgroups(x, y, 1);
+                }
+            };
+        match (&self.project64, keys) {
+            (Some(p64), Some(keys)) => project("project", p64, &[keys]),
+            _ => {
+                project("project_depth", &self.depth32, &[&screen.depths]);
+                project(
+                    "project_index",
+                    &self.index32,
+                    &[&screen.depths, &screen.indices],
+                );
+            }
+        }
+        if let Some((finish, name)) = fused {
+            bind::encode_fused(
+                device, encoder, screen, cache, draws, keys, finish, name, timer,
+            );
+            return true;
+        }
+        if let (Some(unpack), Some(keys)) = (&self.unpack, keys) {
+            let fb = frame_bind(
+                device,
+                screen,
+                unpack,
+                &[keys, &screen.depths, &screen.indices],
+            );
+            let timestamp_writes = timer.pass(encoder, "unpack");
+            let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
+                label: Some("unpack"),
+                timestamp_writes,
+            });
+            pass.set_pipeline(unpack);
+            pass.set_bind_group(0, &fb, &[]);
+            pass.dispatch_workgroups(gx, gy, 1);
+        }
+
+        // Resolve, per arena.
+        let fb = frame_bind(
+            device,
+            screen,
+            &self.resolve,
+            &[&screen.depths, &screen.indices, &screen.colours],
+        );
+        let timestamp_writes = timer.pass(encoder, "resolve");
+        let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
+            label: Some("resolve"),
+            timestamp_writes,
+        });
+        pass.set_pipeline(&self.resolve);
+        pass.set_bind_group(0, &fb, &[]);
+        for g in &arena_groups {
+            if g.groups == 0 {
+                continue;
+            }
+            pass.set_bind_group(1, &arena_bind(device, cache, &self.resolve, g, true), &[]);
+            pass.dispatch_workgroups(gx, gy, 1);
+        }
+        false
+    }
+}
+
+/// A pass that resolves each pixel's point, colours and shades it in one go, for frames whose
+/// points lie in at most `FINISH_SLOTS` arenas. A pipeline gives the shading as a WGSL
+/// function `shade_pixel(id: vec2<u32>, d: u32, rgb: vec3<f32>) -> vec3<f32>`.
+pub struct FusedFinish {
+    finish: Option<wgpu::ComputePipeline>,
+    /// The variant reading the 32-bit planes on a 64-bit device (for `force_int32`).
+    finish32: Option<wgpu::ComputePipeline>,
+}
+
+impl FusedFinish {
+    /// Every module `new` compiles for `label` and `shading`; none where the adapter allows
+    /// too few storage buffers per stage (then frames take the separate passes).
+    pub fn shaders(
+        int64: bool,
+        fits: bool,
+        label: &'static str,
+        shading: &[&'static str],
+    ) -> Vec<ShaderSource> {
+        if !fits {
+            return Vec::new();
+        }
+        let with_keys = |label, keys| {
+            let mut parts = vec![keys, COLOUR_WGSL];
+            parts.extend_from_slice(shading);
+            parts.push(FINISH_WGSL);
+            ShaderSource::new(label, &parts)
+        };
+        let keys = if int64 {
+            KEYS_INT64_WGSL
+        } else {
+            KEYS_INT32_WGSL
+        };
+        let mut s = vec![with_keys(label, keys)];
+        if int64 {
+            s.push(with_keys(label, KEYS_INT32_WGSL));
+        }
+        s
+    }
+
+    pub fn new(ctx: &GpuContext, label: &'static str, shading: &[&'static str]) -> FusedFinish {
+        let fits = fused_fits(&ctx.device);
+        let mut compiled = FusedFinish::shaders(ctx.int64_atomics, fits, label, shading)
+            .into_iter()
+            .map(|s| s.compute(&ctx.device, None));
+        FusedFinish {
+            finish: compiled.next(),
+            finish32: compiled.next(),
+        }
+    }
+}
+
+/// Whether the adapter binds enough storage buffers per stage for the fused finish.
+pub fn fused_fits(device: &wgpu::Device) -> bool {
+    device.limits().max_storage_buffers_per_shader_stage as usize >= 2 * FINISH_SLOTS + 2
+}
+
+/// One full-screen pass that shades the resolved depth and colour planes into the output,
+/// with a pipeline's `shade_pixel` (the separate-pass counterpart of `FusedFinish`).
+pub struct PlaneShading {
+    pipe: wgpu::ComputePipeline,
+}
+
+impl PlaneShading {
+    pub fn shader(label: &'static str, shading: &[&'static str]) -> ShaderSource {
+        let mut parts = shading.to_vec();
+        parts.insert(0, SHADE_PLANES_WGSL);
+        ShaderSource::new(label, &parts)
+    }
+
+    pub fn new(ctx: &GpuContext, label: &'static str, shading: &[&'static str]) -> PlaneShading {
+        PlaneShading {
+            pipe: PlaneShading::shader(label, shading).compute(&ctx.device, None),
+        }
+    }
+
+    pub fn encode(
+        &self,
+        device: &wgpu::Device,
+        encoder: &mut wgpu::CommandEncoder,
+        screen: &Screen,
+        name: &str,
+        timer: &mut Timer,
+    ) {
+        let view = screen.output.create_view(&Default::default());
+        let bg = device.create_bind_group(&wgpu::BindGroupDescriptor {
+            label: Some(name),
+            layout: &self.pipe.get_bind_group_layout(0),
+            entries: &[
+                wgpu::BindGroupEntry {
+                    binding: 0,
+                    resource: screen.uniforms.as_entire_binding(),
+                },
+                wgpu::BindGroupEntry {
+                    binding: 1,
+                    resource: screen.depths.as_entire_binding(),
+                },
+                wgpu::BindGroupEntry {
+                    binding: 2,
+                    resource: screen.colours.as_entire_binding(),
+                },
+                wgpu::BindGroupEntry {
+                    binding: 3,
+                    resource: wgpu::BindingResource::TextureView(&view),
+                },
+            ],
+        });
+        let timestamp_writes = timer.pass(encoder, name);
+        let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
+            label: Some(name),
+            timestamp_writes,
+        });
+        pass.set_pipeline(&self.pipe);
+        pass.set_bind_group(0, &bg, &[]);
+        let (gx, gy) = pixel_groups(screen.width, screen.height);
+        pass.dispatch_workgroups(gx, gy, 1);
+    }
+}
+
+/// Workgroups of 16x16 pixels covering a `width` x `height` image.
+pub fn pixel_groups(width: u32, height: u32) -> (u32, u32) {
+    (width.div_ceil(16), height.div_ceil(16))
+}
+
+/// Spreads `groups` workgroups over x and y within the per-dimension limit.
+fn split_groups(groups: u32) -> (u32, u32) {
+    if groups <= MAX_GROUPS_X {
+        (groups.max(1), 1)
+    } else {
+        (MAX_GROUPS_X, groups.div_ceil(MAX_GROUPS_X))
+    }
+}

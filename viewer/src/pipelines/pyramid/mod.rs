@@ -1,0 +1,201 @@
+//! `pyramid` (paper 003, Bouchiba, Deschaud, Goulette 2018): closed, shaded surfaces from the
+//! projected points by a min-depth point pyramid, pyramidal hidden-point removal, pull-push
+//! filling, multi-level normals and deferred headlight shading (`passes`).
+
+mod passes;
+
+pub use passes::{
+    COARSE_LEVEL, HPR_SCALE_S0, HPR_THRESHOLD, MAX_LEVELS, NOISE_BINS, NORMAL_SCALE_S0,
+    PyramidFrame, depth_noise_from,
+};
+
+use super::params::{Auto, ParamSpec, ResolvedParams, Scale};
+use super::projection::FrameUniforms;
+use super::{Lighting, Pipeline, PipelineFrame, PipelineInfo, ScreenBuffer, edl};
+use crate::ViewerError;
+use crate::gpu::GpuContext;
+use crate::gpu::async_readback::AsyncReadback;
+use crate::gpu::readback::read_buffer;
+use crate::gpu::timing::Timer;
+use crate::renderer::SurfacePixel;
+#[cfg(test)]
+pub(crate) use passes::uniforms_layout;
+use passes::{PyramidInputs, PyramidPasses, PyramidTargets};
+use std::collections::BTreeMap;
+
+pub static INFO: PipelineInfo = PipelineInfo {
+    name: "pyramid",
+    description: "hidden-point removal, pull-push fill, pyramid normals, deferred shading",
+    paper: Some("003_a7e57431d45858e9.txt (Bouchiba, Deschaud, Goulette 2018)"),
+    lighting: Lighting::Headlight,
+    params: &[
+        ParamSpec {
+            name: "s0",
+            help: "the metric scale of the sampling, in dataset units: about the point spacing",
+            default: 1.0,
+            min: 1e-9,
+            max: 1e9,
+            scale: Scale::Log,
+            auto: Some(Auto::DrawnSpacing),
+        },
+        ParamSpec {
+            name: "edl",
+            help: "eye-dome lighting on top of the shading",
+            default: 0.0,
+            min: 0.0,
+            max: 1.0,
+            scale: Scale::Toggle,
+            auto: None,
+        },
+        edl::STRENGTH,
+        edl::RADIUS,
+    ],
+    streams: &[],
+    passes: &[
+        "pyramid",
+        "hpr",
+        "noise",
+        "pull",
+        "push",
+        "normals",
+        "pyramid shade",
+    ],
+    previous_frame: false,
+    create,
+    shaders: |_| passes::shaders(),
+};
+
+/// The measure the pipeline reports: the depth noise of the visible points, as a deviation in
+/// dataset units (0: too few neighbouring points to tell).
+pub const DEPTH_NOISE: &str = "depth_noise";
+
+struct Pyramid {
+    passes: PyramidPasses,
+    targets: Option<PyramidTargets>,
+    /// The depth noise on its way back for the stats.
+    noise_readback: AsyncReadback,
+    depth_noise: Option<f32>,
+}
+
+fn create(ctx: &GpuContext) -> Result<Box<dyn Pipeline>, ViewerError> {
+    Ok(Box::new(Pyramid {
+        passes: PyramidPasses::new(&ctx.device)?,
+        targets: None,
+        noise_readback: AsyncReadback::new(&ctx.device, "depth noise readback", 4),
+        depth_noise: None,
+    }))
+}
+
+fn measures(depth_noise: Option<f32>) -> BTreeMap<&'static str, f32> {
+    depth_noise.map(|v| (DEPTH_NOISE, v)).into_iter().collect()
+}
+
+impl Pipeline for Pyramid {
+    fn info(&self) -> &'static PipelineInfo {
+        &INFO
+    }
+
+    fn uniforms(&self, params: &ResolvedParams, uniforms: &mut FrameUniforms) {
+        edl::set_uniforms(params, params.on("edl"), uniforms);
+    }
+
+    fn screen_buffers(&self, width: u32, height: u32) -> Vec<ScreenBuffer> {
+        PyramidPasses::screen_buffers(width, height)
+    }
+
+    fn make_targets(&mut self, device: &wgpu::Device, screen: &super::projection::Screen) {
+        self.targets = Some(self.passes.targets(device, screen.width, screen.height));
+    }
+
+    fn release_targets(&mut self) {
+        self.targets = None;
+        self.depth_noise = None;
+    }
+
+    fn encode(
+        &mut self,
+        frame: &PipelineFrame,
+        encoder: &mut wgpu::CommandEncoder,
+        timer: &mut Timer,
+    ) -> Result<(), ViewerError> {
+        let targets = self
+            .targets
+            .as_ref()
+            .ok_or_else(|| ViewerError::Gpu("the pyramid's buffers were not made".into()))?;
+        let screen = frame.screen;
+        // Without points there is no scale; any positive s0 leaves an empty frame empty.
+        let pyramid_frame = PyramidFrame {
+            s0: frame.params.get_or("s0", 1.0),
+            fov_y: frame.view.fov_y,
+            far: frame.view.far,
+            focal_px: frame.view.focal_px,
+        };
+        self.passes.encode(
+            &frame.ctx.device,
+            &frame.ctx.queue,
+            encoder,
+            targets,
+            &PyramidInputs {
+                frame_uniforms: &screen.uniforms,
+                depths: &screen.depths,
+                colours: &screen.colours,
+                output: &screen.output,
+            },
+            &pyramid_frame,
+            timer,
+        );
+        targets.record_depth_noise(encoder, &mut self.noise_readback);
+        Ok(())
+    }
+
+    fn after_submit(&mut self) {
+        self.noise_readback.after_submit();
+    }
+
+    fn measures(&mut self) -> BTreeMap<&'static str, f32> {
+        if let Some(bytes) = self.noise_readback.take() {
+            self.depth_noise = depth_noise_from(&bytes);
+        }
+        measures(self.depth_noise)
+    }
+
+    fn read_measures(&self, ctx: &GpuContext) -> Result<BTreeMap<&'static str, f32>, ViewerError> {
+        match &self.targets {
+            Some(t) => Ok(measures(Some(t.read_depth_noise(ctx)?))),
+            None => Ok(BTreeMap::new()),
+        }
+    }
+
+    fn read_surface(
+        &self,
+        ctx: &GpuContext,
+    ) -> Option<Result<Vec<Option<SurfacePixel>>, ViewerError>> {
+        let t = self.targets.as_ref()?;
+        let pixels = t.width as u64 * t.height as u64;
+        Some(read_buffer(ctx, &t.surface, pixels * 8).map(|data| {
+            data.chunks_exact(8)
+                .map(|b| {
+                    let depth = u32::from_le_bytes([b[0], b[1], b[2], b[3]]);
+                    let normal = u32::from_le_bytes([b[4], b[5], b[6], b[7]]);
+                    (depth != u32::MAX).then(|| SurfacePixel {
+                        depth: f32::from_bits(depth),
+                        normal: Some(decode_octahedral(normal)),
+                    })
+                })
+                .collect()
+        }))
+    }
+}
+
+/// Inverse of `encode_normal` in pyramid.wgsl (two snorm16 octahedral coordinates).
+fn decode_octahedral(e: u32) -> [f32; 3] {
+    let snorm = |v: u32| ((v & 0xffff) as u16 as i16 as f32 / 32767.0).clamp(-1.0, 1.0);
+    let (px, py) = (snorm(e), snorm(e >> 16));
+    let mut n = glam::Vec3::new(px, py, 1.0 - px.abs() - py.abs());
+    if n.z < 0.0 {
+        let (x, y) = (n.x, n.y);
+        n.x = (1.0 - y.abs()) * if x >= 0.0 { 1.0 } else { -1.0 };
+        n.y = (1.0 - x.abs()) * if y >= 0.0 { 1.0 } else { -1.0 };
+    }
+    n.normalize_or_zero().to_array()
+}

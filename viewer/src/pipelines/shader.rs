@@ -1,0 +1,63 @@
+//! Shader modules as the viewer composes them: the shared frame declarations, then the parts.
+//! The same `ShaderSource` is compiled by the pipelines and validated by naga in the tests, so
+//! the test sees exactly what the GPU gets.
+
+use super::projection::FRAME_WGSL;
+
+/// One compute shader module: its parts, in order, after `frame.wgsl`.
+#[derive(Debug, Clone)]
+pub struct ShaderSource {
+    pub label: &'static str,
+    pub entry: &'static str,
+    pub parts: Vec<&'static str>,
+}
+
+impl ShaderSource {
+    pub fn new(label: &'static str, parts: &[&'static str]) -> ShaderSource {
+        ShaderSource {
+            label,
+            entry: "main",
+            parts: parts.to_vec(),
+        }
+    }
+
+    pub fn with_entry(mut self, entry: &'static str) -> ShaderSource {
+        self.entry = entry;
+        self
+    }
+
+    /// The whole WGSL text.
+    pub fn compose(&self) -> String {
+        let mut src = String::from(FRAME_WGSL);
+        for p in &self.parts {
+            src.push('\n');
+            src.push_str(p);
+        }
+        src
+    }
+
+    pub fn module(&self, device: &wgpu::Device) -> wgpu::ShaderModule {
+        device.create_shader_module(wgpu::ShaderModuleDescriptor {
+            label: Some(self.label),
+            source: wgpu::ShaderSource::Wgsl(self.compose().into()),
+        })
+    }
+
+    /// A compute pipeline of this module's entry point; `layout: None` derives the layout
+    /// from the shader.
+    pub fn compute(
+        &self,
+        device: &wgpu::Device,
+        layout: Option<&wgpu::PipelineLayout>,
+    ) -> wgpu::ComputePipeline {
+        let module = self.module(device);
+        device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
+            label: Some(self.label),
+            layout,
+            module: &module,
+            entry_point: Some(self.entry),
+            compilation_options: Default::default(),
+            cache: None,
+        })
+    }
+}

@@ -1,0 +1,185 @@
+//! Every shader module the viewer compiles, validated by naga without a GPU, and every Rust
+//! struct and constant shared with WGSL checked against the shader's own layout.
+
+use super::projection::{self, EMPTY, FrameUniforms, GROUP_SIZE, GpuRange};
+use super::pyramid::{MAX_LEVELS, NOISE_BINS};
+use super::shader::ShaderSource;
+use super::{REGISTRY, max_timed_passes};
+use naga::valid::{Capabilities, ValidationFlags, Validator};
+
+/// Every module, composed as the pipelines compose them, for a device with and without
+/// 64-bit atomics.
+fn all_shaders(int64: bool) -> Vec<ShaderSource> {
+    let mut all = projection::shaders(int64);
+    for p in REGISTRY {
+        all.extend((p.shaders)(int64));
+    }
+    all
+}
+
+fn parse(s: &ShaderSource) -> naga::Module {
+    match naga::front::wgsl::parse_str(&s.compose()) {
+        Ok(m) => m,
+        Err(e) => panic!("{}: {}", s.label, e.emit_to_string(&s.compose())),
+    }
+}
+
+fn validate(s: &ShaderSource, module: &naga::Module, caps: Capabilities) {
+    let mut v = Validator::new(ValidationFlags::all(), caps);
+    if let Err(e) = v.validate(module) {
+        panic!("{}: {}", s.label, e.emit_to_string(&s.compose()));
+    }
+}
+
+#[test]
+fn every_shader_module_parses_and_validates() {
+    let int64_caps = Capabilities::SHADER_INT64 | Capabilities::SHADER_INT64_ATOMIC_MIN_MAX;
+    for int64 in [false, true] {
+        let caps = if int64 {
+            Capabilities::default() | int64_caps
+        } else {
+            Capabilities::default()
+        };
+        let shaders = all_shaders(int64);
+        // Each pipeline compiles at least its own shading beside the projection's modules.
+        let least = projection::shaders(int64).len() + REGISTRY.len();
+        assert!(shaders.len() > least, "{} modules", shaders.len());
+        for s in &shaders {
+            let module = parse(s);
+            validate(s, &module, caps);
+            assert!(
+                module.entry_points.iter().any(|e| e.name == s.entry),
+                "{}: no entry point {}",
+                s.label,
+                s.entry
+            );
+        }
+    }
+}
+
+#[test]
+fn the_32_bit_path_needs_no_64_bit_capability() {
+    // The GL backend (llvmpipe) has no 64-bit atomics: its modules must validate without.
+    for s in &all_shaders(false) {
+        let module = parse(s);
+        validate(s, &module, Capabilities::default());
+    }
+}
+
+/// The size and the member offsets of the WGSL struct `name`.
+fn wgsl_layout(module: &naga::Module, name: &str) -> (u32, Vec<(String, u32)>) {
+    let ty = module
+        .types
+        .iter()
+        .find(|(_, t)| t.name.as_deref() == Some(name))
+        .unwrap_or_else(|| panic!("no struct {name} in the shader"));
+    match &ty.1.inner {
+        naga::TypeInner::Struct { members, span } => (
+            *span,
+            members
+                .iter()
+                .map(|m| (m.name.clone().unwrap_or_default(), m.offset))
+                .collect(),
+        ),
+        other => panic!("{name} is not a struct: {other:?}"),
+    }
+}
+
+macro_rules! rust_layout {
+    ($t:ty { $($field:ident),* $(,)? }) => {
+        (
+            std::mem::size_of::<$t>() as u32,
+            vec![$((stringify!($field).to_string(), std::mem::offset_of!($t, $field) as u32)),*],
+        )
+    };
+}
+
+fn module_named(label: &str) -> naga::Module {
+    let s = all_shaders(true)
+        .into_iter()
+        .find(|s| s.label == label)
+        .unwrap_or_else(|| panic!("no module {label}"));
+    parse(&s)
+}
+
+#[test]
+fn rust_structs_match_their_wgsl_layouts() {
+    let project = module_named("project int64");
+    assert_eq!(
+        wgsl_layout(&project, "Frame"),
+        rust_layout!(FrameUniforms {
+            view_proj,
+            width,
+            height,
+            point_size,
+            size_mode,
+            focal_px,
+            colour_mode,
+            z_min,
+            z_max,
+            arena_shift,
+            edl_strength,
+            edl_radius,
+            background,
+            arena_slots,
+        }),
+        "FrameUniforms against Frame (frame.wgsl)"
+    );
+    assert_eq!(
+        wgsl_layout(&project, "Range"),
+        rust_layout!(GpuRange {
+            start,
+            count,
+            first_group,
+            spacing
+        }),
+        "GpuRange against Range (frame.wgsl)"
+    );
+    let hpr = module_named("hpr");
+    assert_eq!(
+        wgsl_layout(&hpr, "Pyramid"),
+        super::pyramid::uniforms_layout(),
+        "PyramidUniforms against Pyramid (pyramid.wgsl)"
+    );
+}
+
+/// The value of the WGSL constant `name`.
+fn wgsl_const(module: &naga::Module, name: &str) -> u64 {
+    let (_, c) = module
+        .constants
+        .iter()
+        .find(|(_, c)| c.name.as_deref() == Some(name))
+        .unwrap_or_else(|| panic!("no constant {name}"));
+    match module.global_expressions[c.init] {
+        naga::Expression::Literal(naga::Literal::U32(v)) => v as u64,
+        naga::Expression::Literal(naga::Literal::I32(v)) => v as u64,
+        naga::Expression::Literal(naga::Literal::AbstractInt(v)) => v as u64,
+        ref other => panic!("{name} is not an integer literal: {other:?}"),
+    }
+}
+
+#[test]
+fn shared_constants_agree() {
+    let project = module_named("project int64");
+    assert_eq!(wgsl_const(&project, "GROUP_SIZE"), GROUP_SIZE as u64);
+    assert_eq!(wgsl_const(&project, "EMPTY"), EMPTY as u64);
+    assert_eq!(
+        wgsl_const(&module_named("hpr"), "MAX_LEVELS"),
+        MAX_LEVELS as u64
+    );
+    assert_eq!(
+        wgsl_const(&module_named("noise histogram"), "NOISE_BINS"),
+        NOISE_BINS
+    );
+}
+
+#[test]
+fn the_pass_timer_holds_every_pipelines_passes() {
+    for p in REGISTRY {
+        assert!(
+            (projection::PASSES.len() + p.passes.len()) as u32 <= max_timed_passes(),
+            "{}",
+            p.name
+        );
+    }
+}

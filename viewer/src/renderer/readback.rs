@@ -1,0 +1,86 @@
+//! Reading a frame back from the GPU: the image, the pipeline's measures, and the surface
+//! (depth and normal per pixel) for picking, focusing and the quality harness.
+
+use super::Renderer;
+use crate::ViewerError;
+use crate::gpu::readback::{read_buffer, read_texture};
+use crate::gpu::timing::PassTimes;
+use std::collections::BTreeMap;
+
+impl Renderer {
+    /// The latest pass times (after `wait_gpu`).
+    pub fn pass_times(&self) -> PassTimes {
+        self.timer.last().clone()
+    }
+
+    /// Reads the output image back as tightly packed RGBA8 rows.
+    pub fn read_image(&self) -> Result<(u32, u32, Vec<u8>), ViewerError> {
+        let screen = self
+            .screen
+            .as_ref()
+            .ok_or_else(|| ViewerError::Gpu("no frame has been rendered".into()))?;
+        let rgba = read_texture(&self.ctx, &screen.output, 4)?;
+        Ok((screen.width, screen.height, rgba))
+    }
+
+    /// What the pipeline of the last frame measured in it, waiting for the GPU.
+    pub fn read_measures(&self) -> Result<BTreeMap<&'static str, f32>, ViewerError> {
+        match self.active.and_then(|n| self.pipelines.get(n)) {
+            Some(p) => p.read_measures(&self.ctx),
+            None => Ok(BTreeMap::new()),
+        }
+    }
+
+    /// Linear depth per pixel (`None` where nothing was drawn), for picking and tests.
+    pub fn read_depths(&self) -> Result<Vec<Option<f32>>, ViewerError> {
+        Ok(self
+            .read_surface()?
+            .into_iter()
+            .map(|p| p.map(|p| p.depth))
+            .collect())
+    }
+
+    /// The surface the last frame shows, per pixel: its linear depth, and its view-space normal
+    /// where the pipeline reconstructs one. `None` where the frame shows background.
+    pub fn read_surface(&self) -> Result<Vec<Option<SurfacePixel>>, ViewerError> {
+        let screen = self
+            .screen
+            .as_ref()
+            .ok_or_else(|| ViewerError::Gpu("no frame has been rendered".into()))?;
+        if let Some(surface) = self
+            .active
+            .and_then(|n| self.pipelines.get(n))
+            .and_then(|p| p.read_surface(&self.ctx))
+        {
+            return surface;
+        }
+        let pixels = screen.width as u64 * screen.height as u64;
+        // On the int64 path the depth plane is the high word of each key (the fused finish
+        // pass never writes a separate depth buffer).
+        let (source, stride) = match &screen.keys {
+            Some(keys) if self.last_int64 => (keys, 8),
+            _ => (&screen.depths, 4),
+        };
+        let data = read_buffer(&self.ctx, source, pixels * stride as u64)?;
+        Ok(data
+            .chunks_exact(stride)
+            .map(|b| {
+                let b = &b[stride - 4..];
+                let bits = u32::from_le_bytes([b[0], b[1], b[2], b[3]]);
+                (bits != u32::MAX).then(|| SurfacePixel {
+                    depth: f32::from_bits(bits),
+                    normal: None,
+                })
+            })
+            .collect())
+    }
+}
+
+/// One pixel of the surface a frame shows.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct SurfacePixel {
+    /// Linear depth along the view axis, in dataset units.
+    pub depth: f32,
+    /// Unit normal in view space (x right, y up, z towards the viewer).
+    pub normal: Option<[f32; 3]>,
+}
