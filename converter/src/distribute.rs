@@ -2,7 +2,7 @@
 //! the same part of every input and writes its own file per chunk, so a chunk's rows are its
 //! part files read in order: the input order, whatever the timing.
 
-use crate::error::{ConvertError, Result};
+use crate::error::{ConvertError, Result, panic_message};
 use crate::plan::{grid_cell, grid_shape};
 use crate::rows::RowInput;
 use indicatif::ProgressBar;
@@ -53,8 +53,11 @@ pub fn distribute(d: &Distribution, bar: &ProgressBar) -> Result<()> {
         workers
             .into_iter()
             .map(|w| {
-                w.join().unwrap_or_else(|_| {
-                    Err(ConvertError::Usage("a distribute worker panicked".into()))
+                w.join().unwrap_or_else(|p| {
+                    Err(ConvertError::internal(
+                        "distributing points",
+                        panic_message(p.as_ref()),
+                    ))
                 })
             })
             .collect()

@@ -1,4 +1,4 @@
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
 /// Why a conversion, export or synthesis failed. Each message is one sentence that names the
 /// file, the place in it and the fault.
@@ -19,6 +19,9 @@ pub enum ConvertError {
     Format(#[from] strata_format::FormatError),
     #[error("{0}")]
     Usage(String),
+    /// A bug in the converter, not a fault of the inputs or the options: a worker panicked.
+    #[error("internal fault while {during}: {message}; please report this")]
+    Internal { during: String, message: String },
     /// A LAS point lies outside the bounds its header declares. The conversion catches this
     /// and measures the bounds itself, so a user never sees it.
     #[error("{}: point {record} lies outside the bounds the header declares", path.display())]
@@ -46,6 +49,31 @@ impl ConvertError {
             path: path.into(),
             what: what.into(),
         }
+    }
+
+    pub fn internal(during: impl Into<String>, message: impl Into<String>) -> Self {
+        ConvertError::Internal {
+            during: during.into(),
+            message: message.into(),
+        }
+    }
+}
+
+/// For `map_err`: an I/O error on `path` while doing `what`.
+pub(crate) fn io_err(path: &Path, what: &str) -> impl FnOnce(std::io::Error) -> ConvertError {
+    let path = path.to_path_buf();
+    let what = what.to_string();
+    move |e| ConvertError::io(path, what, e)
+}
+
+/// The message a panic was raised with, when it has one.
+pub(crate) fn panic_message(payload: &(dyn std::any::Any + Send)) -> String {
+    if let Some(s) = payload.downcast_ref::<&str>() {
+        (*s).to_string()
+    } else if let Some(s) = payload.downcast_ref::<String>() {
+        s.clone()
+    } else {
+        "a worker panicked".to_string()
     }
 }
 

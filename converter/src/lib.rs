@@ -1,13 +1,19 @@
 //! Strata's converter: LAS/LAZ/PLY inputs into a layered-octree dataset, out of core.
 
 pub mod build;
+pub mod chunk_step;
 pub mod distribute;
 pub mod error;
 pub mod export;
+pub mod finish;
+pub mod halo;
+pub mod index;
 pub mod input;
+pub mod journal;
 pub mod merge;
 pub mod morton;
 pub mod plan;
+pub mod prepare;
 pub mod progress;
 pub mod quantize;
 pub mod rows;
@@ -17,8 +23,10 @@ pub mod staging;
 pub mod synth;
 pub mod sys;
 pub mod tree;
+pub mod workdir;
 pub mod writers;
 
-pub use build::{ConvertOptions, ConvertSummary, convert};
+pub use build::{ConvertOptions, ConvertSummary, convert, convert_with};
+pub use chunk_step::{ChunkRows, ChunkStep, GridBox, Halo, NoStep};
 pub use error::{ConvertError, Result};
 pub use sampling::Sampling;

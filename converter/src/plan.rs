@@ -1,6 +1,6 @@
 //! Phase 2: count points on a coarse grid and cut the cube into chunks that fit in memory.
 
-use crate::error::{ConvertError, Result};
+use crate::error::{ConvertError, Result, panic_message};
 use crate::quantize::Quantization;
 use crate::rows::RowInput;
 use indicatif::ProgressBar;
@@ -138,8 +138,12 @@ pub fn count(
         workers
             .into_iter()
             .map(|w| {
-                w.join()
-                    .unwrap_or_else(|_| Err(ConvertError::Usage("a count worker panicked".into())))
+                w.join().unwrap_or_else(|p| {
+                    Err(ConvertError::internal(
+                        "counting points",
+                        panic_message(p.as_ref()),
+                    ))
+                })
             })
             .collect()
     });

@@ -1,7 +1,10 @@
 //! Progress bars per phase: drawn on a terminal, silent otherwise or with `--quiet`.
 
+use crate::error::Result;
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
+use serde::Serialize;
 use std::io::IsTerminal;
+use std::time::Instant;
 
 #[derive(Debug, Clone, Copy)]
 pub struct Progress {
@@ -33,5 +36,55 @@ impl Progress {
         }
         bar.set_prefix(name.to_string());
         bar
+    }
+}
+
+/// How long one phase of a conversion took.
+#[derive(Debug, Clone, Serialize)]
+pub struct PhaseTime {
+    pub name: &'static str,
+    pub seconds: f64,
+}
+
+/// The phases of one conversion, each under a bar of its own, and how long each took.
+#[derive(Debug)]
+pub struct Phases {
+    progress: Progress,
+    times: Vec<PhaseTime>,
+}
+
+impl Phases {
+    pub fn new(progress: Progress) -> Self {
+        Phases {
+            progress,
+            times: Vec::new(),
+        }
+    }
+
+    /// Runs phase `name`, with a bar counting `(len, unit)` when given, and records its time
+    /// if it succeeds.
+    pub fn timed<T>(
+        &mut self,
+        name: &'static str,
+        bar: Option<(u64, &str)>,
+        f: impl FnOnce(&ProgressBar) -> Result<T>,
+    ) -> Result<T> {
+        let start = Instant::now();
+        let bar = match bar {
+            Some((len, unit)) => self.progress.phase(name, len, unit),
+            None => ProgressBar::hidden(),
+        };
+        let out = f(&bar);
+        bar.finish_and_clear();
+        let out = out?;
+        self.times.push(PhaseTime {
+            name,
+            seconds: start.elapsed().as_secs_f64(),
+        });
+        Ok(out)
+    }
+
+    pub fn into_times(self) -> Vec<PhaseTime> {
+        self.times
     }
 }

@@ -1,7 +1,7 @@
 //! Staging files of dataset rows, for inputs the distribute phase cannot read in place: LAZ
 //! (decoded once) and, on the general path, the f64 staging file once the scale is known.
 
-use crate::error::{ConvertError, Result};
+use crate::error::{ConvertError, Result, panic_message};
 use crate::input::las::LasSource;
 use crate::plan::Counts;
 use crate::quantize::Quantization;
@@ -85,9 +85,12 @@ pub fn decode_to_rows(
             decoded += n;
         };
         drop(full_tx);
-        let written = writer
-            .join()
-            .unwrap_or_else(|_| Err(ConvertError::Usage("the staging writer panicked".into())));
+        let written = writer.join().unwrap_or_else(|p| {
+            Err(ConvertError::internal(
+                "writing staging rows",
+                panic_message(p.as_ref()),
+            ))
+        });
         read?;
         let (out, done) = written?;
         finish(out, staging, stride, done)

@@ -1,0 +1,177 @@
+//! After indexing: merge the levels above the chunks into the octree file, then write the
+//! hierarchy and the metadata and rename the work directory into the dataset.
+
+use crate::build::ConvertOptions;
+use crate::error::{ConvertError, Result, io_err};
+use crate::journal::{Committer, JournalEntry, record_of};
+use crate::merge::TopMerge;
+use crate::plan::root_spacing;
+use crate::prepare::Plan;
+use crate::sampling::Sampling;
+use crate::tree::FinishedNode;
+use crate::workdir::WorkDir;
+use std::collections::BTreeMap;
+use std::fs::{self, File};
+use std::io::Write;
+use std::path::Path;
+use strata_format::{
+    Bounds, DatasetFile, FileInfo, Files, HierarchyInfo, Metadata, NodeKey, NodeRecord,
+    PAGE_LEVELS, RowLayout, build_hierarchy,
+};
+
+/// Every node of the dataset, and the octree file holding them all.
+pub struct Merged {
+    records: BTreeMap<NodeKey, NodeRecord>,
+    octree: File,
+    octree_path: std::path::PathBuf,
+    octree_len: u64,
+}
+
+/// What the summary reports of the finished dataset.
+pub struct Finished {
+    pub points: u64,
+    pub nodes: u64,
+    pub depth: u32,
+    pub dataset_bytes: u64,
+}
+
+/// Builds the levels above the chunks from the chunks' roots and appends them to the octree.
+pub fn merge_top(
+    wd: &WorkDir,
+    plan: &Plan,
+    layout: &RowLayout,
+    sampling: Sampling,
+    journal: &[JournalEntry],
+    committer: Committer,
+) -> Result<Merged> {
+    let mut records: BTreeMap<NodeKey, NodeRecord> =
+        journal.iter().flat_map(JournalEntry::records).collect();
+    let (mut octree, octree_path, mut at) = committer.into_octree();
+    let roots: Vec<(NodeKey, u8)> = journal
+        .iter()
+        .zip(&plan.chunks)
+        .map(|(entry, chunk)| (chunk.key(), entry.root_mask))
+        .collect();
+    let load = |i: usize| {
+        let p = wd.chunk_root(journal[i].chunk);
+        fs::read(&p).map_err(io_err(&p, "cannot read chunk root"))
+    };
+    let emit = |n: FinishedNode| {
+        octree
+            .write_all(&n.payload)
+            .map_err(io_err(&octree_path, "cannot write"))?;
+        records.insert(n.key, record_of(&n, at));
+        at += n.payload.len() as u64;
+        Ok(())
+    };
+    TopMerge::new(&roots, layout, plan.cube, sampling, load, emit).run()?;
+    Ok(Merged {
+        records,
+        octree,
+        octree_path,
+        octree_len: at,
+    })
+}
+
+/// Writes the hierarchy and the metadata, removes the work files, and renames the directory
+/// into the dataset, replacing an old one.
+pub fn finish(
+    opts: &ConvertOptions,
+    wd: &WorkDir,
+    plan: &Plan,
+    merged: Merged,
+) -> Result<Finished> {
+    let Merged {
+        records,
+        octree,
+        octree_path,
+        octree_len,
+    } = merged;
+    octree
+        .sync_all()
+        .map_err(io_err(&octree_path, "cannot sync"))?;
+    drop(octree);
+    let (hier, root_off, root_size) = build_hierarchy(&records, PAGE_LEVELS);
+    write_synced(&wd.dataset_file(DatasetFile::Hierarchy), &hier)?;
+    let points: u64 = records.values().map(|r| r.point_count as u64).sum();
+    if points != plan.points {
+        return Err(ConvertError::output(
+            wd.root(),
+            format!(
+                "internal error: {} points read but {points} stored",
+                plan.points
+            ),
+        ));
+    }
+    let depth = records.keys().map(|k| k.level as u32).max().unwrap_or(0);
+    let q = plan.quantization();
+    let to_real = |p: [i32; 3]| plan.to_real(p.map(i64::from));
+    let meta = Metadata {
+        format: strata_format::FORMAT_NAME.into(),
+        version: [strata_format::VERSION_MAJOR, strata_format::VERSION_MINOR],
+        points,
+        nodes: records.len() as u64,
+        depth,
+        scale: plan.scale,
+        offset: plan.offset,
+        bounds: Bounds {
+            min: to_real(q.quantize(&plan.min)),
+            max: to_real(q.quantize(&plan.max)),
+        },
+        cube: plan.cube,
+        spacing: root_spacing(&plan.cube, plan.scale[0]),
+        sampling: opts.sampling.name().into(),
+        attributes: plan.attributes.clone(),
+        files: Files {
+            hierarchy: FileInfo {
+                name: DatasetFile::Hierarchy.name().into(),
+                size: hier.len() as u64,
+            },
+            octree: FileInfo {
+                name: DatasetFile::Octree.name().into(),
+                size: octree_len,
+            },
+        },
+        hierarchy: HierarchyInfo {
+            root_page_offset: root_off,
+            root_page_size: root_size,
+            page_levels: PAGE_LEVELS,
+        },
+        sources: opts
+            .inputs
+            .iter()
+            .map(|p| {
+                p.file_name()
+                    .map(|n| n.to_string_lossy().into_owned())
+                    .unwrap_or_default()
+            })
+            .collect(),
+        generator: format!("strata {}", env!("CARGO_PKG_VERSION")),
+    };
+    write_synced(
+        &wd.dataset_file(DatasetFile::Metadata),
+        meta.to_json().as_bytes(),
+    )?;
+    fs::remove_dir_all(wd.work()).map_err(io_err(wd.work(), "cannot remove work directory"))?;
+    if opts.output.exists() {
+        let old = wd.replaced();
+        fs::rename(&opts.output, &old).map_err(io_err(&opts.output, "cannot replace"))?;
+        fs::remove_dir_all(&old).map_err(io_err(&old, "cannot remove the replaced dataset"))?;
+    }
+    fs::rename(wd.root(), &opts.output).map_err(io_err(
+        &opts.output,
+        "cannot move the finished dataset into place",
+    ))?;
+    Ok(Finished {
+        points,
+        nodes: records.len() as u64,
+        depth,
+        dataset_bytes: octree_len + hier.len() as u64,
+    })
+}
+
+fn write_synced(path: &Path, bytes: &[u8]) -> Result<()> {
+    let mut f = File::create(path).map_err(io_err(path, "cannot create"))?;
+    f.write_all(bytes).map_err(io_err(path, "cannot write"))?;
+    f.sync_all().map_err(io_err(path, "cannot sync"))
+}

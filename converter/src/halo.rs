@@ -1,0 +1,282 @@
+//! Gathering each chunk's halo. Before indexing, every chunk writes its band: its rows within
+//! the margin of its own faces, the only ones another chunk's halo can hold. A chunk's halo is
+//! then read from its neighbours' bands, not their whole chunk files, and the bands outlive the
+//! chunk files, which indexing deletes as it commits.
+
+use crate::chunk_step::{GridBox, Halo, row_in};
+use crate::error::{ConvertError, Result, io_err, panic_message};
+use crate::prepare::Plan;
+use crate::workdir::WorkDir;
+use indicatif::ProgressBar;
+use std::fs::{self, File};
+use std::io::{BufReader, BufWriter, Read, Write};
+use std::path::Path;
+use std::sync::atomic::{AtomicU64, AtomicUsize, Ordering};
+
+pub struct Halos {
+    /// The margin in quantization steps per axis; all 0 when the step needs no halo.
+    margin: [i64; 3],
+    boxes: Vec<GridBox>,
+    /// For each chunk, the chunks whose band can reach into its halo.
+    neighbours: Vec<Vec<usize>>,
+    stride: usize,
+    /// Rows read from bands, all chunks together.
+    rows_read: AtomicU64,
+}
+
+impl Halos {
+    /// The halos for a step asking for `margin` real units around each chunk.
+    pub fn new(plan: &Plan, stride: usize, margin: f64) -> Self {
+        // Whole quantization steps, rounding down: a point one more step out is beyond the
+        // margin. The tolerance keeps e.g. 0.3 / 0.001 from landing just under 300.
+        let margin = [0, 1, 2].map(|a| {
+            let steps = margin / plan.scale[a].abs() * (1.0 + 1e-12);
+            if steps.is_finite() && steps >= 1.0 {
+                steps.floor().min(i64::MAX as f64 / 4.0) as i64
+            } else {
+                0
+            }
+        });
+        let boxes: Vec<GridBox> = plan
+            .chunks
+            .iter()
+            .map(|c| GridBox::of_chunk(c, &plan.cube))
+            .collect();
+        let mut neighbours = vec![Vec::new(); boxes.len()];
+        if margin != [0; 3] {
+            for (i, b) in boxes.iter().enumerate() {
+                let reach = b.grown(margin);
+                neighbours[i] = (0..boxes.len())
+                    .filter(|&j| j != i && reach.intersects(&boxes[j]))
+                    .collect();
+            }
+        }
+        Halos {
+            margin,
+            boxes,
+            neighbours,
+            stride,
+            rows_read: AtomicU64::new(0),
+        }
+    }
+
+    /// Whether any chunk can have a halo, so that bands are worth writing.
+    pub fn needed(&self) -> bool {
+        self.margin != [0; 3]
+    }
+
+    pub fn rows_read(&self) -> u64 {
+        self.rows_read.load(Ordering::Relaxed)
+    }
+
+    /// Writes the band of each chunk from `first` on that has none yet (earlier ones were
+    /// committed by an interrupted run, so theirs exist already), `threads` at a time.
+    pub fn write_bands(
+        &self,
+        wd: &WorkDir,
+        first: usize,
+        parts: usize,
+        threads: usize,
+        bar: &ProgressBar,
+    ) -> Result<()> {
+        let dir = wd.bands();
+        fs::create_dir_all(&dir).map_err(io_err(&dir, "cannot create work directory"))?;
+        let next = AtomicUsize::new(first);
+        let results: Vec<Result<()>> = std::thread::scope(|scope| {
+            let workers: Vec<_> = (0..threads.max(1))
+                .map(|_| {
+                    scope.spawn(|| {
+                        loop {
+                            let i = next.fetch_add(1, Ordering::SeqCst);
+                            if i >= self.boxes.len() {
+                                return Ok(());
+                            }
+                            self.write_band(wd, i, parts)?;
+                            bar.inc(1);
+                        }
+                    })
+                })
+                .collect();
+            workers
+                .into_iter()
+                .map(|w| {
+                    w.join().unwrap_or_else(|p| {
+                        Err(ConvertError::internal(
+                            "writing chunk bands",
+                            panic_message(p.as_ref()),
+                        ))
+                    })
+                })
+                .collect()
+        });
+        results.into_iter().collect()
+    }
+
+    fn write_band(&self, wd: &WorkDir, chunk: usize, parts: usize) -> Result<()> {
+        let path = wd.chunk_band(chunk);
+        if path.exists() {
+            return Ok(());
+        }
+        let inner = self.boxes[chunk].grown(self.margin.map(|m| -m));
+        let part_path = path.with_extension("part");
+        let file = File::create(&part_path).map_err(io_err(&part_path, "cannot create"))?;
+        let mut out = BufWriter::with_capacity(1 << 20, file);
+        for part in 0..parts {
+            let src = wd.chunk_part(chunk, part);
+            for_each_row(&src, self.stride, |row| {
+                if !row_in(&inner, row) {
+                    out.write_all(row)
+                        .map_err(io_err(&part_path, "cannot write"))?;
+                }
+                Ok(())
+            })?;
+        }
+        out.into_inner()
+            .map_err(|e| io_err(&part_path, "cannot write")(e.into_error()))?;
+        // Renamed only once whole, so a resumed run never takes a cut band for a full one.
+        fs::rename(&part_path, &path).map_err(io_err(&path, "cannot write"))
+    }
+
+    /// Fills `halo` with chunk `chunk`'s halo; reads nothing when no halo is needed.
+    pub fn gather(&self, wd: &WorkDir, chunk: usize, halo: &mut Halo) -> Result<()> {
+        halo.rows.clear();
+        halo.stride = self.stride;
+        halo.reach = self.boxes[chunk].grown(self.margin);
+        let reach = halo.reach;
+        let mut read = 0u64;
+        for &j in &self.neighbours[chunk] {
+            for_each_row(&wd.chunk_band(j), self.stride, |row| {
+                read += 1;
+                if row_in(&reach, row) {
+                    halo.rows.extend_from_slice(row);
+                }
+                Ok(())
+            })?;
+        }
+        self.rows_read.fetch_add(read, Ordering::Relaxed);
+        Ok(())
+    }
+}
+
+/// Calls `each` on every row of the file at `path`, which holds whole rows; no file, no rows
+/// (a chunk part with no rows has no file).
+fn for_each_row(
+    path: &Path,
+    stride: usize,
+    mut each: impl FnMut(&[u8]) -> Result<()>,
+) -> Result<()> {
+    let file = match File::open(path) {
+        Ok(f) => f,
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => return Ok(()),
+        Err(e) => return Err(ConvertError::io(path, "cannot open", e)),
+    };
+    let len = file.metadata().map_err(io_err(path, "cannot read"))?.len();
+    let mut reader = BufReader::with_capacity(1 << 20, file);
+    let mut row = vec![0u8; stride];
+    for _ in 0..len / stride.max(1) as u64 {
+        reader
+            .read_exact(&mut row)
+            .map_err(io_err(path, "cannot read"))?;
+        each(&row)?;
+    }
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::plan::Chunk;
+    use strata_format::Cube;
+
+    /// A 16-unit cube cut into its eight octants, holding one point at every integer
+    /// position, each chunk's rows in part 0.
+    fn octants(wd: &WorkDir) -> Plan {
+        let cube = Cube {
+            min: [0; 3],
+            bits: 4,
+        };
+        let chunks: Vec<Chunk> = (0..8)
+            .map(|o| Chunk {
+                level: 1,
+                x: o >> 2,
+                y: (o >> 1) & 1,
+                z: o & 1,
+                points: 512,
+            })
+            .collect();
+        let mut rows = vec![Vec::new(); 8];
+        for x in 0..16i32 {
+            for y in 0..16i32 {
+                for z in 0..16i32 {
+                    let o = ((x >> 3) << 2 | (y >> 3) << 1 | (z >> 3)) as usize;
+                    for v in [x, y, z] {
+                        rows[o].extend_from_slice(&v.to_le_bytes());
+                    }
+                }
+            }
+        }
+        fs::create_dir_all(wd.chunks()).expect("chunk dir");
+        for (i, r) in rows.iter().enumerate() {
+            fs::write(wd.chunk_part(i, 0), r).expect("chunk file");
+        }
+        Plan {
+            fingerprint: String::new(),
+            attributes: Vec::new(),
+            points: 4096,
+            scale: [0.5; 3],
+            offset: [0.0; 3],
+            coarsened: false,
+            min: [0.0; 3],
+            max: [7.5; 3],
+            cube,
+            chunks,
+        }
+    }
+
+    #[test]
+    fn halo_is_every_other_point_within_the_margin() {
+        let dir = tempfile::tempdir().expect("tempdir");
+        let wd = WorkDir::for_output(&dir.path().join("ds"));
+        let plan = octants(&wd);
+        // 1.0 real unit is 2 steps of 0.5.
+        let halos = Halos::new(&plan, 12, 1.0);
+        assert!(halos.needed());
+        halos
+            .write_bands(&wd, 0, 1, 2, &ProgressBar::hidden())
+            .expect("bands");
+        let mut halo = Halo::default();
+        for (i, chunk) in plan.chunks.iter().enumerate() {
+            halos.gather(&wd, i, &mut halo).expect("gather");
+            let own = GridBox::of_chunk(chunk, &plan.cube);
+            assert_eq!(halo.reach(), own.grown([2; 3]));
+            // Inside the cube, an octant's 8^3 box grown by 2 toward the centre only: 10^3.
+            assert_eq!(halo.len(), 10 * 10 * 10 - 8 * 8 * 8, "chunk {i}");
+            for row in halo.rows() {
+                let p = strata_format::row_position(row);
+                assert!(!own.contains(p) && halo.reach().contains(p), "{p:?}");
+            }
+        }
+        // Each chunk read the bands of its 7 neighbours: all but the 4^3 inner rows of each.
+        assert_eq!(halos.rows_read(), 8 * 7 * (512 - 64));
+    }
+
+    #[test]
+    fn no_margin_reads_nothing() {
+        let dir = tempfile::tempdir().expect("tempdir");
+        let wd = WorkDir::for_output(&dir.path().join("ds"));
+        let plan = octants(&wd);
+        // Below one step of the grid, no point can be within the margin.
+        for margin in [0.0, 0.4, -1.0, f64::NAN] {
+            let halos = Halos::new(&plan, 12, margin);
+            assert!(!halos.needed());
+            let mut halo = Halo::default();
+            for i in 0..plan.chunks.len() {
+                halos.gather(&wd, i, &mut halo).expect("gather");
+                assert!(halo.is_empty());
+                assert_eq!(halo.reach(), GridBox::of_chunk(&plan.chunks[i], &plan.cube));
+            }
+            assert_eq!(halos.rows_read(), 0);
+        }
+        assert!(!wd.bands().exists());
+    }
+}

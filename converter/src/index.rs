@@ -1,0 +1,219 @@
+//! Indexing: each chunk's rows are read, handed to the per-chunk step with their halo, and
+//! built into a tree, `threads` chunks at a time; chunks commit in plan order, so the octree
+//! file is the same whatever the timing.
+
+use crate::chunk_step::{ChunkRows, ChunkStep, GridBox, Halo};
+use crate::error::{ConvertError, Result, io_err, panic_message};
+use crate::halo::Halos;
+use crate::journal::{BuiltChunk, Committer, JournalEntry};
+use crate::prepare::Plan;
+use crate::sampling::Sampling;
+use crate::tree::{ChunkMemory, TreeBuilder};
+use crate::workdir::WorkDir;
+use indicatif::ProgressBar;
+use std::collections::BTreeMap;
+use std::fs::{self, File};
+use std::io::Read;
+use std::panic::{AssertUnwindSafe, catch_unwind};
+use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
+use std::sync::{Condvar, Mutex};
+use strata_format::RowLayout;
+
+/// What indexing needs besides the chunk files.
+pub struct Indexing<'a> {
+    pub plan: &'a Plan,
+    pub layout: &'a RowLayout,
+    pub sampling: Sampling,
+    pub threads: usize,
+    pub step: &'a dyn ChunkStep,
+    pub halos: &'a Halos,
+    pub wd: &'a WorkDir,
+}
+
+struct CommitState {
+    committer: Committer,
+    next: usize,
+    ready: BTreeMap<usize, BuiltChunk>,
+    entries: Vec<JournalEntry>,
+    error: Option<ConvertError>,
+}
+
+/// Indexes chunks `first..` and commits them after `committer`'s; returns their journal
+/// entries and the committer, positioned after the last one.
+pub fn index_chunks(
+    ix: &Indexing,
+    first: usize,
+    committer: Committer,
+    bar: &ProgressBar,
+) -> Result<(Vec<JournalEntry>, Committer)> {
+    let n = ix.plan.chunks.len();
+    let threads = ix.threads;
+    let next_chunk = AtomicUsize::new(first);
+    let abort = AtomicBool::new(false);
+    let state = Mutex::new(CommitState {
+        committer,
+        next: first,
+        ready: BTreeMap::new(),
+        entries: Vec::new(),
+        error: None,
+    });
+    let turn = Condvar::new();
+    let fail = |e: ConvertError| {
+        abort.store(true, Ordering::SeqCst);
+        if let Ok(mut s) = state.lock()
+            && s.error.is_none()
+        {
+            s.error = Some(e);
+        }
+        turn.notify_all();
+    };
+    std::thread::scope(|scope| {
+        for _ in 0..threads {
+            scope.spawn(|| {
+                let mut memory: Option<ChunkMemory> = None;
+                let mut halo = Halo::default();
+                loop {
+                    if abort.load(Ordering::SeqCst) {
+                        return;
+                    }
+                    let i = next_chunk.fetch_add(1, Ordering::SeqCst);
+                    if i >= n {
+                        return;
+                    }
+                    // Wait so at most `threads` chunks are ahead of the commit point.
+                    {
+                        let Ok(mut s) = state.lock() else { return };
+                        while i >= s.next + threads && !abort.load(Ordering::SeqCst) {
+                            s = match turn.wait(s) {
+                                Ok(s) => s,
+                                Err(_) => return,
+                            };
+                        }
+                    }
+                    let mem = memory.take().unwrap_or_default();
+                    // A panic is a bug of ours, not a fault of the input: say which chunk.
+                    let built =
+                        catch_unwind(AssertUnwindSafe(|| build_chunk(ix, i, mem, &mut halo)))
+                            .unwrap_or_else(|p| {
+                                Err(chunk_fault(ix.plan, i, panic_message(p.as_ref())))
+                            });
+                    let built = match built {
+                        Ok((built, mem)) => {
+                            memory = Some(mem);
+                            built
+                        }
+                        Err(e) => return fail(e),
+                    };
+                    let Ok(mut s) = state.lock() else { return };
+                    s.ready.insert(i, built);
+                    commit_ready(ix, &mut s, &abort, bar);
+                    turn.notify_all();
+                }
+            });
+        }
+    });
+    let s = state.into_inner().map_err(|_| {
+        ConvertError::internal("indexing chunks", "a worker panicked while committing")
+    })?;
+    if let Some(e) = s.error {
+        return Err(e);
+    }
+    Ok((s.entries, s.committer))
+}
+
+/// Reads chunk `i`, runs the step on it and builds its tree, in `mem`'s buffers, which it
+/// hands back for the next chunk.
+fn build_chunk(
+    ix: &Indexing,
+    i: usize,
+    mut mem: ChunkMemory,
+    halo: &mut Halo,
+) -> Result<(BuiltChunk, ChunkMemory)> {
+    read_chunk(ix.wd, i, ix.threads, &mut mem.rows)?;
+    ix.halos.gather(ix.wd, i, halo)?;
+    let chunk = &ix.plan.chunks[i];
+    ix.step.process(
+        &mut ChunkRows {
+            index: i,
+            bounds: GridBox::of_chunk(chunk, &ix.plan.cube),
+            scale: ix.plan.scale,
+            offset: ix.plan.offset,
+            layout: ix.layout,
+            rows: &mut mem.rows,
+        },
+        halo,
+    )?;
+    let mut builder = TreeBuilder::with_memory(mem, ix.layout, ix.plan.cube, ix.sampling);
+    let root = builder.build_chunk(chunk.key());
+    let root_rows = builder.rows_of(&root);
+    let finished = std::mem::take(&mut builder.finished);
+    Ok((
+        BuiltChunk {
+            finished,
+            root_rows,
+            root_mask: root.child_mask,
+        },
+        builder.into_memory(),
+    ))
+}
+
+/// Commits the chunks that are ready, in plan order from the commit point on.
+fn commit_ready(ix: &Indexing, s: &mut CommitState, abort: &AtomicBool, bar: &ProgressBar) {
+    while let Some(done) = {
+        let next = s.next;
+        s.ready.remove(&next)
+    } {
+        let idx = s.next;
+        match s.committer.commit(ix.wd, idx, done) {
+            Ok(entry) => {
+                s.entries.push(entry);
+                for part in 0..ix.threads {
+                    let _ = fs::remove_file(ix.wd.chunk_part(idx, part));
+                }
+                bar.inc(ix.plan.chunks[idx].points);
+                s.next += 1;
+            }
+            Err(e) => {
+                s.error.get_or_insert(e);
+                abort.store(true, Ordering::SeqCst);
+                break;
+            }
+        }
+    }
+}
+
+/// The fault of a worker that panicked on chunk `i`, named with the chunk's real bounds.
+fn chunk_fault(plan: &Plan, i: usize, message: String) -> ConvertError {
+    let b = GridBox::of_chunk(&plan.chunks[i], &plan.cube);
+    let (lo, hi) = (plan.to_real(b.min), plan.to_real(b.max));
+    ConvertError::internal(
+        format!(
+            "indexing chunk {i} (x {:.3}..{:.3}, y {:.3}..{:.3}, z {:.3}..{:.3})",
+            lo[0], hi[0], lo[1], hi[1], lo[2], hi[2]
+        ),
+        message,
+    )
+}
+
+/// A chunk's rows: its part files in order (a part with no rows has no file).
+fn read_chunk(wd: &WorkDir, chunk: usize, parts: usize, rows: &mut Vec<u8>) -> Result<()> {
+    let paths: Vec<_> = (0..parts).map(|p| wd.chunk_part(chunk, p)).collect();
+    let total: u64 = paths
+        .iter()
+        .filter_map(|p| fs::metadata(p).ok())
+        .map(|m| m.len())
+        .sum();
+    rows.clear();
+    rows.reserve(total as usize);
+    for path in paths {
+        match File::open(&path) {
+            Ok(mut f) => {
+                f.read_to_end(rows)
+                    .map_err(io_err(&path, "cannot read chunk"))?;
+            }
+            Err(e) if e.kind() == std::io::ErrorKind::NotFound => {}
+            Err(e) => return Err(ConvertError::io(&path, "cannot read chunk", e)),
+        }
+    }
+    Ok(())
+}

@@ -1,0 +1,240 @@
+//! What `--resume` reads back: the plan (valid only for the same inputs and options, which
+//! its fingerprint records) and the journal of chunks committed to the octree file, in plan
+//! order, one JSON line each.
+
+use crate::build::ConvertOptions;
+use crate::error::{ConvertError, Result, io_err};
+use crate::prepare::Plan;
+use crate::tree::FinishedNode;
+use crate::workdir::WorkDir;
+use serde::{Deserialize, Serialize};
+use std::fs::{self, File, OpenOptions};
+use std::io::{BufRead, BufReader, Seek, SeekFrom, Write};
+use std::path::PathBuf;
+use strata_format::{NodeKey, NodeRecord, OCTREE_MAGIC};
+
+/// A node as the journal stores it: (level, x, y, z, points, offset, size, crc, child mask).
+type JournalNode = (u8, u32, u32, u32, u32, u64, u32, u32, u8);
+
+/// One committed chunk in the journal.
+#[derive(Debug, Clone, Serialize, Deserialize)]
+pub struct JournalEntry {
+    pub chunk: usize,
+    /// The octree file's length once this chunk's nodes are in it.
+    pub end: u64,
+    pub root_mask: u8,
+    nodes: Vec<JournalNode>,
+}
+
+impl JournalEntry {
+    pub fn records(&self) -> impl Iterator<Item = (NodeKey, NodeRecord)> + '_ {
+        self.nodes.iter().map(
+            |&(level, x, y, z, point_count, offset, size, checksum, child_mask)| {
+                (
+                    NodeKey { level, x, y, z },
+                    NodeRecord {
+                        point_count,
+                        offset,
+                        size,
+                        checksum,
+                        child_mask,
+                    },
+                )
+            },
+        )
+    }
+}
+
+/// The octree file's length after the committed chunks of `journal`.
+pub fn octree_end(journal: &[JournalEntry]) -> u64 {
+    journal.last().map_or(OCTREE_MAGIC.len() as u64, |j| j.end)
+}
+
+pub fn record_of(n: &FinishedNode, offset: u64) -> NodeRecord {
+    NodeRecord {
+        point_count: n.point_count,
+        offset,
+        size: n.payload.len() as u32,
+        checksum: n.crc,
+        child_mask: n.child_mask,
+    }
+}
+
+/// What makes a work directory resumable by this run: the inputs as they are on disk, and
+/// every option that changes the chunks.
+pub fn fingerprint(opts: &ConvertOptions) -> String {
+    let mut parts = Vec::new();
+    for p in &opts.inputs {
+        let meta = fs::metadata(p).ok();
+        let len = meta.as_ref().map_or(0, |m| m.len());
+        let mtime = meta
+            .and_then(|m| m.modified().ok())
+            .and_then(|t| t.duration_since(std::time::UNIX_EPOCH).ok())
+            .map_or(0, |d| d.as_secs());
+        let abs = fs::canonicalize(p).unwrap_or_else(|_| p.clone());
+        parts.push(format!("{}:{len}:{mtime}", abs.display()));
+    }
+    parts.push(format!(
+        "{}:{}:{}",
+        opts.sampling.name(),
+        opts.memory_limit,
+        opts.threads
+    ));
+    parts.join("|")
+}
+
+/// The plan an interrupted run left, if `--resume` asks for it and one is there; an error if
+/// it was made from other inputs or options.
+pub fn resumable_plan(opts: &ConvertOptions, wd: &WorkDir, fp: &str) -> Result<Option<Plan>> {
+    if !opts.resume {
+        return Ok(None);
+    }
+    let Some(plan) = fs::read(wd.plan())
+        .ok()
+        .and_then(|b| serde_json::from_slice::<Plan>(&b).ok())
+    else {
+        return Ok(None);
+    };
+    if plan.fingerprint != fp {
+        return Err(ConvertError::output(
+            wd.root(),
+            "cannot resume: the inputs or options differ from the interrupted run (run without --resume to start over)",
+        ));
+    }
+    Ok(Some(plan))
+}
+
+/// Starts the octree file and an empty journal, then saves the plan: from then on the work
+/// directory can be resumed.
+pub fn save_plan(wd: &WorkDir, plan: &Plan) -> Result<()> {
+    let octree = wd.dataset_file(strata_format::DatasetFile::Octree);
+    let mut f = File::create(&octree).map_err(io_err(&octree, "cannot create"))?;
+    f.write_all(OCTREE_MAGIC)
+        .map_err(io_err(&octree, "cannot write"))?;
+    let journal = wd.journal();
+    File::create(&journal).map_err(io_err(&journal, "cannot create"))?;
+    let part = wd.plan_part();
+    fs::write(&part, serde_json::to_vec(plan).unwrap_or_default())
+        .map_err(io_err(&part, "cannot write"))?;
+    fs::rename(&part, wd.plan()).map_err(io_err(&wd.plan(), "cannot write"))?;
+    Ok(())
+}
+
+/// The valid prefix of the journal: whole lines for chunks 0, 1, 2... in order.
+pub fn read_journal(wd: &WorkDir, chunks: usize) -> Vec<JournalEntry> {
+    let Ok(f) = File::open(wd.journal()) else {
+        return Vec::new();
+    };
+    let mut out: Vec<JournalEntry> = Vec::new();
+    for line in BufReader::new(f).lines() {
+        let Ok(line) = line else { break };
+        match serde_json::from_str::<JournalEntry>(&line) {
+            Ok(e) if e.chunk == out.len() && e.chunk < chunks => out.push(e),
+            _ => break,
+        }
+    }
+    out
+}
+
+/// A chunk's built nodes, waiting for their turn to be committed.
+pub struct BuiltChunk {
+    pub finished: Vec<FinishedNode>,
+    pub root_rows: Vec<u8>,
+    pub root_mask: u8,
+}
+
+/// Appends chunks to the octree file and the journal, in plan order.
+pub struct Committer {
+    octree: File,
+    octree_path: PathBuf,
+    journal: File,
+    journal_path: PathBuf,
+    end: u64,
+}
+
+impl Committer {
+    /// Cuts the octree file and the journal back to the chunks in `valid` (what an interrupted
+    /// run may have written past them is lost), ready to append after them.
+    pub fn open(wd: &WorkDir, valid: &[JournalEntry]) -> Result<Self> {
+        let octree_path = wd.dataset_file(strata_format::DatasetFile::Octree);
+        let end = octree_end(valid);
+        let mut octree = OpenOptions::new()
+            .write(true)
+            .open(&octree_path)
+            .map_err(io_err(&octree_path, "cannot open"))?;
+        octree
+            .set_len(end)
+            .map_err(io_err(&octree_path, "cannot truncate"))?;
+        octree
+            .seek(SeekFrom::Start(end))
+            .map_err(io_err(&octree_path, "cannot seek"))?;
+        // Rewrite the journal as its valid prefix so appends follow whole lines.
+        let journal_path = wd.journal();
+        let mut text = String::new();
+        for e in valid {
+            text.push_str(&serde_json::to_string(e).unwrap_or_default());
+            text.push('\n');
+        }
+        fs::write(&journal_path, text).map_err(io_err(&journal_path, "cannot write journal"))?;
+        let journal = OpenOptions::new()
+            .append(true)
+            .open(&journal_path)
+            .map_err(io_err(&journal_path, "cannot open journal"))?;
+        Ok(Committer {
+            octree,
+            octree_path,
+            journal,
+            journal_path,
+            end,
+        })
+    }
+
+    /// Writes chunk `chunk`'s nodes and root rows, then its journal line: once the line is
+    /// there, a resumed run counts the chunk as done.
+    pub fn commit(
+        &mut self,
+        wd: &WorkDir,
+        chunk: usize,
+        built: BuiltChunk,
+    ) -> Result<JournalEntry> {
+        let mut nodes = Vec::with_capacity(built.finished.len());
+        for n in &built.finished {
+            self.octree
+                .write_all(&n.payload)
+                .map_err(io_err(&self.octree_path, "cannot write"))?;
+            let r = record_of(n, self.end);
+            nodes.push((
+                n.key.level,
+                n.key.x,
+                n.key.y,
+                n.key.z,
+                r.point_count,
+                r.offset,
+                r.size,
+                r.checksum,
+                r.child_mask,
+            ));
+            self.end += n.payload.len() as u64;
+        }
+        let root_path = wd.chunk_root(chunk);
+        fs::write(&root_path, &built.root_rows)
+            .map_err(io_err(&root_path, "cannot write chunk root"))?;
+        let entry = JournalEntry {
+            chunk,
+            end: self.end,
+            root_mask: built.root_mask,
+            nodes,
+        };
+        let mut line = serde_json::to_string(&entry).unwrap_or_default();
+        line.push('\n');
+        self.journal
+            .write_all(line.as_bytes())
+            .map_err(io_err(&self.journal_path, "cannot write journal"))?;
+        Ok(entry)
+    }
+
+    /// The octree file, for the merge to append the top levels to.
+    pub fn into_octree(self) -> (File, PathBuf, u64) {
+        (self.octree, self.octree_path, self.end)
+    }
+}

@@ -1,0 +1,279 @@
+//! Everything before indexing: read the inputs (in place where they allow it), count them on
+//! the coarse grid, cut the cube into chunks and distribute the rows into chunk files. The
+//! result, a `Plan`, is all that indexing and a resumed run need.
+
+use crate::build::ConvertOptions;
+use crate::distribute::{Distribution, distribute};
+use crate::error::{ConvertError, Result, io_err};
+use crate::input::las::LasSource;
+use crate::input::{PointSource, Precision};
+use crate::plan::{Chunk, Counts, count, cube_for, max_chunk_points, plan_chunks};
+use crate::progress::Phases;
+use crate::quantize::{Quantization, SourceExtent, choose};
+use crate::rows::{RecordToRow, RowInput};
+use crate::scan::{scan, staging_stride, union_attributes};
+use crate::staging::{decode_to_rows, quantize_staging};
+use crate::workdir::WorkDir;
+use serde::{Deserialize, Serialize};
+use std::fs;
+use std::path::{Path, PathBuf};
+use strata_format::{Attribute, Cube, RowLayout};
+
+/// What the work directory must hold for `--resume`: the result of everything before indexing.
+#[derive(Debug, Clone, Serialize, Deserialize, PartialEq)]
+pub struct Plan {
+    pub fingerprint: String,
+    pub attributes: Vec<Attribute>,
+    pub points: u64,
+    pub scale: [f64; 3],
+    pub offset: [f64; 3],
+    pub coarsened: bool,
+    pub min: [f64; 3],
+    pub max: [f64; 3],
+    pub cube: Cube,
+    pub chunks: Vec<Chunk>,
+}
+
+impl Plan {
+    pub fn quantization(&self) -> Quantization {
+        Quantization {
+            scale: self.scale,
+            offset: self.offset,
+            coarsened: self.coarsened,
+        }
+    }
+
+    /// A quantized position in real units.
+    pub fn to_real(&self, p: [i64; 3]) -> [f64; 3] {
+        [0, 1, 2].map(|a| self.offset[a] + self.scale[a] * p[a] as f64)
+    }
+}
+
+/// Every input as rows the count and distribute phases can read, with the dataset's scale,
+/// offset and cube.
+struct Staged {
+    inputs: Vec<RowInput>,
+    q: Quantization,
+    cube: Cube,
+    counts: Counts,
+}
+
+/// Read, count, plan and distribute into the work directory's chunk files.
+pub fn prepare(
+    opts: &ConvertOptions,
+    wd: &WorkDir,
+    threads: usize,
+    phases: &mut Phases,
+    warnings: &mut Vec<String>,
+    fingerprint: String,
+) -> Result<Plan> {
+    let (attributes, declared) = union_attributes(&opts.inputs)?;
+    let layout = RowLayout::new(attributes.clone());
+    let staged = match stage_from_headers(opts, &layout, wd, threads, phases) {
+        Ok(Some(staged)) => staged,
+        Ok(None) => stage_measured(opts, &attributes, &layout, wd, threads, phases, declared)?,
+        Err(ConvertError::OutsideHeaderBounds { path, record }) => {
+            warnings.push(bounds_warning(&path, record));
+            wd.remove_decoded(opts.inputs.len())?;
+            stage_measured(opts, &attributes, &layout, wd, threads, phases, declared)?
+        }
+        Err(e) => return Err(e),
+    };
+    let points: u64 = staged.inputs.iter().map(|i| i.records).sum();
+    if points == 0 {
+        return Err(ConvertError::input(
+            &opts.inputs[0],
+            "the inputs hold no points",
+        ));
+    }
+    if points > u32::MAX as u64 * 64 {
+        return Err(ConvertError::Usage(format!(
+            "{points} points is more than this converter supports"
+        )));
+    }
+    // Several chunks per worker keep the workers busy to the end; the memory limit caps them.
+    let balanced = (points / (threads as u64 * 4)).max(1 << 20);
+    let max_chunk = max_chunk_points(opts.memory_limit, threads, layout.stride).min(balanced);
+    let (chunks, lut) = plan_chunks(&staged.counts.cells, &staged.cube, max_chunk);
+
+    phases.timed("distribute", Some((points, "points")), |bar| {
+        distribute(
+            &Distribution {
+                inputs: &staged.inputs,
+                stride: layout.stride,
+                cube: &staged.cube,
+                lut: &lut,
+                chunk_count: chunks.len(),
+                chunk_dir: &wd.chunks(),
+                buffer_budget: (opts.memory_limit / 6).min(256 << 20),
+                threads,
+            },
+            bar,
+        )
+    })?;
+    remove_staging(&staged.inputs, wd)?;
+    let q = staged.q;
+    let to_real =
+        |p: [i32; 3]| -> [f64; 3] { [0, 1, 2].map(|a| q.offset[a] + q.scale[a] * p[a] as f64) };
+    Ok(Plan {
+        fingerprint,
+        attributes,
+        points,
+        scale: q.scale,
+        offset: q.offset,
+        coarsened: q.coarsened,
+        min: to_real(staged.counts.min),
+        max: to_real(staged.counts.max),
+        cube: staged.cube,
+        chunks,
+    })
+}
+
+/// LAS and LAZ inputs: scale, offset and cube from their headers, so uncompressed records are
+/// read in place and LAZ is decoded only once. `None` when an input is not LAS or LAZ, or a
+/// header's bounds are unusable; `OutsideHeaderBounds` when a point shows the header wrong.
+fn stage_from_headers(
+    opts: &ConvertOptions,
+    layout: &RowLayout,
+    wd: &WorkDir,
+    threads: usize,
+    phases: &mut Phases,
+) -> Result<Option<Staged>> {
+    let is_las = |p: &PathBuf| {
+        p.extension()
+            .and_then(|e| e.to_str())
+            .is_some_and(|e| e.eq_ignore_ascii_case("las") || e.eq_ignore_ascii_case("laz"))
+    };
+    if !opts.inputs.iter().all(is_las) {
+        return Ok(None);
+    }
+    let mut sources = Vec::new();
+    let mut extents = Vec::new();
+    let (mut min, mut max) = ([f64::INFINITY; 3], [f64::NEG_INFINITY; 3]);
+    for path in &opts.inputs {
+        let src = LasSource::open(path)?;
+        let (lo, hi) = src.header_bounds();
+        if (0..3).any(|a| !lo[a].is_finite() || !hi[a].is_finite() || lo[a] > hi[a]) {
+            return Ok(None);
+        }
+        let (scale, offset) = src.transform();
+        // One step of the input's grid on each side absorbs bounds written rounded.
+        let lo = [0, 1, 2].map(|a| lo[a] - scale[a].abs());
+        let hi = [0, 1, 2].map(|a| hi[a] + scale[a].abs());
+        for a in 0..3 {
+            min[a] = min[a].min(lo[a]);
+            max[a] = max[a].max(hi[a]);
+        }
+        extents.push(SourceExtent {
+            precision: Precision::Scaled { scale, offset },
+            min: lo,
+            max: hi,
+        });
+        sources.push(src);
+    }
+    let q = choose(&extents, min, max);
+    let cube = cube_for(&q, min, max);
+    let compressed: u64 = sources
+        .iter()
+        .filter(|s| s.records_at().is_none())
+        .map(|s| s.info().points)
+        .sum();
+    let mut counts = Counts::new(&cube);
+    let read = |bar: &indicatif::ProgressBar| -> Result<Vec<RowInput>> {
+        let mut inputs = Vec::new();
+        for (i, mut src) in sources.into_iter().enumerate() {
+            let conv = RecordToRow::new(&src, layout, &q, &cube);
+            inputs.push(match src.records_at() {
+                Some(start) => RowInput {
+                    path: src.info().path.clone(),
+                    start,
+                    record_len: src.record_len(),
+                    records: src.info().points,
+                    convert: Some(conv),
+                },
+                None => {
+                    let rows = wd.decoded_rows(i);
+                    decode_to_rows(&mut src, &conv, layout.stride, &rows, &mut counts, bar)?
+                }
+            });
+        }
+        Ok(inputs)
+    };
+    // Only decoding takes long enough to be a phase; in-place inputs are just opened.
+    let inputs = if compressed > 0 {
+        phases.timed("read", Some((compressed, "points")), read)?
+    } else {
+        read(&indicatif::ProgressBar::hidden())?
+    };
+    // Decoded inputs were counted as they were decoded; those read in place are counted here.
+    let rest: Vec<&RowInput> = inputs.iter().filter(|i| !wd.holds(&i.path)).collect();
+    let total = rest.iter().map(|i| i.records).sum();
+    phases.timed("count", Some((total, "points")), |bar| {
+        count(&rest, &mut counts, threads, bar)
+    })?;
+    Ok(Some(Staged {
+        inputs,
+        q,
+        cube,
+        counts,
+    }))
+}
+
+/// Any inputs: decode into f64 positions, measure, then quantize into rows.
+fn stage_measured(
+    opts: &ConvertOptions,
+    attributes: &[Attribute],
+    layout: &RowLayout,
+    wd: &WorkDir,
+    threads: usize,
+    phases: &mut Phases,
+    declared: u64,
+) -> Result<Staged> {
+    let (input, q, cube) = phases.timed("read", Some((declared, "points")), |bar| {
+        let staging = wd.measured_staging();
+        let scanned = scan(&opts.inputs, attributes, &staging, bar)?;
+        if scanned.points == 0 {
+            return Err(ConvertError::input(
+                &opts.inputs[0],
+                "the inputs hold no points",
+            ));
+        }
+        let q = choose(&scanned.extents, scanned.min, scanned.max);
+        let cube = cube_for(&q, scanned.min, scanned.max);
+        let input = quantize_staging(
+            &staging,
+            staging_stride(attributes),
+            &q,
+            layout.stride,
+            &wd.measured_rows(),
+            bar,
+        )?;
+        fs::remove_file(&staging).map_err(io_err(&staging, "cannot remove staging file"))?;
+        Ok((input, q, cube))
+    })?;
+    let mut counts = Counts::new(&cube);
+    phases.timed("count", Some((declared, "points")), |bar| {
+        count(&[&input], &mut counts, threads, bar)
+    })?;
+    Ok(Staged {
+        inputs: vec![input],
+        q,
+        cube,
+        counts,
+    })
+}
+
+fn bounds_warning(path: &Path, record: u64) -> String {
+    format!(
+        "{}: point {record} lies outside the bounds the header declares; bounds measured from the points instead",
+        path.display()
+    )
+}
+
+/// Removes the staging files among `inputs` (those in the work directory).
+fn remove_staging(inputs: &[RowInput], wd: &WorkDir) -> Result<()> {
+    for i in inputs.iter().filter(|i| wd.holds(&i.path)) {
+        fs::remove_file(&i.path).map_err(io_err(&i.path, "cannot remove staging file"))?;
+    }
+    Ok(())
+}

@@ -1,0 +1,134 @@
+//! Where a conversion keeps its files: `OUTPUT.strata-tmp/`, which becomes the dataset by a
+//! rename once complete. Its `work/` folder holds what only the conversion reads (staging
+//! files, chunk parts, the plan and the journal for `--resume`) and is removed before the rename.
+
+use crate::distribute::chunk_path;
+use crate::error::{Result, io_err};
+use std::fs;
+use std::path::{Path, PathBuf};
+use strata_format::DatasetFile;
+
+#[derive(Debug, Clone)]
+pub struct WorkDir {
+    root: PathBuf,
+    work: PathBuf,
+}
+
+impl WorkDir {
+    /// The work directory of a conversion into `output`: a sibling, so the final rename stays
+    /// on one file system.
+    pub fn for_output(output: &Path) -> Self {
+        let mut name = output.file_name().unwrap_or_default().to_os_string();
+        name.push(".strata-tmp");
+        let root = output.with_file_name(name);
+        let work = root.join("work");
+        WorkDir { root, work }
+    }
+
+    /// The folder that becomes the dataset.
+    pub fn root(&self) -> &Path {
+        &self.root
+    }
+
+    /// The folder of files that never reach the dataset.
+    pub fn work(&self) -> &Path {
+        &self.work
+    }
+
+    /// Whether `path` is one of the conversion's own files (a staging file), not an input.
+    pub fn holds(&self, path: &Path) -> bool {
+        path.starts_with(&self.work)
+    }
+
+    pub fn chunks(&self) -> PathBuf {
+        self.work.join("chunks")
+    }
+
+    /// Part `part` of chunk `chunk`, as the distribute phase wrote it.
+    pub fn chunk_part(&self, chunk: usize, part: usize) -> PathBuf {
+        chunk_path(&self.chunks(), chunk, part)
+    }
+
+    /// Where each committed chunk keeps its root node's rows for the top-level merge.
+    pub fn roots(&self) -> PathBuf {
+        self.work.join("roots")
+    }
+
+    pub fn chunk_root(&self, chunk: usize) -> PathBuf {
+        self.roots().join(format!("c{chunk}.bin"))
+    }
+
+    /// The rows of each chunk near its faces, which neighbouring chunks see as their halo.
+    pub fn bands(&self) -> PathBuf {
+        self.work.join("bands")
+    }
+
+    pub fn chunk_band(&self, chunk: usize) -> PathBuf {
+        self.bands().join(format!("c{chunk}.bin"))
+    }
+
+    /// Its presence marks a work directory that `--resume` can continue.
+    pub fn plan(&self) -> PathBuf {
+        self.work.join("plan.json")
+    }
+
+    /// Written first and renamed, so a plan file is always whole.
+    pub fn plan_part(&self) -> PathBuf {
+        self.work.join("plan.json.part")
+    }
+
+    pub fn journal(&self) -> PathBuf {
+        self.work.join("journal.jsonl")
+    }
+
+    /// Rows decoded from compressed input `input`.
+    pub fn decoded_rows(&self, input: usize) -> PathBuf {
+        self.work.join(format!("rows{input}.bin"))
+    }
+
+    /// Every input's points as f64 positions, before the scale is known.
+    pub fn measured_staging(&self) -> PathBuf {
+        self.work.join("staging.bin")
+    }
+
+    /// The measured staging file quantized into rows.
+    pub fn measured_rows(&self) -> PathBuf {
+        self.work.join("rows.bin")
+    }
+
+    /// A file of the dataset, as it will be named once the folder is renamed.
+    pub fn dataset_file(&self, file: DatasetFile) -> PathBuf {
+        self.root.join(file.name())
+    }
+
+    /// Where a dataset being replaced (`--overwrite`) goes just before it is removed.
+    pub fn replaced(&self) -> PathBuf {
+        self.root.with_extension("old")
+    }
+
+    /// An empty work directory, clearing what an earlier run left.
+    pub fn create_fresh(&self) -> Result<()> {
+        if self.root.exists() {
+            fs::remove_dir_all(&self.root)
+                .map_err(io_err(&self.root, "cannot clear old work directory"))?;
+        }
+        for dir in [self.chunks(), self.roots()] {
+            fs::create_dir_all(&dir).map_err(io_err(&dir, "cannot create work directory"))?;
+        }
+        Ok(())
+    }
+
+    /// Removes the files decoded from the first `inputs` inputs, those that exist.
+    pub fn remove_decoded(&self, inputs: usize) -> Result<()> {
+        for i in 0..inputs {
+            let path = self.decoded_rows(i);
+            match fs::remove_file(&path) {
+                Err(e) if e.kind() != std::io::ErrorKind::NotFound => {
+                    return Err(io_err(&path, "cannot remove staging file")(e));
+                }
+                _ => {}
+            }
+        }
+        Ok(())
+    }
+}
