@@ -24,14 +24,14 @@ fn quick_run_writes_the_table_the_charts_and_the_images() {
     assert_eq!(
         lines.next(),
         Some(
-            "scene,pipeline,setting,density,noise,psnr,ssim,depth_err,normal_err_deg,hole_rate,leak_rate,gpu_ms"
+            "scene,pipeline,setting,lighting,density,noise,psnr,ssim,psnr_albedo,ssim_albedo,depth_err,normal_err_deg,hole_rate,leak_rate,gpu_ms"
         )
     );
     let rows: Vec<Vec<&str>> = lines.map(|l| l.split(',').collect()).collect();
     assert!(rows.len() >= 30, "only {} rows", rows.len());
     for r in &rows {
-        assert_eq!(r.len(), 12, "{r:?}");
-        for v in &r[3..] {
+        assert_eq!(r.len(), 15, "{r:?}");
+        for v in &r[4..] {
             let x: f64 = v.parse().unwrap_or(f64::NAN);
             assert!(x.is_finite(), "{r:?}");
         }
@@ -53,11 +53,11 @@ fn quick_run_writes_the_table_the_charts_and_the_images() {
     // Per (scene, density): hole rate of points 1px and pyramid on the sampled bunny.
     let mut holes: HashMap<(String, String), (f64, f64)> = HashMap::new();
     for r in rows.iter().filter(|r| r[0].starts_with("bunny/")) {
-        let e = holes.entry((r[0].into(), r[3].into())).or_default();
-        let rate: f64 = r[9].parse().unwrap_or(f64::NAN);
+        let e = holes.entry((r[0].into(), r[4].into())).or_default();
+        let rate: f64 = r[12].parse().unwrap_or(f64::NAN);
         match (r[1], r[2]) {
             ("points", "1px") => e.0 = rate,
-            ("pyramid", "s0=auto") => e.1 = rate,
+            ("pyramid", "1px") => e.1 = rate,
             _ => {}
         }
     }
@@ -81,14 +81,23 @@ fn quick_run_writes_the_table_the_charts_and_the_images() {
     let leak = |pipeline: &str, setting: &str| {
         rows.iter()
             .find(|r| r[0].starts_with("nested/") && r[1] == pipeline && r[2] == setting)
-            .and_then(|r| r[10].parse::<f64>().ok())
+            .and_then(|r| r[13].parse::<f64>().ok())
             .unwrap_or(f64::NAN)
     };
-    let (pyramid_leak, edl_leak) = (leak("pyramid", "s0=auto"), leak("edl", "2px"));
+    let (pyramid_leak, edl_leak) = (leak("pyramid", "1px"), leak("edl", "2px"));
     assert!(
         pyramid_leak < 0.05 && pyramid_leak < edl_leak * 0.5,
         "nested spheres: pyramid leaks {pyramid_leak}, edl 2px {edl_leak}"
     );
+    // Each pipeline is scored against the light it uses: points are unlit, so their shaded
+    // image is scored against the mesh's albedo, exactly as their albedo is.
+    let lighting: HashMap<&str, &str> = rows.iter().map(|r| (r[1], r[3])).collect();
+    assert_eq!(lighting.get("points"), Some(&"none"));
+    assert_eq!(lighting.get("edl"), Some(&"eye-dome"));
+    assert_eq!(lighting.get("pyramid"), Some(&"headlight Blinn-Phong"));
+    for r in rows.iter().filter(|r| r[1] == "points") {
+        assert_eq!((r[6], r[7]), (r[8], r[9]), "{r:?}");
+    }
     for chart in [
         "quality_vs_time.png",
         "quality_vs_density.png",
@@ -102,7 +111,7 @@ fn quick_run_writes_the_table_the_charts_and_the_images() {
     }
     let summary = std::fs::read_to_string(out.path().join("summary.md")).expect("summary.md");
     assert!(
-        summary.contains("| bunny_scans | pyramid | s0=auto |"),
+        summary.contains("| bunny_scans | pyramid | 1px | headlight Blinn-Phong |"),
         "{summary}"
     );
     let images = std::fs::read_dir(out.path().join("images"))

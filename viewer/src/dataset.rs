@@ -1,6 +1,7 @@
 //! An open dataset seen through a `Source`: metadata, hierarchy pages on demand, and nodes decoded
 //! into the GPU point format.
 
+use crate::pipelines::PointStream;
 use crate::{HttpOptions, HttpSource, MmapSource, Source, ViewerError};
 use glam::{DVec3, Vec3};
 use std::path::Path;
@@ -16,6 +17,9 @@ pub struct GpuNode {
     pub key: NodeKey,
     pub points: Vec<[u32; 4]>,
     pub attributes: Vec<u32>,
+    /// Per-point streams beyond position and colour that the dataset stores (normals, radius),
+    /// as the GPU reads them: `PointStream::bytes_per_point` bytes a point.
+    pub streams: Vec<(PointStream, Vec<u8>)>,
     /// Stored (compressed) bytes read for this node.
     pub bytes_read: u64,
 }
@@ -270,6 +274,9 @@ impl StreamDataset {
             key: info.key,
             points,
             attributes,
+            // No stored attribute feeds a stream yet: normals and radii arrive with the
+            // format's normal and radius attributes.
+            streams: Vec::new(),
             bytes_read: info.size as u64,
         }
     }

@@ -11,14 +11,15 @@ use std::sync::Arc;
 use std::time::{Duration, Instant};
 use strata_bench::convert_quietly;
 use strata_bench::quality::mesh::y_up_to_z_up;
-use strata_bench::quality::metrics::{Frame, compare};
-use strata_bench::quality::reference::{ReferenceImage, ReferenceRenderer};
+use strata_bench::quality::metrics::{Frame, albedo_scores, compare};
+use strata_bench::quality::reference::{ReferenceImage, ReferenceRenderer, lit_as};
 use strata_bench::quality::report::{Row, charts, init_fonts, side_by_side, summary, write_csv};
 use strata_bench::quality::sample::{PointSet, load_scan, sample_mesh, write_ply};
 use strata_bench::quality::scenes::{CLAY, Points, Scene, View, scenes};
 use strata_viewer::gpu::{GpuContext, ProjectionPath};
 use strata_viewer::lod::clip_range;
-use strata_viewer::pipelines::{PipelineInfo, find};
+use strata_viewer::pipelines::params::ParamSpec;
+use strata_viewer::pipelines::{PipelineInfo, REGISTRY, edl};
 use strata_viewer::settings::SizeMode;
 use strata_viewer::{Camera, Renderer, Settings, StreamDataset};
 
@@ -87,48 +88,37 @@ struct Config {
     pipeline: &'static PipelineInfo,
     setting: String,
     point_size: f32,
-    /// s0 as a multiple of the automatic estimate (pyramid only).
-    s0_factor: Option<f32>,
+    /// An automatic parameter set to a multiple of its automatic value.
+    auto_factor: Option<(&'static str, f32)>,
 }
 
-fn configs(full: bool) -> anyhow::Result<Vec<Config>> {
-    let mut v = vec![
-        Config {
-            pipeline: find("points")?,
-            setting: "1px".into(),
-            point_size: 1.0,
-            s0_factor: None,
-        },
-        Config {
-            pipeline: find("points")?,
-            setting: "2px".into(),
-            point_size: 2.0,
-            s0_factor: None,
-        },
-        Config {
-            pipeline: find("edl")?,
-            setting: "2px".into(),
-            point_size: 2.0,
-            s0_factor: None,
-        },
-        Config {
-            pipeline: find("pyramid")?,
-            setting: "s0=auto".into(),
-            point_size: 1.0,
-            s0_factor: Some(1.0),
-        },
-    ];
-    if full {
-        for f in [0.5f32, 2.0] {
+/// Every registered pipeline at its defaults with one- and two-pixel points, and, in the full
+/// run, each automatic parameter at half and twice its automatic value: the sweeps come from
+/// the pipelines' parameter tables.
+fn configs(full: bool) -> Vec<Config> {
+    let mut v = Vec::new();
+    for &pipeline in REGISTRY {
+        for point_size in [1.0f32, 2.0] {
             v.push(Config {
-                pipeline: find("pyramid")?,
-                setting: format!("s0=auto×{f}"),
-                point_size: 1.0,
-                s0_factor: Some(f),
+                pipeline,
+                setting: format!("{point_size}px"),
+                point_size,
+                auto_factor: None,
             });
         }
+        let automatic = pipeline.params.iter().filter(|p| p.auto.is_some());
+        for spec in automatic.filter(|_| full) {
+            for f in [0.5f32, 2.0] {
+                v.push(Config {
+                    pipeline,
+                    setting: format!("{}=auto×{f}", spec.name),
+                    point_size: 1.0,
+                    auto_factor: Some((spec.name, f)),
+                });
+            }
+        }
     }
-    Ok(v)
+    v
 }
 
 const BUDGET: u64 = 20_000_000;
@@ -218,23 +208,28 @@ fn main() -> anyhow::Result<()> {
                     scene.stability,
                 )?;
                 let mut images: Vec<Vec<u8>> = vec![frames.reference.rgba.clone()];
-                for (config, rgba, metrics, gpu_ms) in frames.results {
-                    images.push(rgba);
+                for r in frames.results {
+                    images.push(r.rgba);
                     rows.push(Row {
                         scene: scene.name.clone(),
                         view: vi,
-                        pipeline: config.pipeline.name.into(),
-                        setting: config.setting,
+                        pipeline: r.config.pipeline.name.into(),
+                        setting: r.config.setting,
+                        lighting: r.config.pipeline.lighting.name(),
                         density,
                         noise,
-                        metrics,
-                        gpu_ms,
+                        metrics: r.metrics,
+                        albedo_psnr: r.albedo_psnr,
+                        albedo_ssim: r.albedo_ssim,
+                        gpu_ms: r.gpu_ms,
                         stability: scene.stability,
                     });
                 }
                 if vi == 0 && noise == 0.0 {
                     let name = format!("{}_d{density:.3}.png", scene.name);
-                    let refs: Vec<&[u8]> = images.iter().take(5).map(Vec::as_slice).collect();
+                    // The reference, then every pipeline at its defaults with 1 and 2 px points.
+                    let shown = 1 + 2 * REGISTRY.len();
+                    let refs: Vec<&[u8]> = images.iter().take(shown).map(Vec::as_slice).collect();
                     side_by_side(
                         &args.out.join("images").join(name),
                         args.width,
@@ -314,12 +309,17 @@ fn convert_points(dir: &Path, set: &PointSet) -> anyhow::Result<PathBuf> {
 
 struct ViewFrames {
     reference: ReferenceImage,
-    results: Vec<(
-        Config,
-        Vec<u8>,
-        strata_bench::quality::metrics::Metrics,
-        f64,
-    )>,
+    results: Vec<ConfigResult>,
+}
+
+/// One configuration's frame of a view: its image and scores.
+struct ConfigResult {
+    config: Config,
+    rgba: Vec<u8>,
+    metrics: strata_bench::quality::metrics::Metrics,
+    albedo_psnr: f64,
+    albedo_ssim: f64,
+    gpu_ms: f64,
 }
 
 fn render_view(
@@ -362,25 +362,47 @@ fn render_view(
     )?;
     let tan_y = (camera.fov_y * 0.5).tan();
     let tan_half = [tan_y * aspect, tan_y];
-    let mut auto_s0 = None;
+    // Each pipeline's automatic values at its defaults, for the sweeps around them.
+    let mut automatic: std::collections::HashMap<(&str, &str), f32> = Default::default();
     let mut results = Vec::new();
-    for config in configs(!args.quick && !stability)? {
+    for config in configs(!args.quick && !stability) {
+        let p = config.pipeline;
         let mut settings = Settings {
-            pipeline: config.pipeline,
+            pipeline: p,
             point_size: config.point_size,
             size_mode: SizeMode::Fixed,
             ..base.clone()
         };
-        if let (Some(f), Some(s0)) = (config.s0_factor, auto_s0) {
-            settings.set_param(&format!("s0={}", s0 * f))?;
+        if let Some((name, f)) = config.auto_factor {
+            let Some(value) = automatic.get(&(p.name, name)) else {
+                continue;
+            };
+            settings.set_param(&format!("{name}={}", value * f))?;
         }
-        // Twice: the second frame's pass times are of a warm pipeline.
-        renderer.frame(camera, w, h, &settings)?;
+        // First with separate passes, which keep the resolved colour plane, for the albedo;
+        // it also warms the pipeline up, so the timed frame is of a warm pipeline.
+        let separate = Settings {
+            fused_finish: false,
+            ..settings.clone()
+        };
+        renderer.frame(camera, w, h, &separate)?;
         renderer.wait_gpu()?;
+        let albedo: Vec<u8> = renderer
+            .read_albedo()?
+            .into_iter()
+            .flat_map(|c| {
+                let [r, g, b] = c.unwrap_or(base.background);
+                [r, g, b, 255]
+            })
+            .collect();
         let stats = renderer.frame(camera, w, h, &settings)?;
         renderer.wait_gpu()?;
-        if config.s0_factor.is_some() && auto_s0.is_none() {
-            auto_s0 = stats.params.get("s0").copied();
+        if config.auto_factor.is_none() {
+            for spec in p.params.iter().filter(|s| s.auto.is_some()) {
+                if let Some(v) = stats.params.get(spec.name) {
+                    automatic.entry((p.name, spec.name)).or_insert(*v);
+                }
+            }
         }
         let gpu_ms: f64 = renderer.pass_times().iter().map(|(_, ms)| ms).sum();
         let (_, _, rgba) = renderer.read_image()?;
@@ -395,13 +417,27 @@ fn render_view(
             rgba: &rgba,
             surface,
         };
-        let metrics = compare(
-            &reference_image.rgba,
+        let param = |spec: &ParamSpec| stats.params.get(spec.name).copied().unwrap_or(spec.default);
+        let lit = lit_as(
+            &reference_image,
+            p.lighting,
+            (param(&edl::STRENGTH), param(&edl::RADIUS)),
+        );
+        let metrics = compare(&lit, &reference_image.surface, &frame, tan_half);
+        let (albedo_psnr, albedo_ssim) = albedo_scores(
+            &reference_image.albedo,
             &reference_image.surface,
             &frame,
-            tan_half,
+            &albedo,
         );
-        results.push((config, rgba, metrics, gpu_ms));
+        results.push(ConfigResult {
+            config,
+            rgba,
+            metrics,
+            albedo_psnr,
+            albedo_ssim,
+            gpu_ms,
+        });
     }
     Ok(ViewFrames {
         reference: reference_image,

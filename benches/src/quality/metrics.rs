@@ -47,29 +47,7 @@ pub fn compare(
     let region: Vec<bool> = (0..n).map(|i| ref_fg[i] || test_fg[i]).collect();
     let ref_count = ref_fg.iter().filter(|b| **b).count();
 
-    let mut se = 0.0f64;
-    let mut region_count = 0usize;
-    for i in (0..n).filter(|&i| region[i]) {
-        for c in 0..3 {
-            let d = (reference_rgba[4 * i + c] as f64 - frame.rgba[4 * i + c] as f64) / 255.0;
-            se += d * d;
-        }
-        region_count += 1;
-    }
-    let mse = se / (3 * region_count.max(1)) as f64;
-    let psnr = if mse <= 1e-10 {
-        100.0
-    } else {
-        (10.0 * (1.0 / mse).log10()).min(100.0)
-    };
-
-    let luma = |rgba: &[u8]| -> Vec<f64> {
-        rgba.chunks_exact(4)
-            .map(|p| (0.299 * p[0] as f64 + 0.587 * p[1] as f64 + 0.114 * p[2] as f64) / 255.0)
-            .collect()
-    };
-    let ssim_map = ssim(&luma(reference_rgba), &luma(frame.rgba), w, h);
-    let ssim = mean((0..n).filter(|&i| region[i]).map(|i| ssim_map[i]));
+    let (psnr, ssim) = colour_scores(reference_rgba, frame.rgba, &region, w, h);
 
     let normals = normals_of(frame, tan_half);
     let mut depth_err = Vec::new();
@@ -102,6 +80,59 @@ pub fn compare(
         hole_rate: rate(holes),
         leak_rate: rate(leaks),
     }
+}
+
+/// PSNR and SSIM of a frame's unlit colour against the reference's albedo, over the pixels
+/// where either shows the object: the one comparison of colour that is fair between pipelines
+/// that light differently.
+pub fn albedo_scores(
+    reference_albedo: &[u8],
+    reference: &[Option<([f32; 3], f32)>],
+    frame: &Frame,
+    albedo: &[u8],
+) -> (f64, f64) {
+    let (w, h) = (frame.width as usize, frame.height as usize);
+    let region: Vec<bool> = reference
+        .iter()
+        .zip(&frame.surface)
+        .map(|(r, f)| r.is_some() || f.is_some())
+        .collect();
+    colour_scores(reference_albedo, albedo, &region, w, h)
+}
+
+/// PSNR (dB, capped at 100) and mean SSIM (7x7 windows, luminance) of `rgba` against
+/// `reference` over the pixels of `region`.
+pub fn colour_scores(
+    reference: &[u8],
+    rgba: &[u8],
+    region: &[bool],
+    w: usize,
+    h: usize,
+) -> (f64, f64) {
+    let n = w * h;
+    let mut se = 0.0f64;
+    let mut region_count = 0usize;
+    for i in (0..n).filter(|&i| region[i]) {
+        for c in 0..3 {
+            let d = (reference[4 * i + c] as f64 - rgba[4 * i + c] as f64) / 255.0;
+            se += d * d;
+        }
+        region_count += 1;
+    }
+    let mse = se / (3 * region_count.max(1)) as f64;
+    let psnr = if mse <= 1e-10 {
+        100.0
+    } else {
+        (10.0 * (1.0 / mse).log10()).min(100.0)
+    };
+    let luma = |rgba: &[u8]| -> Vec<f64> {
+        rgba.chunks_exact(4)
+            .map(|p| (0.299 * p[0] as f64 + 0.587 * p[1] as f64 + 0.114 * p[2] as f64) / 255.0)
+            .collect()
+    };
+    let ssim_map = ssim(&luma(reference), &luma(rgba), w, h);
+    let ssim = mean((0..n).filter(|&i| region[i]).map(|i| ssim_map[i]));
+    (psnr, ssim)
 }
 
 fn mean(values: impl Iterator<Item = f64>) -> f64 {
@@ -230,6 +261,11 @@ mod tests {
         let m = compare(&rgba, &reference, &empty, [0.5, 0.4]);
         assert_eq!(m.hole_rate, 1.0);
         assert!(m.psnr < 10.0 && m.ssim < 0.5, "{m:?}");
+        let (psnr, ssim) = albedo_scores(&rgba, &reference, &same, &rgba);
+        assert_eq!(psnr, 100.0);
+        assert!((ssim - 1.0).abs() < 1e-9);
+        let (psnr, ssim) = albedo_scores(&rgba, &reference, &empty, &black);
+        assert!(psnr < 10.0 && ssim < 0.5, "{psnr} {ssim}");
     }
 
     #[test]

@@ -1,13 +1,14 @@
-//! The ground truth: a mesh drawn with wgpu triangles under the viewer's camera and with the
-//! pyramid pipeline's headlight shading, into a colour image and a surface image (view-space
-//! normal and linear depth per pixel).
+//! The ground truth: a mesh drawn with wgpu triangles under the viewer's camera into its albedo
+//! (unlit colour), the same lit by the shared headlight Blinn-Phong, and a surface image
+//! (view-space normal and linear depth per pixel). `lit_as` gives the reference for a
+//! pipeline's own lighting, so that no pipeline is scored against a light it does not use.
 
 use super::mesh::Mesh;
 use bytemuck::{Pod, Zeroable};
 use glam::Mat4;
 use strata_viewer::gpu::GpuContext;
 use strata_viewer::gpu::readback::read_texture;
-use strata_viewer::pipelines::LIGHTING_WGSL;
+use strata_viewer::pipelines::{LIGHTING_WGSL, Lighting};
 use wgpu::util::DeviceExt;
 
 const SHADER: &str = r#"
@@ -48,6 +49,7 @@ fn vs(v: In) -> Out {
 struct Targets {
     @location(0) colour: vec4<f32>,
     @location(1) surface: vec4<f32>,
+    @location(2) albedo: vec4<f32>,
 }
 
 @fragment
@@ -61,6 +63,7 @@ fn fs(f: Out) -> Targets {
     var t: Targets;
     t.colour = vec4<f32>(clamp(headlight(albedo, n, v), vec3<f32>(0.0), vec3<f32>(1.0)), 1.0);
     t.surface = vec4<f32>(n, -f.view_pos.z);
+    t.albedo = vec4<f32>(clamp(albedo, vec3<f32>(0.0), vec3<f32>(1.0)), 1.0);
     return t;
 }
 "#;
@@ -85,7 +88,10 @@ struct Uniforms {
 pub struct ReferenceImage {
     pub width: u32,
     pub height: u32,
+    /// Lit by the headlight Blinn-Phong.
     pub rgba: Vec<u8>,
+    /// The unlit surface colour.
+    pub albedo: Vec<u8>,
     /// View-space unit normal (facing the eye) and linear depth; `None` on background.
     pub surface: Vec<Option<([f32; 3], f32)>>,
 }
@@ -152,7 +158,11 @@ impl ReferenceRenderer {
                 module: &module,
                 entry_point: Some("fs"),
                 compilation_options: Default::default(),
-                targets: &[Some(COLOUR_FORMAT.into()), Some(SURFACE_FORMAT.into())],
+                targets: &[
+                    Some(COLOUR_FORMAT.into()),
+                    Some(SURFACE_FORMAT.into()),
+                    Some(COLOUR_FORMAT.into()),
+                ],
             }),
             multiview_mask: None,
             cache: None,
@@ -228,6 +238,7 @@ impl ReferenceRenderer {
             })
         };
         let colour = target("reference colour", COLOUR_FORMAT);
+        let albedo = target("reference albedo", COLOUR_FORMAT);
         let surface = target("reference surface", SURFACE_FORMAT);
         let depth = target("reference depth", DEPTH_FORMAT);
         let uniforms = Uniforms {
@@ -262,6 +273,7 @@ impl ReferenceRenderer {
             let [r, g, b] = background.map(|c| c as f64 / 255.0);
             let colour_view = colour.create_view(&Default::default());
             let surface_view = surface.create_view(&Default::default());
+            let albedo_view = albedo.create_view(&Default::default());
             let depth_view = depth.create_view(&Default::default());
             let mut pass = encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
                 label: Some("reference"),
@@ -289,6 +301,15 @@ impl ReferenceRenderer {
                             store: wgpu::StoreOp::Store,
                         },
                     }),
+                    Some(wgpu::RenderPassColorAttachment {
+                        view: &albedo_view,
+                        depth_slice: None,
+                        resolve_target: None,
+                        ops: wgpu::Operations {
+                            load: wgpu::LoadOp::Clear(wgpu::Color { r, g, b, a: 1.0 }),
+                            store: wgpu::StoreOp::Store,
+                        },
+                    }),
                 ],
                 depth_stencil_attachment: Some(wgpu::RenderPassDepthStencilAttachment {
                     view: &depth_view,
@@ -310,6 +331,7 @@ impl ReferenceRenderer {
         }
         ctx.queue.submit([encoder.finish()]);
         let rgba = read_texture(ctx, &colour, 4)?;
+        let albedo = read_texture(ctx, &albedo, 4)?;
         let raw = read_texture(ctx, &surface, 16)?;
         let surface = raw
             .chunks_exact(16)
@@ -325,7 +347,73 @@ impl ReferenceRenderer {
             width,
             height,
             rgba,
+            albedo,
             surface,
         })
+    }
+}
+
+/// Eye-dome lighting (`edl.wgsl`, the viewer's own constants) applied to `rgba` by the
+/// reference's depth: a pipeline that lights with EDL is scored against the mesh lit the same
+/// way.
+pub fn eye_dome(image: &ReferenceImage, rgba: &[u8], strength: f32, radius: f32) -> Vec<u8> {
+    const DIRECTIONS: [[f32; 2]; 8] = [
+        [1.0, 0.0],
+        [
+            std::f32::consts::FRAC_1_SQRT_2,
+            std::f32::consts::FRAC_1_SQRT_2,
+        ],
+        [0.0, 1.0],
+        [
+            -std::f32::consts::FRAC_1_SQRT_2,
+            std::f32::consts::FRAC_1_SQRT_2,
+        ],
+        [-1.0, 0.0],
+        [
+            -std::f32::consts::FRAC_1_SQRT_2,
+            -std::f32::consts::FRAC_1_SQRT_2,
+        ],
+        [0.0, -1.0],
+        [
+            std::f32::consts::FRAC_1_SQRT_2,
+            -std::f32::consts::FRAC_1_SQRT_2,
+        ],
+    ];
+    let (w, h) = (image.width as i64, image.height as i64);
+    let log_depth = |x: i64, y: i64| -> Option<f32> {
+        if x < 0 || y < 0 || x >= w || y >= h {
+            return None;
+        }
+        image.surface[(y * w + x) as usize].map(|(_, d)| d.log2())
+    };
+    let mut out = rgba.to_vec();
+    for y in 0..h {
+        for x in 0..w {
+            let Some(ld) = log_depth(x, y) else { continue };
+            let response: f32 = DIRECTIONS
+                .iter()
+                .filter_map(|d| {
+                    let (dx, dy) = ((d[0] * radius).round(), (d[1] * radius).round());
+                    log_depth(x + dx as i64, y + dy as i64)
+                })
+                .map(|nd| (ld - nd).max(0.0))
+                .sum();
+            let factor = (-response / 8.0 * 300.0 * strength).exp();
+            let i = 4 * (y * w + x) as usize;
+            for c in &mut out[i..i + 3] {
+                *c = (*c as f32 * factor).round().clamp(0.0, 255.0) as u8;
+            }
+        }
+    }
+    out
+}
+
+/// The reference image for a pipeline that lights with `lighting`; `edl` is its eye-dome
+/// strength and radius where it uses eye-dome lighting.
+pub fn lit_as(image: &ReferenceImage, lighting: Lighting, edl: (f32, f32)) -> Vec<u8> {
+    match lighting {
+        Lighting::None => image.albedo.clone(),
+        Lighting::Headlight => image.rgba.clone(),
+        Lighting::EyeDome => eye_dome(image, &image.albedo, edl.0, edl.1),
     }
 }

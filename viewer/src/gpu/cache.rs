@@ -4,6 +4,7 @@
 //! not nodes, so fragmentation never refuses a node while the free space adds up.
 
 use crate::dataset::GpuNode;
+use crate::pipelines::PointStream;
 use std::collections::{HashMap, HashSet};
 use strata_format::NodeKey;
 
@@ -15,6 +16,8 @@ const MAX_ARENA_SHIFT: u32 = 22;
 pub struct Arena {
     pub points: wgpu::Buffer,
     pub attributes: wgpu::Buffer,
+    /// The active pipeline's per-point streams, indexed like `points`.
+    pub streams: Vec<(PointStream, wgpu::Buffer)>,
     /// Free ranges `(start, len)`, sorted and coalesced.
     free: Vec<(u32, u32)>,
 }
@@ -39,6 +42,8 @@ pub struct NodeCache {
     /// log2 of the points per arena.
     pub arena_shift: u32,
     budget_bytes: u64,
+    /// The streams every arena holds (those the active pipeline needs).
+    streams: Vec<PointStream>,
 }
 
 #[derive(Debug)]
@@ -58,7 +63,44 @@ impl NodeCache {
             slots: HashMap::new(),
             arena_shift: MAX_ARENA_SHIFT.min(by_binding).min(by_budget),
             budget_bytes,
+            streams: Vec::new(),
         }
+    }
+
+    /// GPU bytes a resident point takes with the current streams.
+    fn point_bytes(&self) -> u64 {
+        GPU_POINT_BYTES
+            + self
+                .streams
+                .iter()
+                .map(|s| s.bytes_per_point())
+                .sum::<u64>()
+    }
+
+    /// Holds exactly `wanted` beside every arena: streams no longer wanted are freed, new ones
+    /// made. A new stream the dataset feeds (normals, radius) empties the cache, so that every
+    /// node is loaded again with it; a new kept value starts at zero.
+    pub fn set_streams(&mut self, device: &wgpu::Device, wanted: &[PointStream]) {
+        if self.streams == wanted {
+            return;
+        }
+        let fed = |s: &PointStream| !matches!(s, PointStream::Kept { .. });
+        if wanted.iter().any(|s| fed(s) && !self.streams.contains(s)) {
+            self.slots.clear();
+            for a in &mut self.arenas {
+                a.free = vec![(0, 1 << self.arena_shift)];
+            }
+        }
+        let n = self.arena_points() as u64;
+        for a in &mut self.arenas {
+            a.streams.retain(|(s, _)| wanted.contains(s));
+            for s in wanted {
+                if !a.streams.iter().any(|(have, _)| have == s) {
+                    a.streams.push((*s, stream_buffer(device, *s, n)));
+                }
+            }
+        }
+        self.streams = wanted.to_vec();
     }
 
     pub fn arena_points(&self) -> u32 {
@@ -67,7 +109,7 @@ impl NodeCache {
 
     /// Points the cache can hold at most: whole arenas within the memory budget (at least one).
     pub fn capacity_points(&self) -> u64 {
-        let arena_bytes = self.arena_points() as u64 * GPU_POINT_BYTES;
+        let arena_bytes = self.arena_points() as u64 * self.point_bytes();
         (self.budget_bytes / arena_bytes).max(1) * self.arena_points() as u64
     }
 
@@ -93,7 +135,7 @@ impl NodeCache {
 
     /// GPU memory held by the arenas.
     pub fn gpu_bytes(&self) -> u64 {
-        self.arenas.len() as u64 * self.arena_points() as u64 * GPU_POINT_BYTES
+        self.arenas.len() as u64 * self.arena_points() as u64 * self.point_bytes()
     }
 
     pub fn touch(&mut self, keys: &[NodeKey], frame: u64) {
@@ -129,7 +171,7 @@ impl NodeCache {
                 break found;
             }
             let next_bytes = (self.arenas.len() as u64 + 1) * self.arena_points() as u64;
-            if self.arenas.is_empty() || next_bytes * GPU_POINT_BYTES <= self.budget_bytes {
+            if self.arenas.is_empty() || next_bytes * self.point_bytes() <= self.budget_bytes {
                 self.arenas.push(self.new_arena(device));
                 continue;
             }
@@ -157,8 +199,20 @@ impl NodeCache {
                 queue.write_buffer(
                     &a.attributes,
                     p.start as u64 * 4,
-                    bytemuck::cast_slice(&node.attributes[range]),
+                    bytemuck::cast_slice(&node.attributes[range.clone()]),
                 );
+                for (s, buffer) in &a.streams {
+                    let bytes = s.bytes_per_point() as usize;
+                    let given = node.streams.iter().find(|(have, _)| have == s);
+                    let data = match given {
+                        Some((_, d)) if d.len() >= range.end * bytes => {
+                            std::borrow::Cow::Borrowed(&d[range.start * bytes..range.end * bytes])
+                        }
+                        // Not stored, or a kept value: zero, not the last node's.
+                        _ => std::borrow::Cow::Owned(vec![0u8; range.len() * bytes]),
+                    };
+                    queue.write_buffer(buffer, p.start as u64 * bytes as u64, &data);
+                }
             }
             done += p.count as usize;
         }
@@ -185,6 +239,11 @@ impl NodeCache {
         Arena {
             points: make("arena points", n * 16),
             attributes: make("arena attributes", n * 4),
+            streams: self
+                .streams
+                .iter()
+                .map(|s| (*s, stream_buffer(device, *s, n)))
+                .collect(),
             free: vec![(0, self.arena_points())],
         }
     }
@@ -239,6 +298,19 @@ impl NodeCache {
     }
 }
 
+/// A stream's buffer for `points` points, zeroed.
+fn stream_buffer(device: &wgpu::Device, s: PointStream, points: u64) -> wgpu::Buffer {
+    device.create_buffer(&wgpu::BufferDescriptor {
+        label: Some("arena stream"),
+        size: (points * s.bytes_per_point()).max(4),
+        // Pipelines that keep a value write it on the GPU and read it next frame.
+        usage: wgpu::BufferUsages::STORAGE
+            | wgpu::BufferUsages::COPY_DST
+            | wgpu::BufferUsages::COPY_SRC,
+        mapped_at_creation: false,
+    })
+}
+
 /// Takes `n` points from the front of free range `i`.
 fn take(free: &mut Vec<(u32, u32)>, i: usize, n: u32, arena: u32) -> Piece {
     let (start, len) = free[i];
@@ -283,5 +355,61 @@ mod tests {
         assert_eq!(free, vec![(0, 30), (60, 40)]);
         release_range(&mut free, b.start, b.count);
         assert_eq!(free, vec![(0, 100)]);
+    }
+}
+
+#[cfg(test)]
+mod stream_tests {
+    use super::*;
+    use crate::gpu::{GpuContext, ProjectionPath};
+
+    fn node(level: u8, points: usize) -> GpuNode {
+        GpuNode {
+            key: NodeKey {
+                level,
+                x: 0,
+                y: 0,
+                z: 0,
+            },
+            points: vec![[0; 4]; points],
+            attributes: vec![0; points],
+            streams: Vec::new(),
+            bytes_read: 0,
+        }
+    }
+
+    #[test]
+    fn streams_exist_only_while_wanted_and_a_fed_one_reloads_every_node() {
+        let ctx = GpuContext::new(ProjectionPath::Auto).expect("GPU adapter");
+        let (d, q) = (&ctx.device, &ctx.queue);
+        let mut cache = NodeCache::new(ctx.max_binding(), 64 << 20);
+        let protect = HashSet::new();
+        cache
+            .insert(d, q, &node(0, 1000), 1, &protect)
+            .expect("insert");
+        let plain = cache.gpu_bytes();
+        let kept = PointStream::Kept { bytes: 8 };
+        cache.set_streams(d, &[kept]);
+        // A kept value needs no reload: the node stays, with a zeroed stream beside it.
+        assert_eq!(cache.resident_nodes(), 1);
+        let n = cache.arena_points() as u64;
+        let sizes: Vec<u64> = cache.arenas[0]
+            .streams
+            .iter()
+            .map(|(_, b)| b.size())
+            .collect();
+        assert_eq!(sizes, vec![n * 8]);
+        assert_eq!(cache.gpu_bytes(), plain + n * 8);
+        cache
+            .insert(d, q, &node(1, 500), 2, &protect)
+            .expect("insert");
+        // Normals come from the dataset: every node is loaded again with them.
+        cache.set_streams(d, &[kept, PointStream::Normals]);
+        assert_eq!(cache.resident_nodes(), 0);
+        assert_eq!(cache.arenas[0].streams.len(), 2);
+        cache.set_streams(d, &[]);
+        assert!(cache.arenas.iter().all(|a| a.streams.is_empty()));
+        assert_eq!(cache.gpu_bytes(), plain);
+        ctx.wait().expect("no GPU fault");
     }
 }

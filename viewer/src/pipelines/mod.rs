@@ -67,6 +67,17 @@ pub enum PointStream {
     },
 }
 
+impl PointStream {
+    /// GPU bytes a point of this stream takes: normals as two snorm16 (octahedral), the radius
+    /// as an f32, a kept value as declared.
+    pub fn bytes_per_point(self) -> u64 {
+        match self {
+            PointStream::Normals | PointStream::Radius => 4,
+            PointStream::Kept { bytes } => bytes as u64,
+        }
+    }
+}
+
 /// What a pipeline declares; `strata pipelines` prints it.
 pub struct PipelineInfo {
     pub name: &'static str,
@@ -144,9 +155,16 @@ pub struct ViewFrame {
 pub struct PipelineFrame<'a> {
     pub ctx: &'a GpuContext,
     pub screen: &'a Screen,
+    /// The resident points, with the streams the pipeline declared beside each arena.
+    pub cache: &'a crate::gpu::NodeCache,
+    /// The ranges of points drawn this frame, per arena.
+    pub arenas: &'a [projection::ArenaDraw],
     pub params: &'a ResolvedParams,
     pub view: &'a ViewFrame,
 }
+
+/// Per pixel, the unlit colour of the surface shown (`None`: background).
+pub type AlbedoResult = Result<Vec<Option<[u8; 3]>>, ViewerError>;
 
 /// A buffer a pipeline allocates per screen, for checking a size against the adapter's limits
 /// before anything is created.
@@ -207,6 +225,13 @@ pub trait Pipeline {
     fn read_measures(&self, ctx: &GpuContext) -> Result<BTreeMap<&'static str, f32>, ViewerError> {
         let _ = ctx;
         Ok(BTreeMap::new())
+    }
+
+    /// The unlit colour of the surface the last frame shows, per pixel (`None`: background),
+    /// where the pipeline reconstructs its own surface; `None`: the resolved colour plane is it.
+    fn read_albedo(&self, ctx: &GpuContext) -> Option<AlbedoResult> {
+        let _ = ctx;
+        None
     }
 
     /// The surface of the last frame where the pipeline reconstructs one (depth and normal per

@@ -55,6 +55,8 @@ pub struct Renderer {
     last_drawn: HashSet<NodeKey>,
     /// The last frame projected through the 64-bit keys (else the 32-bit planes).
     last_int64: bool,
+    /// The last frame ended in the fused finish (its colour plane was not written).
+    last_fused: bool,
     /// The last frame's view-projection, for pipelines that keep the previous frame.
     previous_view_proj: Option<glam::Mat4>,
     frame: u64,
@@ -109,6 +111,7 @@ impl Renderer {
             last_fetch_error: None,
             last_drawn: HashSet::new(),
             last_int64: false,
+            last_fused: false,
             previous_view_proj: None,
             frame: 0,
             bytes_total: 0,
@@ -253,6 +256,9 @@ impl Renderer {
             self.accept(done, &mut bytes);
         }
         self.bytes_total += bytes;
+        // The cache holds a pipeline's per-point streams only while that pipeline is active.
+        self.cache
+            .set_streams(&self.ctx.device, settings.pipeline.streams);
         self.upload(settings);
 
         let params = SelectionParams {
@@ -501,7 +507,7 @@ impl Renderer {
         let (ctx, projection, cache, timer) =
             (&self.ctx, &self.projection, &self.cache, &mut self.timer);
         let int64 = screen.keys.is_some() && !settings.force_int32;
-        ctx.scoped(&format!("drawing with the {} pipeline", info.name), || {
+        let fused = ctx.scoped(&format!("drawing with the {} pipeline", info.name), || {
             let mut encoder = ctx
                 .device
                 .create_command_encoder(&wgpu::CommandEncoderDescriptor {
@@ -526,6 +532,8 @@ impl Renderer {
                 let frame = PipelineFrame {
                     ctx,
                     screen,
+                    cache,
+                    arenas: &draws,
                     params,
                     view: &view,
                 };
@@ -538,9 +546,10 @@ impl Renderer {
             ctx.queue.submit([encoder.finish()]);
             timer.after_submit();
             pipeline.after_submit();
-            Ok::<(), ViewerError>(())
+            Ok::<bool, ViewerError>(finished)
         })??;
         self.last_int64 = int64;
+        self.last_fused = fused;
         self.previous_view_proj = Some(view_proj);
         if let Some(e) = self.timer.take_poll_error() {
             return Err(ViewerError::Gpu(format!("waiting for the GPU failed: {e}")));

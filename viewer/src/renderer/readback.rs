@@ -31,6 +31,40 @@ impl Renderer {
         }
     }
 
+    /// The unlit colour of the surface the last frame shows, per pixel (`None`: background):
+    /// the pipeline's reconstructed colour, or the resolved colour plane of the projection.
+    pub fn read_albedo(&self) -> Result<Vec<Option<[u8; 3]>>, ViewerError> {
+        let screen = self
+            .screen
+            .as_ref()
+            .ok_or_else(|| ViewerError::Gpu("no frame has been rendered".into()))?;
+        if let Some(albedo) = self
+            .active
+            .and_then(|n| self.pipelines.get(n))
+            .and_then(|p| p.read_albedo(&self.ctx))
+        {
+            return albedo;
+        }
+        if self.last_fused {
+            return Err(ViewerError::Gpu(
+                "the last frame resolved and shaded in one pass and kept no colour plane; \
+                 render it with separate passes to read its albedo"
+                    .into(),
+            ));
+        }
+        let pixels = screen.width as u64 * screen.height as u64;
+        let depths = read_buffer(&self.ctx, &screen.depths, pixels * 4)?;
+        let colours = read_buffer(&self.ctx, &screen.colours, pixels * 4)?;
+        Ok(depths
+            .chunks_exact(4)
+            .zip(colours.chunks_exact(4))
+            .map(|(d, c)| {
+                (u32::from_le_bytes([d[0], d[1], d[2], d[3]]) != u32::MAX)
+                    .then_some([c[0], c[1], c[2]])
+            })
+            .collect())
+    }
+
     /// Linear depth per pixel (`None` where nothing was drawn), for picking and tests.
     pub fn read_depths(&self) -> Result<Vec<Option<f32>>, ViewerError> {
         Ok(self

@@ -218,6 +218,25 @@ mod tests {
     }
 
     #[test]
+    fn the_previous_frame_keeps_the_depth_plane_only_where_asked() {
+        use crate::gpu::readback::read_buffer;
+        use crate::gpu::{GpuContext, ProjectionPath};
+        let ctx = GpuContext::new(ProjectionPath::Auto).expect("GPU adapter");
+        let plain = Screen::new(&ctx.device, false, 7, 5, false);
+        assert!(plain.previous_depths.is_none());
+        let screen = Screen::new(&ctx.device, false, 7, 5, true);
+        let depths: Vec<u32> = (0..35u32).map(|i| i * 3 + 1).collect();
+        ctx.queue
+            .write_buffer(&screen.depths, 0, bytemuck::cast_slice(&depths));
+        let mut encoder = ctx.device.create_command_encoder(&Default::default());
+        screen.keep_depths(&mut encoder);
+        ctx.queue.submit([encoder.finish()]);
+        let prev = screen.previous_depths.as_ref().expect("kept");
+        let kept = read_buffer(&ctx, prev, 35 * 4).expect("readback");
+        assert_eq!(bytemuck::cast_slice::<u8, u32>(&kept), depths.as_slice());
+    }
+
+    #[test]
     fn the_largest_fitting_size_keeps_the_aspect_and_fits() {
         let l = limits(128 << 20);
         let fits = |w, h| check_screen(&l, w, h, &Screen::buffers(true, w, h)).is_ok();

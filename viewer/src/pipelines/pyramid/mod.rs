@@ -11,7 +11,7 @@ pub use passes::{
 
 use super::params::{Auto, ParamSpec, ResolvedParams, Scale};
 use super::projection::FrameUniforms;
-use super::{Lighting, Pipeline, PipelineFrame, PipelineInfo, ScreenBuffer, edl};
+use super::{AlbedoResult, Lighting, Pipeline, PipelineFrame, PipelineInfo, ScreenBuffer, edl};
 use crate::ViewerError;
 use crate::gpu::GpuContext;
 use crate::gpu::async_readback::AsyncReadback;
@@ -164,6 +164,24 @@ impl Pipeline for Pyramid {
             Some(t) => Ok(measures(Some(t.read_depth_noise(ctx)?))),
             None => Ok(BTreeMap::new()),
         }
+    }
+
+    fn read_albedo(&self, ctx: &GpuContext) -> Option<AlbedoResult> {
+        let t = self.targets.as_ref()?;
+        let pixels = t.width as u64 * t.height as u64;
+        let read = || -> AlbedoResult {
+            let surface = read_buffer(ctx, &t.surface, pixels * 8)?;
+            let colours = read_buffer(ctx, &t.fill_colour, pixels * 4)?;
+            Ok(surface
+                .chunks_exact(8)
+                .zip(colours.chunks_exact(4))
+                .map(|(s, c)| {
+                    (u32::from_le_bytes([s[0], s[1], s[2], s[3]]) != u32::MAX)
+                        .then_some([c[0], c[1], c[2]])
+                })
+                .collect())
+        };
+        Some(read())
     }
 
     fn read_surface(

@@ -136,7 +136,8 @@ pub struct PyramidTargets {
     levels: Vec<[u32; 3]>,
     pts: wgpu::Buffer,
     fill: wgpu::Buffer,
-    fill_colour: wgpu::Buffer,
+    /// Level 0 holds the filled colour each pixel is shaded with.
+    pub fill_colour: wgpu::Buffer,
     normals: wgpu::Buffer,
     labels: wgpu::Buffer,
     /// The depth-noise histogram and the estimate drawn from it.
