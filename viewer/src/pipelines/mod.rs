@@ -4,11 +4,8 @@
 //! fused finish with the pipeline's shading or the resolved depth and colour planes that the
 //! pipeline's own passes read.
 
-pub mod edl;
 pub mod params;
-pub mod points;
 pub mod projection;
-pub mod pyramid;
 pub mod shader;
 #[cfg(test)]
 mod shader_tests;
@@ -22,9 +19,23 @@ use projection::{FusedFinish, Screen};
 use shader::ShaderSource;
 use std::collections::BTreeMap;
 
-/// The registry: the one place a pipeline is added. The first is the panel's first choice;
-/// the order is the order `strata pipelines` lists them in.
-pub static REGISTRY: &[&PipelineInfo] = &[&points::INFO, &edl::INFO, &pyramid::INFO];
+/// Declares each pipeline's module (`NAME/mod.rs`, which defines `INFO`) and lists it in
+/// `REGISTRY`, so that a pipeline is added by one line.
+macro_rules! registry {
+    ($($name:ident),* $(,)?) => {
+        $(pub mod $name;)*
+
+        /// Every pipeline, in the order the panel and `strata pipelines` list them.
+        pub static REGISTRY: &[&PipelineInfo] = &[$(&$name::INFO),*];
+    };
+}
+
+// The registry: the one place a pipeline is added.
+registry! {
+    points,
+    edl,
+    pyramid,
+}
 
 /// The shared headlight Blinn-Phong (`headlight(albedo, n, v)`), so that two pipelines and the
 /// quality harness's reference meshes shade the same surface the same way.
