@@ -240,3 +240,39 @@ fn the_software_adapter_refuses_8192_squared_with_the_limit() {
     );
     assert!(!out.exists());
 }
+
+#[test]
+fn a_frame_larger_than_the_adapter_holds_is_an_error_and_the_fitted_size_renders() {
+    use std::sync::Arc;
+    use strata_viewer::gpu::{GpuContext, ProjectionPath};
+    use strata_viewer::headless::default_camera;
+    use strata_viewer::pipelines::find;
+    use strata_viewer::{Renderer, Settings, StreamDataset};
+    let ds = Arc::new(StreamDataset::open_path(dataset()).expect("dataset opens"));
+    let ctx = Arc::new(GpuContext::new(ProjectionPath::Auto).expect("GPU adapter"));
+    let mut r = Renderer::new(ctx, ds.clone(), 1 << 30, 2).expect("renderer");
+    let settings = Settings {
+        pipeline: find("points").expect("registered"),
+        ..Settings::default()
+    };
+    let (w, h) = (8192, 6144);
+    let camera = default_camera(&ds, w, h);
+    let (fw, fh) = r.fit_size(settings.pipeline, w, h);
+    if (fw, fh) == (w, h) {
+        eprintln!("this adapter holds {w}x{h}; nothing to fit");
+        return;
+    }
+    // What the window does: asked for more than fits, it renders at the fitted size.
+    assert!(fw < w && fh < h && (fw as f64 / fh as f64 - 4.0 / 3.0).abs() < 0.01);
+    let e = r
+        .frame(&camera, w, h, &settings)
+        .expect_err("too large a frame is refused");
+    assert!(e.to_string().contains(&format!("{w}x{h}")), "{e}");
+    let stats = r
+        .frame(&camera, fw, fh, &settings)
+        .expect("the fitted size renders");
+    r.wait_gpu().expect("GPU");
+    assert_eq!(r.read_image().expect("image").0, fw);
+    // The renderer goes on after the refusal: the frame drew the scan.
+    assert!(stats.frame > 1);
+}
