@@ -276,3 +276,179 @@ fn a_frame_larger_than_the_adapter_holds_is_an_error_and_the_fitted_size_renders
     // The renderer goes on after the refusal: the frame drew the scan.
     assert!(stats.frame > 1);
 }
+
+/// The projection's passes, in the order they can run (`projection::PASSES`).
+const PROJECTION_PASSES: [&str; 6] = [
+    "clear",
+    "project",
+    "project_depth",
+    "project_index",
+    "unpack",
+    "resolve",
+];
+
+fn frame_passes(args: &[&str], stats: &Path) -> Vec<String> {
+    let o = gpu_run(args);
+    assert!(o.status.success(), "{args:?}: {}", text(&o));
+    // Read from the text: serde_json's own map would sort the keys.
+    let text = std::fs::read_to_string(stats).expect("stats");
+    let at = text.find("\"passes\": {").expect("passes in the stats") + 11;
+    let body = &text[at..at + text[at..].find('}').expect("the passes close")];
+    body.split(',')
+        .filter_map(|entry| entry.split('"').nth(1).map(str::to_string))
+        .collect()
+}
+
+#[test]
+fn every_declared_pass_runs_and_the_stats_list_them_in_run_order() {
+    let ds = dataset();
+    let dir = ds.parent().expect("parent");
+    let stats = dir.join("passes.json");
+    let out = dir.join("passes.png");
+    for p in registry() {
+        let name = p["name"].as_str().expect("name");
+        let declared: Vec<&str> = p["passes"]
+            .as_array()
+            .expect("passes")
+            .iter()
+            .filter_map(|v| v.as_str())
+            .collect();
+        let order: Vec<&str> = PROJECTION_PASSES
+            .iter()
+            .copied()
+            .chain(declared.iter().copied())
+            .collect();
+        let mut seen = std::collections::BTreeSet::new();
+        for extra in [&[][..], &["--separate-passes"][..]] {
+            let mut args = vec![
+                "render",
+                s(ds),
+                "-o",
+                s(&out),
+                "--size",
+                "96x64",
+                "--pipeline",
+                name,
+                "--pass-clock",
+                "wall",
+                "--stats",
+                s(&stats),
+            ];
+            args.extend_from_slice(extra);
+            let passes = frame_passes(&args, &stats);
+            let at: Vec<usize> = passes
+                .iter()
+                .map(|n| {
+                    order
+                        .iter()
+                        .position(|o| o == n)
+                        .unwrap_or_else(|| panic!("{name}: pass {n} is not declared ({order:?})"))
+                })
+                .collect();
+            assert!(
+                at.windows(2).all(|w| w[0] < w[1]),
+                "{name} {extra:?}: {passes:?}"
+            );
+            seen.extend(passes);
+        }
+        for d in &declared {
+            assert!(
+                seen.contains(*d),
+                "{name}: declared pass {d} never ran ({seen:?})"
+            );
+        }
+    }
+}
+
+#[test]
+fn every_parameter_takes_its_range_and_refuses_past_it() {
+    let ds = dataset();
+    let dir = ds.parent().expect("parent");
+    let stats = dir.join("range.json");
+    let out = dir.join("range.png");
+    for p in registry() {
+        let name = p["name"].as_str().expect("name");
+        for spec in p["params"].as_array().expect("params") {
+            let param = spec["name"].as_str().expect("param name");
+            let (min, max) = (
+                spec["min"].as_f64().expect("min"),
+                spec["max"].as_f64().expect("max"),
+            );
+            for v in [min, max] {
+                let set = format!("{param}={v}");
+                let args = [
+                    "render",
+                    s(ds),
+                    "-o",
+                    s(&out),
+                    "--size",
+                    "16x16",
+                    "--pipeline",
+                    name,
+                    "--set",
+                    &set,
+                    "--stats",
+                    s(&stats),
+                ];
+                let o = gpu_run(&args);
+                assert!(o.status.success(), "{name} {set}: {}", text(&o));
+                let st: serde_json::Value =
+                    serde_json::from_slice(&std::fs::read(&stats).expect("stats")).expect("JSON");
+                let got = st["frames"][0]["params"][param].as_f64().expect("echoed");
+                assert!(
+                    (got - v).abs() <= v.abs() * 1e-6,
+                    "{name} {set}: stats say {got}"
+                );
+            }
+            let below = if min > 0.0 { min / 2.0 } else { min - 1.0 };
+            for bad in [
+                below.to_string(),
+                (max * 2.0 + 1.0).to_string(),
+                "abc".into(),
+            ] {
+                let set = format!("{param}={bad}");
+                let args = [
+                    "render",
+                    s(ds),
+                    "-o",
+                    s(&out),
+                    "--pipeline",
+                    name,
+                    "--set",
+                    &set,
+                ];
+                let o = gpu_run(&args);
+                let t = text(&o);
+                assert!(!o.status.success(), "{name} {set} was accepted");
+                assert_eq!(t.trim().lines().count(), 1, "{name} {set}: {t}");
+                assert!(
+                    t.contains(param) && !t.contains("panicked"),
+                    "{name} {set}: {t}"
+                );
+            }
+        }
+    }
+}
+
+#[test]
+fn a_lost_device_is_reported_by_every_frame_after_it() {
+    use std::sync::Arc;
+    use strata_viewer::gpu::{GpuContext, ProjectionPath};
+    use strata_viewer::headless::default_camera;
+    use strata_viewer::{Renderer, Settings, StreamDataset};
+    let ds = Arc::new(StreamDataset::open_path(dataset()).expect("dataset opens"));
+    let ctx = Arc::new(GpuContext::new(ProjectionPath::Auto).expect("GPU adapter"));
+    let mut r = Renderer::new(ctx.clone(), ds.clone(), 1 << 28, 1).expect("renderer");
+    let camera = default_camera(&ds, 64, 48);
+    let settings = Settings::default();
+    r.frame(&camera, 64, 48, &settings)
+        .expect("a frame before the loss");
+    ctx.mark_lost("a test");
+    for _ in 0..3 {
+        let e = r
+            .frame(&camera, 64, 48, &settings)
+            .expect_err("a lost device draws nothing");
+        assert!(e.to_string().contains("lost"), "{e}");
+    }
+    assert!(r.wait_gpu().is_err());
+}

@@ -76,6 +76,10 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
             let streams: Vec<String> = p.streams.iter().map(stream_name).collect();
             println!("  per-point data: {}", streams.join(", "));
         }
+        println!("  passes: {}", p.passes.join(", "));
+        if p.previous_frame {
+            println!("  keeps the previous frame's view and depth");
+        }
         for s in p.params {
             println!("  --set {}=VALUE  {} ({})", s.name, s.help, s.describe());
         }

@@ -32,7 +32,8 @@ struct ViewerApp {
     camera: Camera,
     home: Camera,
     settings: Settings,
-    texture: Option<(egui::TextureId, u32, u32)>,
+    /// The renderer's output as egui shows it: re-registered whenever the output changes.
+    texture: Option<(egui::TextureId, wgpu::Texture)>,
     stats: FrameStats,
     frames: u32,
     last_frame: Instant,
@@ -366,6 +367,16 @@ impl ViewerApp {
             Err(e) => self.error = Some(e.to_string()),
         }
         self.frames += 1;
+        // A lost device cannot draw again, and painting on it would fail inside egui: close
+        // the window and report why.
+        if let Some(lost) = self.renderer.context().lost_error() {
+            if let Ok(mut slot) = self.screenshot_error.lock() {
+                slot.get_or_insert(lost.to_string());
+            }
+            self.texture = None;
+            ui.ctx().send_viewport_cmd(egui::ViewportCommand::Close);
+            return;
+        }
 
         let Some(state) = frame.wgpu_render_state() else {
             return;
@@ -373,11 +384,14 @@ impl ViewerApp {
         let Some(output) = self.renderer.output() else {
             return;
         };
-        let stale = self.texture.is_none_or(|(_, tw, th)| tw != w || th != h);
+        let stale = self
+            .texture
+            .as_ref()
+            .is_none_or(|(_, shown)| shown != output);
         if stale {
             let view = output.create_view(&Default::default());
             let mut egui_renderer = state.renderer.write();
-            if let Some((old, _, _)) = self.texture.take() {
+            if let Some((old, _)) = self.texture.take() {
                 egui_renderer.free_texture(&old);
             }
             let id = egui_renderer.register_native_texture(
@@ -385,9 +399,10 @@ impl ViewerApp {
                 &view,
                 wgpu::FilterMode::Nearest,
             );
-            self.texture = Some((id, w, h));
+            self.texture = Some((id, output.clone()));
         }
-        if let Some((id, _, _)) = self.texture {
+        if let Some((id, _)) = &self.texture {
+            let id = *id;
             ui.painter().image(
                 id,
                 rect,
@@ -453,9 +468,10 @@ impl ViewerApp {
         let Ok(depths) = self.renderer.read_depths() else {
             return;
         };
-        let Some((_, w, h)) = self.texture else {
+        let Some(output) = self.renderer.output() else {
             return;
         };
+        let (w, h) = (output.width(), output.height());
         // The image may be smaller than the window (the adapter's limits): scale to it.
         let px = ((pos.x - rect.min.x) / rect.width().max(1.0) * w as f32) as i32;
         let py = ((pos.y - rect.min.y) / rect.height().max(1.0) * h as f32) as i32;
@@ -466,7 +482,7 @@ impl ViewerApp {
                 if x < 0 || y < 0 || x >= w as i32 || y >= h as i32 {
                     continue;
                 }
-                if let Some(d) = depths[(y as u32 * w + x as u32) as usize]
+                if let Some(Some(d)) = depths.get((y as u32 * w + x as u32) as usize).copied()
                     && best
                         .is_none_or(|b| dx * dx + dy * dy < (b.0 - px).pow(2) + (b.1 - py).pow(2))
                 {
@@ -499,6 +515,19 @@ impl ViewerApp {
             ctx.send_viewport_cmd(egui::ViewportCommand::Close);
             return;
         }
+        // egui never answers a screenshot it cannot take (an unusual surface format, a failed
+        // map): give up rather than wait for ever.
+        if self.frames > *after + SCREENSHOT_PATIENCE {
+            if let Ok(mut slot) = self.screenshot_error.lock() {
+                slot.get_or_insert(format!(
+                    "{}: no screenshot arrived within {SCREENSHOT_PATIENCE} frames",
+                    path.display()
+                ));
+            }
+            self.screenshot_done.store(true, Ordering::Release);
+            ctx.send_viewport_cmd(egui::ViewportCommand::Close);
+            return;
+        }
         if self.frames == *after {
             let path = path.clone();
             let done = self.screenshot_done.clone();
@@ -517,6 +546,9 @@ impl ViewerApp {
         }
     }
 }
+
+/// Frames a requested screenshot may take to arrive.
+const SCREENSHOT_PATIENCE: u32 = 300;
 
 fn group_digits(n: u64) -> String {
     let s = n.to_string();

@@ -209,7 +209,10 @@ fn main() -> anyhow::Result<()> {
                 )?;
                 let mut images: Vec<Vec<u8>> = vec![frames.reference.rgba.clone()];
                 for r in frames.results {
-                    images.push(r.rgba);
+                    // The side-by-side images show every pipeline at its defaults.
+                    if r.config.auto_factor.is_none() {
+                        images.push(r.rgba);
+                    }
                     rows.push(Row {
                         scene: scene.name.clone(),
                         view: vi,
@@ -228,8 +231,7 @@ fn main() -> anyhow::Result<()> {
                 if vi == 0 && noise == 0.0 {
                     let name = format!("{}_d{density:.3}.png", scene.name);
                     // The reference, then every pipeline at its defaults with 1 and 2 px points.
-                    let shown = 1 + 2 * REGISTRY.len();
-                    let refs: Vec<&[u8]> = images.iter().take(shown).map(Vec::as_slice).collect();
+                    let refs: Vec<&[u8]> = images.iter().map(Vec::as_slice).collect();
                     side_by_side(
                         &args.out.join("images").join(name),
                         args.width,
@@ -377,7 +379,10 @@ fn render_view(
             let Some(value) = automatic.get(&(p.name, name)) else {
                 continue;
             };
-            settings.set_param(&format!("{name}={}", value * f))?;
+            // Kept within the parameter's range: a sweep never aborts the run.
+            let spec = p.param(name)?;
+            let swept = (value * f).clamp(spec.min, spec.max);
+            settings.set_param(&format!("{name}={swept}"))?;
         }
         // First with separate passes, which keep the resolved colour plane, for the albedo;
         // it also warms the pipeline up, so the timed frame is of a warm pipeline.

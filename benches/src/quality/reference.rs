@@ -393,7 +393,11 @@ pub fn eye_dome(image: &ReferenceImage, rgba: &[u8], strength: f32, radius: f32)
             let response: f32 = DIRECTIONS
                 .iter()
                 .filter_map(|d| {
-                    let (dx, dy) = ((d[0] * radius).round(), (d[1] * radius).round());
+                    // WGSL's round() takes halves to even.
+                    let (dx, dy) = (
+                        (d[0] * radius).round_ties_even(),
+                        (d[1] * radius).round_ties_even(),
+                    );
                     log_depth(x + dx as i64, y + dy as i64)
                 })
                 .map(|nd| (ld - nd).max(0.0))

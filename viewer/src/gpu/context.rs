@@ -37,6 +37,9 @@ pub struct GpuContext {
     /// The first GPU fault no error scope caught (validation, out of memory, internal), or the
     /// loss of the device; wgpu's default would panic.
     fault: Arc<Mutex<Option<String>>>,
+    /// Why the device was lost, once it was: wgpu reports no error on a lost device after the
+    /// first, so every later use must ask here.
+    lost: Arc<Mutex<Option<String>>>,
 }
 
 impl GpuContext {
@@ -99,7 +102,8 @@ impl GpuContext {
         device.on_uncaptured_error(Arc::new(move |e: wgpu::Error| {
             keep(&on_error, describe(&e));
         }));
-        let on_lost = fault.clone();
+        let lost = Arc::new(Mutex::new(None::<String>));
+        let on_lost = lost.clone();
         device.set_device_lost_callback(move |reason, message| {
             // Dropping the device at exit also calls this; only a loss is a fault.
             if reason != wgpu::DeviceLostReason::Destroyed {
@@ -108,6 +112,7 @@ impl GpuContext {
         });
         Ok(GpuContext {
             fault,
+            lost,
             instance,
             adapter,
             device,
@@ -120,8 +125,25 @@ impl GpuContext {
 
     /// The GPU fault that happened outside any error scope since the last call, if any.
     pub fn take_fault(&self) -> Option<ViewerError> {
+        if let Some(lost) = self.lost_error() {
+            return Some(lost);
+        }
         let fault = self.fault.lock().ok()?.take()?;
         Some(ViewerError::Gpu(fault))
+    }
+
+    /// The loss of the device, every time it is asked once it happened.
+    pub fn lost_error(&self) -> Option<ViewerError> {
+        let lost = self.lost.lock().ok()?.clone()?;
+        Some(ViewerError::Gpu(lost))
+    }
+
+    /// Marks the device lost, as the driver's callback does (for tests of what follows).
+    #[doc(hidden)]
+    pub fn mark_lost(&self, why: &str) {
+        if let Ok(mut slot) = self.lost.lock() {
+            slot.get_or_insert_with(|| format!("the GPU device was lost ({why})"));
+        }
     }
 
     /// Runs `f` inside validation and out-of-memory error scopes: a fault comes back as an
@@ -129,10 +151,15 @@ impl GpuContext {
     pub fn scoped<T>(&self, what: &str, f: impl FnOnce() -> T) -> Result<T, ViewerError> {
         let oom = self.device.push_error_scope(wgpu::ErrorFilter::OutOfMemory);
         let validation = self.device.push_error_scope(wgpu::ErrorFilter::Validation);
+        let internal = self.device.push_error_scope(wgpu::ErrorFilter::Internal);
         let value = f();
+        let internal = pollster::block_on(internal.pop());
         let invalid = pollster::block_on(validation.pop());
         let out_of_memory = pollster::block_on(oom.pop());
-        match invalid.or(out_of_memory) {
+        if let Some(lost) = self.lost_error() {
+            return Err(lost);
+        }
+        match internal.or(invalid).or(out_of_memory) {
             Some(e) => Err(ViewerError::Gpu(format!("{what}: {}", describe(&e)))),
             None => Ok(value),
         }

@@ -78,8 +78,9 @@ fn map_read(ctx: &GpuContext, buffer: &wgpu::Buffer) -> Result<Vec<u8>, ViewerEr
         let _ = tx.send(r);
     });
     ctx.wait()?;
-    rx.recv()
-        .map_err(|_| ViewerError::Gpu("readback was dropped".into()))?
+    // The wait above returned, so the map has finished unless the device was lost meanwhile.
+    rx.recv_timeout(super::context::GPU_WAIT_LIMIT)
+        .map_err(|_| ViewerError::Gpu("the GPU never delivered a readback".into()))?
         .map_err(|e| ViewerError::Gpu(format!("readback failed: {e}")))?;
     let data = buffer
         .slice(..)

@@ -97,6 +97,8 @@ pub struct Timer {
     last: PassTimes,
     /// A wait of the wall clock that failed, for the frame to report.
     poll_error: Option<String>,
+    /// The readback in flight belongs to frames before a pipeline switch.
+    discard_next: bool,
 }
 
 struct Queries {
@@ -138,6 +140,7 @@ impl Timer {
             in_readback: Vec::new(),
             last: PassTimes::default(),
             poll_error: None,
+            discard_next: false,
         }
     }
 
@@ -224,8 +227,9 @@ impl Timer {
         let Some(data) = q.readback.take() else {
             return;
         };
-        // A readback left from a timestamped frame does not describe a wall-clock one.
-        if self.wall {
+        // A readback left from a timestamped frame does not describe a wall-clock one, nor one
+        // from before a pipeline switch this frame.
+        if self.wall || std::mem::take(&mut self.discard_next) {
             return;
         }
         let stamps: Vec<u64> = data
@@ -240,6 +244,13 @@ impl Timer {
             let ms = b.saturating_sub(a) as f64 * q.period_ns as f64 / 1e6;
             self.last.add(name, ms);
         }
+    }
+
+    /// Forgets the pass times of earlier frames, and the readback on its way back: they
+    /// describe another pipeline's passes.
+    pub fn discard_pending(&mut self) {
+        self.last.clear();
+        self.discard_next = self.queries.as_ref().is_some_and(|q| !q.readback.is_idle());
     }
 
     /// A failed wait of the wall clock since the last call, if any.

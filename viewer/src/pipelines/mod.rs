@@ -102,6 +102,9 @@ pub struct PipelineInfo {
     pub passes: &'static [&'static str],
     /// It reads the previous frame's view-projection and depth (temporal coherence).
     pub previous_frame: bool,
+    /// The buffers its `make_targets` creates for a `width` x `height` screen, for the check
+    /// against the adapter's limits before anything is created or compiled.
+    pub screen_buffers: fn(width: u32, height: u32) -> Vec<ScreenBuffer>,
     /// Compiles its GPU passes.
     pub create: fn(&GpuContext) -> Result<Box<dyn Pipeline>, ViewerError>,
     /// Every shader module it compiles, composed as it compiles them (for validation without
@@ -141,6 +144,11 @@ pub fn find(name: &str) -> Result<&'static PipelineInfo, ViewerError> {
                 format!("unknown pipeline (expected {})", names.join(", ")),
             )
         })
+}
+
+/// `screen_buffers` of a pipeline that makes none.
+pub fn no_screen_buffers(_: u32, _: u32) -> Vec<ScreenBuffer> {
+    Vec::new()
 }
 
 /// The most passes one frame times: the projection's and the longest pipeline's, twice over
@@ -199,12 +207,6 @@ pub trait Pipeline {
     /// Sets the frame uniforms the pipeline's shading reads (eye-dome lighting).
     fn uniforms(&self, params: &ResolvedParams, uniforms: &mut projection::FrameUniforms) {
         let _ = (params, uniforms);
-    }
-
-    /// The buffers `make_targets` would create for a `width` x `height` screen.
-    fn screen_buffers(&self, width: u32, height: u32) -> Vec<ScreenBuffer> {
-        let _ = (width, height);
-        Vec::new()
     }
 
     /// Creates the per-screen buffers for `screen`'s size (after the size was checked).

@@ -1,10 +1,9 @@
 //! Every shader module the viewer compiles, validated by naga without a GPU, and every Rust
 //! struct and constant shared with WGSL checked against the shader's own layout.
 
-use super::projection::{self, EMPTY, FrameUniforms, GROUP_SIZE, GpuRange};
-use super::pyramid::{MAX_LEVELS, NOISE_BINS};
+use super::REGISTRY;
+use super::projection::{self, EMPTY, FrameUniforms, GROUP_SIZE, GpuRange, PIXEL_GROUP};
 use super::shader::ShaderSource;
-use super::{REGISTRY, max_timed_passes};
 use naga::valid::{Capabilities, ValidationFlags, Validator};
 
 /// Every module, composed as the pipelines compose them, for a device with and without
@@ -67,7 +66,7 @@ fn the_32_bit_path_needs_no_64_bit_capability() {
 }
 
 /// The size and the member offsets of the WGSL struct `name`.
-fn wgsl_layout(module: &naga::Module, name: &str) -> (u32, Vec<(String, u32)>) {
+pub(crate) fn wgsl_layout(module: &naga::Module, name: &str) -> (u32, Vec<(String, u32)>) {
     let ty = module
         .types
         .iter()
@@ -85,6 +84,7 @@ fn wgsl_layout(module: &naga::Module, name: &str) -> (u32, Vec<(String, u32)>) {
     }
 }
 
+/// The size and the field offsets of a Rust struct, named as the WGSL members are.
 macro_rules! rust_layout {
     ($t:ty { $($field:ident),* $(,)? }) => {
         (
@@ -94,7 +94,8 @@ macro_rules! rust_layout {
     };
 }
 
-fn module_named(label: &str) -> naga::Module {
+/// The module `label` as a pipeline composes it (with 64-bit atomics).
+pub(crate) fn module_named(label: &str) -> naga::Module {
     let s = all_shaders(true)
         .into_iter()
         .find(|s| s.label == label)
@@ -118,9 +119,10 @@ fn rust_structs_match_their_wgsl_layouts() {
             z_min,
             z_max,
             arena_shift,
-            edl_strength,
-            edl_radius,
             background,
+            pad0,
+            pad1,
+            shading,
             arena_slots,
         }),
         "FrameUniforms against Frame (frame.wgsl)"
@@ -135,16 +137,10 @@ fn rust_structs_match_their_wgsl_layouts() {
         }),
         "GpuRange against Range (frame.wgsl)"
     );
-    let hpr = module_named("hpr");
-    assert_eq!(
-        wgsl_layout(&hpr, "Pyramid"),
-        super::pyramid::uniforms_layout(),
-        "PyramidUniforms against Pyramid (pyramid.wgsl)"
-    );
 }
 
 /// The value of the WGSL constant `name`.
-fn wgsl_const(module: &naga::Module, name: &str) -> u64 {
+pub(crate) fn wgsl_const(module: &naga::Module, name: &str) -> u64 {
     let (_, c) = module
         .constants
         .iter()
@@ -163,23 +159,29 @@ fn shared_constants_agree() {
     let project = module_named("project int64");
     assert_eq!(wgsl_const(&project, "GROUP_SIZE"), GROUP_SIZE as u64);
     assert_eq!(wgsl_const(&project, "EMPTY"), EMPTY as u64);
-    assert_eq!(
-        wgsl_const(&module_named("hpr"), "MAX_LEVELS"),
-        MAX_LEVELS as u64
-    );
-    assert_eq!(
-        wgsl_const(&module_named("noise histogram"), "NOISE_BINS"),
-        NOISE_BINS
-    );
 }
 
 #[test]
-fn the_pass_timer_holds_every_pipelines_passes() {
-    for p in REGISTRY {
-        assert!(
-            (projection::PASSES.len() + p.passes.len()) as u32 <= max_timed_passes(),
-            "{}",
-            p.name
-        );
+fn workgroup_sizes_match_the_dispatches() {
+    // Point passes dispatch GROUP_SIZE threads a group; full-screen passes PIXEL_GROUP².
+    for s in all_shaders(true) {
+        let module = parse(&s);
+        let Some(entry) = module.entry_points.iter().find(|e| e.name == s.entry) else {
+            continue;
+        };
+        let points = s.label == "clear" || s.label.starts_with("project");
+        let pixels = ["finish", "shade", "resolve", "unpack"]
+            .iter()
+            .any(|k| s.label.ends_with(k));
+        if points {
+            assert_eq!(entry.workgroup_size, [GROUP_SIZE, 1, 1], "{}", s.label);
+        } else if pixels {
+            assert_eq!(
+                entry.workgroup_size,
+                [PIXEL_GROUP, PIXEL_GROUP, 1],
+                "{}",
+                s.label
+            );
+        }
     }
 }

@@ -12,7 +12,7 @@ use crate::loader::{Done, Job, JobKey, Loader};
 use crate::lod::{Selection, SelectionParams, Tree, clip_range, drawn_spacing, select};
 use crate::pipelines::params::ResolvedParams;
 use crate::pipelines::projection::{
-    ArenaDraw, FrameDraw, FrameUniforms, GpuRange, Projection, Screen, check_screen,
+    ArenaDraw, FINISH_SLOTS, FrameDraw, FrameUniforms, GpuRange, Projection, Screen, check_screen,
     largest_fitting,
 };
 use crate::pipelines::{self, Pipeline, PipelineFrame, PipelineInfo, ScreenBuffer, ViewFrame};
@@ -185,9 +185,7 @@ impl Renderer {
         height: u32,
     ) -> Vec<ScreenBuffer> {
         let mut b = self.projection.screen_buffers(width, height);
-        if let Some(p) = self.pipelines.get(pipeline.name) {
-            b.extend(p.screen_buffers(width, height));
-        }
+        b.extend((pipeline.screen_buffers)(width, height));
         b
     }
 
@@ -257,9 +255,12 @@ impl Renderer {
         }
         self.bytes_total += bytes;
         // The cache holds a pipeline's per-point streams only while that pipeline is active.
-        self.cache
-            .set_streams(&self.ctx.device, settings.pipeline.streams);
-        self.upload(settings);
+        let ctx = self.ctx.clone();
+        ctx.scoped("uploading nodes to the GPU", || {
+            self.cache
+                .set_streams(&ctx.device, settings.pipeline.streams);
+            self.upload(settings);
+        })?;
 
         let params = SelectionParams {
             // More than the cache holds would evict what the same frame draws, for ever; a
@@ -394,26 +395,31 @@ impl Renderer {
             .screen
             .as_ref()
             .is_none_or(|s| s.width != width || s.height != height);
-        let previous_missing = info.previous_frame
-            && self
-                .screen
-                .as_ref()
-                .is_some_and(|s| s.previous_depths.is_none());
-        if resized || previous_missing {
-            // Free the old planes before making the new ones: both at once may not fit.
-            self.screen = None;
-            self.previous_view_proj = None;
-            let (ctx, projection) = (&self.ctx, &self.projection);
-            let screen = ctx.scoped(&format!("making a {width}x{height} screen"), || {
-                projection.screen(&ctx.device, width, height, info.previous_frame)
-            })?;
-            self.screen = Some(screen);
-        }
-        if resized || self.active != Some(info.name) {
+        let switched = self.active != Some(info.name);
+        if resized || switched {
+            // Free what the old pipeline made before making anything new: both at once may not
+            // fit. What it measured or timed describes another picture.
             if let Some(old) = self.active.take().and_then(|n| self.pipelines.get_mut(n)) {
                 old.release_targets();
             }
             self.measures.clear();
+            self.timer.discard_pending();
+            self.previous_view_proj = None;
+        }
+        // The previous depth plane exists exactly while the pipeline keeps the previous frame.
+        let previous_mismatch = self
+            .screen
+            .as_ref()
+            .is_some_and(|s| s.previous_depths.is_some() != info.previous_frame);
+        if resized || previous_mismatch {
+            self.screen = None;
+            let (ctx, projection) = (&self.ctx, &self.projection);
+            let screen = ctx.scoped(&format!("making a {width}x{height} screen"), || {
+                projection.screen(&ctx.device, &ctx.queue, width, height, info.previous_frame)
+            })?;
+            self.screen = Some(screen);
+        }
+        if self.active != Some(info.name) {
             let (Some(screen), Some(p)) = (&self.screen, self.pipelines.get_mut(info.name)) else {
                 return Err(ViewerError::Gpu(format!(
                     "the {} pipeline is not ready",
@@ -482,10 +488,11 @@ impl Renderer {
             z_min: bmin.z,
             z_max: bmax.z,
             arena_shift: self.cache.arena_shift,
-            edl_strength: 0.0,
-            edl_radius: 0.0,
             background: r as u32 | (g as u32) << 8 | (b as u32) << 16 | 255 << 24,
-            arena_slots: [u32::MAX; 4],
+            pad0: 0,
+            pad1: 0,
+            shading: [0.0; 4],
+            arena_slots: [u32::MAX; FINISH_SLOTS],
         };
         let wall = self.wall_clock(settings);
         let (Some(screen), Some(pipeline)) = (&self.screen, self.pipelines.get_mut(info.name))
@@ -522,7 +529,8 @@ impl Renderer {
                 &FrameDraw {
                     uniforms: &uniforms,
                     arenas: &draws,
-                    allow_fused: settings.fused_finish,
+                    // The fused finish writes no depth plane for the next frame to keep.
+                    allow_fused: settings.fused_finish && !info.previous_frame,
                     force_int32: settings.force_int32,
                     fused: pipeline.fused(params),
                 },
@@ -550,7 +558,9 @@ impl Renderer {
         })??;
         self.last_int64 = int64;
         self.last_fused = fused;
-        self.previous_view_proj = Some(view_proj);
+        if info.previous_frame {
+            self.previous_view_proj = Some(view_proj);
+        }
         if let Some(e) = self.timer.take_poll_error() {
             return Err(ViewerError::Gpu(format!("waiting for the GPU failed: {e}")));
         }

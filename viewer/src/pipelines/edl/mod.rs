@@ -43,6 +43,7 @@ pub static INFO: PipelineInfo = PipelineInfo {
     streams: &[],
     passes: &["finish+edl", "edl"],
     previous_frame: false,
+    screen_buffers: super::no_screen_buffers,
     create,
     shaders,
 };
@@ -69,12 +70,12 @@ fn create(ctx: &GpuContext) -> Result<Box<dyn Pipeline>, ViewerError> {
 
 /// Sets the eye-dome uniforms from `params` (strength 0 turns it off).
 pub fn set_uniforms(params: &ResolvedParams, on: bool, uniforms: &mut FrameUniforms) {
-    uniforms.edl_strength = if on {
+    uniforms.shading[0] = if on {
         params.get_or(STRENGTH.name, STRENGTH.default).max(1e-3)
     } else {
         0.0
     };
-    uniforms.edl_radius = params.get_or(RADIUS.name, RADIUS.default);
+    uniforms.shading[1] = params.get_or(RADIUS.name, RADIUS.default);
 }
 
 impl Pipeline for Edl {

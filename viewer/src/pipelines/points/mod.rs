@@ -19,6 +19,7 @@ pub static INFO: PipelineInfo = PipelineInfo {
     streams: &[],
     passes: &["finish", "shade"],
     previous_frame: false,
+    screen_buffers: super::no_screen_buffers,
     create,
     shaders,
 };

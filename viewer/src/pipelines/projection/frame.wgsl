@@ -12,9 +12,12 @@ struct Frame {
     z_min: f32,
     z_max: f32,
     arena_shift: u32,
-    edl_strength: f32,
-    edl_radius: f32,
     background: u32,
+    pad0: u32,
+    pad1: u32,
+    // The chosen pipeline's own shading parameters (its `Pipeline::uniforms` sets them; the edl
+    // shading reads strength in x and radius in y).
+    shading: vec4<f32>,
     // Arena of each of the fused finish pass's four binding slots.
     arena_slots: vec4<u32>,
 }

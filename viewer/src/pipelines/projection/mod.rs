@@ -55,11 +55,13 @@ pub struct FrameUniforms {
     pub z_min: f32,
     pub z_max: f32,
     pub arena_shift: u32,
-    pub edl_strength: f32,
-    pub edl_radius: f32,
     pub background: u32,
+    pub pad0: u32,
+    pub pad1: u32,
+    /// The chosen pipeline's own shading parameters, set by `Pipeline::uniforms`.
+    pub shading: [f32; 4],
     /// Arena bound to each slot of the fused finish pass (set by `encode`).
-    pub arena_slots: [u32; 4],
+    pub arena_slots: [u32; FINISH_SLOTS],
 }
 
 /// One node's points inside an arena, as the projection shader reads it (`Range`).
@@ -156,8 +158,15 @@ impl Projection {
         Screen::buffers(self.int64, width, height)
     }
 
-    pub fn screen(&self, device: &wgpu::Device, width: u32, height: u32, previous: bool) -> Screen {
-        Screen::new(device, self.int64, width, height, previous)
+    pub fn screen(
+        &self,
+        device: &wgpu::Device,
+        queue: &wgpu::Queue,
+        width: u32,
+        height: u32,
+        previous: bool,
+    ) -> Screen {
+        Screen::new(device, queue, self.int64, width, height, previous)
     }
 
     /// Encodes clear and projection, then the fused finish where `fused` is given and the
@@ -423,9 +432,12 @@ impl PlaneShading {
     }
 }
 
-/// Workgroups of 16x16 pixels covering a `width` x `height` image.
+/// Pixels on a side of a full-screen pass's workgroup (`@workgroup_size(16, 16)`).
+pub const PIXEL_GROUP: u32 = 16;
+
+/// Workgroups of `PIXEL_GROUP`² pixels covering a `width` x `height` image.
 pub fn pixel_groups(width: u32, height: u32) -> (u32, u32) {
-    (width.div_ceil(16), height.div_ceil(16))
+    (width.div_ceil(PIXEL_GROUP), height.div_ceil(PIXEL_GROUP))
 }
 
 /// Spreads `groups` workgroups over x and y within the per-dimension limit.

@@ -53,6 +53,7 @@ impl Screen {
 
     pub fn new(
         device: &wgpu::Device,
+        queue: &wgpu::Queue,
         int64: bool,
         width: u32,
         height: u32,
@@ -98,7 +99,12 @@ impl Screen {
                 usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
                 mapped_at_creation: false,
             }),
-            previous_depths: previous.then(|| buffer("previous depths", pixels * 4)),
+            previous_depths: previous.then(|| {
+                // Nothing drawn before the first frame: every pixel empty, not at depth 0.
+                let b = buffer("previous depths", pixels * 4);
+                queue.write_buffer(&b, 0, &vec![0xff; (pixels * 4) as usize]);
+                b
+            }),
         }
     }
 
@@ -222,16 +228,18 @@ mod tests {
         use crate::gpu::readback::read_buffer;
         use crate::gpu::{GpuContext, ProjectionPath};
         let ctx = GpuContext::new(ProjectionPath::Auto).expect("GPU adapter");
-        let plain = Screen::new(&ctx.device, false, 7, 5, false);
+        let plain = Screen::new(&ctx.device, &ctx.queue, false, 7, 5, false);
         assert!(plain.previous_depths.is_none());
-        let screen = Screen::new(&ctx.device, false, 7, 5, true);
+        let screen = Screen::new(&ctx.device, &ctx.queue, false, 7, 5, true);
+        let prev = screen.previous_depths.as_ref().expect("kept");
+        let empty = read_buffer(&ctx, prev, 35 * 4).expect("readback");
+        assert!(empty.iter().all(|b| *b == 0xff), "a fresh plane is empty");
         let depths: Vec<u32> = (0..35u32).map(|i| i * 3 + 1).collect();
         ctx.queue
             .write_buffer(&screen.depths, 0, bytemuck::cast_slice(&depths));
         let mut encoder = ctx.device.create_command_encoder(&Default::default());
         screen.keep_depths(&mut encoder);
         ctx.queue.submit([encoder.finish()]);
-        let prev = screen.previous_depths.as_ref().expect("kept");
         let kept = read_buffer(&ctx, prev, 35 * 4).expect("readback");
         assert_eq!(bytemuck::cast_slice::<u8, u32>(&kept), depths.as_slice());
     }

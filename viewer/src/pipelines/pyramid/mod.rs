@@ -11,15 +11,13 @@ pub use passes::{
 
 use super::params::{Auto, ParamSpec, ResolvedParams, Scale};
 use super::projection::FrameUniforms;
-use super::{AlbedoResult, Lighting, Pipeline, PipelineFrame, PipelineInfo, ScreenBuffer, edl};
+use super::{AlbedoResult, Lighting, Pipeline, PipelineFrame, PipelineInfo, edl};
 use crate::ViewerError;
 use crate::gpu::GpuContext;
 use crate::gpu::async_readback::AsyncReadback;
 use crate::gpu::readback::read_buffer;
 use crate::gpu::timing::Timer;
 use crate::renderer::SurfacePixel;
-#[cfg(test)]
-pub(crate) use passes::uniforms_layout;
 use passes::{PyramidInputs, PyramidPasses, PyramidTargets};
 use std::collections::BTreeMap;
 
@@ -61,6 +59,7 @@ pub static INFO: PipelineInfo = PipelineInfo {
         "pyramid shade",
     ],
     previous_frame: false,
+    screen_buffers: PyramidPasses::screen_buffers,
     create,
     shaders: |_| passes::shaders(),
 };
@@ -75,6 +74,7 @@ struct Pyramid {
     /// The depth noise on its way back for the stats.
     noise_readback: AsyncReadback,
     depth_noise: Option<f32>,
+    device: wgpu::Device,
 }
 
 fn create(ctx: &GpuContext) -> Result<Box<dyn Pipeline>, ViewerError> {
@@ -83,6 +83,7 @@ fn create(ctx: &GpuContext) -> Result<Box<dyn Pipeline>, ViewerError> {
         targets: None,
         noise_readback: AsyncReadback::new(&ctx.device, "depth noise readback", 4),
         depth_noise: None,
+        device: ctx.device.clone(),
     }))
 }
 
@@ -99,10 +100,6 @@ impl Pipeline for Pyramid {
         edl::set_uniforms(params, params.on("edl"), uniforms);
     }
 
-    fn screen_buffers(&self, width: u32, height: u32) -> Vec<ScreenBuffer> {
-        PyramidPasses::screen_buffers(width, height)
-    }
-
     fn make_targets(&mut self, device: &wgpu::Device, screen: &super::projection::Screen) {
         self.targets = Some(self.passes.targets(device, screen.width, screen.height));
     }
@@ -110,6 +107,8 @@ impl Pipeline for Pyramid {
     fn release_targets(&mut self) {
         self.targets = None;
         self.depth_noise = None;
+        // A readback still on its way measured another picture.
+        self.noise_readback = AsyncReadback::new(&self.device, "depth noise readback", 4);
     }
 
     fn encode(
@@ -216,4 +215,26 @@ fn decode_octahedral(e: u32) -> [f32; 3] {
         n.y = (1.0 - x.abs()) * if y >= 0.0 { 1.0 } else { -1.0 };
     }
     n.normalize_or_zero().to_array()
+}
+
+#[cfg(test)]
+mod layout_tests {
+    use super::passes::uniforms_layout;
+    use super::{MAX_LEVELS, NOISE_BINS};
+    use crate::pipelines::shader_tests::{module_named, wgsl_const, wgsl_layout};
+
+    #[test]
+    fn uniforms_and_constants_match_pyramid_wgsl() {
+        let hpr = module_named("hpr");
+        assert_eq!(
+            wgsl_layout(&hpr, "Pyramid"),
+            uniforms_layout(),
+            "PyramidUniforms against Pyramid (pyramid.wgsl)"
+        );
+        assert_eq!(wgsl_const(&hpr, "MAX_LEVELS"), MAX_LEVELS as u64);
+        assert_eq!(
+            wgsl_const(&module_named("noise histogram"), "NOISE_BINS"),
+            NOISE_BINS
+        );
+    }
 }
