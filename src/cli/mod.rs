@@ -2,6 +2,7 @@ mod convert;
 mod demo;
 mod export;
 mod info;
+mod pick;
 mod pipelines;
 mod render;
 mod serve;
@@ -39,6 +40,8 @@ enum Command {
     View(view::Args),
     /// Render a dataset headless to PNG (one image or a fly-through), with statistics.
     Render(render::Args),
+    /// Print the stored point under a pixel of a view, with every attribute.
+    Pick(pick::Args),
     /// List the render pipelines with their parameters.
     Pipelines(pipelines::Args),
     /// Synthesize a scene, convert it and show it.
@@ -55,6 +58,7 @@ pub fn run(cli: Cli) -> anyhow::Result<ExitCode> {
         Command::Serve(a) => serve::run_serve(a),
         Command::View(a) => view::run(a),
         Command::Render(a) => render::run(a),
+        Command::Pick(a) => pick::run(a),
         Command::Pipelines(a) => pipelines::run(a),
         Command::Demo(a) => demo::run(a),
     }

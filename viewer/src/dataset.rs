@@ -166,7 +166,7 @@ impl StreamDataset {
         })
     }
 
-    fn read_columns(&self, info: &NodeInfo) -> Result<NodeColumns, ViewerError> {
+    pub(crate) fn read_columns(&self, info: &NodeInfo) -> Result<NodeColumns, ViewerError> {
         let payload = self
             .source
             .read(DatasetFile::Octree, info.offset, info.size as u64)?;

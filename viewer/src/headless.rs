@@ -2,6 +2,7 @@
 
 use crate::camera::Camera;
 use crate::gpu::{GpuContext, ProjectionPath};
+use crate::pick::PickedPoint;
 use crate::renderer::{FrameStats, Renderer};
 use crate::settings::Settings;
 use crate::{HttpOptions, StreamDataset, ViewerError};
@@ -184,6 +185,52 @@ pub fn render_with(
         write_atomic(path, json.as_bytes())?;
     }
     Ok(report)
+}
+
+/// Draws the view of `opts` (its camera, size and settings) until every node it calls for is
+/// resident, then picks the stored point nearest `pixel` within `radius` pixels, as the window
+/// does on a click.
+pub fn pick(
+    location: &str,
+    opts: &RenderOptions,
+    pixel: (u32, u32),
+    radius: u32,
+) -> Result<Option<PickedPoint>, ViewerError> {
+    let http = HttpOptions {
+        token: opts.token.clone(),
+        ..HttpOptions::default()
+    };
+    let ds = Arc::new(StreamDataset::open(location, http)?);
+    let ctx = Arc::new(GpuContext::new(opts.projection)?);
+    let camera = match &opts.camera {
+        Some(spec) => Camera::parse(
+            spec,
+            ds.anchor(),
+            default_camera(&ds, opts.width, opts.height),
+        )?,
+        None => default_camera(&ds, opts.width, opts.height),
+    };
+    if pixel.0 >= opts.width || pixel.1 >= opts.height {
+        return Err(ViewerError::argument(
+            format!("{},{}", pixel.0, pixel.1),
+            format!(
+                "the pixel lies outside the {}x{} view",
+                opts.width, opts.height
+            ),
+        ));
+    }
+    let mut renderer = Renderer::new(ctx, ds, opts.gpu_cache_bytes, opts.loader_threads)?;
+    renderer.check_size(opts.settings.pipeline, opts.width, opts.height)?;
+    let start = Instant::now();
+    loop {
+        let stats = renderer.frame(&camera, opts.width, opts.height, &opts.settings)?;
+        renderer.wait_gpu()?;
+        if stats.complete || start.elapsed() > opts.timeout {
+            break;
+        }
+        renderer.wait_for_loads(Duration::from_millis(20));
+    }
+    renderer.pick(pixel.0, pixel.1, radius)
 }
 
 fn cameras(ds: &StreamDataset, opts: &RenderOptions) -> Result<Vec<Camera>, ViewerError> {

@@ -10,6 +10,7 @@ pub mod headless;
 mod http_source;
 pub mod loader;
 pub mod lod;
+pub mod pick;
 pub mod pipelines;
 pub mod renderer;
 pub mod settings;

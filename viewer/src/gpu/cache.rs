@@ -117,6 +117,11 @@ impl NodeCache {
         self.slots.contains_key(&key)
     }
 
+    /// Every resident node with its pieces.
+    pub fn slots(&self) -> impl Iterator<Item = (NodeKey, &[Piece])> {
+        self.slots.iter().map(|(k, s)| (*k, s.pieces.as_slice()))
+    }
+
     pub fn pieces(&self, key: NodeKey) -> Option<&[Piece]> {
         self.slots.get(&key).map(|s| s.pieces.as_slice())
     }

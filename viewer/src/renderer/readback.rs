@@ -5,6 +5,7 @@ use super::Renderer;
 use crate::ViewerError;
 use crate::gpu::readback::{read_buffer, read_texture};
 use crate::gpu::timing::PassTimes;
+use crate::pick::{PickedPoint, locate, nearest_drawn};
 use std::collections::BTreeMap;
 
 impl Renderer {
@@ -63,6 +64,52 @@ impl Renderer {
                     .then_some([c[0], c[1], c[2]])
             })
             .collect())
+    }
+
+    /// The stored point nearest pixel `(x, y)` of the last frame, within `radius` pixels: read
+    /// from its node with every attribute in full precision, whatever the pipeline drew over it.
+    /// `None` where only background lies within reach.
+    pub fn pick(&self, x: u32, y: u32, radius: u32) -> Result<Option<PickedPoint>, ViewerError> {
+        let screen = self
+            .screen
+            .as_ref()
+            .ok_or_else(|| ViewerError::Gpu("no frame has been rendered".into()))?;
+        let pixels = screen.width as u64 * screen.height as u64;
+        let word = |b: &[u8]| u32::from_le_bytes([b[0], b[1], b[2], b[3]]);
+        let planes: Vec<Option<(u32, u32)>> = match &screen.keys {
+            Some(keys) if self.last_int64 => read_buffer(&self.ctx, keys, pixels * 8)?
+                .chunks_exact(8)
+                .map(|k| (word(&k[4..]) != u32::MAX).then(|| (word(&k[4..]), word(&k[..4]))))
+                .collect(),
+            _ => {
+                let depths = read_buffer(&self.ctx, &screen.depths, pixels * 4)?;
+                let indices = read_buffer(&self.ctx, &screen.indices, pixels * 4)?;
+                depths
+                    .chunks_exact(4)
+                    .zip(indices.chunks_exact(4))
+                    .map(|(d, i)| (word(d) != u32::MAX).then(|| (word(d), word(i))))
+                    .collect()
+            }
+        };
+        let Some((pixel, depth, global)) =
+            nearest_drawn(&planes, screen.width, screen.height, (x, y), radius)
+        else {
+            return Ok(None);
+        };
+        let shift = self.cache.arena_shift;
+        let (arena, local) = (global >> shift, global & ((1 << shift) - 1));
+        let missing = || {
+            ViewerError::Gpu(format!(
+                "the point drawn at pixel {},{} is no longer resident",
+                pixel[0], pixel[1]
+            ))
+        };
+        let (key, index) = locate(self.cache.slots(), arena, local).ok_or_else(missing)?;
+        let info = self.tree.node(key).ok_or_else(missing)?;
+        let mut point = self.ds.point(info, index)?;
+        point.pixel = pixel;
+        point.depth = f32::from_bits(depth);
+        Ok(Some(point))
     }
 
     /// Linear depth per pixel (`None` where nothing was drawn), for picking and tests.

@@ -5,7 +5,6 @@ use crate::camera::Camera;
 use crate::gpu::{GpuContext, ProjectionPath};
 use crate::headless::{default_camera, write_png};
 use crate::pipelines::REGISTRY;
-use crate::pipelines::params::{ParamSpec, ParamValue, Scale};
 use crate::renderer::{FrameStats, Renderer};
 use crate::settings::{ColourMode, MAX_BUDGET, MIN_BUDGET, Settings, SizeMode};
 use crate::{HttpOptions, StreamDataset, ViewerError};
@@ -14,6 +13,8 @@ use std::path::PathBuf;
 use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::Instant;
+
+mod params;
 
 pub struct WindowOptions {
     pub settings: Settings,
@@ -44,6 +45,8 @@ struct ViewerApp {
     auto_values: std::collections::HashMap<(&'static str, &'static str), f32>,
     /// The frame failed (a GPU fault, a lost device): shown in the panel, nothing drawn.
     error: Option<String>,
+    /// The point last clicked, as stored (or why none could be read).
+    picked: Option<Result<crate::pick::PickedPoint, String>>,
     /// The size the scene is rendered at, where the adapter holds less than the window asks.
     reduced: Option<(u32, u32, u32, u32)>,
     screenshot: Option<(PathBuf, u32)>,
@@ -76,6 +79,7 @@ pub fn run_window(location: &str, opts: WindowOptions) -> Result<(), ViewerError
         settings: opts.settings,
         auto_values: Default::default(),
         error: None,
+        picked: None,
         reduced: None,
         texture: None,
         stats: FrameStats::default(),
@@ -134,97 +138,6 @@ impl eframe::App for ViewerApp {
 }
 
 impl ViewerApp {
-    /// The chosen pipeline's parameters, from its table in the registry, and what it measured.
-    fn pipeline_controls(&mut self, ui: &mut egui::Ui) {
-        let info = self.settings.pipeline;
-        ui.label(egui::RichText::new(info.description).small());
-        if let Some(paper) = info.paper {
-            ui.label(egui::RichText::new(format!("paper {paper}")).small());
-        }
-        for spec in info.params {
-            if spec.auto.is_some()
-                && let Some(v) = self.stats.params.get(spec.name)
-                && self.settings.params.get(info, spec) == ParamValue::Auto
-            {
-                self.auto_values.insert((info.name, spec.name), *v);
-            }
-            self.param_control(ui, spec);
-        }
-        for (name, value) in &self.stats.measures {
-            ui.label(format!("{name} = {value:.4}"));
-        }
-    }
-
-    fn param_control(&mut self, ui: &mut egui::Ui, spec: &'static ParamSpec) {
-        let info = self.settings.pipeline;
-        let value = self.settings.params.get(info, spec);
-        let set = |app: &mut ViewerApp, v| app.settings.params.set(info, spec, v);
-        if spec.scale == Scale::Toggle {
-            let mut on = value == ParamValue::Value(1.0);
-            if ui
-                .checkbox(&mut on, spec.name)
-                .on_hover_text(spec.help)
-                .changed()
-            {
-                set(self, ParamValue::Value(if on { 1.0 } else { 0.0 }));
-            }
-            return;
-        }
-        let last_auto = self.auto_values.get(&(info.name, spec.name)).copied();
-        if spec.auto.is_some() {
-            let mut auto = value == ParamValue::Auto;
-            let label = format!("{} automatic", spec.name);
-            if ui
-                .checkbox(&mut auto, label)
-                .on_hover_text(spec.help)
-                .changed()
-            {
-                let manual = last_auto.unwrap_or(spec.default).clamp(spec.min, spec.max);
-                set(
-                    self,
-                    if auto {
-                        ParamValue::Auto
-                    } else {
-                        ParamValue::Value(manual)
-                    },
-                );
-            }
-        }
-        let ParamValue::Value(mut v) = self.settings.params.get(info, spec) else {
-            if let Some(v) = self.stats.params.get(spec.name) {
-                ui.label(format!("{} = {v:.4}", spec.name));
-            }
-            return;
-        };
-        let changed = match spec.scale {
-            Scale::Log => {
-                // Lengths span orders of magnitude: three decades around the automatic value.
-                let centre = last_auto.unwrap_or(v).max(spec.min.max(1e-12)).log10();
-                let range = (centre - 1.5).max(spec.min.max(1e-12).log10())
-                    ..=(centre + 1.5).min(spec.max.log10());
-                let mut log_v = v.max(1e-12).log10();
-                let slider = egui::Slider::new(&mut log_v, range).show_value(false);
-                let changed = ui.add(slider).on_hover_text(spec.help).changed();
-                v = 10f32.powf(log_v);
-                ui.label(format!("{} = {v:.4}", spec.name));
-                changed
-            }
-            Scale::Integer => {
-                let slider = egui::Slider::new(&mut v, spec.min..=spec.max)
-                    .step_by(1.0)
-                    .text(spec.name);
-                ui.add(slider).on_hover_text(spec.help).changed()
-            }
-            _ => {
-                let slider = egui::Slider::new(&mut v, spec.min..=spec.max).text(spec.name);
-                ui.add(slider).on_hover_text(spec.help).changed()
-            }
-        };
-        if changed {
-            set(self, ParamValue::Value(v.clamp(spec.min, spec.max)));
-        }
-    }
-
     fn panel(&mut self, ui: &mut egui::Ui) {
         ui.heading("Strata");
         ui.label(self.renderer.dataset().location());
@@ -294,6 +207,22 @@ impl ViewerApp {
                 egui::Color32::YELLOW,
                 format!("rendering at {rw}x{rh} of {w}x{h}: the adapter holds no larger image"),
             );
+        }
+        match &self.picked {
+            Some(Ok(p)) => {
+                ui.heading("Picked point");
+                for line in p.lines() {
+                    ui.label(egui::RichText::new(line).monospace().small());
+                }
+                if ui.button("Clear").clicked() {
+                    self.picked = None;
+                }
+                ui.separator();
+            }
+            Some(Err(e)) => {
+                ui.colored_label(egui::Color32::LIGHT_RED, e);
+            }
+            None => {}
         }
         let s = &self.stats;
         ui.heading("Statistics");
@@ -430,6 +359,11 @@ impl ViewerApp {
                 self.camera.zoom((-scroll * 0.002).exp());
             }
         }
+        if response.clicked()
+            && let Some(pos) = response.interact_pointer_pos()
+        {
+            self.pick(pos, rect);
+        }
         if response.double_clicked()
             && let Some(pos) = response.interact_pointer_pos()
         {
@@ -461,6 +395,27 @@ impl ViewerApp {
         if keys.3 {
             self.camera = self.home;
         }
+    }
+
+    /// The image pixel under a window position (the image may be smaller than the window).
+    fn image_pixel(&self, pos: egui::Pos2, rect: egui::Rect) -> Option<(u32, u32)> {
+        let output = self.renderer.output()?;
+        let (w, h) = (output.width(), output.height());
+        let x = (pos.x - rect.min.x) / rect.width().max(1.0) * w as f32;
+        let y = (pos.y - rect.min.y) / rect.height().max(1.0) * h as f32;
+        (x >= 0.0 && y >= 0.0 && x < w as f32 && y < h as f32).then_some((x as u32, y as u32))
+    }
+
+    /// Reads the stored point under a click for the panel.
+    fn pick(&mut self, pos: egui::Pos2, rect: egui::Rect) {
+        let Some((x, y)) = self.image_pixel(pos, rect) else {
+            return;
+        };
+        self.picked = match self.renderer.pick(x, y, 8) {
+            Ok(Some(p)) => Some(Ok(p)),
+            Ok(None) => None,
+            Err(e) => Some(Err(e.to_string())),
+        };
     }
 
     /// Centres the view on the point under the cursor (the nearest drawn pixel within 8).

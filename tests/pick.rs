@@ -1,0 +1,126 @@
+//! `strata pick`: the point under a pixel is the exact stored point, whatever the pipeline drew.
+
+mod common;
+
+use common::{data, gpu_run, las_points, s};
+use std::path::Path;
+
+fn picked(dataset: &Path, pixel: &str, pipeline: &str) -> Option<serde_json::Value> {
+    let o = gpu_run(&[
+        "pick",
+        s(dataset),
+        "--size",
+        "320x240",
+        "--pixel",
+        pixel,
+        "--pipeline",
+        pipeline,
+        "--json",
+    ]);
+    let stderr = String::from_utf8_lossy(&o.stderr);
+    assert!(!stderr.contains("panicked"), "{stderr}");
+    match o.status.code() {
+        Some(0) => Some(serde_json::from_slice(&o.stdout).expect("pick JSON")),
+        Some(3) => None,
+        other => panic!("strata pick {pixel}: exit {other:?}: {stderr}"),
+    }
+}
+
+#[test]
+fn a_picked_point_is_a_stored_point_with_every_attribute() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let dataset = dir.path().join("autzen.strata");
+    common::run_ok(&[
+        "convert",
+        s(&data("autzen_trim.laz")),
+        "-o",
+        s(&dataset),
+        "--quiet",
+    ]);
+    let exported = dir.path().join("all.las");
+    common::run_ok(&["export", s(&dataset), "-o", s(&exported)]);
+    let (points, scale) = las_points(&exported);
+    let mut checked = 0;
+    for pixel in ["160,120", "80,120", "240,120", "160,100", "200,140"] {
+        let Some(p) = picked(&dataset, pixel, "points") else {
+            continue;
+        };
+        let pos: Vec<f64> = (0..3)
+            .map(|i| p["position"][i].as_f64().expect("coordinate"))
+            .collect();
+        let q: [i64; 3] = std::array::from_fn(|i| (pos[i] / scale[i]).round() as i64);
+        // Full precision: the printed coordinates are the stored integers times the scale.
+        for i in 0..3 {
+            assert!(
+                (pos[i] - q[i] as f64 * scale[i]).abs() < scale[i] * 1e-3,
+                "{pixel}: {pos:?}"
+            );
+        }
+        let attr = |name: &str| {
+            p["attributes"]
+                .as_array()
+                .expect("attributes")
+                .iter()
+                .find(|a| a["name"] == name)
+                .and_then(|a| a["values"][0].as_f64())
+                .unwrap_or_else(|| panic!("{pixel}: no {name}"))
+        };
+        // The point lies where it was drawn: at the pixel and depth the projection found.
+        let ds = strata_viewer::StreamDataset::open_path(&dataset).expect("dataset opens");
+        let camera = strata_viewer::headless::default_camera(&ds, 320, 240);
+        let rel = (glam::DVec3::new(pos[0], pos[1], pos[2]) - ds.anchor()).as_vec3();
+        let (near, far) = strata_viewer::lod::clip_range(&ds, &camera);
+        let clip = camera.projection(320.0 / 240.0, near, far) * camera.view() * rel.extend(1.0);
+        let (fx, fy) = (
+            (clip.x / clip.w * 0.5 + 0.5) * 320.0,
+            (0.5 - clip.y / clip.w * 0.5) * 240.0,
+        );
+        let drawn = [
+            p["pixel"][0].as_f64().expect("x"),
+            p["pixel"][1].as_f64().expect("y"),
+        ];
+        assert!(
+            (fx.floor() as f64 - drawn[0]).abs() <= 1.0
+                && (fy.floor() as f64 - drawn[1]).abs() <= 1.0,
+            "{pixel}: the point projects to {fx},{fy}, drawn at {drawn:?}"
+        );
+        let depth = p["depth"].as_f64().expect("depth") as f32;
+        assert!(
+            (clip.w - depth).abs() <= depth * 1e-4,
+            "{pixel}: depth {} vs {depth}",
+            clip.w
+        );
+        let same_place: Vec<_> = points.iter().filter(|(xyz, _)| *xyz == q).collect();
+        assert!(
+            !same_place.is_empty(),
+            "{pixel}: no exported point at {q:?}"
+        );
+        // intensity, classification and GPS time of one of the points stored there.
+        let gps = attr("gps_time");
+        assert!(
+            same_place.iter().any(|(_, a)| {
+                a[0] == attr("intensity") as i64
+                    && a[3] == attr("classification") as i64
+                    && f64::from_bits(a[12] as u64) == gps
+            }),
+            "{pixel}: the picked attributes match no stored point at {q:?}"
+        );
+        // The same point under every pipeline: picking reads the projection, not the picture.
+        for pipeline in ["edl", "pyramid"] {
+            let other = picked(&dataset, pixel, pipeline).expect("the same pixel is drawn");
+            assert_eq!(other["position"], p["position"], "{pixel} with {pipeline}");
+            assert_eq!(other["index"], p["index"], "{pixel} with {pipeline}");
+        }
+        checked += 1;
+    }
+    assert!(checked >= 3, "only {checked} pixels had a point");
+    // Background: nothing to pick, said so with exit 3 and no output.
+    assert!(picked(&dataset, "0,0", "points").is_none());
+    let o = gpu_run(&["pick", s(&dataset), "--size", "64x64", "--pixel", "70,10"]);
+    assert!(!o.status.success());
+    let text = String::from_utf8_lossy(&o.stderr);
+    assert!(
+        text.contains("70,10") && !text.contains("panicked"),
+        "{text}"
+    );
+}

@@ -1,0 +1,243 @@
+//! Picking: the exact stored point under a pixel, read from its node in full precision (not an
+//! interpolated pixel of a reconstruction, nor the f32 the GPU draws with).
+
+use crate::ViewerError;
+use crate::dataset::StreamDataset;
+use serde::Serialize;
+use strata_format::{NodeInfo, NodeKey};
+
+/// One point as stored, found under a pixel.
+#[derive(Debug, Clone, Serialize)]
+pub struct PickedPoint {
+    /// The pixel of the point's splat that was nearest the one asked for.
+    pub pixel: [u32; 2],
+    /// Linear depth of the point from the camera, in dataset units.
+    pub depth: f32,
+    pub node: String,
+    /// The point's place inside its node.
+    pub index: usize,
+    /// Real-world coordinates: offset + scale x the stored integers.
+    pub position: [f64; 3],
+    pub attributes: Vec<PickedAttribute>,
+}
+
+/// One attribute of a picked point.
+#[derive(Debug, Clone, Serialize)]
+pub struct PickedAttribute {
+    pub name: String,
+    /// Its components, scaled where the attribute stores scaled integers.
+    pub values: Vec<f64>,
+    /// What the value means, where it has a name (ASPRS classes).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub meaning: Option<&'static str>,
+}
+
+impl PickedPoint {
+    /// One line a value, as `strata pick` prints it and the panel shows it.
+    pub fn lines(&self) -> Vec<String> {
+        let [x, y, z] = self.position;
+        let mut out = vec![
+            format!("x {x:.6}"),
+            format!("y {y:.6}"),
+            format!("z {z:.6}"),
+        ];
+        for a in &self.attributes {
+            let values: Vec<String> = a.values.iter().map(|v| format_value(*v)).collect();
+            let mut line = format!("{} {}", a.name, values.join(" "));
+            if let Some(m) = a.meaning {
+                line.push_str(&format!(" ({m})"));
+            }
+            out.push(line);
+        }
+        out.push(format!("node {} point {}", self.node, self.index));
+        out
+    }
+}
+
+/// Whole numbers without a fraction, others with all the digits they need.
+fn format_value(v: f64) -> String {
+    if v.fract() == 0.0 && v.abs() < 1e15 {
+        format!("{v:.0}")
+    } else {
+        format!("{v}")
+    }
+}
+
+/// The ASPRS name of a LAS classification (LAS 1.4, table 17).
+pub fn asprs_class_name(class: u8) -> &'static str {
+    match class {
+        0 => "created, never classified",
+        1 => "unclassified",
+        2 => "ground",
+        3 => "low vegetation",
+        4 => "medium vegetation",
+        5 => "high vegetation",
+        6 => "building",
+        7 => "low point (noise)",
+        8 => "model key-point",
+        9 => "water",
+        10 => "rail",
+        11 => "road surface",
+        12 => "overlap",
+        13 => "wire guard (shield)",
+        14 => "wire conductor (phase)",
+        15 => "transmission tower",
+        16 => "wire-structure connector",
+        17 => "bridge deck",
+        18 => "high noise",
+        19 => "overhead structure",
+        20 => "ignored ground",
+        21 => "snow",
+        22 => "temporal exclusion",
+        23..=63 => "reserved",
+        _ => "user definable",
+    }
+}
+
+impl StreamDataset {
+    /// Point `index` of node `info`, with every stored attribute, read from the dataset.
+    pub fn point(&self, info: &NodeInfo, index: usize) -> Result<PickedPoint, ViewerError> {
+        let columns = self.read_columns(info)?;
+        if index >= columns.count {
+            return Err(ViewerError::source(
+                self.location(),
+                format!(
+                    "node {} has {} points, none at {index}",
+                    info.key, columns.count
+                ),
+            ));
+        }
+        let m = self.metadata();
+        let int = columns.position(index);
+        let position = std::array::from_fn(|i| m.offset[i] + m.scale[i] * int[i] as f64);
+        let layout = m.row_layout();
+        let attributes = layout
+            .attributes
+            .iter()
+            .enumerate()
+            .map(|(k, a)| {
+                let size = a.ty.size();
+                let column = columns.attribute(&layout, k);
+                let raw = &column[index * a.size()..(index + 1) * a.size()];
+                let values: Vec<f64> = raw
+                    .chunks_exact(size)
+                    .enumerate()
+                    .map(|(c, b)| {
+                        let v = a.ty.read_f64(b);
+                        let scale = a.scale.as_ref().and_then(|s| s.get(c)).copied();
+                        let offset = a.offset.as_ref().and_then(|o| o.get(c)).copied();
+                        offset.unwrap_or(0.0) + scale.unwrap_or(1.0) * v
+                    })
+                    .collect();
+                let meaning = (a.name == "classification")
+                    .then(|| values.first().map(|c| asprs_class_name(*c as u8)))
+                    .flatten();
+                PickedAttribute {
+                    name: a.name.clone(),
+                    values,
+                    meaning,
+                }
+            })
+            .collect();
+        Ok(PickedPoint {
+            pixel: [0, 0],
+            depth: 0.0,
+            node: info.key.to_string(),
+            index,
+            position,
+            attributes,
+        })
+    }
+}
+
+/// The drawn pixel nearest `(x, y)` within `radius`, with its depth bits and point index, from a
+/// frame's per-pixel (depth bits, global index), `None` for background.
+pub fn nearest_drawn(
+    pixels: &[Option<(u32, u32)>],
+    width: u32,
+    height: u32,
+    (x, y): (u32, u32),
+    radius: u32,
+) -> Option<([u32; 2], u32, u32)> {
+    let r = radius as i64;
+    let mut best: Option<(i64, u32, [u32; 2], u32)> = None;
+    for dy in -r..=r {
+        for dx in -r..=r {
+            let (px, py) = (x as i64 + dx, y as i64 + dy);
+            if px < 0 || py < 0 || px >= width as i64 || py >= height as i64 {
+                continue;
+            }
+            let d2 = dx * dx + dy * dy;
+            if d2 > r * r {
+                continue;
+            }
+            let at = (py as u64 * width as u64 + px as u64) as usize;
+            if let Some(Some((depth, index))) = pixels.get(at).copied() {
+                // Nearest to the cursor first, then nearest to the eye.
+                if best.is_none_or(|b| (d2, depth) < (b.0, b.1)) {
+                    best = Some((d2, depth, [px as u32, py as u32], index));
+                }
+            }
+        }
+    }
+    best.map(|(_, depth, pixel, index)| (pixel, depth, index))
+}
+
+/// The node and the place in it of `local` in arena `arena`, from the node's pieces in the
+/// GPU cache (a node's points lie in its pieces in order).
+pub fn locate<'a>(
+    slots: impl Iterator<Item = (NodeKey, &'a [crate::gpu::cache::Piece])>,
+    arena: u32,
+    local: u32,
+) -> Option<(NodeKey, usize)> {
+    for (key, pieces) in slots {
+        let mut before = 0usize;
+        for p in pieces {
+            if p.arena == arena && (p.start..p.start + p.count).contains(&local) {
+                return Some((key, before + (local - p.start) as usize));
+            }
+            before += p.count as usize;
+        }
+    }
+    None
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::gpu::cache::Piece;
+
+    #[test]
+    fn a_point_is_found_in_the_piece_that_holds_it() {
+        let a = NodeKey::ROOT;
+        let pieces = [
+            Piece {
+                arena: 0,
+                start: 100,
+                count: 10,
+            },
+            Piece {
+                arena: 1,
+                start: 0,
+                count: 5,
+            },
+        ];
+        let slots = || std::iter::once((a, &pieces[..]));
+        assert_eq!(locate(slots(), 0, 104), Some((a, 4)));
+        assert_eq!(locate(slots(), 1, 3), Some((a, 13)));
+        assert_eq!(locate(slots(), 1, 5), None);
+        assert_eq!(locate(slots(), 0, 99), None);
+    }
+
+    #[test]
+    fn the_nearest_drawn_pixel_wins_then_the_nearest_to_the_eye() {
+        let (w, h) = (5u32, 5u32);
+        let mut px = vec![None; 25];
+        px[2 * 5 + 4] = Some((50, 7)); // (4, 2): two away
+        px[5 + 2] = Some((90, 8)); // (2, 1): one away
+        px[3 * 5 + 2] = Some((10, 9)); // (2, 3): one away, nearer the eye
+        assert_eq!(nearest_drawn(&px, w, h, (2, 2), 2), Some(([2, 3], 10, 9)));
+        assert_eq!(nearest_drawn(&px, w, h, (0, 4), 1), None);
+        assert_eq!(asprs_class_name(6), "building");
+    }
+}
