@@ -24,6 +24,16 @@ pub struct ViewArgs {
     /// Shorthand for `--set edl=1` (eye-dome lighting on top of the pyramid's shading).
     #[arg(long)]
     pub pyramid_edl: bool,
+    /// Show only these classification codes (comma-separated, e.g. 2,6).
+    #[arg(long, value_name = "CODES")]
+    pub classes: Option<String>,
+    /// Hide these classification codes (comma-separated, e.g. 7,18).
+    #[arg(long, value_name = "CODES")]
+    pub hide_classes: Option<String>,
+    /// Draw only points whose attribute lies in a range: intensity, elevation or return_number,
+    /// NAME=LOW..HIGH (repeatable; elevation in the dataset's coordinates).
+    #[arg(long = "filter", value_name = "NAME=LOW..HIGH")]
+    pub filter: Vec<String>,
     /// Point size in pixels (or, with --attenuate, in multiples of the point spacing).
     #[arg(long, default_value_t = 2.0)]
     pub point_size: f32,
@@ -92,6 +102,30 @@ impl ViewArgs {
         }
         for assignment in &self.set {
             settings.set_param(assignment).context("--set")?;
+        }
+        let codes = |flag: &str, list: &str| -> anyhow::Result<Vec<u8>> {
+            list.split(',')
+                .map(|c| {
+                    c.trim().parse::<u8>().map_err(|_| {
+                        anyhow::anyhow!(
+                            "{flag} {list:?}: {c:?} is not a classification code (0 to 255)"
+                        )
+                    })
+                })
+                .collect()
+        };
+        if let Some(list) = &self.classes {
+            settings
+                .filter
+                .set_classes(&codes("--classes", list)?, true);
+        }
+        if let Some(list) = &self.hide_classes {
+            settings
+                .filter
+                .set_classes(&codes("--hide-classes", list)?, false);
+        }
+        for range in &self.filter {
+            settings.filter.set_range(range).context("--filter")?;
         }
         Ok(settings)
     }

@@ -12,7 +12,8 @@ use strata_format::{
 };
 
 /// One node ready for upload: per point `[x, y, z, colour]` (f32 bits, then packed RGBA8) and
-/// `intensity16 | classification << 16`.
+/// `intensity16 | classification << 16 | return_number << 24` (raw intensity, return number up
+/// to 15).
 pub struct GpuNode {
     pub key: NodeKey,
     pub points: Vec<[u32; 4]>,
@@ -32,6 +33,7 @@ struct ColourSource {
     intensity: Option<(usize, AttrType)>,
     intensity_max: f64,
     classification: Option<(usize, AttrType)>,
+    return_number: Option<(usize, AttrType)>,
 }
 
 pub struct StreamDataset {
@@ -84,6 +86,7 @@ impl StreamDataset {
                 intensity: find("intensity"),
                 intensity_max: 1.0,
                 classification: find("classification"),
+                return_number: find("return_number"),
             },
             metadata,
             layout,
@@ -113,6 +116,11 @@ impl StreamDataset {
     /// Real-world position of the anchor that all viewer coordinates are relative to.
     pub fn anchor(&self) -> DVec3 {
         self.anchor
+    }
+
+    /// The intensity shown at full brightness (the 99th percentile of the root node's).
+    pub fn intensity_max(&self) -> f64 {
+        self.colour.intensity_max
     }
 
     pub fn has_rgb(&self) -> bool {
@@ -236,6 +244,9 @@ impl StreamDataset {
         let class = c
             .classification
             .map(|(i, ty)| (cols.attribute(&self.layout, i), ty));
+        let returns = c
+            .return_number
+            .map(|(i, ty)| (cols.attribute(&self.layout, i), ty));
         let mut points = Vec::with_capacity(n);
         let mut attributes = Vec::with_capacity(n);
         for p in 0..n {
@@ -253,10 +264,14 @@ impl StreamDataset {
                 }
                 None => 0xffc8_c8c8,
             };
+            // Raw, so that filters compare stored values; colouring scales it on the GPU.
             let inten = intensity.map_or(0, |(col, ty)| {
                 let s = ty.size();
-                let v = ty.read_f64(&col[p * s..(p + 1) * s]) / c.intensity_max;
-                (v.clamp(0.0, 1.0) * 65535.0) as u32
+                ty.read_f64(&col[p * s..(p + 1) * s]).clamp(0.0, 65535.0) as u32
+            });
+            let ret = returns.map_or(0, |(col, ty)| {
+                let s = ty.size();
+                (ty.read_f64(&col[p * s..(p + 1) * s]) as u32).min(15)
             });
             let cls = class.map_or(0, |(col, ty)| {
                 let s = ty.size();
@@ -268,7 +283,7 @@ impl StreamDataset {
                 (z as f32).to_bits(),
                 colour,
             ]);
-            attributes.push(inten | (cls << 16));
+            attributes.push(inten | (cls << 16) | (ret << 24));
         }
         GpuNode {
             key: info.key,

@@ -22,5 +22,5 @@ pub use error::ViewerError;
 pub use http_source::{HttpOptions, HttpSource};
 pub use pipelines::{PipelineInfo, REGISTRY};
 pub use renderer::{FrameStats, Renderer};
-pub use settings::{ColourMode, Settings};
+pub use settings::{ColourMode, PointFilter, Settings};
 pub use source::{MmapSource, Source};

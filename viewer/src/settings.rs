@@ -56,8 +56,89 @@ pub enum SizeMode {
     Attenuated,
 }
 
+/// Which points are drawn: classes shown, and ranges of intensity, elevation and return
+/// number. Applied in the projection, so hidden points leave no hole in any pipeline.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct PointFilter {
+    /// The classes shown (bit c of word c / 32); `None`: every class.
+    pub classes: Option<[u32; 8]>,
+    /// Raw intensity, inclusive.
+    pub intensity: Option<(f64, f64)>,
+    /// Real-world elevation (z), inclusive.
+    pub elevation: Option<(f64, f64)>,
+    pub return_number: Option<(u32, u32)>,
+}
+
+impl PointFilter {
+    /// Attributes `--filter` takes.
+    pub const RANGES: [&'static str; 3] = ["intensity", "elevation", "return_number"];
+
+    /// Shows only `classes` (`only`), or hides them.
+    pub fn set_classes(&mut self, classes: &[u8], only: bool) {
+        let mut mask = match (only, self.classes) {
+            (true, _) => [0u32; 8],
+            (false, Some(m)) => m,
+            (false, None) => [u32::MAX; 8],
+        };
+        for &c in classes {
+            let (word, bit) = (c as usize / 32, c as u32 % 32);
+            if only {
+                mask[word] |= 1 << bit;
+            } else {
+                mask[word] &= !(1 << bit);
+            }
+        }
+        self.classes = Some(mask);
+    }
+
+    /// Whether class `c` is shown.
+    pub fn shows_class(&self, c: u8) -> bool {
+        self.classes
+            .is_none_or(|m| m[c as usize / 32] & (1 << (c as u32 % 32)) != 0)
+    }
+
+    /// Sets a range from `NAME=LO..HI`; the error names what is wrong.
+    pub fn set_range(&mut self, assignment: &str) -> Result<(), ViewerError> {
+        let fail = |what: String| ViewerError::argument(assignment, what);
+        let (name, range) = assignment
+            .split_once('=')
+            .ok_or_else(|| fail("expected NAME=LOW..HIGH".into()))?;
+        let (lo, hi) = range
+            .split_once("..")
+            .and_then(|(l, h)| Some((l.trim().parse::<f64>().ok()?, h.trim().parse::<f64>().ok()?)))
+            .filter(|(l, h)| l.is_finite() && h.is_finite() && l <= h)
+            .ok_or_else(|| {
+                fail(format!(
+                    "{name} needs a range LOW..HIGH with LOW at most HIGH"
+                ))
+            })?;
+        match name.trim() {
+            "intensity" => self.intensity = Some((lo, hi)),
+            "elevation" => self.elevation = Some((lo, hi)),
+            "return_number" => {
+                let whole = |v: f64| v.fract() == 0.0 && (0.0..=15.0).contains(&v);
+                if !(whole(lo) && whole(hi)) {
+                    return Err(fail(
+                        "return_number takes whole numbers from 0 to 15".into(),
+                    ));
+                }
+                self.return_number = Some((lo as u32, hi as u32));
+            }
+            other => {
+                return Err(fail(format!(
+                    "no filter on {other:?} (there are {})",
+                    Self::RANGES.join(", ")
+                )));
+            }
+        }
+        Ok(())
+    }
+}
+
 #[derive(Clone)]
 pub struct Settings {
+    /// Which points are drawn.
+    pub filter: PointFilter,
     pub budget: u64,
     /// The render pipeline, from `pipelines::REGISTRY`.
     pub pipeline: &'static PipelineInfo,
@@ -83,6 +164,7 @@ impl Default for Settings {
     fn default() -> Settings {
         Settings {
             budget: 5_000_000,
+            filter: PointFilter::default(),
             pipeline: pipelines::REGISTRY
                 .iter()
                 .copied()

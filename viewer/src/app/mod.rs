@@ -14,6 +14,7 @@ use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::Instant;
 
+mod filters;
 mod params;
 
 pub struct WindowOptions {
@@ -41,6 +42,8 @@ struct ViewerApp {
     io_rate: f64,
     frame_ms_avg: f64,
     scene_size: f32,
+    /// The dataset's real-world elevation range, for the elevation filter.
+    bounds_z: (f64, f64),
     /// The last value of each automatic parameter, which its manual slider is centred on.
     auto_values: std::collections::HashMap<(&'static str, &'static str), f32>,
     /// The frame failed (a GPU fault, a lost device): shown in the panel, nothing drawn.
@@ -88,6 +91,7 @@ pub fn run_window(location: &str, opts: WindowOptions) -> Result<(), ViewerError
         io_rate: 0.0,
         frame_ms_avg: 0.0,
         scene_size: (max - min).length().max(1e-3),
+        bounds_z: (ds.metadata().bounds.min[2], ds.metadata().bounds.max[2]),
         screenshot: opts.screenshot,
         screenshot_done: Arc::new(AtomicBool::new(false)),
         screenshot_error: screenshot_error.clone(),
@@ -169,6 +173,8 @@ impl ViewerApp {
             }
         });
         self.pipeline_controls(ui);
+
+        self.filter_controls(ui);
 
         ui.label("Point size");
         ui.add(egui::Slider::new(&mut self.settings.point_size, 0.5..=10.0));

@@ -124,6 +124,12 @@ fn rust_structs_match_their_wgsl_layouts() {
             pad1,
             shading,
             arena_slots,
+            intensity_scale,
+            filters,
+            return_lo,
+            return_hi,
+            ranges,
+            class_mask,
         }),
         "FrameUniforms against Frame (frame.wgsl)"
     );
@@ -159,6 +165,15 @@ fn shared_constants_agree() {
     let project = module_named("project int64");
     assert_eq!(wgsl_const(&project, "GROUP_SIZE"), GROUP_SIZE as u64);
     assert_eq!(wgsl_const(&project, "EMPTY"), EMPTY as u64);
+    use super::projection::{FILTER_CLASSES, FILTER_ELEVATION, FILTER_INTENSITY, FILTER_RETURN};
+    for (name, v) in [
+        ("FILTER_CLASSES", FILTER_CLASSES),
+        ("FILTER_INTENSITY", FILTER_INTENSITY),
+        ("FILTER_ELEVATION", FILTER_ELEVATION),
+        ("FILTER_RETURN", FILTER_RETURN),
+    ] {
+        assert_eq!(wgsl_const(&project, name), v as u64, "{name}");
+    }
 }
 
 #[test]

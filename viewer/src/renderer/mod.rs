@@ -63,6 +63,37 @@ pub struct Renderer {
     bytes_total: u64,
 }
 
+/// Puts `filter` into the frame's uniforms; `anchor_z` is the elevation the GPU's z is relative to.
+fn set_filter(u: &mut FrameUniforms, filter: &crate::settings::PointFilter, anchor_z: f64) {
+    use crate::pipelines::projection::{
+        FILTER_CLASSES, FILTER_ELEVATION, FILTER_INTENSITY, FILTER_RETURN,
+    };
+    if let Some(mask) = filter.classes {
+        u.filters |= FILTER_CLASSES;
+        u.class_mask = [
+            [mask[0], mask[1], mask[2], mask[3]],
+            [mask[4], mask[5], mask[6], mask[7]],
+        ];
+    }
+    if let Some((lo, hi)) = filter.intensity {
+        u.filters |= FILTER_INTENSITY;
+        u.ranges[0] = lo as f32;
+        u.ranges[1] = hi as f32;
+    }
+    if let Some((lo, hi)) = filter.elevation {
+        u.filters |= FILTER_ELEVATION;
+        // Widened by a hair: f32 positions must not lose a point that lies on a bound.
+        let slack = |v: f64| v.abs().max(1.0) * 1e-6;
+        u.ranges[2] = (lo - anchor_z - slack(lo - anchor_z)) as f32;
+        u.ranges[3] = (hi - anchor_z + slack(hi - anchor_z)) as f32;
+    }
+    if let Some((lo, hi)) = filter.return_number {
+        u.filters |= FILTER_RETURN;
+        u.return_lo = lo;
+        u.return_hi = hi;
+    }
+}
+
 /// How long a node or page whose source did not answer waits before it is asked for again.
 const RETRY_PAUSE: Duration = Duration::from_millis(500);
 
@@ -493,7 +524,14 @@ impl Renderer {
             pad1: 0,
             shading: [0.0; 4],
             arena_slots: [u32::MAX; FINISH_SLOTS],
+            intensity_scale: (1.0 / self.ds.intensity_max().max(1e-9)) as f32,
+            filters: 0,
+            return_lo: 0,
+            return_hi: 0,
+            ranges: [0.0; 4],
+            class_mask: [[0; 4]; 2],
         };
+        set_filter(&mut uniforms, &settings.filter, self.ds.anchor().z);
         let wall = self.wall_clock(settings);
         let (Some(screen), Some(pipeline)) = (&self.screen, self.pipelines.get_mut(info.name))
         else {

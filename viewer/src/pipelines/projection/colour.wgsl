@@ -33,10 +33,10 @@ fn class_colour(c: u32) -> vec3<f32> {
 fn point_colour(p: vec4<u32>, a: u32) -> vec3<f32> {
     switch frame.colour_mode {
         case 1u: {
-            let v = pow(f32(a & 0xffffu) / 65535.0, 0.75);
+            let v = pow(min(f32(a & 0xffffu) * frame.intensity_scale, 1.0), 0.75);
             return vec3<f32>(v, v, v);
         }
-        case 2u: { return class_colour((a >> 16u) & 0xffu); }
+        case 2u: { return class_colour(attribute_class(a)); }
         case 3u: {
             let z = bitcast<f32>(p.z);
             return ramp((z - frame.z_min) / max(frame.z_max - frame.z_min, 1e-6));

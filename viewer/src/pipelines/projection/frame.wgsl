@@ -20,6 +20,26 @@ struct Frame {
     shading: vec4<f32>,
     // Arena of each of the fused finish pass's four binding slots.
     arena_slots: vec4<u32>,
+    // Colouring by intensity: 1 / the intensity shown at full brightness.
+    intensity_scale: f32,
+    // Which filters apply (FILTER_* bits); 0: every point passes.
+    filters: u32,
+    return_lo: u32,
+    return_hi: u32,
+    // Intensity from x to y, elevation (relative to the anchor) from z to w.
+    ranges: vec4<f32>,
+    // Classes shown: bit c of word c / 32.
+    class_mask: array<vec4<u32>, 2>,
+}
+
+const FILTER_CLASSES: u32 = 1u;
+const FILTER_INTENSITY: u32 = 2u;
+const FILTER_ELEVATION: u32 = 4u;
+const FILTER_RETURN: u32 = 8u;
+
+// The GPU attribute word: intensity (16 bits), classification (8), return number (4).
+fn attribute_class(a: u32) -> u32 {
+    return (a >> 16u) & 0xffu;
 }
 
 // ranges[0] is a header: start = arena index, count = number of ranges that follow.

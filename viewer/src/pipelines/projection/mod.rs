@@ -62,7 +62,23 @@ pub struct FrameUniforms {
     pub shading: [f32; 4],
     /// Arena bound to each slot of the fused finish pass (set by `encode`).
     pub arena_slots: [u32; FINISH_SLOTS],
+    /// 1 / the intensity shown at full brightness when colouring by intensity.
+    pub intensity_scale: f32,
+    /// `FILTER_*` bits: which of the filters below apply.
+    pub filters: u32,
+    pub return_lo: u32,
+    pub return_hi: u32,
+    /// Intensity range (raw), then elevation range relative to the anchor.
+    pub ranges: [f32; 4],
+    /// Classes shown: bit c of word c / 32.
+    pub class_mask: [[u32; 4]; 2],
 }
+
+/// The filter bits of `FrameUniforms::filters` (`FILTER_*` in frame.wgsl).
+pub const FILTER_CLASSES: u32 = 1;
+pub const FILTER_INTENSITY: u32 = 2;
+pub const FILTER_ELEVATION: u32 = 4;
+pub const FILTER_RETURN: u32 = 8;
 
 /// One node's points inside an arena, as the projection shader reads it (`Range`).
 #[repr(C)]
@@ -250,7 +266,7 @@ impl Projection {
                     if g.groups == 0 {
                         continue;
                     }
-                    pass.set_bind_group(1, &arena_bind(device, cache, pipe, g, false), &[]);
+                    pass.set_bind_group(1, &arena_bind(device, cache, pipe, g, true), &[]);
                     let (x, y) = split_groups(g.groups);
                     pass.dispatch_workgroups(x, y, 1);
                 }

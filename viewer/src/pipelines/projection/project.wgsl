@@ -4,8 +4,24 @@
 @group(0) @binding(0) var<uniform> frame: Frame;
 @group(1) @binding(0) var<storage, read> points: array<vec4<u32>>;
 @group(1) @binding(1) var<storage, read> ranges: array<Range>;
+@group(1) @binding(2) var<storage, read> attributes: array<u32>;
 
 const MAX_SPLAT: f32 = 15.0;
+
+// Whether a point passes the frame's filters; `z` relative to the anchor.
+fn passes_filters(z: f32, a: u32) -> bool {
+    let f = frame.filters;
+    let cls = attribute_class(a);
+    let word = frame.class_mask[cls / 128u][(cls / 32u) % 4u];
+    let intensity = f32(a & 0xffffu);
+    let ret = (a >> 24u) & 0xfu;
+    return ((f & FILTER_CLASSES) == 0u || (word & (1u << (cls % 32u))) != 0u)
+        && ((f & FILTER_INTENSITY) == 0u || (intensity >= frame.ranges.x && intensity <= frame.ranges.y))
+        && ((f & FILTER_ELEVATION) == 0u || (z >= frame.ranges.z && z <= frame.ranges.w))
+        && ((f & FILTER_RETURN) == 0u || (ret >= frame.return_lo && ret <= frame.return_hi));
+}
+
+
 
 @compute @workgroup_size(256)
 fn main(
@@ -36,6 +52,10 @@ fn main(
     }
     let idx = r.start + local;
     let p = points[idx];
+    // A point the filters hide is never drawn: it leaves no hole and costs nothing downstream.
+    if frame.filters != 0u && !passes_filters(bitcast<f32>(p.z), attributes[idx]) {
+        return;
+    }
     let clip = frame.view_proj * vec4<f32>(bitcast<vec3<f32>>(p.xyz), 1.0);
     if clip.w <= 0.0 || clip.z < 0.0 || clip.z > clip.w {
         return;

@@ -1,0 +1,166 @@
+//! Filters by class and by attribute range, applied in the projection: hidden points are absent
+//! from the image in every pipeline, and what is drawn (and picked) passes the filters.
+
+mod common;
+
+use common::{data, gpu_ok, gpu_run, read_png, s};
+use std::path::{Path, PathBuf};
+use std::sync::OnceLock;
+
+const BACKGROUND: [u8; 3] = [24, 26, 32];
+/// `class_colour(2)` of colour.wgsl, as the output stores it.
+const GROUND: [u8; 3] = [161, 115, 69];
+
+fn dataset() -> &'static Path {
+    static DIR: OnceLock<PathBuf> = OnceLock::new();
+    DIR.get_or_init(|| {
+        let dir = Path::new(env!("CARGO_TARGET_TMPDIR")).join("filters-fixture");
+        let _ = std::fs::remove_dir_all(&dir);
+        std::fs::create_dir_all(&dir).expect("fixture dir");
+        let out = dir.join("autzen.strata");
+        common::run_ok(&[
+            "convert",
+            s(&data("autzen_trim.laz")),
+            "-o",
+            s(&out),
+            "--quiet",
+        ]);
+        out
+    })
+}
+
+fn classified(extra: &[&str]) -> Vec<[u8; 3]> {
+    let ds = dataset();
+    let out = ds.with_file_name(format!("classes{}.png", extra.join("_").replace(',', "-")));
+    let mut args = vec![
+        "render",
+        s(ds),
+        "-o",
+        s(&out),
+        "--size",
+        "320x240",
+        "--pipeline",
+        "points",
+        "--colour",
+        "classification",
+        "--wait-complete",
+    ];
+    args.extend_from_slice(extra);
+    gpu_ok(&args);
+    let (_, _, rgba) = read_png(&out);
+    rgba.chunks_exact(4)
+        .map(|p| [p[0], p[1], p[2]])
+        .filter(|p| *p != BACKGROUND)
+        .collect()
+}
+
+#[test]
+fn a_class_shown_alone_or_hidden_is_all_or_nothing_of_the_image() {
+    let all = classified(&[]);
+    let ground_in_all = all.iter().filter(|p| **p == GROUND).count();
+    assert!(
+        ground_in_all > 1000 && ground_in_all < all.len(),
+        "{ground_in_all} of {}",
+        all.len()
+    );
+    let only = classified(&["--classes", "2"]);
+    assert!(only.len() > 1000);
+    assert!(
+        only.iter().all(|p| *p == GROUND),
+        "--classes 2 drew other classes"
+    );
+    let hidden = classified(&["--hide-classes", "2"]);
+    assert!(hidden.len() > 1000, "hiding ground hid everything");
+    assert!(
+        hidden.iter().all(|p| *p != GROUND),
+        "--hide-classes 2 drew ground"
+    );
+}
+
+fn pick(pipeline: &str, pixel: &str, filters: &[&str]) -> Option<serde_json::Value> {
+    let mut args = vec![
+        "pick",
+        s(dataset()),
+        "--size",
+        "320x240",
+        "--pixel",
+        pixel,
+        "--pipeline",
+        pipeline,
+        "--json",
+        "--radius",
+        "12",
+    ];
+    args.extend_from_slice(filters);
+    let o = gpu_run(&args);
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(!err.contains("panicked"), "{err}");
+    (o.status.code() == Some(0)).then(|| serde_json::from_slice(&o.stdout).expect("JSON"))
+}
+
+fn attribute(p: &serde_json::Value, name: &str) -> f64 {
+    p["attributes"]
+        .as_array()
+        .expect("attributes")
+        .iter()
+        .find(|a| a["name"] == name)
+        .and_then(|a| a["values"][0].as_f64())
+        .unwrap_or(f64::NAN)
+}
+
+#[test]
+fn every_pipeline_draws_only_what_passes_the_filters() {
+    let filters = [
+        "--hide-classes",
+        "2",
+        "--filter",
+        "elevation=430..470",
+        "--filter",
+        "intensity=0..400",
+        "--filter",
+        "return_number=1..1",
+    ];
+    for pipeline in ["points", "edl", "pyramid"] {
+        let mut picked = 0;
+        for pixel in ["160,120", "120,110", "200,130", "100,130", "220,100"] {
+            let Some(p) = pick(pipeline, pixel, &filters) else {
+                continue;
+            };
+            let z = p["position"][2].as_f64().expect("z");
+            assert!((430.0..=470.0).contains(&z), "{pipeline} {pixel}: z {z}");
+            assert_ne!(attribute(&p, "classification"), 2.0, "{pipeline} {pixel}");
+            assert!(attribute(&p, "intensity") <= 400.0, "{pipeline} {pixel}");
+            assert_eq!(attribute(&p, "return_number"), 1.0, "{pipeline} {pixel}");
+            picked += 1;
+        }
+        assert!(picked >= 2, "{pipeline}: only {picked} pixels had a point");
+    }
+}
+
+#[test]
+fn a_wrong_filter_is_refused_in_one_sentence() {
+    let ds = dataset();
+    for (args, names) in [
+        (
+            &["--filter", "gps_time=1..2"][..],
+            &["gps_time", "intensity, elevation"][..],
+        ),
+        (&["--filter", "elevation=9..1"], &["elevation", "LOW..HIGH"]),
+        (
+            &["--filter", "return_number=0.5..2"],
+            &["return_number", "whole"],
+        ),
+        (&["--classes", "2,x"], &["--classes", "\"x\""]),
+        (&["--hide-classes", "300"], &["--hide-classes", "0 to 255"]),
+    ] {
+        let mut all = vec!["render", s(ds), "-o", "unused.png"];
+        all.extend_from_slice(args);
+        let o = gpu_run(&all);
+        let t = String::from_utf8_lossy(&o.stderr);
+        assert!(!o.status.success(), "{args:?} was accepted");
+        assert_eq!(t.trim().lines().count(), 1, "{args:?}: {t}");
+        for n in names {
+            assert!(t.contains(n), "{args:?}: {t:?} does not name {n}");
+        }
+    }
+}

@@ -1,0 +1,76 @@
+//! The panel's filters: classification classes shown or hidden one by one (ASPRS names), and
+//! ranges of intensity, elevation and return number. The projection applies them, so they hold
+//! in every pipeline.
+
+use super::ViewerApp;
+use crate::pick::asprs_class_name;
+use eframe::egui;
+
+/// The classes the panel lists: the ASPRS standard ones (LAS 1.4).
+const LISTED_CLASSES: std::ops::RangeInclusive<u8> = 0..=22;
+
+impl ViewerApp {
+    pub(super) fn filter_controls(&mut self, ui: &mut egui::Ui) {
+        egui::CollapsingHeader::new("Filters")
+            .default_open(false)
+            .show(ui, |ui| {
+                ui.horizontal(|ui| {
+                    if ui.button("all classes").clicked() {
+                        self.settings.filter.classes = None;
+                    }
+                    if ui.button("none").clicked() {
+                        self.settings.filter.set_classes(&[], true);
+                    }
+                });
+                for c in LISTED_CLASSES {
+                    let mut shown = self.settings.filter.shows_class(c);
+                    let label = format!("{c} {}", asprs_class_name(c));
+                    if ui.checkbox(&mut shown, label).changed() {
+                        self.settings.filter.set_classes(&[c], false);
+                        if shown {
+                            let mask = self.settings.filter.classes.get_or_insert([u32::MAX; 8]);
+                            mask[c as usize / 32] |= 1 << (c as u32 % 32);
+                        }
+                    }
+                }
+                let (lo, hi) = (self.bounds_z.0, self.bounds_z.1);
+                range_control(
+                    ui,
+                    "elevation",
+                    &mut self.settings.filter.elevation,
+                    (lo, hi),
+                );
+                let imax = self.renderer.dataset().intensity_max().max(1.0) * 1.25;
+                range_control(
+                    ui,
+                    "intensity",
+                    &mut self.settings.filter.intensity,
+                    (0.0, imax),
+                );
+                let mut returns = self
+                    .settings
+                    .filter
+                    .return_number
+                    .map(|(a, b)| (a as f64, b as f64));
+                range_control(ui, "return number", &mut returns, (0.0, 15.0));
+                self.settings.filter.return_number =
+                    returns.map(|(a, b)| (a.round() as u32, b.round() as u32));
+            });
+    }
+}
+
+/// An optional range: a checkbox to apply it, then its two ends.
+fn range_control(ui: &mut egui::Ui, name: &str, range: &mut Option<(f64, f64)>, full: (f64, f64)) {
+    let mut on = range.is_some();
+    if ui.checkbox(&mut on, name).changed() {
+        *range = on.then_some(full);
+    }
+    if let Some((lo, hi)) = range.as_mut() {
+        let step = ((full.1 - full.0) / 200.0).max(1e-3);
+        ui.horizontal(|ui| {
+            ui.add(egui::DragValue::new(lo).speed(step).range(full.0..=*hi));
+            ui.label("to");
+            ui.add(egui::DragValue::new(hi).speed(step).range(*lo..=full.1));
+        });
+    }
+}
