@@ -1,10 +1,17 @@
 //! `strata serve` and remote datasets: bytes served equal bytes on disk, refusals, validators,
 //! renders over HTTP (from strata serve and from nginx) equal renders from disk, a server killed
-//! mid-stream, timeouts and graceful shutdown.
+//! mid-stream, timeouts and graceful shutdown; the attacks of issue 23 (serve/attacks.rs), HTTP/2
+//! (serve/h2c.rs) and a 20 s soak at 256 connections (serve/soak.rs).
 
+#[path = "serve/attacks.rs"]
+mod attacks;
 mod common;
+#[path = "serve/h2c.rs"]
+mod h2c;
 #[path = "common/http.rs"]
 mod http;
+#[path = "serve/soak.rs"]
+mod soak;
 
 use common::{data, s};
 use std::io::{BufRead, BufReader, Read, Write};
@@ -49,13 +56,17 @@ fn root() -> PathBuf {
 struct Server {
     child: Child,
     addr: String,
-    log: BufReader<std::process::ChildStderr>,
+    log: Option<BufReader<std::process::ChildStderr>>,
 }
 
 impl Server {
     fn start(extra: &[&str]) -> Server {
+        Server::start_in(&root(), extra)
+    }
+
+    fn start_in(dir: &Path, extra: &[&str]) -> Server {
         let mut child = common::strata()
-            .args(["serve", s(&root()), "--bind", "127.0.0.1:0"])
+            .args(["serve", s(dir), "--bind", "127.0.0.1:0"])
             .args(extra)
             .stdout(Stdio::piped())
             .stderr(Stdio::piped())
@@ -71,7 +82,7 @@ impl Server {
             .and_then(|r| r.split('/').next())
             .unwrap_or_else(|| panic!("no address in {first:?}"))
             .to_string();
-        let log = BufReader::new(child.stderr.take().expect("stderr"));
+        let log = Some(BufReader::new(child.stderr.take().expect("stderr")));
         Server { child, addr, log }
     }
 
@@ -408,9 +419,10 @@ fn render_then_kill_server(server: &mut Server, tag: &str, timeout: &str) -> Chi
         .expect("render starts");
     let mut served = 0;
     let mut line = String::new();
+    let log = server.log.as_mut().expect("the server's stderr");
     while served < 4 {
         line.clear();
-        if server.log.read_line(&mut line).expect("log") == 0 {
+        if log.read_line(&mut line).expect("log") == 0 {
             break;
         }
         served += line.contains("octree.bin") as u32;

@@ -1,6 +1,7 @@
 //! Helpers the benchmark binaries share, and the quality harness.
 
 pub mod quality;
+pub mod wrk;
 
 use anyhow::Context;
 use std::path::{Path, PathBuf};

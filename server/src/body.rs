@@ -1,45 +1,66 @@
-//! Response bodies: small ones in memory, files streamed in chunks.
+//! Response bodies: in memory (a range read in one go), or a large range streamed in chunks, each
+//! read on the blocking pool.
 
+use crate::blocking::BlockingPool;
 use bytes::Bytes;
-use http_body_util::{BodyExt, Full, combinators::BoxBody};
+use http_body_util::{BodyExt, Full, combinators::UnsyncBoxBody};
 use hyper::body::{Body, Frame, SizeHint};
+use std::fs::File;
+use std::future::Future;
 use std::pin::Pin;
+use std::sync::Arc;
 use std::task::{Context, Poll};
-use tokio::io::{AsyncRead, ReadBuf};
 
-pub type ResponseBody = BoxBody<Bytes, std::io::Error>;
+pub type ResponseBody = UnsyncBoxBody<Bytes, std::io::Error>;
 
-const CHUNK: usize = 64 * 1024;
+/// Chunk size when streaming a range too large to read in one go.
+const CHUNK: u64 = 1 << 20;
 
 pub fn full(bytes: impl Into<Bytes>) -> ResponseBody {
     Full::new(bytes.into())
         .map_err(|never| match never {})
-        .boxed()
+        .boxed_unsync()
 }
 
 pub fn empty() -> ResponseBody {
     full(Bytes::new())
 }
 
-/// `remaining` bytes of an already positioned file.
-pub struct FileBody {
-    file: tokio::fs::File,
-    remaining: u64,
-    buf: Vec<u8>,
+type Read = Pin<Box<dyn Future<Output = std::io::Result<Bytes>> + Send>>;
+
+/// Bytes `pos..end` of a file.
+pub struct FileStream {
+    file: Arc<File>,
+    pool: BlockingPool,
+    pos: u64,
+    end: u64,
+    pending: Option<Read>,
 }
 
-impl FileBody {
-    pub fn boxed_body(file: tokio::fs::File, len: u64) -> ResponseBody {
-        FileBody {
-            file,
-            remaining: len,
-            buf: vec![0; CHUNK],
+impl FileStream {
+    pub fn boxed_body(file: File, pool: BlockingPool, start: u64, end: u64) -> ResponseBody {
+        FileStream {
+            file: Arc::new(file),
+            pool,
+            pos: start,
+            end,
+            pending: None,
         }
-        .boxed()
+        .boxed_unsync()
+    }
+
+    fn next_read(&self) -> Read {
+        let (file, pool, pos) = (self.file.clone(), self.pool.clone(), self.pos);
+        let len = (self.end - pos).min(CHUNK) as usize;
+        Box::pin(async move {
+            pool.run(move || crate::files::read_range(&file, pos, len))
+                .await
+                .map_err(std::io::Error::other)?
+        })
     }
 }
 
-impl Body for FileBody {
+impl Body for FileStream {
     type Data = Bytes;
     type Error = std::io::Error;
 
@@ -48,35 +69,26 @@ impl Body for FileBody {
         cx: &mut Context<'_>,
     ) -> Poll<Option<Result<Frame<Bytes>, std::io::Error>>> {
         let this = self.get_mut();
-        if this.remaining == 0 {
+        if this.pos >= this.end {
             return Poll::Ready(None);
         }
-        let want = (this.remaining as usize).min(CHUNK);
-        let mut rb = ReadBuf::new(&mut this.buf[..want]);
-        match Pin::new(&mut this.file).poll_read(cx, &mut rb) {
-            Poll::Pending => Poll::Pending,
-            Poll::Ready(Err(e)) => Poll::Ready(Some(Err(e))),
-            Poll::Ready(Ok(())) => {
-                let n = rb.filled().len();
-                if n == 0 {
-                    return Poll::Ready(Some(Err(std::io::Error::new(
-                        std::io::ErrorKind::UnexpectedEof,
-                        "file shrank while being served",
-                    ))));
-                }
-                this.remaining -= n as u64;
-                Poll::Ready(Some(Ok(Frame::data(Bytes::copy_from_slice(
-                    &this.buf[..n],
-                )))))
-            }
-        }
+        let read = match &mut this.pending {
+            Some(r) => r,
+            None => this.pending.insert(this.next_read()),
+        };
+        let result = std::task::ready!(read.as_mut().poll(cx));
+        this.pending = None;
+        Poll::Ready(Some(result.map(|bytes| {
+            this.pos += bytes.len() as u64;
+            Frame::data(bytes)
+        })))
     }
 
     fn is_end_stream(&self) -> bool {
-        self.remaining == 0
+        self.pos >= self.end
     }
 
     fn size_hint(&self) -> SizeHint {
-        SizeHint::with_exact(self.remaining)
+        SizeHint::with_exact(self.end.saturating_sub(self.pos))
     }
 }

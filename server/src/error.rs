@@ -10,6 +10,8 @@ pub enum ServerError {
         #[source]
         source: std::io::Error,
     },
+    #[error("{0}")]
+    Token(String),
     #[error("server: {0}")]
     Io(#[from] std::io::Error),
 }

@@ -1,33 +1,42 @@
-//! One request: CORS, token, method, path, then the listing or a file (whole, one range, or
-//! not modified).
+//! One request: `Host`, CORS, token, method, path, then the listing or a dataset file; every
+//! answer is logged.
 
-use crate::body::{FileBody, ResponseBody, empty, full};
-use crate::listing;
-use crate::path::{Refusal, resolve, segments};
-use crate::range::{RangeRequest, parse_range};
+use crate::access_log::{AccessLog, Entry};
+use crate::auth::bearer_matches;
+use crate::blocking::BlockingPool;
+use crate::body::{ResponseBody, empty, full};
+use crate::catalog::Catalog;
+use crate::path::{Refusal, segments};
+use crate::serve_file::{self, Conditions, Failure};
 use crate::server::ServerConfig;
+use hyper::body::Body;
 use hyper::header::{self, HeaderValue};
-use hyper::{Method, Request, Response, StatusCode};
-use std::io::Write;
+use hyper::{Method, Request, Response, StatusCode, Version};
 use std::net::SocketAddr;
 use std::sync::Arc;
-use std::time::{Instant, UNIX_EPOCH};
-use tokio::io::AsyncSeekExt;
+use std::time::Instant;
+
+/// What every request shares.
+#[derive(Debug)]
+pub struct Shared {
+    pub config: ServerConfig,
+    pub catalog: Arc<Catalog>,
+    pub pool: BlockingPool,
+    pub log: Option<AccessLog>,
+}
 
 pub async fn handle<B>(
     req: Request<B>,
     peer: SocketAddr,
-    config: Arc<ServerConfig>,
+    shared: Arc<Shared>,
 ) -> Result<Response<ResponseBody>, std::convert::Infallible> {
     let start = Instant::now();
-    let method = req.method().clone();
-    let path = req.uri().path().to_string();
-    let mut resp = match tokio::time::timeout(config.request_timeout, respond(&req, &config)).await
-    {
+    let timeout = shared.config.request_timeout;
+    let mut resp = match tokio::time::timeout(timeout, respond(&req, &shared)).await {
         Ok(r) => r,
         Err(_) => status(StatusCode::SERVICE_UNAVAILABLE, "request timed out\n"),
     };
-    if let Some(origin) = &config.cors {
+    if let Some(origin) = &shared.config.cors {
         let h = resp.headers_mut();
         if let Ok(v) = HeaderValue::from_str(origin) {
             h.insert(header::ACCESS_CONTROL_ALLOW_ORIGIN, v);
@@ -42,21 +51,25 @@ pub async fn handle<B>(
             h.insert(header::VARY, HeaderValue::from_static("Origin"));
         }
     }
-    if config.access_log {
-        let bytes = resp
-            .headers()
-            .get(header::CONTENT_LENGTH)
-            .and_then(|v| v.to_str().ok())
-            .unwrap_or("0")
-            .to_string();
-        let _ = writeln!(
-            std::io::stderr(),
-            "{peer} \"{method} {path}\" {} {bytes} {:.1}ms",
-            resp.status().as_u16(),
-            start.elapsed().as_secs_f64() * 1e3
-        );
+    if let Some(log) = &shared.log {
+        let bytes = resp.body().size_hint().exact().unwrap_or(0);
+        let mut entry = Entry::new(peer, resp.status().as_u16(), bytes, start.elapsed());
+        entry.method = req.method().to_string();
+        entry.path = req.uri().path().to_string();
+        entry.version = version_name(req.version());
+        log.log(&entry);
     }
     Ok(resp)
+}
+
+fn version_name(v: Version) -> &'static str {
+    match v {
+        Version::HTTP_09 => "HTTP/0.9",
+        Version::HTTP_10 => "HTTP/1.0",
+        Version::HTTP_2 => "HTTP/2.0",
+        Version::HTTP_3 => "HTTP/3.0",
+        _ => "HTTP/1.1",
+    }
 }
 
 fn status(code: StatusCode, text: &'static str) -> Response<ResponseBody> {
@@ -71,21 +84,35 @@ fn status(code: StatusCode, text: &'static str) -> Response<ResponseBody> {
     r
 }
 
-fn authorized<B>(req: &Request<B>, token: &str) -> bool {
-    let Some(given) = req
-        .headers()
-        .get(header::AUTHORIZATION)
-        .and_then(|v| v.to_str().ok())
-        .and_then(|v| v.strip_prefix("Bearer "))
-    else {
-        return false;
-    };
-    // Constant time in the token's length: no early exit on the first differing byte.
-    let (a, b) = (given.trim().as_bytes(), token.as_bytes());
-    a.len() == b.len() && a.iter().zip(b).fold(0u8, |acc, (x, y)| acc | (x ^ y)) == 0
+fn not_found() -> Response<ResponseBody> {
+    status(StatusCode::NOT_FOUND, "not found\n")
 }
 
-async fn respond<B>(req: &Request<B>, config: &ServerConfig) -> Response<ResponseBody> {
+/// RFC 9112 §3.2: an HTTP/1.1 request carries exactly one `Host`, whose value is a host with an
+/// optional port (empty when the target has no authority). HTTP/2 carries `:authority` instead.
+fn host_ok<B>(req: &Request<B>) -> bool {
+    if req.version() != Version::HTTP_11 {
+        return true;
+    }
+    let mut hosts = req.headers().get_all(header::HOST).iter();
+    let (Some(host), None) = (hosts.next(), hosts.next()) else {
+        return false;
+    };
+    let host = host.as_bytes();
+    host.is_empty()
+        || (!host.contains(&b'@')
+            && std::str::from_utf8(host)
+                .is_ok_and(|h| h.parse::<hyper::http::uri::Authority>().is_ok()))
+}
+
+async fn respond<B>(req: &Request<B>, shared: &Shared) -> Response<ResponseBody> {
+    let config = &shared.config;
+    if !host_ok(req) {
+        return status(
+            StatusCode::BAD_REQUEST,
+            "an HTTP/1.1 request needs exactly one valid Host header\n",
+        );
+    }
     if req.method() == Method::OPTIONS && config.cors.is_some() {
         let mut r = Response::new(empty());
         *r.status_mut() = StatusCode::NO_CONTENT;
@@ -104,15 +131,19 @@ async fn respond<B>(req: &Request<B>, config: &ServerConfig) -> Response<Respons
         );
         return r;
     }
-    if let Some(token) = &config.token
-        && !authorized(req, token)
-    {
-        let mut r = status(StatusCode::UNAUTHORIZED, "a bearer token is required\n");
-        r.headers_mut().insert(
-            header::WWW_AUTHENTICATE,
-            HeaderValue::from_static("Bearer realm=\"strata\""),
-        );
-        return r;
+    if let Some(token) = &config.token {
+        let given = req
+            .headers()
+            .get(header::AUTHORIZATION)
+            .map(|v| v.as_bytes());
+        if !bearer_matches(given, token) {
+            let mut r = status(StatusCode::UNAUTHORIZED, "a bearer token is required\n");
+            r.headers_mut().insert(
+                header::WWW_AUTHENTICATE,
+                HeaderValue::from_static("Bearer realm=\"strata\""),
+            );
+            return r;
+        }
     }
     let head = req.method() == Method::HEAD;
     if req.method() != Method::GET && !head {
@@ -126,122 +157,44 @@ async fn respond<B>(req: &Request<B>, config: &ServerConfig) -> Response<Respons
         );
         return r;
     }
-    let segs = match segments(req.uri().path()) {
+    let mut segs = match segments(req.uri().path()) {
         Ok(s) => s,
         Err(Refusal::BadPath(_)) => return status(StatusCode::BAD_REQUEST, "bad path\n"),
-        Err(_) => return status(StatusCode::NOT_FOUND, "not found\n"),
+        Err(Refusal::NotFound) => return not_found(),
     };
     if segs.is_empty() {
-        let json = serde_json::to_vec_pretty(&listing::list(&config.root)).unwrap_or_default();
-        let len = json.len();
-        let mut r = Response::new(if head { empty() } else { full(json) });
-        let h = r.headers_mut();
-        h.insert(
-            header::CONTENT_TYPE,
-            HeaderValue::from_static("application/json"),
-        );
-        h.insert(header::CONTENT_LENGTH, HeaderValue::from(len));
-        h.insert(header::CACHE_CONTROL, HeaderValue::from_static("no-cache"));
-        return r;
+        return listing(shared, head).await;
     }
-    let root = config.root.clone();
-    let file = match tokio::task::spawn_blocking(move || resolve(&root, &segs)).await {
-        Ok(Ok(p)) => p,
-        Ok(Err(Refusal::Outside)) => {
-            return status(StatusCode::FORBIDDEN, "outside the served directory\n");
-        }
-        Ok(Err(Refusal::BadPath(_))) => return status(StatusCode::BAD_REQUEST, "bad path\n"),
-        _ => return status(StatusCode::NOT_FOUND, "not found\n"),
+    // A dataset's files lie directly in its directory: `/DATASET/FILE`, nothing deeper.
+    if segs.len() != 2 {
+        return not_found();
+    }
+    let (Some(name), Some(dataset)) = (segs.pop(), segs.pop()) else {
+        return not_found();
     };
-    serve_file(req, &file, head).await
+    let conditions = Conditions::of(req.headers(), head);
+    let catalog = shared.catalog.clone();
+    match serve_file::serve(catalog, &shared.pool, dataset, name, conditions).await {
+        Ok(r) => r,
+        Err(Failure::NotFound) => not_found(),
+        Err(Failure::Io) => status(StatusCode::INTERNAL_SERVER_ERROR, "cannot read\n"),
+    }
 }
 
-async fn serve_file<B>(
-    req: &Request<B>,
-    path: &std::path::Path,
-    head: bool,
-) -> Response<ResponseBody> {
-    let Ok(mut f) = tokio::fs::File::open(path).await else {
-        return status(StatusCode::NOT_FOUND, "not found\n");
+async fn listing(shared: &Shared, head: bool) -> Response<ResponseBody> {
+    let catalog = shared.catalog.clone();
+    let Ok(list) = shared.pool.run(move || catalog.list()).await else {
+        return status(StatusCode::INTERNAL_SERVER_ERROR, "cannot list\n");
     };
-    let Ok(meta) = f.metadata().await else {
-        return status(StatusCode::NOT_FOUND, "not found\n");
-    };
-    if !meta.is_file() {
-        return status(StatusCode::NOT_FOUND, "not found\n");
-    }
-    let len = meta.len();
-    let modified = meta.modified().ok();
-    let mtime_ns = modified
-        .and_then(|m| m.duration_since(UNIX_EPOCH).ok())
-        .map_or(0, |d| d.as_nanos());
-    let etag = format!("\"{len:x}-{mtime_ns:x}\"");
-    let mut builder = Response::builder()
-        .header(header::ACCEPT_RANGES, "bytes")
-        .header(header::ETAG, &etag)
-        .header(header::CACHE_CONTROL, "public, max-age=60")
-        .header(header::CONTENT_TYPE, content_type(path));
-    if let Some(m) = modified {
-        builder = builder.header(header::LAST_MODIFIED, httpdate::fmt_http_date(m));
-    }
-    let if_none_match = req
-        .headers()
-        .get(header::IF_NONE_MATCH)
-        .and_then(|v| v.to_str().ok());
-    if if_none_match.is_some_and(|v| v.split(',').any(|t| t.trim() == etag || t.trim() == "*")) {
-        return builder
-            .status(StatusCode::NOT_MODIFIED)
-            .body(empty())
-            .unwrap_or_else(|_| status(StatusCode::INTERNAL_SERVER_ERROR, "response\n"));
-    }
-    // A range applies only while the representation is the one the client saw.
-    let if_range_ok = req
-        .headers()
-        .get(header::IF_RANGE)
-        .and_then(|v| v.to_str().ok())
-        .is_none_or(|v| v.trim() == etag);
-    let range_header = req
-        .headers()
-        .get(header::RANGE)
-        .and_then(|v| v.to_str().ok())
-        .filter(|_| if_range_ok);
-    let (code, start, end) = match parse_range(range_header, len) {
-        RangeRequest::Whole => (StatusCode::OK, 0, len),
-        RangeRequest::Part { start, end } => {
-            builder = builder.header(
-                header::CONTENT_RANGE,
-                format!("bytes {start}-{}/{len}", end - 1),
-            );
-            (StatusCode::PARTIAL_CONTENT, start, end)
-        }
-        RangeRequest::Unsatisfiable => {
-            return builder
-                .status(StatusCode::RANGE_NOT_SATISFIABLE)
-                .header(header::CONTENT_RANGE, format!("bytes */{len}"))
-                .header(header::CONTENT_LENGTH, 0)
-                .body(empty())
-                .unwrap_or_else(|_| status(StatusCode::INTERNAL_SERVER_ERROR, "response\n"));
-        }
-    };
-    let count = end - start;
-    builder = builder.status(code).header(header::CONTENT_LENGTH, count);
-    let body = if head || count == 0 {
-        empty()
-    } else {
-        if start > 0 && f.seek(std::io::SeekFrom::Start(start)).await.is_err() {
-            return status(StatusCode::INTERNAL_SERVER_ERROR, "cannot seek\n");
-        }
-        FileBody::boxed_body(f, count)
-    };
-    builder
-        .body(body)
-        .unwrap_or_else(|_| status(StatusCode::INTERNAL_SERVER_ERROR, "response\n"))
-}
-
-fn content_type(path: &std::path::Path) -> &'static str {
-    match path.extension().and_then(|e| e.to_str()) {
-        Some("json") => "application/json",
-        Some("png") => "image/png",
-        _ => "application/octet-stream",
-    }
+    let json = serde_json::to_vec_pretty(&list).unwrap_or_default();
+    let len = json.len();
+    let mut r = Response::new(if head { empty() } else { full(json) });
+    let h = r.headers_mut();
+    h.insert(
+        header::CONTENT_TYPE,
+        HeaderValue::from_static("application/json"),
+    );
+    h.insert(header::CONTENT_LENGTH, HeaderValue::from(len));
+    h.insert(header::CACHE_CONTROL, HeaderValue::from_static("no-cache"));
+    r
 }

@@ -1,9 +1,8 @@
-//! Mapping a request path to a file inside the served directory, refusing anything that could
-//! leave it: `..`, percent-encoded separators and dots, absolute and empty segments, hidden
-//! names, and symlinks that point outside.
+//! Splitting a request path into segments, refusing anything that could leave the served
+//! directory: `..`, percent-encoded separators and dots, absolute and empty segments, hidden
+//! names. Symlinks are the catalog's concern.
 
 use percent_encoding::percent_decode_str;
-use std::path::{Path, PathBuf};
 
 #[derive(Debug, PartialEq, Eq)]
 pub enum Refusal {
@@ -11,8 +10,6 @@ pub enum Refusal {
     BadPath(&'static str),
     /// Nothing there (404).
     NotFound,
-    /// It resolves outside the directory, through a symlink (403).
-    Outside,
 }
 
 /// Checks the raw request path and returns the relative segments it names.
@@ -47,19 +44,6 @@ pub fn segments(raw: &str) -> Result<Vec<String>, Refusal> {
         out.push(seg.to_string());
     }
     Ok(out)
-}
-
-/// The canonical path of `segments` under `root` (itself canonical), if it stays inside.
-pub fn resolve(root: &Path, segments: &[String]) -> Result<PathBuf, Refusal> {
-    let mut p = root.to_path_buf();
-    for s in segments {
-        p.push(s);
-    }
-    let canonical = std::fs::canonicalize(&p).map_err(|_| Refusal::NotFound)?;
-    if !canonical.starts_with(root) {
-        return Err(Refusal::Outside);
-    }
-    Ok(canonical)
 }
 
 #[cfg(test)]

@@ -1,17 +1,21 @@
-//! The accept loop: a connection limit, idle and header timeouts, graceful shutdown.
+//! The accept loop: HTTP/1.1 and HTTP/2 (h2c, prior knowledge) on one port, a connection
+//! limit, idle and header timeouts, parser rejections logged, graceful shutdown.
 
 use crate::ServerError;
-use crate::handler::handle;
+use crate::access_log::{AccessLog, Entry, LogFormat};
+use crate::blocking::BlockingPool;
+use crate::catalog::Catalog;
+use crate::handler::{Shared, handle};
 use crate::idle::IdleTimeout;
-use hyper::server::conn::http1;
 use hyper::service::service_fn;
-use hyper_util::rt::{TokioIo, TokioTimer};
+use hyper_util::rt::{TokioExecutor, TokioIo, TokioTimer};
+use hyper_util::server::conn::auto;
 use hyper_util::server::graceful::GracefulShutdown;
 use std::future::Future;
 use std::io::Write;
 use std::path::PathBuf;
 use std::sync::Arc;
-use std::time::Duration;
+use std::time::{Duration, Instant};
 use tokio::net::TcpListener;
 use tokio::sync::Semaphore;
 
@@ -32,6 +36,12 @@ pub struct ServerConfig {
     /// How long shutdown waits for requests in flight.
     pub shutdown_grace: Duration,
     pub access_log: bool,
+    pub log_format: LogFormat,
+    /// Threads of the file-system pool at most, counting those stuck in a call that outlived its
+    /// request.
+    pub blocking_threads: usize,
+    /// Threads of the file-system pool that serve its queue.
+    pub blocking_workers: usize,
 }
 
 impl ServerConfig {
@@ -56,6 +66,12 @@ impl ServerConfig {
             header_timeout: Duration::from_secs(10),
             shutdown_grace: Duration::from_secs(10),
             access_log: true,
+            log_format: LogFormat::Text,
+            blocking_threads: 64,
+            // A few per core: more threads only trade places on the cores.
+            blocking_workers: std::thread::available_parallelism()
+                .map_or(4, |n| 2 * n.get())
+                .max(4),
         })
     }
 }
@@ -69,13 +85,60 @@ pub async fn bind(addr: &str) -> Result<TcpListener, ServerError> {
         })
 }
 
+/// The HTTP/1.1 and HTTP/2 settings every connection shares.
+fn connection_builder(config: &ServerConfig) -> auto::Builder<TokioExecutor> {
+    let mut builder = auto::Builder::new(TokioExecutor::new());
+    builder
+        .http1()
+        .timer(TokioTimer::new())
+        .header_read_timeout(config.header_timeout)
+        .keep_alive(true);
+    builder
+        .http2()
+        .timer(TokioTimer::new())
+        .max_concurrent_streams(256)
+        // Windows large enough that a 64 KiB node never waits on a WINDOW_UPDATE.
+        .initial_stream_window_size(1 << 20)
+        .initial_connection_window_size(16 << 20)
+        .max_send_buf_size(1 << 20);
+    builder
+}
+
+/// The status hyper answered a request it could not parse with, if that is how `e` came about.
+fn rejected_with(e: &(dyn std::error::Error + 'static)) -> Option<u16> {
+    let e = e.downcast_ref::<hyper::Error>()?;
+    if !e.is_parse() {
+        return None;
+    }
+    Some(if e.is_parse_too_large() {
+        if e.to_string().contains("URI") {
+            414
+        } else {
+            431
+        }
+    } else {
+        400
+    })
+}
+
 /// Serves until `shutdown` completes, then waits up to the grace period for open requests.
 pub async fn run(
     listener: TcpListener,
     config: ServerConfig,
     shutdown: impl Future<Output = ()>,
 ) -> Result<(), ServerError> {
-    let config = Arc::new(config);
+    let log = match config.access_log {
+        true => Some(AccessLog::start(config.log_format)?),
+        false => None,
+    };
+    let shared = Arc::new(Shared {
+        catalog: Arc::new(Catalog::new(config.root.clone())),
+        pool: BlockingPool::new(config.blocking_workers, config.blocking_threads),
+        log,
+        config,
+    });
+    let config = &shared.config;
+    let builder = Arc::new(connection_builder(config));
     let slots = Arc::new(Semaphore::new(config.max_connections.max(1)));
     let graceful = GracefulShutdown::new();
     let mut shutdown = std::pin::pin!(shutdown);
@@ -93,27 +156,26 @@ pub async fn run(
                 Ok(x) => x,
                 Err(e) => {
                     // Out of descriptors and the like: back off rather than spin.
-                    let _ = writeln!(
-            std::io::stderr(),
-            "accept failed: {e}");
+                    let _ = writeln!(std::io::stderr(), "accept failed: {e}");
                     tokio::time::sleep(Duration::from_millis(50)).await;
                     continue;
                 }
             },
             () = &mut shutdown => break,
         };
+        let accepted = Instant::now();
         let _ = stream.set_nodelay(true);
         let io = TokioIo::new(IdleTimeout::new(stream, config.idle_timeout));
-        let cfg = config.clone();
-        let service = service_fn(move |req| handle(req, peer, cfg.clone()));
-        let conn = http1::Builder::new()
-            .timer(TokioTimer::new())
-            .header_read_timeout(config.header_timeout)
-            .keep_alive(true)
-            .serve_connection(io, service);
-        let conn = graceful.watch(conn);
+        let for_service = shared.clone();
+        let service = service_fn(move |req| handle(req, peer, for_service.clone()));
+        let conn = graceful.watch(builder.serve_connection(io, service).into_owned());
+        let for_log = shared.clone();
         tokio::spawn(async move {
-            let _ = conn.await;
+            if let Err(e) = conn.await
+                && let (Some(status), Some(log)) = (rejected_with(&*e), &for_log.log)
+            {
+                log.log(&Entry::new(peer, status, 0, accepted.elapsed()));
+            }
             drop(permit);
         });
     }

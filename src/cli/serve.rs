@@ -1,8 +1,9 @@
+use anyhow::Context;
 use std::io::Write;
 use std::path::PathBuf;
 use std::process::ExitCode;
 use std::time::Duration;
-use strata_server::{ServerConfig, bind, run, shutdown_signal};
+use strata_server::{LogFormat, ServerConfig, bind, check_token, run, shutdown_signal};
 
 #[derive(Debug, clap::Args)]
 pub struct Args {
@@ -11,9 +12,13 @@ pub struct Args {
     /// Address to listen on.
     #[arg(long, default_value = "127.0.0.1:8080")]
     bind: String,
-    /// Require `Authorization: Bearer TOKEN` on every request.
-    #[arg(long)]
+    /// Require `Authorization: Bearer TOKEN` on every request (an empty token is refused).
+    #[arg(long, conflicts_with = "token_file")]
     token: Option<String>,
+    /// As --token, with the token read from FILE (kept out of `ps`); surrounding whitespace
+    /// is dropped.
+    #[arg(long, value_name = "FILE")]
+    token_file: Option<PathBuf>,
     /// Send CORS headers allowing this origin (`*` for any) so browsers may fetch.
     #[arg(long)]
     cors: Option<String>,
@@ -29,21 +34,58 @@ pub struct Args {
     /// Seconds a client has to send its request headers.
     #[arg(long, default_value_t = 10)]
     header_timeout: u64,
+    /// Threads for file-system calls (open, stat, read) at most. A few per core serve the
+    /// queue; a call stuck on a file that never answers keeps its thread and another takes its
+    /// place, until this many.
+    #[arg(long, default_value_t = 64)]
+    blocking_threads: usize,
+    /// Access log lines as `text` or `json` (one object a line).
+    #[arg(long, value_enum, default_value_t = LogFormatArg::Text)]
+    log_format: LogFormatArg,
     /// No access log lines on stderr.
     #[arg(long)]
     quiet: bool,
 }
 
+#[derive(Debug, Clone, Copy, clap::ValueEnum)]
+enum LogFormatArg {
+    Text,
+    Json,
+}
+
+/// The token from --token or --token-file, checked.
+fn token(a: &Args) -> anyhow::Result<Option<String>> {
+    if let Some(t) = &a.token {
+        return Ok(Some(check_token(t, "--token")?));
+    }
+    let Some(file) = &a.token_file else {
+        return Ok(None);
+    };
+    let raw = std::fs::read_to_string(file)
+        .with_context(|| format!("{}: cannot read the token file", file.display()))?;
+    Ok(Some(check_token(
+        &raw,
+        &format!("the token file {}", file.display()),
+    )?))
+}
+
 pub fn run_serve(a: Args) -> anyhow::Result<ExitCode> {
     let mut config = ServerConfig::new(&a.dir)?;
-    config.token = a.token.filter(|t| !t.is_empty());
+    config.token = token(&a)?;
     config.cors = a.cors;
     config.max_connections = a.max_connections.max(1);
     config.request_timeout = Duration::from_secs(a.request_timeout.max(1));
     config.idle_timeout = Duration::from_secs(a.idle_timeout.max(1));
     config.header_timeout = Duration::from_secs(a.header_timeout.max(1));
     config.access_log = !a.quiet;
+    config.log_format = match a.log_format {
+        LogFormatArg::Text => LogFormat::Text,
+        LogFormatArg::Json => LogFormat::Json,
+    };
+    config.blocking_threads = a.blocking_threads.max(1);
     let runtime = tokio::runtime::Builder::new_multi_thread()
+        // File-system calls go to the server's own pool; tokio's serves nothing of ours.
+        .max_blocking_threads(4)
         .enable_all()
         .build()?;
     runtime.block_on(async {

@@ -3,6 +3,10 @@
 //! server's memory, and, in the same run, the rate of reading the same ranges from the local
 //! file (pread on every core) as the ratio.
 //!
+//! With `--against-nginx`, wrk loads strata and nginx serving the same folder instead, in
+//! alternating pairs (strata, then nginx, at each client count, `--rounds` times), with random
+//! 1 B to 64 KiB ranges of octree.bin, and prints each pair's ratios.
+//!
 //! Options: `USAGE` below, or `--help`.
 
 use anyhow::{Context, bail};
@@ -150,7 +154,93 @@ fn local_load(
 }
 
 const USAGE: &str = "cargo run --release -p strata-bench --bin serve-bench -- [--clients 64,256] [--seconds 10]\n    \
-       [--points 10M] [--dataset DIR]";
+       [--points 10M] [--dataset DIR] [--against-nginx [--rounds 3] [--wrk-threads 2]]";
+
+/// The folder a dataset lies in (the one to serve) and its name there.
+fn root_and_name(dataset: &std::path::Path) -> anyhow::Result<(&std::path::Path, &str)> {
+    let root = dataset
+        .parent()
+        .context("dataset has no parent directory")?;
+    let name = dataset
+        .file_name()
+        .and_then(|n| n.to_str())
+        .context("dataset name")?;
+    Ok((root, name))
+}
+
+/// wrk against strata and nginx in alternating pairs; prints one row per pair and the medians.
+fn against_nginx(
+    strata_addr: &str,
+    dataset: &std::path::Path,
+    clients: &[usize],
+    seconds: u64,
+    rounds: usize,
+    wrk_threads: usize,
+) -> anyhow::Result<()> {
+    use strata_bench::wrk::{run_wrk, start_nginx};
+    let (root, name) = root_and_name(dataset)?;
+    let len = std::fs::metadata(dataset.join("octree.bin"))?.len();
+    let work = tempfile::tempdir()?;
+    let nginx = start_nginx(root, work.path())?;
+    println!(
+        "\nwrk -t {wrk_threads} -d {seconds}s --latency, random 1 B-64 KiB ranges of {}/octree.bin \
+         ({len} bytes), loopback, {} cores; strata --quiet, nginx worker_processes auto, sendfile, \
+         access_log off\n",
+        dataset.display(),
+        std::thread::available_parallelism().map_or(1, |n| n.get())
+    );
+    println!(
+        "| round | connections | strata req/s | nginx req/s | req/s ratio | strata p99 ms | nginx p99 ms | p99 ratio | errors (strata / nginx) |"
+    );
+    println!("|---|---|---|---|---|---|---|---|---|");
+    let mut ratios: Vec<(usize, f64, f64)> = Vec::new();
+    for round in 1..=rounds {
+        for &c in clients {
+            let s = run_wrk(
+                &format!("http://{strata_addr}/{name}/octree.bin"),
+                len,
+                c,
+                wrk_threads,
+                seconds,
+                work.path(),
+            )?;
+            let n = run_wrk(
+                &format!("http://{}/{name}/octree.bin", nginx.addr),
+                len,
+                c,
+                wrk_threads,
+                seconds,
+                work.path(),
+            )?;
+            if s.errors > 0 || n.errors > 0 {
+                bail!(
+                    "errors under load (strata {}, nginx {}): the comparison would not hold",
+                    s.errors,
+                    n.errors
+                );
+            }
+            let (rate, p99) = (
+                s.requests_per_s / n.requests_per_s.max(1e-9),
+                s.p99_ms / n.p99_ms.max(1e-9),
+            );
+            ratios.push((c, rate, p99));
+            println!(
+                "| {round} | {c} | {:.0} | {:.0} | {rate:.2} | {:.2} | {:.2} | {p99:.2} | {} / {} |",
+                s.requests_per_s, n.requests_per_s, s.p99_ms, n.p99_ms, s.errors, n.errors
+            );
+        }
+    }
+    println!("\n| connections | median req/s ratio | median p99 ratio |\n|---|---|---|");
+    for &c in clients {
+        let median = |pick: fn(&(usize, f64, f64)) -> f64| {
+            let mut v: Vec<f64> = ratios.iter().filter(|r| r.0 == c).map(pick).collect();
+            v.sort_by(f64::total_cmp);
+            v.get(v.len() / 2).copied().unwrap_or(0.0)
+        };
+        println!("| {c} | {:.2} | {:.2} |", median(|r| r.1), median(|r| r.2));
+    }
+    Ok(())
+}
 
 fn main() -> anyhow::Result<()> {
     if strata_bench::answered_help(USAGE) {
@@ -160,6 +250,9 @@ fn main() -> anyhow::Result<()> {
     let mut seconds = 10u64;
     let mut points = 10_000_000u64;
     let mut dataset: Option<PathBuf> = None;
+    let mut nginx = false;
+    let mut rounds = 3usize;
+    let mut wrk_threads = 2usize;
     let args: Vec<String> = std::env::args().skip(1).collect();
     let mut it = args.iter();
     while let Some(a) = it.next() {
@@ -174,6 +267,9 @@ fn main() -> anyhow::Result<()> {
             "--seconds" => seconds = value()?.parse()?,
             "--points" => points = parse_count(value()?)?,
             "--dataset" => dataset = Some(PathBuf::from(value()?)),
+            "--against-nginx" => nginx = true,
+            "--rounds" => rounds = value()?.parse()?,
+            "--wrk-threads" => wrk_threads = value()?.parse()?,
             other => bail!("unknown argument {other}"),
         }
     }
@@ -189,13 +285,7 @@ fn main() -> anyhow::Result<()> {
             .map(|n| (n.offset, n.size as u64))
             .collect(),
     );
-    let root = dataset
-        .parent()
-        .context("dataset has no parent directory")?;
-    let name = dataset
-        .file_name()
-        .and_then(|n| n.to_str())
-        .context("dataset name")?;
+    let (root, name) = root_and_name(&dataset)?;
     let strata = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../target/release/strata");
     if !strata.exists() {
         bail!(
@@ -224,6 +314,12 @@ fn main() -> anyhow::Result<()> {
         .and_then(|r| r.split('/').next())
         .context("server address")?
         .to_string();
+    if nginx {
+        let result = against_nginx(&addr, &dataset, &clients, seconds, rounds, wrk_threads);
+        let _ = server.kill();
+        let _ = server.wait();
+        return result;
+    }
     let url = format!("http://{addr}/{name}/octree.bin");
     let time = Duration::from_secs(seconds);
     let runtime = tokio::runtime::Builder::new_multi_thread()

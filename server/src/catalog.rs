@@ -1,0 +1,160 @@
+//! The datasets under the served directory and the files each may serve: `metadata.json` and
+//! the files its `files` section names, nothing else. Each `metadata.json` is parsed once per
+//! version (device, inode, mtime, size) and kept. Blocking: call only on the blocking pool.
+
+use crate::files::confined;
+use serde::Serialize;
+use std::collections::HashMap;
+use std::os::unix::fs::MetadataExt;
+use std::path::{Path, PathBuf};
+use std::sync::Mutex;
+use strata_format::{DatasetFile, Metadata};
+
+/// `metadata.json` larger than this is not a dataset's (a real one is a few KiB).
+const METADATA_MAX: u64 = 16 << 20;
+
+#[derive(Debug, Clone, Serialize)]
+pub struct DatasetEntry {
+    pub name: String,
+    pub points: u64,
+    pub nodes: u64,
+    pub depth: u32,
+    pub bounds: strata_format::Bounds,
+    pub bytes: u64,
+}
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+struct Version {
+    dev: u64,
+    ino: u64,
+    mtime_ns: i128,
+    size: u64,
+}
+
+impl Version {
+    fn of(m: &std::fs::Metadata) -> Version {
+        Version {
+            dev: m.dev(),
+            ino: m.ino(),
+            mtime_ns: m.mtime() as i128 * 1_000_000_000 + m.mtime_nsec() as i128,
+            size: m.len(),
+        }
+    }
+}
+
+#[derive(Debug, Clone)]
+struct Known {
+    version: Version,
+    entry: DatasetEntry,
+    /// The names this dataset serves besides `metadata.json`.
+    files: Vec<String>,
+}
+
+#[derive(Debug)]
+pub struct Catalog {
+    root: PathBuf,
+    /// By dataset name.
+    known: Mutex<HashMap<String, Known>>,
+}
+
+/// A name a dataset's metadata may give for one of its files: one plain, visible segment.
+fn plain_name(name: &str) -> bool {
+    !name.is_empty()
+        && !name.starts_with('.')
+        && !name.contains(['/', '\\', '\0', ':'])
+        && name != DatasetFile::Metadata.name()
+}
+
+impl Catalog {
+    /// `root` must be canonical.
+    pub fn new(root: PathBuf) -> Catalog {
+        Catalog {
+            root,
+            known: Mutex::new(HashMap::new()),
+        }
+    }
+
+    /// The dataset directory `name` (one segment, already checked), if it lies inside the root.
+    fn dataset_dir(&self, name: &str) -> Option<PathBuf> {
+        let (dir, meta) = confined(&self.root, &self.root.join(name))?;
+        meta.is_dir().then_some(dir)
+    }
+
+    /// The dataset in `dir`, from the cache while its `metadata.json` is unchanged.
+    fn dataset(&self, name: &str, dir: &Path) -> Option<Known> {
+        let meta_path = dir.join(DatasetFile::Metadata.name());
+        let (meta_path, stat) = confined(&self.root, &meta_path)?;
+        if !stat.is_file() {
+            return None;
+        }
+        let version = Version::of(&stat);
+        if let Some(k) = self.known.lock().ok()?.get(name)
+            && k.version == version
+        {
+            return Some(k.clone());
+        }
+        let (file, stat) = crate::files::open_regular(&meta_path)?;
+        if stat.len() > METADATA_MAX {
+            return None;
+        }
+        let bytes = crate::files::read_range(&file, 0, stat.len() as usize).ok()?;
+        let m = Metadata::from_json(&bytes, &meta_path).ok()?;
+        let files = [&m.files.hierarchy.name, &m.files.octree.name]
+            .into_iter()
+            .filter(|n| plain_name(n))
+            .cloned()
+            .collect();
+        let known = Known {
+            version: Version::of(&stat),
+            entry: DatasetEntry {
+                name: name.to_string(),
+                points: m.points,
+                nodes: m.nodes,
+                depth: m.depth,
+                bounds: m.bounds,
+                bytes: bytes.len() as u64 + m.files.hierarchy.size + m.files.octree.size,
+            },
+            files,
+        };
+        if let Ok(mut cache) = self.known.lock() {
+            cache.insert(name.to_string(), known.clone());
+        }
+        Some(known)
+    }
+
+    /// The path of `file` in dataset `dataset` if the dataset's metadata names it, inside the
+    /// root; `None` for everything else, whether or not it exists.
+    pub fn file(&self, dataset: &str, file: &str) -> Option<PathBuf> {
+        let dir = self.dataset_dir(dataset)?;
+        let known = self.dataset(dataset, &dir)?;
+        if file != DatasetFile::Metadata.name() && !known.files.iter().any(|f| f == file) {
+            return None;
+        }
+        let (path, stat) = confined(&self.root, &dir.join(file))?;
+        stat.is_file().then_some(path)
+    }
+
+    /// Every dataset directly under the root, by name.
+    pub fn list(&self) -> Vec<DatasetEntry> {
+        let Ok(dir) = std::fs::read_dir(&self.root) else {
+            return Vec::new();
+        };
+        let mut out: Vec<DatasetEntry> = dir
+            .filter_map(Result::ok)
+            .filter_map(|e| {
+                let name = e.file_name().to_str()?.to_string();
+                if name.starts_with('.') {
+                    return None;
+                }
+                let dir = self.dataset_dir(&name)?;
+                Some(self.dataset(&name, &dir)?.entry)
+            })
+            .collect();
+        out.sort_by(|a, b| a.name.cmp(&b.name));
+        // Datasets removed since: forget them, so the cache holds what the root holds.
+        if let Ok(mut cache) = self.known.lock() {
+            cache.retain(|name, _| out.iter().any(|e| &e.name == name));
+        }
+        out
+    }
+}

@@ -1,0 +1,187 @@
+//! One dataset file: whole, one range, or not modified. Everything that touches the file system
+//! (finding the file through the catalog, opening, `fstat`, reading) happens in one job on the
+//! blocking pool, so a request costs one hand-off.
+
+use crate::blocking::BlockingPool;
+use crate::body::{FileStream, ResponseBody, empty, full};
+use crate::catalog::Catalog;
+use crate::range::{RangeRequest, parse_range};
+use bytes::Bytes;
+use hyper::header::{self, HeaderMap};
+use hyper::{Response, StatusCode};
+use std::fs::File;
+use std::sync::Arc;
+use std::time::{SystemTime, UNIX_EPOCH};
+
+/// Ranges up to this size are read in one `pread` into one buffer; larger ones stream.
+const READ_WHOLE_MAX: u64 = 4 << 20;
+
+/// The request headers the answer depends on, owned so they can travel to the pool.
+pub struct Conditions {
+    range: Option<String>,
+    if_range: Option<String>,
+    if_none_match: Option<String>,
+    head: bool,
+}
+
+impl Conditions {
+    pub fn of(headers: &HeaderMap, head: bool) -> Conditions {
+        let get = |name| {
+            headers
+                .get(name)
+                .and_then(|v| v.to_str().ok())
+                .map(str::to_string)
+        };
+        Conditions {
+            range: get(header::RANGE),
+            if_range: get(header::IF_RANGE),
+            if_none_match: get(header::IF_NONE_MATCH),
+            head,
+        }
+    }
+}
+
+enum Outcome {
+    NotModified,
+    Unsatisfiable,
+    /// Bytes `start..end`: already read, or left to stream from `file`.
+    Body {
+        status: StatusCode,
+        start: u64,
+        end: u64,
+        read: Option<Bytes>,
+        file: Option<File>,
+    },
+}
+
+struct Prepared {
+    content_type: &'static str,
+    len: u64,
+    etag: String,
+    modified: Option<SystemTime>,
+    outcome: Outcome,
+}
+
+pub enum Failure {
+    /// Not a file a dataset serves, whether or not it exists.
+    NotFound,
+    /// Reading failed (the file shrank, a disk error) or the pool failed: a 500.
+    Io,
+}
+
+fn prepare(
+    catalog: &Catalog,
+    dataset: &str,
+    name: &str,
+    c: Conditions,
+) -> Result<Prepared, Failure> {
+    let path = catalog.file(dataset, name).ok_or(Failure::NotFound)?;
+    let (file, meta) = crate::files::open_regular(&path).ok_or(Failure::NotFound)?;
+    let len = meta.len();
+    let modified = meta.modified().ok();
+    let mtime_ns = modified
+        .and_then(|m| m.duration_since(UNIX_EPOCH).ok())
+        .map_or(0, |d| d.as_nanos());
+    let etag = format!("\"{len:x}-{mtime_ns:x}\"");
+    let content_type = match path.extension().and_then(|e| e.to_str()) {
+        Some("json") => "application/json",
+        _ => "application/octet-stream",
+    };
+    let matches_etag = |v: &str| v.split(',').any(|t| t.trim() == etag || t.trim() == "*");
+    let outcome = if c.if_none_match.as_deref().is_some_and(matches_etag) {
+        Outcome::NotModified
+    } else {
+        // A range applies only while the representation is the one the client saw.
+        let if_range_ok = c.if_range.as_deref().is_none_or(|v| v.trim() == etag);
+        let range = c.range.as_deref().filter(|_| if_range_ok);
+        let (status, start, end) = match parse_range(range, len) {
+            RangeRequest::Whole => (StatusCode::OK, 0, len),
+            RangeRequest::Part { start, end } => (StatusCode::PARTIAL_CONTENT, start, end),
+            RangeRequest::Unsatisfiable => {
+                return Ok(Prepared {
+                    content_type,
+                    len,
+                    etag,
+                    modified,
+                    outcome: Outcome::Unsatisfiable,
+                });
+            }
+        };
+        let count = end - start;
+        let (read, file) = if c.head || count == 0 {
+            (None, None)
+        } else if count <= READ_WHOLE_MAX {
+            let bytes = crate::files::read_range(&file, start, count as usize);
+            (Some(bytes.map_err(|_| Failure::Io)?), None)
+        } else {
+            (None, Some(file))
+        };
+        Outcome::Body {
+            status,
+            start,
+            end,
+            read,
+            file,
+        }
+    };
+    Ok(Prepared {
+        content_type,
+        len,
+        etag,
+        modified,
+        outcome,
+    })
+}
+
+/// Answers a GET or HEAD of `dataset/name`.
+pub async fn serve(
+    catalog: Arc<Catalog>,
+    pool: &BlockingPool,
+    dataset: String,
+    name: String,
+    c: Conditions,
+) -> Result<Response<ResponseBody>, Failure> {
+    let job = move || prepare(&catalog, &dataset, &name, c);
+    let p = pool.run(job).await.map_err(|_| Failure::Io)??;
+    let mut builder = Response::builder()
+        .header(header::ACCEPT_RANGES, "bytes")
+        .header(header::ETAG, &p.etag)
+        .header(header::CACHE_CONTROL, "public, max-age=60")
+        .header(header::CONTENT_TYPE, p.content_type);
+    if let Some(m) = p.modified {
+        builder = builder.header(header::LAST_MODIFIED, httpdate::fmt_http_date(m));
+    }
+    let len = p.len;
+    let response = match p.outcome {
+        Outcome::NotModified => builder.status(StatusCode::NOT_MODIFIED).body(empty()),
+        Outcome::Unsatisfiable => builder
+            .status(StatusCode::RANGE_NOT_SATISFIABLE)
+            .header(header::CONTENT_RANGE, format!("bytes */{len}"))
+            .header(header::CONTENT_LENGTH, 0)
+            .body(empty()),
+        Outcome::Body {
+            status,
+            start,
+            end,
+            read,
+            file,
+        } => {
+            if status == StatusCode::PARTIAL_CONTENT {
+                builder = builder.header(
+                    header::CONTENT_RANGE,
+                    format!("bytes {start}-{}/{len}", end - 1),
+                );
+            }
+            let body = match (read, file) {
+                (Some(bytes), _) => full(bytes),
+                (None, Some(file)) => FileStream::boxed_body(file, pool.clone(), start, end),
+                (None, None) => empty(),
+            };
+            builder
+                .status(status)
+                .header(header::CONTENT_LENGTH, end - start)
+                .body(body)
+        }
+    };
+    response.map_err(|_| Failure::Io)
+}

@@ -1,0 +1,364 @@
+//! The attacks of issue 23, each as a test: an empty token, FIFOs where dataset files belong, a
+//! symlink out of the directory in the listing, stray files, a lower-case scheme, requests
+//! without `Host` or with two, parser rejections missing from the log.
+
+use super::{Server, root};
+use crate::common::{self, s};
+use crate::http;
+use std::io::BufRead;
+use std::path::Path;
+use std::process::Stdio;
+use std::time::{Duration, Instant};
+
+/// A fresh folder under the target's temporary directory.
+pub fn scratch(tag: &str) -> tempfile::TempDir {
+    let base = Path::new(env!("CARGO_TARGET_TMPDIR")).join("serve-attacks");
+    std::fs::create_dir_all(&base).expect("scratch base");
+    tempfile::Builder::new()
+        .prefix(tag)
+        .tempdir_in(base)
+        .expect("scratch dir")
+}
+
+/// Copies `files` of the autzen fixture into `dir`.
+fn copy_autzen(dir: &Path, files: &[&str]) {
+    std::fs::create_dir_all(dir).expect("dataset dir");
+    for f in files {
+        std::fs::copy(root().join("autzen.strata").join(f), dir.join(f)).expect("copy");
+    }
+}
+
+const ALL: [&str; 3] = ["metadata.json", "hierarchy.bin", "octree.bin"];
+
+fn mkfifo(path: &Path) {
+    let ok = std::process::Command::new("mkfifo")
+        .arg(path)
+        .status()
+        .expect("mkfifo runs");
+    assert!(ok.success(), "mkfifo {}", path.display());
+}
+
+/// Threads, open descriptors and resident KiB of process `pid`.
+pub fn process_counts(pid: u32) -> (u64, usize, u64) {
+    let status = std::fs::read_to_string(format!("/proc/{pid}/status")).expect("status");
+    let field = |key: &str| {
+        status
+            .lines()
+            .find(|l| l.starts_with(key))
+            .and_then(|l| l.split_whitespace().nth(1)?.parse().ok())
+            .expect("field")
+    };
+    let fds = std::fs::read_dir(format!("/proc/{pid}/fd"))
+        .expect("fd dir")
+        .count();
+    (field("Threads:"), fds, field("VmRSS:"))
+}
+
+/// GET `path` with a 5 s limit on every wait: a hung server fails the test, it never hangs it.
+fn get(addr: &str, path: &str, headers: &[(&str, &str)]) -> std::io::Result<http::Reply> {
+    let mut req = format!("GET {path} HTTP/1.1\r\nHost: {addr}\r\nConnection: close\r\n");
+    for (k, v) in headers {
+        req.push_str(&format!("{k}: {v}\r\n"));
+    }
+    req.push_str("\r\n");
+    http::exchange(addr, req.as_bytes(), Duration::from_secs(5))
+}
+
+fn listed(reply: &http::Reply) -> Vec<String> {
+    let v: serde_json::Value = serde_json::from_slice(&reply.body).expect("listing JSON");
+    v.as_array()
+        .expect("array")
+        .iter()
+        .filter_map(|d| d["name"].as_str().map(str::to_string))
+        .collect()
+}
+
+/// Starts `strata serve` with `args` and waits up to 10 s for it to exit: (code, stderr).
+fn start_expecting_exit(args: &[&str]) -> (Option<i32>, String) {
+    let mut child = common::strata()
+        .args(["serve", s(&root()), "--bind", "127.0.0.1:0"])
+        .args(args)
+        .stdout(Stdio::null())
+        .stderr(Stdio::piped())
+        .spawn()
+        .expect("strata starts");
+    let deadline = Instant::now() + Duration::from_secs(10);
+    loop {
+        if let Some(status) = child.try_wait().expect("wait") {
+            let out = child.wait_with_output().expect("output");
+            return (
+                status.code(),
+                String::from_utf8_lossy(&out.stderr).to_string(),
+            );
+        }
+        if Instant::now() > deadline {
+            let _ = child.kill();
+            let _ = child.wait();
+            panic!("strata serve {args:?} kept serving");
+        }
+        std::thread::sleep(Duration::from_millis(50));
+    }
+}
+
+#[test]
+fn an_empty_or_blank_token_is_refused_at_start_up() {
+    let dir = scratch("token");
+    let (empty, blank) = (dir.path().join("empty"), dir.path().join("blank"));
+    std::fs::write(&empty, "").expect("write");
+    std::fs::write(&blank, " \n\t\n").expect("write");
+    for args in [
+        vec!["--token", ""],
+        vec!["--token", "   "],
+        vec!["--token-file", s(&empty)],
+        vec!["--token-file", s(&blank)],
+    ] {
+        let (code, err) = start_expecting_exit(&args);
+        assert_eq!(code, Some(1), "{args:?}: {err}");
+        assert!(err.contains("empty or blank"), "{args:?}: {err}");
+        assert_eq!(
+            err.trim().lines().count(),
+            1,
+            "{args:?}: not one sentence: {err}"
+        );
+    }
+    let (code, err) = start_expecting_exit(&["--token-file", s(&dir.path().join("missing"))]);
+    assert_eq!(code, Some(1));
+    assert!(
+        err.contains("missing") && err.contains("token file"),
+        "{err}"
+    );
+}
+
+#[test]
+fn a_token_file_guards_like_a_token() {
+    let dir = scratch("token-file");
+    let file = dir.path().join("token");
+    std::fs::write(&file, "s3cret\n").expect("write");
+    let server = Server::start(&["--quiet", "--token-file", s(&file)]);
+    let path = "/autzen.strata/metadata.json";
+    assert_eq!(get(&server.addr, path, &[]).expect("reply").status, 401);
+    for scheme in ["Bearer", "bearer", "BEARER"] {
+        let auth = format!("{scheme} s3cret");
+        let r = get(&server.addr, path, &[("Authorization", &auth)]).expect("reply");
+        assert_eq!(r.status, 200, "{scheme}");
+    }
+    let wrong = get(&server.addr, path, &[("Authorization", "bearer s3cre")]).expect("reply");
+    assert_eq!(wrong.status, 401);
+}
+
+#[test]
+fn a_fifo_metadata_json_blocks_neither_the_listing_nor_the_server() {
+    let dir = scratch("fifo-meta");
+    copy_autzen(&dir.path().join("good.strata"), &ALL);
+    std::fs::create_dir_all(dir.path().join("trap.strata")).expect("dir");
+    mkfifo(&dir.path().join("trap.strata/metadata.json"));
+    let server = Server::start_in(dir.path(), &["--quiet", "--request-timeout", "2"]);
+    let addr = server.addr.clone();
+    // More listings at once than the runtime has workers.
+    let listings: Vec<_> = (0..6)
+        .map(|_| {
+            let addr = addr.clone();
+            std::thread::spawn(move || get(&addr, "/", &[]))
+        })
+        .collect();
+    for l in listings {
+        let r = l.join().expect("thread").expect("the listing answered");
+        assert_eq!(r.status, 200);
+        assert_eq!(listed(&r), ["good.strata"]);
+    }
+    let fifo = get(&addr, "/trap.strata/metadata.json", &[]).expect("answered");
+    let missing = get(&addr, "/nothing.strata/metadata.json", &[]).expect("answered");
+    assert_eq!((fifo.status, &fifo.body), (404, &missing.body));
+    let good = get(&addr, "/good.strata/metadata.json", &[]).expect("answered");
+    assert_eq!(good.status, 200);
+}
+
+#[test]
+fn a_fifo_octree_bin_answers_404_and_leaves_no_thread_behind() {
+    let dir = scratch("fifo-octree");
+    let ds = dir.path().join("trap.strata");
+    copy_autzen(&ds, &["metadata.json", "hierarchy.bin"]);
+    mkfifo(&ds.join("octree.bin"));
+    let server = Server::start_in(
+        dir.path(),
+        &[
+            "--quiet",
+            "--request-timeout",
+            "1",
+            "--blocking-threads",
+            "4",
+        ],
+    );
+    let addr = server.addr.clone();
+    assert_eq!(
+        get(&addr, "/trap.strata/hierarchy.bin", &[])
+            .expect("reply")
+            .status,
+        200
+    );
+    let (threads_before, fds_before, _) = process_counts(server.child.id());
+    for _ in 0..100 {
+        let r = get(&addr, "/trap.strata/octree.bin", &[]).expect("answered");
+        assert_eq!(r.status, 404);
+    }
+    // A burst wider than the pool: the pool's bound holds.
+    let burst: Vec<_> = (0..32)
+        .map(|_| {
+            let addr = addr.clone();
+            std::thread::spawn(move || get(&addr, "/trap.strata/octree.bin", &[]))
+        })
+        .collect();
+    for b in burst {
+        assert_eq!(b.join().expect("thread").expect("answered").status, 404);
+    }
+    assert_eq!(
+        get(&addr, "/trap.strata/hierarchy.bin", &[])
+            .expect("reply")
+            .status,
+        200
+    );
+    std::thread::sleep(Duration::from_millis(300));
+    let (threads, fds, _) = process_counts(server.child.id());
+    assert!(
+        threads <= threads_before + 4,
+        "threads grew from {threads_before} to {threads}"
+    );
+    assert!(
+        fds <= fds_before,
+        "descriptors grew from {fds_before} to {fds}"
+    );
+}
+
+#[test]
+fn the_listing_and_the_files_stay_inside_the_directory() {
+    let dir = scratch("confined");
+    let served = dir.path().join("root");
+    copy_autzen(&served.join("good.strata"), &ALL);
+    copy_autzen(&dir.path().join("outside/elsewhere.strata"), &ALL);
+    std::os::unix::fs::symlink(
+        dir.path().join("outside/elsewhere.strata"),
+        served.join("evil"),
+    )
+    .expect("symlink");
+    std::os::unix::fs::symlink(served.join("good.strata"), served.join("alias.strata"))
+        .expect("symlink");
+    std::fs::write(served.join("notes.txt"), "stray").expect("write");
+    std::fs::write(served.join("good.strata/notes.txt"), "stray").expect("write");
+    std::fs::create_dir_all(served.join("good.strata/sub")).expect("dir");
+    std::fs::write(served.join("good.strata/sub/x.bin"), "stray").expect("write");
+    let server = Server::start_in(&served, &["--quiet"]);
+    let addr = &server.addr;
+    let list = get(addr, "/", &[]).expect("listing");
+    assert_eq!(listed(&list), ["alias.strata", "good.strata"]);
+    let missing = get(addr, "/good.strata/missing.bin", &[]).expect("reply");
+    assert_eq!(missing.status, 404);
+    for path in [
+        "/evil/metadata.json",
+        "/evil/octree.bin",
+        "/notes.txt",
+        "/good.strata/notes.txt",
+        "/good.strata/sub/x.bin",
+        "/good.strata/sub",
+        "/good.strata",
+        "/escape/secret.txt",
+    ] {
+        let r = get(addr, path, &[]).expect("reply");
+        assert_eq!(
+            (r.status, &r.body),
+            (404, &missing.body),
+            "{path} answers differently from a missing file"
+        );
+    }
+    for path in ["/alias.strata/octree.bin", "/good.strata/hierarchy.bin"] {
+        assert_eq!(get(addr, path, &[]).expect("reply").status, 200, "{path}");
+    }
+}
+
+/// A server that logs, with a thread that forwards its log lines.
+fn logging_server(extra: &[&str]) -> (Server, std::sync::mpsc::Receiver<String>) {
+    let mut server = Server::start(extra);
+    let mut log = server.log.take().expect("the server's stderr");
+    let (tx, rx) = std::sync::mpsc::channel();
+    std::thread::spawn(move || {
+        let mut line = String::new();
+        while log.read_line(&mut line).is_ok_and(|n| n > 0) {
+            if tx.send(std::mem::take(&mut line)).is_err() {
+                break;
+            }
+        }
+    });
+    (server, rx)
+}
+
+fn next_line_with(rx: &std::sync::mpsc::Receiver<String>, needle: &str) -> Option<String> {
+    let deadline = Instant::now() + Duration::from_secs(5);
+    while let Some(left) = deadline.checked_duration_since(Instant::now()) {
+        match rx.recv_timeout(left) {
+            Ok(line) if line.contains(needle) => return Some(line),
+            Ok(_) => {}
+            Err(_) => return None,
+        }
+    }
+    None
+}
+
+#[test]
+fn host_rules_of_rfc_9112_and_every_answer_logged() {
+    let (server, log) = logging_server(&[]);
+    let addr = &server.addr;
+    let send =
+        |raw: &str| http::exchange(addr, raw.as_bytes(), Duration::from_secs(5)).expect("answered");
+    let path = "/autzen.strata/metadata.json";
+    for (raw, want) in [
+        (
+            format!("GET {path} HTTP/1.1\r\nConnection: close\r\n\r\n"),
+            400,
+        ),
+        (
+            format!("GET {path} HTTP/1.1\r\nHost: a\r\nHost: b\r\nConnection: close\r\n\r\n"),
+            400,
+        ),
+        (
+            format!("GET {path} HTTP/1.1\r\nHost: a@b\r\nConnection: close\r\n\r\n"),
+            400,
+        ),
+        (
+            format!("GET {path} HTTP/1.1\r\nHost: x:8080\r\nConnection: close\r\n\r\n"),
+            200,
+        ),
+        (format!("GET {path} HTTP/1.0\r\n\r\n"), 200),
+    ] {
+        assert_eq!(send(&raw).status, want, "{raw:?}");
+    }
+    assert!(
+        next_line_with(&log, " 400 ").is_some(),
+        "a Host refusal was not logged"
+    );
+    // Requests hyper's parser rejects before any handler runs: a header line without a colon.
+    let r = send("GET / HTTP/1.1\r\nHost: x\r\nno colon here\r\n\r\n");
+    assert_eq!(r.status, 400);
+    let line = next_line_with(&log, "\"- - -\" 400").expect("the parser's 400 was not logged");
+    assert!(line.contains("127.0.0.1"), "no client in {line}");
+}
+
+#[test]
+fn json_access_log_lines() {
+    let (server, log) = logging_server(&["--log-format", "json"]);
+    let len = std::fs::metadata(root().join("autzen.strata/metadata.json"))
+        .expect("meta")
+        .len();
+    let r = get(&server.addr, "/autzen.strata/metadata.json", &[]).expect("reply");
+    assert_eq!(r.status, 200);
+    let line = next_line_with(&log, "metadata.json").expect("logged");
+    let v: serde_json::Value = serde_json::from_str(&line).expect("a JSON line");
+    assert_eq!(v["status"], 200);
+    assert_eq!(v["bytes"], len);
+    assert_eq!(v["method"], "GET");
+    assert_eq!(v["path"], "/autzen.strata/metadata.json");
+    assert!(
+        v["client"]
+            .as_str()
+            .is_some_and(|c| c.starts_with("127.0.0.1:"))
+    );
+    assert!(v["ms"].as_f64().is_some_and(|ms| ms >= 0.0));
+}
