@@ -190,3 +190,108 @@ fn disk_full_leaves_no_valid_looking_output() {
     let v = run(&["verify", s(&out)]);
     assert!(!v.status.success());
 }
+
+#[test]
+fn laz_header_count_below_its_records_is_refused_like_las() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let mut b = std::fs::read(data("autzen_trim.laz")).expect("autzen laz");
+    // 109,999 of 110,000: the same number of chunks, one point short in the last.
+    b[107..111].copy_from_slice(&109_999u32.to_le_bytes());
+    let p = write(dir.path(), "short.laz", &b);
+    convert_fails(&p, "holds more than 9999 points");
+    b[107..111].copy_from_slice(&0u32.to_le_bytes());
+    let p = write(dir.path(), "zero.laz", &b);
+    convert_fails(&p, "lists 3 chunks, but the file holds 0 points");
+}
+
+#[test]
+fn laz_bit_without_a_laszip_vlr_says_so() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let mut b = autzen();
+    b[104] |= 0x80;
+    let p = write(dir.path(), "bit.las", &b);
+    convert_fails(
+        &p,
+        "marks the points as LAZ-compressed, but the file has no laszip VLR",
+    );
+}
+
+#[test]
+fn laszip_vlr_that_disagrees_with_the_header_is_refused_before_decoding() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let orig = std::fs::read(data("autzen_trim.laz")).expect("autzen laz");
+    let vlr = orig
+        .windows(14)
+        .position(|w| w == b"laszip encoded")
+        .expect("laszip VLR")
+        - 2
+        + 54;
+    let cases: [(usize, &[u8], &str); 4] = [
+        (
+            105,
+            &35u16.to_le_bytes(),
+            "items add up to 34 bytes per point",
+        ),
+        (
+            vlr + 32,
+            &0u16.to_le_bytes(),
+            "it lists no compressed items",
+        ),
+        (
+            vlr + 12,
+            &7u32.to_le_bytes(),
+            "in chunks of 7 (laszip VLR) make 15715",
+        ),
+        (
+            vlr + 12,
+            &1999u32.to_le_bytes(),
+            "in chunks of 1999 (laszip VLR) make 56",
+        ),
+    ];
+    for (i, (at, bytes, want)) in cases.into_iter().enumerate() {
+        let mut b = orig.clone();
+        b[at..at + bytes.len()].copy_from_slice(bytes);
+        let p = write(dir.path(), &format!("vlr{i}.laz"), &b);
+        convert_fails(&p, want);
+    }
+}
+
+#[test]
+fn a_coarsened_scale_is_said_even_with_quiet_and_recorded() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let ply = "ply\nformat ascii 1.0\nelement vertex 2\nproperty double x\nproperty double y\nproperty double z\nend_header\n0.5 0 0\n1e12 1 1\n";
+    let p = write(dir.path(), "far.ply", ply.as_bytes());
+    let out = dir.path().join("ds");
+    let o = run(&["convert", s(&p), "-o", s(&out), "--quiet"]);
+    assert!(o.status.success());
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(
+        err.contains("warning:") && err.contains("coarsened"),
+        "{err}"
+    );
+    let meta = std::fs::read_to_string(out.join("metadata.json")).expect("metadata");
+    let v: serde_json::Value = serde_json::from_str(&meta).expect("json");
+    let warnings = v["warnings"].as_array().expect("warnings recorded");
+    assert!(
+        warnings
+            .iter()
+            .any(|w| w.as_str().is_some_and(|w| w.contains("coarsened")))
+    );
+    run_ok(&["verify", s(&out)]);
+}
+
+#[test]
+fn a_header_box_far_larger_than_the_points_moves_none_of_them() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    for (i, v) in [1e9, 1e300].into_iter().enumerate() {
+        let mut b = autzen();
+        b[179..187].copy_from_slice(&f64::to_le_bytes(v));
+        let p = write(dir.path(), &format!("box{i}.las"), &b);
+        let out = dir.path().join(format!("ds{i}"));
+        let o = run_ok(&["convert", s(&p), "-o", s(&out), "--quiet"]);
+        assert!(!String::from_utf8_lossy(&o.stderr).contains("coarsened"));
+        let back = dir.path().join(format!("back{i}.las"));
+        run_ok(&["export", s(&out), "-o", s(&back)]);
+        assert!(las_multiset(&back) == las_multiset(&p), "points moved");
+    }
+}

@@ -97,7 +97,6 @@ fn run(
 ) -> Result<ConvertSummary> {
     let start = Instant::now();
     let mut phases = Phases::new(Progress::new(opts.quiet));
-    let mut warnings = Vec::new();
     let mut fp = fingerprint(opts);
     let margin = step.halo_margin();
     // Bands written for one margin are no halo for another.
@@ -108,17 +107,13 @@ fn run(
         Some(plan) => plan,
         None => {
             wd.create_fresh()?;
-            let plan = prepare(opts, wd, threads, &mut phases, &mut warnings, fp)?;
+            let plan = prepare(opts, wd, threads, &mut phases, fp)?;
             save_plan(wd, &plan)?;
             plan
         }
     };
-    if plan.coarsened {
-        warnings.push(format!(
-            "the inputs span too far for 32-bit positions at their own resolution; scale coarsened to {:?}",
-            plan.scale
-        ));
-    }
+    // A resumed run says again what the first run said.
+    let warnings = plan.warnings.clone();
     let layout = RowLayout::new(plan.attributes.clone());
     let mut journal = read_journal(wd, plan.chunks.len());
     let resumed = journal.len();

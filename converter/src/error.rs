@@ -6,12 +6,13 @@ use std::path::{Path, PathBuf};
 pub enum ConvertError {
     #[error("{}: {what}", path.display())]
     Input { path: PathBuf, what: String },
-    #[error("{}: {what}: {source}", path.display())]
+    #[error("{}: {what}: {cause}", path.display())]
     Io {
         path: PathBuf,
         what: String,
-        #[source]
-        source: std::io::Error,
+        /// Named `cause`, not `source`: the message already says it, and an error chain
+        /// that listed it again would print the OS error twice.
+        cause: std::io::Error,
     },
     #[error("{}: {what}", path.display())]
     Output { path: PathBuf, what: String },
@@ -40,7 +41,7 @@ impl ConvertError {
         ConvertError::Io {
             path: path.into(),
             what: what.into(),
-            source,
+            cause: source,
         }
     }
 

@@ -147,7 +147,16 @@ pub fn finish(
             })
             .collect(),
         generator: format!("strata {}", env!("CARGO_PKG_VERSION")),
+        warnings: plan.warnings.clone(),
     };
+    // The inputs were checked so that this cannot happen; if it does, no dataset that fails to
+    // read back may appear.
+    if let Some(member) = meta.non_finite() {
+        return Err(ConvertError::internal(
+            "writing metadata.json",
+            format!("{member} is not a finite number"),
+        ));
+    }
     write_synced(
         &wd.dataset_file(DatasetFile::Metadata),
         meta.to_json().as_bytes(),

@@ -226,6 +226,7 @@ mod tests {
             scale: [0.5; 3],
             offset: [0.0; 3],
             coarsened: false,
+            warnings: Vec::new(),
             min: [0.0; 3],
             max: [7.5; 3],
             cube,

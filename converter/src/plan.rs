@@ -218,7 +218,9 @@ pub fn max_chunk_points(memory_limit: u64, threads: usize, stride: usize) -> u64
     let avail = memory_limit.saturating_sub(RESERVED).max(32 << 20);
     let per_point = (3 * stride + 48) as u64;
     let n = avail * 6 / 10 / (threads.max(1) as u64 * per_point);
-    n.max(1 << 16)
+    // A floor keeps chunks from getting absurdly many, but only up to 64 MiB of rows: wide
+    // rows (thousands of attributes) would otherwise make one chunk gigabytes.
+    n.max(((64 << 20) / per_point).clamp(1, 1 << 16))
 }
 
 /// Root spacing in real units.

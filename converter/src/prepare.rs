@@ -28,6 +28,10 @@ pub struct Plan {
     pub scale: [f64; 3],
     pub offset: [f64; 3],
     pub coarsened: bool,
+    /// What the user must know of how the inputs were read (renamed attributes, bounds that were
+    /// measured, a coarsened scale); printed and recorded in the metadata.
+    #[serde(default)]
+    pub warnings: Vec<String>,
     pub min: [f64; 3],
     pub max: [f64; 3],
     pub cube: Cube,
@@ -64,13 +68,19 @@ pub fn prepare(
     wd: &WorkDir,
     threads: usize,
     phases: &mut Phases,
-    warnings: &mut Vec<String>,
     fingerprint: String,
 ) -> Result<Plan> {
-    let (attributes, declared) = union_attributes(&opts.inputs)?;
+    let mut warnings = Vec::new();
+    let (attributes, declared) = union_attributes(&opts.inputs, &mut warnings)?;
     let layout = RowLayout::new(attributes.clone());
     let staged = match stage_from_headers(opts, &layout, wd, threads, phases) {
-        Ok(Some(staged)) => staged,
+        Ok(Some(staged)) if !needlessly_large(&staged) => staged,
+        Ok(Some(staged)) => {
+            // The header's bounds hold the points but are far larger than they are: its cube
+            // would give the octree levels without points. Measure instead.
+            remove_staging(&staged.inputs, wd)?;
+            stage_measured(opts, &attributes, &layout, wd, threads, phases, declared)?
+        }
         Ok(None) => stage_measured(opts, &attributes, &layout, wd, threads, phases, declared)?,
         Err(ConvertError::OutsideHeaderBounds { path, record }) => {
             warnings.push(bounds_warning(&path, record));
@@ -79,6 +89,12 @@ pub fn prepare(
         }
         Err(e) => return Err(e),
     };
+    if staged.q.coarsened {
+        warnings.push(format!(
+            "the inputs span too far for 32-bit positions at their own resolution; scale coarsened to {:?}, so positions are rounded to that step",
+            staged.q.scale
+        ));
+    }
     let points: u64 = staged.inputs.iter().map(|i| i.records).sum();
     if points == 0 {
         return Err(ConvertError::input(
@@ -122,6 +138,7 @@ pub fn prepare(
         scale: q.scale,
         offset: q.offset,
         coarsened: q.coarsened,
+        warnings,
         min: to_real(staged.counts.min),
         max: to_real(staged.counts.max),
         cube: staged.cube,
@@ -157,9 +174,17 @@ fn stage_from_headers(
             return Ok(None);
         }
         let (scale, offset) = src.transform();
-        // One step of the input's grid on each side absorbs bounds written rounded.
-        let lo = [0, 1, 2].map(|a| lo[a] - scale[a].abs());
-        let hi = [0, 1, 2].map(|a| hi[a] + scale[a].abs());
+        // One step of the input's grid on each side absorbs bounds written rounded; no record
+        // lies beyond what its 32-bit integers can express, whatever the header says, so
+        // bounds beyond that cannot coarsen the scale.
+        let (mut lo, mut hi) = (lo, hi);
+        for a in 0..3 {
+            let ends = [i32::MIN, i32::MAX].map(|i| offset[a] + scale[a] * i as f64);
+            let (least, most) = (ends[0].min(ends[1]), ends[0].max(ends[1]));
+            let pad = scale[a].abs();
+            lo[a] = (lo[a] - pad).clamp(least, most);
+            hi[a] = (hi[a] + pad).clamp(least, most);
+        }
         for a in 0..3 {
             min[a] = min[a].min(lo[a]);
             max[a] = max[a].max(hi[a]);
@@ -171,8 +196,9 @@ fn stage_from_headers(
         });
         sources.push(src);
     }
-    let q = choose(&extents, min, max);
+    let q = choose(&extents, min, max).map_err(|e| ConvertError::input(&opts.inputs[0], e))?;
     let cube = cube_for(&q, min, max);
+    check_storable(&q, &cube, &opts.inputs[0])?;
     let compressed: u64 = sources
         .iter()
         .filter(|s| s.records_at().is_none())
@@ -238,8 +264,10 @@ fn stage_measured(
                 "the inputs hold no points",
             ));
         }
-        let q = choose(&scanned.extents, scanned.min, scanned.max);
+        let q = choose(&scanned.extents, scanned.min, scanned.max)
+            .map_err(|e| ConvertError::input(&opts.inputs[0], e))?;
         let cube = cube_for(&q, scanned.min, scanned.max);
+        check_storable(&q, &cube, &opts.inputs[0])?;
         let input = quantize_staging(
             &staging,
             staging_stride(attributes),
@@ -261,6 +289,45 @@ fn stage_measured(
         cube,
         counts,
     })
+}
+
+/// Whether the header-derived cube is at least four times wider than the counted points need.
+fn needlessly_large(staged: &Staged) -> bool {
+    let c = &staged.counts;
+    if (0..3).any(|a| c.min[a] > c.max[a]) {
+        return false;
+    }
+    let extent = (0..3)
+        .map(|a| c.max[a] as i64 - c.min[a] as i64 + 1)
+        .max()
+        .unwrap_or(1);
+    let needed = (64 - (extent.max(2) - 1).leading_zeros()).max(1);
+    staged.cube.bits >= needed + 2
+}
+
+/// Every real coordinate of the cube, and so every number the metadata derives from it, must be
+/// a finite f64.
+fn check_storable(q: &Quantization, cube: &Cube, path: &Path) -> Result<()> {
+    for a in 0..3 {
+        let ends = [cube.min[a], cube.min[a] + (1i64 << cube.bits)]
+            .map(|i| q.offset[a] + q.scale[a] * i as f64);
+        let spacing = q.scale[a] * (1u64 << cube.bits) as f64;
+        if !ends.iter().all(|e| e.is_finite()) || !spacing.is_finite() {
+            return Err(ConvertError::input(
+                path,
+                format!(
+                    "the points' {} coordinates reach {:e}, too close to the largest number a coordinate can hold to be stored",
+                    ["x", "y", "z"][a],
+                    if ends[0].is_finite() {
+                        ends[1]
+                    } else {
+                        ends[0]
+                    }
+                ),
+            ));
+        }
+    }
+    Ok(())
 }
 
 fn bounds_warning(path: &Path, record: u64) -> String {

@@ -32,7 +32,12 @@ fn float_scale(max_abs: f64, mantissa_bits: i32) -> f64 {
 }
 
 /// Chooses scale and offset for inputs with the given extents (`min`/`max`: all points).
-pub fn choose(sources: &[SourceExtent], min: [f64; 3], max: [f64; 3]) -> Quantization {
+/// Fails, naming the axis, when no finite scale fits the extent into 32-bit positions.
+pub fn choose(
+    sources: &[SourceExtent],
+    min: [f64; 3],
+    max: [f64; 3],
+) -> Result<Quantization, String> {
     let mut scale = [f64::INFINITY; 3];
     for s in sources {
         for (a, scale_a) in scale.iter_mut().enumerate() {
@@ -78,24 +83,48 @@ pub fn choose(sources: &[SourceExtent], min: [f64; 3], max: [f64; 3]) -> Quantiz
         let fits = |off: f64, sc: f64| {
             let lo = ((min[a] - off) / sc).round();
             let hi = ((max[a] - off) / sc).round();
+            // NaN (an infinite span) fails both comparisons, as it must.
             lo >= i32::MIN as f64 && hi <= i32::MAX as f64
         };
+        let too_far = || {
+            format!(
+                "the points' {} coordinates span {} to {}, which no scale can store in 32-bit positions",
+                ["x", "y", "z"][a],
+                min[a],
+                max[a]
+            )
+        };
+        let mid = min[a] / 2.0 + max[a] / 2.0;
         if !fits(offset[a], scale[a]) {
             // Move the offset to the middle of the data, in whole steps of the scale so that
-            // positions on the old grid stay on it.
-            let mid = (min[a] + max[a]) / 2.0;
-            offset[a] += ((mid - offset[a]) / scale[a]).round() * scale[a];
+            // positions on the old grid stay on it (where the step count is a number at all).
+            let moved = offset[a] + ((mid - offset[a]) / scale[a]).round() * scale[a];
+            offset[a] = if moved.is_finite() { moved } else { mid };
         }
+        // Each pass multiplies the scale by ten: from the smallest normal f64 to the largest
+        // takes about 616, so the bound only stops what could never fit.
+        let mut passes = 0;
         while !fits(offset[a], scale[a]) {
             scale[a] *= 10.0;
             coarsened = true;
+            passes += 1;
+            if !scale[a].is_finite() || passes > 700 {
+                return Err(too_far());
+            }
+            if !fits(offset[a], scale[a]) {
+                let moved = offset[a] + ((mid - offset[a]) / scale[a]).round() * scale[a];
+                offset[a] = if moved.is_finite() { moved } else { mid };
+            }
+        }
+        if !(scale[a].is_normal() && offset[a].is_finite()) {
+            return Err(too_far());
         }
     }
-    Quantization {
+    Ok(Quantization {
         scale,
         offset,
         coarsened,
-    }
+    })
 }
 
 impl Quantization {
@@ -130,7 +159,8 @@ mod tests {
             &[las(0.01, 600000.0, 636000.0, 640000.0)],
             [636000.0; 3],
             [640000.0; 3],
-        );
+        )
+        .expect("fits");
         assert_eq!(q.scale, [0.01; 3]);
         assert_eq!(q.offset, [600000.0; 3]);
         let p = [636123.45, 636123.45, 636123.45];
@@ -144,7 +174,8 @@ mod tests {
             &[las(0.01, 0.0, 0.0, 100.0), las(0.001, 0.0, 0.0, 100.0)],
             [0.0; 3],
             [100.0; 3],
-        );
+        )
+        .expect("fits");
         assert_eq!(q.scale, [0.001; 3]);
         assert!(!q.coarsened);
     }
@@ -156,7 +187,7 @@ mod tests {
             min: [-0.1; 3],
             max: [0.2; 3],
         };
-        let q = choose(&[s], [-0.1; 3], [0.2; 3]);
+        let q = choose(&[s], [-0.1; 3], [0.2; 3]).expect("fits");
         let ulp = 0.2f32.next_up() as f64 - 0.2f32 as f64;
         assert!(
             q.scale[0] <= ulp && q.scale[0] * 10.0 > ulp,
@@ -167,8 +198,26 @@ mod tests {
 
     #[test]
     fn huge_extents_coarsen_rather_than_overflow() {
-        let q = choose(&[las(0.0001, 0.0, -1e7, 1e7)], [-1e7; 3], [1e7; 3]);
+        let q = choose(&[las(0.0001, 0.0, -1e7, 1e7)], [-1e7; 3], [1e7; 3]).expect("fits");
         assert!(q.coarsened);
         assert!(((1e7 - q.offset[0]) / q.scale[0]) <= i32::MAX as f64);
+    }
+
+    #[test]
+    fn extreme_scales_and_offsets_end_in_an_answer() {
+        // These looped for ever: a step count of infinity made the offset NaN.
+        let tiny = las(5e-324, 0.0, 0.0, 1000.0);
+        assert!(choose(&[tiny], [0.0; 3], [1000.0; 3]).is_ok_and(|q| q.scale[0].is_normal()));
+        let far = las(0.01, -1e308, 0.0, 0.0);
+        let q = choose(&[far], [0.0; 3], [0.0; 3]).expect("fits");
+        assert!(q.offset[0].is_finite());
+        let wide = SourceExtent {
+            precision: Precision::Float64,
+            min: [-1.7e308; 3],
+            max: [1.7e308; 3],
+        };
+        // Coarsened to a finite scale; whether the cube is storable is prepare's check.
+        let q = choose(&[wide], [-1.7e308; 3], [1.7e308; 3]).expect("coarsened");
+        assert!(q.coarsened && q.scale[0].is_normal() && q.offset[0].is_finite());
     }
 }

@@ -137,8 +137,17 @@ pub struct RowInput {
     pub convert: Option<RecordToRow>,
 }
 
-/// Records per read.
+/// Records per read, at most.
 const BATCH: u64 = 1 << 16;
+
+/// Bytes a batch of records may take: wide records (thousands of attributes) come fewer at a
+/// time rather than in a batch of many gigabytes.
+const BATCH_BYTES: usize = 16 << 20;
+
+/// How many records of `record_len` bytes to handle at once: at most `most`, at least one.
+pub fn batch_records(record_len: usize, most: usize) -> usize {
+    (BATCH_BYTES / record_len.max(1)).clamp(1, most)
+}
 
 impl RowInput {
     /// Records `0..records` split into `parts` ranges, in order.
@@ -158,7 +167,7 @@ impl RowInput {
         let mut raw = Vec::new();
         let mut at = range.start;
         while at < range.end {
-            let n = (range.end - at).min(BATCH);
+            let n = (range.end - at).min(batch_records(self.record_len, BATCH as usize) as u64);
             raw.resize(n as usize * self.record_len, 0);
             file.read_exact_at(&mut raw, self.start + at * self.record_len as u64)
                 .map_err(|e| {

@@ -4,6 +4,7 @@
 use crate::error::{ConvertError, Result};
 use crate::input::open_source;
 use crate::quantize::SourceExtent;
+use crate::rows::batch_records;
 use indicatif::ProgressBar;
 use std::fs::File;
 use std::io::{BufWriter, Write};
@@ -28,12 +29,17 @@ pub fn staging_stride(attributes: &[Attribute]) -> usize {
 
 /// The union of the inputs' attributes, in first-seen order. A name with two different types
 /// is an error naming both files.
-pub fn union_attributes(inputs: &[PathBuf]) -> Result<(Vec<Attribute>, u64)> {
+/// The inputs' own warnings (renamed attributes) are added to `warnings`.
+pub fn union_attributes(
+    inputs: &[PathBuf],
+    warnings: &mut Vec<String>,
+) -> Result<(Vec<Attribute>, u64)> {
     let mut union: Vec<(Attribute, PathBuf)> = Vec::new();
     let mut total = 0u64;
     for path in inputs {
         let src = open_source(path)?;
         total += src.info().points;
+        warnings.extend(src.info().warnings.iter().cloned());
         for a in &src.info().attributes {
             match union.iter().find(|(u, _)| u.name == a.name) {
                 Some((u, first)) if u.ty != a.ty || u.count != a.count => {
@@ -75,9 +81,10 @@ pub fn scan(
         max: [f64::NEG_INFINITY; 3],
         extents: Vec::new(),
     };
-    let mut xyz = Vec::with_capacity(BATCH);
+    let batch = batch_records(stride, BATCH);
+    let mut xyz = Vec::with_capacity(batch);
     let mut rows = Vec::new();
-    let mut records = Vec::with_capacity(BATCH * stride);
+    let mut records = Vec::with_capacity(batch * stride);
     for path in inputs {
         let mut src = open_source(path)?;
         // (source row offset, staging offset, length) for each attribute this input has.
@@ -104,7 +111,7 @@ pub fn scan(
         loop {
             xyz.clear();
             rows.clear();
-            let n = src.read(BATCH, &mut xyz, &mut rows)?;
+            let n = src.read(batch, &mut xyz, &mut rows)?;
             if n == 0 {
                 break;
             }

@@ -5,7 +5,7 @@ use crate::error::{ConvertError, Result, panic_message};
 use crate::input::las::LasSource;
 use crate::plan::Counts;
 use crate::quantize::Quantization;
-use crate::rows::{RecordToRow, RowInput};
+use crate::rows::{RecordToRow, RowInput, batch_records};
 use crate::scan::{StagingReader, staging_position};
 use indicatif::ProgressBar;
 use std::fs::File;
@@ -67,7 +67,7 @@ pub fn decode_to_rows(
         });
         let mut decoded = 0u64;
         let read = loop {
-            let records = match src.read_records(1 << 18) {
+            let records = match src.read_records(batch_records(record_len, 1 << 18)) {
                 Ok(r) => r,
                 Err(e) => break Err(e),
             };
@@ -112,7 +112,7 @@ pub fn quantize_staging(
     let mut rows = Vec::new();
     let mut done = 0u64;
     loop {
-        let n = reader.next_batch(1 << 16)?;
+        let n = reader.next_batch(batch_records(f64_stride, 1 << 16))?;
         if n == 0 {
             break;
         }

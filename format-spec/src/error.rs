@@ -3,11 +3,11 @@ use std::path::PathBuf;
 /// Everything that can go wrong reading a dataset. Each message names the file and the fault.
 #[derive(Debug, thiserror::Error)]
 pub enum FormatError {
-    #[error("{}: {source}", path.display())]
+    #[error("{}: {cause}", path.display())]
     Io {
         path: PathBuf,
-        #[source]
-        source: std::io::Error,
+        /// Not `source`: the message already says it (a chain would print it twice).
+        cause: std::io::Error,
     },
     #[error("{}: {what}", path.display())]
     Corrupt { path: PathBuf, what: String },
@@ -26,7 +26,7 @@ impl FormatError {
     pub fn io(path: impl Into<PathBuf>, source: std::io::Error) -> Self {
         FormatError::Io {
             path: path.into(),
-            source,
+            cause: source,
         }
     }
 

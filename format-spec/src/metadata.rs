@@ -62,6 +62,10 @@ pub struct Metadata {
     pub sources: Vec<String>,
     #[serde(default)]
     pub generator: String,
+    /// What the converter changed while reading the inputs (a coarsened scale, renamed
+    /// attributes, bounds measured instead of taken from a header); informative.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub warnings: Vec<String>,
 }
 
 impl Metadata {
@@ -91,6 +95,30 @@ impl Metadata {
             self.offset[1] + self.scale[1] * p[1] as f64,
             self.offset[2] + self.scale[2] * p[2] as f64,
         ]
+    }
+
+    /// The first member holding a number JSON cannot carry (NaN or infinite), if any: such a
+    /// member would be written as `null` and the dataset would not read back.
+    pub fn non_finite(&self) -> Option<String> {
+        let mut numbers: Vec<(String, f64)> = Vec::new();
+        for (name, v) in [
+            ("scale", &self.scale),
+            ("offset", &self.offset),
+            ("bounds.min", &self.bounds.min),
+            ("bounds.max", &self.bounds.max),
+        ] {
+            numbers.extend(v.iter().map(|x| (name.to_string(), *x)));
+        }
+        numbers.push(("spacing".into(), self.spacing));
+        for a in &self.attributes {
+            for v in a.scale.iter().chain(a.offset.iter()).flatten() {
+                numbers.push((format!("attribute \"{}\"", a.name), *v));
+            }
+        }
+        numbers
+            .into_iter()
+            .find(|(_, v)| !v.is_finite())
+            .map(|(name, _)| name)
     }
 
     pub fn to_json(&self) -> String {

@@ -104,7 +104,17 @@ pub fn decode_node(
             computed,
         });
     }
-    let expected = count * layout.stride;
+    // LZ4 expands at most 255-fold: a count that needs more is a damaged entry, refused before
+    // its output is allocated.
+    let expected = count
+        .checked_mul(layout.stride)
+        .filter(|&n| n <= payload.len().saturating_mul(255).saturating_add(16))
+        .ok_or_else(|| {
+            NodeDecodeError::Decompress(format!(
+                "{count} points cannot come from a payload of {} bytes",
+                payload.len()
+            ))
+        })?;
     let bytes = lz4_flex::block::decompress(payload, expected)
         .map_err(|e| NodeDecodeError::Decompress(e.to_string()))?;
     if bytes.len() != expected {

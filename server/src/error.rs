@@ -4,11 +4,11 @@ use std::path::PathBuf;
 pub enum ServerError {
     #[error("{}: cannot serve this directory ({what})", path.display())]
     Root { path: PathBuf, what: String },
-    #[error("cannot listen on {addr}: {source}")]
+    #[error("cannot listen on {addr}: {cause}")]
     Bind {
         addr: String,
-        #[source]
-        source: std::io::Error,
+        /// Not `source`: the message already says it (a chain would print it twice).
+        cause: std::io::Error,
     },
     #[error("{0}")]
     Token(String),

@@ -79,9 +79,9 @@ impl ServerConfig {
 pub async fn bind(addr: &str) -> Result<TcpListener, ServerError> {
     TcpListener::bind(addr)
         .await
-        .map_err(|source| ServerError::Bind {
+        .map_err(|cause| ServerError::Bind {
             addr: addr.to_string(),
-            source,
+            cause,
         })
 }
 

@@ -59,6 +59,11 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
         quiet: a.quiet,
     };
     let summary = convert(&opts)?;
+    // Warnings say the result differs from the input (a coarsened scale): --quiet does not
+    // hide them.
+    for w in &summary.warnings {
+        eprintln!("warning: {w}");
+    }
     if !a.quiet {
         print_summary(&summary);
     }
@@ -70,9 +75,6 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
 }
 
 pub fn print_summary(s: &ConvertSummary) {
-    for w in &s.warnings {
-        eprintln!("warning: {w}");
-    }
     println!("converted {} -> {}", s.points, s.output.display());
     println!(
         "  points {}  nodes {}  depth {}  chunks {}{}",

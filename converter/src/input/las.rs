@@ -1,9 +1,11 @@
-use super::las_layout::{FieldOp, las_fields, parse_extra_bytes, record_to_row};
+use super::las_header::LasHeader;
+use super::las_layout::{FieldOp, las_fields, parse_extra_bytes, record_to_row, rename_clashes};
+use super::laz_check::{check_laz, guarded};
 use super::{PointSource, Precision, SourceInfo};
 use crate::error::{ConvertError, Result};
 use las::{PointData, PointDataBuilder, Reader};
 use std::fs::File;
-use std::io::{BufReader, Read};
+use std::io::BufReader;
 use std::path::Path;
 
 /// LAS 1.0-1.4, point formats 0-10, plain or LAZ-compressed (decompressed in parallel).
@@ -22,98 +24,55 @@ pub struct LasSource {
     header_bounds: ([f64; 3], [f64; 3]),
 }
 
-const LAS_HEADER_MIN: u64 = 227;
-
 impl LasSource {
     pub fn open(path: &Path) -> Result<LasSource> {
-        let mut file =
-            File::open(path).map_err(|e| ConvertError::io(path, "cannot open input", e))?;
+        let file = File::open(path).map_err(|e| ConvertError::io(path, "cannot open input", e))?;
         let file_len = file
             .metadata()
             .map_err(|e| ConvertError::io(path, "cannot read file size", e))?
             .len();
-        let mut head = vec![0u8; file_len.min(375) as usize];
-        if file_len < LAS_HEADER_MIN || file.read_exact(&mut head).is_err() {
-            return Err(ConvertError::input(
-                path,
-                format!("file is {file_len} bytes, too short to hold a LAS header (227 bytes)"),
-            ));
+        let bad = |what: String| ConvertError::input(path, what);
+        let raw = LasHeader::read(&file, file_len).map_err(bad)?;
+        if raw.compressed {
+            check_laz(&file, &raw).map_err(bad)?;
+        } else {
+            raw.check_uncompressed_records().map_err(bad)?;
         }
-        if &head[0..4] != b"LASF" {
-            return Err(ConvertError::input(
-                path,
-                "not a LAS or LAZ file (the first four bytes are not \"LASF\")",
-            ));
-        }
-        let (major, minor) = (head[24], head[25]);
-        if major != 1 || minor > 4 {
-            return Err(ConvertError::input(
-                path,
-                format!("LAS version {major}.{minor} is not supported (1.0 to 1.4 are)"),
-            ));
-        }
-        let format_byte = head[104];
-        // Bits 6-7 mark LAZ compression; the rest is the point format number.
-        let format_number = format_byte & 0x3f;
-        if format_number > 10 {
-            return Err(ConvertError::input(
-                path,
-                format!("point format {format_number} is not supported (0 to 10 are)"),
-            ));
-        }
-        let offset_to_points = u32::from_le_bytes([head[96], head[97], head[98], head[99]]) as u64;
-        let file = File::open(path).map_err(|e| ConvertError::io(path, "cannot open input", e))?;
-        // Opening a LAZ file also reads its chunk table at the end of the file.
-        let compressed = format_byte & 0x80 != 0;
-        let reader = Reader::new(BufReader::with_capacity(1 << 20, file)).map_err(|e| {
-            let what = if compressed {
-                format!("LAZ point data is corrupt or truncated ({e})")
-            } else {
-                format!("invalid LAS header ({e})")
-            };
-            ConvertError::input(path, what)
-        })?;
+        let (compressed, format_number) = (raw.compressed, raw.format);
+        // Everything the reader allocates or seeks by has been checked above; what still panics
+        // inside it (the LAZ decoder runs on the rayon pool) is this file's fault, not ours.
+        let reader = guarded("the point data", || {
+            Reader::new(BufReader::with_capacity(1 << 20, file)).map_err(|e| {
+                if compressed {
+                    format!("LAZ point data is corrupt or truncated ({})", plain(&e))
+                } else {
+                    format!("invalid LAS header ({})", plain(&e))
+                }
+            })
+        })
+        .map_err(bad)?;
         let header = reader.header().clone();
         let format = *header.point_format();
         let record_len = format.len() as usize;
-        let points = header.number_of_points();
-        let t = header.transforms();
-        let scale = [t.x.scale, t.y.scale, t.z.scale];
-        let offset = [t.x.offset, t.y.offset, t.z.offset];
-        if scale.iter().chain(&offset).any(|v| !v.is_finite()) || scale.contains(&0.0) {
-            return Err(ConvertError::input(
-                path,
-                format!("header has an unusable scale {scale:?} or offset {offset:?}"),
-            ));
+        let points = raw.points;
+        if header.number_of_points() != points || record_len as u64 != raw.record_len {
+            return Err(bad(format!(
+                "the header's point count or record length cannot be read consistently ({points} points of {} bytes)",
+                raw.record_len
+            )));
         }
-        if !format.is_compressed {
-            let data_end = offset_to_points + points * record_len as u64;
-            let evlr_start =
-                data_after_points(&head, minor).filter(|s| *s >= data_end.min(file_len));
-            let records_end = evlr_start.unwrap_or(file_len).min(file_len);
-            let present = records_end.saturating_sub(offset_to_points) / record_len as u64;
-            if data_end > file_len {
-                return Err(ConvertError::input(
-                    path,
-                    format!(
-                        "header says {points} points but the file holds only {present} complete records (truncated)"
-                    ),
-                ));
-            }
-            if evlr_start.is_none() && present > points {
-                return Err(ConvertError::input(
-                    path,
-                    format!("header says {points} points but the file holds {present} records"),
-                ));
-            }
-        }
+        let (scale, offset) = (raw.scale, raw.offset);
         let eb_vlr = header
             .vlrs()
             .iter()
             .find(|v| v.user_id == "LASF_Spec" && v.record_id == 4)
             .map(|v| v.data.as_slice());
-        let extra = parse_extra_bytes(eb_vlr, format.extra_bytes as usize)
+        let mut extra = parse_extra_bytes(eb_vlr, format.extra_bytes as usize)
             .map_err(|e| ConvertError::input(path, e))?;
+        let warnings = rename_clashes(format_number, &mut extra)
+            .into_iter()
+            .map(|w| format!("{}: {w}", path.display()))
+            .collect();
         let (attributes, ops, std_len) = las_fields(format_number, &extra);
         if std_len != record_len {
             return Err(ConvertError::input(
@@ -124,14 +83,14 @@ impl LasSource {
             ));
         }
         let data = PointDataBuilder::new().for_header(&header).build();
-        let b = header.bounds();
-        let header_bounds = ([b.min.x, b.min.y, b.min.z], [b.max.x, b.max.y, b.max.z]);
+        let header_bounds = (raw.min, raw.max);
         Ok(LasSource {
             info: SourceInfo {
                 path: path.to_path_buf(),
                 points,
                 attributes,
                 precision: Precision::Scaled { scale, offset },
+                warnings,
             },
             reader,
             data,
@@ -142,7 +101,7 @@ impl LasSource {
             remaining: points,
             read_so_far: 0,
             compressed: format.is_compressed,
-            data_offset: offset_to_points,
+            data_offset: raw.offset_to_points,
             header_bounds,
         })
     }
@@ -156,16 +115,18 @@ impl LasSource {
         if n == 0 {
             return Ok(&[]);
         }
-        let got = self.reader.fill_points(n, &mut self.data).map_err(|e| {
-            let kind = if self.compressed { "LAZ" } else { "LAS" };
-            ConvertError::input(
-                &self.info.path,
+        let kind = if self.compressed { "LAZ" } else { "LAS" };
+        let after = self.read_so_far;
+        let (reader, data) = (&mut self.reader, &mut self.data);
+        let got = guarded(&format!("{kind} point data after point {after}"), || {
+            reader.fill_points(n, data).map_err(|e| {
                 format!(
-                    "{kind} point data is corrupt or truncated after point {} ({e})",
-                    self.read_so_far
-                ),
-            )
-        })?;
+                    "{kind} point data is corrupt or truncated after point {after} ({})",
+                    plain(&e)
+                )
+            })
+        })
+        .map_err(|what| ConvertError::input(&self.info.path, what))?;
         if got == 0 {
             return Err(ConvertError::input(
                 &self.info.path,
@@ -205,20 +166,15 @@ impl LasSource {
     }
 }
 
-/// Where data that follows the point records starts: internal waveform packets (LAS 1.3+,
-/// header byte 227) or extended VLRs (LAS 1.4, header byte 235). None if nothing follows.
-fn data_after_points(head: &[u8], minor: u8) -> Option<u64> {
-    let u64_at = |o: usize| {
-        head.get(o..o + 8)
-            .map(|b| u64::from_le_bytes([b[0], b[1], b[2], b[3], b[4], b[5], b[6], b[7]]))
-    };
-    let waveform = if minor >= 3 { u64_at(227) } else { None };
-    let evlr = if minor >= 4 { u64_at(235) } else { None };
-    [waveform, evlr]
-        .into_iter()
-        .flatten()
-        .filter(|s| *s > 0)
-        .min()
+/// A dependency's error as plain words: its first line, without a repeated cause.
+fn plain(e: &las::Error) -> String {
+    let text = e.to_string();
+    let first = text.lines().next().unwrap_or_default();
+    // io errors wrapped twice read "X: X"; say it once.
+    match first.split_once(": ") {
+        Some((a, b)) if a == b => a.to_string(),
+        _ => first.to_string(),
+    }
 }
 
 impl PointSource for LasSource {

@@ -219,7 +219,10 @@ pub fn parse_extra_bytes(
             let data_type = d[2];
             let options = d[3];
             let name_end = d[4..36].iter().position(|&b| b == 0).unwrap_or(32);
-            let name = String::from_utf8_lossy(&d[4..4 + name_end])
+            let name: String = String::from_utf8_lossy(&d[4..4 + name_end])
+                .chars()
+                .filter(|c| !c.is_control())
+                .collect::<String>()
                 .trim()
                 .to_string();
             let (ty, count, len) = match data_type {
@@ -251,14 +254,26 @@ pub fn parse_extra_bytes(
             };
             let mut attribute =
                 Attribute::new(if name.is_empty() { "extra" } else { &name }, ty, count);
-            if data_type != 0 && options & 0x08 != 0 {
-                attribute.scale = Some(f64s(112));
-            }
-            if data_type != 0 && options & 0x10 != 0 {
-                attribute.offset = Some(f64s(136));
+            for (flag, at, what) in [(0x08, 112, "scale"), (0x10, 136, "offset")] {
+                if data_type == 0 || options & flag == 0 {
+                    continue;
+                }
+                let values = f64s(at);
+                if let Some(v) = values.iter().find(|v| !v.is_finite()) {
+                    return Err(format!(
+                        "extra bytes VLR: field \"{name}\" has a {what} of {v}, which is not a number a value can be scaled by"
+                    ));
+                }
+                match what {
+                    "scale" => attribute.scale = Some(values),
+                    _ => attribute.offset = Some(values),
+                }
             }
             let desc_end = d[160..192].iter().position(|&b| b == 0).unwrap_or(32);
             attribute.description = String::from_utf8_lossy(&d[160..160 + desc_end])
+                .chars()
+                .filter(|c| !c.is_control())
+                .collect::<String>()
                 .trim()
                 .to_string();
             used += len;
@@ -283,6 +298,34 @@ pub fn parse_extra_bytes(
         });
     }
     Ok(fields)
+}
+
+/// Gives every extra-bytes field a name of its own: one that clashes with a standard field of
+/// the point format (or x, y, z, or an earlier extra field) is kept as `extra_NAME` (then
+/// `extra_NAME_2`, ...), so it never overwrites the real one. Returns a warning per rename.
+pub fn rename_clashes(format_number: u8, extra: &mut [ExtraBytesField]) -> Vec<String> {
+    let (standard, _, _) = las_fields(format_number, &[]);
+    let mut taken: Vec<String> = ["x", "y", "z"].iter().map(|s| s.to_string()).collect();
+    taken.extend(standard.iter().map(|a| a.name.clone()));
+    let mut warnings = Vec::new();
+    for field in extra.iter_mut() {
+        let name = field.attribute.name.clone();
+        if taken.contains(&name) {
+            let base = format!("extra_{name}");
+            let mut new = base.clone();
+            let mut n = 2;
+            while taken.contains(&new) {
+                new = format!("{base}_{n}");
+                n += 1;
+            }
+            warnings.push(format!(
+                "extra bytes field \"{name}\" has the name of another field of the points; kept as \"{new}\""
+            ));
+            field.attribute.name = new;
+        }
+        taken.push(field.attribute.name.clone());
+    }
+    warnings
 }
 
 fn eb_type(code: u8) -> AttrType {
@@ -395,5 +438,42 @@ mod tests {
             row_to_record(&ops, &row, &mut back);
             assert_eq!(back, record, "point format {f}");
         }
+    }
+
+    #[test]
+    fn extra_bytes_named_like_standard_fields_are_renamed() {
+        let field = |n: &str| ExtraBytesField {
+            attribute: Attribute::new(n, AttrType::U16, 1),
+            len: 2,
+        };
+        let mut extra = vec![
+            field("intensity"),
+            field("x"),
+            field("intensity"),
+            field("h"),
+        ];
+        let warnings = rename_clashes(3, &mut extra);
+        let names: Vec<&str> = extra.iter().map(|e| e.attribute.name.as_str()).collect();
+        assert_eq!(
+            names,
+            ["extra_intensity", "extra_x", "extra_intensity_2", "h"]
+        );
+        assert_eq!(warnings.len(), 3);
+        let (attrs, _, _) = las_fields(3, &extra);
+        let mut all: Vec<&str> = attrs.iter().map(|a| a.name.as_str()).collect();
+        all.sort();
+        all.dedup();
+        assert_eq!(all.len(), attrs.len(), "every name once");
+    }
+
+    #[test]
+    fn non_finite_extra_bytes_scales_are_refused() {
+        let mut d = vec![0u8; 192];
+        d[2] = 9;
+        d[3] = 0x08;
+        d[4] = b'h';
+        d[112..120].copy_from_slice(&f64::NAN.to_le_bytes());
+        let err = parse_extra_bytes(Some(&d), 4).expect_err("NaN scale");
+        assert!(err.contains("field \"h\" has a scale of NaN"), "{err}");
     }
 }

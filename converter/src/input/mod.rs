@@ -1,8 +1,11 @@
 //! Input readers. Each decodes its file into positions (f64) and rows of its own attributes.
 
 pub mod las;
+pub mod las_header;
 pub mod las_layout;
+pub mod laz_check;
 pub mod ply;
+pub mod ply_header;
 
 use crate::error::{ConvertError, Result};
 use std::path::{Path, PathBuf};
@@ -27,6 +30,8 @@ pub struct SourceInfo {
     pub points: u64,
     pub attributes: Vec<Attribute>,
     pub precision: Precision,
+    /// What the reader changed to read the file (renamed attributes), for the user.
+    pub warnings: Vec<String>,
 }
 
 impl SourceInfo {

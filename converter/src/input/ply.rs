@@ -1,10 +1,11 @@
-//! PLY point clouds: ASCII and binary (either endianness). The header is parsed by `ply-rs-bw`;
-//! the vertex body is decoded here, straight into rows, which is what makes large files fast.
+//! PLY point clouds: ASCII and binary (either endianness). The header is parsed by
+//! `ply_header`; the vertex body is decoded here, straight into rows, which is what makes large
+//! files fast. Every count read from the file is checked against the bytes left in it before it
+//! is used.
 
+use super::ply_header::{ElementDef, Encoding, PlyHeader, read_header, shown};
 use super::{PointSource, Precision, SourceInfo};
 use crate::error::{ConvertError, Result};
-use ply_rs_bw::parser::{Parser, Reader};
-use ply_rs_bw::ply::{DefaultElement, ElementDef, Encoding, PropertyType, ScalarType};
 use std::fs::File;
 use std::io::{BufRead, BufReader, Read};
 use std::path::Path;
@@ -19,12 +20,13 @@ enum Target {
     Skip,
 }
 
-#[derive(Debug, Clone, Copy)]
+#[derive(Debug, Clone)]
 struct Prop {
     ty: AttrType,
     /// Length type, for list properties (always skipped).
     list: Option<AttrType>,
     target: Target,
+    name: String,
 }
 
 pub struct PlySource {
@@ -34,21 +36,12 @@ pub struct PlySource {
     props: Vec<Prop>,
     remaining: u64,
     read_so_far: u64,
+    /// Bytes of the file not yet read.
+    left: u64,
+    /// Whether the vertices are the last element (then nothing may follow them).
+    vertex_last: bool,
     line: String,
     scratch: Vec<u8>,
-}
-
-fn attr_type(t: &ScalarType) -> AttrType {
-    match t {
-        ScalarType::Char => AttrType::I8,
-        ScalarType::UChar => AttrType::U8,
-        ScalarType::Short => AttrType::I16,
-        ScalarType::UShort => AttrType::U16,
-        ScalarType::Int => AttrType::I32,
-        ScalarType::UInt => AttrType::U32,
-        ScalarType::Float => AttrType::F32,
-        ScalarType::Double => AttrType::F64,
-    }
 }
 
 /// Properties that group into one vector attribute: (attribute name, component property names).
@@ -61,65 +54,43 @@ const GROUPS: [(&str, [&str; 3]); 3] = [
 impl PlySource {
     pub fn open(path: &Path) -> Result<PlySource> {
         let file = File::open(path).map_err(|e| ConvertError::io(path, "cannot open input", e))?;
-        let mut magic = [0u8; 4];
-        let mut probe = file
-            .try_clone()
-            .map_err(|e| ConvertError::io(path, "cannot open input", e))?;
-        if probe.read_exact(&mut magic).is_err() || &magic[..3] != b"ply" {
-            return Err(ConvertError::input(
-                path,
-                "not a PLY file (it does not start with \"ply\")",
-            ));
-        }
-        drop(probe);
-        let file = File::open(path).map_err(|e| ConvertError::io(path, "cannot open input", e))?;
-        let mut reader = Reader::new(BufReader::with_capacity(1 << 20, file));
-        let header = Parser::<DefaultElement>::new()
-            .read_header(&mut reader)
-            .map_err(|e| {
-                let msg = e.to_string().replace(['\n', '\t'], " ");
-                ConvertError::input(path, format!("malformed PLY header ({})", msg.trim()))
-            })?;
-        let mut body = std::mem::replace(
-            reader.get_mut(),
-            BufReader::new(
-                File::open(path).map_err(|e| ConvertError::io(path, "cannot open input", e))?,
-            ),
-        );
-        let encoding = header.encoding;
-        let vertex_pos = header
-            .elements
-            .keys()
-            .position(|k| k == "vertex")
-            .ok_or_else(|| ConvertError::input(path, "PLY header has no \"vertex\" element"))?;
-        // Elements before the vertices must be skipped.
-        for (_, el) in header.elements.iter().take(vertex_pos) {
-            skip_element(&mut body, el, encoding).map_err(|e| ConvertError::input(path, e))?;
-        }
-        let Some((_, vertex)) = header.elements.iter().nth(vertex_pos) else {
-            return Err(ConvertError::input(
-                path,
-                "PLY header has no \"vertex\" element",
-            ));
+        let file_len = file
+            .metadata()
+            .map_err(|e| ConvertError::io(path, "cannot read file size", e))?
+            .len();
+        let mut body = BufReader::with_capacity(1 << 20, file);
+        let header = read_header(&mut body).map_err(|e| ConvertError::input(path, e))?;
+        let bad = |what: String| ConvertError::input(path, what);
+        let PlyHeader {
+            encoding,
+            elements,
+            len,
+        } = header;
+        let Some(vertex_pos) = elements.iter().position(|e| e.name == "vertex") else {
+            return Err(bad("the PLY header has no \"vertex\" element".into()));
         };
-        let names: Vec<&str> = vertex.properties.keys().map(|k| k.as_str()).collect();
+        check_sizes(&elements, encoding, file_len - len).map_err(&bad)?;
+        let mut left = file_len - len;
+        // Elements before the vertices must be skipped.
+        for el in &elements[..vertex_pos] {
+            skip_element(&mut body, el, encoding, &mut left).map_err(&bad)?;
+        }
+        let vertex = &elements[vertex_pos];
+        let names: Vec<&str> = vertex.properties.iter().map(|p| p.name.as_str()).collect();
+        let find = |n: &str| vertex.properties.iter().find(|p| p.name == n);
         for axis in ["x", "y", "z"] {
-            match vertex.properties.get(axis).map(|p| &p.data_type) {
-                Some(PropertyType::Scalar(_)) => {}
-                Some(PropertyType::List(..)) => {
-                    return Err(ConvertError::input(
-                        path,
-                        format!("vertex property \"{axis}\" is a list, not a number"),
-                    ));
+            match find(axis).map(|p| p.list) {
+                Some(None) => {}
+                Some(Some(_)) => {
+                    return Err(bad(format!(
+                        "vertex property \"{axis}\" is a list, not a number"
+                    )));
                 }
                 None => {
-                    return Err(ConvertError::input(
-                        path,
-                        format!(
-                            "vertex element has no \"{axis}\" property (found: {})",
-                            names.join(", ")
-                        ),
-                    ));
+                    return Err(bad(format!(
+                        "vertex element has no \"{axis}\" property (found: {})",
+                        shown(&names.join(", "))
+                    )));
                 }
             }
         }
@@ -130,29 +101,23 @@ impl PlySource {
         for (group, comps) in GROUPS {
             let types: Vec<Option<AttrType>> = comps
                 .iter()
-                .map(|c| match vertex.properties.get(*c).map(|p| &p.data_type) {
-                    Some(PropertyType::Scalar(t)) => Some(attr_type(t)),
-                    _ => None,
-                })
+                .map(|c| find(c).filter(|p| p.list.is_none()).map(|p| p.ty))
                 .collect();
             if let (Some(t), true) = (types[0], types.iter().all(|t| *t == types[0]))
                 && attributes.iter().all(|a| a.name != group)
+                && vertex.properties.iter().all(|p| p.name != group)
             {
-                let ty = t;
                 for (i, c) in comps.iter().enumerate() {
-                    grouped.push((c, row + i * ty.size()));
+                    grouped.push((c, row + i * t.size()));
                 }
-                attributes.push(Attribute::new(group, ty, 3));
-                row += ty.size() * 3;
+                attributes.push(Attribute::new(group, t, 3));
+                row += t.size() * 3;
             }
         }
         let mut coord_types = Vec::new();
-        for (name, def) in &vertex.properties {
-            let (ty, list) = match &def.data_type {
-                PropertyType::Scalar(t) => (attr_type(t), None),
-                PropertyType::List(l, t) => (attr_type(t), Some(attr_type(l))),
-            };
-            let target = match name.as_str() {
+        for def in &vertex.properties {
+            let (ty, list) = (def.ty, def.list);
+            let target = match def.name.as_str() {
                 _ if list.is_some() => Target::Skip,
                 "x" => Target::Position(0),
                 "y" => Target::Position(1),
@@ -171,7 +136,12 @@ impl PlySource {
             if let Target::Position(_) = target {
                 coord_types.push(ty);
             }
-            props.push(Prop { ty, list, target });
+            props.push(Prop {
+                ty,
+                list,
+                target,
+                name: def.name.clone(),
+            });
         }
         let precision = if coord_types.contains(&AttrType::F64) {
             Precision::Float64
@@ -180,19 +150,22 @@ impl PlySource {
         } else {
             Precision::Integer
         };
-        let points = vertex.count as u64;
+        let points = vertex.count;
         Ok(PlySource {
             info: SourceInfo {
                 path: path.to_path_buf(),
                 points,
                 attributes,
                 precision,
+                warnings: Vec::new(),
             },
             reader: body,
             encoding,
             props,
             remaining: points,
             read_so_far: 0,
+            left,
+            vertex_last: vertex_pos + 1 == elements.len(),
             line: String::new(),
             scratch: Vec::new(),
         })
@@ -207,6 +180,100 @@ impl PlySource {
             ),
         )
     }
+
+    fn fault(&self, what: String) -> ConvertError {
+        ConvertError::input(
+            &self.info.path,
+            format!("vertex {} (counting from 0): {what}", self.read_so_far),
+        )
+    }
+
+    /// Reads exactly `n` bytes into the scratch buffer, counting them off the file.
+    fn fill(&mut self, n: u64) -> Result<()> {
+        if n > self.left {
+            return Err(self.truncated());
+        }
+        self.scratch.resize(n as usize, 0);
+        if self.reader.read_exact(&mut self.scratch).is_err() {
+            return Err(self.truncated());
+        }
+        self.left -= n;
+        Ok(())
+    }
+
+    /// After the last vertex: when no element follows, nothing may (but white space in text).
+    fn check_end(&mut self) -> Result<()> {
+        if !self.vertex_last || self.left == 0 {
+            return Ok(());
+        }
+        let mut rest = Vec::new();
+        let _ = (&mut self.reader).take(1 << 16).read_to_end(&mut rest);
+        let only_space = rest.iter().all(|b| b.is_ascii_whitespace() || *b == 0);
+        if self.encoding != Encoding::Ascii || !only_space {
+            return Err(ConvertError::input(
+                &self.info.path,
+                format!(
+                    "{} bytes follow the last of the {} vertices that the header describes (does the format line say the right encoding?)",
+                    self.left, self.info.points
+                ),
+            ));
+        }
+        Ok(())
+    }
+}
+
+/// The body must have room for what the header announces, before anything is read or
+/// allocated; a binary body without lists must match it to the byte.
+fn check_sizes(
+    elements: &[ElementDef],
+    enc: Encoding,
+    body: u64,
+) -> std::result::Result<(), String> {
+    let mut least = 0u64;
+    let mut exact = true;
+    for el in elements {
+        let props = el.properties.len() as u64;
+        let item = match enc {
+            // A value and its separator are at least two characters.
+            Encoding::Ascii => 2 * props.max(1),
+            _ => el
+                .properties
+                .iter()
+                .map(|p| p.list.unwrap_or(p.ty).size() as u64)
+                .sum(),
+        };
+        exact &= enc != Encoding::Ascii && el.fixed_size().is_some();
+        least = el
+            .count
+            .checked_mul(item)
+            .and_then(|n| n.checked_add(least))
+            .unwrap_or(u64::MAX);
+        // The last ASCII line may lack its newline.
+        if least.saturating_sub(1) > body {
+            return Err(format!(
+                "the header announces {} items of element \"{}\" (line {}), but the {body} bytes after the header cannot hold them (truncated)",
+                el.count,
+                shown(&el.name),
+                el.line
+            ));
+        }
+    }
+    if exact && least < body {
+        return Err(format!(
+            "the {body} bytes after the header are {} more than its elements describe (does the format line say the right encoding?)",
+            body - least
+        ));
+    }
+    Ok(())
+}
+
+/// Reads the whole-number item count of a binary list.
+fn list_count(bytes: &[u8], t: AttrType, big_endian: bool) -> u64 {
+    let mut out = [0u8; 8];
+    let v = read_binary(bytes, t, big_endian, &mut out);
+    // Integer types only (the header refuses float counts); negative counts become huge and
+    // fail the size check that follows.
+    if v < 0.0 { u64::MAX } else { v as u64 }
 }
 
 /// Reads one binary scalar, returning its value as f64 and writing its little-endian bytes.
@@ -219,58 +286,79 @@ fn read_binary(bytes: &[u8], t: AttrType, big_endian: bool, out: &mut [u8; 8]) -
     t.read_f64(&out[..n])
 }
 
-/// Encodes an ASCII value as the little-endian bytes of `t`.
+/// Encodes an ASCII value as the little-endian bytes of `t`; `None` when the token is not a
+/// number of that type (a whole number in range, for the integer types).
 fn encode_ascii(token: &str, t: AttrType, out: &mut [u8; 8]) -> Option<f64> {
-    let v: f64 = token.parse().ok()?;
-    match t {
-        AttrType::I8 => out[0] = (v as i8) as u8,
-        AttrType::U8 => out[0] = v as u8,
-        AttrType::I16 => out[..2].copy_from_slice(&(v as i16).to_le_bytes()),
-        AttrType::U16 => out[..2].copy_from_slice(&(v as u16).to_le_bytes()),
-        AttrType::I32 => out[..4].copy_from_slice(&(v as i32).to_le_bytes()),
-        AttrType::U32 => out[..4].copy_from_slice(&(v as u32).to_le_bytes()),
-        AttrType::F32 => out[..4].copy_from_slice(&(v as f32).to_le_bytes()),
-        AttrType::F64 => out[..8].copy_from_slice(&v.to_le_bytes()),
-        AttrType::I64 => out[..8].copy_from_slice(&(v as i64).to_le_bytes()),
-        AttrType::U64 => out[..8].copy_from_slice(&(v as u64).to_le_bytes()),
+    if t.is_float() {
+        let v: f64 = token.parse().ok()?;
+        match t {
+            AttrType::F32 => out[..4].copy_from_slice(&(v as f32).to_le_bytes()),
+            _ => out[..8].copy_from_slice(&v.to_le_bytes()),
+        }
+        return Some(v);
     }
-    Some(v)
+    let v: i64 = token.parse().ok()?;
+    match t {
+        AttrType::I8 => out[0] = i8::try_from(v).ok()? as u8,
+        AttrType::U8 => out[0] = u8::try_from(v).ok()?,
+        AttrType::I16 => out[..2].copy_from_slice(&i16::try_from(v).ok()?.to_le_bytes()),
+        AttrType::U16 => out[..2].copy_from_slice(&u16::try_from(v).ok()?.to_le_bytes()),
+        AttrType::I32 => out[..4].copy_from_slice(&i32::try_from(v).ok()?.to_le_bytes()),
+        AttrType::U32 => out[..4].copy_from_slice(&u32::try_from(v).ok()?.to_le_bytes()),
+        AttrType::I64 => out[..8].copy_from_slice(&v.to_le_bytes()),
+        _ => out[..8].copy_from_slice(&u64::try_from(v).ok()?.to_le_bytes()),
+    }
+    Some(v as f64)
 }
 
 fn skip_element(
     body: &mut BufReader<File>,
     el: &ElementDef,
     enc: Encoding,
+    left: &mut u64,
 ) -> std::result::Result<(), String> {
-    let mut line = String::new();
+    let name = shown(&el.name);
+    let ends = |i: u64| format!("the file ends inside element \"{name}\" (item {i})");
+    let mut line = Vec::new();
     for i in 0..el.count {
         match enc {
             Encoding::Ascii => {
                 line.clear();
-                if body.read_line(&mut line).map_err(|e| e.to_string())? == 0 {
-                    return Err(format!(
-                        "file ends inside element \"{}\" (item {i})",
-                        el.name
-                    ));
+                let got = body
+                    .take(*left)
+                    .read_until(b'\n', &mut line)
+                    .map_err(|e| format!("cannot read element \"{name}\" ({})", e.kind()))?;
+                if got == 0 {
+                    return Err(ends(i));
                 }
+                *left -= got as u64;
             }
             _ => {
-                for p in el.properties.values() {
-                    let n = match &p.data_type {
-                        PropertyType::Scalar(t) => attr_type(t).size(),
-                        PropertyType::List(lt, t) => {
-                            let lt = attr_type(lt);
-                            let mut b = vec![0u8; lt.size()];
-                            body.read_exact(&mut b)
-                                .map_err(|_| format!("file ends inside element \"{}\"", el.name))?;
-                            let mut o = [0u8; 8];
-                            let len = read_binary(&b, lt, enc == Encoding::BinaryBigEndian, &mut o);
-                            len as usize * attr_type(t).size()
+                for p in &el.properties {
+                    let n = match p.list {
+                        None => p.ty.size() as u64,
+                        Some(lt) => {
+                            let mut b = [0u8; 8];
+                            let k = lt.size();
+                            if (k as u64) > *left || body.read_exact(&mut b[..k]).is_err() {
+                                return Err(ends(i));
+                            }
+                            *left -= k as u64;
+                            let count = list_count(&b[..k], lt, enc == Encoding::BinaryBigEndian);
+                            count.saturating_mul(p.ty.size() as u64)
                         }
                     };
-                    let mut b = vec![0u8; n];
-                    body.read_exact(&mut b)
-                        .map_err(|_| format!("file ends inside element \"{}\"", el.name))?;
+                    if n > *left {
+                        return Err(ends(i));
+                    }
+                    // Skipped, never allocated: a count from the file is only as good as the
+                    // bytes behind it.
+                    let skipped = std::io::copy(&mut body.take(n), &mut std::io::sink())
+                        .map_err(|e| format!("cannot read element \"{name}\" ({})", e.kind()))?;
+                    if skipped != n {
+                        return Err(ends(i));
+                    }
+                    *left -= n;
                 }
             }
         }
@@ -287,91 +375,155 @@ impl PointSource for PlySource {
         let n = (max as u64).min(self.remaining) as usize;
         let row_len = self.info.row_len();
         let mut val = [0u8; 8];
-        for _ in 0..n {
-            let base = rows.len();
-            rows.resize(base + row_len, 0);
-            let mut p = [0f64; 3];
-            match self.encoding {
-                Encoding::Ascii => {
-                    self.line.clear();
-                    let got = self
-                        .reader
-                        .read_line(&mut self.line)
-                        .map_err(|e| ConvertError::io(&self.info.path, "cannot read", e))?;
-                    if got == 0 {
-                        return Err(self.truncated());
-                    }
-                    let mut tokens = self.line.split_ascii_whitespace();
-                    for prop in &self.props {
-                        if let Some(lt) = prop.list {
-                            let _ = lt;
-                            let len: usize =
-                                tokens.next().and_then(|t| t.parse().ok()).unwrap_or(0);
-                            for _ in 0..len {
-                                tokens.next();
-                            }
-                            continue;
-                        }
-                        let token = tokens.next().ok_or_else(|| {
-                            ConvertError::input(
-                                &self.info.path,
-                                format!("vertex {} has too few values", self.read_so_far),
-                            )
-                        })?;
-                        let v = encode_ascii(token, prop.ty, &mut val).ok_or_else(|| {
-                            ConvertError::input(
-                                &self.info.path,
-                                format!(
-                                    "vertex {} has a value \"{token}\" that is not a number",
-                                    self.read_so_far
-                                ),
-                            )
-                        })?;
-                        match prop.target {
-                            Target::Position(a) => p[a] = v,
-                            Target::Attr(off) => {
-                                let s = prop.ty.size();
-                                rows[base + off..base + off + s].copy_from_slice(&val[..s]);
-                            }
-                            Target::Skip => {}
-                        }
-                    }
-                }
-                enc => {
-                    let big = enc == Encoding::BinaryBigEndian;
-                    for prop in &self.props {
-                        let s = prop.ty.size();
-                        if let Some(lt) = prop.list {
-                            self.scratch.resize(lt.size(), 0);
-                            if self.reader.read_exact(&mut self.scratch).is_err() {
-                                return Err(self.truncated());
-                            }
-                            let len = read_binary(&self.scratch, lt, big, &mut val) as usize;
-                            self.scratch.resize(len * s, 0);
-                            if self.reader.read_exact(&mut self.scratch).is_err() {
-                                return Err(self.truncated());
-                            }
-                            continue;
-                        }
-                        self.scratch.resize(s, 0);
-                        if self.reader.read_exact(&mut self.scratch).is_err() {
-                            return Err(self.truncated());
-                        }
-                        let v = read_binary(&self.scratch, prop.ty, big, &mut val);
-                        match prop.target {
-                            Target::Position(a) => p[a] = v,
-                            Target::Attr(off) => {
-                                rows[base + off..base + off + s].copy_from_slice(&val[..s])
-                            }
-                            Target::Skip => {}
-                        }
-                    }
-                }
+        let props = std::mem::take(&mut self.props);
+        let result = (|| {
+            for _ in 0..n {
+                let base = rows.len();
+                rows.resize(base + row_len, 0);
+                let p = match self.encoding {
+                    Encoding::Ascii => self.ascii_vertex(&props, &mut rows[base..], &mut val)?,
+                    _ => self.binary_vertex(&props, &mut rows[base..], &mut val)?,
+                };
+                xyz.push(p);
+                self.read_so_far += 1;
+                self.remaining -= 1;
             }
-            xyz.push(p);
-            self.read_so_far += 1;
+            if self.remaining == 0 && n > 0 {
+                self.check_end()?;
+            }
+            Ok(n)
+        })();
+        self.props = props;
+        result
+    }
+}
+
+impl PlySource {
+    /// Decodes one text line of properties into `row`; returns the position.
+    fn ascii_vertex(
+        &mut self,
+        props: &[Prop],
+        row: &mut [u8],
+        val: &mut [u8; 8],
+    ) -> Result<[f64; 3]> {
+        self.line.clear();
+        let got = (&mut self.reader)
+            .take(self.left)
+            .read_line(&mut self.line)
+            .map_err(|e| {
+                self.fault(format!(
+                    "the line is not text ({})",
+                    if e.kind() == std::io::ErrorKind::InvalidData {
+                        "it holds bytes that are not UTF-8".to_string()
+                    } else {
+                        e.kind().to_string()
+                    }
+                ))
+            })?;
+        if got == 0 {
+            return Err(self.truncated());
         }
-        self.remaining -= n as u64;
-        Ok(n)
+        self.left -= got as u64;
+        let line = std::mem::take(&mut self.line);
+        let mut tokens = line.split_ascii_whitespace();
+        let mut p = [0f64; 3];
+        for prop in props {
+            if prop.list.is_some() {
+                let token = tokens.next().unwrap_or("");
+                let Ok(len) = token.parse::<u64>() else {
+                    return Err(self.fault(format!(
+                        "list \"{}\" has an item count \"{}\" that is not a whole number",
+                        shown(&prop.name),
+                        shown(token)
+                    )));
+                };
+                // Items are taken one by one from this line: a count beyond them ends at once.
+                let mut taken = 0u64;
+                while taken < len && tokens.next().is_some() {
+                    taken += 1;
+                }
+                if taken < len {
+                    return Err(self.fault(format!(
+                        "list \"{}\" announces {len} items but the line holds only {taken}",
+                        shown(&prop.name)
+                    )));
+                }
+                continue;
+            }
+            let Some(token) = tokens.next() else {
+                return Err(self.fault(format!(
+                    "the line has no value for property \"{}\"",
+                    shown(&prop.name)
+                )));
+            };
+            let Some(v) = encode_ascii(token, prop.ty, val) else {
+                return Err(self.fault(format!(
+                    "property \"{}\" has a value \"{}\" that is not a {} number",
+                    shown(&prop.name),
+                    shown(token),
+                    prop.ty.name()
+                )));
+            };
+            match prop.target {
+                Target::Position(a) => p[a] = v,
+                Target::Attr(off) => {
+                    let s = prop.ty.size();
+                    row[off..off + s].copy_from_slice(&val[..s]);
+                }
+                Target::Skip => {}
+            }
+        }
+        let extra = tokens.count();
+        self.line = line;
+        if extra > 0 {
+            return Err(self.fault(format!(
+                "the line holds {extra} values more than the header's {} properties",
+                props.len()
+            )));
+        }
+        Ok(p)
+    }
+
+    /// Decodes one binary vertex into `row`; returns the position.
+    fn binary_vertex(
+        &mut self,
+        props: &[Prop],
+        row: &mut [u8],
+        val: &mut [u8; 8],
+    ) -> Result<[f64; 3]> {
+        let big = self.encoding == Encoding::BinaryBigEndian;
+        let mut p = [0f64; 3];
+        for prop in props {
+            let s = prop.ty.size();
+            if let Some(lt) = prop.list {
+                self.fill(lt.size() as u64)?;
+                let len = list_count(&self.scratch, lt, big);
+                let bytes = len.saturating_mul(s as u64);
+                if bytes > self.left {
+                    return Err(self.fault(format!(
+                        "list \"{}\" announces {len} items, more than the {} bytes left in the file",
+                        shown(&prop.name),
+                        self.left
+                    )));
+                }
+                // Skipped, never allocated.
+                let skipped =
+                    std::io::copy(&mut (&mut self.reader).take(bytes), &mut std::io::sink())
+                        .map_err(|_| self.truncated())?;
+                if skipped != bytes {
+                    return Err(self.truncated());
+                }
+                self.left -= bytes;
+                continue;
+            }
+            self.fill(s as u64)?;
+            let v = read_binary(&self.scratch, prop.ty, big, val);
+            match prop.target {
+                Target::Position(a) => p[a] = v,
+                Target::Attr(off) => row[off..off + s].copy_from_slice(&val[..s]),
+                Target::Skip => {}
+            }
+        }
+        Ok(p)
     }
 }

@@ -1,0 +1,31 @@
+//! The hierarchy page decoder on any bytes: the trailing checksum is rewritten to match, so that
+//! the entry and shape checks behind it are reached; the page's root node comes from the input.
+#![no_main]
+
+use libfuzzer_sys::fuzz_target;
+use strata_format::{NodeKey, PageRef, decode_page};
+
+fuzz_target!(|data: &[u8]| {
+    if data.len() < 5 {
+        return;
+    }
+    let root = NodeKey {
+        level: data[0] % 32,
+        x: 0,
+        y: 0,
+        z: 0,
+    };
+    let mut bytes = data[1..].to_vec();
+    let n = bytes.len();
+    let crc = crc32fast::hash(&bytes[..n - 4]);
+    bytes[n - 4..].copy_from_slice(&crc.to_le_bytes());
+    let page = PageRef {
+        root,
+        offset: 0,
+        size: n as u64,
+        checksum: None,
+    };
+    if let Ok(p) = decode_page(&bytes, &page, 1 + (data[0] as u32 >> 5)) {
+        let _ = p.child_pages().count();
+    }
+});
