@@ -164,3 +164,89 @@ fn a_wrong_filter_is_refused_in_one_sentence() {
         }
     }
 }
+
+fn render_stats(extra: &[&str], tag: &str) -> serde_json::Value {
+    let ds = dataset();
+    let out = ds.with_file_name(format!("{tag}.png"));
+    let stats = ds.with_file_name(format!("{tag}.json"));
+    let mut args = vec![
+        "render",
+        s(ds),
+        "-o",
+        s(&out),
+        "--size",
+        "320x240",
+        "--wait-complete",
+        "--stats",
+        s(&stats),
+        "--budget",
+        "100k",
+    ];
+    args.extend_from_slice(extra);
+    gpu_ok(&args);
+    serde_json::from_slice(&std::fs::read(&stats).expect("stats")).expect("JSON")
+}
+
+#[test]
+fn a_clip_box_keeps_only_its_inside_and_bounds_the_nodes_loaded() {
+    // A box around the middle of autzen (636001..637179, 848935..849498).
+    let (x0, x1, y0, y1) = (636400.0, 636800.0, 849100.0, 849350.0);
+    let clip = format!("min={x0},{y0},0;max={x1},{y1},1000");
+    let mut picked = 0;
+    for pixel in ["160,120", "140,115", "180,125", "150,130", "170,110"] {
+        let Some(p) = pick("pyramid", pixel, &["--clip", &clip]) else {
+            continue;
+        };
+        let (x, y) = (
+            p["position"][0].as_f64().expect("x"),
+            p["position"][1].as_f64().expect("y"),
+        );
+        assert!(
+            (x0 - 0.01..=x1 + 0.01).contains(&x) && (y0 - 0.01..=y1 + 0.01).contains(&y),
+            "{pixel}: {x},{y} is outside the clip box"
+        );
+        picked += 1;
+    }
+    assert!(picked >= 2, "only {picked} pixels had a point");
+    // Hiding the same box: no pick lands inside it.
+    let outside = format!("{clip};outside");
+    for pixel in ["160,120", "140,115", "180,125"] {
+        if let Some(p) = pick("points", pixel, &["--clip", &outside]) {
+            let (x, y) = (
+                p["position"][0].as_f64().expect("x"),
+                p["position"][1].as_f64().expect("y"),
+            );
+            assert!(
+                !((x0 + 0.01..=x1 - 0.01).contains(&x) && (y0 + 0.01..=y1 - 0.01).contains(&y)),
+                "{pixel}: {x},{y} lies inside the hidden box"
+            );
+        }
+    }
+    // Nodes that hold nothing the box keeps are not loaded, under the same budget.
+    let full = render_stats(&[], "noclip");
+    let clipped = render_stats(&["--clip", &clip], "clip");
+    let nodes = |v: &serde_json::Value| v["frames"][0]["nodes_resident"].as_u64().unwrap_or(0);
+    let bytes = |v: &serde_json::Value| v["frames"][0]["bytes_loaded_total"].as_u64().unwrap_or(0);
+    assert!(nodes(&clipped) >= 1);
+    assert!(
+        nodes(&clipped) < nodes(&full),
+        "{} of {} nodes",
+        nodes(&clipped),
+        nodes(&full)
+    );
+    assert!(bytes(&clipped) < bytes(&full));
+    // A wrong box is refused in one sentence.
+    let o = gpu_run(&[
+        "render",
+        s(dataset()),
+        "-o",
+        "x.png",
+        "--clip",
+        "min=1,2,3;max=0,0,0",
+    ]);
+    let t = String::from_utf8_lossy(&o.stderr);
+    assert!(
+        !o.status.success() && t.contains("--clip") && t.trim().lines().count() == 1,
+        "{t}"
+    );
+}

@@ -2,7 +2,7 @@
 
 use anyhow::Context;
 use strata_viewer::gpu::ProjectionPath;
-use strata_viewer::settings::{MAX_BUDGET, MIN_BUDGET, PassClock, SizeMode};
+use strata_viewer::settings::{ClipBox, MAX_BUDGET, MIN_BUDGET, PassClock, SizeMode};
 use strata_viewer::{ColourMode, Settings};
 
 #[derive(Debug, clap::Args)]
@@ -34,6 +34,10 @@ pub struct ViewArgs {
     /// NAME=LOW..HIGH (repeatable; elevation in the dataset's coordinates).
     #[arg(long = "filter", value_name = "NAME=LOW..HIGH")]
     pub filter: Vec<String>,
+    /// A clip box, "min=X,Y,Z;max=X,Y,Z" in the dataset's coordinates, keeping its inside (or,
+    /// with ";outside", hiding it); repeatable, up to 4. Nodes outside are not loaded.
+    #[arg(long = "clip", value_name = "BOX")]
+    pub clip: Vec<String>,
     /// Point size in pixels (or, with --attenuate, in multiples of the point spacing).
     #[arg(long, default_value_t = 2.0)]
     pub point_size: f32,
@@ -126,6 +130,10 @@ impl ViewArgs {
         }
         for range in &self.filter {
             settings.filter.set_range(range).context("--filter")?;
+        }
+        for spec in &self.clip {
+            let clip = ClipBox::parse(spec).context("--clip")?;
+            settings.filter.add_clip(clip).context("--clip")?;
         }
         Ok(settings)
     }

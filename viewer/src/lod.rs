@@ -59,6 +59,25 @@ pub struct SelectionParams {
     pub min_spacing_px: f32,
 }
 
+/// The clip boxes of the frame relative to the anchor: a node that can hold no point they keep
+/// is neither drawn nor loaded.
+#[derive(Debug, Clone, Default)]
+pub struct ClipRegion {
+    /// Boxes that keep their inside.
+    pub keep: Vec<(Vec3, Vec3)>,
+    /// Boxes that hide their inside.
+    pub hide: Vec<(Vec3, Vec3)>,
+}
+
+impl ClipRegion {
+    /// Whether a node cube from `min` to `max` may hold a point the boxes keep.
+    pub fn admits(&self, min: Vec3, max: Vec3) -> bool {
+        let meets = |(lo, hi): &(Vec3, Vec3)| min.cmple(*hi).all() && max.cmpge(*lo).all();
+        let within = |(lo, hi): &(Vec3, Vec3)| min.cmpge(*lo).all() && max.cmple(*hi).all();
+        (self.keep.is_empty() || self.keep.iter().any(meets)) && !self.hide.iter().any(within)
+    }
+}
+
 /// The outcome of one selection: what to draw and what to fetch, most important first.
 #[derive(Debug, Default)]
 pub struct Selection {
@@ -106,6 +125,7 @@ pub fn select(
     params: &SelectionParams,
     resident: impl Fn(NodeKey) -> bool,
     failed: &HashSet<NodeKey>,
+    clip: &ClipRegion,
 ) -> Selection {
     let aspect = params.width as f32 / params.height.max(1) as f32;
     let (near, far) = clip_range(ds, camera);
@@ -113,7 +133,10 @@ pub fn select(
     let focal = camera.focal_px(params.height);
     let mut out = Selection::default();
     let mut heap = BinaryHeap::new();
-    if tree.node(NodeKey::ROOT).is_some() {
+    let (root_min, root_edge) = ds.node_cube(NodeKey::ROOT);
+    if tree.node(NodeKey::ROOT).is_some()
+        && clip.admits(root_min, root_min + Vec3::splat(root_edge))
+    {
         heap.push(Candidate {
             priority: f32::MAX,
             key: NodeKey::ROOT,
@@ -147,7 +170,7 @@ pub fn select(
             let child = key.child(octant);
             let (cmin, cedge) = ds.node_cube(child);
             let cmax = cmin + Vec3::splat(cedge);
-            if !frustum.intersects_box(cmin, cmax) {
+            if !frustum.intersects_box(cmin, cmax) || !clip.admits(cmin, cmax) {
                 continue;
             }
             let priority = node_priority(camera.eye, cmin, cedge, focal);

@@ -56,6 +56,53 @@ pub enum SizeMode {
     Attenuated,
 }
 
+/// A box in the dataset's coordinates: points inside it are kept, or (with `outside`) hidden.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ClipBox {
+    pub min: [f64; 3],
+    pub max: [f64; 3],
+    pub outside: bool,
+}
+
+impl ClipBox {
+    /// Clip boxes a frame holds at most.
+    pub const MAX: usize = 4;
+
+    /// Parses `min=X,Y,Z;max=X,Y,Z` with an optional `;outside`.
+    pub fn parse(spec: &str) -> Result<ClipBox, ViewerError> {
+        let fail = |what: &str| ViewerError::argument(spec, what);
+        let (mut min, mut max, mut outside) = (None, None, false);
+        let triple = |v: &str| -> Option<[f64; 3]> {
+            let parts: Vec<f64> = v
+                .split(',')
+                .map(|c| c.trim().parse().ok())
+                .collect::<Option<_>>()?;
+            let t: [f64; 3] = parts.try_into().ok()?;
+            t.iter().all(|c| c.is_finite()).then_some(t)
+        };
+        for part in spec.split(';').map(str::trim).filter(|p| !p.is_empty()) {
+            match part.split_once('=') {
+                Some(("min", v)) => min = Some(triple(v).ok_or_else(|| fail("min needs X,Y,Z"))?),
+                Some(("max", v)) => max = Some(triple(v).ok_or_else(|| fail("max needs X,Y,Z"))?),
+                None if part == "outside" => outside = true,
+                None if part == "inside" => outside = false,
+                _ => {
+                    return Err(fail(
+                        "expected min=X,Y,Z;max=X,Y,Z with an optional ;outside",
+                    ));
+                }
+            }
+        }
+        let (Some(min), Some(max)) = (min, max) else {
+            return Err(fail("a clip box needs both min=X,Y,Z and max=X,Y,Z"));
+        };
+        if (0..3).any(|i| min[i] > max[i]) {
+            return Err(fail("each coordinate of min must be at most that of max"));
+        }
+        Ok(ClipBox { min, max, outside })
+    }
+}
+
 /// Which points are drawn: classes shown, and ranges of intensity, elevation and return
 /// number. Applied in the projection, so hidden points leave no hole in any pipeline.
 #[derive(Debug, Clone, Default, PartialEq)]
@@ -67,6 +114,9 @@ pub struct PointFilter {
     /// Real-world elevation (z), inclusive.
     pub elevation: Option<(f64, f64)>,
     pub return_number: Option<(u32, u32)>,
+    /// Clip boxes: kept inside any box that keeps its inside, hidden inside any that keeps
+    /// its outside. They also bound which nodes are loaded.
+    pub clips: Vec<ClipBox>,
 }
 
 impl PointFilter {
@@ -89,6 +139,18 @@ impl PointFilter {
             }
         }
         self.classes = Some(mask);
+    }
+
+    /// Adds a clip box; at most `ClipBox::MAX`.
+    pub fn add_clip(&mut self, clip: ClipBox) -> Result<(), ViewerError> {
+        if self.clips.len() >= ClipBox::MAX {
+            return Err(ViewerError::argument(
+                format!("{clip:?}"),
+                format!("at most {} clip boxes", ClipBox::MAX),
+            ));
+        }
+        self.clips.push(clip);
+        Ok(())
     }
 
     /// Whether class `c` is shown.

@@ -120,7 +120,7 @@ fn rust_structs_match_their_wgsl_layouts() {
             z_max,
             arena_shift,
             background,
-            pad0,
+            clip_count,
             pad1,
             shading,
             arena_slots,
@@ -130,6 +130,7 @@ fn rust_structs_match_their_wgsl_layouts() {
             return_hi,
             ranges,
             class_mask,
+            clip_boxes,
         }),
         "FrameUniforms against Frame (frame.wgsl)"
     );
@@ -165,8 +166,11 @@ fn shared_constants_agree() {
     let project = module_named("project int64");
     assert_eq!(wgsl_const(&project, "GROUP_SIZE"), GROUP_SIZE as u64);
     assert_eq!(wgsl_const(&project, "EMPTY"), EMPTY as u64);
-    use super::projection::{FILTER_CLASSES, FILTER_ELEVATION, FILTER_INTENSITY, FILTER_RETURN};
+    use super::projection::{
+        FILTER_CLASSES, FILTER_CLIP, FILTER_ELEVATION, FILTER_INTENSITY, FILTER_RETURN,
+    };
     for (name, v) in [
+        ("FILTER_CLIP", FILTER_CLIP),
         ("FILTER_CLASSES", FILTER_CLASSES),
         ("FILTER_INTENSITY", FILTER_INTENSITY),
         ("FILTER_ELEVATION", FILTER_ELEVATION),

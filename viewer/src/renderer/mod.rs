@@ -9,7 +9,7 @@ use crate::gpu::GpuContext;
 use crate::gpu::cache::{InsertError, NodeCache};
 use crate::gpu::timing::{PassClock, Timer};
 use crate::loader::{Done, Job, JobKey, Loader};
-use crate::lod::{Selection, SelectionParams, Tree, clip_range, drawn_spacing, select};
+use crate::lod::{ClipRegion, Selection, SelectionParams, Tree, clip_range, drawn_spacing, select};
 use crate::pipelines::params::ResolvedParams;
 use crate::pipelines::projection::{
     ArenaDraw, FINISH_SLOTS, FrameDraw, FrameUniforms, GpuRange, Projection, Screen, check_screen,
@@ -64,10 +64,24 @@ pub struct Renderer {
 }
 
 /// Puts `filter` into the frame's uniforms; `anchor_z` is the elevation the GPU's z is relative to.
-fn set_filter(u: &mut FrameUniforms, filter: &crate::settings::PointFilter, anchor_z: f64) {
+fn set_filter(u: &mut FrameUniforms, filter: &crate::settings::PointFilter, anchor: glam::DVec3) {
     use crate::pipelines::projection::{
-        FILTER_CLASSES, FILTER_ELEVATION, FILTER_INTENSITY, FILTER_RETURN,
+        FILTER_CLASSES, FILTER_CLIP, FILTER_ELEVATION, FILTER_INTENSITY, FILTER_RETURN,
     };
+    let anchor_z = anchor.z;
+    for (k, clip) in filter
+        .clips
+        .iter()
+        .take(crate::settings::ClipBox::MAX)
+        .enumerate()
+    {
+        u.filters |= FILTER_CLIP;
+        let rel = |v: [f64; 3]| (glam::DVec3::from_array(v) - anchor).as_vec3();
+        let (lo, hi) = (rel(clip.min), rel(clip.max));
+        u.clip_boxes[2 * k] = [lo.x, lo.y, lo.z, if clip.outside { 1.0 } else { 0.0 }];
+        u.clip_boxes[2 * k + 1] = [hi.x, hi.y, hi.z, 0.0];
+        u.clip_count = k as u32 + 1;
+    }
     if let Some(mask) = filter.classes {
         u.filters |= FILTER_CLASSES;
         u.class_mask = [
@@ -301,6 +315,17 @@ impl Renderer {
             height,
             min_spacing_px: settings.min_spacing_px,
         };
+        let anchor = self.ds.anchor();
+        let rel = |v: [f64; 3]| (glam::DVec3::from_array(v) - anchor).as_vec3();
+        let mut region = ClipRegion::default();
+        for c in &settings.filter.clips {
+            let target = if c.outside {
+                &mut region.hide
+            } else {
+                &mut region.keep
+            };
+            target.push((rel(c.min), rel(c.max)));
+        }
         let cache = &self.cache;
         let sel = select(
             &self.tree,
@@ -309,6 +334,7 @@ impl Renderer {
             &params,
             |k| cache.contains(k),
             &self.failed,
+            &region,
         );
         self.request(&sel);
         self.cache.touch(&sel.draw, self.frame);
@@ -520,7 +546,7 @@ impl Renderer {
             z_max: bmax.z,
             arena_shift: self.cache.arena_shift,
             background: r as u32 | (g as u32) << 8 | (b as u32) << 16 | 255 << 24,
-            pad0: 0,
+            clip_count: 0,
             pad1: 0,
             shading: [0.0; 4],
             arena_slots: [u32::MAX; FINISH_SLOTS],
@@ -530,8 +556,9 @@ impl Renderer {
             return_hi: 0,
             ranges: [0.0; 4],
             class_mask: [[0; 4]; 2],
+            clip_boxes: [[0.0; 4]; 8],
         };
-        set_filter(&mut uniforms, &settings.filter, self.ds.anchor().z);
+        set_filter(&mut uniforms, &settings.filter, self.ds.anchor());
         let wall = self.wall_clock(settings);
         let (Some(screen), Some(pipeline)) = (&self.screen, self.pipelines.get_mut(info.name))
         else {

@@ -13,7 +13,8 @@ struct Frame {
     z_max: f32,
     arena_shift: u32,
     background: u32,
-    pad0: u32,
+    // Clip boxes in `clip_boxes`.
+    clip_count: u32,
     pad1: u32,
     // The chosen pipeline's own shading parameters (its `Pipeline::uniforms` sets them; the edl
     // shading reads strength in x and radius in y).
@@ -30,12 +31,16 @@ struct Frame {
     ranges: vec4<f32>,
     // Classes shown: bit c of word c / 32.
     class_mask: array<vec4<u32>, 2>,
+    // Box k: minimum in [2k].xyz (w 1: hides its inside, 0: keeps it), maximum in [2k + 1].xyz;
+    // relative to the anchor.
+    clip_boxes: array<vec4<f32>, 8>,
 }
 
 const FILTER_CLASSES: u32 = 1u;
 const FILTER_INTENSITY: u32 = 2u;
 const FILTER_ELEVATION: u32 = 4u;
 const FILTER_RETURN: u32 = 8u;
+const FILTER_CLIP: u32 = 16u;
 
 // The GPU attribute word: intensity (16 bits), classification (8), return number (4).
 fn attribute_class(a: u32) -> u32 {

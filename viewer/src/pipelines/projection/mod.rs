@@ -56,7 +56,8 @@ pub struct FrameUniforms {
     pub z_max: f32,
     pub arena_shift: u32,
     pub background: u32,
-    pub pad0: u32,
+    /// Clip boxes in `clip_boxes`.
+    pub clip_count: u32,
     pub pad1: u32,
     /// The chosen pipeline's own shading parameters, set by `Pipeline::uniforms`.
     pub shading: [f32; 4],
@@ -72,6 +73,8 @@ pub struct FrameUniforms {
     pub ranges: [f32; 4],
     /// Classes shown: bit c of word c / 32.
     pub class_mask: [[u32; 4]; 2],
+    /// Box k: minimum at 2k (w 1: hides its inside), maximum at 2k + 1; relative to the anchor.
+    pub clip_boxes: [[f32; 4]; 8],
 }
 
 /// The filter bits of `FrameUniforms::filters` (`FILTER_*` in frame.wgsl).
@@ -79,6 +82,7 @@ pub const FILTER_CLASSES: u32 = 1;
 pub const FILTER_INTENSITY: u32 = 2;
 pub const FILTER_ELEVATION: u32 = 4;
 pub const FILTER_RETURN: u32 = 8;
+pub const FILTER_CLIP: u32 = 16;
 
 /// One node's points inside an arena, as the projection shader reads it (`Range`).
 #[repr(C)]
