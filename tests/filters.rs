@@ -250,3 +250,24 @@ fn a_clip_box_keeps_only_its_inside_and_bounds_the_nodes_loaded() {
         "{t}"
     );
 }
+
+#[test]
+fn the_conversion_records_the_points_of_every_class() {
+    let meta: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(dataset().join("metadata.json")).expect("metadata"))
+            .expect("JSON");
+    let mut want = std::collections::BTreeMap::<String, u64>::new();
+    for (_, a) in common::las_points(&data("autzen_trim.laz")).0 {
+        *want.entry(a[3].to_string()).or_default() += 1;
+    }
+    let got: std::collections::BTreeMap<String, u64> = meta["classes"]
+        .as_object()
+        .expect("classes in the metadata")
+        .iter()
+        .map(|(k, v)| (k.clone(), v.as_u64().expect("a count")))
+        .collect();
+    assert_eq!(got, want);
+    let info = common::run_ok(&["info", s(dataset())]);
+    let text = String::from_utf8_lossy(&info.stdout);
+    assert!(text.contains("ground"), "{text}");
+}

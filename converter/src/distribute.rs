@@ -43,10 +43,17 @@ pub struct Distribution<'a> {
     /// Bytes of row buffers, all workers together.
     pub buffer_budget: u64,
     pub threads: usize,
+    /// Byte of the classification in a row, where the rows have one: its points per code are
+    /// counted on the way.
+    pub class_at: Option<usize>,
 }
 
-pub fn distribute(d: &Distribution, bar: &ProgressBar) -> Result<()> {
-    let results: Vec<Result<()>> = std::thread::scope(|scope| {
+/// Points per classification code.
+pub type ClassCounts = [u64; 256];
+
+/// Distributes every row into its chunk's files; returns the points per classification code.
+pub fn distribute(d: &Distribution, bar: &ProgressBar) -> Result<ClassCounts> {
+    let results: Vec<Result<ClassCounts>> = std::thread::scope(|scope| {
         let workers: Vec<_> = (0..d.threads)
             .map(|part| scope.spawn(move || distribute_part(d, part, bar)))
             .collect();
@@ -62,10 +69,17 @@ pub fn distribute(d: &Distribution, bar: &ProgressBar) -> Result<()> {
             })
             .collect()
     });
-    results.into_iter().collect()
+    let mut total = [0u64; 256];
+    for r in results {
+        for (t, c) in total.iter_mut().zip(r?) {
+            *t += c;
+        }
+    }
+    Ok(total)
 }
 
-fn distribute_part(d: &Distribution, part: usize, bar: &ProgressBar) -> Result<()> {
+fn distribute_part(d: &Distribution, part: usize, bar: &ProgressBar) -> Result<ClassCounts> {
+    let mut classes = [0u64; 256];
     let (level, shift) = grid_shape(d.cube);
     let per_chunk = (d.buffer_budget / (d.chunk_count.max(1) * d.threads.max(1)) as u64)
         .clamp(16 << 10, 4 << 20) as usize;
@@ -74,6 +88,9 @@ fn distribute_part(d: &Distribution, part: usize, bar: &ProgressBar) -> Result<(
         input.for_each_rows(input.part(part, d.threads), d.stride, |rows| {
             for row in rows.chunks_exact(d.stride) {
                 let chunk = d.lut[grid_cell(row_position(row), d.cube, level, shift)] as usize;
+                if let Some(&c) = d.class_at.and_then(|at| row.get(at)) {
+                    classes[c as usize] += 1;
+                }
                 let buf = &mut buffers[chunk];
                 buf.extend_from_slice(row);
                 if buf.len() >= per_chunk {
@@ -87,5 +104,5 @@ fn distribute_part(d: &Distribution, part: usize, bar: &ProgressBar) -> Result<(
     for (i, buf) in buffers.iter_mut().enumerate() {
         flush(&chunk_path(d.chunk_dir, i, part), buf)?;
     }
-    Ok(())
+    Ok(classes)
 }

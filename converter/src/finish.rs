@@ -148,6 +148,11 @@ pub fn finish(
             .collect(),
         generator: format!("strata {}", env!("CARGO_PKG_VERSION")),
         warnings: plan.warnings.clone(),
+        classes: plan
+            .classes
+            .iter()
+            .map(|(c, n)| (c.to_string(), *n))
+            .collect(),
     };
     // The inputs were checked so that this cannot happen; if it does, no dataset that fails to
     // read back may appear.

@@ -231,6 +231,7 @@ mod tests {
             max: [7.5; 3],
             cube,
             chunks,
+            classes: Vec::new(),
         }
     }
 

@@ -17,7 +17,7 @@ use crate::workdir::WorkDir;
 use serde::{Deserialize, Serialize};
 use std::fs;
 use std::path::{Path, PathBuf};
-use strata_format::{Attribute, Cube, RowLayout};
+use strata_format::{AttrType, Attribute, Cube, RowLayout};
 
 /// What the work directory must hold for `--resume`: the result of everything before indexing.
 #[derive(Debug, Clone, Serialize, Deserialize, PartialEq)]
@@ -36,6 +36,9 @@ pub struct Plan {
     pub max: [f64; 3],
     pub cube: Cube,
     pub chunks: Vec<Chunk>,
+    /// Points per classification code, where the rows have a one-byte classification.
+    #[serde(default)]
+    pub classes: Vec<(u8, u64)>,
 }
 
 impl Plan {
@@ -112,7 +115,11 @@ pub fn prepare(
     let max_chunk = max_chunk_points(opts.memory_limit, threads, layout.stride).min(balanced);
     let (chunks, lut) = plan_chunks(&staged.counts.cells, &staged.cube, max_chunk);
 
-    phases.timed("distribute", Some((points, "points")), |bar| {
+    let class_at = layout
+        .index_of("classification")
+        .filter(|&i| layout.attributes[i].ty == AttrType::U8 && layout.attributes[i].count == 1)
+        .map(|i| layout.offsets[i]);
+    let class_counts = phases.timed("distribute", Some((points, "points")), |bar| {
         distribute(
             &Distribution {
                 inputs: &staged.inputs,
@@ -123,6 +130,7 @@ pub fn prepare(
                 chunk_dir: &wd.chunks(),
                 buffer_budget: (opts.memory_limit / 6).min(256 << 20),
                 threads,
+                class_at,
             },
             bar,
         )
@@ -143,6 +151,14 @@ pub fn prepare(
         max: to_real(staged.counts.max),
         cube: staged.cube,
         chunks,
+        classes: class_at
+            .map(|_| {
+                (0..=255u8)
+                    .zip(class_counts)
+                    .filter(|(_, n)| *n > 0)
+                    .collect()
+            })
+            .unwrap_or_default(),
     })
 }
 

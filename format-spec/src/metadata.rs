@@ -66,6 +66,10 @@ pub struct Metadata {
     /// attributes, bounds measured instead of taken from a header); informative.
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub warnings: Vec<String>,
+    /// Points per classification code (keys are the codes as decimal strings), where the
+    /// points have a `classification` attribute; informative.
+    #[serde(default, skip_serializing_if = "std::collections::BTreeMap::is_empty")]
+    pub classes: std::collections::BTreeMap<String, u64>,
 }
 
 impl Metadata {

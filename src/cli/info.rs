@@ -36,6 +36,7 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
             "point_bytes": m.point_bytes(),
             "version": format!("{}.{}", m.version[0], m.version[1]),
             "sources": m.sources,
+            "classes": m.classes,
         });
         println!("{}", serde_json::to_string_pretty(&v)?);
         return Ok(ExitCode::SUCCESS);
@@ -72,6 +73,15 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
             at.ty.name().to_string()
         };
         println!("  {:<30} {shape}", at.name);
+    }
+    if !m.classes.is_empty() {
+        println!("classes:");
+        for (code, n) in &m.classes {
+            let name = code
+                .parse::<u8>()
+                .map_or("", strata_viewer::pick::asprs_class_name);
+            println!("  {code:>3} {name:<28} {n}");
+        }
     }
     Ok(ExitCode::SUCCESS)
 }

@@ -6,7 +6,8 @@ use super::ViewerApp;
 use crate::pick::asprs_class_name;
 use eframe::egui;
 
-/// The classes the panel lists: the ASPRS standard ones (LAS 1.4).
+/// The classes the panel lists without counts from the conversion: the ASPRS standard ones
+/// (LAS 1.4).
 const LISTED_CLASSES: std::ops::RangeInclusive<u8> = 0..=22;
 
 impl ViewerApp {
@@ -22,9 +23,20 @@ impl ViewerApp {
                         self.settings.filter.set_classes(&[], true);
                     }
                 });
-                for c in LISTED_CLASSES {
+                // With counts from the conversion, the classes present; else the standard ones.
+                let counts = self.renderer.dataset().metadata().classes.clone();
+                let mut listed: Vec<u8> = counts.keys().filter_map(|k| k.parse().ok()).collect();
+                if listed.is_empty() {
+                    listed = LISTED_CLASSES.collect();
+                }
+                listed.sort_unstable();
+                for c in listed {
+                    let count = counts.get(&c.to_string()).copied();
                     let mut shown = self.settings.filter.shows_class(c);
-                    let label = format!("{c} {}", asprs_class_name(c));
+                    let label = match count {
+                        Some(n) => format!("{c} {} ({n})", asprs_class_name(c)),
+                        None => format!("{c} {}", asprs_class_name(c)),
+                    };
                     if ui.checkbox(&mut shown, label).changed() {
                         self.settings.filter.set_classes(&[c], false);
                         if shown {
