@@ -1,3 +1,4 @@
+mod camera_args;
 mod convert;
 mod demo;
 mod export;

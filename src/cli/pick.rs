@@ -1,5 +1,6 @@
 //! `strata pick`: the stored point under a pixel of a view, as the window picks it on a click.
 
+use super::camera_args::CameraArgs;
 use super::render::parse_size_wh;
 use super::view_args::ViewArgs;
 use anyhow::Context;
@@ -12,9 +13,8 @@ use strata_viewer::headless::{RenderOptions, pick};
 pub struct Args {
     /// The dataset: a directory, or http://HOST:PORT/DATASET.
     dataset: String,
-    /// "eye=X,Y,Z;target=X,Y,Z;fov=DEG" in the dataset's coordinates (default: all in view).
-    #[arg(long)]
-    camera: Option<String>,
+    #[command(flatten)]
+    camera: CameraArgs,
     /// The view's size, WIDTHxHEIGHT.
     #[arg(long, default_value = "1280x720")]
     size: String,
@@ -48,7 +48,7 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
     }
     let opts = RenderOptions {
         output: PathBuf::new(),
-        camera: a.camera,
+        camera: a.camera.spec(&a.dataset)?,
         width,
         height,
         settings: a.view.settings()?,

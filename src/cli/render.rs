@@ -1,3 +1,4 @@
+use super::camera_args::CameraArgs;
 use super::view_args::ViewArgs;
 use std::path::PathBuf;
 use std::process::ExitCode;
@@ -11,9 +12,8 @@ pub struct Args {
     /// The PNG to write (a fly-through writes NAME_0000.png, NAME_0001.png, ...).
     #[arg(short, long)]
     output: PathBuf,
-    /// "eye=X,Y,Z;target=X,Y,Z;fov=DEG" in the dataset's coordinates (default: all in view).
-    #[arg(long)]
-    camera: Option<String>,
+    #[command(flatten)]
+    camera: CameraArgs,
     /// Image size, WIDTHxHEIGHT.
     #[arg(long, default_value = "1280x720")]
     size: String,
@@ -57,7 +57,7 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
     }
     let opts = RenderOptions {
         output: a.output,
-        camera: a.camera,
+        camera: a.camera.spec(&a.dataset)?,
         width,
         height,
         settings: a.view.settings()?,

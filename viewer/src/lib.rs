@@ -2,6 +2,7 @@
 //! compute-shader projection, in a window (egui) or headless (PNG).
 
 pub mod app;
+pub mod bookmarks;
 pub mod camera;
 pub mod dataset;
 mod error;

@@ -16,6 +16,7 @@ use std::time::Instant;
 
 mod filters;
 mod params;
+mod views;
 
 pub struct WindowOptions {
     pub settings: Settings,
@@ -48,6 +49,7 @@ struct ViewerApp {
     auto_values: std::collections::HashMap<(&'static str, &'static str), f32>,
     /// The frame failed (a GPU fault, a lost device): shown in the panel, nothing drawn.
     error: Option<String>,
+    views: views::Views,
     /// The point last clicked, as stored (or why none could be read).
     picked: Option<Result<crate::pick::PickedPoint, String>>,
     /// The size the scene is rendered at, where the adapter holds less than the window asks.
@@ -82,6 +84,7 @@ pub fn run_window(location: &str, opts: WindowOptions) -> Result<(), ViewerError
         settings: opts.settings,
         auto_values: Default::default(),
         error: None,
+        views: views::Views::open(location),
         picked: None,
         reduced: None,
         texture: None,
@@ -175,6 +178,7 @@ impl ViewerApp {
         self.pipeline_controls(ui);
 
         self.filter_controls(ui);
+        self.view_controls(ui);
 
         ui.label("Point size");
         ui.add(egui::Slider::new(&mut self.settings.point_size, 0.5..=10.0));
@@ -280,6 +284,8 @@ impl ViewerApp {
         let rect = ui.available_rect_before_wrap();
         let response = ui.allocate_rect(rect, egui::Sense::click_and_drag());
         self.navigate(ui, &response, rect);
+        let ctx = ui.ctx().clone();
+        self.fly_views(&ctx);
 
         let ppp = ui.ctx().pixels_per_point();
         let w = (rect.width() * ppp).round().max(1.0) as u32;

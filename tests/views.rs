@@ -1,0 +1,88 @@
+//! Camera bookmarks headless: `--camera-file` and `--bookmark` view from a saved view exactly as
+//! `--camera` does, and `--path` flies through the same file.
+
+mod common;
+
+use common::{data, gpu_ok, gpu_run, read_png, s};
+
+#[test]
+fn a_bookmark_renders_what_its_camera_renders_and_the_file_is_a_path() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let dataset = dir.path().join("autzen.strata");
+    common::run_ok(&[
+        "convert",
+        s(&data("autzen_trim.laz")),
+        "-o",
+        s(&dataset),
+        "--quiet",
+    ]);
+    let close = "eye=636480,849100,520;target=636600,849230,440;fov=40";
+    // The file the window writes beside the dataset.
+    let marks = serde_json::json!({"keyframes": [
+        {"name": "overview", "eye": [636590.0, 848700.0, 900.0], "target": [636590.0, 849216.0, 440.0], "fov": 50.0},
+        {"name": "close", "eye": [636480.0, 849100.0, 520.0], "target": [636600.0, 849230.0, 440.0], "fov": 40.0}
+    ]});
+    std::fs::write(dataset.join("bookmarks.json"), marks.to_string()).expect("bookmarks");
+    let render = |name: &str, extra: &[&str]| {
+        let out = dir.path().join(name);
+        let mut args = vec![
+            "render",
+            s(&dataset),
+            "-o",
+            s(&out),
+            "--size",
+            "160x120",
+            "--wait-complete",
+            "--loaders",
+            "1",
+        ];
+        args.extend_from_slice(extra);
+        gpu_ok(&args);
+        read_png(&out).2
+    };
+    let by_spec = render("spec.png", &["--camera", close]);
+    let by_name = render("name.png", &["--bookmark", "close"]);
+    let by_file = render(
+        "file.png",
+        &[
+            "--camera-file",
+            s(&dataset.join("bookmarks.json")),
+            "--bookmark",
+            "close",
+        ],
+    );
+    assert!(
+        by_spec == by_name && by_spec == by_file,
+        "the bookmark's view differs"
+    );
+    let first = render(
+        "first.png",
+        &["--camera-file", s(&dataset.join("bookmarks.json"))],
+    );
+    assert!(
+        first != by_spec,
+        "without --bookmark the first view is used"
+    );
+    // The same file is a fly-through path.
+    let o = gpu_ok(&[
+        "render",
+        s(&dataset),
+        "-o",
+        s(&dir.path().join("fly.png")),
+        "--size",
+        "64x48",
+        "--path",
+        s(&dataset.join("bookmarks.json")),
+        "--frames",
+        "3",
+    ]);
+    assert!(String::from_utf8_lossy(&o.stdout).starts_with("3 image(s)"));
+    // An unknown name is refused in one sentence that lists the names there are.
+    let o = gpu_run(&["render", s(&dataset), "-o", "x.png", "--bookmark", "bridge"]);
+    let t = String::from_utf8_lossy(&o.stderr);
+    assert!(
+        !o.status.success() && t.contains("bridge") && t.contains("overview, close"),
+        "{t}"
+    );
+    assert_eq!(t.trim().lines().count(), 1, "{t}");
+}
