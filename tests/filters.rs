@@ -4,33 +4,18 @@
 mod common;
 
 use common::{data, gpu_ok, gpu_run, read_png, s};
-use std::path::{Path, PathBuf};
-use std::sync::OnceLock;
+use std::path::PathBuf;
 
 const BACKGROUND: [u8; 3] = [24, 26, 32];
 /// `class_colour(2)` of colour.wgsl, as the output stores it.
 const GROUND: [u8; 3] = [161, 115, 69];
 
-fn dataset() -> &'static Path {
-    static DIR: OnceLock<PathBuf> = OnceLock::new();
-    DIR.get_or_init(|| {
-        let dir = Path::new(env!("CARGO_TARGET_TMPDIR")).join("filters-fixture");
-        let _ = std::fs::remove_dir_all(&dir);
-        std::fs::create_dir_all(&dir).expect("fixture dir");
-        let out = dir.join("autzen.strata");
-        common::run_ok(&[
-            "convert",
-            s(&data("autzen_trim.laz")),
-            "-o",
-            s(&out),
-            "--quiet",
-        ]);
-        out
-    })
+fn dataset() -> PathBuf {
+    common::converted("filters-fixture", "autzen_trim.laz", "autzen")
 }
 
 fn classified(extra: &[&str]) -> Vec<[u8; 3]> {
-    let ds = dataset();
+    let ds = &dataset();
     let out = ds.with_file_name(format!("classes{}.png", extra.join("_").replace(',', "-")));
     let mut args = vec![
         "render",
@@ -78,9 +63,10 @@ fn a_class_shown_alone_or_hidden_is_all_or_nothing_of_the_image() {
 }
 
 fn pick(pipeline: &str, pixel: &str, filters: &[&str]) -> Option<serde_json::Value> {
+    let ds = dataset();
     let mut args = vec![
         "pick",
-        s(dataset()),
+        s(&ds),
         "--size",
         "320x240",
         "--pixel",
@@ -139,7 +125,7 @@ fn every_pipeline_draws_only_what_passes_the_filters() {
 
 #[test]
 fn a_wrong_filter_is_refused_in_one_sentence() {
-    let ds = dataset();
+    let ds = &dataset();
     for (args, names) in [
         (
             &["--filter", "gps_time=1..2"][..],
@@ -166,7 +152,7 @@ fn a_wrong_filter_is_refused_in_one_sentence() {
 }
 
 fn render_stats(extra: &[&str], tag: &str) -> serde_json::Value {
-    let ds = dataset();
+    let ds = &dataset();
     let out = ds.with_file_name(format!("{tag}.png"));
     let stats = ds.with_file_name(format!("{tag}.json"));
     let mut args = vec![
@@ -238,7 +224,7 @@ fn a_clip_box_keeps_only_its_inside_and_bounds_the_nodes_loaded() {
     // A wrong box is refused in one sentence.
     let o = gpu_run(&[
         "render",
-        s(dataset()),
+        s(&dataset()),
         "-o",
         "x.png",
         "--clip",
@@ -267,7 +253,7 @@ fn the_conversion_records_the_points_of_every_class() {
         .map(|(k, v)| (k.clone(), v.as_u64().expect("a count")))
         .collect();
     assert_eq!(got, want);
-    let info = common::run_ok(&["info", s(dataset())]);
+    let info = common::run_ok(&["info", s(&dataset())]);
     let text = String::from_utf8_lossy(&info.stdout);
     assert!(text.contains("ground"), "{text}");
 }

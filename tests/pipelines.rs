@@ -3,10 +3,9 @@
 
 mod common;
 
-use common::{data, gpu_run, s};
+use common::{gpu_run, s};
 use std::path::{Path, PathBuf};
 use std::process::Output;
-use std::sync::OnceLock;
 
 fn text(o: &Output) -> String {
     format!(
@@ -16,22 +15,8 @@ fn text(o: &Output) -> String {
     )
 }
 
-fn dataset() -> &'static Path {
-    static DIR: OnceLock<PathBuf> = OnceLock::new();
-    DIR.get_or_init(|| {
-        let dir = Path::new(env!("CARGO_TARGET_TMPDIR")).join("pipelines-fixture");
-        let _ = std::fs::remove_dir_all(&dir);
-        std::fs::create_dir_all(&dir).expect("fixture dir");
-        let out = dir.join("autzen.strata");
-        common::run_ok(&[
-            "convert",
-            s(&data("autzen_trim.laz")),
-            "-o",
-            s(&out),
-            "--quiet",
-        ]);
-        out
-    })
+fn dataset() -> PathBuf {
+    common::converted("pipelines-fixture", "autzen_trim.laz", "autzen")
 }
 
 fn registry() -> Vec<serde_json::Value> {
@@ -72,7 +57,7 @@ fn pipelines_lists_every_pipeline_with_its_parameters() {
 
 #[test]
 fn set_takes_any_parameter_and_names_a_wrong_one() {
-    let ds = dataset();
+    let ds = &dataset();
     let dir = ds.parent().expect("parent");
     let out = dir.join("set.png");
     let stats = dir.join("set.json");
@@ -178,7 +163,7 @@ fn set_takes_any_parameter_and_names_a_wrong_one() {
 
 #[test]
 fn every_size_with_every_pipeline_renders_or_is_refused_in_one_sentence() {
-    let ds = dataset();
+    let ds = &dataset();
     let dir = ds.parent().expect("parent");
     for p in registry() {
         let name = p["name"].as_str().expect("name");
@@ -225,7 +210,7 @@ fn every_size_with_every_pipeline_renders_or_is_refused_in_one_sentence() {
 fn the_software_adapter_refuses_8192_squared_with_the_limit() {
     // lavapipe binds at most 128 MiB of storage: an 8192x8192 frame (512 MiB of 64-bit keys)
     // cannot exist there. Where an adapter holds it, there is nothing to refuse.
-    let ds = dataset();
+    let ds = &dataset();
     let out = ds.parent().expect("parent").join("huge.png");
     let o = gpu_run(&["render", s(ds), "-o", s(&out), "--size", "8192x8192"]);
     if o.status.success() {
@@ -248,7 +233,7 @@ fn a_frame_larger_than_the_adapter_holds_is_an_error_and_the_fitted_size_renders
     use strata_viewer::headless::default_camera;
     use strata_viewer::pipelines::find;
     use strata_viewer::{Renderer, Settings, StreamDataset};
-    let ds = Arc::new(StreamDataset::open_path(dataset()).expect("dataset opens"));
+    let ds = Arc::new(StreamDataset::open_path(&dataset()).expect("dataset opens"));
     let ctx = Arc::new(GpuContext::new(ProjectionPath::Auto).expect("GPU adapter"));
     let mut r = Renderer::new(ctx, ds.clone(), 1 << 30, 2).expect("renderer");
     let settings = Settings {
@@ -301,7 +286,7 @@ fn frame_passes(args: &[&str], stats: &Path) -> Vec<String> {
 
 #[test]
 fn every_declared_pass_runs_and_the_stats_list_them_in_run_order() {
-    let ds = dataset();
+    let ds = &dataset();
     let dir = ds.parent().expect("parent");
     let stats = dir.join("passes.json");
     let out = dir.join("passes.png");
@@ -362,7 +347,7 @@ fn every_declared_pass_runs_and_the_stats_list_them_in_run_order() {
 
 #[test]
 fn every_parameter_takes_its_range_and_refuses_past_it() {
-    let ds = dataset();
+    let ds = &dataset();
     let dir = ds.parent().expect("parent");
     let stats = dir.join("range.json");
     let out = dir.join("range.png");
@@ -436,7 +421,7 @@ fn a_lost_device_is_reported_by_every_frame_after_it() {
     use strata_viewer::gpu::{GpuContext, ProjectionPath};
     use strata_viewer::headless::default_camera;
     use strata_viewer::{Renderer, Settings, StreamDataset};
-    let ds = Arc::new(StreamDataset::open_path(dataset()).expect("dataset opens"));
+    let ds = Arc::new(StreamDataset::open_path(&dataset()).expect("dataset opens"));
     let ctx = Arc::new(GpuContext::new(ProjectionPath::Auto).expect("GPU adapter"));
     let mut r = Renderer::new(ctx.clone(), ds.clone(), 1 << 28, 1).expect("renderer");
     let camera = default_camera(&ds, 64, 48);

@@ -79,6 +79,23 @@ pub fn read_png(path: &Path) -> (u32, u32, Vec<u8>) {
     (info.width, info.height, rgba)
 }
 
+/// `input` (a file of ../shared/data) converted once per test binary, fresh each run, into
+/// `target/tmp/TAG/NAME.strata`.
+pub fn converted(tag: &str, input: &str, name: &str) -> PathBuf {
+    static MADE: std::sync::Mutex<Vec<PathBuf>> = std::sync::Mutex::new(Vec::new());
+    let dir = Path::new(env!("CARGO_TARGET_TMPDIR")).join(tag);
+    let out = dir.join(format!("{name}.strata"));
+    let mut made = MADE.lock().unwrap_or_else(|e| e.into_inner());
+    if !made.contains(&out) {
+        // Left over from an earlier run: rebuilt so every run starts from the same files.
+        let _ = std::fs::remove_dir_all(&out);
+        std::fs::create_dir_all(&dir).expect("fixture dir");
+        run_ok(&["convert", s(&data(input)), "-o", s(&out), "--quiet"]);
+        made.push(out.clone());
+    }
+    out
+}
+
 pub fn s(p: &Path) -> &str {
     p.to_str().expect("utf-8 path")
 }
