@@ -9,16 +9,14 @@ use crate::gpu::GpuContext;
 use crate::gpu::cache::{InsertError, NodeCache};
 use crate::gpu::timing::{PassClock, Timer};
 use crate::loader::{Done, Job, JobKey, Loader};
-use crate::lod::{ClipRegion, Selection, SelectionParams, Tree, clip_range, drawn_spacing, select};
+use crate::lod::{ClipRegion, Selection, SelectionParams, Tree, drawn_spacing, select};
 use crate::pipelines::params::ResolvedParams;
-use crate::pipelines::projection::{
-    ArenaDraw, FINISH_SLOTS, FrameDraw, FrameUniforms, GpuRange, Projection, Screen, check_screen,
-    largest_fitting,
-};
-use crate::pipelines::{self, Pipeline, PipelineFrame, PipelineInfo, ScreenBuffer, ViewFrame};
-use crate::settings::{Settings, SizeMode};
+use crate::pipelines::projection::{Projection, Screen, check_screen, largest_fitting};
+use crate::pipelines::{self, Pipeline, PipelineInfo, ScreenBuffer};
+use crate::settings::Settings;
 use std::collections::{BTreeMap, HashMap, HashSet, VecDeque};
 
+mod draw;
 mod readback;
 mod stats;
 
@@ -61,51 +59,6 @@ pub struct Renderer {
     previous_view_proj: Option<glam::Mat4>,
     frame: u64,
     bytes_total: u64,
-}
-
-/// Puts `filter` into the frame's uniforms; `anchor_z` is the elevation the GPU's z is relative to.
-fn set_filter(u: &mut FrameUniforms, filter: &crate::settings::PointFilter, anchor: glam::DVec3) {
-    use crate::pipelines::projection::{
-        FILTER_CLASSES, FILTER_CLIP, FILTER_ELEVATION, FILTER_INTENSITY, FILTER_RETURN,
-    };
-    let anchor_z = anchor.z;
-    for (k, clip) in filter
-        .clips
-        .iter()
-        .take(crate::settings::ClipBox::MAX)
-        .enumerate()
-    {
-        u.filters |= FILTER_CLIP;
-        let rel = |v: [f64; 3]| (glam::DVec3::from_array(v) - anchor).as_vec3();
-        let (lo, hi) = (rel(clip.min), rel(clip.max));
-        u.clip_boxes[2 * k] = [lo.x, lo.y, lo.z, if clip.outside { 1.0 } else { 0.0 }];
-        u.clip_boxes[2 * k + 1] = [hi.x, hi.y, hi.z, 0.0];
-        u.clip_count = k as u32 + 1;
-    }
-    if let Some(mask) = filter.classes {
-        u.filters |= FILTER_CLASSES;
-        u.class_mask = [
-            [mask[0], mask[1], mask[2], mask[3]],
-            [mask[4], mask[5], mask[6], mask[7]],
-        ];
-    }
-    if let Some((lo, hi)) = filter.intensity {
-        u.filters |= FILTER_INTENSITY;
-        u.ranges[0] = lo as f32;
-        u.ranges[1] = hi as f32;
-    }
-    if let Some((lo, hi)) = filter.elevation {
-        u.filters |= FILTER_ELEVATION;
-        // Widened by a hair: f32 positions must not lose a point that lies on a bound.
-        let slack = |v: f64| v.abs().max(1.0) * 1e-6;
-        u.ranges[2] = (lo - anchor_z - slack(lo - anchor_z)) as f32;
-        u.ranges[3] = (hi - anchor_z + slack(hi - anchor_z)) as f32;
-    }
-    if let Some((lo, hi)) = filter.return_number {
-        u.filters |= FILTER_RETURN;
-        u.return_lo = lo;
-        u.return_hi = hi;
-    }
 }
 
 /// How long a node or page whose source did not answer waits before it is asked for again.
@@ -438,203 +391,6 @@ impl Renderer {
             .collect();
         jobs.sort_by(|a, b| b.0.total_cmp(&a.0));
         self.loader.set_wanted(jobs.into_iter().map(|(_, j)| j));
-    }
-
-    /// Makes the screen and the active pipeline's buffers for this size and pipeline.
-    fn prepare_screen(
-        &mut self,
-        info: &'static PipelineInfo,
-        width: u32,
-        height: u32,
-    ) -> Result<(), ViewerError> {
-        self.check_size(info, width, height)?;
-        let resized = self
-            .screen
-            .as_ref()
-            .is_none_or(|s| s.width != width || s.height != height);
-        let switched = self.active != Some(info.name);
-        if resized || switched {
-            // Free what the old pipeline made before making anything new: both at once may not
-            // fit. What it measured or timed describes another picture.
-            if let Some(old) = self.active.take().and_then(|n| self.pipelines.get_mut(n)) {
-                old.release_targets();
-            }
-            self.measures.clear();
-            self.timer.discard_pending();
-            self.previous_view_proj = None;
-        }
-        // The previous depth plane exists exactly while the pipeline keeps the previous frame.
-        let previous_mismatch = self
-            .screen
-            .as_ref()
-            .is_some_and(|s| s.previous_depths.is_some() != info.previous_frame);
-        if resized || previous_mismatch {
-            self.screen = None;
-            let (ctx, projection) = (&self.ctx, &self.projection);
-            let screen = ctx.scoped(&format!("making a {width}x{height} screen"), || {
-                projection.screen(&ctx.device, &ctx.queue, width, height, info.previous_frame)
-            })?;
-            self.screen = Some(screen);
-        }
-        if self.active != Some(info.name) {
-            let (Some(screen), Some(p)) = (&self.screen, self.pipelines.get_mut(info.name)) else {
-                return Err(ViewerError::Gpu(format!(
-                    "the {} pipeline is not ready",
-                    info.name
-                )));
-            };
-            let what = format!(
-                "making the {} pipeline's {width}x{height} buffers",
-                info.name
-            );
-            self.ctx
-                .scoped(&what, || p.make_targets(&self.ctx.device, screen))?;
-            self.active = Some(info.name);
-        }
-        Ok(())
-    }
-
-    fn draw(
-        &mut self,
-        camera: &Camera,
-        width: u32,
-        height: u32,
-        settings: &Settings,
-        sel: &Selection,
-        params: &ResolvedParams,
-    ) -> Result<(), ViewerError> {
-        let info = settings.pipeline;
-        self.prepare_screen(info, width, height)?;
-        let mut per_arena: BTreeMap<u32, Vec<GpuRange>> = BTreeMap::new();
-        for key in &sel.draw {
-            for p in self.cache.pieces(*key).unwrap_or_default() {
-                per_arena.entry(p.arena).or_default().push(GpuRange {
-                    start: p.start,
-                    count: p.count,
-                    first_group: 0,
-                    spacing: self.ds.node_spacing(*key),
-                });
-            }
-        }
-        let draws: Vec<ArenaDraw> = per_arena
-            .into_iter()
-            .map(|(arena, ranges)| ArenaDraw { arena, ranges })
-            .collect();
-        let aspect = width as f32 / height as f32;
-        let (near, far) = clip_range(&self.ds, camera);
-        let view_proj = camera.projection(aspect, near, far) * camera.view();
-        let (bmin, bmax) = self.ds.bounds();
-        let [r, g, b] = settings.background;
-        let mut uniforms = FrameUniforms {
-            view_proj: view_proj.to_cols_array_2d(),
-            width,
-            height,
-            point_size: settings.point_size,
-            size_mode: match settings.size_mode {
-                SizeMode::Fixed => 0,
-                SizeMode::Attenuated => 1,
-            },
-            focal_px: camera.focal_px(height),
-            colour_mode: if settings.colour == crate::settings::ColourMode::Rgb
-                && !self.ds.has_rgb()
-            {
-                crate::settings::ColourMode::Elevation.shader_code()
-            } else {
-                settings.colour.shader_code()
-            },
-            z_min: bmin.z,
-            z_max: bmax.z,
-            arena_shift: self.cache.arena_shift,
-            background: r as u32 | (g as u32) << 8 | (b as u32) << 16 | 255 << 24,
-            clip_count: 0,
-            pad1: 0,
-            shading: [0.0; 4],
-            arena_slots: [u32::MAX; FINISH_SLOTS],
-            intensity_scale: (1.0 / self.ds.intensity_max().max(1e-9)) as f32,
-            filters: 0,
-            return_lo: 0,
-            return_hi: 0,
-            ranges: [0.0; 4],
-            class_mask: [[0; 4]; 2],
-            clip_boxes: [[0.0; 4]; 8],
-        };
-        set_filter(&mut uniforms, &settings.filter, self.ds.anchor());
-        let wall = self.wall_clock(settings);
-        let (Some(screen), Some(pipeline)) = (&self.screen, self.pipelines.get_mut(info.name))
-        else {
-            return Err(ViewerError::Gpu(format!(
-                "the {} pipeline is not ready",
-                info.name
-            )));
-        };
-        pipeline.uniforms(params, &mut uniforms);
-        let view = ViewFrame {
-            view_proj,
-            previous_view_proj: self.previous_view_proj,
-            fov_y: camera.fov_y,
-            near,
-            far,
-            focal_px: camera.focal_px(height),
-        };
-        let (ctx, projection, cache, timer) =
-            (&self.ctx, &self.projection, &self.cache, &mut self.timer);
-        let int64 = screen.keys.is_some() && !settings.force_int32;
-        let fused = ctx.scoped(&format!("drawing with the {} pipeline", info.name), || {
-            let mut encoder = ctx
-                .device
-                .create_command_encoder(&wgpu::CommandEncoderDescriptor {
-                    label: Some("frame"),
-                });
-            timer.begin_frame(wall);
-            let finished = projection.encode(
-                ctx,
-                &mut encoder,
-                screen,
-                cache,
-                &FrameDraw {
-                    uniforms: &uniforms,
-                    arenas: &draws,
-                    // The fused finish writes no depth plane for the next frame to keep.
-                    allow_fused: settings.fused_finish && !info.previous_frame,
-                    force_int32: settings.force_int32,
-                    fused: pipeline.fused(params),
-                },
-                timer,
-            );
-            if !finished {
-                let frame = PipelineFrame {
-                    ctx,
-                    screen,
-                    cache,
-                    arenas: &draws,
-                    params,
-                    view: &view,
-                };
-                pipeline.encode(&frame, &mut encoder, timer)?;
-            }
-            if info.previous_frame {
-                screen.keep_depths(&mut encoder);
-            }
-            timer.resolve(&mut encoder);
-            ctx.queue.submit([encoder.finish()]);
-            timer.after_submit();
-            pipeline.after_submit();
-            Ok::<bool, ViewerError>(finished)
-        })??;
-        self.last_int64 = int64;
-        self.last_fused = fused;
-        if info.previous_frame {
-            self.previous_view_proj = Some(view_proj);
-        }
-        if let Some(e) = self.timer.take_poll_error() {
-            return Err(ViewerError::Gpu(format!("waiting for the GPU failed: {e}")));
-        }
-        // Non-blocking: lets map callbacks of earlier frames run.
-        self.ctx
-            .device
-            .poll(wgpu::PollType::Poll)
-            .map_err(|e| ViewerError::Gpu(format!("polling the GPU failed: {e}")))?;
-        Ok(())
     }
 
     /// Whether `settings` time the passes by the wall clock on this adapter.
