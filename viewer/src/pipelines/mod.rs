@@ -5,6 +5,7 @@
 //! pipeline's own passes read.
 
 pub mod params;
+mod pixel_shading;
 pub mod projection;
 pub mod shader;
 #[cfg(test)]
