@@ -2,7 +2,7 @@
 
 mod common;
 
-use common::{data, gpu_run, las_points, s};
+use common::{gpu_run, las_points, s};
 use std::path::Path;
 
 fn picked(dataset: &Path, pixel: &str, pipeline: &str) -> Option<serde_json::Value> {
@@ -29,14 +29,7 @@ fn picked(dataset: &Path, pixel: &str, pipeline: &str) -> Option<serde_json::Val
 #[test]
 fn a_picked_point_is_a_stored_point_with_every_attribute() {
     let dir = tempfile::tempdir().expect("tempdir");
-    let dataset = dir.path().join("autzen.strata");
-    common::run_ok(&[
-        "convert",
-        s(&data("autzen_trim.laz")),
-        "-o",
-        s(&dataset),
-        "--quiet",
-    ]);
+    let dataset = common::converted("pick-fixture", "autzen_trim.laz", "autzen");
     let exported = dir.path().join("all.las");
     common::run_ok(&["export", s(&dataset), "-o", s(&exported)]);
     let (points, scale) = las_points(&exported);

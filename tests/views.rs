@@ -3,19 +3,12 @@
 
 mod common;
 
-use common::{data, gpu_ok, gpu_run, read_png, s};
+use common::{gpu_ok, gpu_run, read_png, s};
 
 #[test]
 fn a_bookmark_renders_what_its_camera_renders_and_the_file_is_a_path() {
     let dir = tempfile::tempdir().expect("tempdir");
-    let dataset = dir.path().join("autzen.strata");
-    common::run_ok(&[
-        "convert",
-        s(&data("autzen_trim.laz")),
-        "-o",
-        s(&dataset),
-        "--quiet",
-    ]);
+    let dataset = common::converted("views-fixture", "autzen_trim.laz", "autzen");
     let close = "eye=636480,849100,520;target=636600,849230,440;fov=40";
     // The file the window writes beside the dataset.
     let marks = serde_json::json!({"keyframes": [
