@@ -2,7 +2,7 @@
 //! when complete. Chunks commit in plan order, so output is byte-for-byte reproducible, and a
 //! journal of committed chunks lets `--resume` pick up after an interruption.
 
-use crate::chunk_step::{ChunkStep, NoStep};
+use crate::chunk_step::{ChunkStep, NoStep, add_totals};
 use crate::error::{ConvertError, Result};
 use crate::finish::{finish, merge_top};
 use crate::halo::Halos;
@@ -98,16 +98,16 @@ fn run(
     let start = Instant::now();
     let mut phases = Phases::new(Progress::new(opts.quiet));
     let mut fp = fingerprint(opts);
-    let margin = step.halo_margin();
-    // Bands written for one margin are no halo for another.
-    if margin != 0.0 {
-        fp.push_str(&format!("|halo:{margin}"));
+    // Chunks made by one step (and bands for its margin) are nothing to another.
+    let step_fp = step.fingerprint();
+    if !step_fp.is_empty() {
+        fp.push_str(&format!("|step:{step_fp}"));
     }
     let plan = match resumable_plan(opts, wd, &fp)? {
         Some(plan) => plan,
         None => {
             wd.create_fresh()?;
-            let plan = prepare(opts, wd, threads, &mut phases, fp)?;
+            let plan = prepare(opts, wd, threads, &mut phases, fp, step)?;
             save_plan(wd, &plan)?;
             plan
         }
@@ -117,7 +117,7 @@ fn run(
     let layout = RowLayout::new(plan.attributes.clone());
     let mut journal = read_journal(wd, plan.chunks.len());
     let resumed = journal.len();
-    let halos = Halos::new(&plan, layout.stride, margin);
+    let halos = Halos::new(&plan, layout.stride, step.halo_margin(&plan));
     if halos.needed() {
         let bands = (plan.chunks.len() - resumed) as u64;
         phases.timed("halo", Some((bands, "chunks")), |bar| {
@@ -143,7 +143,13 @@ fn run(
     let merged = phases.timed("merge", None, |_| {
         merge_top(wd, &plan, &layout, opts.sampling, &journal, committer)
     })?;
-    let done = phases.timed("finish", None, |_| finish(opts, wd, &plan, merged))?;
+    let mut totals = Vec::new();
+    for entry in &journal {
+        add_totals(&mut totals, &entry.step);
+    }
+    let done = phases.timed("finish", None, |_| {
+        finish(opts, wd, &plan, merged, &|meta| step.record(&totals, meta))
+    })?;
     let seconds = start.elapsed().as_secs_f64();
     Ok(ConvertSummary {
         output: opts.output.clone(),
@@ -164,7 +170,8 @@ fn run(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::chunk_step::{ChunkRows, GridBox, Halo};
+    use crate::chunk_step::{ChunkRows, GridBox, Halo, StepTotals};
+    use crate::prepare::Plan;
     use crate::synth::{Scene, synth};
     use std::collections::BTreeMap;
     use std::path::Path;
@@ -217,11 +224,11 @@ mod tests {
     }
 
     impl ChunkStep for Recording {
-        fn halo_margin(&self) -> f64 {
+        fn halo_margin(&self, _plan: &Plan) -> f64 {
             self.margin
         }
 
-        fn process(&self, chunk: &mut ChunkRows, halo: &Halo) -> Result<()> {
+        fn process(&self, chunk: &mut ChunkRows, halo: &Halo) -> Result<StepTotals> {
             let steps = [0, 1, 2].map(|a| (self.margin / chunk.scale[a]).round() as i64);
             assert_eq!(halo.reach(), chunk.bounds.grown(steps));
             let own: Vec<[i32; 3]> = chunk
@@ -243,7 +250,7 @@ mod tests {
             }
             let mut seen = self.seen.lock().expect("lock");
             seen.insert(chunk.index, (chunk.bounds, halo.reach(), own, halo.len()));
-            Ok(())
+            Ok(Vec::new())
         }
     }
 
@@ -296,11 +303,11 @@ mod tests {
     struct PanicsOn(usize);
 
     impl ChunkStep for PanicsOn {
-        fn process(&self, chunk: &mut ChunkRows, _halo: &Halo) -> Result<()> {
+        fn process(&self, chunk: &mut ChunkRows, _halo: &Halo) -> Result<StepTotals> {
             if chunk.index == self.0 {
                 panic!("test step gives up on chunk {}", chunk.index);
             }
-            Ok(())
+            Ok(Vec::new())
         }
     }
 

@@ -4,19 +4,40 @@
 
 use crate::error::Result;
 use crate::plan::Chunk;
-use strata_format::{Cube, RowLayout, row_position};
+use crate::prepare::Plan;
+use strata_format::{Attribute, Cube, Metadata, RowLayout, row_position};
+
+/// Sums a step reports for one chunk; a conversion adds them up over its chunks (and keeps
+/// them in the journal, so a resumed run has them too).
+pub type StepTotals = Vec<f64>;
 
 /// A per-chunk computation. It runs on several chunks at once, each on a worker of its own.
 pub trait ChunkStep: Sync {
+    /// What tells this step's output apart from another's, so that `--resume` does not mix
+    /// chunks made with other settings. Empty for a step that changes nothing.
+    fn fingerprint(&self) -> String {
+        String::new()
+    }
+
+    /// Attributes the step writes that the inputs lack, appended to the dataset's attributes
+    /// (rows start with them zero). `inputs` are the inputs' attributes.
+    fn attributes(&self, _inputs: &[Attribute]) -> Result<Vec<Attribute>> {
+        Ok(Vec::new())
+    }
+
     /// How far beyond its chunk's bounds, in the dataset's real units, the step needs to see
-    /// points. 0 (the default) reads nothing beyond the chunk.
-    fn halo_margin(&self) -> f64 {
+    /// points. 0 (the default) reads nothing beyond the chunk. It must depend on nothing but
+    /// the plan and the step's settings: a resumed run asks again.
+    fn halo_margin(&self, _plan: &Plan) -> f64 {
         0.0
     }
 
     /// Runs on a chunk's rows just read. It may rewrite the rows' attributes but must keep
     /// every row, its position and the layout: the tree and the output depend on them.
-    fn process(&self, chunk: &mut ChunkRows, halo: &Halo) -> Result<()>;
+    fn process(&self, chunk: &mut ChunkRows, halo: &Halo) -> Result<StepTotals>;
+
+    /// Records what the step did, from the totals over every chunk, in the metadata.
+    fn record(&self, _totals: &[f64], _meta: &mut Metadata) {}
 }
 
 /// The step of a plain conversion: nothing.
@@ -24,8 +45,18 @@ pub trait ChunkStep: Sync {
 pub struct NoStep;
 
 impl ChunkStep for NoStep {
-    fn process(&self, _chunk: &mut ChunkRows, _halo: &Halo) -> Result<()> {
-        Ok(())
+    fn process(&self, _chunk: &mut ChunkRows, _halo: &Halo) -> Result<StepTotals> {
+        Ok(Vec::new())
+    }
+}
+
+/// Adds one chunk's totals into the running ones.
+pub fn add_totals(into: &mut StepTotals, chunk: &[f64]) {
+    if into.len() < chunk.len() {
+        into.resize(chunk.len(), 0.0);
+    }
+    for (a, b) in into.iter_mut().zip(chunk) {
+        *a += b;
     }
 }
 
@@ -41,6 +72,8 @@ pub struct ChunkRows<'a> {
     pub layout: &'a RowLayout,
     /// Rows of `layout.stride` bytes, in no particular order.
     pub rows: &'a mut Vec<u8>,
+    /// Where the scanners stood, in real coordinates, for inputs that say so (E57 poses).
+    pub scanners: &'a [[f64; 3]],
 }
 
 /// The rows of other chunks that lie within the step's margin of a chunk: inside `reach`, the
@@ -50,6 +83,7 @@ pub struct Halo {
     pub(crate) rows: Vec<u8>,
     pub(crate) stride: usize,
     pub(crate) reach: GridBox,
+    pub(crate) margin: f64,
 }
 
 impl Halo {
@@ -63,6 +97,12 @@ impl Halo {
 
     pub fn is_empty(&self) -> bool {
         self.rows.is_empty()
+    }
+
+    /// The margin the step asked for, in real units: every point within it of the chunk
+    /// (by Euclidean distance) is in the chunk or the halo.
+    pub fn margin(&self) -> f64 {
+        self.margin
     }
 
     /// The box the halo was gathered from: the chunk's bounds grown by the margin (equal to

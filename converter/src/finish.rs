@@ -80,6 +80,7 @@ pub fn finish(
     wd: &WorkDir,
     plan: &Plan,
     merged: Merged,
+    record_step: &dyn Fn(&mut Metadata),
 ) -> Result<Finished> {
     let Merged {
         records,
@@ -106,7 +107,7 @@ pub fn finish(
     let depth = records.keys().map(|k| k.level as u32).max().unwrap_or(0);
     let q = plan.quantization();
     let to_real = |p: [i32; 3]| plan.to_real(p.map(i64::from));
-    let meta = Metadata {
+    let mut meta = Metadata {
         format: strata_format::FORMAT_NAME.into(),
         version: [strata_format::VERSION_MAJOR, strata_format::VERSION_MINOR],
         points,
@@ -153,7 +154,9 @@ pub fn finish(
             .iter()
             .map(|(c, n)| (c.to_string(), *n))
             .collect(),
+        normals: None,
     };
+    record_step(&mut meta);
     // The inputs were checked so that this cannot happen; if it does, no dataset that fails to
     // read back may appear.
     if let Some(member) = meta.non_finite() {

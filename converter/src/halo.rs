@@ -16,6 +16,8 @@ use std::sync::atomic::{AtomicU64, AtomicUsize, Ordering};
 pub struct Halos {
     /// The margin in quantization steps per axis; all 0 when the step needs no halo.
     margin: [i64; 3],
+    /// The margin in real units, as the step asked for it.
+    asked: f64,
     boxes: Vec<GridBox>,
     /// For each chunk, the chunks whose band can reach into its halo.
     neighbours: Vec<Vec<usize>>,
@@ -27,6 +29,7 @@ pub struct Halos {
 impl Halos {
     /// The halos for a step asking for `margin` real units around each chunk.
     pub fn new(plan: &Plan, stride: usize, margin: f64) -> Self {
+        let margin_real = margin;
         // Whole quantization steps, rounding down: a point one more step out is beyond the
         // margin. The tolerance keeps e.g. 0.3 / 0.001 from landing just under 300.
         let margin = [0, 1, 2].map(|a| {
@@ -53,6 +56,7 @@ impl Halos {
         }
         Halos {
             margin,
+            asked: margin_real,
             boxes,
             neighbours,
             stride,
@@ -141,6 +145,7 @@ impl Halos {
     pub fn gather(&self, wd: &WorkDir, chunk: usize, halo: &mut Halo) -> Result<()> {
         halo.rows.clear();
         halo.stride = self.stride;
+        halo.margin = self.asked;
         halo.reach = self.boxes[chunk].grown(self.margin);
         let reach = halo.reach;
         let mut read = 0u64;
@@ -232,6 +237,7 @@ mod tests {
             cube,
             chunks,
             classes: Vec::new(),
+            spacing_quantiles: [0.0; 3],
         }
     }
 

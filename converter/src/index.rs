@@ -132,7 +132,7 @@ fn build_chunk(
     read_chunk(ix.wd, i, ix.threads, &mut mem.rows)?;
     ix.halos.gather(ix.wd, i, halo)?;
     let chunk = &ix.plan.chunks[i];
-    ix.step.process(
+    let step = ix.step.process(
         &mut ChunkRows {
             index: i,
             bounds: GridBox::of_chunk(chunk, &ix.plan.cube),
@@ -140,6 +140,7 @@ fn build_chunk(
             offset: ix.plan.offset,
             layout: ix.layout,
             rows: &mut mem.rows,
+            scanners: &[],
         },
         halo,
     )?;
@@ -152,6 +153,7 @@ fn build_chunk(
             finished,
             root_rows,
             root_mask: root.child_mask,
+            step,
         },
         builder.into_memory(),
     ))

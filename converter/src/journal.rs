@@ -24,6 +24,9 @@ pub struct JournalEntry {
     pub end: u64,
     pub root_mask: u8,
     nodes: Vec<JournalNode>,
+    /// What the per-chunk step reported for this chunk.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub step: Vec<f64>,
 }
 
 impl JournalEntry {
@@ -141,6 +144,7 @@ pub struct BuiltChunk {
     pub finished: Vec<FinishedNode>,
     pub root_rows: Vec<u8>,
     pub root_mask: u8,
+    pub step: Vec<f64>,
 }
 
 /// Appends chunks to the octree file and the journal, in plan order.
@@ -224,6 +228,7 @@ impl Committer {
             end: self.end,
             root_mask: built.root_mask,
             nodes,
+            step: built.step,
         };
         let mut line = serde_json::to_string(&entry).unwrap_or_default();
         line.push('\n');

@@ -3,11 +3,12 @@
 //! result, a `Plan`, is all that indexing and a resumed run need.
 
 use crate::build::ConvertOptions;
+use crate::chunk_step::ChunkStep;
 use crate::distribute::{Distribution, distribute};
 use crate::error::{ConvertError, Result, io_err};
 use crate::input::las::LasSource;
 use crate::input::{PointSource, Precision};
-use crate::plan::{Chunk, Counts, count, cube_for, max_chunk_points, plan_chunks};
+use crate::plan::{Chunk, Counts, count, cube_for, grid_shape, max_chunk_points, plan_chunks};
 use crate::progress::Phases;
 use crate::quantize::{Quantization, SourceExtent, choose};
 use crate::rows::{RecordToRow, RowInput};
@@ -39,6 +40,11 @@ pub struct Plan {
     /// Points per classification code, where the rows have a one-byte classification.
     #[serde(default)]
     pub classes: Vec<(u8, u64)>,
+    /// Point spacing in real units at the 50th, 90th and 99th percentile of points (sparsest
+    /// last), estimated from the counting grid as if each cell held a surface across it. It
+    /// depends on the inputs alone, not on how they are cut into chunks.
+    #[serde(default)]
+    pub spacing_quantiles: [f64; 3],
 }
 
 impl Plan {
@@ -72,9 +78,12 @@ pub fn prepare(
     threads: usize,
     phases: &mut Phases,
     fingerprint: String,
+    step: &dyn ChunkStep,
 ) -> Result<Plan> {
     let mut warnings = Vec::new();
-    let (attributes, declared) = union_attributes(&opts.inputs, &mut warnings)?;
+    let (mut attributes, declared) = union_attributes(&opts.inputs, &mut warnings)?;
+    let added = step.attributes(&attributes)?;
+    attributes.extend(added);
     let layout = RowLayout::new(attributes.clone());
     let staged = match stage_from_headers(opts, &layout, wd, threads, phases) {
         Ok(Some(staged)) if !needlessly_large(&staged) => staged,
@@ -136,6 +145,7 @@ pub fn prepare(
         )
     })?;
     remove_staging(&staged.inputs, wd)?;
+    let spacing_quantiles = spacing_quantiles(&staged.counts, &staged.cube, staged.q.scale);
     let q = staged.q;
     let to_real =
         |p: [i32; 3]| -> [f64; 3] { [0, 1, 2].map(|a| q.offset[a] + q.scale[a] * p[a] as f64) };
@@ -159,7 +169,66 @@ pub fn prepare(
                     .collect()
             })
             .unwrap_or_default(),
+        spacing_quantiles,
     })
+}
+
+/// See `Plan::spacing_quantiles`. Cells too small to hold a patch of surface (most points in
+/// cells of fewer than `MIN_CELL_POINTS`) say nothing of the spacing, so the grid is made
+/// coarser until they do.
+fn spacing_quantiles(counts: &Counts, cube: &Cube, scale: [f64; 3]) -> [f64; 3] {
+    const MIN_CELL_POINTS: u64 = 16;
+    let (mut level, shift) = grid_shape(cube);
+    let mut side = (1u64 << shift.min(63)) as f64 * scale.iter().fold(0.0f64, |m, s| m.max(*s));
+    let mut cells = counts.cells.clone();
+    loop {
+        let quantiles = weighted_quantiles(&cells, side);
+        if quantiles[3] >= MIN_CELL_POINTS as f64 || level == 0 {
+            return [quantiles[0], quantiles[1], quantiles[2]];
+        }
+        cells = coarser(&cells, level);
+        level -= 1;
+        side *= 2.0;
+    }
+}
+
+/// Spacing at the 50th, 90th and 99th percentile of points, and the points-weighted median of
+/// points per cell.
+fn weighted_quantiles(cells: &[u64], side: f64) -> [f64; 4] {
+    let mut occupied: Vec<(f64, u64)> = cells
+        .iter()
+        .filter(|&&m| m > 0)
+        .map(|&m| (side / (m as f64).sqrt(), m))
+        .collect();
+    occupied.sort_by(|a, b| a.0.total_cmp(&b.0));
+    let total: u64 = occupied.iter().map(|c| c.1).sum();
+    let at = |share: f64| {
+        let want = (total as f64 * share).ceil() as u64;
+        let mut seen = 0;
+        occupied
+            .iter()
+            .find(|c| {
+                seen += c.1;
+                seen >= want
+            })
+            .copied()
+            .unwrap_or((0.0, 0))
+    };
+    [at(0.5).0, at(0.9).0, at(0.99).0, at(0.5).1 as f64]
+}
+
+/// The counting grid one level coarser (cells indexed x, y, z from the most significant).
+fn coarser(cells: &[u64], level: u32) -> Vec<u64> {
+    let (n, h) = (1usize << level, 1usize << (level - 1));
+    let mut out = vec![0u64; h * h * h];
+    for x in 0..n {
+        for y in 0..n {
+            for z in 0..n {
+                out[((x / 2) * h + y / 2) * h + z / 2] += cells[(x * n + y) * n + z];
+            }
+        }
+    }
+    out
 }
 
 /// LAS and LAZ inputs: scale, offset and cube from their headers, so uncompressed records are

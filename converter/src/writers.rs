@@ -97,6 +97,15 @@ struct LasRowWriter {
 
 impl LasRowWriter {
     fn create(path: &Path, layout: &RowLayout, scale: [f64; 3], offset: [f64; 3]) -> Result<Self> {
+        if let Some(a) = layout.attributes.iter().find(|a| a.ty == AttrType::F16) {
+            return Err(ConvertError::output(
+                path,
+                format!(
+                    "attribute \"{}\" is f16, which LAS cannot hold; widen it to f32 first",
+                    a.name
+                ),
+            ));
+        }
         let format_number = las_format_for(layout);
         let (standard, _, _) = las_fields(format_number, &[]);
         let extra: Vec<ExtraBytesField> = layout
@@ -258,7 +267,8 @@ struct PlyRowWriter {
     layout: RowLayout,
     scale: [f64; 3],
     offset: [f64; 3],
-    /// 64-bit integer attributes are written as double: PLY has no 64-bit integers.
+    /// 64-bit integer attributes are written as double (PLY has no 64-bit integers) and f16 as
+    /// float (nor half floats).
     wide: Vec<bool>,
 }
 
@@ -270,7 +280,7 @@ fn ply_type(t: AttrType) -> &'static str {
         AttrType::U16 => "ushort",
         AttrType::I32 => "int",
         AttrType::U32 => "uint",
-        AttrType::F32 => "float",
+        AttrType::F32 | AttrType::F16 => "float",
         AttrType::F64 | AttrType::U64 | AttrType::I64 => "double",
     }
 }
@@ -311,7 +321,7 @@ impl PlyRowWriter {
             wide: layout
                 .attributes
                 .iter()
-                .map(|a| matches!(a.ty, AttrType::U64 | AttrType::I64))
+                .map(|a| matches!(a.ty, AttrType::U64 | AttrType::I64 | AttrType::F16))
                 .collect(),
             layout: layout.clone(),
             scale,
@@ -331,7 +341,11 @@ impl RowWriter for PlyRowWriter {
             }
             for (i, a) in self.layout.attributes.iter().enumerate() {
                 let v = &row[self.layout.offsets[i]..self.layout.offsets[i] + a.size()];
-                if self.wide[i] {
+                if self.wide[i] && a.ty == AttrType::F16 {
+                    for c in v.chunks_exact(2) {
+                        rec.extend_from_slice(&(a.ty.read_f64(c) as f32).to_le_bytes());
+                    }
+                } else if self.wide[i] {
                     for c in v.chunks_exact(8) {
                         rec.extend_from_slice(&a.ty.read_f64(c).to_le_bytes());
                     }

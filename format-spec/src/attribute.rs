@@ -12,6 +12,8 @@ pub enum AttrType {
     I32,
     U64,
     I64,
+    /// IEEE 754 binary16 (half precision).
+    F16,
     F32,
     F64,
 }
@@ -20,7 +22,7 @@ impl AttrType {
     pub fn size(self) -> usize {
         match self {
             AttrType::U8 | AttrType::I8 => 1,
-            AttrType::U16 | AttrType::I16 => 2,
+            AttrType::U16 | AttrType::I16 | AttrType::F16 => 2,
             AttrType::U32 | AttrType::I32 | AttrType::F32 => 4,
             AttrType::U64 | AttrType::I64 | AttrType::F64 => 8,
         }
@@ -36,13 +38,14 @@ impl AttrType {
             AttrType::I32 => "i32",
             AttrType::U64 => "u64",
             AttrType::I64 => "i64",
+            AttrType::F16 => "f16",
             AttrType::F32 => "f32",
             AttrType::F64 => "f64",
         }
     }
 
     pub fn is_float(self) -> bool {
-        matches!(self, AttrType::F32 | AttrType::F64)
+        matches!(self, AttrType::F16 | AttrType::F32 | AttrType::F64)
     }
 
     /// Reads one component from little-endian bytes as f64 (for display and statistics).
@@ -52,6 +55,7 @@ impl AttrType {
             AttrType::I8 => b[0] as i8 as f64,
             AttrType::U16 => u16::from_le_bytes([b[0], b[1]]) as f64,
             AttrType::I16 => i16::from_le_bytes([b[0], b[1]]) as f64,
+            AttrType::F16 => half::f16::from_le_bytes([b[0], b[1]]).to_f64(),
             AttrType::U32 => u32::from_le_bytes([b[0], b[1], b[2], b[3]]) as f64,
             AttrType::I32 => i32::from_le_bytes([b[0], b[1], b[2], b[3]]) as f64,
             AttrType::F32 => f32::from_le_bytes([b[0], b[1], b[2], b[3]]) as f64,
@@ -78,6 +82,11 @@ pub struct Attribute {
     pub offset: Option<Vec<f64>>,
     #[serde(default, skip_serializing_if = "String::is_empty")]
     pub description: String,
+    /// How the raw components encode the value, where they are not the value itself
+    /// (`"oct16"`: a unit vector as two u16, SPEC.md section 4). A reader refuses an encoding it
+    /// does not know.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub encoding: Option<String>,
 }
 
 impl Attribute {
@@ -89,13 +98,69 @@ impl Attribute {
             scale: None,
             offset: None,
             description: String::new(),
+            encoding: None,
         }
+    }
+
+    /// The dataset's unit normal: two u16 in the octahedral encoding.
+    pub fn oct16_normal() -> Self {
+        Attribute {
+            encoding: Some(OCT16.to_string()),
+            description: "unit normal, octahedral encoding".into(),
+            ..Attribute::new("normal", AttrType::U16, 2)
+        }
+    }
+
+    pub fn is_oct16(&self) -> bool {
+        self.encoding.as_deref() == Some(OCT16) && self.ty == AttrType::U16 && self.count == 2
     }
 
     /// Bytes per point.
     pub fn size(&self) -> usize {
         self.ty.size() * self.count as usize
     }
+}
+
+/// The encoding name of octahedral unit vectors in two u16.
+pub const OCT16: &str = "oct16";
+
+/// Encodes a direction as octahedral 2 x u16 (SPEC.md section 4). A zero or non-finite vector
+/// gives `[0, 0]`, which the format reserves for "no normal"; no direction encodes to it.
+pub fn oct16_encode(n: [f64; 3]) -> [u16; 2] {
+    let l1 = n[0].abs() + n[1].abs() + n[2].abs();
+    if !(l1 > 0.0 && l1.is_finite()) {
+        return [0, 0];
+    }
+    let (mut u, mut v) = (n[0] / l1, n[1] / l1);
+    if n[2] < 0.0 {
+        let (pu, pv) = (u, v);
+        u = (1.0 - pv.abs()) * if pu >= 0.0 { 1.0 } else { -1.0 };
+        v = (1.0 - pu.abs()) * if pv >= 0.0 { 1.0 } else { -1.0 };
+    }
+    let q = |t: f64| ((t.clamp(-1.0, 1.0) + 1.0) * 0.5 * 65535.0).round() as u16;
+    let raw = [q(u), q(v)];
+    // The corner (-1, -1) is the -z pole, as are the other three corners: use another.
+    if raw == [0, 0] { [65535, 65535] } else { raw }
+}
+
+/// Decodes octahedral 2 x u16 to a unit vector; `None` for `[0, 0]` (no normal).
+pub fn oct16_decode(raw: [u16; 2]) -> Option<[f64; 3]> {
+    if raw == [0, 0] {
+        return None;
+    }
+    let u = raw[0] as f64 / 65535.0 * 2.0 - 1.0;
+    let v = raw[1] as f64 / 65535.0 * 2.0 - 1.0;
+    let z = 1.0 - u.abs() - v.abs();
+    let (x, y) = if z < 0.0 {
+        (
+            (1.0 - v.abs()) * if u >= 0.0 { 1.0 } else { -1.0 },
+            (1.0 - u.abs()) * if v >= 0.0 { 1.0 } else { -1.0 },
+        )
+    } else {
+        (u, v)
+    };
+    let l = (x * x + y * y + z * z).sqrt();
+    Some([x / l, y / l, z / l])
 }
 
 /// A fixed-stride row layout for points held in memory: 12 bytes of integer position (x, y, z
@@ -144,4 +209,60 @@ pub fn row_position(row: &[u8]) -> [i32; 3] {
         i32::from_le_bytes([row[4], row[5], row[6], row[7]]),
         i32::from_le_bytes([row[8], row[9], row[10], row[11]]),
     ]
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn angle(a: [f64; 3], b: [f64; 3]) -> f64 {
+        let d = a[0] * b[0] + a[1] * b[1] + a[2] * b[2];
+        d.clamp(-1.0, 1.0).acos().to_degrees()
+    }
+
+    #[test]
+    fn oct16_round_trips_within_a_hundredth_of_a_degree() {
+        let mut worst: f64 = 0.0;
+        let mut seed = 12345u64;
+        let mut next = || {
+            seed = seed
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            (seed >> 11) as f64 / (1u64 << 53) as f64 * 2.0 - 1.0
+        };
+        let mut dirs: Vec<[f64; 3]> = (0..20000).map(|_| [next(), next(), next()]).collect();
+        // The poles, the equator and the octahedron's edges, where the folding changes sides.
+        for s in [1.0, -1.0] {
+            dirs.extend([
+                [0.0, 0.0, s],
+                [s, 0.0, 0.0],
+                [0.0, s, 0.0],
+                [s, s, 0.0],
+                [s, -s, 0.0],
+            ]);
+            dirs.extend([[s, 0.0, -1.0], [0.0, s, -1.0], [s, 1e-9, -1.0]]);
+        }
+        for d in dirs {
+            let l = (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).sqrt();
+            if l < 1e-6 {
+                continue;
+            }
+            let n = d.map(|c| c / l);
+            let raw = oct16_encode(n);
+            assert_ne!(raw, [0, 0], "{n:?} encoded as the no-normal value");
+            let back = oct16_decode(raw).expect("a normal");
+            worst = worst.max(angle(n, back));
+        }
+        assert!(worst < 0.01, "worst round trip {worst} degrees");
+        assert_eq!(oct16_encode([0.0; 3]), [0, 0]);
+        assert_eq!(oct16_encode([f64::NAN, 0.0, 1.0]), [0, 0]);
+        assert_eq!(oct16_decode([0, 0]), None);
+    }
+
+    #[test]
+    fn f16_reads_as_its_value() {
+        let b = half::f16::from_f64(0.1234).to_le_bytes();
+        assert!((AttrType::F16.read_f64(&b) - 0.1234).abs() < 1e-4);
+        assert_eq!(AttrType::F16.size(), 2);
+    }
 }

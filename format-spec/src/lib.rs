@@ -13,7 +13,9 @@ mod node_codec;
 mod node_key;
 mod verify;
 
-pub use attribute::{AttrType, Attribute, RowLayout, row_position};
+pub use attribute::{
+    AttrType, Attribute, OCT16, RowLayout, oct16_decode, oct16_encode, row_position,
+};
 pub use dataset::{DatasetFile, LocalDataset, NodeInfo, check_file_head, node_infos};
 pub use error::FormatError;
 pub use hierarchy::{
@@ -21,8 +23,8 @@ pub use hierarchy::{
     PageRef, build_hierarchy, decode_page,
 };
 pub use metadata::{
-    Bounds, Cube, FORMAT_NAME, FileInfo, Files, HierarchyInfo, Metadata, VERSION_MAJOR,
-    VERSION_MINOR,
+    Bounds, Cube, FORMAT_NAME, FileInfo, Files, HierarchyInfo, Metadata, NormalsInfo,
+    VERSION_MAJOR, VERSION_MINOR,
 };
 pub use node_codec::{
     NodeColumns, NodeDecodeError, OCTREE_MAGIC, decode_node, encode_node, encode_node_rows,

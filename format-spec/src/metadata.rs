@@ -70,6 +70,33 @@ pub struct Metadata {
     /// points have a `classification` attribute; informative.
     #[serde(default, skip_serializing_if = "std::collections::BTreeMap::is_empty")]
     pub classes: std::collections::BTreeMap<String, u64>,
+    /// How the `normal`, `radius` and `surface_variation` attributes were made, where the
+    /// converter estimated them (`strata convert --normals`); informative.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub normals: Option<NormalsInfo>,
+}
+
+/// What `strata convert --normals` did (SPEC.md section 4).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct NormalsInfo {
+    /// Points per neighbourhood, the point itself included.
+    pub k: u32,
+    /// How normals were oriented: `"scanner"`, `"up"` or `"none"`.
+    pub orient: String,
+    /// Normals estimated by the converter.
+    pub computed: u64,
+    /// Normals taken from the inputs as they were.
+    pub kept: u64,
+    /// Points whose k nearest neighbours reached beyond the points the converter had at hand
+    /// around their chunk: their estimate may differ from one over the whole cloud.
+    pub partial: u64,
+    /// The mean of the `radius` attribute over all points.
+    pub mean_radius: f64,
+    /// Paper 001's global surfel size: the mean radius of the smallest circles enclosing the
+    /// triangles of a hierarchical clustering into three-point clusters (section 3.4).
+    pub surfel_radius: f64,
+    /// Triangles that mean is taken over.
+    pub triangles: u64,
 }
 
 impl Metadata {
@@ -114,6 +141,10 @@ impl Metadata {
             numbers.extend(v.iter().map(|x| (name.to_string(), *x)));
         }
         numbers.push(("spacing".into(), self.spacing));
+        if let Some(n) = &self.normals {
+            numbers.push(("normals.mean_radius".into(), n.mean_radius));
+            numbers.push(("normals.surfel_radius".into(), n.surfel_radius));
+        }
         for a in &self.attributes {
             for v in a.scale.iter().chain(a.offset.iter()).flatten() {
                 numbers.push((format!("attribute \"{}\"", a.name), *v));

@@ -2,11 +2,14 @@ use anyhow::Context;
 use std::path::PathBuf;
 use std::process::ExitCode;
 use strata_converter::sys::{format_bytes, parse_size};
-use strata_converter::{ConvertOptions, ConvertSummary, Sampling, convert};
+use strata_converter::{
+    ChunkStep, ConvertOptions, ConvertSummary, NoStep, NormalMode, NormalOptions, NormalStep,
+    Orient, Sampling, convert_with,
+};
 
 #[derive(Debug, clap::Args)]
 pub struct Args {
-    /// Input files (.las, .laz, .ply); several make one dataset.
+    /// Input files (.las, .laz, .ply, .e57); several make one dataset.
     #[arg(required = true)]
     inputs: Vec<PathBuf>,
     /// The dataset directory to create.
@@ -33,6 +36,52 @@ pub struct Args {
     /// Also write the summary as JSON to this file.
     #[arg(long)]
     stats: Option<PathBuf>,
+    /// Estimate per-point normals, disc radii and surface variation from the k nearest
+    /// neighbours. `keep` (the default) keeps the inputs' normals where they have them;
+    /// `compute` replaces them.
+    #[arg(long, value_enum, num_args = 0..=1, default_missing_value = "keep", value_name = "MODE")]
+    normals: Option<NormalsArg>,
+    /// Neighbours per estimate, the point itself included.
+    #[arg(long, default_value_t = 16, requires = "normals")]
+    normal_k: usize,
+    /// Which way normals face: towards the scanner where the input says where it stood (E57
+    /// poses, --viewpoint), else up (the default); or always up, always the scanner, or as
+    /// estimated (none).
+    #[arg(long, value_enum, requires = "normals")]
+    orient: Option<OrientArg>,
+    /// Where a single static scanner stood, X,Y,Z in the inputs' coordinates.
+    #[arg(long, value_parser = parse_point, requires = "normals")]
+    viewpoint: Option<[f64; 3]>,
+    /// Neighbours farther than this (the inputs' units) are not used, so that estimates do not
+    /// depend on how the cloud is cut into chunks (default: twice the k-th neighbour's
+    /// distance expected where points are sparser than 90% of them).
+    #[arg(long, requires = "normals")]
+    normal_radius: Option<f64>,
+}
+
+#[derive(Debug, Clone, Copy, clap::ValueEnum)]
+enum NormalsArg {
+    Keep,
+    Compute,
+}
+
+#[derive(Debug, Clone, Copy, clap::ValueEnum)]
+enum OrientArg {
+    Up,
+    Scanner,
+    None,
+}
+
+fn parse_point(s: &str) -> Result<[f64; 3], String> {
+    let v: Vec<f64> = s
+        .split(',')
+        .map(|c| c.trim().parse::<f64>())
+        .collect::<Result<_, _>>()
+        .map_err(|_| format!("\"{s}\" is not X,Y,Z"))?;
+    match v[..] {
+        [x, y, z] if v.iter().all(|c| c.is_finite()) => Ok([x, y, z]),
+        _ => Err(format!("\"{s}\" is not three finite numbers X,Y,Z")),
+    }
 }
 
 #[derive(Debug, Clone, Copy, clap::ValueEnum)]
@@ -58,7 +107,25 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
         resume: a.resume,
         quiet: a.quiet,
     };
-    let summary = convert(&opts)?;
+    let step: Box<dyn ChunkStep> = match a.normals {
+        None => Box::new(NoStep),
+        Some(mode) => Box::new(NormalStep::new(NormalOptions {
+            k: a.normal_k,
+            mode: match mode {
+                NormalsArg::Keep => NormalMode::Keep,
+                NormalsArg::Compute => NormalMode::Compute,
+            },
+            orient: match a.orient {
+                None => Orient::Auto,
+                Some(OrientArg::Up) => Orient::Up,
+                Some(OrientArg::Scanner) => Orient::Scanner,
+                Some(OrientArg::None) => Orient::None,
+            },
+            viewpoint: a.viewpoint,
+            radius: a.normal_radius,
+        })?),
+    };
+    let summary = convert_with(&opts, step.as_ref())?;
     // Warnings say the result differs from the input (a coarsened scale): --quiet does not
     // hide them.
     for w in &summary.warnings {

@@ -356,6 +356,8 @@ pub fn eb_code(t: AttrType) -> u8 {
         AttrType::I64 => 8,
         AttrType::F32 => 9,
         AttrType::F64 => 10,
+        // LAS has no half floats: export widens f16 to f32 (`export::widened`) before writing.
+        AttrType::F16 => 9,
     }
 }
 

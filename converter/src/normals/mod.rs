@@ -1,0 +1,293 @@
+//! `strata convert --normals`: per point, by principal component analysis of its k nearest
+//! neighbours (the chunk's points and the halo around it), the normal, the surface variation
+//! σ = λ0 / (λ0 + λ1 + λ2) and a disc radius; and paper 001's global surfel size. Runs as the
+//! per-chunk step of the conversion, so it works out of core like the rest of it.
+
+mod attrs;
+mod kdtree;
+mod pca;
+mod surfel_size;
+
+use crate::chunk_step::{ChunkRows, ChunkStep, Halo, StepTotals};
+use crate::error::{ConvertError, Result};
+use crate::prepare::Plan;
+use attrs::Targets;
+use kdtree::KdTree;
+use pca::{covariance, dot, principal};
+#[cfg(test)]
+use strata_format::AttrType;
+use strata_format::{Attribute, Metadata, NormalsInfo, row_position};
+use surfel_size::{REGION, SAMPLE_EVERY, TriangleSizes, cluster};
+
+/// Which normals the step estimates.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum NormalMode {
+    /// Keep the inputs' normals where a point has one; estimate the others.
+    Keep,
+    /// Estimate every normal, replacing the inputs'.
+    Compute,
+}
+
+/// Which way an estimated normal points (PCA gives a line, not a direction).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Orient {
+    /// Towards the scanner where the input says where it stood (or `--viewpoint`), else up.
+    Auto,
+    /// Towards +z: airborne and mobile data.
+    Up,
+    /// Towards the point's scanner; refused when no input says where scanners stood.
+    Scanner,
+    /// As the analysis gives it.
+    None,
+}
+
+#[derive(Debug, Clone, PartialEq)]
+pub struct NormalOptions {
+    /// Points per neighbourhood, the point itself included.
+    pub k: usize,
+    pub mode: NormalMode,
+    pub orient: Orient,
+    /// Where a single static scanner stood, in real coordinates.
+    pub viewpoint: Option<[f64; 3]>,
+    /// Neighbours farther than this (real units) are not used, so that a point's estimate
+    /// depends on its surroundings alone, however the cloud is cut into chunks. Default: from
+    /// the inputs' density.
+    pub radius: Option<f64>,
+}
+
+impl Default for NormalOptions {
+    fn default() -> Self {
+        NormalOptions {
+            k: 16,
+            mode: NormalMode::Keep,
+            orient: Orient::Auto,
+            viewpoint: None,
+            radius: None,
+        }
+    }
+}
+
+/// For a random (Poisson) sample of a surface with k points within r_k, discs of radius
+/// r_k · √(ln 100 / k) leave 1% of the surface uncovered (the uncovered share of a Poisson
+/// disc cover is e^(−ρπr²) and ρπr_k² = k); on a scanner's regular grid they leave none.
+const COVER: f64 = 2.145_966_026_289_347; // √(ln 100)
+
+/// The search radius is this many times the distance to the k-th neighbour expected where
+/// points are sparser than 90% of them.
+const SEARCH_FACTOR: f64 = 2.0;
+
+/// Indices into the step's totals.
+mod total {
+    pub const COMPUTED: usize = 0;
+    pub const KEPT: usize = 1;
+    pub const PARTIAL: usize = 2;
+    pub const RADIUS_SUM: usize = 3;
+    pub const TRIANGLE_RADIUS_SUM: usize = 4;
+    pub const TRIANGLES: usize = 5;
+    pub const LEN: usize = 6;
+}
+
+pub struct NormalStep {
+    opts: NormalOptions,
+}
+
+impl NormalStep {
+    pub fn new(opts: NormalOptions) -> Result<Self> {
+        if !(3..=256).contains(&opts.k) {
+            return Err(ConvertError::Usage(format!(
+                "--normal-k {} is out of range (3 to 256 neighbours)",
+                opts.k
+            )));
+        }
+        if let Some(r) = opts.radius
+            && !(r > 0.0 && r.is_finite())
+        {
+            return Err(ConvertError::Usage(format!(
+                "--normal-radius {r} must be a positive distance"
+            )));
+        }
+        if let Some(v) = opts.viewpoint
+            && v.iter().any(|c| !c.is_finite())
+        {
+            return Err(ConvertError::Usage(
+                "--viewpoint must be three finite numbers".into(),
+            ));
+        }
+        Ok(NormalStep { opts })
+    }
+
+    fn orient_name(&self, has_scanners: bool) -> &'static str {
+        match self.opts.orient {
+            Orient::Auto if has_scanners || self.opts.viewpoint.is_some() => "scanner",
+            Orient::Auto | Orient::Up => "up",
+            Orient::Scanner => "scanner",
+            Orient::None => "none",
+        }
+    }
+}
+
+impl ChunkStep for NormalStep {
+    fn fingerprint(&self) -> String {
+        format!("normals:{:?}", self.opts)
+    }
+
+    fn attributes(&self, inputs: &[Attribute]) -> Result<Vec<Attribute>> {
+        if self.opts.orient == Orient::Scanner
+            && self.opts.viewpoint.is_none()
+            && !inputs.iter().any(|a| a.name == attrs::SCANNER)
+        {
+            return Err(ConvertError::Usage(
+                "--orient scanner needs to know where the scanner stood: give --viewpoint X,Y,Z or an E57 input with scan poses".into(),
+            ));
+        }
+        attrs::added(inputs)
+    }
+
+    fn halo_margin(&self, plan: &Plan) -> f64 {
+        self.opts
+            .radius
+            .unwrap_or_else(|| search_radius(plan, self.opts.k))
+    }
+
+    fn process(&self, chunk: &mut ChunkRows, halo: &Halo) -> Result<StepTotals> {
+        let layout = chunk.layout;
+        let targets = Targets::find(layout)?;
+        let stride = layout.stride;
+        let own = chunk.rows.len() / stride;
+        let mut totals = vec![0.0; total::LEN];
+        if own == 0 {
+            return Ok(totals);
+        }
+        let scale = chunk.scale;
+        // Whole steps from the chunk's corner (see `kdtree`).
+        let origin = chunk.bounds.min;
+        let steps = |q: [i32; 3]| [0, 1, 2].map(|a| (q[a] as i64 - origin[a]) as f64);
+        let points: Vec<[f64; 3]> = chunk
+            .rows
+            .chunks_exact(stride)
+            .map(|r| steps(row_position(r)))
+            .chain(halo.rows().map(|r| steps(row_position(r))))
+            .collect();
+        let tree = KdTree::build(points, scale);
+        let k = self.opts.k.min(tree.len());
+        let search = halo.margin();
+        let at = Placement {
+            offset: chunk.offset,
+            scanners: chunk.scanners,
+        };
+        let mut near = Vec::with_capacity(k + 1);
+        let mut stack = Vec::with_capacity(64);
+        for t in 0..tree.len() {
+            let i = tree.order[t] as usize;
+            if i >= own {
+                continue;
+            }
+            tree.nearest(t, k, search, &mut near, &mut stack);
+            // In position order, so that the sums below do not depend on the search's order.
+            near.sort_unstable_by(|a, b| {
+                let (p, q) = (tree.points[a.1 as usize], tree.points[b.1 as usize]);
+                p.partial_cmp(&q).unwrap_or(std::cmp::Ordering::Equal)
+            });
+            // Fewer than k within the search radius: the k-th is beyond it.
+            let rk = if near.len() < k {
+                totals[total::PARTIAL] += 1.0;
+                search
+            } else {
+                near.iter().fold(0.0f64, |m, n| m.max(n.0)).sqrt()
+            };
+            let rel = near.iter().map(|&(_, j)| tree.offset(t, j as usize));
+            let pc = principal(covariance(rel).0);
+            let p = tree.points[t];
+            let q = [0, 1, 2].map(|a| (p[a] + origin[a] as f64) * scale[a]);
+            let row = &mut chunk.rows[i * stride..(i + 1) * stride];
+            let radius = rk * COVER / (k as f64).sqrt();
+            totals[total::RADIUS_SUM] += radius;
+            targets.put_radius(row, radius);
+            targets.put_variation(row, pc.surface_variation());
+            let kept = self.opts.mode == NormalMode::Keep && targets.has_normal(row);
+            if kept {
+                totals[total::KEPT] += 1.0;
+                continue;
+            }
+            totals[total::COMPUTED] += 1.0;
+            let normal = self.orient(pc.normal, q, targets.scanner(row), &at);
+            targets.put_normal(row, normal);
+        }
+        let mut sizes = TriangleSizes::default();
+        let mut region = Vec::with_capacity(REGION);
+        for (r, range) in (0..tree.len()).step_by(REGION).enumerate() {
+            if r % SAMPLE_EVERY != 0 {
+                continue;
+            }
+            region.clear();
+            let end = (range + REGION).min(tree.len());
+            region.extend(
+                (range..end)
+                    .filter(|&t| (tree.order[t] as usize) < own)
+                    .map(|t| tree.offset(range, t)),
+            );
+            cluster(&mut region, &mut sizes);
+        }
+        totals[total::TRIANGLE_RADIUS_SUM] = sizes.radius_sum;
+        totals[total::TRIANGLES] = sizes.triangles as f64;
+        Ok(totals)
+    }
+
+    fn record(&self, totals: &[f64], meta: &mut Metadata) {
+        let t = |i: usize| totals.get(i).copied().unwrap_or(0.0);
+        let triangles = t(total::TRIANGLES);
+        meta.normals = Some(NormalsInfo {
+            k: self.opts.k as u32,
+            orient: self
+                .orient_name(meta.attributes.iter().any(|a| a.name == attrs::SCANNER))
+                .into(),
+            computed: t(total::COMPUTED) as u64,
+            kept: t(total::KEPT) as u64,
+            partial: t(total::PARTIAL) as u64,
+            mean_radius: t(total::RADIUS_SUM) / (meta.points.max(1) as f64),
+            surfel_radius: if triangles > 0.0 {
+                t(total::TRIANGLE_RADIUS_SUM) / triangles
+            } else {
+                0.0
+            },
+            triangles: triangles as u64,
+        });
+    }
+}
+
+impl NormalStep {
+    /// `n` turned the way the options say; `q` is the point in real units without the offset,
+    /// `scan` the index of the scan that took it, where known.
+    fn orient(&self, n: [f64; 3], q: [f64; 3], scan: Option<usize>, at: &Placement) -> [f64; 3] {
+        let up = || if n[2] < 0.0 { n.map(|c| -c) } else { n };
+        let towards = |s: [f64; 3]| {
+            let to = [0, 1, 2].map(|a| s[a] - (at.offset[a] + q[a]));
+            if dot(n, to) < 0.0 { n.map(|c| -c) } else { n }
+        };
+        let scanner = scan
+            .and_then(|i| at.scanners.get(i))
+            .copied()
+            .or(self.opts.viewpoint);
+        match (self.opts.orient, scanner) {
+            (Orient::None, _) => n,
+            (Orient::Up, _) => up(),
+            (Orient::Auto | Orient::Scanner, Some(s)) => towards(s),
+            (Orient::Auto | Orient::Scanner, None) => up(),
+        }
+    }
+}
+
+/// What orienting towards a scanner needs of the chunk.
+struct Placement<'a> {
+    offset: [f64; 3],
+    scanners: &'a [[f64; 3]],
+}
+
+/// The neighbour search's radius (and the halo's width), from the plan's spacing estimate;
+/// see `SEARCH_FACTOR`.
+fn search_radius(plan: &Plan, k: usize) -> f64 {
+    plan.spacing_quantiles[1] * (k as f64 / std::f64::consts::PI).sqrt() * SEARCH_FACTOR
+}
+
+#[cfg(test)]
+mod tests;

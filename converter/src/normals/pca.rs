@@ -1,0 +1,207 @@
+//! Principal component analysis of a neighbourhood (paper 001, section 3.4): the covariance
+//! of the points about their centroid and its eigenvalues λ0 ≤ λ1 ≤ λ2, with the eigenvector
+//! of λ0 as the normal and σ = λ0 / (λ0 + λ1 + λ2) as the surface variation.
+
+/// What the analysis of one neighbourhood gives.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Principal {
+    /// Unit eigenvector of the smallest eigenvalue; its sign is arbitrary.
+    pub normal: [f64; 3],
+    /// λ0 ≤ λ1 ≤ λ2.
+    pub eigenvalues: [f64; 3],
+    /// Unit eigenvector of the largest eigenvalue (the BSP clustering splits across it).
+    pub major: [f64; 3],
+}
+
+impl Principal {
+    pub fn surface_variation(&self) -> f64 {
+        let sum: f64 = self.eigenvalues.iter().sum();
+        if sum > 0.0 {
+            (self.eigenvalues[0] / sum).clamp(0.0, 1.0 / 3.0)
+        } else {
+            0.0
+        }
+    }
+}
+
+/// The covariance of `points` about their centroid, as its six distinct entries
+/// (xx, xy, xz, yy, yz, zz), with the centroid. `points` should be near the origin (relative
+/// to the query point) for precision.
+pub fn covariance(points: impl Iterator<Item = [f64; 3]> + Clone) -> ([f64; 6], [f64; 3]) {
+    let mut n = 0.0;
+    let mut c = [0.0; 3];
+    for p in points.clone() {
+        n += 1.0;
+        for a in 0..3 {
+            c[a] += p[a];
+        }
+    }
+    if n == 0.0 {
+        return ([0.0; 6], c);
+    }
+    let c = c.map(|v| v / n);
+    let mut m = [0.0; 6];
+    for p in points {
+        let d = [p[0] - c[0], p[1] - c[1], p[2] - c[2]];
+        m[0] += d[0] * d[0];
+        m[1] += d[0] * d[1];
+        m[2] += d[0] * d[2];
+        m[3] += d[1] * d[1];
+        m[4] += d[1] * d[2];
+        m[5] += d[2] * d[2];
+    }
+    (m.map(|v| v / n), c)
+}
+
+/// Eigen-decomposition of a symmetric 3x3 matrix given as (xx, xy, xz, yy, yz, zz): the
+/// closed form of the characteristic cubic, then eigenvectors from cross products of the rows
+/// of (A − λI).
+pub fn principal(cov: [f64; 6]) -> Principal {
+    // Scale to unit size so that the cubic's terms neither overflow nor vanish.
+    let s = cov.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+    if !(s > 0.0 && s.is_finite()) {
+        return Principal {
+            normal: [0.0, 0.0, 1.0],
+            eigenvalues: [0.0; 3],
+            major: [1.0, 0.0, 0.0],
+        };
+    }
+    let [a, b, c, d, e, f] = cov.map(|v| v / s);
+    let p1 = b * b + c * c + e * e;
+    let q = (a + d + f) / 3.0;
+    let (l0, l1, l2) = if p1 <= 1e-30 {
+        let mut l = [a, d, f];
+        l.sort_by(f64::total_cmp);
+        (l[0], l[1], l[2])
+    } else {
+        let p2 = (a - q).powi(2) + (d - q).powi(2) + (f - q).powi(2) + 2.0 * p1;
+        let p = (p2 / 6.0).sqrt();
+        let (ba, bd, bf) = ((a - q) / p, (d - q) / p, (f - q) / p);
+        let (bb, bc, be) = (b / p, c / p, e / p);
+        let det = ba * (bd * bf - be * be) - bb * (bb * bf - be * bc) + bc * (bb * be - bd * bc);
+        let phi = (det / 2.0).clamp(-1.0, 1.0).acos() / 3.0;
+        let hi = q + 2.0 * p * phi.cos();
+        let lo = q + 2.0 * p * (phi + 2.0 * std::f64::consts::FRAC_PI_3).cos();
+        (lo, 3.0 * q - hi - lo, hi)
+    };
+    let m = [a, b, c, d, e, f];
+    let normal = eigenvector(m, l0).unwrap_or_else(|| {
+        // λ0 = λ1: any direction across the major axis will do.
+        let major = eigenvector(m, l2).unwrap_or([1.0, 0.0, 0.0]);
+        any_perpendicular(major)
+    });
+    let major = eigenvector(m, l2).unwrap_or_else(|| any_perpendicular(normal));
+    Principal {
+        normal,
+        eigenvalues: [l0.max(0.0) * s, l1.max(0.0) * s, l2.max(0.0) * s],
+        major,
+    }
+}
+
+/// A unit vector spanning the null space of (M − λI), when that space is one direction.
+fn eigenvector(m: [f64; 6], l: f64) -> Option<[f64; 3]> {
+    let [a, b, c, d, e, f] = m;
+    let r0 = [a - l, b, c];
+    let r1 = [b, d - l, e];
+    let r2 = [c, e, f - l];
+    let best = [cross(r0, r1), cross(r0, r2), cross(r1, r2)]
+        .into_iter()
+        .max_by(|x, y| norm2(*x).total_cmp(&norm2(*y)))?;
+    let n2 = norm2(best);
+    // Below this the rows are (nearly) parallel: a double eigenvalue, no single direction.
+    if n2 <= 1e-24 {
+        return None;
+    }
+    let l = n2.sqrt();
+    Some(best.map(|v| v / l))
+}
+
+pub fn cross(u: [f64; 3], v: [f64; 3]) -> [f64; 3] {
+    [
+        u[1] * v[2] - u[2] * v[1],
+        u[2] * v[0] - u[0] * v[2],
+        u[0] * v[1] - u[1] * v[0],
+    ]
+}
+
+pub fn dot(u: [f64; 3], v: [f64; 3]) -> f64 {
+    u[0] * v[0] + u[1] * v[1] + u[2] * v[2]
+}
+
+fn norm2(u: [f64; 3]) -> f64 {
+    dot(u, u)
+}
+
+fn any_perpendicular(v: [f64; 3]) -> [f64; 3] {
+    let other = if v[0].abs() < 0.9 {
+        [1.0, 0.0, 0.0]
+    } else {
+        [0.0, 1.0, 0.0]
+    };
+    let p = cross(v, other);
+    let l = norm2(p).sqrt().max(1e-300);
+    p.map(|c| c / l)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn angle(a: [f64; 3], b: [f64; 3]) -> f64 {
+        dot(a, b).abs().clamp(0.0, 1.0).acos().to_degrees()
+    }
+
+    #[test]
+    fn a_tilted_plane_gives_its_normal_and_no_variation() {
+        let n = {
+            let v = [0.3, -0.5, 0.8];
+            let l = norm2(v).sqrt();
+            v.map(|c| c / l)
+        };
+        let u = any_perpendicular(n);
+        let w = cross(n, u);
+        let pts: Vec<[f64; 3]> = (0..40)
+            .map(|i| {
+                let (s, t) = ((i % 7) as f64 - 3.0, (i / 7) as f64 * 0.7 - 2.0);
+                [0, 1, 2].map(|a| s * u[a] + t * w[a])
+            })
+            .collect();
+        let (cov, _) = covariance(pts.iter().copied());
+        let pc = principal(cov);
+        assert!(angle(pc.normal, n) < 1e-6, "{:?}", pc.normal);
+        assert!(pc.surface_variation() < 1e-12);
+        assert!(pc.eigenvalues[0] <= pc.eigenvalues[1] && pc.eigenvalues[1] <= pc.eigenvalues[2]);
+    }
+
+    #[test]
+    fn an_anisotropic_cloud_gives_its_axes_and_eigenvalues() {
+        // Variances 9, 4 and 0.25 along x, z and y, rotated by nothing: λ = 0.25, 4, 9.
+        let mut pts = Vec::new();
+        for sx in [-3.0, 3.0] {
+            for sz in [-2.0, 2.0] {
+                for sy in [-0.5, 0.5] {
+                    pts.push([sx, sy, sz]);
+                }
+            }
+        }
+        let (cov, c) = covariance(pts.iter().copied());
+        assert_eq!(c, [0.0; 3]);
+        let pc = principal(cov);
+        for (got, want) in pc.eigenvalues.iter().zip([0.25, 4.0, 9.0]) {
+            assert!((got - want).abs() < 1e-9, "{:?}", pc.eigenvalues);
+        }
+        assert!(angle(pc.normal, [0.0, 1.0, 0.0]) < 1e-6);
+        assert!(angle(pc.major, [1.0, 0.0, 0.0]) < 1e-6);
+        assert!((pc.surface_variation() - 0.25 / 13.25).abs() < 1e-12);
+    }
+
+    #[test]
+    fn a_line_or_a_point_still_gives_a_unit_normal() {
+        let line: Vec<[f64; 3]> = (0..5).map(|i| [i as f64, 0.0, 0.0]).collect();
+        let pc = principal(covariance(line.iter().copied()).0);
+        assert!((norm2(pc.normal) - 1.0).abs() < 1e-9);
+        assert!(dot(pc.normal, [1.0, 0.0, 0.0]).abs() < 1e-9);
+        let point = principal(covariance([[1.0, 2.0, 3.0]; 4].into_iter()).0);
+        assert!((norm2(point.normal) - 1.0).abs() < 1e-9);
+    }
+}

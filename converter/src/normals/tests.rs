@@ -1,0 +1,328 @@
+use super::*;
+use crate::build::{ConvertOptions, convert_with};
+use crate::sampling::Sampling;
+use crate::synth::{Scene, synth};
+use std::collections::HashMap;
+use std::io::Write;
+use std::path::{Path, PathBuf};
+use strata_format::{LocalDataset, oct16_decode};
+
+/// Per point of a dataset: quantized position, real position, normal, radius, σ.
+type PointNormals = Vec<([i32; 3], [f64; 3], Option<[f64; 3]>, f64, f64)>;
+
+fn read_normals(dir: &Path) -> PointNormals {
+    let ds = LocalDataset::open(dir).expect("open");
+    let layout = ds.layout().clone();
+    let meta = ds.metadata().clone();
+    let n = layout.index_of("normal").expect("normal attribute");
+    let r = layout.index_of("radius").expect("radius attribute");
+    let s = layout.index_of("surface_variation").expect("σ attribute");
+    let mut out = Vec::new();
+    for node in ds.all_nodes().expect("nodes") {
+        if node.point_count == 0 {
+            continue;
+        }
+        let cols = ds.read_node(&node).expect("node");
+        let (nc, rc, sc) = (
+            cols.attribute(&layout, n),
+            cols.attribute(&layout, r),
+            cols.attribute(&layout, s),
+        );
+        for i in 0..node.point_count as usize {
+            let raw = [
+                u16::from_le_bytes([nc[4 * i], nc[4 * i + 1]]),
+                u16::from_le_bytes([nc[4 * i + 2], nc[4 * i + 3]]),
+            ];
+            let q = cols.position(i);
+            out.push((
+                q,
+                meta.to_real(q),
+                oct16_decode(raw),
+                AttrType::F16.read_f64(&rc[2 * i..]),
+                AttrType::F16.read_f64(&sc[2 * i..]),
+            ));
+        }
+    }
+    out
+}
+
+fn angle(a: [f64; 3], b: [f64; 3]) -> f64 {
+    dot(a, b).clamp(-1.0, 1.0).acos().to_degrees()
+}
+
+fn options(input: &Path, output: PathBuf, memory_limit: u64) -> ConvertOptions {
+    ConvertOptions {
+        inputs: vec![input.to_path_buf()],
+        output,
+        memory_limit,
+        threads: 2,
+        sampling: Sampling::Poisson,
+        overwrite: false,
+        resume: false,
+        quiet: true,
+    }
+}
+
+fn step(orient: Orient, viewpoint: Option<[f64; 3]>) -> NormalStep {
+    NormalStep::new(NormalOptions {
+        orient,
+        viewpoint,
+        ..NormalOptions::default()
+    })
+    .expect("options")
+}
+
+/// A binary PLY of float positions (and normals, where given).
+fn write_ply(path: &Path, points: &[[f64; 3]], normals: Option<&[[f64; 3]]>) {
+    let mut head = format!(
+        "ply\nformat binary_little_endian 1.0\nelement vertex {}\nproperty float x\nproperty float y\nproperty float z\n",
+        points.len()
+    );
+    if normals.is_some() {
+        head.push_str("property float nx\nproperty float ny\nproperty float nz\n");
+    }
+    head.push_str("end_header\n");
+    let mut bytes = head.into_bytes();
+    for (i, p) in points.iter().enumerate() {
+        let mut vals = p.to_vec();
+        if let Some(n) = normals {
+            vals.extend(n[i]);
+        }
+        for v in vals {
+            bytes.extend((v as f32).to_le_bytes());
+        }
+    }
+    std::fs::File::create(path)
+        .and_then(|mut f| f.write_all(&bytes))
+        .expect("write ply");
+}
+
+/// Uniform random points on a sphere of radius `r` around `c`.
+fn sphere(n: usize, c: [f64; 3], r: f64, seed: u64) -> Vec<[f64; 3]> {
+    let mut s = seed;
+    let mut next = move || {
+        s = s
+            .wrapping_mul(6364136223846793005)
+            .wrapping_add(1442695040888963407);
+        (s >> 11) as f64 / (1u64 << 53) as f64
+    };
+    (0..n)
+        .map(|_| {
+            let z = next() * 2.0 - 1.0;
+            let t = next() * std::f64::consts::TAU;
+            let h = (1.0 - z * z).sqrt();
+            [c[0] + r * h * t.cos(), c[1] + r * h * t.sin(), c[2] + r * z]
+        })
+        .collect()
+}
+
+#[test]
+fn normals_do_not_change_at_chunk_borders() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let las = dir.path().join("city.las");
+    synth(&las, 300_000, Scene::City, 3, 0.0, false).expect("synth");
+    let many = convert_with(
+        &options(&las, dir.path().join("many"), 64 << 20),
+        &step(Orient::Up, None),
+    )
+    .expect("convert in many chunks");
+    let one = convert_with(
+        &options(&las, dir.path().join("one"), 4 << 30),
+        &step(Orient::Up, None),
+    )
+    .expect("convert in one chunk");
+    assert!(many.chunks >= 4, "{} chunks", many.chunks);
+    assert_eq!(one.chunks, 1);
+    let whole: HashMap<[i32; 3], [f64; 3]> = read_normals(&dir.path().join("one"))
+        .into_iter()
+        .map(|(q, _, n, _, _)| (q, n.expect("a normal")))
+        .collect();
+    let mut worst: f64 = 0.0;
+    let cut = read_normals(&dir.path().join("many"));
+    assert_eq!(cut.len(), 300_000);
+    for (q, _, n, _, _) in &cut {
+        worst = worst.max(angle(n.expect("a normal"), whole[q]));
+    }
+    assert!(
+        worst <= 1.0,
+        "a normal differs by {worst}° across chunkings"
+    );
+    let meta = LocalDataset::open(&dir.path().join("many"))
+        .expect("open")
+        .metadata()
+        .clone();
+    let info = meta.normals.expect("normals recorded");
+    assert_eq!(info.computed, 300_000);
+    assert_eq!(info.orient, "up");
+    assert!(info.surfel_radius > 0.0 && info.triangles > 1000);
+}
+
+#[test]
+fn a_sphere_gets_radial_normals_facing_the_viewpoint() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let ply = dir.path().join("sphere.ply");
+    let centre = [10.0, -4.0, 2.0];
+    write_ply(&ply, &sphere(60_000, centre, 3.0, 9), None);
+    convert_with(
+        &options(&ply, dir.path().join("in"), 1 << 30),
+        &step(Orient::Auto, Some(centre)),
+    )
+    .expect("convert");
+    let pts = read_normals(&dir.path().join("in"));
+    let mut errors: Vec<f64> = pts
+        .iter()
+        .map(|(_, p, n, _, _)| {
+            let inward = [0, 1, 2].map(|a| (centre[a] - p[a]) / 3.0);
+            angle(n.expect("a normal"), inward)
+        })
+        .collect();
+    errors.sort_by(f64::total_cmp);
+    let (median, p95, worst) = (
+        errors[errors.len() / 2],
+        errors[errors.len() * 95 / 100],
+        errors[errors.len() - 1],
+    );
+    assert!(median < 1.0 && p95 < 3.0, "median {median}°, p95 {p95}°");
+    assert!(
+        worst < 90.0,
+        "a normal faces away from the viewpoint ({worst}°)"
+    );
+    // A sphere curves: σ is small but not zero; the radius follows the spacing.
+    let sigma: f64 = pts.iter().map(|p| p.4).sum::<f64>() / pts.len() as f64;
+    assert!(sigma > 1e-5 && sigma < 0.02, "mean σ {sigma}");
+
+    convert_with(
+        &options(&ply, dir.path().join("up"), 1 << 30),
+        &step(Orient::Up, None),
+    )
+    .expect("convert");
+    let up = read_normals(&dir.path().join("up"));
+    assert!(
+        up.iter()
+            .all(|(_, _, n, _, _)| n.expect("a normal")[2] >= 0.0)
+    );
+}
+
+#[test]
+fn discs_of_the_radius_cover_a_randomly_sampled_plane() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let ply = dir.path().join("plane.ply");
+    let mut s = 77u64;
+    let mut next = move || {
+        s = s
+            .wrapping_mul(6364136223846793005)
+            .wrapping_add(1442695040888963407);
+        (s >> 11) as f64 / (1u64 << 53) as f64
+    };
+    let side = 20.0;
+    let pts: Vec<[f64; 3]> = (0..40_000)
+        .map(|_| [next() * side, next() * side, 5.0])
+        .collect();
+    write_ply(&ply, &pts, None);
+    convert_with(
+        &options(&ply, dir.path().join("plane"), 1 << 30),
+        &step(Orient::Auto, None),
+    )
+    .expect("convert");
+    let got = read_normals(&dir.path().join("plane"));
+    assert!(
+        got.iter()
+            .all(|(_, _, n, _, s)| angle(n.expect("a normal"), [0.0, 0.0, 1.0]) < 0.1 && *s < 1e-3)
+    );
+    // Probe the inner part of the plane on a fine grid: each probe lies in some disc.
+    let cell = 0.25;
+    let mut grid: HashMap<(i64, i64), Vec<(f64, f64, f64)>> = HashMap::new();
+    for (_, p, _, r, _) in &got {
+        let at = ((p[0] / cell) as i64, (p[1] / cell) as i64);
+        grid.entry(at).or_default().push((p[0], p[1], *r));
+    }
+    let max_r = got.iter().map(|g| g.3).fold(0.0, f64::max);
+    let reach = (max_r / cell).ceil() as i64 + 1;
+    let (mut probes, mut covered) = (0, 0);
+    for i in 0..200 {
+        for j in 0..200 {
+            let (x, y) = (2.0 + i as f64 * 0.08, 2.0 + j as f64 * 0.08);
+            probes += 1;
+            let (cx, cy) = ((x / cell) as i64, (y / cell) as i64);
+            let hit = (cx - reach..=cx + reach).any(|gx| {
+                (cy - reach..=cy + reach).any(|gy| {
+                    grid.get(&(gx, gy)).is_some_and(|v| {
+                        v.iter()
+                            .any(|&(px, py, r)| (px - x).powi(2) + (py - y).powi(2) <= r * r)
+                    })
+                })
+            });
+            covered += hit as usize;
+        }
+    }
+    let share = covered as f64 / probes as f64;
+    assert!(share >= 0.98, "discs cover {share} of the plane");
+    // Not much larger than needed: the mean radius is near the spacing.
+    let spacing = side / (40_000f64).sqrt();
+    let mean: f64 = got.iter().map(|g| g.3).sum::<f64>() / got.len() as f64;
+    assert!(
+        mean < 1.5 * spacing,
+        "mean radius {mean} for spacing {spacing}"
+    );
+}
+
+#[test]
+fn input_normals_are_kept_unless_recomputed() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let ply = dir.path().join("with.ply");
+    let pts = sphere(5_000, [0.0; 3], 1.0, 4);
+    // Deliberately not the surface's normals: kept ones must come back as given.
+    let given: Vec<[f64; 3]> = pts.iter().map(|_| [0.6, 0.0, 0.8]).collect();
+    write_ply(&ply, &pts, Some(&given));
+    let keep = NormalStep::new(NormalOptions::default()).expect("options");
+    convert_with(&options(&ply, dir.path().join("keep"), 1 << 30), &keep).expect("convert");
+    let ds = LocalDataset::open(&dir.path().join("keep")).expect("open");
+    let layout = ds.layout().clone();
+    let normal = &layout.attributes[layout.index_of("normal").expect("normal")];
+    assert_eq!((normal.ty, normal.count), (AttrType::F32, 3));
+    let info = ds.metadata().normals.clone().expect("normals recorded");
+    assert_eq!((info.kept, info.computed), (5_000, 0));
+
+    let compute = NormalStep::new(NormalOptions {
+        mode: NormalMode::Compute,
+        viewpoint: Some([0.0; 3]),
+        ..NormalOptions::default()
+    })
+    .expect("options");
+    convert_with(
+        &options(&ply, dir.path().join("compute"), 1 << 30),
+        &compute,
+    )
+    .expect("convert");
+    let ds = LocalDataset::open(&dir.path().join("compute")).expect("open");
+    let info = ds.metadata().normals.clone().expect("normals recorded");
+    assert_eq!((info.kept, info.computed), (0, 5_000));
+    let layout = ds.layout().clone();
+    let at = layout.index_of("normal").expect("normal");
+    for node in ds.all_nodes().expect("nodes") {
+        if node.point_count == 0 {
+            continue;
+        }
+        let cols = ds.read_node(&node).expect("node");
+        let col = cols.attribute(&layout, at);
+        for i in 0..node.point_count as usize {
+            let n = [0, 1, 2].map(|c| AttrType::F32.read_f64(&col[12 * i + 4 * c..]));
+            let p = ds.metadata().to_real(cols.position(i));
+            assert!(angle(n, p.map(|c| -c)) < 5.0, "{n:?} at {p:?}");
+        }
+    }
+}
+
+#[test]
+fn orienting_towards_a_scanner_without_one_is_refused() {
+    let step = step(Orient::Scanner, None);
+    let err = step.attributes(&[]).expect_err("refused");
+    assert!(err.to_string().contains("--viewpoint"), "{err}");
+    assert!(
+        NormalStep::new(NormalOptions {
+            k: 1,
+            ..NormalOptions::default()
+        })
+        .is_err()
+    );
+}
