@@ -52,12 +52,21 @@ pub fn ensure_city_dataset(points: u64, dir: &Path) -> anyhow::Result<PathBuf> {
 }
 
 /// Converts one input with the default sampling on all cores, replacing `output`, silently.
-pub fn convert_quietly(
+/// `convert_quietly` with `--normals` (k = 16, default orientation).
+pub fn convert_with_normals(
     input: &Path,
     output: &Path,
     memory_limit: u64,
 ) -> anyhow::Result<ConvertSummary> {
-    Ok(convert(&ConvertOptions {
+    let step = strata_converter::NormalStep::new(strata_converter::NormalOptions::default())?;
+    Ok(strata_converter::convert_with(
+        &quiet_options(input, output, memory_limit),
+        &step,
+    )?)
+}
+
+fn quiet_options(input: &Path, output: &Path, memory_limit: u64) -> ConvertOptions {
+    ConvertOptions {
         inputs: vec![input.to_path_buf()],
         output: output.to_path_buf(),
         memory_limit,
@@ -66,5 +75,13 @@ pub fn convert_quietly(
         overwrite: true,
         resume: false,
         quiet: true,
-    })?)
+    }
+}
+
+pub fn convert_quietly(
+    input: &Path,
+    output: &Path,
+    memory_limit: u64,
+) -> anyhow::Result<ConvertSummary> {
+    Ok(convert(&quiet_options(input, output, memory_limit))?)
 }

@@ -9,7 +9,7 @@
 use anyhow::{Context, bail};
 use std::path::{Path, PathBuf};
 use std::time::Instant;
-use strata_bench::{convert_quietly, parse_count};
+use strata_bench::{convert_quietly, convert_with_normals, parse_count};
 use strata_converter::input::open_source;
 use strata_converter::synth::{Scene, synth};
 use strata_converter::sys::{format_bytes, parse_size};
@@ -37,20 +37,21 @@ fn settle() {
 }
 
 fn child(args: &[String]) -> anyhow::Result<()> {
-    let [input, output, limit] = args else {
-        bail!("child needs IN OUT LIMIT")
+    let [input, output, limit, step] = args else {
+        bail!("child needs IN OUT LIMIT STEP")
     };
-    let summary = convert_quietly(
-        Path::new(input),
-        Path::new(output),
-        parse_size(limit).map_err(anyhow::Error::msg)?,
-    )?;
+    let limit = parse_size(limit).map_err(anyhow::Error::msg)?;
+    let summary = match step.as_str() {
+        "normals" => convert_with_normals(Path::new(input), Path::new(output), limit)?,
+        _ => convert_quietly(Path::new(input), Path::new(output), limit)?,
+    };
     println!("{}", serde_json::to_string(&summary)?);
     Ok(())
 }
 
 const USAGE: &str = "cargo run --release -p strata-bench --bin convert-bench -- [--points 10M,100M]\n    \
-       [--formats las,laz] [--memory-limit 512MiB] [--dir DIR] [--runs 3]";
+       [--formats las,laz] [--memory-limit 512MiB] [--dir DIR] [--runs 3] [--normals]\n\n\
+       --normals: also convert with `--normals` (k = 16) in the same run, and give the ratio.";
 
 fn main() -> anyhow::Result<()> {
     if strata_bench::answered_help(USAGE) {
@@ -65,8 +66,13 @@ fn main() -> anyhow::Result<()> {
     let mut limit = "2GiB".to_string();
     let mut dir = PathBuf::from("target/bench-data");
     let mut runs = 3usize;
+    let mut steps = vec!["plain"];
     let mut it = args.iter();
     while let Some(a) = it.next() {
+        if a == "--normals" {
+            steps.push("normals");
+            continue;
+        }
         let v = it.next().with_context(|| format!("{a} needs a value"))?;
         match a.as_str() {
             "--points" => {
@@ -88,9 +94,9 @@ fn main() -> anyhow::Result<()> {
         "conditions: {threads} threads, memory limit {limit}, synth city scene, poisson sampling"
     );
     println!(
-        "| points | input | decode Mpts/s | convert Mpts/s (median) | convert/decode time | peak memory | nodes |"
+        "| points | input | step | decode Mpts/s | convert Mpts/s (median) | convert/decode time | peak memory | nodes |"
     );
-    println!("|---|---|---|---|---|---|---|");
+    println!("|---|---|---|---|---|---|---|---|");
     for &n in &points {
         for f in &formats {
             let input = dir.join(format!("city_{n}.{f}"));
@@ -100,55 +106,66 @@ fn main() -> anyhow::Result<()> {
             settle();
             let (decoded, decode_s) = decode_only(&input)?;
             let out = dir.join(format!("city_{n}_{f}.strata"));
-            let mut results: Vec<serde_json::Value> = Vec::new();
-            for _ in 0..runs {
-                settle();
-                let o = std::process::Command::new(std::env::current_exe()?)
-                    .args([
-                        "child",
-                        &input.to_string_lossy(),
-                        &out.to_string_lossy(),
-                        &limit,
-                    ])
-                    .output()?;
-                if !o.status.success() {
-                    bail!("conversion failed: {}", String::from_utf8_lossy(&o.stderr));
+            let mut plain_secs = None;
+            for step in &steps {
+                let mut results: Vec<serde_json::Value> = Vec::new();
+                for _ in 0..runs {
+                    settle();
+                    let o = std::process::Command::new(std::env::current_exe()?)
+                        .args([
+                            "child",
+                            &input.to_string_lossy(),
+                            &out.to_string_lossy(),
+                            &limit,
+                            step,
+                        ])
+                        .output()?;
+                    if !o.status.success() {
+                        bail!("conversion failed: {}", String::from_utf8_lossy(&o.stderr));
+                    }
+                    results.push(serde_json::from_slice(&o.stdout)?);
                 }
-                results.push(serde_json::from_slice(&o.stdout)?);
+                let secs_of = |v: &serde_json::Value| v["seconds"].as_f64().unwrap_or(f64::NAN);
+                results.sort_by(|a, b| secs_of(a).total_cmp(&secs_of(b)));
+                let all: Vec<String> = results
+                    .iter()
+                    .map(|r| format!("{:.2}", n as f64 / secs_of(r) / 1e6))
+                    .collect();
+                let s = &results[results.len() / 2];
+                let secs = secs_of(s);
+                println!(
+                    "| {n} | {f} | {step} | {:.2} | {:.2} (runs: {}) | {:.2}x | {} | {} |",
+                    decoded as f64 / decode_s / 1e6,
+                    n as f64 / secs / 1e6,
+                    all.join(", "),
+                    secs / decode_s,
+                    s["peak_memory_bytes"]
+                        .as_u64()
+                        .map_or("?".into(), format_bytes),
+                    s["nodes"],
+                );
+                let phases: Vec<String> = s["phases"]
+                    .as_array()
+                    .into_iter()
+                    .flatten()
+                    .map(|p| {
+                        format!(
+                            "{} {:.2}s",
+                            p["name"].as_str().unwrap_or("?"),
+                            p["seconds"].as_f64().unwrap_or(0.0)
+                        )
+                    })
+                    .collect();
+                println!("|  | phases: {} | | | | | | |", phases.join(", "));
+                match plain_secs {
+                    None => plain_secs = Some(secs),
+                    Some(plain) => println!(
+                        "|  | {step} takes {:.2}x the time of the plain conversion, same run | | | | | | |",
+                        secs / plain
+                    ),
+                }
+                let _ = std::fs::remove_dir_all(&out);
             }
-            let secs_of = |v: &serde_json::Value| v["seconds"].as_f64().unwrap_or(f64::NAN);
-            results.sort_by(|a, b| secs_of(a).total_cmp(&secs_of(b)));
-            let all: Vec<String> = results
-                .iter()
-                .map(|r| format!("{:.2}", n as f64 / secs_of(r) / 1e6))
-                .collect();
-            let s = &results[results.len() / 2];
-            let secs = secs_of(s);
-            println!(
-                "| {n} | {f} | {:.2} | {:.2} (runs: {}) | {:.2}x | {} | {} |",
-                decoded as f64 / decode_s / 1e6,
-                n as f64 / secs / 1e6,
-                all.join(", "),
-                secs / decode_s,
-                s["peak_memory_bytes"]
-                    .as_u64()
-                    .map_or("?".into(), format_bytes),
-                s["nodes"],
-            );
-            let phases: Vec<String> = s["phases"]
-                .as_array()
-                .into_iter()
-                .flatten()
-                .map(|p| {
-                    format!(
-                        "{} {:.2}s",
-                        p["name"].as_str().unwrap_or("?"),
-                        p["seconds"].as_f64().unwrap_or(0.0)
-                    )
-                })
-                .collect();
-            println!("|  | phases: {} | | | | | |", phases.join(", "));
-            let _ = std::fs::remove_dir_all(&out);
         }
     }
     Ok(())
