@@ -232,6 +232,8 @@ mod tests {
             cube,
             chunks,
             classes: Vec::new(),
+            scanners: Vec::new(),
+            scanner_inputs: Vec::new(),
         }
     }
 

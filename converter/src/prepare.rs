@@ -39,6 +39,14 @@ pub struct Plan {
     /// Points per classification code, where the rows have a one-byte classification.
     #[serde(default)]
     pub classes: Vec<(u8, u64)>,
+    /// Where each scan's scanner stood (world coordinates), every input's scans in input order;
+    /// the rows' u16 `scanner` attribute indexes it (`input::SCANNER`; an index past its end,
+    /// `input::NO_SCANNER` among them, names no scanner). Empty for inputs without scanners.
+    #[serde(default)]
+    pub scanners: Vec<[f64; 3]>,
+    /// The input (index into the inputs, and so into metadata's `sources`) of each scanner.
+    #[serde(default)]
+    pub scanner_inputs: Vec<usize>,
 }
 
 impl Plan {
@@ -74,7 +82,8 @@ pub fn prepare(
     fingerprint: String,
 ) -> Result<Plan> {
     let mut warnings = Vec::new();
-    let (attributes, declared) = union_attributes(&opts.inputs, &mut warnings)?;
+    let summary = union_attributes(&opts.inputs, &mut warnings)?;
+    let (attributes, declared) = (summary.attributes, summary.points);
     let layout = RowLayout::new(attributes.clone());
     let staged = match stage_from_headers(opts, &layout, wd, threads, phases) {
         Ok(Some(staged)) if !needlessly_large(&staged) => staged,
@@ -159,6 +168,8 @@ pub fn prepare(
                     .collect()
             })
             .unwrap_or_default(),
+        scanners: summary.scanners,
+        scanner_inputs: summary.scanner_inputs,
     })
 }
 

@@ -21,7 +21,7 @@ pub use hierarchy::{
     PageRef, build_hierarchy, decode_page,
 };
 pub use metadata::{
-    Bounds, Cube, FORMAT_NAME, FileInfo, Files, HierarchyInfo, Metadata, VERSION_MAJOR,
+    Bounds, Cube, FORMAT_NAME, FileInfo, Files, HierarchyInfo, Metadata, Scanner, VERSION_MAJOR,
     VERSION_MINOR,
 };
 pub use node_codec::{

@@ -39,6 +39,16 @@ pub struct HierarchyInfo {
     pub page_levels: u32,
 }
 
+/// Where one scan's scanner stood: the `scanner` attribute of the points it took indexes the
+/// list of these.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Scanner {
+    /// World coordinates, in the units of the points.
+    pub position: [f64; 3],
+    /// The input file of the scan (its name, as in `sources`).
+    pub source: String,
+}
+
 /// The contents of `metadata.json`.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct Metadata {
@@ -70,6 +80,10 @@ pub struct Metadata {
     /// points have a `classification` attribute; informative.
     #[serde(default, skip_serializing_if = "std::collections::BTreeMap::is_empty")]
     pub classes: std::collections::BTreeMap<String, u64>,
+    /// Where each scan's scanner stood, for inputs that say (E57); the points' `scanner`
+    /// attribute indexes this list (an index past its end names no scanner); informative.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub scanners: Vec<Scanner>,
 }
 
 impl Metadata {
@@ -114,6 +128,9 @@ impl Metadata {
             numbers.extend(v.iter().map(|x| (name.to_string(), *x)));
         }
         numbers.push(("spacing".into(), self.spacing));
+        for (i, s) in self.scanners.iter().enumerate() {
+            numbers.extend(s.position.iter().map(|x| (format!("scanners[{i}]"), *x)));
+        }
         for a in &self.attributes {
             for v in a.scale.iter().chain(a.offset.iter()).flatten() {
                 numbers.push((format!("attribute \"{}\"", a.name), *v));
