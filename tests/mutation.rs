@@ -1,13 +1,17 @@
 //! The structure-aware mutation test: seeded mutations of real inputs across every class of
 //! fault (header fields at their boundaries, VLR and extra-bytes nonsense, laszip VLR and chunk
 //! table damage, bit flips in records and compressed bodies, PLY header and body faults, odd but
-//! valid clouds). For each: no panic, no abort, no hang, and either a clean one-sentence refusal
+//! valid clouds, E57 damage behind repaired page checksums). For each: no panic, no abort, no hang, and either a clean one-sentence refusal
 //! with no dataset left, or an exact conversion. `STRATA_MUTATION_CASES` raises the count (300 by
 //! default) and `STRATA_MUTATION_SEED` changes the seed.
 
 #[path = "mutation/cases.rs"]
 mod cases;
 mod common;
+#[path = "mutation/e57.rs"]
+mod e57_cases;
+#[path = "e57/write.rs"]
+mod e57_write;
 
 use cases::{Case, Expect, Rng, Seeds};
 use common::*;
@@ -128,6 +132,9 @@ fn check_converted(case: &Case, input: &Path, out: &Path, err: &str) -> Result<(
     if case.ext == "ply" {
         return Ok(());
     }
+    if case.ext == "e57" {
+        return check_e57(input, out, err);
+    }
     // The points must be the las crate's reading of the file, every field of every point.
     let expected = std::panic::catch_unwind(|| las_multiset(input));
     let Ok(expected) = expected else {
@@ -154,6 +161,24 @@ fn check_converted(case: &Case, input: &Path, out: &Path, err: &str) -> Result<(
     Ok(())
 }
 
+/// A converted E57 case holds as many points as the `e57` crate reads valid ones from it.
+fn check_e57(input: &Path, out: &Path, err: &str) -> Result<(), String> {
+    let expected = std::panic::catch_unwind(|| e57_write::crate_points(input).len());
+    let Ok(expected) = expected else {
+        return Err(format!(
+            "converted a file the e57 crate cannot read (warnings: {err})"
+        ));
+    };
+    let meta = std::fs::read(out.join("metadata.json")).map_err(|e| e.to_string())?;
+    let meta: serde_json::Value = serde_json::from_slice(&meta).map_err(|e| e.to_string())?;
+    match meta["points"].as_u64() {
+        Some(n) if n == expected as u64 => Ok(()),
+        n => Err(format!(
+            "silent corruption: the e57 crate reads {expected} valid points, {n:?} converted"
+        )),
+    }
+}
+
 #[test]
 fn mutated_inputs_are_refused_cleanly_or_converted_exactly() {
     let count = env_u64("STRATA_MUTATION_CASES", 300) as usize;
@@ -168,9 +193,13 @@ fn mutated_inputs_are_refused_cleanly_or_converted_exactly() {
         cases::odd_valid,
     ];
     let mut rng = Rng::new(seed);
-    let all: Vec<Case> = (0..count)
+    let mut all: Vec<Case> = (0..count)
         .map(|i| generators[i % generators.len()](&seeds, &mut rng))
         .collect();
+    // E57 cases draw from their own generator, so the others stay what each seed made them.
+    let e57_seeds = e57_cases::E57Seeds::read(&data(""));
+    let mut e57_rng = Rng::new(seed ^ 0xE57);
+    all.extend((0..count / generators.len()).map(|_| e57_cases::e57(&e57_seeds, &mut e57_rng)));
     let dir = tempfile::tempdir().expect("tempdir");
     let threads = 2;
     let results: Vec<(usize, Result<Outcome, String>)> = std::thread::scope(|scope| {

@@ -16,7 +16,7 @@ use std::io::Write;
 use std::path::Path;
 use strata_format::{
     Bounds, DatasetFile, FileInfo, Files, HierarchyInfo, Metadata, NodeKey, NodeRecord,
-    PAGE_LEVELS, RowLayout, build_hierarchy,
+    PAGE_LEVELS, RowLayout, Scanner, build_hierarchy,
 };
 
 /// Every node of the dataset, and the octree file holding them all.
@@ -107,6 +107,11 @@ pub fn finish(
     let depth = records.keys().map(|k| k.level as u32).max().unwrap_or(0);
     let q = plan.quantization();
     let to_real = |p: [i32; 3]| plan.to_real(p.map(i64::from));
+    let source_name = |p: &Path| {
+        p.file_name()
+            .map(|n| n.to_string_lossy().into_owned())
+            .unwrap_or_default()
+    };
     let mut meta = Metadata {
         format: strata_format::FORMAT_NAME.into(),
         version: [strata_format::VERSION_MAJOR, strata_format::VERSION_MINOR],
@@ -138,15 +143,7 @@ pub fn finish(
             root_page_size: root_size,
             page_levels: PAGE_LEVELS,
         },
-        sources: opts
-            .inputs
-            .iter()
-            .map(|p| {
-                p.file_name()
-                    .map(|n| n.to_string_lossy().into_owned())
-                    .unwrap_or_default()
-            })
-            .collect(),
+        sources: opts.inputs.iter().map(|p| source_name(p)).collect(),
         generator: format!("strata {}", env!("CARGO_PKG_VERSION")),
         warnings: plan.warnings.clone(),
         classes: plan
@@ -155,6 +152,19 @@ pub fn finish(
             .map(|(c, n)| (c.to_string(), *n))
             .collect(),
         normals: None,
+        scanners: plan
+            .scanners
+            .iter()
+            .zip(&plan.scanner_inputs)
+            .map(|(&position, &i)| Scanner {
+                position,
+                source: opts
+                    .inputs
+                    .get(i)
+                    .map(|p| source_name(p))
+                    .unwrap_or_default(),
+            })
+            .collect(),
     };
     record_step(&mut meta);
     // The inputs were checked so that this cannot happen; if it does, no dataset that fails to

@@ -238,6 +238,8 @@ mod tests {
             chunks,
             classes: Vec::new(),
             spacing_quantiles: [0.0; 3],
+            scanners: Vec::new(),
+            scanner_inputs: Vec::new(),
         }
     }
 

@@ -140,7 +140,7 @@ fn build_chunk(
             offset: ix.plan.offset,
             layout: ix.layout,
             rows: &mut mem.rows,
-            scanners: &[],
+            scanners: &ix.plan.scanners,
         },
         halo,
     )?;

@@ -1,4 +1,4 @@
-//! Strata's converter: LAS/LAZ/PLY inputs into a layered-octree dataset, out of core.
+//! Strata's converter: LAS/LAZ/PLY/E57 inputs into a layered-octree dataset, out of core.
 
 pub mod build;
 pub mod chunk_step;

@@ -45,6 +45,14 @@ pub struct Plan {
     /// depends on the inputs alone, not on how they are cut into chunks.
     #[serde(default)]
     pub spacing_quantiles: [f64; 3],
+    /// Where each scan's scanner stood (world coordinates), every input's scans in input order;
+    /// the rows' u16 `scanner` attribute indexes it (`input::SCANNER`; an index past its end,
+    /// `input::NO_SCANNER` among them, names no scanner). Empty for inputs without scanners.
+    #[serde(default)]
+    pub scanners: Vec<[f64; 3]>,
+    /// The input (index into the inputs, and so into metadata's `sources`) of each scanner.
+    #[serde(default)]
+    pub scanner_inputs: Vec<usize>,
 }
 
 impl Plan {
@@ -81,7 +89,8 @@ pub fn prepare(
     step: &dyn ChunkStep,
 ) -> Result<Plan> {
     let mut warnings = Vec::new();
-    let (mut attributes, declared) = union_attributes(&opts.inputs, &mut warnings)?;
+    let summary = union_attributes(&opts.inputs, &mut warnings)?;
+    let (mut attributes, declared) = (summary.attributes, summary.points);
     let added = step.attributes(&attributes)?;
     attributes.extend(added);
     let layout = RowLayout::new(attributes.clone());
@@ -170,6 +179,8 @@ pub fn prepare(
             })
             .unwrap_or_default(),
         spacing_quantiles,
+        scanners: summary.scanners,
+        scanner_inputs: summary.scanner_inputs,
     })
 }
 

@@ -47,6 +47,7 @@ pub fn choose(
                 Precision::Float32 => float_scale(max_abs, 23),
                 Precision::Float64 => float_scale(max_abs, 52),
                 Precision::Integer => 1.0,
+                Precision::Resolution(step) => step[a].abs(),
             };
             *scale_a = scale_a.min(sa);
         }
@@ -194,6 +195,19 @@ mod tests {
             "{:?}",
             q.scale
         );
+    }
+
+    #[test]
+    fn a_resolution_is_the_scale_on_no_grid() {
+        // E57 scaled integers after a pose: their step, with an offset taken from the points.
+        let s = SourceExtent {
+            precision: Precision::Resolution([1e-4; 3]),
+            min: [-12.34567; 3],
+            max: [20.0; 3],
+        };
+        let q = choose(&[s], [-12.34567; 3], [20.0; 3]).expect("fits");
+        assert_eq!(q.scale, [1e-4; 3]);
+        assert!(!q.coarsened && q.offset[0] <= -12.34567);
     }
 
     #[test]

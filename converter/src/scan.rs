@@ -2,14 +2,14 @@
 //! records in the dataset's attribute layout, checking coordinates and measuring extents.
 
 use crate::error::{ConvertError, Result};
-use crate::input::open_source;
+use crate::input::{NO_SCANNER, SCANNER, open_source};
 use crate::quantize::SourceExtent;
 use crate::rows::batch_records;
 use indicatif::ProgressBar;
 use std::fs::File;
 use std::io::{BufWriter, Write};
 use std::path::{Path, PathBuf};
-use strata_format::Attribute;
+use strata_format::{AttrType, Attribute};
 
 pub const BATCH: usize = 1 << 18;
 
@@ -27,18 +27,30 @@ pub fn staging_stride(attributes: &[Attribute]) -> usize {
     24 + attributes.iter().map(|a| a.size()).sum::<usize>()
 }
 
-/// The union of the inputs' attributes, in first-seen order. A name with two different types
-/// is an error naming both files.
-/// The inputs' own warnings (renamed attributes) are added to `warnings`.
-pub fn union_attributes(
-    inputs: &[PathBuf],
-    warnings: &mut Vec<String>,
-) -> Result<(Vec<Attribute>, u64)> {
+/// What opening every input tells before any point is read.
+#[derive(Debug, Clone, Default)]
+pub struct InputsSummary {
+    /// The union of the inputs' attributes, in first-seen order.
+    pub attributes: Vec<Attribute>,
+    /// The points the inputs declare.
+    pub points: u64,
+    /// Every input's scanner positions, input after input: the `scanner` attribute indexes
+    /// this list.
+    pub scanners: Vec<[f64; 3]>,
+    /// The input (index into `inputs`) each scanner belongs to.
+    pub scanner_inputs: Vec<usize>,
+}
+
+/// Opens every input: the union of their attributes (a name with two different types is an
+/// error naming both files) and their scanners. The inputs' own warnings (renamed attributes)
+/// are added to `warnings`.
+pub fn union_attributes(inputs: &[PathBuf], warnings: &mut Vec<String>) -> Result<InputsSummary> {
     let mut union: Vec<(Attribute, PathBuf)> = Vec::new();
-    let mut total = 0u64;
-    for path in inputs {
+    let mut summary = InputsSummary::default();
+    for (i, path) in inputs.iter().enumerate() {
         let src = open_source(path)?;
-        total += src.info().points;
+        // Saturating: E57 point counts are the file's word, not yet checked against its data.
+        summary.points = summary.points.saturating_add(src.info().points);
         warnings.extend(src.info().warnings.iter().cloned());
         for a in &src.info().attributes {
             match union.iter().find(|(u, _)| u.name == a.name) {
@@ -60,8 +72,21 @@ pub fn union_attributes(
                 None => union.push((a.clone(), path.clone())),
             }
         }
+        let scanners = &src.info().scanners;
+        if summary.scanners.len() + scanners.len() > NO_SCANNER as usize {
+            return Err(ConvertError::input(
+                path,
+                format!(
+                    "its {} scans bring the inputs' scans to more than the {NO_SCANNER} a dataset can number",
+                    scanners.len()
+                ),
+            ));
+        }
+        summary.scanners.extend_from_slice(scanners);
+        summary.scanner_inputs.extend(scanners.iter().map(|_| i));
     }
-    Ok((union.into_iter().map(|(a, _)| a).collect(), total))
+    summary.attributes = union.into_iter().map(|(a, _)| a).collect();
+    Ok(summary)
 }
 
 pub fn scan(
@@ -85,8 +110,19 @@ pub fn scan(
     let mut xyz = Vec::with_capacity(batch);
     let mut rows = Vec::new();
     let mut records = Vec::with_capacity(batch * stride);
+    // Scanner indices are global: each input's scans follow those of the inputs before it.
+    let mut scanner_base = 0usize;
     for path in inputs {
         let mut src = open_source(path)?;
+        // `union_attributes` checked that the indices fit.
+        src.set_scanner_base(scanner_base.min(NO_SCANNER as usize) as u16);
+        scanner_base += src.info().scanners.len();
+        // Points of an input without scanners say so in a dataset that has them.
+        let no_scanner = if src.info().attributes.iter().any(|a| a.name == SCANNER) {
+            None
+        } else {
+            scanner_at(attributes)
+        };
         // (source row offset, staging offset, length) for each attribute this input has.
         let mut copies = Vec::new();
         let mut src_off = 0usize;
@@ -117,6 +153,11 @@ pub fn scan(
             }
             records.clear();
             records.resize(n * stride, 0);
+            if let Some(at) = no_scanner {
+                for rec in records.chunks_exact_mut(stride) {
+                    rec[at..at + 2].copy_from_slice(&NO_SCANNER.to_le_bytes());
+                }
+            }
             for (i, (p, rec)) in xyz.iter().zip(records.chunks_exact_mut(stride)).enumerate() {
                 for a in 0..3 {
                     let v = p[a];
@@ -154,6 +195,18 @@ pub fn scan(
     out.flush()
         .map_err(|e| ConvertError::io(staging, "cannot write staging file", e))?;
     Ok(result)
+}
+
+/// Where a staging record holds the u16 `scanner` attribute, if `attributes` have one.
+fn scanner_at(attributes: &[Attribute]) -> Option<usize> {
+    let mut at = 24;
+    for a in attributes {
+        if a.name == SCANNER {
+            return (a.ty == AttrType::U16 && a.count == 1).then_some(at);
+        }
+        at += a.size();
+    }
+    None
 }
 
 /// Reads a staging file in batches of whole records.

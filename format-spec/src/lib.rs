@@ -23,7 +23,7 @@ pub use hierarchy::{
     PageRef, build_hierarchy, decode_page,
 };
 pub use metadata::{
-    Bounds, Cube, FORMAT_NAME, FileInfo, Files, HierarchyInfo, Metadata, NormalsInfo,
+    Bounds, Cube, FORMAT_NAME, FileInfo, Files, HierarchyInfo, Metadata, NormalsInfo, Scanner,
     VERSION_MAJOR, VERSION_MINOR,
 };
 pub use node_codec::{

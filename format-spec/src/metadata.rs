@@ -39,6 +39,16 @@ pub struct HierarchyInfo {
     pub page_levels: u32,
 }
 
+/// Where one scan's scanner stood: the `scanner` attribute of the points it took indexes the
+/// list of these.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Scanner {
+    /// World coordinates, in the units of the points.
+    pub position: [f64; 3],
+    /// The input file of the scan (its name, as in `sources`).
+    pub source: String,
+}
+
 /// The contents of `metadata.json`.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct Metadata {
@@ -74,6 +84,10 @@ pub struct Metadata {
     /// converter estimated them (`strata convert --normals`); informative.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub normals: Option<NormalsInfo>,
+    /// Where each scan's scanner stood, for inputs that say (E57); the points' `scanner`
+    /// attribute indexes this list (an index past its end names no scanner); informative.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub scanners: Vec<Scanner>,
 }
 
 /// What `strata convert --normals` did (SPEC.md section 4).
@@ -144,6 +158,9 @@ impl Metadata {
         if let Some(n) = &self.normals {
             numbers.push(("normals.mean_radius".into(), n.mean_radius));
             numbers.push(("normals.surfel_radius".into(), n.surfel_radius));
+        }
+        for (i, s) in self.scanners.iter().enumerate() {
+            numbers.extend(s.position.iter().map(|x| (format!("scanners[{i}]"), *x)));
         }
         for a in &self.attributes {
             for v in a.scale.iter().chain(a.offset.iter()).flatten() {

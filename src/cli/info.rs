@@ -37,6 +37,7 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
             "version": format!("{}.{}", m.version[0], m.version[1]),
             "sources": m.sources,
             "classes": m.classes,
+            "scanners": m.scanners,
         });
         println!("{}", serde_json::to_string_pretty(&v)?);
         return Ok(ExitCode::SUCCESS);
@@ -73,6 +74,16 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
             at.ty.name().to_string()
         };
         println!("  {:<30} {shape}", at.name);
+    }
+    if !m.scanners.is_empty() {
+        println!(
+            "scanners ({}, indexed by the `scanner` attribute):",
+            m.scanners.len()
+        );
+        for (i, sc) in m.scanners.iter().enumerate() {
+            let [x, y, z] = sc.position;
+            println!("  {i:>3} {x:.3} {y:.3} {z:.3}  {}", sc.source);
+        }
     }
     if !m.classes.is_empty() {
         println!("classes:");

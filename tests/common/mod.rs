@@ -96,6 +96,35 @@ pub fn converted(tag: &str, input: &str, name: &str) -> PathBuf {
     out
 }
 
+/// Converts `input` and checks the failure; returns stderr.
+pub fn convert_fails(input: &Path, expect: &str) -> String {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let out = dir.path().join("ds");
+    let o = run(&["convert", s(input), "-o", s(&out)]);
+    let err = String::from_utf8_lossy(&o.stderr).to_string();
+    assert!(
+        !o.status.success(),
+        "convert of {} should fail",
+        input.display()
+    );
+    assert!(!err.contains("panicked"), "{err}");
+    assert!(
+        err.contains(input.file_name().and_then(|n| n.to_str()).unwrap_or("?")),
+        "error must name the file: {err}"
+    );
+    assert!(
+        err.to_lowercase().contains(&expect.to_lowercase()),
+        "expected {expect:?} in: {err}"
+    );
+    assert_eq!(err.trim().lines().count(), 1, "one sentence: {err}");
+    assert!(!out.exists(), "no output may appear");
+    assert!(
+        !dir.path().join("ds.strata-tmp").exists(),
+        "no work left behind"
+    );
+    err
+}
+
 pub fn s(p: &Path) -> &str {
     p.to_str().expect("utf-8 path")
 }

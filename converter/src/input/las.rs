@@ -91,6 +91,7 @@ impl LasSource {
                 attributes,
                 precision: Precision::Scaled { scale, offset },
                 warnings,
+                scanners: Vec::new(),
             },
             reader,
             data,

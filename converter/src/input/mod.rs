@@ -1,5 +1,7 @@
 //! Input readers. Each decodes its file into positions (f64) and rows of its own attributes.
 
+pub mod e57;
+pub mod e57_decode;
 pub mod las;
 pub mod las_header;
 pub mod las_layout;
@@ -22,7 +24,20 @@ pub enum Precision {
     Float32,
     Float64,
     Integer,
+    /// Real coordinates known to within a step on each axis but on no shared grid: E57 scaled
+    /// integers, which the scan's pose rotates off their grid.
+    Resolution([f64; 3]),
 }
+
+/// The attribute (u16) that names the scan a point came from: an index into the dataset's list
+/// of scanner positions (`Plan::scanners`, `scanners` in metadata.json). Sources number their
+/// scans from the base `PointSource::set_scanner_base` gives them, so indices are global
+/// across inputs: input i's scans follow those of inputs 0..i-1.
+pub const SCANNER: &str = "scanner";
+
+/// The `scanner` value of points whose input says nothing of scanners (LAS or PLY converted
+/// together with E57). Every index at or above the list's length means "no known scanner".
+pub const NO_SCANNER: u16 = u16::MAX;
 
 #[derive(Debug, Clone)]
 pub struct SourceInfo {
@@ -32,6 +47,10 @@ pub struct SourceInfo {
     pub precision: Precision,
     /// What the reader changed to read the file (renamed attributes), for the user.
     pub warnings: Vec<String>,
+    /// Where the scanner of each of the file's scans stood, in world coordinates (E57 poses);
+    /// empty for inputs that do not say. The rows' `scanner` attribute indexes this list, from
+    /// the source's base on.
+    pub scanners: Vec<[f64; 3]>,
 }
 
 impl SourceInfo {
@@ -46,9 +65,12 @@ pub trait PointSource {
     /// Decodes up to `max` points, appending positions to `xyz` and attribute rows (in
     /// `info().attributes` order) to `rows`. Returns how many were decoded; 0 at the end.
     fn read(&mut self, max: usize, xyz: &mut Vec<[f64; 3]>, rows: &mut Vec<u8>) -> Result<usize>;
+    /// Sets the index the rows' `scanner` attribute gives this source's first scan (0 unless
+    /// set); called before the first `read`. Sources without scanners ignore it.
+    fn set_scanner_base(&mut self, _first: u16) {}
 }
 
-/// Opens an input by its extension (.las, .laz, .ply, any case).
+/// Opens an input by its extension (.las, .laz, .ply, .e57, any case).
 pub fn open_source(path: &Path) -> Result<Box<dyn PointSource>> {
     let ext = path
         .extension()
@@ -58,9 +80,10 @@ pub fn open_source(path: &Path) -> Result<Box<dyn PointSource>> {
     match ext.as_str() {
         "las" | "laz" => Ok(Box::new(las::LasSource::open(path)?)),
         "ply" => Ok(Box::new(ply::PlySource::open(path)?)),
+        "e57" => Ok(Box::new(e57::E57Source::open(path)?)),
         _ => Err(ConvertError::input(
             path,
-            "unknown input type (expected a .las, .laz or .ply file)",
+            "unknown input type (expected a .las, .laz, .ply or .e57 file)",
         )),
     }
 }

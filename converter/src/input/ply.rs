@@ -158,6 +158,7 @@ impl PlySource {
                 attributes,
                 precision,
                 warnings: Vec::new(),
+                scanners: Vec::new(),
             },
             reader: body,
             encoding,

@@ -1,0 +1,226 @@
+//! E57 (ASTM E2807) files from terrestrial scanners, read with the `e57` crate: every scan
+//! (data3D entry), in world coordinates, with the position its scanner stood at. Rows hold
+//! `rgb` and `intensity` when a scan has them and always `scanner`, the scan's global index.
+//! Decoding runs on a thread of its own (`e57_decode`), started by the first `read`.
+
+use super::e57_decode::{self, Batch, Job, Msg, Pose, QUEUED, RowShape};
+use super::laz_check::guarded;
+use super::{NO_SCANNER, PointSource, Precision, SourceInfo};
+use crate::error::{ConvertError, Result};
+use e57::{E57Reader, PointCloud, RecordDataType, RecordName};
+use std::fs::File;
+use std::io::BufReader;
+use std::path::Path;
+use std::sync::mpsc::{Receiver, sync_channel};
+
+/// Bytes of the E57 file header.
+const HEADER_LEN: u64 = 48;
+
+pub struct E57Source {
+    info: SourceInfo,
+    /// The opened file, until the first `read` hands it to the decoding thread.
+    job: Option<Job>,
+    feed: Option<Receiver<Msg>>,
+    batch: Batch,
+    /// Points of `batch` already read.
+    at: usize,
+    row_len: usize,
+    finished: bool,
+}
+
+impl E57Source {
+    pub fn open(path: &Path) -> Result<E57Source> {
+        let file = File::open(path).map_err(|e| ConvertError::io(path, "cannot open input", e))?;
+        let bad = |what: String| ConvertError::input(path, what);
+        let len = file
+            .metadata()
+            .map_err(|e| ConvertError::io(path, "cannot read file size", e))?
+            .len();
+        if len < HEADER_LEN {
+            return Err(bad(format!(
+                "the file is {len} bytes, too short to be an E57 file (its header alone is {HEADER_LEN})"
+            )));
+        }
+        // The header, the page checksums of the XML section and the XML itself are checked here.
+        let reader = guarded("the E57 header or XML section", || {
+            E57Reader::new(BufReader::with_capacity(1 << 20, file))
+                .map_err(|e| format!("not a readable E57 file ({})", e57_decode::plain(&e)))
+        })
+        .map_err(bad)?;
+        let clouds = reader.pointclouds();
+        let n = clouds.len();
+        if n == 0 {
+            return Err(bad(
+                "the E57 file holds no point cloud (its data3D list is empty)".into(),
+            ));
+        }
+        if n > NO_SCANNER as usize {
+            return Err(bad(format!(
+                "the E57 file holds {n} scans, more than the {NO_SCANNER} a dataset can number"
+            )));
+        }
+        let points = clouds
+            .iter()
+            .try_fold(0u64, |sum, c| sum.checked_add(c.records))
+            .ok_or_else(|| bad("the scans' point counts add up to more than 2^64".into()))?;
+        if points == 0 {
+            return Err(bad(format!(
+                "the E57 file's {} hold no points",
+                if n == 1 {
+                    "only scan".to_string()
+                } else {
+                    format!("{n} scans")
+                }
+            )));
+        }
+        let mut poses = Vec::with_capacity(n);
+        for (i, pc) in clouds.iter().enumerate() {
+            if !pc.has_cartesian() && !pc.has_spherical() {
+                return Err(bad(format!(
+                    "scan {i} of {n} has neither Cartesian nor spherical coordinates"
+                )));
+            }
+            poses.push(Pose::of(pc).map_err(|w| bad(format!("scan {i} of {n}: {w}")))?);
+        }
+        let rgb = clouds.iter().any(PointCloud::has_color);
+        let intensity = clouds.iter().any(PointCloud::has_intensity);
+        let (shape, attributes) = RowShape::new(rgb, intensity);
+        let info = SourceInfo {
+            path: path.to_path_buf(),
+            points,
+            attributes,
+            precision: precision(&clouds),
+            warnings: Vec::new(),
+            scanners: poses.iter().map(|p| p.translation).collect(),
+        };
+        Ok(E57Source {
+            info,
+            job: Some(Job {
+                reader,
+                clouds,
+                poses,
+                shape,
+                first: 0,
+            }),
+            feed: None,
+            batch: Batch::default(),
+            at: 0,
+            row_len: shape.len,
+            finished: false,
+        })
+    }
+
+    /// The next batch from the decoding thread (started on the first call); `None` at the end.
+    fn next_batch(&mut self) -> Result<Option<Batch>> {
+        if let Some(job) = self.job.take() {
+            let (tx, rx) = sync_channel(QUEUED);
+            std::thread::Builder::new()
+                .name("e57-decode".into())
+                .spawn(move || e57_decode::run(job, &tx))
+                .map_err(|e| {
+                    ConvertError::io(&self.info.path, "cannot start a reader thread", e)
+                })?;
+            self.feed = Some(rx);
+        }
+        let Some(feed) = &self.feed else {
+            return Ok(None);
+        };
+        let path = &self.info.path;
+        match feed.recv() {
+            Ok(Msg::Batch(b)) => Ok(Some(b)),
+            Ok(Msg::Failed(what)) => Err(ConvertError::input(path, what)),
+            Ok(Msg::Done { valid: 0 }) => Err(ConvertError::input(
+                path,
+                format!(
+                    "none of the E57 file's {} points has a valid position",
+                    self.info.points
+                ),
+            )),
+            Ok(Msg::Done { .. }) => {
+                self.feed = None;
+                Ok(None)
+            }
+            // Every fault of the thread, a panic among them, is sent as `Failed`.
+            Err(_) => Err(ConvertError::internal(
+                format!("reading {}", path.display()),
+                "the E57 reader thread stopped without a word",
+            )),
+        }
+    }
+}
+
+impl PointSource for E57Source {
+    fn info(&self) -> &SourceInfo {
+        &self.info
+    }
+
+    fn read(&mut self, max: usize, xyz: &mut Vec<[f64; 3]>, rows: &mut Vec<u8>) -> Result<usize> {
+        let mut got = 0;
+        while got < max {
+            if self.at == self.batch.xyz.len() {
+                if self.finished {
+                    break;
+                }
+                match self.next_batch()? {
+                    Some(b) => {
+                        self.batch = b;
+                        self.at = 0;
+                    }
+                    None => {
+                        self.finished = true;
+                        break;
+                    }
+                }
+            }
+            let take = (max - got).min(self.batch.xyz.len() - self.at);
+            let (from, to) = (self.at, self.at + take);
+            xyz.extend_from_slice(&self.batch.xyz[from..to]);
+            rows.extend_from_slice(&self.batch.rows[from * self.row_len..to * self.row_len]);
+            self.at = to;
+            got += take;
+        }
+        Ok(got)
+    }
+
+    fn set_scanner_base(&mut self, first: u16) {
+        if let Some(job) = &mut self.job {
+            job.first = first;
+        }
+    }
+}
+
+/// How finely the file stores positions: any scan in doubles makes it `Float64`, else any in
+/// singles `Float32`, else the finest step of its scaled (or plain) integers. Spherical scans
+/// count by their range. After the pose these are real coordinates on no grid.
+fn precision(clouds: &[PointCloud]) -> Precision {
+    let mut step = f64::INFINITY;
+    let mut single = false;
+    for pc in clouds {
+        let names = if pc.has_cartesian() {
+            [
+                RecordName::CartesianX,
+                RecordName::CartesianY,
+                RecordName::CartesianZ,
+            ]
+            .to_vec()
+        } else {
+            vec![RecordName::SphericalRange]
+        };
+        for r in pc.prototype.iter().filter(|r| names.contains(&r.name)) {
+            match r.data_type {
+                RecordDataType::Double { .. } => return Precision::Float64,
+                RecordDataType::Single { .. } => single = true,
+                RecordDataType::ScaledInteger { scale, .. } => step = step.min(scale.abs()),
+                RecordDataType::Integer { .. } => step = step.min(1.0),
+            }
+        }
+    }
+    if single {
+        Precision::Float32
+    } else if step.is_normal() {
+        Precision::Resolution([step; 3])
+    } else {
+        // A scale of zero or not a number: the coordinates say what they are worth.
+        Precision::Float64
+    }
+}

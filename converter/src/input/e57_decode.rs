@@ -1,0 +1,347 @@
+//! The decoding side of an E57 source: every scan's points through the `e57` crate's simple
+//! reader (spherical coordinates converted to Cartesian, colour and intensity normalised by the
+//! scan's limits), the scan's pose applied, points without a valid position dropped, and the
+//! rest handed on in batches of positions and attribute rows. It runs on a thread of its own
+//! because the crate's point reader borrows the file reader: one owner for both, and bounded
+//! batches over a channel, keep memory flat whatever the file's size.
+
+use super::laz_check::guarded;
+use e57::{CartesianCoordinate, E57Reader, PointCloud};
+use std::fs::File;
+use std::io::BufReader;
+use std::sync::mpsc::SyncSender;
+use strata_format::{AttrType, Attribute};
+
+/// Points per batch handed to the reading side.
+pub const BATCH_POINTS: usize = 1 << 16;
+
+/// Batches waiting to be read, at most: with the one being filled and the one being read, an
+/// E57 source holds four batches (a few megabytes) whatever the size of the file.
+pub const QUEUED: usize = 2;
+
+/// Where each attribute lies in a row; every scan of a file gets the same row.
+#[derive(Debug, Clone, Copy)]
+pub struct RowShape {
+    /// `rgb`, 3 x u16, 0..65535 from the scan's colour limits.
+    pub rgb: Option<usize>,
+    /// `intensity`, u16, 0..65535 from the scan's intensity limits.
+    pub intensity: Option<usize>,
+    /// `scanner`, u16: the scan's global index.
+    pub scanner: usize,
+    pub len: usize,
+}
+
+impl RowShape {
+    /// The row for a file whose scans have colour and intensity as given (if any scan has
+    /// them, every row has them; points without them get zero), and its attributes in order.
+    pub fn new(rgb: bool, intensity: bool) -> (RowShape, Vec<Attribute>) {
+        let mut attributes = Vec::new();
+        let mut len = 0;
+        let mut add = |a: Attribute| {
+            let at = len;
+            len += a.size();
+            attributes.push(a);
+            at
+        };
+        let rgb = rgb.then(|| add(Attribute::new("rgb", AttrType::U16, 3)));
+        let intensity = intensity.then(|| add(Attribute::new("intensity", AttrType::U16, 1)));
+        let scanner = add(Attribute::new(super::SCANNER, AttrType::U16, 1));
+        let shape = RowShape {
+            rgb,
+            intensity,
+            scanner,
+            len,
+        };
+        (shape, attributes)
+    }
+}
+
+/// Positions and their rows, in the source's row shape.
+#[derive(Debug, Default)]
+pub struct Batch {
+    pub xyz: Vec<[f64; 3]>,
+    pub rows: Vec<u8>,
+}
+
+/// What the decoding thread sends.
+pub enum Msg {
+    Batch(Batch),
+    /// The file's fault, as the rest of a one-sentence error.
+    Failed(String),
+    /// Every scan read; how many points had a valid position.
+    Done {
+        valid: u64,
+    },
+}
+
+/// A scan's pose: world = rotation * local + translation.
+#[derive(Debug, Clone, Copy)]
+pub struct Pose {
+    rotation: [[f64; 3]; 3],
+    pub translation: [f64; 3],
+}
+
+impl Pose {
+    /// The pose of `pc` (identity when it has none). The quaternion is normalised: files
+    /// written with rounded decimals would otherwise scale their points slightly.
+    pub fn of(pc: &PointCloud) -> Result<Pose, String> {
+        let Some(t) = &pc.transform else {
+            return Ok(Pose {
+                rotation: [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]],
+                translation: [0.0; 3],
+            });
+        };
+        let q = &t.rotation;
+        let translation = [t.translation.x, t.translation.y, t.translation.z];
+        if !translation.iter().all(|v| v.is_finite()) {
+            return Err(format!(
+                "its pose's translation {translation:?} is not a finite position"
+            ));
+        }
+        let norm = (q.w * q.w + q.x * q.x + q.y * q.y + q.z * q.z).sqrt();
+        if !norm.is_normal() {
+            return Err(format!(
+                "its pose's rotation quaternion ({}, {}, {}, {}) is not a rotation",
+                q.w, q.x, q.y, q.z
+            ));
+        }
+        let [w, x, y, z] = [q.w, q.x, q.y, q.z].map(|v| v / norm);
+        let rotation = [
+            [
+                1.0 - 2.0 * (y * y + z * z),
+                2.0 * (x * y - w * z),
+                2.0 * (x * z + w * y),
+            ],
+            [
+                2.0 * (x * y + w * z),
+                1.0 - 2.0 * (x * x + z * z),
+                2.0 * (y * z - w * x),
+            ],
+            [
+                2.0 * (x * z - w * y),
+                2.0 * (y * z + w * x),
+                1.0 - 2.0 * (x * x + y * y),
+            ],
+        ];
+        Ok(Pose {
+            rotation,
+            translation,
+        })
+    }
+
+    #[inline]
+    pub fn apply(&self, p: [f64; 3]) -> [f64; 3] {
+        let r = &self.rotation;
+        [0, 1, 2].map(|i| r[i][0] * p[0] + r[i][1] * p[1] + r[i][2] * p[2] + self.translation[i])
+    }
+}
+
+/// Everything the decoding thread needs.
+pub struct Job {
+    pub reader: E57Reader<BufReader<File>>,
+    pub clouds: Vec<PointCloud>,
+    pub poses: Vec<Pose>,
+    pub shape: RowShape,
+    /// The global index of the first scan.
+    pub first: u16,
+}
+
+/// Decodes every scan of `job` into batches sent on `tx`, then `Done`; or `Failed` at the first
+/// fault. Stops quietly when the reading side has gone.
+pub fn run(job: Job, tx: &SyncSender<Msg>) {
+    let Job {
+        mut reader,
+        clouds,
+        poses,
+        shape,
+        first,
+    } = job;
+    let n = clouds.len();
+    let mut valid = 0u64;
+    for (i, (pc, pose)) in clouds.iter().zip(&poses).enumerate() {
+        let scan = format!("scan {i} of {n}");
+        let scanner = (first as usize + i) as u16;
+        let sent = guarded(&format!("the point data of {scan}"), || {
+            decode_scan(&mut reader, pc, pose, shape, scanner, &scan, tx, &mut valid)
+        });
+        match sent {
+            Ok(true) => {}
+            Ok(false) => return,
+            Err(what) => {
+                let _ = tx.send(Msg::Failed(what));
+                return;
+            }
+        }
+    }
+    let _ = tx.send(Msg::Done { valid });
+}
+
+/// One scan; `Ok(false)` when the reading side has gone.
+#[allow(clippy::too_many_arguments)]
+fn decode_scan(
+    reader: &mut E57Reader<BufReader<File>>,
+    pc: &PointCloud,
+    pose: &Pose,
+    shape: RowShape,
+    scanner: u16,
+    scan: &str,
+    tx: &SyncSender<Msg>,
+    valid: &mut u64,
+) -> Result<bool, String> {
+    let mut points = reader
+        .pointcloud_simple(pc)
+        .map_err(|e| format!("{scan} cannot be read ({})", plain(&e)))?;
+    // The pose is applied below, with a normalised quaternion; grey from intensity would be a
+    // colour the file does not have.
+    points.apply_pose(false);
+    points.intensity_to_color(false);
+    points.spherical_to_cartesian(true);
+    let mut batch = Batch::default();
+    for (k, p) in points.enumerate() {
+        let p = p.map_err(|e| {
+            format!(
+                "{scan} is corrupt or truncated at point {k} ({})",
+                plain(&e)
+            )
+        })?;
+        let CartesianCoordinate::Valid { x, y, z } = p.cartesian else {
+            continue;
+        };
+        batch.xyz.push(pose.apply([x, y, z]));
+        let at = batch.rows.len();
+        batch.rows.resize(at + shape.len, 0);
+        let row = &mut batch.rows[at..];
+        if let (Some(o), Some(c)) = (shape.rgb, &p.color) {
+            for (k, v) in [c.red, c.green, c.blue].into_iter().enumerate() {
+                row[o + 2 * k..o + 2 * k + 2].copy_from_slice(&unit_to_u16(v).to_le_bytes());
+            }
+        }
+        if let (Some(o), Some(v)) = (shape.intensity, p.intensity) {
+            row[o..o + 2].copy_from_slice(&unit_to_u16(v).to_le_bytes());
+        }
+        row[shape.scanner..shape.scanner + 2].copy_from_slice(&scanner.to_le_bytes());
+        if batch.xyz.len() == BATCH_POINTS {
+            *valid += BATCH_POINTS as u64;
+            if tx.send(Msg::Batch(std::mem::take(&mut batch))).is_err() {
+                return Ok(false);
+            }
+        }
+    }
+    *valid += batch.xyz.len() as u64;
+    Ok(batch.xyz.is_empty() || tx.send(Msg::Batch(batch)).is_ok())
+}
+
+/// A value the crate normalised to 0..1 as 0..65535, the way LAS stores 16-bit colour. A range
+/// of zero width makes the crate's value NaN, which becomes 0.
+#[inline]
+fn unit_to_u16(v: f32) -> u16 {
+    (v.clamp(0.0, 1.0) * 65535.0).round() as u16
+}
+
+/// The crate's error as plain words for a one-line message: its first line without the
+/// crate's repeated or internal context, a failed page checksum said simply, control
+/// characters shown as `?`.
+pub fn plain(e: &e57::Error) -> String {
+    let text = e.to_string();
+    let first = text.lines().next().unwrap_or_default();
+    if first.contains("invalid checksum") {
+        let page = first
+            .rsplit("for page ")
+            .next()
+            .and_then(|p| p.trim().parse::<u64>().ok());
+        return match page {
+            Some(p) => format!("page {p} fails its CRC checksum"),
+            None => "a page fails its CRC checksum".into(),
+        };
+    }
+    const NOISE: [&str; 3] = [
+        "Failed to read E57",
+        "Invalid E57 content",
+        "Failed creating paged CRC reader",
+    ];
+    let mut parts: Vec<&str> = Vec::new();
+    for part in first.split(": ").map(str::trim) {
+        if !part.is_empty() && !NOISE.contains(&part) && !parts.contains(&part) {
+            parts.push(part);
+        }
+    }
+    let said = parts.join(": ");
+    let mut chars = said.chars();
+    let first_char = chars.next().map(|c| c.to_lowercase().collect::<String>());
+    first_char
+        .unwrap_or_default()
+        .chars()
+        .chain(chars)
+        .map(|c| if c.is_control() { '?' } else { c })
+        .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn unit_values_span_sixteen_bits() {
+        assert_eq!(unit_to_u16(0.0), 0);
+        assert_eq!(unit_to_u16(1.0), 65535);
+        assert_eq!(unit_to_u16(1.0 / 255.0), 257);
+        assert_eq!(unit_to_u16(f32::NAN), 0);
+        assert_eq!(unit_to_u16(2.0), 65535);
+    }
+
+    #[test]
+    fn crate_errors_read_as_one_plain_clause() {
+        let e = e57::Error::Read {
+            desc: "Failed to read E57: File appears to be truncated: offset 9 is behind end of file: File appears to be truncated".into(),
+            source: None,
+        };
+        assert_eq!(
+            plain(&e),
+            "file appears to be truncated: offset 9 is behind end of file"
+        );
+        let e = e57::Error::Read {
+            desc: "Failed to read data packet buffers: Detected invalid checksum (expected: [1, 2], actual: [3, 4]) for page 4".into(),
+            source: None,
+        };
+        assert_eq!(plain(&e), "page 4 fails its CRC checksum");
+    }
+
+    #[test]
+    fn pose_rotates_then_translates() {
+        // 90 degrees about z: x goes to y.
+        let h = std::f64::consts::FRAC_1_SQRT_2;
+        let mut pc = PointCloud::default();
+        pc.transform = Some(e57::Transform {
+            rotation: e57::Quaternion {
+                w: h * 2.0,
+                x: 0.0,
+                y: 0.0,
+                z: h * 2.0,
+            },
+            translation: e57::Translation {
+                x: 10.0,
+                y: 20.0,
+                z: 30.0,
+            },
+        });
+        let p = Pose::of(&pc).expect("pose").apply([1.0, 0.0, 0.0]);
+        for (a, b) in p.iter().zip([10.0, 21.0, 30.0]) {
+            assert!((a - b).abs() < 1e-12, "{p:?}");
+        }
+    }
+
+    #[test]
+    fn poses_that_are_no_rotation_are_refused() {
+        let mut pc = PointCloud::default();
+        pc.transform = Some(e57::Transform::default());
+        if let Some(t) = &mut pc.transform {
+            t.rotation.w = 0.0;
+        }
+        assert!(Pose::of(&pc).is_err());
+        if let Some(t) = &mut pc.transform {
+            t.rotation.w = 1.0;
+            t.translation.x = f64::NAN;
+        }
+        assert!(Pose::of(&pc).is_err());
+    }
+}

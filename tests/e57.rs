@@ -1,0 +1,339 @@
+//! E57 input: every scan of a file comes out once, in world coordinates, with colour and
+//! intensity scaled to 16 bits and the scanner that took it; compared with the `e57` crate's
+//! own reading of the file. Malformed files are refused in one sentence.
+
+mod common;
+#[path = "e57/write.rs"]
+mod write;
+
+use common::*;
+use std::collections::HashMap;
+use std::path::{Path, PathBuf};
+use strata_format::{LocalDataset, Metadata};
+use write::{CratePoint, ScanSpec, Storage, crate_points, world, write_e57};
+
+/// A stored point: integer position and the values of `scanner`, `rgb`, `intensity` (those the
+/// dataset has, in that order).
+type Key = ([i64; 3], Vec<u16>);
+
+/// Every point of a dataset, and its metadata.
+fn stored(ds: &Path) -> (Metadata, Vec<Key>) {
+    let d = LocalDataset::open(ds).expect("dataset opens");
+    let layout = d.layout().clone();
+    let fields: Vec<(usize, usize)> = [("scanner", 1), ("rgb", 3), ("intensity", 1)]
+        .iter()
+        .filter_map(|&(n, c)| layout.index_of(n).map(|i| (layout.offsets[i], c)))
+        .collect();
+    let mut out = Vec::new();
+    for node in d.all_nodes().expect("nodes") {
+        let rows = d.read_node(&node).expect("node").to_rows(&layout);
+        for r in rows.chunks_exact(layout.stride) {
+            let i32_at = |o: usize| i32::from_le_bytes([r[o], r[o + 1], r[o + 2], r[o + 3]]);
+            let u16_at = |o: usize| u16::from_le_bytes([r[o], r[o + 1]]);
+            let tags = fields
+                .iter()
+                .flat_map(|&(o, c)| (0..c).map(move |k| o + 2 * k))
+                .map(u16_at)
+                .collect();
+            out.push(([i32_at(0), i32_at(4), i32_at(8)].map(i64::from), tags));
+        }
+    }
+    (d.metadata().clone(), out)
+}
+
+/// The tags `stored` gives a crate point of scan `base + scan`.
+fn tags(meta: &Metadata, p: &CratePoint, base: usize) -> Vec<u16> {
+    let has = |n: &str| meta.attributes.iter().any(|a| a.name == n);
+    let mut t = vec![(base + p.scan) as u16];
+    if has("rgb") {
+        t.extend(p.rgb.unwrap_or([0; 3]));
+    }
+    if has("intensity") {
+        t.push(p.intensity.unwrap_or(0));
+    }
+    t
+}
+
+/// Every expected point matches one stored point with the same tags, at the same integer
+/// position or one step away (the converter and the crate apply a pose each in its own
+/// floating-point order), and nothing else is stored.
+fn assert_same_points(meta: &Metadata, stored: &[Key], expected: &[([f64; 3], Vec<u16>)]) {
+    assert_eq!(stored.len(), expected.len(), "point count");
+    let mut left: HashMap<&Key, usize> = HashMap::new();
+    for k in stored {
+        *left.entry(k).or_default() += 1;
+    }
+    let q =
+        |p: [f64; 3]| [0, 1, 2].map(|a| ((p[a] - meta.offset[a]) / meta.scale[a]).round() as i64);
+    let mut take = |k: &Key| match left.get_mut(k) {
+        Some(n) if *n > 0 => {
+            *n -= 1;
+            true
+        }
+        _ => false,
+    };
+    let mut near = Vec::new();
+    for (p, t) in expected {
+        if !take(&(q(*p), t.clone())) {
+            near.push((*p, t.clone()));
+        }
+    }
+    for (p, t) in near {
+        let c = q(p);
+        let found = (0..27).any(|n| {
+            let d = [n / 9 - 1, n / 3 % 3 - 1, n % 3 - 1];
+            take(&([0, 1, 2].map(|a| c[a] + d[a]), t.clone()))
+        });
+        assert!(found, "{p:?} (tags {t:?}) is not stored within one step");
+    }
+}
+
+/// Converts `inputs` into a fresh dataset under `dir`.
+fn convert(dir: &Path, inputs: &[&Path]) -> PathBuf {
+    let ds = dir.join("ds");
+    let mut args = vec!["convert"];
+    args.extend(inputs.iter().map(|p| s(p)));
+    args.extend(["-o", s(&ds), "--quiet"]);
+    run_ok(&args);
+    run_ok(&["verify", s(&ds)]);
+    ds
+}
+
+/// Converting a shared E57 file stores exactly the crate's valid points.
+fn shared_file(name: &str, coloured: bool) {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let input = data(name);
+    let ds = convert(dir.path(), &[&input]);
+    let (meta, got) = stored(&ds);
+    let expected: Vec<_> = crate_points(&input)
+        .iter()
+        .map(|p| (p.position, tags(&meta, p, 0)))
+        .collect();
+    assert!(!expected.is_empty());
+    assert_same_points(&meta, &got, &expected);
+    let has_rgb = meta
+        .attributes
+        .iter()
+        .any(|a| a.name == "rgb" && a.count == 3 && a.ty.name() == "u16");
+    assert_eq!(has_rgb, coloured, "{name}: rgb attribute");
+    assert_eq!(meta.scanners.len(), 1);
+    assert_eq!(meta.scanners[0].source, name);
+}
+
+#[test]
+fn e57_scaled_integer_bunny_converts_exactly() {
+    shared_file("e57_bunnyInt21.e57", false);
+}
+
+#[test]
+fn e57_spherical_scan_converts_its_valid_points() {
+    shared_file("e57_tiny_spherical.e57", false);
+}
+
+#[test]
+fn e57_float_rgb_scan_keeps_its_colour() {
+    shared_file("e57_tinyCartesianFloatRgb.e57", true);
+}
+
+fn three_scans() -> Vec<ScanSpec> {
+    let mut a = ScanSpec::new(Storage::Double, 3000)
+        .rotated([0.0, 0.0, 1.0], 30.0)
+        .at([10.0, -5.0, 2.0]);
+    a.colour = true;
+    let mut b = ScanSpec::new(Storage::Scaled, 2500)
+        .rotated([1.0, 2.0, 0.5], 75.0)
+        .at([-20.0, 7.0, 1.5]);
+    b.intensity = true;
+    b.invalid_every = Some(7);
+    let mut c = ScanSpec::new(Storage::Spherical, 2000)
+        .rotated([0.3, -1.0, 0.2], -140.0)
+        .at([3.0, 3.0, 30.0]);
+    c.colour = true;
+    c.invalid_every = Some(11);
+    vec![a, b, c]
+}
+
+#[test]
+fn e57_scans_with_poses_come_out_in_world_coordinates_with_their_scanner() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let input = dir.path().join("site.e57");
+    let specs = three_scans();
+    let local = write_e57(&input, &specs);
+    let read = crate_points(&input);
+    // The crate's reading is the poses applied to what was written: world coordinates.
+    let mine: Vec<[f64; 3]> = specs
+        .iter()
+        .zip(&local)
+        .flat_map(|(spec, pts)| pts.iter().map(|p| world(spec, *p)))
+        .collect();
+    assert_eq!(read.len(), mine.len());
+    for (r, m) in read.iter().zip(&mine) {
+        for a in 0..3 {
+            assert!((r.position[a] - m[a]).abs() < 1e-9, "{r:?} vs {m:?}");
+        }
+    }
+    let ds = convert(dir.path(), &[&input]);
+    let (meta, got) = stored(&ds);
+    let expected: Vec<_> = read
+        .iter()
+        .map(|p| (p.position, tags(&meta, p, 0)))
+        .collect();
+    assert_same_points(&meta, &got, &expected);
+    // Each scan's points carry its index.
+    for scan in 0..3u16 {
+        let n = got.iter().filter(|(_, t)| t[0] == scan).count();
+        assert_eq!(n, local[scan as usize].len(), "points of scan {scan}");
+    }
+    let names: Vec<&str> = meta.attributes.iter().map(|a| a.name.as_str()).collect();
+    assert_eq!(names, ["rgb", "intensity", "scanner"]);
+    let positions: Vec<[f64; 3]> = meta.scanners.iter().map(|s| s.position).collect();
+    let translations: Vec<[f64; 3]> = specs.iter().map(|s| s.translation).collect();
+    assert_eq!(positions, translations);
+    assert!(meta.scanners.iter().all(|s| s.source == "site.e57"));
+    // Every scan's points lie around its scanner (a wrong pose would move them away).
+    for (scan, spec) in specs.iter().enumerate() {
+        let far = read
+            .iter()
+            .filter(|p| p.scan == scan)
+            .map(|p| {
+                (0..3)
+                    .map(|a| (p.position[a] - spec.translation[a]).powi(2))
+                    .sum::<f64>()
+            })
+            .fold(0.0, f64::max);
+        assert!(
+            far.sqrt() < 10.0,
+            "scan {scan} lies {} from its scanner",
+            far.sqrt()
+        );
+    }
+    let info = run_ok(&["info", s(&ds), "--json"]);
+    let v: serde_json::Value = serde_json::from_slice(&info.stdout).expect("json");
+    assert_eq!(v["scanners"][2]["position"][2], 30.0);
+}
+
+#[test]
+fn two_e57_inputs_number_their_scanners_globally() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let specs = three_scans();
+    let (a, b) = (dir.path().join("a.e57"), dir.path().join("b.e57"));
+    write_e57(&a, &specs[..2]);
+    write_e57(&b, &specs[2..]);
+    let ds = convert(dir.path(), &[&a, &b]);
+    let (meta, got) = stored(&ds);
+    let mut expected: Vec<_> = crate_points(&a)
+        .iter()
+        .map(|p| (p.position, tags(&meta, p, 0)))
+        .collect();
+    expected.extend(
+        crate_points(&b)
+            .iter()
+            .map(|p| (p.position, tags(&meta, p, 2))),
+    );
+    assert_same_points(&meta, &got, &expected);
+    let listed: Vec<(&str, [f64; 3])> = meta
+        .scanners
+        .iter()
+        .map(|s| (s.source.as_str(), s.position))
+        .collect();
+    assert_eq!(
+        listed,
+        [
+            ("a.e57", specs[0].translation),
+            ("a.e57", specs[1].translation),
+            ("b.e57", specs[2].translation)
+        ]
+    );
+}
+
+#[test]
+fn points_of_inputs_without_scanners_name_none() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let e57 = dir.path().join("scan.E57");
+    write_e57(&e57, &three_scans()[..1]);
+    let las = data("autzen_trim.las");
+    let ds = convert(dir.path(), &[&las, &e57]);
+    let (meta, got) = stored(&ds);
+    let none = got.iter().filter(|(_, t)| t[0] == u16::MAX).count();
+    let first = got.iter().filter(|(_, t)| t[0] == 0).count();
+    assert_eq!((none, first), (110_000, 3000));
+    assert_eq!(meta.scanners.len(), 1);
+    assert_eq!(meta.scanners[0].source, "scan.E57");
+}
+
+// Malformed files: one sentence naming the file, no panic, no output.
+
+fn tiny() -> Vec<u8> {
+    std::fs::read(data("e57_tinyCartesianFloatRgb.e57")).expect("tiny e57")
+}
+
+fn written(dir: &Path, name: &str, bytes: &[u8]) -> PathBuf {
+    let p = dir.join(name);
+    std::fs::write(&p, bytes).expect("write");
+    p
+}
+
+#[test]
+fn truncated_e57_is_refused() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let b = tiny();
+    convert_fails(
+        &written(dir.path(), "cut.e57", &b[..b.len() / 2]),
+        "truncated",
+    );
+    // Cut at a page boundary: the pages are whole but the XML section is gone.
+    convert_fails(
+        &written(dir.path(), "pages.e57", &b[..20 * 1024]),
+        "truncated",
+    );
+    convert_fails(&written(dir.path(), "stub.e57", &b[..20]), "too short");
+}
+
+#[test]
+fn e57_with_a_flipped_byte_fails_its_checksum() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let mut b = tiny();
+    b[2000] ^= 0x10;
+    convert_fails(&written(dir.path(), "points.e57", &b), "checksum");
+    let mut b = tiny();
+    let xml = u64::from_le_bytes(b[24..32].try_into().expect("8 bytes")) as usize;
+    b[xml + 10] ^= 0x10;
+    convert_fails(&written(dir.path(), "xml.e57", &b), "checksum");
+}
+
+#[test]
+fn e57_without_point_clouds_or_points_is_refused() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let none = dir.path().join("none.e57");
+    write_e57(&none, &[]);
+    convert_fails(&none, "no point cloud");
+    let empty = dir.path().join("empty.e57");
+    write_e57(&empty, &[ScanSpec::new(Storage::Double, 0)]);
+    convert_fails(&empty, "no points");
+    let invalid = dir.path().join("invalid.e57");
+    let mut spec = ScanSpec::new(Storage::Double, 10);
+    spec.invalid_every = Some(1);
+    write_e57(&invalid, &[spec]);
+    convert_fails(&invalid, "valid position");
+}
+
+#[test]
+fn an_empty_scan_among_others_keeps_its_scanner() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let input = dir.path().join("gap.e57");
+    let mut specs = three_scans();
+    specs[1].points = 0;
+    let local = write_e57(&input, &specs);
+    let ds = convert(dir.path(), &[&input]);
+    let (meta, got) = stored(&ds);
+    assert_eq!(meta.scanners.len(), 3);
+    assert!(got.iter().all(|(_, t)| t[0] != 1));
+    assert_eq!(
+        got.iter().filter(|(_, t)| t[0] == 0).count(),
+        local[0].len()
+    );
+    assert_eq!(
+        got.iter().filter(|(_, t)| t[0] == 2).count(),
+        local[2].len()
+    );
+}

@@ -1,0 +1,159 @@
+//! `strata convert --normals` as a user runs it: normals facing the scanner that took each
+//! point (E57 poses), the flags refused with one sentence, and what the metadata records.
+
+mod common;
+
+use common::{run, run_ok, s};
+use e57::{E57Writer, Quaternion, Record, RecordValue, Transform, Translation};
+use std::path::Path;
+use strata_format::{LocalDataset, oct16_decode};
+
+/// Two scanners, 3 m above and 3 m below the plane z = 0, each scanning its own interleaved
+/// half of a 10 m square of it.
+fn write_two_sided_plane(path: &Path) {
+    let mut w = E57Writer::from_file(path, "strata-normals-test").expect("e57 writer");
+    for (i, height) in [3.0f64, -3.0].into_iter().enumerate() {
+        let mut pc = w
+            .add_pointcloud(
+                &format!("side-{i}"),
+                vec![
+                    Record::CARTESIAN_X_F64,
+                    Record::CARTESIAN_Y_F64,
+                    Record::CARTESIAN_Z_F64,
+                ],
+            )
+            .expect("scan writer");
+        pc.set_transform(Some(Transform {
+            rotation: Quaternion {
+                w: 1.0,
+                x: 0.0,
+                y: 0.0,
+                z: 0.0,
+            },
+            translation: Translation {
+                x: 0.0,
+                y: 0.0,
+                z: height,
+            },
+        }));
+        for gx in 0..100 {
+            for gy in 0..50 {
+                // Scan 0 takes the even rows, scan 1 the odd ones, both on z = 0 in the world.
+                let (x, y) = (gx as f64 * 0.1 - 5.0, (2 * gy + i) as f64 * 0.1 - 5.0);
+                let local = [x + 0.013 * ((gx * 7 + gy) % 5) as f64, y, -height];
+                pc.add_point(local.map(RecordValue::Double).to_vec())
+                    .expect("point");
+            }
+        }
+        pc.finalize().expect("scan written");
+    }
+    w.finalize().expect("file written");
+}
+
+#[test]
+fn normals_face_the_scanner_that_took_each_point() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let e57 = dir.path().join("plane.e57");
+    write_two_sided_plane(&e57);
+    let out = dir.path().join("ds");
+    run_ok(&["convert", s(&e57), "-o", s(&out), "--normals", "-q"]);
+    let ds = LocalDataset::open(&out).expect("open");
+    let meta = ds.metadata().clone();
+    let info = meta.normals.clone().expect("normals recorded");
+    assert_eq!(info.orient, "scanner");
+    assert_eq!(info.computed, 10_000);
+    let layout = ds.layout().clone();
+    let (n_at, s_at) = (
+        layout.index_of("normal").expect("normal"),
+        layout.index_of("scanner").expect("scanner"),
+    );
+    let mut seen = [0; 2];
+    for node in ds.all_nodes().expect("nodes") {
+        if node.point_count == 0 {
+            continue;
+        }
+        let cols = ds.read_node(&node).expect("node");
+        let (nc, sc) = (cols.attribute(&layout, n_at), cols.attribute(&layout, s_at));
+        for i in 0..node.point_count as usize {
+            let n = oct16_decode([
+                u16::from_le_bytes([nc[4 * i], nc[4 * i + 1]]),
+                u16::from_le_bytes([nc[4 * i + 2], nc[4 * i + 3]]),
+            ])
+            .expect("a normal");
+            let scan = u16::from_le_bytes([sc[2 * i], sc[2 * i + 1]]) as usize;
+            let want = if scan == 0 { 1.0 } else { -1.0 };
+            assert!(n[2] * want > 0.999, "scan {scan}: normal {n:?}");
+            seen[scan] += 1;
+        }
+    }
+    assert_eq!(seen, [5_000, 5_000]);
+
+    // Forced up, the scanner below no longer counts.
+    let up = dir.path().join("up");
+    run_ok(&[
+        "convert",
+        s(&e57),
+        "-o",
+        s(&up),
+        "--normals",
+        "--orient",
+        "up",
+        "-q",
+    ]);
+    let meta = LocalDataset::open(&up).expect("open").metadata().clone();
+    assert_eq!(meta.normals.expect("normals").orient, "up");
+}
+
+#[test]
+fn normal_flags_are_checked_before_any_work() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let las = common::data("autzen_trim.las");
+    let cases: [(&[&str], &str); 4] = [
+        (&["--normals", "--orient", "scanner"], "--viewpoint"),
+        (&["--normals", "--normal-k", "1"], "--normal-k 1"),
+        (&["--normals", "--viewpoint", "1,2"], "X,Y,Z"),
+        (&["--normal-k", "8"], "--normals"),
+    ];
+    for (i, (flags, says)) in cases.iter().enumerate() {
+        let out = dir.path().join(format!("ds{i}"));
+        let mut args = vec!["convert", s(&las), "-o", s(&out), "-q"];
+        args.extend_from_slice(flags);
+        let o = run(&args);
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert!(!o.status.success(), "{flags:?} was accepted");
+        assert!(err.contains(says), "{flags:?}: {err}");
+        assert!(!out.exists(), "{flags:?} left {}", out.display());
+    }
+}
+
+#[test]
+fn an_airborne_scan_gets_normals_facing_up() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let out = dir.path().join("autzen");
+    let las = common::data("autzen_trim.las");
+    run_ok(&["convert", s(&las), "-o", s(&out), "--normals", "-q"]);
+    let ds = LocalDataset::open(&out).expect("open");
+    let info = ds.metadata().normals.clone().expect("normals recorded");
+    assert_eq!((info.orient.as_str(), info.computed), ("up", 110_000));
+    assert!(info.surfel_radius > 0.0 && info.mean_radius > 0.0);
+    let layout = ds.layout().clone();
+    let at = layout.index_of("normal").expect("normal");
+    let (mut up, mut total) = (0, 0);
+    for node in ds.all_nodes().expect("nodes") {
+        if node.point_count == 0 {
+            continue;
+        }
+        let cols = ds.read_node(&node).expect("node");
+        let c = cols.attribute(&layout, at);
+        for i in 0..node.point_count as usize {
+            let n = oct16_decode([
+                u16::from_le_bytes([c[4 * i], c[4 * i + 1]]),
+                u16::from_le_bytes([c[4 * i + 2], c[4 * i + 3]]),
+            ])
+            .expect("a normal");
+            total += 1;
+            up += (n[2] >= 0.0) as usize;
+        }
+    }
+    assert_eq!(up, total, "every normal faces up");
+}
