@@ -25,6 +25,12 @@ pub trait ChunkStep: Sync {
         Ok(Vec::new())
     }
 
+    /// Bytes a point of the chunk (or its halo) takes in the step's own working memory at its
+    /// peak, so that chunks are cut small enough for `--memory-limit`.
+    fn bytes_per_point(&self) -> usize {
+        0
+    }
+
     /// How far beyond its chunk's bounds, in the dataset's real units, the step needs to see
     /// points. 0 (the default) reads nothing beyond the chunk. It must depend on nothing but
     /// the plan and the step's settings: a resumed run asks again.

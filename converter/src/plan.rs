@@ -211,12 +211,18 @@ pub fn plan_chunks(counts: &[u64], cube: &Cube, max_points: u64) -> (Vec<Chunk>,
 }
 
 /// Points per chunk that keep indexing inside `memory_limit` with `threads` workers.
-/// Each worker holds its chunk's rows, index arrays and compressed output; as many finished
-/// chunks again may wait for their in-order commit.
-pub fn max_chunk_points(memory_limit: u64, threads: usize, stride: usize) -> u64 {
+/// Each worker holds its chunk's rows, index arrays and compressed output, and what the
+/// per-chunk step needs (`step_bytes` a point); as many finished chunks again may wait for
+/// their in-order commit.
+pub fn max_chunk_points(
+    memory_limit: u64,
+    threads: usize,
+    stride: usize,
+    step_bytes: usize,
+) -> u64 {
     const RESERVED: u64 = 96 << 20;
     let avail = memory_limit.saturating_sub(RESERVED).max(32 << 20);
-    let per_point = (3 * stride + 48) as u64;
+    let per_point = (3 * stride + 48 + step_bytes) as u64;
     let n = avail * 6 / 10 / (threads.max(1) as u64 * per_point);
     // A floor keeps chunks from getting absurdly many, but only up to 64 MiB of rows: wide
     // rows (thousands of attributes) would otherwise make one chunk gigabytes.

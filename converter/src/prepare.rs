@@ -130,7 +130,13 @@ pub fn prepare(
     }
     // Several chunks per worker keep the workers busy to the end; the memory limit caps them.
     let balanced = (points / (threads as u64 * 4)).max(1 << 20);
-    let max_chunk = max_chunk_points(opts.memory_limit, threads, layout.stride).min(balanced);
+    let max_chunk = max_chunk_points(
+        opts.memory_limit,
+        threads,
+        layout.stride,
+        step.bytes_per_point(),
+    )
+    .min(balanced);
     let (chunks, lut) = plan_chunks(&staged.counts.cells, &staged.cube, max_chunk);
 
     let class_at = layout

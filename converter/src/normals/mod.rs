@@ -143,6 +143,11 @@ impl ChunkStep for NormalStep {
         attrs::added(inputs)
     }
 
+    fn bytes_per_point(&self) -> usize {
+        // Building the k-d tree: (position, index) items, then the tree's positions and order.
+        32 + 24 + 4
+    }
+
     fn halo_margin(&self, plan: &Plan) -> f64 {
         self.opts
             .radius
