@@ -47,6 +47,13 @@ impl KdTree {
         tree
     }
 
+    /// The offset from point `from` to point `to` in whole steps.
+    #[inline]
+    pub fn steps(&self, from: usize, to: usize) -> [i64; 3] {
+        let (a, b) = (self.points[from], self.points[to]);
+        [0, 1, 2].map(|i| (b[i] - a[i]) as i64)
+    }
+
     /// The real offset from point `from` to point `to`, exact for the two points alone.
     #[inline]
     pub fn offset(&self, from: usize, to: usize) -> [f64; 3] {
@@ -72,35 +79,41 @@ impl KdTree {
         stack.clear();
         let q = self.points[at];
         let s = self.scale;
-        // Down to the leaf holding `at` by index, leaving the other sides for later with the
-        // distance to their splitting plane.
+        // Down to the leaf holding `at` by index, leaving the other sides for later with a
+        // lower bound of their distance: the per-axis distances to the planes that bound them
+        // (nanoflann's incremental distance), summed.
         let (mut node, mut lo, mut hi) = (1usize, 0usize, self.points.len());
+        let off = [0.0f64; 3];
         while hi - lo > LEAF {
             let (axis, split) = self.splits[node];
+            let a = axis as usize;
             let mid = lo + (hi - lo) / 2;
-            let d = (q[axis as usize] - split) * s[axis as usize];
-            if at < mid {
-                stack.push(Pending {
-                    node: 2 * node + 1,
-                    lo: mid,
-                    hi,
-                    plane: d * d,
-                });
-                (node, hi) = (2 * node, mid);
+            let d = (q[a] - split) * s[a];
+            let mut far_off = off;
+            far_off[a] = d.abs();
+            let far = if at < mid {
+                (2 * node + 1, mid, hi)
             } else {
-                stack.push(Pending {
-                    node: 2 * node,
-                    lo,
-                    hi: mid,
-                    plane: d * d,
-                });
-                (node, lo) = (2 * node + 1, mid);
-            }
+                (2 * node, lo, mid)
+            };
+            stack.push(Pending {
+                node: far.0,
+                lo: far.1,
+                hi: far.2,
+                off: far_off,
+                plane: far_off.iter().map(|v| v * v).sum(),
+            });
+            (node, lo, hi) = if at < mid {
+                (2 * node, lo, mid)
+            } else {
+                (2 * node + 1, mid, hi)
+            };
         }
         let mut best = Best::new(self, k, out, within * within);
         best.scan(q, lo, hi);
         while let Some(p) = stack.pop() {
-            // Equal distances still enter (ties are broken by key), so a point on the plane counts.
+            // Equal distances still enter (ties are broken by position), so a point on the
+            // boundary counts.
             if p.plane > best.bound() {
                 continue;
             }
@@ -109,35 +122,34 @@ impl KdTree {
                 continue;
             }
             let (axis, split) = self.splits[p.node];
+            let a = axis as usize;
             let mid = p.lo + (p.hi - p.lo) / 2;
-            let d = (q[axis as usize] - split) * s[axis as usize];
-            let left = Pending {
-                node: 2 * p.node,
-                lo: p.lo,
-                hi: mid,
-                plane: p.plane,
-            };
-            let right = Pending {
-                node: 2 * p.node + 1,
-                lo: mid,
-                hi: p.hi,
-                plane: p.plane,
-            };
-            // The far side is at least as far as this plane (and any plane before it); the
-            // near side goes on top, to be searched first.
-            if d < 0.0 {
-                stack.push(Pending {
-                    plane: p.plane.max(d * d),
-                    ..right
-                });
-                stack.push(left);
+            let d = (q[a] - split) * s[a];
+            let left = (2 * p.node, p.lo, mid);
+            let right = (2 * p.node + 1, mid, p.hi);
+            let (near, far) = if d < 0.0 {
+                (left, right)
             } else {
-                stack.push(Pending {
-                    plane: p.plane.max(d * d),
-                    ..left
-                });
-                stack.push(right);
-            }
+                (right, left)
+            };
+            // The far side: the distance along this axis grows to the plane's, at least.
+            let mut far_off = p.off;
+            far_off[a] = far_off[a].max(d.abs());
+            let far_plane = p.plane - p.off[a] * p.off[a] + far_off[a] * far_off[a];
+            stack.push(Pending {
+                node: far.0,
+                lo: far.1,
+                hi: far.2,
+                off: far_off,
+                plane: far_plane,
+            });
+            // The near side on top, to be searched first.
+            stack.push(Pending {
+                node: near.0,
+                lo: near.1,
+                hi: near.2,
+                ..p
+            });
         }
     }
 }
@@ -148,12 +160,14 @@ pub fn ranks_before(tree: &KdTree, a: u32, b: u32) -> bool {
     p.partial_cmp(&q) == Some(std::cmp::Ordering::Less)
 }
 
-/// A subtree still to search and a lower bound on its squared distance from the query.
+/// A subtree still to search and a lower bound on its squared distance from the query: the
+/// sum of `off`, the distances along each axis to the planes that bound it.
 #[derive(Debug, Clone, Copy)]
 pub struct Pending {
     node: usize,
     lo: usize,
     hi: usize,
+    off: [f64; 3],
     plane: f64,
 }
 

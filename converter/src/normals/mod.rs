@@ -13,7 +13,7 @@ use crate::error::{ConvertError, Result};
 use crate::prepare::Plan;
 use attrs::Targets;
 use kdtree::KdTree;
-use pca::{covariance, dot, principal};
+use pca::{covariance_of_steps, dot, principal};
 #[cfg(test)]
 use strata_format::AttrType;
 use strata_format::{Attribute, Metadata, NormalsInfo, row_position};
@@ -188,11 +188,6 @@ impl ChunkStep for NormalStep {
                 continue;
             }
             tree.nearest(t, k, search, &mut near, &mut stack);
-            // In position order, so that the sums below do not depend on the search's order.
-            near.sort_unstable_by(|a, b| {
-                let (p, q) = (tree.points[a.1 as usize], tree.points[b.1 as usize]);
-                p.partial_cmp(&q).unwrap_or(std::cmp::Ordering::Equal)
-            });
             // Fewer than k within the search radius: the k-th is beyond it.
             let rk = if near.len() < k {
                 totals[total::PARTIAL] += 1.0;
@@ -200,8 +195,8 @@ impl ChunkStep for NormalStep {
             } else {
                 near.iter().fold(0.0f64, |m, n| m.max(n.0)).sqrt()
             };
-            let rel = near.iter().map(|&(_, j)| tree.offset(t, j as usize));
-            let pc = principal(covariance(rel).0);
+            let steps = near.iter().map(|&(_, j)| tree.steps(t, j as usize));
+            let pc = principal(covariance_of_steps(steps, scale));
             let p = tree.points[t];
             let q = [0, 1, 2].map(|a| (p[a] + origin[a] as f64) * scale[a]);
             let row = &mut chunk.rows[i * stride..(i + 1) * stride];

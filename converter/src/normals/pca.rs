@@ -53,6 +53,37 @@ pub fn covariance(points: impl Iterator<Item = [f64; 3]> + Clone) -> ([f64; 6], 
     (m.map(|v| v / n), c)
 }
 
+/// The covariance of points given as whole-step offsets from one of them, `scale` real units a
+/// step, as (xx, xy, xz, yy, yz, zz). The sums are exact integers, so the result does not
+/// depend on the order the points come in (nor on which chunk found them).
+pub fn covariance_of_steps(steps: impl Iterator<Item = [i64; 3]>, scale: [f64; 3]) -> [f64; 6] {
+    let (mut n, mut s1, mut s2) = (0i128, [0i128; 3], [0i128; 6]);
+    for d in steps {
+        let d = d.map(i128::from);
+        n += 1;
+        for a in 0..3 {
+            s1[a] += d[a];
+        }
+        s2[0] += d[0] * d[0];
+        s2[1] += d[0] * d[1];
+        s2[2] += d[0] * d[2];
+        s2[3] += d[1] * d[1];
+        s2[4] += d[1] * d[2];
+        s2[5] += d[2] * d[2];
+    }
+    if n == 0 {
+        return [0.0; 6];
+    }
+    // n² cov = n Σ d_a d_b − Σ d_a Σ d_b, exactly.
+    let pairs = [(0, 0), (0, 1), (0, 2), (1, 1), (1, 2), (2, 2)];
+    let nn = (n * n) as f64;
+    let mut cov = [0.0; 6];
+    for (i, &(a, b)) in pairs.iter().enumerate() {
+        cov[i] = (n * s2[i] - s1[a] * s1[b]) as f64 / nn * scale[a] * scale[b];
+    }
+    cov
+}
+
 /// Eigen-decomposition of a symmetric 3x3 matrix given as (xx, xy, xz, yy, yz, zz): the
 /// closed form of the characteristic cubic, then eigenvectors from cross products of the rows
 /// of (A − λI).
@@ -193,6 +224,23 @@ mod tests {
         assert!(angle(pc.normal, [0.0, 1.0, 0.0]) < 1e-6);
         assert!(angle(pc.major, [1.0, 0.0, 0.0]) < 1e-6);
         assert!((pc.surface_variation() - 0.25 / 13.25).abs() < 1e-12);
+    }
+
+    #[test]
+    fn covariance_of_steps_matches_the_float_one_in_any_order() {
+        let steps: Vec<[i64; 3]> = (0..17).map(|i| [i * 3 % 7, i * i % 11, -i]).collect();
+        let scale = [0.01, 0.02, 0.005];
+        let exact = covariance_of_steps(steps.iter().copied(), scale);
+        let reversed = covariance_of_steps(steps.iter().rev().copied(), scale);
+        assert_eq!(exact, reversed);
+        let (float, _) = covariance(
+            steps
+                .iter()
+                .map(|d| [0, 1, 2].map(|a| d[a] as f64 * scale[a])),
+        );
+        for (e, f) in exact.iter().zip(float) {
+            assert!((e - f).abs() < 1e-12, "{exact:?} vs {float:?}");
+        }
     }
 
     #[test]
