@@ -101,9 +101,12 @@ pub struct NormalsInfo {
     pub computed: u64,
     /// Normals taken from the inputs as they were.
     pub kept: u64,
-    /// Points whose k nearest neighbours reached beyond the points the converter had at hand
-    /// around their chunk: their estimate may differ from one over the whole cloud.
+    /// Points with fewer than k neighbours within `search_radius` (their estimate used those
+    /// it had; their radius assumes the k-th at the search radius).
     pub partial: u64,
+    /// Neighbours farther than this (real units) were not used.
+    #[serde(default)]
+    pub search_radius: f64,
     /// The mean of the `radius` attribute over all points.
     pub mean_radius: f64,
     /// Paper 001's global surfel size: the mean radius of the smallest circles enclosing the
@@ -158,6 +161,7 @@ impl Metadata {
         if let Some(n) = &self.normals {
             numbers.push(("normals.mean_radius".into(), n.mean_radius));
             numbers.push(("normals.surfel_radius".into(), n.surfel_radius));
+            numbers.push(("normals.search_radius".into(), n.search_radius));
         }
         for (i, s) in self.scanners.iter().enumerate() {
             numbers.extend(s.position.iter().map(|x| (format!("scanners[{i}]"), *x)));

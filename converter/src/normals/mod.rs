@@ -89,6 +89,8 @@ mod total {
 
 pub struct NormalStep {
     opts: NormalOptions,
+    /// The search radius of this run, once the plan has given it (for the metadata).
+    search: std::sync::OnceLock<f64>,
 }
 
 impl NormalStep {
@@ -113,7 +115,10 @@ impl NormalStep {
                 "--viewpoint must be three finite numbers".into(),
             ));
         }
-        Ok(NormalStep { opts })
+        Ok(NormalStep {
+            opts,
+            search: std::sync::OnceLock::new(),
+        })
     }
 
     fn orient_name(&self, has_scanners: bool) -> &'static str {
@@ -149,9 +154,11 @@ impl ChunkStep for NormalStep {
     }
 
     fn halo_margin(&self, plan: &Plan) -> f64 {
-        self.opts
+        let r = self
+            .opts
             .radius
-            .unwrap_or_else(|| search_radius(plan, self.opts.k))
+            .unwrap_or_else(|| search_radius(plan, self.opts.k));
+        *self.search.get_or_init(|| r)
     }
 
     fn process(&self, chunk: &mut ChunkRows, halo: &Halo) -> Result<StepTotals> {
@@ -244,6 +251,7 @@ impl ChunkStep for NormalStep {
             computed: t(total::COMPUTED) as u64,
             kept: t(total::KEPT) as u64,
             partial: t(total::PARTIAL) as u64,
+            search_radius: self.search.get().copied().filter(|r| r.is_finite()).unwrap_or(0.0),
             mean_radius: t(total::RADIUS_SUM) / (meta.points.max(1) as f64),
             surfel_radius: if triangles > 0.0 {
                 t(total::TRIANGLE_RADIUS_SUM) / triangles
@@ -286,7 +294,13 @@ struct Placement<'a> {
 /// The neighbour search's radius (and the halo's width), from the plan's spacing estimate;
 /// see `SEARCH_FACTOR`.
 fn search_radius(plan: &Plan, k: usize) -> f64 {
-    plan.spacing_quantiles[1] * (k as f64 / std::f64::consts::PI).sqrt() * SEARCH_FACTOR
+    let r = plan.spacing_quantiles[1] * (k as f64 / std::f64::consts::PI).sqrt() * SEARCH_FACTOR;
+    // No estimate (every point in one place): search without bound, one chunk holds them.
+    if r > 0.0 && r.is_finite() {
+        r
+    } else {
+        f64::INFINITY
+    }
 }
 
 #[cfg(test)]
