@@ -3,6 +3,7 @@
 pub mod las;
 pub mod las_header;
 pub mod las_layout;
+pub mod las_normals;
 pub mod laz_check;
 pub mod ply;
 pub mod ply_header;
