@@ -1,6 +1,9 @@
 //! Headless rendering on the software adapter (lavapipe): coverage, the point budget, the two
-//! projection paths, corrupt nodes, fly-throughs, bad arguments, and the window under Xvfb.
+//! projection paths, corrupt nodes, fly-throughs, bad arguments, colouring by normal and by
+//! curvature, and the window under Xvfb.
 
+#[path = "render/colours.rs"]
+mod colours;
 mod common;
 #[path = "render/paths.rs"]
 mod paths;

@@ -30,31 +30,50 @@ pub struct RecordToRow {
 impl RecordToRow {
     pub fn new(src: &LasSource, layout: &RowLayout, q: &Quantization, cube: &Cube) -> Self {
         let attributes = &src.info().attributes;
-        // Each source attribute has one op, in order; point it at the dataset row's attributes.
-        let ops = src
-            .ops()
+        // Where each source attribute starts in the source's row and in the dataset's.
+        let mut at = 0;
+        let starts: Vec<(usize, usize)> = attributes
             .iter()
-            .zip(attributes)
-            .map(|(op, a)| {
-                let row = layout
+            .map(|a| {
+                let dataset = layout
                     .attributes
                     .iter()
                     .position(|u| u.name == a.name)
                     .map_or(0, |i| layout.offsets[i] - RowLayout::POSITION_BYTES);
-                match *op {
-                    FieldOp::Copy { record, len, .. } => FieldOp::Copy { record, row, len },
-                    FieldOp::Bits {
-                        record,
-                        shift,
-                        mask,
-                        ..
-                    } => FieldOp::Bits {
-                        record,
-                        shift,
-                        mask,
-                        row,
-                    },
-                }
+                let here = at;
+                at += a.size();
+                (here, dataset)
+            })
+            .collect();
+        // An op writes into one source attribute (a grouped normal has one op per component):
+        // move it by as much as that attribute moves.
+        let moved = |row: usize| {
+            starts
+                .iter()
+                .rev()
+                .find(|(source, _)| *source <= row)
+                .map_or(row, |(source, dataset)| dataset + (row - source))
+        };
+        let ops = src
+            .ops()
+            .iter()
+            .map(|op| match *op {
+                FieldOp::Copy { record, row, len } => FieldOp::Copy {
+                    record,
+                    row: moved(row),
+                    len,
+                },
+                FieldOp::Bits {
+                    record,
+                    shift,
+                    mask,
+                    row,
+                } => FieldOp::Bits {
+                    record,
+                    shift,
+                    mask,
+                    row: moved(row),
+                },
             })
             .collect();
         let (scale, offset) = src.transform();

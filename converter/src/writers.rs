@@ -2,7 +2,10 @@
 //! Files are written under a temporary name and renamed when complete.
 
 use crate::error::{ConvertError, Result};
-use crate::input::las_layout::{ExtraBytesField, FieldOp, eb_code, las_fields, row_to_record};
+use crate::input::las_layout::{
+    ExtraBytesField, FieldOp, eb_code, las_fields, las_fields_ungrouped, row_to_record,
+};
+use crate::input::las_normals::{EXPORT_NORMAL_NAMES, is_normal_component};
 use las::{PointDataBuilder, Transform, Vector, Vlr, Writer};
 use std::fs::File;
 use std::io::{BufWriter, Write};
@@ -97,6 +100,7 @@ struct LasRowWriter {
 
 impl LasRowWriter {
     fn create(path: &Path, layout: &RowLayout, scale: [f64; 3], offset: [f64; 3]) -> Result<Self> {
+        refuse_encoded(path, layout)?;
         if let Some(a) = layout.attributes.iter().find(|a| a.ty == AttrType::F16) {
             return Err(ConvertError::output(
                 path,
@@ -108,16 +112,23 @@ impl LasRowWriter {
         }
         let format_number = las_format_for(layout);
         let (standard, _, _) = las_fields(format_number, &[]);
+        // A normal is split into three fields only where no attribute already has one of their
+        // names: the file then reads back as it was written.
+        let split = !layout
+            .attributes
+            .iter()
+            .any(|a| is_normal_component(&a.name));
         let extra: Vec<ExtraBytesField> = layout
             .attributes
             .iter()
             .filter(|a| !standard.iter().any(|s| s.name == a.name))
-            .map(|a| ExtraBytesField {
-                attribute: a.clone(),
-                len: a.size(),
-            })
+            .flat_map(|a| extra_fields(a, split))
             .collect();
-        let (las_attrs, ops, record_len) = las_fields(format_number, &extra);
+        let (las_attrs, ops, record_len) = if split {
+            las_fields(format_number, &extra)
+        } else {
+            las_fields_ungrouped(format_number, &extra)
+        };
         let mut gather = Vec::new();
         let mut at = 0;
         for a in &las_attrs {
@@ -184,6 +195,49 @@ impl LasRowWriter {
             buf: Vec::new(),
         })
     }
+}
+
+/// Refuses attributes whose raw values are an encoding (`oct16`): written as they are, a reader
+/// of the file could not know what they mean. Export decodes them first (`export::widened`).
+fn refuse_encoded(path: &Path, layout: &RowLayout) -> Result<()> {
+    match layout.attributes.iter().find(|a| a.encoding.is_some()) {
+        Some(a) => Err(ConvertError::output(
+            path,
+            format!(
+                "attribute \"{}\" is stored in the {} encoding, which the file cannot say; decode it first",
+                a.name,
+                a.encoding.as_deref().unwrap_or_default()
+            ),
+        )),
+        None => Ok(()),
+    }
+}
+
+/// The extra-bytes fields one attribute is written as. A normal of three floats becomes three
+/// scalar fields named `NormalX NormalY NormalZ`: PDAL reads those names as its own normal
+/// dimensions (a three-component field would reach it as `normal0 normal1 normal2`, and the
+/// later revisions of LAS 1.4 deprecate such fields), laspy users find them by name, and
+/// `las_fields` reads them back as one `normal`.
+fn extra_fields(a: &Attribute, split_normal: bool) -> Vec<ExtraBytesField> {
+    if split_normal
+        && a.name == "normal"
+        && a.count == 3
+        && a.ty.is_float()
+        && a.scale.is_none()
+        && a.offset.is_none()
+    {
+        return EXPORT_NORMAL_NAMES
+            .iter()
+            .map(|n| ExtraBytesField {
+                attribute: Attribute::new(n, a.ty, 1),
+                len: a.ty.size(),
+            })
+            .collect();
+    }
+    vec![ExtraBytesField {
+        attribute: a.clone(),
+        len: a.size(),
+    }]
 }
 
 /// One 192-byte Extra Bytes descriptor.
@@ -293,6 +347,7 @@ impl PlyRowWriter {
         offset: [f64; 3],
         points: u64,
     ) -> Result<Self> {
+        refuse_encoded(path, layout)?;
         let part = part_path(path);
         let file = File::create(&part).map_err(|e| ConvertError::io(&part, "cannot create", e))?;
         let mut out = BufWriter::with_capacity(1 << 20, file);

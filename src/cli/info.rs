@@ -20,7 +20,14 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
         let attrs: Vec<serde_json::Value> = m
             .attributes
             .iter()
-            .map(|at| serde_json::json!({"name": at.name, "type": at.ty.name(), "count": at.count}))
+            .map(|at| {
+                let mut v =
+                    serde_json::json!({"name": at.name, "type": at.ty.name(), "count": at.count});
+                if let Some(e) = &at.encoding {
+                    v["encoding"] = e.as_str().into();
+                }
+                v
+            })
             .collect();
         let v = serde_json::json!({
             "points": m.points,
@@ -38,6 +45,7 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
             "sources": m.sources,
             "classes": m.classes,
             "scanners": m.scanners,
+            "normals": m.normals,
         });
         println!("{}", serde_json::to_string_pretty(&v)?);
         return Ok(ExitCode::SUCCESS);
@@ -68,11 +76,14 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
     );
     println!("attributes:");
     for at in &m.attributes {
-        let shape = if at.count > 1 {
-            format!("{}x{}", at.count, at.ty.name())
+        let mut shape = if at.count > 1 {
+            format!("{} x {}", at.count, at.ty.name())
         } else {
             at.ty.name().to_string()
         };
+        if let Some(e) = &at.encoding {
+            shape.push_str(&format!(" ({e})"));
+        }
         println!("  {:<30} {shape}", at.name);
     }
     if !m.scanners.is_empty() {
@@ -84,6 +95,17 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
             let [x, y, z] = sc.position;
             println!("  {i:>3} {x:.3} {y:.3} {z:.3}  {}", sc.source);
         }
+    }
+    if let Some(n) = &m.normals {
+        println!(
+            "normals   k {}, oriented {}: {} computed, {} kept, {} with fewer than k neighbours in reach",
+            n.k, n.orient, n.computed, n.kept, n.partial
+        );
+        println!(
+            "          mean radius {:.6}, surfel radius {:.6} ({} triangles)",
+            n.mean_radius, n.surfel_radius, n.triangles
+        );
+        println!("          search radius {:.6}", n.search_radius);
     }
     if !m.classes.is_empty() {
         println!("classes:");

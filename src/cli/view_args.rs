@@ -44,8 +44,9 @@ pub struct ViewArgs {
     /// Size points by their spacing in the world instead of in pixels.
     #[arg(long)]
     pub attenuate: bool,
-    /// Colouring: rgb, intensity, classification or elevation.
-    #[arg(long, default_value = "rgb")]
+    /// Colouring: rgb, intensity, classification, elevation, or (datasets converted with
+    /// --normals) normal (x red, y green, z blue) or curvature (surface variation).
+    #[arg(long, visible_alias = "color", default_value = "rgb")]
     pub colour: String,
     /// GPU memory for resident nodes.
     #[arg(long, default_value = "2GiB", value_parser = strata_converter::sys::parse_size)]

@@ -2,20 +2,24 @@
 //! into the GPU point format.
 
 use crate::pipelines::PointStream;
+use crate::settings::ColourMode;
 use crate::{HttpOptions, HttpSource, MmapSource, Source, ViewerError};
 use glam::{DVec3, Vec3};
 use std::path::Path;
 use std::sync::Arc;
 use strata_format::{
     AttrType, DatasetFile, GRID_CELLS_LOG2, HierarchyPage, Metadata, NodeColumns, NodeInfo,
-    NodeKey, PageRef, RowLayout, decode_node, decode_page,
+    NodeKey, PageRef, RowLayout, decode_node, decode_page, oct16_decode,
 };
 
 /// One node ready for upload: per point `[x, y, z, colour]` (f32 bits, then packed RGBA8) and
 /// `intensity16 | classification << 16 | return_number << 24` (raw intensity, return number up
-/// to 15).
+/// to 15). The colour's alpha byte is the surface variation, 0 to 255 over 0 to
+/// `StreamDataset::variation_max` (255 where the dataset has none).
 pub struct GpuNode {
     pub key: NodeKey,
+    /// What the colours' RGB bytes hold.
+    pub colours: ColourWord,
     pub points: Vec<[u32; 4]>,
     pub attributes: Vec<u32>,
     /// Per-point streams beyond position and colour that the dataset stores (normals, radius),
@@ -23,6 +27,28 @@ pub struct GpuNode {
     pub streams: Vec<(PointStream, Vec<u8>)>,
     /// Stored (compressed) bytes read for this node.
     pub bytes_read: u64,
+}
+
+/// What the RGB bytes of a point's colour hold. The projection colours by the others from the
+/// point's position and attribute word; the normal, which has no room there, takes the place
+/// of the stored colour while the viewer colours by it (nodes are loaded again on a change).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum ColourWord {
+    /// The stored `rgb` (grey where there is none).
+    #[default]
+    Stored,
+    /// The normal, `(n * 0.5 + 0.5) * 255` (grey for a point without one).
+    Normal,
+}
+
+/// The colour of a point without a colour or a normal.
+const GREY: u32 = 0xffc8_c8c8;
+
+/// How a dataset stores its normals.
+#[derive(Debug, Clone, Copy)]
+enum NormalKind {
+    Oct16,
+    Floats(AttrType),
 }
 
 /// How stored attributes become colours; decided once from the root node.
@@ -34,6 +60,9 @@ struct ColourSource {
     intensity_max: f64,
     classification: Option<(usize, AttrType)>,
     return_number: Option<(usize, AttrType)>,
+    normal: Option<(usize, NormalKind)>,
+    variation: Option<(usize, AttrType)>,
+    variation_max: f64,
 }
 
 pub struct StreamDataset {
@@ -78,6 +107,20 @@ impl StreamDataset {
             .index_of("rgb")
             .filter(|&i| layout.attributes[i].count == 3)
             .map(|i| (i, layout.attributes[i].ty));
+        let normal = layout.index_of("normal").and_then(|i| {
+            let a = &layout.attributes[i];
+            if a.is_oct16() {
+                Some((i, NormalKind::Oct16))
+            } else if a.count == 3 && a.ty.is_float() && a.encoding.is_none() {
+                Some((i, NormalKind::Floats(a.ty)))
+            } else {
+                None
+            }
+        });
+        let variation = layout
+            .index_of("surface_variation")
+            .filter(|&i| layout.attributes[i].count == 1 && layout.attributes[i].ty.is_float())
+            .map(|i| (i, layout.attributes[i].ty));
         let mut ds = StreamDataset {
             source,
             colour: ColourSource {
@@ -87,6 +130,9 @@ impl StreamDataset {
                 intensity_max: 1.0,
                 classification: find("classification"),
                 return_number: find("return_number"),
+                normal,
+                variation,
+                variation_max: MAX_VARIATION,
             },
             metadata,
             layout,
@@ -125,6 +171,54 @@ impl StreamDataset {
 
     pub fn has_rgb(&self) -> bool {
         self.colour.rgb.is_some()
+    }
+
+    /// The surface variation shown at the top of the ramp (the 99th percentile of the root
+    /// node's, at most 1/3, the largest there is).
+    pub fn variation_max(&self) -> f64 {
+        self.colour.variation_max
+    }
+
+    /// Whether the dataset has what colouring by `mode` needs (rgb, intensity and the others
+    /// fall back or colour alike without theirs; normal and curvature are not offered).
+    pub fn offers(&self, mode: ColourMode) -> bool {
+        match mode {
+            ColourMode::Normal => self.colour.normal.is_some(),
+            ColourMode::Curvature => self.colour.variation.is_some(),
+            _ => true,
+        }
+    }
+
+    /// Refuses a colouring the dataset lacks the attribute for, naming it.
+    pub fn check_colour(&self, mode: ColourMode) -> Result<(), ViewerError> {
+        match mode.attribute() {
+            Some(attribute) if !self.offers(mode) => Err(ViewerError::source(
+                self.location(),
+                format!(
+                    "colouring by {} needs the \"{attribute}\" attribute, which the dataset does not have (convert it with --normals)",
+                    mode.name()
+                ),
+            )),
+            _ => Ok(()),
+        }
+    }
+
+    /// The colouring the projection applies for `mode`: elevation where the dataset lacks
+    /// what `mode` needs.
+    pub fn shader_colour(&self, mode: ColourMode) -> ColourMode {
+        let lacking = match mode {
+            ColourMode::Rgb => !self.has_rgb(),
+            other => !self.offers(other),
+        };
+        if lacking { ColourMode::Elevation } else { mode }
+    }
+
+    /// What the colours' RGB bytes must hold for `mode`.
+    pub fn colour_word(&self, mode: ColourMode) -> ColourWord {
+        match self.shader_colour(mode) {
+            ColourMode::Normal => ColourWord::Normal,
+            _ => ColourWord::Stored,
+        }
     }
 
     /// Bounds of the stored points relative to the anchor.
@@ -192,10 +286,10 @@ impl StreamDataset {
         })
     }
 
-    /// Reads, verifies, decompresses and converts one node.
-    pub fn load_node(&self, info: &NodeInfo) -> Result<GpuNode, ViewerError> {
+    /// Reads, verifies, decompresses and converts one node, its colours' RGB holding `colours`.
+    pub fn load_node(&self, info: &NodeInfo, colours: ColourWord) -> Result<GpuNode, ViewerError> {
         let columns = self.read_columns(info)?;
-        Ok(self.to_gpu(info, &columns))
+        Ok(self.to_gpu(info, &columns, colours))
     }
 
     fn learn_colour(&self, root: &NodeColumns) -> ColourSource {
@@ -223,10 +317,30 @@ impl StreamDataset {
                 .unwrap_or(1.0);
             c.intensity_max = if p99 > 0.0 { p99 } else { 1.0 };
         }
+        if let Some((i, ty)) = c.variation {
+            let mut values: Vec<f64> = root
+                .attribute(&self.layout, i)
+                .chunks_exact(ty.size())
+                .map(|v| ty.read_f64(v))
+                .filter(|v| v.is_finite())
+                .collect();
+            values.sort_by(f64::total_cmp);
+            // As for intensity: the 99th percentile, so that a few edges do not flatten the
+            // ramp over the planes.
+            let p99 = values
+                .get(values.len().saturating_sub(1) * 99 / 100)
+                .copied()
+                .unwrap_or(MAX_VARIATION);
+            c.variation_max = if p99 > 0.0 {
+                p99.min(MAX_VARIATION)
+            } else {
+                MAX_VARIATION
+            };
+        }
         c
     }
 
-    fn to_gpu(&self, info: &NodeInfo, cols: &NodeColumns) -> GpuNode {
+    fn to_gpu(&self, info: &NodeInfo, cols: &NodeColumns, colours: ColourWord) -> GpuNode {
         let n = cols.count;
         let m = &self.metadata;
         let base = DVec3::from_array(m.offset) - self.anchor;
@@ -247,14 +361,24 @@ impl StreamDataset {
         let returns = c
             .return_number
             .map(|(i, ty)| (cols.attribute(&self.layout, i), ty));
+        let normals = match colours {
+            ColourWord::Normal => c
+                .normal
+                .map(|(i, kind)| (cols.attribute(&self.layout, i), kind)),
+            ColourWord::Stored => None,
+        };
+        let variation = c
+            .variation
+            .map(|(i, ty)| (cols.attribute(&self.layout, i), ty));
         let mut points = Vec::with_capacity(n);
         let mut attributes = Vec::with_capacity(n);
         for p in 0..n {
             let x = base.x + scale.x * read_i32(xs, p);
             let y = base.y + scale.y * read_i32(ys, p);
             let z = base.z + scale.z * read_i32(zs, p);
-            let colour = match rgb {
-                Some((col, ty)) => {
+            let colour = match (normals, rgb) {
+                (Some((col, kind)), _) => normal_colour(col, kind, p),
+                (None, Some((col, ty))) => {
                     let s = ty.size();
                     let ch = |k: usize| {
                         let v = ty.read_f64(&col[(p * 3 + k) * s..(p * 3 + k + 1) * s]) as u32;
@@ -262,8 +386,15 @@ impl StreamDataset {
                     };
                     ch(0) | (ch(1) << 8) | (ch(2) << 16) | (255 << 24)
                 }
-                None => 0xffc8_c8c8,
+                (None, None) => GREY,
             };
+            let alpha = variation.map_or(255, |(col, ty)| {
+                let s = ty.size();
+                let v = ty.read_f64(&col[p * s..(p + 1) * s]) / c.variation_max;
+                // NaN becomes 0.
+                (v.clamp(0.0, 1.0) * 255.0).round() as u32
+            });
+            let colour = (colour & 0x00ff_ffff) | (alpha << 24);
             // Raw, so that filters compare stored values; colouring scales it on the GPU.
             let inten = intensity.map_or(0, |(col, ty)| {
                 let s = ty.size();
@@ -287,6 +418,7 @@ impl StreamDataset {
         }
         GpuNode {
             key: info.key,
+            colours,
             points,
             attributes,
             // No stored attribute feeds a stream yet: normals and radii arrive with the
@@ -294,5 +426,72 @@ impl StreamDataset {
             streams: Vec::new(),
             bytes_read: info.size as u64,
         }
+    }
+}
+
+/// The largest surface variation there is, λ0 / (λ0 + λ1 + λ2) with λ0 the smallest.
+const MAX_VARIATION: f64 = 1.0 / 3.0;
+
+/// Point `p`'s normal as a colour, `(n * 0.5 + 0.5) * 255` (grey without one).
+fn normal_colour(col: &[u8], kind: NormalKind, p: usize) -> u32 {
+    let n = match kind {
+        NormalKind::Oct16 => oct16_decode([
+            u16::from_le_bytes([col[p * 4], col[p * 4 + 1]]),
+            u16::from_le_bytes([col[p * 4 + 2], col[p * 4 + 3]]),
+        ]),
+        NormalKind::Floats(ty) => {
+            let s = ty.size();
+            let v: [f64; 3] = std::array::from_fn(|k| ty.read_f64(&col[(p * 3 + k) * s..]));
+            let l = (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt();
+            (l > 0.0 && l.is_finite()).then(|| v.map(|c| c / l))
+        }
+    };
+    match n {
+        Some(n) => {
+            let ch = |c: f64| ((c * 0.5 + 0.5) * 255.0).round().clamp(0.0, 255.0) as u32;
+            ch(n[0]) | (ch(n[1]) << 8) | (ch(n[2]) << 16) | (255 << 24)
+        }
+        None => GREY,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use strata_format::oct16_encode;
+
+    #[test]
+    fn normals_colour_as_rgb_and_points_without_one_grey() {
+        let rgb = |c: u32| [c & 0xff, (c >> 8) & 0xff, (c >> 16) & 0xff];
+        let oct: Vec<u8> = [
+            oct16_encode([0.0, 0.0, 1.0]),
+            oct16_encode([1.0, 0.0, 0.0]),
+            [0, 0],
+        ]
+        .iter()
+        .flat_map(|[u, v]| [u.to_le_bytes(), v.to_le_bytes()].concat())
+        .collect();
+        // Within one step: the octahedral grid puts a pole a hair off its axis.
+        let near = |got: [u32; 3], want: [u32; 3]| {
+            let close = got.iter().zip(want).all(|(g, w)| g.abs_diff(w) <= 1);
+            assert!(close, "{got:?} is not {want:?}");
+        };
+        near(
+            rgb(normal_colour(&oct, NormalKind::Oct16, 0)),
+            [128, 128, 255],
+        );
+        near(
+            rgb(normal_colour(&oct, NormalKind::Oct16, 1)),
+            [255, 128, 128],
+        );
+        assert_eq!(normal_colour(&oct, NormalKind::Oct16, 2), GREY);
+        // Three floats, not of unit length: normalised first; all zero is no normal.
+        let floats: Vec<u8> = [0.0f32, -3.0, 0.0, 0.0, 0.0, 0.0]
+            .iter()
+            .flat_map(|v| v.to_le_bytes())
+            .collect();
+        let f = NormalKind::Floats(AttrType::F32);
+        assert_eq!(rgb(normal_colour(&floats, f, 0)), [128, 0, 128]);
+        assert_eq!(normal_colour(&floats, f, 1), GREY);
     }
 }

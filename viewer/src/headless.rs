@@ -81,6 +81,8 @@ pub fn render(location: &str, opts: &RenderOptions) -> Result<RenderReport, View
         ..HttpOptions::default()
     };
     let ds = Arc::new(StreamDataset::open(location, http)?);
+    // Before the GPU is opened: a colouring the dataset cannot give is refused at once.
+    ds.check_colour(opts.settings.colour)?;
     let ctx = Arc::new(GpuContext::new(opts.projection)?);
     render_with(ds, ctx, opts, t0)
 }
@@ -91,6 +93,7 @@ pub fn render_with(
     opts: &RenderOptions,
     t0: Instant,
 ) -> Result<RenderReport, ViewerError> {
+    ds.check_colour(opts.settings.colour)?;
     let cameras = cameras(&ds, opts)?;
     let mut renderer = Renderer::new(
         ctx.clone(),

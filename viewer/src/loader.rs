@@ -3,9 +3,10 @@
 //! behind is dropped before a thread takes it.
 
 use crate::ViewerError;
-use crate::dataset::{GpuNode, StreamDataset};
+use crate::dataset::{ColourWord, GpuNode, StreamDataset};
 use crossbeam_channel::{Receiver, Sender, unbounded};
 use std::collections::HashSet;
+use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Arc, Condvar, Mutex, PoisonError};
 use std::thread::JoinHandle;
 use strata_format::{HierarchyPage, NodeInfo, NodeKey, PageRef};
@@ -50,6 +51,8 @@ struct Queue {
 struct Shared {
     queue: Mutex<Queue>,
     wake: Condvar,
+    /// Nodes are loaded with their normals as colours (`ColourWord::Normal`).
+    normal_colours: AtomicBool,
 }
 
 pub struct Loader {
@@ -63,6 +66,7 @@ impl Loader {
         let shared = Arc::new(Shared {
             queue: Mutex::new(Queue::default()),
             wake: Condvar::new(),
+            normal_colours: AtomicBool::new(false),
         });
         let (tx, rx) = unbounded();
         let threads = (0..threads.max(1))
@@ -96,6 +100,18 @@ impl Loader {
         q.pending = pending;
         drop(q);
         self.shared.wake.notify_all();
+    }
+
+    /// What the colours of nodes loaded from now on hold; nodes already in flight keep what
+    /// they were started with (`GpuNode::colours` says).
+    pub fn set_colour_word(&self, colours: ColourWord) {
+        self.shared
+            .normal_colours
+            .store(colours == ColourWord::Normal, Ordering::Release);
+    }
+
+    pub fn colour_word(&self) -> ColourWord {
+        colour_word(&self.shared)
     }
 
     pub fn is_busy(&self, key: JobKey) -> bool {
@@ -159,7 +175,7 @@ fn worker(shared: &Shared, ds: &StreamDataset, tx: &Sender<Done>) {
             }
         };
         let done = match job {
-            Job::Node(info) => match ds.load_node(&info) {
+            Job::Node(info) => match ds.load_node(&info, colour_word(shared)) {
                 Ok(node) => Done::Node(node),
                 Err(e) => Done::NodeFailed(info.key, e),
             },
@@ -178,5 +194,13 @@ fn worker(shared: &Shared, ds: &StreamDataset, tx: &Sender<Done>) {
         if receiver_gone {
             return;
         }
+    }
+}
+
+fn colour_word(shared: &Shared) -> ColourWord {
+    if shared.normal_colours.load(Ordering::Acquire) {
+        ColourWord::Normal
+    } else {
+        ColourWord::Stored
     }
 }

@@ -12,14 +12,20 @@ pub enum ColourMode {
     Intensity,
     Classification,
     Elevation,
+    /// The normal as RGB, `(n * 0.5 + 0.5) * 255`: x red, y green, z blue.
+    Normal,
+    /// Surface variation through the elevation ramp.
+    Curvature,
 }
 
 impl ColourMode {
-    pub const ALL: [ColourMode; 4] = [
+    pub const ALL: [ColourMode; 6] = [
         ColourMode::Rgb,
         ColourMode::Intensity,
         ColourMode::Classification,
         ColourMode::Elevation,
+        ColourMode::Normal,
+        ColourMode::Curvature,
     ];
 
     pub fn name(self) -> &'static str {
@@ -28,6 +34,18 @@ impl ColourMode {
             ColourMode::Intensity => "intensity",
             ColourMode::Classification => "classification",
             ColourMode::Elevation => "elevation",
+            ColourMode::Normal => "normal",
+            ColourMode::Curvature => "curvature",
+        }
+    }
+
+    /// The attribute the colouring needs and is offered only with (the others fall back or
+    /// colour every point alike where the dataset lacks theirs).
+    pub fn attribute(self) -> Option<&'static str> {
+        match self {
+            ColourMode::Normal => Some("normal"),
+            ColourMode::Curvature => Some("surface_variation"),
+            _ => None,
         }
     }
 
@@ -38,7 +56,7 @@ impl ColourMode {
             .ok_or_else(|| {
                 ViewerError::argument(
                     s,
-                    "unknown colouring (expected rgb, intensity, classification or elevation)",
+                    "unknown colouring (expected rgb, intensity, classification, elevation, normal or curvature)",
                 )
             })
     }

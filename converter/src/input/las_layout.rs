@@ -1,6 +1,7 @@
 //! Where each LAS point-record field lives, for point formats 0-10, and how it maps onto Strata
 //! attributes. Reading (record -> row) and export (row -> record) share this one table.
 
+use super::las_normals::normal_group;
 use strata_format::{AttrType, Attribute};
 
 /// How one attribute's bytes relate to the LAS record.
@@ -43,10 +44,29 @@ pub const STANDARD_LEGACY: [&str; 10] = [
 ];
 
 /// Attributes (in row order) and field ops of a LAS point format. Row offsets in the ops are
-/// relative to the start of the attributes (after the 12 position bytes).
+/// relative to the start of the attributes (after the 12 position bytes). Three extra-bytes
+/// fields named like a normal's components become one `normal`
+/// ([`NORMAL_FIELD_NAMES`](super::las_normals::NORMAL_FIELD_NAMES)).
 pub fn las_fields(
     format_number: u8,
     extra: &[ExtraBytesField],
+) -> (Vec<Attribute>, Vec<FieldOp>, usize) {
+    fields(format_number, extra, true)
+}
+
+/// [`las_fields`] with every extra-bytes field an attribute of its own, for writing a layout
+/// that holds `nx ny nz` (or the like) as separate attributes.
+pub fn las_fields_ungrouped(
+    format_number: u8,
+    extra: &[ExtraBytesField],
+) -> (Vec<Attribute>, Vec<FieldOp>, usize) {
+    fields(format_number, extra, false)
+}
+
+fn fields(
+    format_number: u8,
+    extra: &[ExtraBytesField],
+    group_normals: bool,
 ) -> (Vec<Attribute>, Vec<FieldOp>, usize) {
     let extended = format_number >= 6;
     let mut attrs = Vec::new();
@@ -192,10 +212,34 @@ pub fn las_fields(
         });
         at += 29;
     }
+    // Extra bytes: each field is one attribute at its place in the record, except three
+    // scalar floats named like a normal's components, which become one `normal` (as PLY's
+    // `nx ny nz` do), placed where the first of them is.
+    let group = normal_group(extra).filter(|_| group_normals);
+    let mut record_at = Vec::with_capacity(extra.len());
     for e in extra {
-        let rec = at;
-        push(&mut attrs, e.attribute.clone(), &|r| copy(rec, r, e.len));
+        record_at.push(at);
         at += e.len;
+    }
+    for (i, e) in extra.iter().enumerate() {
+        match &group {
+            Some(g) if g.fields.contains(&i) => {
+                if g.fields.iter().min() != Some(&i) {
+                    continue;
+                }
+                let s = g.attribute.ty.size();
+                for (c, &f) in g.fields.iter().enumerate() {
+                    ops.push(copy(record_at[f], next + c * s, s));
+                }
+                next += g.attribute.size();
+                attrs.push(g.attribute.clone());
+            }
+            _ => {
+                ops.push(copy(record_at[i], next, e.len));
+                next += e.len;
+                attrs.push(e.attribute.clone());
+            }
+        }
     }
     (attrs, ops, at)
 }

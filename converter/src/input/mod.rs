@@ -5,6 +5,7 @@ pub mod e57_decode;
 pub mod las;
 pub mod las_header;
 pub mod las_layout;
+pub mod las_normals;
 pub mod laz_check;
 pub mod ply;
 pub mod ply_header;

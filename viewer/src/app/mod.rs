@@ -66,6 +66,7 @@ pub fn run_window(location: &str, opts: WindowOptions) -> Result<(), ViewerError
         ..HttpOptions::default()
     };
     let ds = Arc::new(StreamDataset::open(location, http)?);
+    ds.check_colour(opts.settings.colour)?;
     let ctx = Arc::new(GpuContext::new(opts.projection)?);
     let renderer = Renderer::new(
         ctx.clone(),
@@ -195,9 +196,17 @@ impl ViewerApp {
         }
 
         ui.label("Colour");
+        let ds = self.renderer.dataset().clone();
         egui::Grid::new("colour").num_columns(2).show(ui, |ui| {
             for (i, c) in ColourMode::ALL.into_iter().enumerate() {
-                ui.radio_value(&mut self.settings.colour, c, c.name());
+                // Greyed where the dataset lacks the attribute (normals: convert --normals).
+                ui.add_enabled_ui(ds.offers(c), |ui| {
+                    ui.radio_value(&mut self.settings.colour, c, c.name())
+                        .on_disabled_hover_text(format!(
+                            "the dataset has no \"{}\" attribute (convert it with --normals)",
+                            c.attribute().unwrap_or_default()
+                        ));
+                });
                 if i % 2 == 1 {
                     ui.end_row();
                 }

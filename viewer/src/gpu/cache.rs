@@ -86,10 +86,7 @@ impl NodeCache {
         }
         let fed = |s: &PointStream| !matches!(s, PointStream::Kept { .. });
         if wanted.iter().any(|s| fed(s) && !self.streams.contains(s)) {
-            self.slots.clear();
-            for a in &mut self.arenas {
-                a.free = vec![(0, 1 << self.arena_shift)];
-            }
+            self.clear();
         }
         let n = self.arena_points() as u64;
         for a in &mut self.arenas {
@@ -101,6 +98,14 @@ impl NodeCache {
             }
         }
         self.streams = wanted.to_vec();
+    }
+
+    /// Forgets every resident node (the arenas stay), so that each is loaded again.
+    pub fn clear(&mut self) {
+        self.slots.clear();
+        for a in &mut self.arenas {
+            a.free = vec![(0, 1 << self.arena_shift)];
+        }
     }
 
     pub fn arena_points(&self) -> u32 {
@@ -376,6 +381,7 @@ mod stream_tests {
                 y: 0,
                 z: 0,
             },
+            colours: Default::default(),
             points: vec![[0; 4]; points],
             attributes: vec![0; points],
             streams: Vec::new(),

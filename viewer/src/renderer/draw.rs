@@ -108,13 +108,7 @@ impl Renderer {
                 SizeMode::Attenuated => 1,
             },
             focal_px: camera.focal_px(height),
-            colour_mode: if settings.colour == crate::settings::ColourMode::Rgb
-                && !self.ds.has_rgb()
-            {
-                crate::settings::ColourMode::Elevation.shader_code()
-            } else {
-                settings.colour.shader_code()
-            },
+            colour_mode: self.ds.shader_colour(settings.colour).shader_code(),
             z_min: bmin.z,
             z_max: bmax.z,
             arena_shift: self.cache.arena_shift,

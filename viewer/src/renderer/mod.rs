@@ -252,6 +252,13 @@ impl Renderer {
             self.accept(done, &mut bytes);
         }
         self.bytes_total += bytes;
+        // Colouring by normal puts the normals where the stored colours were: a change between
+        // that and the rest loads every node again.
+        let colours = self.ds.colour_word(settings.colour);
+        if colours != self.loader.colour_word() {
+            self.loader.set_colour_word(colours);
+            self.cache.clear();
+        }
         // The cache holds a pipeline's per-point streams only while that pipeline is active.
         let ctx = self.ctx.clone();
         ctx.scoped("uploading nodes to the GPU", || {
@@ -342,6 +349,11 @@ impl Renderer {
         let mut budget = settings.upload_points_per_frame.unwrap_or(u64::MAX);
         let mut first = true;
         while let Some(node) = self.uploads.front() {
+            // Loaded for the colouring before the last change: it is asked for again.
+            if node.colours != self.loader.colour_word() {
+                self.uploads.pop_front();
+                continue;
+            }
             let n = node.points.len() as u64;
             // At least one node per frame, however large, so uploads always progress.
             if n > budget && !first {

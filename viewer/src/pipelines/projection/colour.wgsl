@@ -41,6 +41,9 @@ fn point_colour(p: vec4<u32>, a: u32) -> vec3<f32> {
             let z = bitcast<f32>(p.z);
             return ramp((z - frame.z_min) / max(frame.z_max - frame.z_min, 1e-6));
         }
+        // Surface variation, which the loader puts in the colour's alpha byte.
+        case 5u: { return ramp(unpack4x8unorm(p.w).a); }
+        // The stored colour, or the normal where the loader put it there instead (4).
         default: { return unpack4x8unorm(p.w).rgb; }
     }
 }
