@@ -23,7 +23,7 @@ bin=../target/release/strata
 if [ -x "$bin" ]; then
   tmp=$(mktemp -d)
   "$bin" convert "$data/autzen_trim.las" -o "$tmp/ds" --quiet
-  # hierarchy.bin: an 8-byte magic, then pages; the root page is the first one after it.
+  # hierarchy.bin: a 32-byte head, then pages; the root page is the first one after it.
   python3 - "$tmp/ds" corpus <<'PY'
 import json, struct, sys, zlib
 ds, corpus = sys.argv[1], sys.argv[2]
@@ -32,14 +32,17 @@ hier = open(ds + "/hierarchy.bin", "rb").read()
 octree = open(ds + "/octree.bin", "rb").read()
 h = meta["hierarchy"]
 page = hier[h["root_page_offset"]:h["root_page_offset"] + h["root_page_size"]]
-open(corpus + "/page_decode/root", "wb").write(b"\x00" + page)
-# Node entries of the root page: kind, mask, pad, count, offset, size, crc (24 bytes each).
+# The target's first byte: root level 0, five page levels; its second: format 1.1.
+open(corpus + "/page_decode/root", "wb").write(b"\x80\x01" + page)
+# Entries of the root page: kind, mask, pad, count, offset, size, crc (24 bytes each); in 1.1
+# proxies locate their node's payload too.
 body = page[:-4]
+entries = struct.unpack_from("<I", body, 0)[0]
 stride = 12 + sum({"u8":1,"i8":1,"u16":2,"i16":2,"u32":4,"i32":4,"f32":4,"u64":8,"i64":8,"f64":8}[a["type"]] * a["count"] for a in meta["attributes"])
 n = 0
-for i in range(4, len(body) - 23, 24):
+for i in range(4, 4 + 24 * entries, 24):
     kind, mask, _, count, off, size, crc = struct.unpack_from("<BBHIQII", body, i)
-    if kind == 0 and n < 8:
+    if size > 0 and n < 8:
         payload = octree[off:off + size]
         # The node_decode target reads: count (u32), attribute count, attribute width, payload.
         open(corpus + "/node_decode/node%d" % n, "wb").write(struct.pack("<IBB", count, 0, 0) + payload)

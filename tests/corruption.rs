@@ -50,6 +50,17 @@ fn every_node_payload_flip_is_named() {
 }
 
 #[test]
+fn every_octree_head_byte_flip_is_caught() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let ds = dataset(dir.path());
+    for at in 0..strata_format::OCTREE_HEAD_SIZE {
+        flip(&ds.join("octree.bin"), at);
+        verify_fails_naming(&ds, "octree.bin");
+        flip(&ds.join("octree.bin"), at);
+    }
+}
+
+#[test]
 fn every_hierarchy_byte_flip_is_caught() {
     let dir = tempfile::tempdir().expect("tempdir");
     let ds = dataset(dir.path());
@@ -57,7 +68,9 @@ fn every_hierarchy_byte_flip_is_caught() {
     let len = std::fs::metadata(&path).expect("meta").len();
     for at in 0..len {
         flip(&path, at);
-        let part = if at < 8 {
+        // The head (magic, dataset id, root page size, page levels) is checked against
+        // metadata.json at open; the pages by their checksums.
+        let part = if at < strata_format::HIERARCHY_HEAD_SIZE {
             "hierarchy.bin"
         } else {
             "hierarchy page"

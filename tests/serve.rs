@@ -1,7 +1,8 @@
 //! `strata serve` and remote datasets: bytes served equal bytes on disk, refusals, validators,
 //! renders over HTTP (from strata serve and from nginx) equal renders from disk, a server killed
 //! mid-stream, timeouts and graceful shutdown; the attacks of issue 23 (serve/attacks.rs), HTTP/2
-//! (serve/h2c.rs) and a 20 s soak at 256 connections (serve/soak.rs).
+//! (serve/h2c.rs), a 20 s soak at 256 connections (serve/soak.rs), and format versions and mixed
+//! files over HTTP (serve/versions.rs).
 
 #[path = "serve/attacks.rs"]
 mod attacks;
@@ -12,6 +13,8 @@ mod h2c;
 mod http;
 #[path = "serve/soak.rs"]
 mod soak;
+#[path = "serve/versions.rs"]
+mod versions;
 
 use common::{data, s};
 use std::io::{BufRead, BufReader, Read, Write};
@@ -218,6 +221,12 @@ fn head_validators_multirange_and_listing() {
         .collect();
     assert_eq!(names, ["autzen.strata", "city.strata"]);
     assert_eq!(v[0]["points"], 110_000);
+    let meta: serde_json::Value = serde_json::from_slice(
+        &std::fs::read(root().join("autzen.strata/metadata.json")).expect("metadata"),
+    )
+    .expect("json");
+    assert_eq!(v[0]["version"], "1.1");
+    assert_eq!(v[0]["id"], meta["id"]);
 }
 
 #[test]

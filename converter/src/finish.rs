@@ -13,10 +13,11 @@ use crate::workdir::WorkDir;
 use std::collections::BTreeMap;
 use std::fs::{self, File};
 use std::io::Write;
+use std::os::unix::fs::FileExt;
 use std::path::Path;
 use strata_format::{
-    Bounds, DatasetFile, FileInfo, Files, HierarchyInfo, Metadata, NodeKey, NodeRecord,
-    PAGE_LEVELS, RowLayout, Scanner, build_hierarchy,
+    Bounds, BuiltHierarchy, Cube, DatasetFile, DatasetId, FileInfo, Files, HierarchyInfo, Layout,
+    Metadata, NodeKey, NodeRecord, PAGE_LEVELS, RowLayout, Scanner, build_hierarchy, octree_head,
 };
 
 /// Every node of the dataset, and the octree file holding them all.
@@ -88,11 +89,16 @@ pub fn finish(
         octree_path,
         octree_len,
     } = merged;
+    let built = build_hierarchy(&records, PAGE_LEVELS, Layout::V1_1);
+    let id = dataset_id(&built, octree_len, plan);
+    octree
+        .write_all_at(&octree_head(id), 0)
+        .map_err(io_err(&octree_path, "cannot write"))?;
     octree
         .sync_all()
         .map_err(io_err(&octree_path, "cannot sync"))?;
     drop(octree);
-    let (hier, root_off, root_size) = build_hierarchy(&records, PAGE_LEVELS);
+    let hier = built.file(id);
     write_synced(&wd.dataset_file(DatasetFile::Hierarchy), &hier)?;
     let points: u64 = records.values().map(|r| r.point_count as u64).sum();
     if points != plan.points {
@@ -115,6 +121,7 @@ pub fn finish(
     let mut meta = Metadata {
         format: strata_format::FORMAT_NAME.into(),
         version: [strata_format::VERSION_MAJOR, strata_format::VERSION_MINOR],
+        id: Some(id),
         points,
         nodes: records.len() as u64,
         depth,
@@ -139,8 +146,8 @@ pub fn finish(
             },
         },
         hierarchy: HierarchyInfo {
-            root_page_offset: root_off,
-            root_page_size: root_size,
+            root_page_offset: built.root_page_offset,
+            root_page_size: built.root_page_size,
             page_levels: PAGE_LEVELS,
         },
         sources: opts.inputs.iter().map(|p| source_name(p)).collect(),
@@ -195,6 +202,27 @@ pub fn finish(
         depth,
         dataset_bytes: octree_len + hier.len() as u64,
     })
+}
+
+/// The dataset id: a hash of everything the files hold that decides what a reader sees (the
+/// pages, which hold every payload's place, size and checksum; the octree's length; the grid;
+/// the attributes), so the same conversion gives the same id and other content another.
+fn dataset_id(built: &BuiltHierarchy, octree_len: u64, plan: &Plan) -> DatasetId {
+    let grid: Vec<u8> = plan
+        .scale
+        .iter()
+        .chain(&plan.offset)
+        .flat_map(|v| v.to_le_bytes())
+        .chain(octree_len.to_le_bytes())
+        .collect();
+    let Cube { min, bits } = plan.cube;
+    let cube: Vec<u8> = min
+        .iter()
+        .flat_map(|v| v.to_le_bytes())
+        .chain(bits.to_le_bytes())
+        .collect();
+    let attributes = serde_json::to_vec(&plan.attributes).unwrap_or_default();
+    DatasetId::of_content([&built.pages[..], &grid, &cube, &attributes])
 }
 
 fn write_synced(path: &Path, bytes: &[u8]) -> Result<()> {

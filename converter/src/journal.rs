@@ -11,7 +11,7 @@ use serde::{Deserialize, Serialize};
 use std::fs::{self, File, OpenOptions};
 use std::io::{BufRead, BufReader, Seek, SeekFrom, Write};
 use std::path::PathBuf;
-use strata_format::{NodeKey, NodeRecord, OCTREE_MAGIC};
+use strata_format::{DatasetId, NodeKey, NodeRecord, OCTREE_HEAD_SIZE, octree_head};
 
 /// A node as the journal stores it: (level, x, y, z, points, offset, size, crc, child mask).
 type JournalNode = (u8, u32, u32, u32, u32, u64, u32, u32, u8);
@@ -50,13 +50,15 @@ impl JournalEntry {
 
 /// The octree file's length after the committed chunks of `journal`.
 pub fn octree_end(journal: &[JournalEntry]) -> u64 {
-    journal.last().map_or(OCTREE_MAGIC.len() as u64, |j| j.end)
+    journal.last().map_or(OCTREE_HEAD_SIZE, |j| j.end)
 }
 
+/// The hierarchy's record of a node whose payload was written at `offset`; a node without
+/// points has no payload, and offset 0.
 pub fn record_of(n: &FinishedNode, offset: u64) -> NodeRecord {
     NodeRecord {
         point_count: n.point_count,
-        offset,
+        offset: if n.payload.is_empty() { 0 } else { offset },
         size: n.payload.len() as u32,
         checksum: n.crc,
         child_mask: n.child_mask,
@@ -77,6 +79,12 @@ pub fn fingerprint(opts: &ConvertOptions) -> String {
         let abs = fs::canonicalize(p).unwrap_or_else(|_| p.clone());
         parts.push(format!("{}:{len}:{mtime}", abs.display()));
     }
+    // A work directory of another format version has another octree head.
+    parts.push(format!(
+        "{}.{}",
+        strata_format::VERSION_MAJOR,
+        strata_format::VERSION_MINOR
+    ));
     parts.push(format!(
         "{}:{}:{}",
         opts.sampling.name(),
@@ -108,11 +116,11 @@ pub fn resumable_plan(opts: &ConvertOptions, wd: &WorkDir, fp: &str) -> Result<O
 }
 
 /// Starts the octree file and an empty journal, then saves the plan: from then on the work
-/// directory can be resumed.
+/// directory can be resumed. The octree head's id is written when the dataset is finished.
 pub fn save_plan(wd: &WorkDir, plan: &Plan) -> Result<()> {
     let octree = wd.dataset_file(strata_format::DatasetFile::Octree);
     let mut f = File::create(&octree).map_err(io_err(&octree, "cannot create"))?;
-    f.write_all(OCTREE_MAGIC)
+    f.write_all(&octree_head(DatasetId::default()))
         .map_err(io_err(&octree, "cannot write"))?;
     let journal = wd.journal();
     File::create(&journal).map_err(io_err(&journal, "cannot create"))?;

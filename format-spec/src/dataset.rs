@@ -1,8 +1,8 @@
 //! Reading a dataset from a local directory with positioned reads.
 
 use crate::{
-    EntryKind, FormatError, HIERARCHY_MAGIC, HierarchyPage, Metadata, NodeColumns, NodeKey,
-    OCTREE_MAGIC, PageRef, RowLayout, decode_node, decode_page,
+    FormatError, HierarchyPage, Metadata, NodeColumns, NodeInfo, PageRef, RowLayout,
+    check_file_head, decode_node, decode_page,
 };
 use std::fs::File;
 use std::os::unix::fs::FileExt;
@@ -26,17 +26,6 @@ impl DatasetFile {
     }
 }
 
-/// A node as the hierarchy describes it.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub struct NodeInfo {
-    pub key: NodeKey,
-    pub point_count: u32,
-    pub offset: u64,
-    pub size: u32,
-    pub checksum: u32,
-    pub child_mask: u8,
-}
-
 /// An open dataset on the local file system.
 #[derive(Debug)]
 pub struct LocalDataset {
@@ -48,8 +37,8 @@ pub struct LocalDataset {
 }
 
 impl LocalDataset {
-    /// Opens a dataset directory: reads `metadata.json` and checks both binary files' magic and
-    /// size. Reads no hierarchy page yet.
+    /// Opens a dataset directory: reads `metadata.json` and checks both binary files' heads
+    /// against it (magic, dataset id, size). Reads no hierarchy page yet.
     pub fn open(dir: &Path) -> Result<LocalDataset, FormatError> {
         if !dir.is_dir() {
             return Err(FormatError::corrupt(
@@ -62,13 +51,13 @@ impl LocalDataset {
         let metadata = Metadata::from_json(&bytes, &meta_path)?;
         let hierarchy = open_checked(
             &dir.join(&metadata.files.hierarchy.name),
-            HIERARCHY_MAGIC,
-            metadata.files.hierarchy.size,
+            DatasetFile::Hierarchy,
+            &metadata,
         )?;
         let octree = open_checked(
             &dir.join(&metadata.files.octree.name),
-            OCTREE_MAGIC,
-            metadata.files.octree.size,
+            DatasetFile::Octree,
+            &metadata,
         )?;
         Ok(LocalDataset {
             dir: dir.to_path_buf(),
@@ -106,8 +95,9 @@ impl LocalDataset {
     /// Reads and decodes one hierarchy page.
     pub fn load_page(&self, page: &PageRef) -> Result<HierarchyPage, FormatError> {
         let path = self.path_of(DatasetFile::Hierarchy);
-        let bytes = read_range(&self.hierarchy, &path, page.offset, page.size)?;
-        decode_page(&bytes, page, self.metadata.hierarchy.page_levels).map_err(|e| {
+        let bytes = self.read(DatasetFile::Hierarchy, page.offset, page.size)?;
+        let levels = self.metadata.hierarchy.page_levels;
+        decode_page(&bytes, page, levels, self.metadata.layout()).map_err(|e| {
             FormatError::corrupt(
                 &path,
                 format!(
@@ -118,14 +108,25 @@ impl LocalDataset {
         })
     }
 
-    /// Every node, loading every page. For whole-dataset work (export, verify, info).
+    /// Every node once, loading every page, in key order. For whole-dataset work (export,
+    /// verify, info).
     pub fn all_nodes(&self) -> Result<Vec<NodeInfo>, FormatError> {
         let mut nodes = Vec::new();
         let mut pages = vec![self.root_page()];
+        let mut seen = std::collections::HashSet::new();
         while let Some(p) = pages.pop() {
+            if !seen.insert(p.offset) {
+                return Err(FormatError::corrupt(
+                    self.path_of(DatasetFile::Hierarchy),
+                    format!(
+                        "hierarchy page at byte {} is referenced by more than one proxy",
+                        p.offset
+                    ),
+                ));
+            }
             let page = self.load_page(&p)?;
             pages.extend(page.child_pages());
-            nodes.extend(node_infos(&page));
+            nodes.extend(page.own_nodes());
         }
         nodes.sort_by_key(|n| n.key);
         Ok(nodes)
@@ -148,67 +149,33 @@ impl LocalDataset {
 impl LocalDataset {
     /// The stored (compressed) bytes of one node, unchecked.
     pub fn read_payload(&self, node: &NodeInfo) -> Result<Vec<u8>, FormatError> {
-        let path = self.path_of(DatasetFile::Octree);
-        read_range(&self.octree, &path, node.offset, node.size as u64)
+        self.read(DatasetFile::Octree, node.offset, node.size as u64)
+    }
+
+    /// `len` bytes at `offset` of a binary file, refused before allocating when the range
+    /// lies past the file's end (sizes were checked against the metadata at open).
+    pub fn read(&self, file: DatasetFile, offset: u64, len: u64) -> Result<Vec<u8>, FormatError> {
+        let path = self.path_of(file);
+        let (f, size) = match file {
+            DatasetFile::Hierarchy => (&self.hierarchy, self.metadata.files.hierarchy.size),
+            _ => (&self.octree, self.metadata.files.octree.size),
+        };
+        if offset.checked_add(len).is_none_or(|end| end > size) {
+            return Err(FormatError::corrupt(
+                &path,
+                format!("range of {len} bytes at byte {offset} lies past the end ({size} bytes)"),
+            ));
+        }
+        read_range(f, &path, offset, len)
     }
 }
 
-/// The nodes a page describes in full (proxies are described by their own page).
-pub fn node_infos(page: &HierarchyPage) -> impl Iterator<Item = NodeInfo> + '_ {
-    page.entries
-        .iter()
-        .filter(|(_, e)| e.kind == EntryKind::Node)
-        .map(|(k, e)| NodeInfo {
-            key: *k,
-            point_count: e.point_count,
-            offset: e.offset,
-            size: e.size,
-            checksum: e.checksum,
-            child_mask: e.child_mask,
-        })
-}
-
-fn open_checked(path: &Path, magic: &[u8; 8], expected_size: u64) -> Result<File, FormatError> {
-    let file = File::open(path).map_err(|e| FormatError::io(path, e))?;
-    let len = file.metadata().map_err(|e| FormatError::io(path, e))?.len();
-    let head = if len >= 8 {
-        read_range(&file, path, 0, 8)?
-    } else {
-        Vec::new()
-    };
-    check_file_head(path, len, &head, magic, expected_size)?;
-    Ok(file)
-}
-
-/// Checks a binary dataset file's length against `metadata.json` and its first bytes against
-/// its magic. `path` names the file (or URL) in the message. Every reader (local, mmap, HTTP)
-/// applies the same check.
-pub fn check_file_head(
-    path: impl AsRef<Path>,
-    len: u64,
-    head: &[u8],
-    magic: &[u8; 8],
-    expected_size: u64,
-) -> Result<(), FormatError> {
-    let path = path.as_ref();
-    if len != expected_size {
-        return Err(FormatError::corrupt(
-            path,
-            format!(
-                "file is {len} bytes but metadata.json says {expected_size} (truncated or replaced)"
-            ),
-        ));
-    }
-    if head.get(..8) != Some(&magic[..]) {
-        return Err(FormatError::corrupt(
-            path,
-            format!(
-                "does not start with the {:?} magic",
-                String::from_utf8_lossy(magic)
-            ),
-        ));
-    }
-    Ok(())
+fn open_checked(path: &Path, file: DatasetFile, meta: &Metadata) -> Result<File, FormatError> {
+    let f = File::open(path).map_err(|e| FormatError::io(path, e))?;
+    let len = f.metadata().map_err(|e| FormatError::io(path, e))?.len();
+    let head = read_range(&f, path, 0, meta.layout().head_size(file).min(len))?;
+    check_file_head(path, file, Some(len), &head, meta)?;
+    Ok(f)
 }
 
 fn read_range(file: &File, path: &Path, offset: u64, len: u64) -> Result<Vec<u8>, FormatError> {

@@ -7,29 +7,38 @@
 mod attribute;
 mod dataset;
 mod error;
+mod head;
 mod hierarchy;
+#[cfg(test)]
+mod hierarchy_tests;
 mod metadata;
 mod node_codec;
 mod node_key;
+mod page_build;
+pub mod v1_0;
 mod verify;
 
 pub use attribute::{
     AttrType, Attribute, OCT16, RowLayout, oct16_decode, oct16_encode, row_position,
 };
-pub use dataset::{DatasetFile, LocalDataset, NodeInfo, check_file_head, node_infos};
+pub use dataset::{DatasetFile, LocalDataset};
 pub use error::FormatError;
+pub use head::{
+    DatasetId, HIERARCHY_HEAD_SIZE, HIERARCHY_MAGIC, HIERARCHY_MAGIC_1_0, HierarchyHead, Layout,
+    OCTREE_HEAD_SIZE, OCTREE_MAGIC, OCTREE_MAGIC_1_0, ROOT_PAGE_OFFSET, check_file_head,
+    octree_head,
+};
 pub use hierarchy::{
-    ENTRY_SIZE, EntryKind, HIERARCHY_MAGIC, HierarchyPage, NodeRecord, PAGE_LEVELS, PageEntry,
-    PageRef, build_hierarchy, decode_page,
+    ENTRY_SIZE, EntryKind, HierarchyPage, NodeInfo, PAGE_LEVELS, PAGE_REF_SIZE, PageEntry, PageRef,
+    Proxy, decode_page, page_size,
 };
 pub use metadata::{
-    Bounds, Cube, FORMAT_NAME, FileInfo, Files, HierarchyInfo, Metadata, NormalsInfo, Scanner,
-    VERSION_MAJOR, VERSION_MINOR,
+    Bounds, Cube, FORMAT_NAME, FileInfo, Files, HierarchyInfo, MAX_PAGE_LEVELS, Metadata,
+    NormalsInfo, Scanner, VERSION_MAJOR, VERSION_MINOR,
 };
-pub use node_codec::{
-    NodeColumns, NodeDecodeError, OCTREE_MAGIC, decode_node, encode_node, encode_node_rows,
-};
+pub use node_codec::{NodeColumns, NodeDecodeError, decode_node, encode_node, encode_node_rows};
 pub use node_key::NodeKey;
+pub use page_build::{BuiltHierarchy, NodeRecord, build_hierarchy};
 pub use verify::{Fault, VerifyReport, verify_dataset};
 
 /// Sampling grid cells per node edge: a node's spacing is its edge length / `GRID_CELLS`.

@@ -1,10 +1,16 @@
-use crate::{Attribute, FormatError, NodeKey, PageRef, RowLayout};
+use crate::{
+    Attribute, DatasetId, FormatError, Layout, NodeKey, PageRef, ROOT_PAGE_OFFSET, RowLayout,
+};
 use serde::{Deserialize, Serialize};
 use std::path::Path;
 
 pub const FORMAT_NAME: &str = "strata-lpc";
 pub const VERSION_MAJOR: u32 = 1;
-pub const VERSION_MINOR: u32 = 0;
+/// The newest minor version this reader knows; it refuses newer ones (section 1 of SPEC.md).
+pub const VERSION_MINOR: u32 = 1;
+
+/// The most levels a 1.1 page may span (a full page of 8 levels is 2.4 million entries).
+pub const MAX_PAGE_LEVELS: u32 = 8;
 
 /// Real-world bounds of the stored points (the min and max of every coordinate).
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
@@ -54,6 +60,9 @@ pub struct Scanner {
 pub struct Metadata {
     pub format: String,
     pub version: [u32; 2],
+    /// The dataset id, also in the heads of both binary files (format 1.1; absent in 1.0).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub id: Option<DatasetId>,
     pub points: u64,
     pub nodes: u64,
     /// Deepest level that holds a node (root = 0).
@@ -117,6 +126,11 @@ pub struct NormalsInfo {
 }
 
 impl Metadata {
+    /// The binary layout of the files, from the version (checked by `from_json`).
+    pub fn layout(&self) -> Layout {
+        Layout::of_minor(self.version[1])
+    }
+
     pub fn row_layout(&self) -> RowLayout {
         RowLayout::new(self.attributes.clone())
     }
@@ -182,8 +196,24 @@ impl Metadata {
         serde_json::to_string_pretty(self).unwrap_or_default()
     }
 
-    /// Parses and checks `metadata.json`; `path` is used in error messages only.
+    /// Parses and checks `metadata.json`; `path` is used in error messages only. Refuses a
+    /// major version other than ours and a minor version newer than ours, naming it.
     pub fn from_json(bytes: &[u8], path: &Path) -> Result<Metadata, FormatError> {
+        let meta = Metadata::from_json_any_minor(bytes, path)?;
+        if meta.version[1] > VERSION_MINOR {
+            return Err(FormatError::UnsupportedVersion {
+                path: path.into(),
+                found: format!("{}.{}", meta.version[0], meta.version[1]),
+                supported: format!("{VERSION_MAJOR}.0 to {VERSION_MAJOR}.{VERSION_MINOR}"),
+            });
+        }
+        meta.check(path)?;
+        Ok(meta)
+    }
+
+    /// As `from_json` but accepting any minor version of our major and checking no more than
+    /// the members' types: for a server, which hands out the files without reading them.
+    pub fn from_json_any_minor(bytes: &[u8], path: &Path) -> Result<Metadata, FormatError> {
         let value: serde_json::Value = serde_json::from_slice(bytes)
             .map_err(|e| FormatError::corrupt(path, format!("not valid JSON ({e})")))?;
         if value.get("format").and_then(|f| f.as_str()) != Some(FORMAT_NAME) {
@@ -209,13 +239,11 @@ impl Metadata {
                     .map(|v| v.to_string())
                     .collect::<Vec<_>>()
                     .join("."),
-                supported: format!("{VERSION_MAJOR}.x"),
+                supported: format!("{VERSION_MAJOR}.0 to {VERSION_MAJOR}.{VERSION_MINOR}"),
             });
         }
-        let meta: Metadata = serde_json::from_value(value)
-            .map_err(|e| FormatError::corrupt(path, format!("malformed metadata ({e})")))?;
-        meta.check(path)?;
-        Ok(meta)
+        serde_json::from_value(value)
+            .map_err(|e| FormatError::corrupt(path, format!("malformed metadata ({e})")))
     }
 
     fn check(&self, path: &Path) -> Result<(), FormatError> {
@@ -232,11 +260,112 @@ impl Metadata {
         if self.hierarchy.page_levels == 0 {
             return bad("hierarchy.page_levels must be at least 1");
         }
+        if self.layout() == Layout::V1_1 {
+            if self.id.is_none() {
+                return bad("format 1.1 needs the dataset id (member \"id\")");
+            }
+            if self.hierarchy.root_page_offset != ROOT_PAGE_OFFSET {
+                return bad(&format!(
+                    "hierarchy.root_page_offset is {} but format 1.1 puts the root page at byte {ROOT_PAGE_OFFSET}",
+                    self.hierarchy.root_page_offset
+                ));
+            }
+            if !(2..=MAX_PAGE_LEVELS).contains(&self.hierarchy.page_levels) {
+                return bad(&format!(
+                    "hierarchy.page_levels is {} but format 1.1 allows 2 to {MAX_PAGE_LEVELS}",
+                    self.hierarchy.page_levels
+                ));
+            }
+            if self.hierarchy.root_page_size > u32::MAX as u64 {
+                return bad("hierarchy.root_page_size does not fit the head's 32 bits");
+            }
+        }
         for a in &self.attributes {
             if a.count == 0 {
                 return bad(&format!("attribute '{}' has count 0", a.name));
             }
         }
         Ok(())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A valid 1.1 `metadata.json` as a JSON value.
+    fn meta_1_1() -> serde_json::Value {
+        serde_json::json!({
+            "format": "strata-lpc", "version": [1, 1], "id": "00112233445566778899aabbccddeeff",
+            "points": 1, "nodes": 1, "depth": 0,
+            "scale": [0.01, 0.01, 0.01], "offset": [0.0, 0.0, 0.0],
+            "bounds": {"min": [0.0, 0.0, 0.0], "max": [0.0, 0.0, 0.0]},
+            "cube": {"min": [0, 0, 0], "bits": 1}, "spacing": 0.0002, "sampling": "poisson",
+            "attributes": [],
+            "files": {"hierarchy": {"name": "hierarchy.bin", "size": 68},
+                      "octree": {"name": "octree.bin", "size": 40}},
+            "hierarchy": {"root_page_offset": 32, "root_page_size": 36, "page_levels": 5}
+        })
+    }
+
+    fn parse(v: &serde_json::Value) -> Result<Metadata, String> {
+        Metadata::from_json(v.to_string().as_bytes(), Path::new("metadata.json"))
+            .map_err(|e| e.to_string())
+    }
+
+    #[test]
+    fn versions_up_to_ours_are_read_and_newer_ones_refused_by_name() {
+        let m = parse(&meta_1_1()).expect("1.1 reads");
+        assert_eq!(m.layout(), Layout::V1_1);
+        assert_eq!(
+            m.id.map(|i| i.to_string()).as_deref(),
+            Some("00112233445566778899aabbccddeeff")
+        );
+        let mut old = meta_1_1();
+        old["version"] = serde_json::json!([1, 0]);
+        old.as_object_mut().map(|o| o.remove("id"));
+        old["hierarchy"]["root_page_offset"] = 8.into();
+        assert_eq!(parse(&old).map(|m| m.layout()), Ok(Layout::V1_0));
+        let mut newer = meta_1_1();
+        newer["version"] = serde_json::json!([1, 2]);
+        let err = parse(&newer).err().unwrap_or_default();
+        assert!(
+            err.contains("version 1.2 is not supported by this reader (it reads 1.0 to 1.1)"),
+            "{err}"
+        );
+        assert!(
+            Metadata::from_json_any_minor(newer.to_string().as_bytes(), Path::new("m")).is_ok()
+        );
+    }
+
+    #[test]
+    fn a_1_1_dataset_needs_its_id_and_its_root_page_after_the_head() {
+        let mut no_id = meta_1_1();
+        no_id.as_object_mut().map(|o| o.remove("id"));
+        assert!(
+            parse(&no_id)
+                .err()
+                .unwrap_or_default()
+                .contains("dataset id")
+        );
+        let mut moved = meta_1_1();
+        moved["hierarchy"]["root_page_offset"] = 40.into();
+        assert!(parse(&moved).err().unwrap_or_default().contains("byte 32"));
+        let mut bad_id = meta_1_1();
+        bad_id["id"] = "not hex".into();
+        assert!(
+            parse(&bad_id)
+                .err()
+                .unwrap_or_default()
+                .contains("32 hexadecimal digits")
+        );
+        let mut one_level = meta_1_1();
+        one_level["hierarchy"]["page_levels"] = 1.into();
+        assert!(
+            parse(&one_level)
+                .err()
+                .unwrap_or_default()
+                .contains("2 to 8")
+        );
     }
 }

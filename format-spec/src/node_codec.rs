@@ -2,11 +2,8 @@
 
 use crate::RowLayout;
 
-/// The first 8 bytes of `octree.bin`.
-pub const OCTREE_MAGIC: &[u8; 8] = b"STRATAOC";
-
 /// Encodes rows (each `layout.stride` bytes) into a stored node payload. Returns the payload and
-/// its CRC-32.
+/// its CRC-32. A node of no points has no payload (empty, CRC 0), not an LZ4 block of nothing.
 pub fn encode_node(rows: &[u8], layout: &RowLayout) -> (Vec<u8>, u32) {
     let n = rows.len() / layout.stride;
     encode_node_rows(rows, &(0..n as u32).collect::<Vec<_>>(), layout)
@@ -14,6 +11,9 @@ pub fn encode_node(rows: &[u8], layout: &RowLayout) -> (Vec<u8>, u32) {
 
 /// `encode_node` of the rows numbered `which` in `rows`, without gathering them first.
 pub fn encode_node_rows(rows: &[u8], which: &[u32], layout: &RowLayout) -> (Vec<u8>, u32) {
+    if which.is_empty() {
+        return (Vec::new(), 0);
+    }
     let columns = rows_to_columns(rows, which, layout);
     let payload = lz4_flex::block::compress(&columns);
     let crc = crc32fast::hash(&payload);
@@ -90,13 +90,20 @@ impl NodeColumns {
     }
 }
 
-/// Verifies and decompresses a stored node payload of `count` points.
+/// Verifies and decompresses a stored node payload of `count` points. A node of no points has
+/// an empty payload (1.1), or the one-byte LZ4 block of nothing that 1.0 writers stored.
 pub fn decode_node(
     payload: &[u8],
     count: usize,
     expected_crc: u32,
     layout: &RowLayout,
 ) -> Result<NodeColumns, NodeDecodeError> {
+    if count == 0 && payload.is_empty() && expected_crc == 0 {
+        return Ok(NodeColumns {
+            count,
+            bytes: Vec::new(),
+        });
+    }
     let computed = crc32fast::hash(payload);
     if computed != expected_crc {
         return Err(NodeDecodeError::Checksum {
@@ -187,6 +194,21 @@ mod tests {
         assert_eq!(node.to_rows(&l), rows);
         let first = &rows[0..12];
         assert_eq!(node.position(0), crate::row_position(first));
+    }
+
+    #[test]
+    fn an_empty_node_has_no_payload_and_1_0_empty_payloads_still_decode() {
+        let l = layout();
+        let (payload, crc) = encode_node(&[], &l);
+        assert!(payload.is_empty());
+        assert_eq!(crc, 0);
+        assert_eq!(decode_node(&payload, 0, crc, &l).map(|n| n.count), Ok(0));
+        // What 1.0 writers stored for a node of no points.
+        let old = lz4_flex::block::compress(&[]);
+        assert_eq!(old.len(), 1);
+        let old_crc = crc32fast::hash(&old);
+        assert_eq!(decode_node(&old, 0, old_crc, &l).map(|n| n.count), Ok(0));
+        assert!(decode_node(&[], 3, 0, &l).is_err());
     }
 
     #[test]

@@ -1,6 +1,9 @@
-//! Whole-dataset verification: structure, every checksum, every point inside its node.
+//! Whole-dataset verification: heads, structure, every checksum, every point inside its node.
 
-use crate::{DatasetFile, LocalDataset, NodeInfo, dataset::node_infos, decode_node};
+use crate::{
+    DatasetFile, DatasetId, Layout, LocalDataset, NodeInfo, NodeKey, PageRef, decode_node,
+};
+use std::collections::{BTreeMap, HashMap};
 use std::path::Path;
 
 /// One fault, naming the damaged part ("node r0412", "hierarchy page at byte 96", a file).
@@ -18,9 +21,19 @@ impl std::fmt::Display for Fault {
 
 #[derive(Debug, Clone, Default)]
 pub struct VerifyReport {
+    /// The format version `metadata.json` states, once it has been read.
+    pub version: Option<[u32; 2]>,
+    /// The dataset id (format 1.1), checked against both files' heads.
+    pub id: Option<DatasetId>,
+    /// Every node of the hierarchy, each once, nodes without points included: what
+    /// `metadata.json`'s `nodes` counts.
     pub nodes_checked: u64,
+    /// Of those, the nodes without points.
+    pub empty_nodes: u64,
     pub points_checked: u64,
     pub pages_checked: u64,
+    /// Proxies followed to their pages (in 1.1 each also compared with its page's root entry).
+    pub proxies_checked: u64,
     pub faults: Vec<Fault>,
 }
 
@@ -28,6 +41,20 @@ impl VerifyReport {
     pub fn is_ok(&self) -> bool {
         self.faults.is_empty()
     }
+
+    fn fault(&mut self, part: impl Into<String>, what: impl Into<String>) {
+        self.faults.push(Fault {
+            part: part.into(),
+            what: what.into(),
+        });
+    }
+}
+
+fn page_part(p: &PageRef) -> String {
+    format!(
+        "hierarchy page at byte {} (nodes under {})",
+        p.offset, p.root
+    )
 }
 
 /// Checks a dataset directory completely. Never panics on damaged input; every fault found is
@@ -37,57 +64,179 @@ pub fn verify_dataset(dir: &Path) -> VerifyReport {
     let ds = match LocalDataset::open(dir) {
         Ok(ds) => ds,
         Err(e) => {
-            report.faults.push(Fault {
-                part: "dataset".into(),
-                what: e.to_string(),
-            });
+            report.fault("dataset", e.to_string());
             return report;
         }
     };
     let meta = ds.metadata().clone();
-    let octree_len = meta.files.octree.size;
-    let mut nodes: Vec<NodeInfo> = Vec::new();
-    let mut pages = vec![ds.root_page()];
-    while let Some(p) = pages.pop() {
-        match ds.load_page(&p) {
-            Ok(page) => {
-                report.pages_checked += 1;
-                pages.extend(page.child_pages());
-                nodes.extend(node_infos(&page));
-            }
-            Err(e) => report.faults.push(Fault {
-                part: format!(
-                    "hierarchy page at byte {} (nodes under {})",
-                    p.offset, p.root
+    report.version = Some(meta.version);
+    report.id = meta.id;
+    let (nodes, pages_ok) = check_pages(&ds, &mut report);
+    let max_level = check_nodes(&ds, &nodes, &mut report);
+    report.nodes_checked = nodes.len() as u64;
+    if pages_ok {
+        if report.points_checked != meta.points {
+            report.fault(
+                "metadata.json",
+                format!(
+                    "says {} points but the hierarchy holds {}",
+                    meta.points, report.points_checked
                 ),
-                what: e.to_string(),
-            }),
+            );
+        }
+        if nodes.len() as u64 != meta.nodes {
+            report.fault(
+                "metadata.json",
+                format!(
+                    "says {} nodes but the hierarchy holds {}",
+                    meta.nodes,
+                    nodes.len()
+                ),
+            );
+        }
+        if max_level != meta.depth {
+            report.fault(
+                "metadata.json",
+                format!(
+                    "says depth {} but the deepest node is at level {max_level}",
+                    meta.depth
+                ),
+            );
         }
     }
-    nodes.sort_by_key(|n| n.offset);
-    let mut last_end = crate::OCTREE_MAGIC.len() as u64;
-    let mut max_level = 0u32;
+    report
+}
+
+/// Reads every page from the root: checksums and shapes (in `load_page`), each page read once,
+/// proxies equal to the roots of their pages (1.1), and the pages' places in the file. Returns
+/// every node once, and whether every page could be read.
+fn check_pages(ds: &LocalDataset, report: &mut VerifyReport) -> (Vec<NodeInfo>, bool) {
+    let layout = ds.metadata().layout();
+    let mut nodes = Vec::new();
+    let mut all_read = true;
+    // Page offset to its size, for the placement check; a page reached twice is a fault.
+    let mut extents: BTreeMap<u64, u64> = BTreeMap::new();
+    // 1.1: the node each proxy describes, to compare with the root entry of its page.
+    let mut proxied: HashMap<NodeKey, NodeInfo> = HashMap::new();
+    let mut pages = vec![ds.root_page()];
+    while let Some(p) = pages.pop() {
+        if extents.insert(p.offset, p.size).is_some() {
+            report.fault(page_part(&p), "is referenced by more than one proxy");
+            all_read = false;
+            continue;
+        }
+        let page = match ds.load_page(&p) {
+            Ok(page) => page,
+            Err(e) => {
+                report.fault(page_part(&p), e.to_string());
+                all_read = false;
+                continue;
+            }
+        };
+        report.pages_checked += 1;
+        if let (Some(proxy), Some(root)) = (proxied.remove(&p.root), page.root_node())
+            && proxy != root
+        {
+            report.fault(
+                page_part(&p),
+                format!(
+                    "its root entry ({} points, payload {} bytes at {}, mask {:#04x}) differs from the proxy that points to it ({} points, payload {} bytes at {}, mask {:#04x})",
+                    root.point_count,
+                    root.size,
+                    root.offset,
+                    root.child_mask,
+                    proxy.point_count,
+                    proxy.size,
+                    proxy.offset,
+                    proxy.child_mask
+                ),
+            );
+        }
+        for proxy in page.proxies() {
+            report.proxies_checked += 1;
+            if let Some(node) = proxy.node {
+                proxied.insert(proxy.key, node);
+            }
+        }
+        pages.extend(page.child_pages());
+        nodes.extend(page.own_nodes());
+    }
+    if all_read {
+        check_page_places(ds, layout, &extents, report);
+    }
+    (nodes, all_read)
+}
+
+/// Pages must not overlap; in 1.1 they also fill the file from the head to the end.
+fn check_page_places(
+    ds: &LocalDataset,
+    layout: Layout,
+    extents: &BTreeMap<u64, u64>,
+    report: &mut VerifyReport,
+) {
+    let part = ds.path_of(DatasetFile::Hierarchy).display().to_string();
+    let mut end = layout.head_size(DatasetFile::Hierarchy);
+    for (&offset, &size) in extents {
+        if offset < end {
+            report.fault(
+                &part,
+                format!("the page at byte {offset} overlaps the head or the page before it"),
+            );
+        } else if offset > end && layout == Layout::V1_1 {
+            report.fault(&part, format!("bytes {end}..{offset} belong to no page"));
+        }
+        end = end.max(offset.saturating_add(size));
+    }
+    let len = ds.metadata().files.hierarchy.size;
+    if end < len && layout == Layout::V1_1 {
+        report.fault(&part, format!("bytes {end}..{len} belong to no page"));
+    }
+}
+
+/// Every node's payload: its place in `octree.bin`, checksum, decompression and points inside
+/// the node's cube; in 1.1 a node without points has offset, size and checksum 0 (checked when
+/// its page was decoded). Returns the deepest level.
+fn check_nodes(ds: &LocalDataset, nodes: &[NodeInfo], report: &mut VerifyReport) -> u32 {
+    let meta = ds.metadata();
+    let layout = meta.layout();
+    let octree_len = meta.files.octree.size;
     let octree_path = ds.path_of(DatasetFile::Octree);
-    for n in &nodes {
+    let mut by_offset: Vec<&NodeInfo> = nodes.iter().collect();
+    by_offset.sort_by_key(|n| n.offset);
+    let mut last_end = layout.head_size(DatasetFile::Octree);
+    let mut max_level = 0u32;
+    for n in by_offset {
         max_level = max_level.max(n.key.level as u32);
         report.points_checked += n.point_count as u64;
-        if n.point_count == 0 {
+        let part = format!("node {}", n.key);
+        if n.key.level as u32 > meta.cube.bits {
+            report.fault(
+                part,
+                format!(
+                    "lies at level {} but the cube of 2^{} units splits to level {} at most",
+                    n.key.level, meta.cube.bits, meta.cube.bits
+                ),
+            );
             continue;
         }
-        let part = format!("node {}", n.key);
-        if n.offset < last_end || n.offset + n.size as u64 > octree_len {
-            report.faults.push(Fault {
+        if n.point_count == 0 {
+            // 1.0 writers stored a one-byte block for such a node; 1.0 readers never read it.
+            report.empty_nodes += 1;
+            continue;
+        }
+        let end = n.offset.saturating_add(n.size as u64);
+        if n.offset < last_end || end > octree_len {
+            report.fault(
                 part,
-                what: format!(
-                    "payload range {}..{} overlaps another node or lies outside {}",
+                format!(
+                    "payload range {}..{end} overlaps another node or lies outside {}",
                     n.offset,
-                    n.offset + n.size as u64,
                     octree_path.display()
                 ),
-            });
+            );
             continue;
         }
-        last_end = n.offset + n.size as u64;
+        last_end = end;
         let decoded = ds
             .read_payload(n)
             .map_err(|e| e.to_string())
@@ -97,7 +246,6 @@ pub fn verify_dataset(dir: &Path) -> VerifyReport {
             });
         match decoded {
             Ok(cols) => {
-                report.nodes_checked += 1;
                 let (min, edge) = n.key.int_bounds(meta.cube.min, meta.cube.bits);
                 let outside = (0..cols.count).find(|&i| {
                     let p = cols.position(i);
@@ -107,48 +255,11 @@ pub fn verify_dataset(dir: &Path) -> VerifyReport {
                     })
                 });
                 if let Some(i) = outside {
-                    report.faults.push(Fault {
-                        part,
-                        what: format!("point {i} lies outside the node's cube"),
-                    });
+                    report.fault(part, format!("point {i} lies outside the node's cube"));
                 }
             }
-            Err(what) => report.faults.push(Fault { part, what }),
+            Err(what) => report.fault(part, what),
         }
     }
-    let all_pages_read = report
-        .faults
-        .iter()
-        .all(|f| !f.part.starts_with("hierarchy"));
-    if all_pages_read {
-        if report.points_checked != meta.points {
-            report.faults.push(Fault {
-                part: "metadata.json".into(),
-                what: format!(
-                    "says {} points but the hierarchy holds {}",
-                    meta.points, report.points_checked
-                ),
-            });
-        }
-        if nodes.len() as u64 != meta.nodes {
-            report.faults.push(Fault {
-                part: "metadata.json".into(),
-                what: format!(
-                    "says {} nodes but the hierarchy holds {}",
-                    meta.nodes,
-                    nodes.len()
-                ),
-            });
-        }
-        if max_level != meta.depth {
-            report.faults.push(Fault {
-                part: "metadata.json".into(),
-                what: format!(
-                    "says depth {} but the deepest node is at level {max_level}",
-                    meta.depth
-                ),
-            });
-        }
-    }
-    report
+    max_level
 }

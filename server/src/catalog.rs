@@ -16,6 +16,11 @@ const METADATA_MAX: u64 = 16 << 20;
 #[derive(Debug, Clone, Serialize)]
 pub struct DatasetEntry {
     pub name: String,
+    /// The format version, `"1.1"`.
+    pub version: String,
+    /// The dataset id (format 1.1), as in `metadata.json`.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub id: Option<strata_format::DatasetId>,
     pub points: u64,
     pub nodes: u64,
     pub depth: u32,
@@ -98,7 +103,8 @@ impl Catalog {
             return None;
         }
         let bytes = crate::files::read_range(&file, 0, stat.len() as usize).ok()?;
-        let m = Metadata::from_json(&bytes, &meta_path).ok()?;
+        // Any minor version: the server hands out the files without reading them.
+        let m = Metadata::from_json_any_minor(&bytes, &meta_path).ok()?;
         let files = [&m.files.hierarchy.name, &m.files.octree.name]
             .into_iter()
             .filter(|n| plain_name(n))
@@ -108,6 +114,8 @@ impl Catalog {
             version: Version::of(&stat),
             entry: DatasetEntry {
                 name: name.to_string(),
+                version: format!("{}.{}", m.version[0], m.version[1]),
+                id: m.id,
                 points: m.points,
                 nodes: m.nodes,
                 depth: m.depth,

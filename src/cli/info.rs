@@ -42,6 +42,7 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
             "bytes": bytes,
             "point_bytes": m.point_bytes(),
             "version": format!("{}.{}", m.version[0], m.version[1]),
+            "id": m.id,
             "sources": m.sources,
             "classes": m.classes,
             "scanners": m.scanners,
@@ -52,6 +53,10 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
     }
     println!("dataset   {}", a.dataset.display());
     println!("format    {} {}.{}", m.format, m.version[0], m.version[1]);
+    match m.id {
+        Some(id) => println!("id        {id}"),
+        None => println!("id        none (format 1.0 has no dataset id)"),
+    }
     println!("points    {}", m.points);
     println!("nodes     {} (depth {})", m.nodes, m.depth);
     println!(

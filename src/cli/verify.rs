@@ -14,9 +14,19 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
         eprintln!("fault: {}: {f}", a.dataset.display());
     }
     if report.is_ok() {
+        let version = report
+            .version
+            .map_or(String::new(), |[a, b]| format!("format {a}.{b}"));
+        let id = report
+            .id
+            .map_or("no id".to_string(), |id| format!("id {id}"));
         println!(
-            "ok: {} points in {} nodes, {} hierarchy pages, every checksum matches",
-            report.points_checked, report.nodes_checked, report.pages_checked
+            "ok: {version}, {id}: {} points in {} nodes ({} without points), {} hierarchy pages ({} proxies), every checksum matches",
+            report.points_checked,
+            report.nodes_checked,
+            report.empty_nodes,
+            report.pages_checked,
+            report.proxies_checked
         );
         Ok(ExitCode::SUCCESS)
     } else {

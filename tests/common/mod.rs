@@ -185,3 +185,57 @@ pub fn las_scale(path: &Path) -> [f64; 3] {
     let t = r.header().transforms();
     [t.x.scale, t.y.scale, t.z.scale]
 }
+
+/// Writes a PLY of `spread` points over a square kilometre and 200,000 in a cluster a few
+/// hundredths of a millimetre wide: converted, it is 20 levels deep, with proxies on several
+/// pages and inner nodes whose points all went to their parents (nodes without points).
+pub fn deep_ply(path: &Path, spread: usize) {
+    let mut state = 0x2545_f491_4f6c_dd1du64;
+    let mut unit = move || {
+        // SplitMix64, as a float in (0, 1).
+        state = state.wrapping_add(0x9e37_79b9_7f4a_7c15);
+        let mut z = state;
+        z = (z ^ (z >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
+        z = (z ^ (z >> 27)).wrapping_mul(0x94d0_49bb_1331_11eb);
+        ((z ^ (z >> 31)) >> 11) as f64 / (1u64 << 53) as f64 + 1e-17
+    };
+    let cluster = 200_000;
+    let mut out = format!(
+        "ply\nformat binary_little_endian 1.0\nelement vertex {}\nproperty double x\nproperty double y\nproperty double z\nend_header\n",
+        spread + cluster
+    )
+    .into_bytes();
+    for _ in 0..spread {
+        for v in [unit() * 1000.0, unit() * 1000.0, unit() * 10.0] {
+            out.extend_from_slice(&v.to_le_bytes());
+        }
+    }
+    for _ in 0..cluster {
+        for c in [500.123, 500.456, 5.0] {
+            // Box-Muller: a normal deviation of 0.02 mm.
+            let g = (-2.0 * unit().ln()).sqrt() * (std::f64::consts::TAU * unit()).cos();
+            out.extend_from_slice(&(c + g * 2e-5).to_le_bytes());
+        }
+    }
+    std::fs::write(path, out).expect("write the deep PLY");
+}
+
+/// The centre of `deep_ply`'s cluster.
+pub const DEEP_CENTRE: [f64; 3] = [500.123, 500.456, 5.0];
+
+/// `deep_ply` converted once per test binary into `target/tmp/TAG/deep.strata`.
+pub fn deep_dataset(tag: &str) -> PathBuf {
+    static MADE: std::sync::Mutex<Vec<PathBuf>> = std::sync::Mutex::new(Vec::new());
+    let dir = Path::new(env!("CARGO_TARGET_TMPDIR")).join(tag);
+    let out = dir.join("deep.strata");
+    let mut made = MADE.lock().unwrap_or_else(|e| e.into_inner());
+    if !made.contains(&out) {
+        let _ = std::fs::remove_dir_all(&out);
+        std::fs::create_dir_all(&dir).expect("fixture dir");
+        let ply = dir.join("deep.ply");
+        deep_ply(&ply, 20_000);
+        run_ok(&["convert", s(&ply), "-o", s(&out), "--quiet"]);
+        made.push(out.clone());
+    }
+    out
+}

@@ -6,7 +6,7 @@ use crate::settings::ColourMode;
 use crate::{HttpOptions, HttpSource, MmapSource, Source, ViewerError};
 use glam::{DVec3, Vec3};
 use std::path::Path;
-use std::sync::Arc;
+use std::sync::{Arc, Mutex, PoisonError};
 use strata_format::{
     AttrType, DatasetFile, GRID_CELLS_LOG2, HierarchyPage, Metadata, NodeColumns, NodeInfo,
     NodeKey, PageRef, RowLayout, decode_node, decode_page, oct16_decode,
@@ -68,6 +68,10 @@ struct ColourSource {
 pub struct StreamDataset {
     source: Arc<dyn Source>,
     metadata: Metadata,
+    /// The root page, read at open: the renderer starts from it without asking again.
+    root: HierarchyPage,
+    /// The root node, read at open to learn the colours, until the renderer first asks for it.
+    root_node: Mutex<Option<(NodeInfo, NodeColumns)>>,
     layout: RowLayout,
     anchor: DVec3,
     colour: ColourSource,
@@ -121,8 +125,11 @@ impl StreamDataset {
             .index_of("surface_variation")
             .filter(|&i| layout.attributes[i].count == 1 && layout.attributes[i].ty.is_float())
             .map(|i| (i, layout.attributes[i].ty));
+        let root = decode_root(source.as_ref(), &metadata)?;
         let mut ds = StreamDataset {
             source,
+            root,
+            root_node: Mutex::new(None),
             colour: ColourSource {
                 rgb,
                 rgb_shift: 0,
@@ -138,15 +145,12 @@ impl StreamDataset {
             layout,
             anchor,
         };
-        let root_page = ds.load_page(&ds.root_page())?;
-        if let Some((_, root)) = root_page.entries.first()
-            && root.point_count > 0
+        if let Some(info) = ds.root.root_node()
+            && info.point_count > 0
         {
-            let info = strata_format::node_infos(&root_page)
-                .next()
-                .ok_or_else(|| ViewerError::source(ds.location(), "root page has no root node"))?;
             let columns = ds.read_columns(&info)?;
             ds.colour = ds.learn_colour(&columns);
+            ds.root_node = Mutex::new(Some((info, columns)));
         }
         Ok(ds)
     }
@@ -253,19 +257,13 @@ impl StreamDataset {
         self.metadata.root_page()
     }
 
+    /// The root page, decoded at open.
+    pub fn root_hierarchy_page(&self) -> &HierarchyPage {
+        &self.root
+    }
+
     pub fn load_page(&self, page: &PageRef) -> Result<HierarchyPage, ViewerError> {
-        let bytes = self
-            .source
-            .read(DatasetFile::Hierarchy, page.offset, page.size)?;
-        decode_page(&bytes, page, self.metadata.hierarchy.page_levels).map_err(|e| {
-            ViewerError::source(
-                format!("{}/{}", self.location(), DatasetFile::Hierarchy.name()),
-                format!(
-                    "hierarchy page at byte {} (nodes under {}): {e}",
-                    page.offset, page.root
-                ),
-            )
-        })
+        load_page(self.source.as_ref(), &self.metadata, page)
     }
 
     pub(crate) fn read_columns(&self, info: &NodeInfo) -> Result<NodeColumns, ViewerError> {
@@ -288,6 +286,15 @@ impl StreamDataset {
 
     /// Reads, verifies, decompresses and converts one node, its colours' RGB holding `colours`.
     pub fn load_node(&self, info: &NodeInfo, colours: ColourWord) -> Result<GpuNode, ViewerError> {
+        let mut kept = self
+            .root_node
+            .lock()
+            .unwrap_or_else(PoisonError::into_inner);
+        if let Some((root, columns)) = kept.take_if(|(root, _)| root == info) {
+            drop(kept);
+            return Ok(self.to_gpu(&root, &columns, colours));
+        }
+        drop(kept);
         let columns = self.read_columns(info)?;
         Ok(self.to_gpu(info, &columns, colours))
     }
@@ -427,6 +434,29 @@ impl StreamDataset {
             bytes_read: info.size as u64,
         }
     }
+}
+
+/// Reads and decodes one hierarchy page from `source`.
+fn load_page(
+    source: &dyn Source,
+    metadata: &Metadata,
+    page: &PageRef,
+) -> Result<HierarchyPage, ViewerError> {
+    let bytes = source.read(DatasetFile::Hierarchy, page.offset, page.size)?;
+    let levels = metadata.hierarchy.page_levels;
+    decode_page(&bytes, page, levels, metadata.layout()).map_err(|e| {
+        ViewerError::source(
+            format!("{}/{}", source.location(), DatasetFile::Hierarchy.name()),
+            format!(
+                "hierarchy page at byte {} (nodes under {}): {e}",
+                page.offset, page.root
+            ),
+        )
+    })
+}
+
+fn decode_root(source: &dyn Source, metadata: &Metadata) -> Result<HierarchyPage, ViewerError> {
+    load_page(source, metadata, &metadata.root_page())
 }
 
 /// The largest surface variation there is, λ0 / (λ0 + λ1 + λ2) with λ0 the smallest.

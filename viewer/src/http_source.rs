@@ -2,6 +2,10 @@
 //! byte ranges of hierarchy.bin and octree.bin, with a limit on concurrent requests, timeouts and
 //! retries with backoff. A server that stops answering yields transient errors, so the viewer
 //! keeps what it has and asks again later.
+//!
+//! Opening takes one round trip: metadata.json, the first `HIERARCHY_PREFIX` bytes of
+//! hierarchy.bin (its head and, in format 1.1, the root page, which follows the head) and the
+//! head of octree.bin are asked for at once.
 
 use crate::{Source, ViewerError};
 use bytes::Bytes;
@@ -12,14 +16,24 @@ use hyper_util::client::legacy::connect::HttpConnector;
 use hyper_util::rt::TokioExecutor;
 use std::sync::Arc;
 use std::time::Duration;
-use strata_format::{DatasetFile, Metadata, check_file_head};
+use strata_format::{
+    DatasetFile, HIERARCHY_HEAD_SIZE, Metadata, OCTREE_HEAD_SIZE, check_file_head,
+};
 use tokio::sync::Semaphore;
+
+/// Bytes of hierarchy.bin asked for with metadata.json unless told otherwise: the head, and
+/// the root page of any dataset whose root page is under 64 KiB (about 2,700 entries; a page of
+/// five levels holds at most 4,681). A larger root page costs one more request. A server sends
+/// less when the file is shorter (then the whole hierarchy comes at once).
+pub const HIERARCHY_PREFIX: u64 = 64 << 10;
 
 pub struct HttpOptions {
     pub token: Option<String>,
     pub concurrency: usize,
     pub timeout: Duration,
     pub retries: u32,
+    /// Bytes of hierarchy.bin to ask for at open (at least the 32-byte head).
+    pub hierarchy_prefix: u64,
 }
 
 impl Default for HttpOptions {
@@ -29,6 +43,7 @@ impl Default for HttpOptions {
             concurrency: 8,
             timeout: Duration::from_secs(10),
             retries: 3,
+            hierarchy_prefix: HIERARCHY_PREFIX,
         }
     }
 }
@@ -39,6 +54,27 @@ pub struct HttpSource {
     runtime: tokio::runtime::Runtime,
     client: Client<HttpConnector, Empty<Bytes>>,
     slots: Arc<Semaphore>,
+    /// The first bytes of hierarchy.bin, fetched at open; reads inside them ask nothing.
+    hierarchy_prefix: Vec<u8>,
+}
+
+/// What part of a file to ask for.
+#[derive(Debug, Clone, Copy)]
+enum Want {
+    Whole,
+    /// Exactly `len` bytes at `offset`.
+    Exact(u64, u64),
+    /// Up to `len` bytes at `offset`: fewer where the file ends first.
+    Prefix(u64, u64),
+}
+
+impl Want {
+    fn range(self) -> Option<(u64, u64)> {
+        match self {
+            Want::Whole => None,
+            Want::Exact(o, l) | Want::Prefix(o, l) => Some((o, l)),
+        }
+    }
 }
 
 enum Failure {
@@ -69,33 +105,37 @@ impl HttpSource {
         let client = Client::builder(TokioExecutor::new())
             .pool_idle_timeout(Duration::from_secs(30))
             .build(connector);
-        let source = HttpSource {
+        let mut source = HttpSource {
             base,
             slots: Arc::new(Semaphore::new(opts.concurrency.max(1))),
             opts,
             runtime,
             client,
+            hierarchy_prefix: Vec::new(),
         };
-        let bytes = source.fetch(DatasetFile::Metadata, None)?;
-        let meta_url = format!("{}/{}", source.base, DatasetFile::Metadata.name());
+        let prefix = source.opts.hierarchy_prefix.max(HIERARCHY_HEAD_SIZE);
+        // One round trip: the root page's place is fixed (format 1.1), so it need not wait
+        // for the metadata, and neither need the heads.
+        let (meta, hierarchy, octree) = source.runtime.block_on(async {
+            tokio::join!(
+                source.fetch_async(DatasetFile::Metadata, Want::Whole),
+                source.fetch_async(DatasetFile::Hierarchy, Want::Prefix(0, prefix)),
+                source.fetch_async(DatasetFile::Octree, Want::Prefix(0, OCTREE_HEAD_SIZE)),
+            )
+        });
+        let (bytes, _) = meta?;
+        let meta_url = source.url(DatasetFile::Metadata);
         let metadata = Metadata::from_json(&bytes, std::path::Path::new(&meta_url))?;
-        for (file, expected) in [
-            (DatasetFile::Hierarchy, metadata.files.hierarchy.size),
-            (DatasetFile::Octree, metadata.files.octree.size),
+        for (file, fetched) in [
+            (DatasetFile::Hierarchy, hierarchy?),
+            (DatasetFile::Octree, octree?),
         ] {
-            let (head, len) = source.fetch_sized(file, Some((0, 8)))?;
-            let magic = match file {
-                DatasetFile::Hierarchy => strata_format::HIERARCHY_MAGIC,
-                _ => strata_format::OCTREE_MAGIC,
-            };
-            // A server that gives no Content-Range total leaves the length to the node checksums.
-            check_file_head(
-                source.url(file),
-                len.unwrap_or(expected),
-                &head,
-                magic,
-                expected,
-            )?;
+            let (head, len) = fetched;
+            // A server that gives no Content-Range total leaves the length to the checksums.
+            check_file_head(source.url(file), file, len, &head, &metadata)?;
+            if file == DatasetFile::Hierarchy {
+                source.hierarchy_prefix = head;
+            }
         }
         Ok((source, metadata))
     }
@@ -106,21 +146,23 @@ impl HttpSource {
 
     /// GET a file, or `range = (offset, len)` of it, retrying transient failures.
     fn fetch(&self, file: DatasetFile, range: Option<(u64, u64)>) -> Result<Vec<u8>, ViewerError> {
-        self.fetch_sized(file, range).map(|(body, _)| body)
+        let want = range.map_or(Want::Whole, |(o, l)| Want::Exact(o, l));
+        let fetched = self.runtime.block_on(self.fetch_async(file, want));
+        fetched.map(|(body, _)| body)
     }
 
     /// As `fetch`, with the file's whole length where the answer tells it (the total of
     /// `Content-Range`, or the body of a whole-file answer).
-    fn fetch_sized(
+    async fn fetch_async(
         &self,
         file: DatasetFile,
-        range: Option<(u64, u64)>,
+        want: Want,
     ) -> Result<(Vec<u8>, Option<u64>), ViewerError> {
         let url = self.url(file);
         let mut delay = Duration::from_millis(100);
         let mut attempt = 0;
         loop {
-            match self.runtime.block_on(self.fetch_once(&url, range)) {
+            match self.fetch_once(&url, want).await {
                 Ok(b) => return Ok(b),
                 Err(Failure::Permanent(what)) => return Err(ViewerError::source(&url, what)),
                 Err(Failure::Transient(what)) if attempt >= self.opts.retries => {
@@ -130,7 +172,7 @@ impl HttpSource {
                     ));
                 }
                 Err(Failure::Transient(_)) => {
-                    std::thread::sleep(delay);
+                    tokio::time::sleep(delay).await;
                     delay = (delay * 2).min(Duration::from_secs(2));
                     attempt += 1;
                 }
@@ -138,11 +180,8 @@ impl HttpSource {
         }
     }
 
-    async fn fetch_once(
-        &self,
-        url: &str,
-        range: Option<(u64, u64)>,
-    ) -> Result<(Vec<u8>, Option<u64>), Failure> {
+    async fn fetch_once(&self, url: &str, want: Want) -> Result<(Vec<u8>, Option<u64>), Failure> {
+        let range = want.range();
         let _slot = self
             .slots
             .acquire()
@@ -187,27 +226,37 @@ impl HttpSource {
             .map_err(|_| {
                 Failure::Transient(format!("no answer within {:?}", self.opts.timeout))
             })??;
-        match (status, range) {
-            (StatusCode::PARTIAL_CONTENT, Some((_, len))) if body.len() as u64 == len => {
+        let got = body.len() as u64;
+        match (status, want) {
+            (StatusCode::PARTIAL_CONTENT, Want::Exact(_, len)) if got == len => {
+                Ok((body.to_vec(), total))
+            }
+            // Less than asked only where the file ends (when the answer says where that is).
+            (StatusCode::PARTIAL_CONTENT, Want::Prefix(offset, len))
+                if got <= len && total.is_none_or(|t| got == len.min(t.saturating_sub(offset))) =>
+            {
                 Ok((body.to_vec(), total))
             }
             // A server that ignores Range sends the whole file: take the part we asked for.
-            (StatusCode::OK, Some((offset, len))) if body.len() as u64 >= offset + len => Ok((
+            (StatusCode::OK, Want::Exact(offset, len)) if got >= offset + len => Ok((
                 body[offset as usize..(offset + len) as usize].to_vec(),
-                Some(body.len() as u64),
+                Some(got),
             )),
-            (StatusCode::OK, None) => Ok((body.to_vec(), Some(body.len() as u64))),
+            (StatusCode::OK, Want::Prefix(offset, len)) if got >= offset => Ok((
+                body[offset as usize..(offset + len).min(got) as usize].to_vec(),
+                Some(got),
+            )),
+            (StatusCode::OK, Want::Whole) => Ok((body.to_vec(), Some(got))),
             (StatusCode::UNAUTHORIZED | StatusCode::FORBIDDEN, _) => Err(Failure::Permanent(
                 format!("HTTP {status}: the server refused access (check --token)"),
             )),
             (s, _) if s.is_server_error() || s == StatusCode::TOO_MANY_REQUESTS => {
                 Err(Failure::Transient(format!("HTTP {s}")))
             }
-            (s, Some((offset, len))) => Err(Failure::Permanent(format!(
-                "HTTP {s} with {} bytes for the {len} bytes at byte {offset}",
-                body.len()
-            ))),
-            (s, None) => Err(Failure::Permanent(format!("HTTP {s}"))),
+            (s, Want::Exact(offset, len) | Want::Prefix(offset, len)) => Err(Failure::Permanent(
+                format!("HTTP {s} with {got} bytes for the {len} bytes at byte {offset}"),
+            )),
+            (s, Want::Whole) => Err(Failure::Permanent(format!("HTTP {s}"))),
         }
     }
 }
@@ -224,6 +273,14 @@ impl Source for HttpSource {
     fn read(&self, file: DatasetFile, offset: u64, len: u64) -> Result<Vec<u8>, ViewerError> {
         if len == 0 {
             return Ok(Vec::new());
+        }
+        let prefix = &self.hierarchy_prefix;
+        if file == DatasetFile::Hierarchy
+            && let Some(end) = offset
+                .checked_add(len)
+                .filter(|&e| e <= prefix.len() as u64)
+        {
+            return Ok(prefix[offset as usize..end as usize].to_vec());
         }
         self.fetch(file, Some((offset, len)))
     }

@@ -5,32 +5,29 @@ use crate::dataset::StreamDataset;
 use glam::Vec3;
 use std::cmp::Ordering;
 use std::collections::{BinaryHeap, HashMap, HashSet};
-use strata_format::{EntryKind, HierarchyPage, NodeInfo, NodeKey, PageRef, node_infos};
+use strata_format::{HierarchyPage, NodeInfo, NodeKey, PageRef};
 
 /// Nodes described by the hierarchy pages loaded so far, and the pages not yet loaded.
 #[derive(Default)]
 pub struct Tree {
     nodes: HashMap<NodeKey, NodeInfo>,
+    /// Pages known from a loaded page but not loaded themselves, by their root (a proxy).
     unloaded_pages: HashMap<NodeKey, PageRef>,
+    loaded_pages: HashSet<NodeKey>,
 }
 
 impl Tree {
+    /// Takes in a page's nodes (in 1.1 its proxies too, whose payloads it locates) and the
+    /// pages below it.
     pub fn add_page(&mut self, page: &HierarchyPage) {
-        for info in node_infos(page) {
-            self.unloaded_pages.remove(&info.key);
+        self.loaded_pages.insert(page.root);
+        self.unloaded_pages.remove(&page.root);
+        for info in page.nodes() {
             self.nodes.insert(info.key, info);
         }
-        for (key, entry) in &page.entries {
-            if entry.kind == EntryKind::Proxy && !self.nodes.contains_key(key) {
-                self.unloaded_pages.insert(
-                    *key,
-                    PageRef {
-                        root: *key,
-                        offset: entry.offset,
-                        size: entry.size as u64,
-                        checksum: Some(entry.checksum),
-                    },
-                );
+        for child in page.child_pages() {
+            if !self.loaded_pages.contains(&child.root) {
+                self.unloaded_pages.insert(child.root, child);
             }
         }
     }
@@ -149,20 +146,29 @@ pub fn select(
             break;
         }
         out.chosen_points += count;
+        let (min, edge) = ds.node_cube(key);
+        let distance = box_distance(camera.eye, min, min + Vec3::splat(edge)).max(near);
+        let refines = ds.node_spacing(key) / distance * focal >= params.min_spacing_px;
+        // 1.1: a proxy whose page is not loaded. Its page holds its children's entries.
+        let page_below = tree.unloaded_pages.get(&key);
         let is_failed = failed.contains(&key);
         if !is_failed && !resident(key) {
             out.missing_nodes.push((*info, priority));
+            // The proxy locates both its payload and its page: ask for the page now, beside
+            // the node, so the children are known when the node arrives.
+            if let Some(page) = page_below.filter(|_| refines) {
+                out.missing_pages.push((*page, priority));
+            }
             continue;
         }
         if !is_failed {
             out.draw.push(key);
             out.draw_points += count;
         }
-        let (min, edge) = ds.node_cube(key);
-        let distance = box_distance(camera.eye, min, min + Vec3::splat(edge)).max(near);
-        if ds.node_spacing(key) / distance * focal < params.min_spacing_px {
+        if !refines {
             continue;
         }
+        let mut want_page_below: Option<f32> = None;
         for octant in 0..8u8 {
             if info.child_mask & (1 << octant) == 0 {
                 continue;
@@ -180,8 +186,14 @@ pub fn select(
                     key: child,
                 });
             } else if let Some(page) = tree.unloaded_pages.get(&child) {
+                // 1.0: the child is a proxy, known only from its page.
                 out.missing_pages.push((*page, priority));
+            } else if page_below.is_some() {
+                want_page_below = Some(want_page_below.map_or(priority, |p| p.max(priority)));
             }
+        }
+        if let (Some(page), Some(priority)) = (page_below, want_page_below) {
+            out.missing_pages.push((*page, priority));
         }
     }
     out

@@ -5,9 +5,7 @@ use crate::ViewerError;
 use memmap2::Mmap;
 use std::fs::File;
 use std::path::{Path, PathBuf};
-use strata_format::{
-    DatasetFile, FormatError, HIERARCHY_MAGIC, Metadata, OCTREE_MAGIC, check_file_head,
-};
+use strata_format::{DatasetFile, FormatError, Metadata, check_file_head};
 
 /// Byte ranges of a dataset's files. Implementations are shared by the loader threads.
 pub trait Source: Send + Sync {
@@ -40,13 +38,13 @@ impl MmapSource {
         let metadata = Metadata::from_json(&bytes, &meta_path)?;
         let hierarchy = map_checked(
             &dir.join(&metadata.files.hierarchy.name),
-            HIERARCHY_MAGIC,
-            metadata.files.hierarchy.size,
+            DatasetFile::Hierarchy,
+            &metadata,
         )?;
         let octree = map_checked(
             &dir.join(&metadata.files.octree.name),
-            OCTREE_MAGIC,
-            metadata.files.octree.size,
+            DatasetFile::Octree,
+            &metadata,
         )?;
         Ok((
             MmapSource {
@@ -90,11 +88,11 @@ impl Source for MmapSource {
     }
 }
 
-fn map_checked(path: &Path, magic: &[u8; 8], expected_size: u64) -> Result<Mmap, FormatError> {
-    let file = File::open(path).map_err(|e| FormatError::io(path, e))?;
+fn map_checked(path: &Path, file: DatasetFile, meta: &Metadata) -> Result<Mmap, FormatError> {
+    let f = File::open(path).map_err(|e| FormatError::io(path, e))?;
     // SAFETY: the dataset is read-only by contract (written once, renamed into place); a file
     // truncated under us would fault, which is why sizes are checked against the metadata first.
-    let map = unsafe { Mmap::map(&file) }.map_err(|e| FormatError::io(path, e))?;
-    check_file_head(path, map.len() as u64, &map, magic, expected_size)?;
+    let map = unsafe { Mmap::map(&f) }.map_err(|e| FormatError::io(path, e))?;
+    check_file_head(path, file, Some(map.len() as u64), &map, meta)?;
     Ok(map)
 }

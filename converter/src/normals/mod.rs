@@ -251,7 +251,12 @@ impl ChunkStep for NormalStep {
             computed: t(total::COMPUTED) as u64,
             kept: t(total::KEPT) as u64,
             partial: t(total::PARTIAL) as u64,
-            search_radius: self.search.get().copied().filter(|r| r.is_finite()).unwrap_or(0.0),
+            search_radius: self
+                .search
+                .get()
+                .copied()
+                .filter(|r| r.is_finite())
+                .unwrap_or(0.0),
             mean_radius: t(total::RADIUS_SUM) / (meta.points.max(1) as f64),
             surfel_radius: if triangles > 0.0 {
                 t(total::TRIANGLE_RADIUS_SUM) / triangles

@@ -175,6 +175,18 @@ impl NodeCache {
         if let Some(old) = self.slots.remove(&node.key) {
             self.release(&old);
         }
+        // A node without points (an inner node whose points all went to its parent) is
+        // resident with nothing to draw.
+        if count == 0 {
+            self.slots.insert(
+                node.key,
+                Slot {
+                    pieces: Vec::new(),
+                    last_used: frame,
+                },
+            );
+            return Ok(());
+        }
         let count = count as u32;
         let pieces = loop {
             if let Some(found) = self.allocate(count) {

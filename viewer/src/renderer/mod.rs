@@ -75,7 +75,7 @@ impl Renderer {
         loader_threads: usize,
     ) -> Result<Renderer, ViewerError> {
         let mut tree = Tree::default();
-        tree.add_page(&ds.load_page(&ds.root_page())?);
+        tree.add_page(ds.root_hierarchy_page());
         let loader = Loader::new(ds.clone(), loader_threads);
         let cache = NodeCache::new(ctx.max_binding(), gpu_cache_bytes);
         let projection = ctx.scoped("compiling the projection", || Projection::new(&ctx))??;
