@@ -7,6 +7,17 @@ use std::time::{Duration, Instant};
 
 #[test]
 fn kill_9_then_resume_gives_the_same_dataset() {
+    kill_9_then_resume(&[]);
+}
+
+/// The normals of the chunks done before the kill, and their share of the metadata's totals
+/// (kept in the journal), come back as an uninterrupted run makes them.
+#[test]
+fn kill_9_then_resume_with_normals_gives_the_same_dataset() {
+    kill_9_then_resume(&["--normals"]);
+}
+
+fn kill_9_then_resume(extra: &[&str]) {
     let dir = tempfile::tempdir().expect("tempdir");
     let las = dir.path().join("city.las");
     run_ok(&["synth", "--points", "1500000", "-o", s(&las)]);
@@ -23,6 +34,9 @@ fn kill_9_then_resume_gives_the_same_dataset() {
             "1".into(),
             "-q".into(),
         ]
+        .into_iter()
+        .chain(extra.iter().map(|e| e.to_string()))
+        .collect::<Vec<String>>()
     };
     run_ok(&args(&clean).iter().map(String::as_str).collect::<Vec<_>>());
 
