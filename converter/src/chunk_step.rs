@@ -26,8 +26,8 @@ pub trait ChunkStep: Sync {
     }
 
     /// Bytes a point of the chunk (or its halo) takes in the step's own working memory at its
-    /// peak, so that chunks are cut small enough for `--memory-limit`.
-    fn bytes_per_point(&self) -> usize {
+    /// peak, rows of `stride` bytes, so that chunks are cut small enough for `--memory-limit`.
+    fn bytes_per_point(&self, _stride: usize) -> usize {
         0
     }
 

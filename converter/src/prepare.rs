@@ -134,7 +134,7 @@ pub fn prepare(
         opts.memory_limit,
         threads,
         layout.stride,
-        step.bytes_per_point(),
+        step.bytes_per_point(layout.stride),
     )
     .min(balanced);
     let (chunks, lut) = plan_chunks(&staged.counts.cells, &staged.cube, max_chunk);

@@ -6,8 +6,8 @@
 //! from their exact difference, so it depends on the two points alone, not on the chunk: the
 //! same cloud cut into other chunks finds the same neighbours, bit for bit.
 
-/// Points per leaf: about k, so that the query's own leaf gives a tight first bound.
-const LEAF: usize = 16;
+/// Points per leaf: about twice k, so that the query's own leaf gives a tight first bound.
+const LEAF: usize = 32;
 
 pub struct KdTree {
     /// Positions in quantization steps from the chunk's corner (whole numbers), in tree order.

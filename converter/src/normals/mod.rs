@@ -148,9 +148,10 @@ impl ChunkStep for NormalStep {
         attrs::added(inputs)
     }
 
-    fn bytes_per_point(&self) -> usize {
-        // Building the k-d tree: (position, index) items, then the tree's positions and order.
-        32 + 24 + 4
+    fn bytes_per_point(&self, stride: usize) -> usize {
+        // Building the k-d tree: (position, index) items, then the tree's positions and order;
+        // and a copy of the rows while they are put in its order.
+        32 + 24 + 4 + stride
     }
 
     fn halo_margin(&self, plan: &Plan) -> f64 {
@@ -187,13 +188,23 @@ impl ChunkStep for NormalStep {
             offset: chunk.offset,
             scanners: chunk.scanners,
         };
+        // The rows in the order the search visits them, so that reading and writing them runs
+        // through memory once (rows may come in any order; the tree sorts them afterwards).
+        let mut in_tree_order = Vec::with_capacity(chunk.rows.len());
+        for &i in tree.order.iter().filter(|&&i| (i as usize) < own) {
+            let i = i as usize;
+            in_tree_order.extend_from_slice(&chunk.rows[i * stride..(i + 1) * stride]);
+        }
+        *chunk.rows = in_tree_order;
+        let mut next_row = 0;
         let mut near = Vec::with_capacity(k + 1);
         let mut stack = Vec::with_capacity(64);
         for t in 0..tree.len() {
-            let i = tree.order[t] as usize;
-            if i >= own {
+            if tree.order[t] as usize >= own {
                 continue;
             }
+            let i = next_row;
+            next_row += 1;
             tree.nearest(t, k, search, &mut near, &mut stack);
             // Fewer than k within the search radius: the k-th is beyond it.
             let rk = if near.len() < k {
