@@ -3,6 +3,7 @@
 
 use crate::pipelines::PointStream;
 use crate::settings::ColourMode;
+use crate::streams::{NormalKind, StreamSource, normal_attribute};
 use crate::{HttpOptions, HttpSource, MmapSource, Source, ViewerError};
 use glam::{DVec3, Vec3};
 use std::path::Path;
@@ -44,13 +45,6 @@ pub enum ColourWord {
 /// The colour of a point without a colour or a normal.
 const GREY: u32 = 0xffc8_c8c8;
 
-/// How a dataset stores its normals.
-#[derive(Debug, Clone, Copy)]
-enum NormalKind {
-    Oct16,
-    Floats(AttrType),
-}
-
 /// How stored attributes become colours; decided once from the root node.
 #[derive(Debug, Clone, Copy)]
 struct ColourSource {
@@ -75,6 +69,7 @@ pub struct StreamDataset {
     layout: RowLayout,
     anchor: DVec3,
     colour: ColourSource,
+    streams: StreamSource,
 }
 
 impl StreamDataset {
@@ -111,16 +106,7 @@ impl StreamDataset {
             .index_of("rgb")
             .filter(|&i| layout.attributes[i].count == 3)
             .map(|i| (i, layout.attributes[i].ty));
-        let normal = layout.index_of("normal").and_then(|i| {
-            let a = &layout.attributes[i];
-            if a.is_oct16() {
-                Some((i, NormalKind::Oct16))
-            } else if a.count == 3 && a.ty.is_float() && a.encoding.is_none() {
-                Some((i, NormalKind::Floats(a.ty)))
-            } else {
-                None
-            }
-        });
+        let normal = normal_attribute(&layout);
         let variation = layout
             .index_of("surface_variation")
             .filter(|&i| layout.attributes[i].count == 1 && layout.attributes[i].ty.is_float())
@@ -141,6 +127,7 @@ impl StreamDataset {
                 variation,
                 variation_max: MAX_VARIATION,
             },
+            streams: StreamSource::of(&layout),
             metadata,
             layout,
             anchor,
@@ -248,6 +235,11 @@ impl StreamDataset {
     }
 
     /// Distance between a node's points in world units (one sampling cell).
+    /// Whether the dataset stores normals (the `Normals` stream is all "none" otherwise).
+    pub fn has_normals(&self) -> bool {
+        self.streams.has_normals()
+    }
+
     pub fn node_spacing(&self, key: NodeKey) -> f32 {
         let (_, edge) = self.node_cube(key);
         edge / (1u32 << GRID_CELLS_LOG2) as f32
@@ -428,9 +420,9 @@ impl StreamDataset {
             colours,
             points,
             attributes,
-            // No stored attribute feeds a stream yet: normals and radii arrive with the
-            // format's normal and radius attributes.
-            streams: Vec::new(),
+            streams: self
+                .streams
+                .streams(&self.layout, cols, self.node_spacing(info.key)),
             bytes_read: info.size as u64,
         }
     }

@@ -16,6 +16,7 @@ pub mod pipelines;
 pub mod renderer;
 pub mod settings;
 mod source;
+mod streams;
 
 pub use camera::Camera;
 pub use dataset::StreamDataset;

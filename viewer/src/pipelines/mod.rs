@@ -80,8 +80,8 @@ pub enum PointStream {
 }
 
 impl PointStream {
-    /// GPU bytes a point of this stream takes: normals as two snorm16 (octahedral), the radius
-    /// as an f32, a kept value as declared.
+    /// GPU bytes a point of this stream takes: normals as two unorm16 (SPEC.md's `oct16`, 0
+    /// for none), the radius to draw as an f32, a kept value as declared (`streams.rs`).
     pub fn bytes_per_point(self) -> u64 {
         match self {
             PointStream::Normals | PointStream::Radius => 4,
