@@ -146,7 +146,8 @@ impl RecordToRow {
 }
 
 /// A file of fixed-length records the count and distribute phases read: an uncompressed LAS
-/// input read in place (`convert` set), or a staging file that already holds rows.
+/// input read in place (`convert` set), or a staging file that already holds rows, compressed
+/// in blocks (`rowfile`).
 #[derive(Debug, Clone)]
 pub struct RowInput {
     pub path: PathBuf,
@@ -154,6 +155,8 @@ pub struct RowInput {
     pub record_len: usize,
     pub records: u64,
     pub convert: Option<RecordToRow>,
+    /// Written by `rowfile::RowWriter` (a staging file), not plain records.
+    pub compressed: bool,
 }
 
 /// Records per read, at most.
@@ -181,6 +184,9 @@ impl RowInput {
         range: Range<u64>,
         mut each: impl FnMut(&[u8], u64) -> Result<()>,
     ) -> Result<()> {
+        if self.compressed {
+            return crate::rowfile::for_each_in(&self.path, self.record_len, range, each);
+        }
         let file =
             File::open(&self.path).map_err(|e| ConvertError::io(&self.path, "cannot open", e))?;
         let mut raw = Vec::new();
