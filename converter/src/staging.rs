@@ -5,9 +5,9 @@ use crate::error::{ConvertError, Result, panic_message};
 use crate::input::las::LasSource;
 use crate::plan::Counts;
 use crate::quantize::Quantization;
-use crate::rowfile::RowWriter;
+use crate::rowfile::{RowWriter, for_each_block};
 use crate::rows::{RecordToRow, RowInput, batch_records};
-use crate::scan::{StagingReader, staging_position};
+use crate::scan::staging_position;
 use indicatif::ProgressBar;
 use std::path::Path;
 use strata_format::row_position;
@@ -103,26 +103,23 @@ pub fn quantize_staging(
     bar: &ProgressBar,
 ) -> Result<RowInput> {
     let mut out = create(staging, stride)?;
-    let mut reader = StagingReader::open(f64_staging, f64_stride)?;
     let attr_len = stride - 12;
     let mut rows = Vec::new();
     let mut done = 0u64;
-    loop {
-        let n = reader.next_batch(batch_records(f64_stride, 1 << 16))?;
-        if n == 0 {
-            break;
-        }
+    for_each_block(f64_staging, f64_stride, |records| {
         rows.clear();
-        for rec in reader.buf.chunks_exact(f64_stride) {
+        for rec in records.chunks_exact(f64_stride) {
             for v in q.quantize(&staging_position(rec)) {
                 rows.extend_from_slice(&v.to_le_bytes());
             }
             rows.extend_from_slice(&rec[24..24 + attr_len]);
         }
         out.write(&rows)?;
-        done += n as u64;
-        bar.inc(n as u64);
-    }
+        let n = (records.len() / f64_stride) as u64;
+        done += n;
+        bar.inc(n);
+        Ok(())
+    })?;
     debug_assert_eq!(out.rows, done);
     finish(out, staging, stride)
 }
