@@ -34,7 +34,8 @@ pub struct Args {
     #[arg(short, long)]
     quiet: bool,
     /// Put the work files (staging rows, chunk files, halo bands) under this folder, e.g. on
-    /// another disk; the dataset is still written beside the output and renamed.
+    /// another disk; the dataset is still written beside the output and renamed. Give it again
+    /// with --resume.
     #[arg(long, value_name = "DIR")]
     temp_dir: Option<PathBuf>,
     /// Also write the summary as JSON to this file.
