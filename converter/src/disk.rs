@@ -80,7 +80,7 @@ pub fn check_conversion(
     check_space(&[(work, work_bytes as u64), (root, output as u64)])
 }
 
-/// Bytes of the files under `dir`, all levels.
+/// Bytes the files under `dir` take on disk, all levels.
 pub fn tree_bytes(dir: &Path) -> u64 {
     let Ok(entries) = std::fs::read_dir(dir) else {
         return 0;
@@ -89,7 +89,8 @@ pub fn tree_bytes(dir: &Path) -> u64 {
         .flatten()
         .map(|e| match e.metadata() {
             Ok(m) if m.is_dir() => tree_bytes(&e.path()),
-            Ok(m) => m.len(),
+            // What the file takes on disk: a staging file with freed blocks takes less.
+            Ok(m) => m.blocks() * 512,
             Err(_) => 0,
         })
         .sum()

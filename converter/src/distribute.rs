@@ -78,7 +78,7 @@ fn distribute_part(d: &Distribution, part: usize, bar: &ProgressBar) -> Result<C
     let mut buffers: Vec<Vec<u8>> = vec![Vec::new(); d.chunk_count];
     let mut scratch = Scratch::default();
     for input in d.inputs {
-        input.for_each_rows(input.part(part, d.threads), d.stride, |rows| {
+        input.consume_rows(input.part(part, d.threads), d.stride, |rows| {
             for row in rows.chunks_exact(d.stride) {
                 let chunk = d.lut[grid_cell(row_position(row), d.cube, level, shift)] as usize;
                 if let Some(&c) = d.class_at.and_then(|at| row.get(at)) {

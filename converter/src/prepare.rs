@@ -320,7 +320,7 @@ fn stage_from_headers(
                     record_len: src.record_len(),
                     records: src.info().points,
                     convert: Some(conv),
-                    compressed: false,
+                    blocks: None,
                 },
                 None => {
                     let rows = wd.decoded_rows(i);

@@ -155,6 +155,9 @@ pub struct RowWriter {
     block: usize,
     scratch: Scratch,
     pub rows: u64,
+    /// Where each block starts in the file.
+    offsets: Vec<u64>,
+    at: u64,
 }
 
 impl RowWriter {
@@ -168,6 +171,8 @@ impl RowWriter {
             block: block_rows(stride) * stride,
             scratch: Scratch::default(),
             rows: 0,
+            offsets: Vec::new(),
+            at: 0,
         })
     }
 
@@ -187,7 +192,8 @@ impl RowWriter {
 
     fn flush_block(&mut self) -> Result<()> {
         if !self.pending.is_empty() {
-            write_block(
+            self.offsets.push(self.at);
+            self.at += write_block(
                 &mut self.out,
                 &self.pending,
                 self.stride,
@@ -200,39 +206,69 @@ impl RowWriter {
     }
 
     /// Writes what is pending and closes the file; returns the rows written.
-    pub fn finish(mut self) -> Result<u64> {
+    pub fn finish(self) -> Result<u64> {
+        self.finish_indexed().map(|(rows, _)| rows)
+    }
+
+    /// As `finish`, also returning where each block starts, for `for_each_in`.
+    pub fn finish_indexed(mut self) -> Result<(u64, Vec<u64>)> {
         self.flush_block()?;
         self.out
             .into_inner()
             .map_err(|e| io_err(&self.path, "cannot write")(e.into_error()))?;
-        Ok(self.rows)
+        Ok((self.rows, self.offsets))
     }
 }
 
-/// Calls `each(rows, first)` on the rows of `range` of a file `RowWriter` wrote, in blocks.
+/// Frees the disk under `len` bytes at `offset` of `file`, which keeps its length (a hole reads
+/// as zeros). Best effort: a file system without holes keeps the bytes until the file goes.
+fn punch_hole(file: &File, offset: u64, len: u64) {
+    use std::os::fd::AsRawFd;
+    // SAFETY: fallocate on a descriptor this process owns; it changes no memory of ours.
+    unsafe {
+        libc::fallocate(
+            file.as_raw_fd(),
+            libc::FALLOC_FL_PUNCH_HOLE | libc::FALLOC_FL_KEEP_SIZE,
+            offset as libc::off_t,
+            len as libc::off_t,
+        );
+    }
+}
+
+/// Calls `each(rows, first)` on the rows of `range` of a file `RowWriter` wrote, in blocks,
+/// `offsets` where its blocks start. With `release`, frees each block that lies wholly in
+/// `range` once `each` has seen it: a staging file read for the last time shrinks as it is
+/// read (by several readers of ranges apart, which is why blocks are found by `offsets`, not
+/// by the headers of blocks that may already be freed).
 pub fn for_each_in(
     path: &Path,
+    offsets: &[u64],
     stride: usize,
     range: Range<u64>,
+    release: bool,
     mut each: impl FnMut(&[u8], u64) -> Result<()>,
 ) -> Result<()> {
     if range.is_empty() {
         return Ok(());
     }
     let per = block_rows(stride) as u64;
-    let file = File::open(path).map_err(io_err(path, "cannot open"))?;
+    // Freeing blocks needs the file open for writing.
+    let file = OpenOptions::new()
+        .read(true)
+        .write(release)
+        .open(path)
+        .map_err(io_err(path, "cannot open"))?;
     let mut r = BufReader::with_capacity(1 << 20, file);
-    // Skip whole blocks by their headers.
-    let mut block = 0;
-    while block < range.start / per {
-        let mut head = [0u8; HEADER];
-        r.read_exact(&mut head)
-            .map_err(io_err(path, "cannot read"))?;
-        let len = u32::from_le_bytes([head[4], head[5], head[6], head[7]]) as i64;
-        r.seek(SeekFrom::Current(len))
-            .map_err(io_err(path, "cannot read"))?;
-        block += 1;
-    }
+    let block = range.start / per;
+    let Some(&start) = offsets.get(block as usize) else {
+        return Err(ConvertError::internal(
+            format!("reading {}", path.display()),
+            format!("the file ends before row {}", range.start),
+        ));
+    };
+    let mut offset = start;
+    r.seek(SeekFrom::Start(start))
+        .map_err(io_err(path, "cannot read"))?;
     let mut scratch = Scratch::default();
     let mut rows = Vec::new();
     let mut at = block * per;
@@ -244,6 +280,7 @@ pub fn for_each_in(
             ));
         }
         let n = (rows.len() / stride) as u64;
+        let bytes = (HEADER + scratch.packed.len()) as u64;
         let lo = range.start.max(at);
         let hi = range.end.min(at + n);
         if lo < hi {
@@ -251,6 +288,10 @@ pub fn for_each_in(
             let e = ((hi - at) as usize) * stride;
             each(&rows[s..e], lo)?;
         }
+        if release && lo == at && hi == at + n {
+            punch_hole(r.get_ref(), offset, bytes);
+        }
+        offset += bytes;
         at += n;
     }
     Ok(())
@@ -278,7 +319,8 @@ mod tests {
         for part in rows.chunks(stride * 999) {
             w.write(part).expect("write");
         }
-        assert_eq!(w.finish().expect("finish"), 100_000);
+        let (n, offsets) = w.finish_indexed().expect("finish");
+        assert_eq!(n, 100_000);
         let size = std::fs::metadata(&path).expect("meta").len();
         assert!(size * 3 < rows.len() as u64, "{size} bytes");
         let mut back = Vec::new();
@@ -288,7 +330,7 @@ mod tests {
         for range in [0..1, 5..70_000, 65_535..65_537, 99_999..100_000, 7..7] {
             let mut got = Vec::new();
             let mut next = range.start;
-            for_each_in(&path, stride, range.clone(), |r, first| {
+            for_each_in(&path, &offsets, stride, range.clone(), false, |r, first| {
                 assert_eq!(first, next);
                 next += (r.len() / stride) as u64;
                 got.extend_from_slice(r);
@@ -298,5 +340,36 @@ mod tests {
             let want = &rows[range.start as usize * stride..range.end as usize * stride];
             assert!(got == want, "{range:?}");
         }
+    }
+
+    #[test]
+    fn a_last_reading_frees_the_blocks_it_read() {
+        let dir = tempfile::tempdir().expect("tempdir");
+        let path = dir.path().join("rows.bin");
+        let stride = 16;
+        // Noise, so that blocks stay large enough to free whole pages.
+        let mut x = 0x9e37_79b9_7f4a_7c15u64;
+        let rows: Vec<u8> = (0..400_000)
+            .flat_map(|_| {
+                x ^= x << 13;
+                x ^= x >> 7;
+                x ^= x << 17;
+                x.to_le_bytes()
+            })
+            .collect();
+        let mut w = RowWriter::create(&path, stride).expect("create");
+        w.write(&rows).expect("write");
+        let (_, offsets) = w.finish_indexed().expect("finish");
+        let used =
+            |p: &Path| std::os::unix::fs::MetadataExt::blocks(&std::fs::metadata(p).expect("meta"));
+        let before = used(&path);
+        // Read once without releasing: nothing is freed.
+        for_each_in(&path, &offsets, stride, 0..200_000, false, |_, _| Ok(())).expect("read");
+        assert_eq!(used(&path), before);
+        for range in [0..70_000, 70_000..200_000] {
+            for_each_in(&path, &offsets, stride, range, true, |_, _| Ok(())).expect("release");
+        }
+        let after = used(&path);
+        assert!(after * 4 < before, "{after} of {before} blocks left");
     }
 }

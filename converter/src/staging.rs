@@ -17,14 +17,14 @@ fn create(path: &Path, stride: usize) -> Result<RowWriter> {
 }
 
 fn finish(out: RowWriter, path: &Path, stride: usize) -> Result<RowInput> {
-    let records = out.finish()?;
+    let (records, blocks) = out.finish_indexed()?;
     Ok(RowInput {
         path: path.to_path_buf(),
         start: 0,
         record_len: stride,
         records,
         convert: None,
-        compressed: true,
+        blocks: Some(blocks),
     })
 }
 
