@@ -75,6 +75,7 @@ fn quiet_options(input: &Path, output: &Path, memory_limit: u64) -> ConvertOptio
         overwrite: true,
         resume: false,
         quiet: true,
+        temp_dir: None,
     }
 }
 

@@ -3,6 +3,7 @@
 //! journal of committed chunks lets `--resume` pick up after an interruption.
 
 use crate::chunk_step::{ChunkStep, NoStep, add_totals};
+use crate::disk::PeakWatch;
 use crate::error::{ConvertError, Result};
 use crate::finish::{finish, merge_top};
 use crate::halo::Halos;
@@ -14,7 +15,6 @@ use crate::sampling::Sampling;
 use crate::sys::peak_rss_bytes;
 use crate::workdir::WorkDir;
 use serde::Serialize;
-use std::fs;
 use std::path::PathBuf;
 use std::time::Instant;
 use strata_format::RowLayout;
@@ -31,6 +31,8 @@ pub struct ConvertOptions {
     pub overwrite: bool,
     pub resume: bool,
     pub quiet: bool,
+    /// Where the work files go (`--temp-dir`); beside the output when `None`.
+    pub temp_dir: Option<PathBuf>,
 }
 
 #[derive(Debug, Clone, Serialize)]
@@ -44,6 +46,8 @@ pub struct ConvertSummary {
     pub points_per_second: f64,
     pub peak_memory_bytes: Option<u64>,
     pub dataset_bytes: u64,
+    /// The most disk the conversion took at once, work files and output together (sampled).
+    pub peak_disk_bytes: u64,
     pub resumed_chunks: usize,
     pub phases: Vec<PhaseTime>,
     pub warnings: Vec<String>,
@@ -80,11 +84,16 @@ pub fn convert_with(opts: &ConvertOptions, step: &dyn ChunkStep) -> Result<Conve
     let _ = rayon::ThreadPoolBuilder::new()
         .num_threads(threads)
         .build_global();
-    let wd = WorkDir::for_output(&opts.output);
-    let result = run(opts, &wd, threads, step);
+    let wd = WorkDir::new(&opts.output, opts.temp_dir.as_deref());
+    let mut watched = vec![wd.root().to_path_buf()];
+    if wd.separate() {
+        watched.push(wd.work().to_path_buf());
+    }
+    let watch = PeakWatch::start(watched);
+    let result = run(opts, &wd, threads, step, &watch);
     // Once the plan is saved the work directory is worth keeping for --resume.
     if result.is_err() && !wd.plan().exists() {
-        let _ = fs::remove_dir_all(wd.root());
+        wd.remove_all();
     }
     result
 }
@@ -94,6 +103,7 @@ fn run(
     wd: &WorkDir,
     threads: usize,
     step: &dyn ChunkStep,
+    watch: &PeakWatch,
 ) -> Result<ConvertSummary> {
     let start = Instant::now();
     let mut phases = Phases::new(Progress::new(opts.quiet));
@@ -147,7 +157,9 @@ fn run(
     for entry in &journal {
         add_totals(&mut totals, &entry.step);
     }
+    // The dataset is complete in the folder just before the rename.
     let done = phases.timed("finish", None, |_| {
+        watch.sample();
         finish(opts, wd, &plan, merged, &|meta| step.record(&totals, meta))
     })?;
     let seconds = start.elapsed().as_secs_f64();
@@ -161,6 +173,7 @@ fn run(
         points_per_second: done.points as f64 / seconds.max(1e-9),
         peak_memory_bytes: peak_rss_bytes(),
         dataset_bytes: done.dataset_bytes,
+        peak_disk_bytes: watch.sample().max(done.dataset_bytes),
         resumed_chunks: resumed,
         phases: phases.into_times(),
         warnings,
@@ -168,18 +181,19 @@ fn run(
 }
 
 #[cfg(test)]
-mod tests {
+pub(crate) mod tests {
     use super::*;
     use crate::chunk_step::{ChunkRows, GridBox, Halo, StepTotals};
     use crate::prepare::Plan;
     use crate::synth::{Scene, synth};
     use std::collections::BTreeMap;
+    use std::fs;
     use std::path::Path;
     use std::sync::Mutex;
     use strata_format::row_position;
 
     /// A city of 300k points, cut into several chunks by a small memory limit.
-    fn city(dir: &Path, output: &str) -> ConvertOptions {
+    pub(crate) fn city(dir: &Path, output: &str) -> ConvertOptions {
         let las = dir.join("city.las");
         if !las.exists() {
             synth(&las, 300_000, Scene::City, 7, 0.0, false).expect("synth");
@@ -193,11 +207,12 @@ mod tests {
             overwrite: false,
             resume: false,
             quiet: true,
+            temp_dir: None,
         }
     }
 
     /// Every file of dataset `a` has the same bytes in dataset `b`, and there are no others.
-    fn assert_same_dataset(a: &Path, b: &Path) {
+    pub(crate) fn assert_same_dataset(a: &Path, b: &Path) {
         let names = |d: &Path| -> Vec<_> {
             let mut v: Vec<_> = fs::read_dir(d)
                 .expect("dataset dir")

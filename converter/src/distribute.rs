@@ -4,10 +4,9 @@
 
 use crate::error::{ConvertError, Result, panic_message};
 use crate::plan::{grid_cell, grid_shape};
+use crate::rowfile::{Scratch, append_block};
 use crate::rows::RowInput;
 use indicatif::ProgressBar;
-use std::fs::OpenOptions;
-use std::io::Write;
 use std::path::{Path, PathBuf};
 use strata_format::{Cube, row_position};
 
@@ -16,19 +15,12 @@ pub fn chunk_path(dir: &Path, index: usize, part: usize) -> PathBuf {
     dir.join(format!("c{index}_{part}.bin"))
 }
 
-/// Appends buffered rows to a chunk part file. Files are opened per flush, so any number of
-/// chunks works within the process's file-descriptor limit.
-fn flush(path: &Path, buf: &mut Vec<u8>) -> Result<()> {
+/// Appends buffered rows to a chunk part file as one compressed block (`rowfile`).
+fn flush(path: &Path, buf: &mut Vec<u8>, stride: usize, scratch: &mut Scratch) -> Result<()> {
     if buf.is_empty() {
         return Ok(());
     }
-    let mut f = OpenOptions::new()
-        .create(true)
-        .append(true)
-        .open(path)
-        .map_err(|e| ConvertError::io(path, "cannot open chunk file", e))?;
-    f.write_all(buf)
-        .map_err(|e| ConvertError::io(path, "cannot write chunk file", e))?;
+    append_block(path, buf, stride, scratch)?;
     buf.clear();
     Ok(())
 }
@@ -84,8 +76,9 @@ fn distribute_part(d: &Distribution, part: usize, bar: &ProgressBar) -> Result<C
     let per_chunk = (d.buffer_budget / (d.chunk_count.max(1) * d.threads.max(1)) as u64)
         .clamp(16 << 10, 4 << 20) as usize;
     let mut buffers: Vec<Vec<u8>> = vec![Vec::new(); d.chunk_count];
+    let mut scratch = Scratch::default();
     for input in d.inputs {
-        input.for_each_rows(input.part(part, d.threads), d.stride, |rows| {
+        input.consume_rows(input.part(part, d.threads), d.stride, |rows| {
             for row in rows.chunks_exact(d.stride) {
                 let chunk = d.lut[grid_cell(row_position(row), d.cube, level, shift)] as usize;
                 if let Some(&c) = d.class_at.and_then(|at| row.get(at)) {
@@ -94,7 +87,12 @@ fn distribute_part(d: &Distribution, part: usize, bar: &ProgressBar) -> Result<C
                 let buf = &mut buffers[chunk];
                 buf.extend_from_slice(row);
                 if buf.len() >= per_chunk {
-                    flush(&chunk_path(d.chunk_dir, chunk, part), buf)?;
+                    flush(
+                        &chunk_path(d.chunk_dir, chunk, part),
+                        buf,
+                        d.stride,
+                        &mut scratch,
+                    )?;
                 }
             }
             bar.inc((rows.len() / d.stride) as u64);
@@ -102,7 +100,12 @@ fn distribute_part(d: &Distribution, part: usize, bar: &ProgressBar) -> Result<C
         })?;
     }
     for (i, buf) in buffers.iter_mut().enumerate() {
-        flush(&chunk_path(d.chunk_dir, i, part), buf)?;
+        flush(
+            &chunk_path(d.chunk_dir, i, part),
+            buf,
+            d.stride,
+            &mut scratch,
+        )?;
     }
     Ok(classes)
 }

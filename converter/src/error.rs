@@ -16,6 +16,13 @@ pub enum ConvertError {
     },
     #[error("{}: {what}", path.display())]
     Output { path: PathBuf, what: String },
+    /// Checked before any work: the conversion would not fit on the disk.
+    #[error("{}: the conversion needs about {} of free disk there, but only {} is free", path.display(), crate::sys::format_bytes(*needed), crate::sys::format_bytes(*free))]
+    NoSpace {
+        path: PathBuf,
+        needed: u64,
+        free: u64,
+    },
     #[error(transparent)]
     Format(#[from] strata_format::FormatError),
     #[error("{0}")]

@@ -7,6 +7,7 @@ use crate::journal::{Committer, JournalEntry, record_of};
 use crate::merge::TopMerge;
 use crate::plan::root_spacing;
 use crate::prepare::Plan;
+use crate::rowfile::read_rows;
 use crate::sampling::Sampling;
 use crate::tree::FinishedNode;
 use crate::workdir::WorkDir;
@@ -55,7 +56,8 @@ pub fn merge_top(
         .collect();
     let load = |i: usize| {
         let p = wd.chunk_root(journal[i].chunk);
-        fs::read(&p).map_err(io_err(&p, "cannot read chunk root"))
+        let mut rows = Vec::new();
+        read_rows(&p, layout.stride, &mut rows).map(|()| rows)
     };
     let emit = |n: FinishedNode| {
         octree

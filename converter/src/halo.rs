@@ -6,10 +6,10 @@
 use crate::chunk_step::{GridBox, Halo, row_in};
 use crate::error::{ConvertError, Result, io_err, panic_message};
 use crate::prepare::Plan;
+use crate::rowfile::{RowWriter, for_each_block};
 use crate::workdir::WorkDir;
 use indicatif::ProgressBar;
-use std::fs::{self, File};
-use std::io::{BufReader, BufWriter, Read, Write};
+use std::fs;
 use std::path::Path;
 use std::sync::atomic::{AtomicU64, AtomicUsize, Ordering};
 
@@ -22,6 +22,8 @@ pub struct Halos {
     /// For each chunk, the chunks whose band can reach into its halo.
     neighbours: Vec<Vec<usize>>,
     stride: usize,
+    /// For each chunk, the bands no chunk after it reads: removed once it commits.
+    release_at: Vec<Vec<usize>>,
     /// Rows read from bands, all chunks together.
     rows_read: AtomicU64,
 }
@@ -54,7 +56,14 @@ impl Halos {
                     .collect();
             }
         }
+        // A band is read by its own chunk's neighbours only (and written from its own chunk).
+        let mut release_at = vec![Vec::new(); boxes.len()];
+        for (j, n) in neighbours.iter().enumerate() {
+            let last = n.iter().copied().max().unwrap_or(j).max(j);
+            release_at[last].push(j);
+        }
         Halos {
+            release_at,
             margin,
             asked: margin_real,
             boxes,
@@ -123,22 +132,37 @@ impl Halos {
         }
         let inner = self.boxes[chunk].grown(self.margin.map(|m| -m));
         let part_path = path.with_extension("part");
-        let file = File::create(&part_path).map_err(io_err(&part_path, "cannot create"))?;
-        let mut out = BufWriter::with_capacity(1 << 20, file);
+        let mut out = RowWriter::create(&part_path, self.stride)?;
         for part in 0..parts {
             let src = wd.chunk_part(chunk, part);
             for_each_row(&src, self.stride, |row| {
                 if !row_in(&inner, row) {
-                    out.write_all(row)
-                        .map_err(io_err(&part_path, "cannot write"))?;
+                    out.write(row)?;
                 }
                 Ok(())
             })?;
         }
-        out.into_inner()
-            .map_err(|e| io_err(&part_path, "cannot write")(e.into_error()))?;
+        out.finish()?;
         // Renamed only once whole, so a resumed run never takes a cut band for a full one.
         fs::rename(&part_path, &path).map_err(io_err(&path, "cannot write"))
+    }
+
+    /// Removes the bands no chunk after `committed` reads, now that it has committed. An
+    /// interrupted run resumes after its last committed chunk, so it never needs them.
+    pub fn release(&self, wd: &WorkDir, committed: usize) -> Result<()> {
+        if !self.needed() {
+            return Ok(());
+        }
+        for &j in &self.release_at[committed] {
+            let path = wd.chunk_band(j);
+            match fs::remove_file(&path) {
+                Err(e) if e.kind() != std::io::ErrorKind::NotFound => {
+                    return Err(ConvertError::io(&path, "cannot remove band file", e));
+                }
+                _ => {}
+            }
+        }
+        Ok(())
     }
 
     /// Fills `halo` with chunk `chunk`'s halo; reads nothing when no halo is needed.
@@ -163,28 +187,16 @@ impl Halos {
     }
 }
 
-/// Calls `each` on every row of the file at `path`, which holds whole rows; no file, no rows
-/// (a chunk part with no rows has no file).
+/// Calls `each` on every row of the compressed row file at `path`; no file, no rows (a chunk
+/// part with no rows has no file).
 fn for_each_row(
     path: &Path,
     stride: usize,
     mut each: impl FnMut(&[u8]) -> Result<()>,
 ) -> Result<()> {
-    let file = match File::open(path) {
-        Ok(f) => f,
-        Err(e) if e.kind() == std::io::ErrorKind::NotFound => return Ok(()),
-        Err(e) => return Err(ConvertError::io(path, "cannot open", e)),
-    };
-    let len = file.metadata().map_err(io_err(path, "cannot read"))?.len();
-    let mut reader = BufReader::with_capacity(1 << 20, file);
-    let mut row = vec![0u8; stride];
-    for _ in 0..len / stride.max(1) as u64 {
-        reader
-            .read_exact(&mut row)
-            .map_err(io_err(path, "cannot read"))?;
-        each(&row)?;
-    }
-    Ok(())
+    for_each_block(path, stride, |rows| {
+        rows.chunks_exact(stride).try_for_each(&mut each)
+    })
 }
 
 #[cfg(test)]
@@ -222,7 +234,8 @@ mod tests {
         }
         fs::create_dir_all(wd.chunks()).expect("chunk dir");
         for (i, r) in rows.iter().enumerate() {
-            fs::write(wd.chunk_part(i, 0), r).expect("chunk file");
+            crate::rowfile::append_block(&wd.chunk_part(i, 0), r, 12, &mut Default::default())
+                .expect("chunk file");
         }
         Plan {
             fingerprint: String::new(),
@@ -268,6 +281,13 @@ mod tests {
         }
         // Each chunk read the bands of its 7 neighbours: all but the 4^3 inner rows of each.
         assert_eq!(halos.rows_read(), 8 * 7 * (512 - 64));
+        // Every octant touches chunk 7, the last: no band can go before it commits.
+        for i in 0..7 {
+            halos.release(&wd, i).expect("release");
+            assert!((0..8).all(|j| wd.chunk_band(j).exists()), "after {i}");
+        }
+        halos.release(&wd, 7).expect("release");
+        assert!((0..8).all(|j| !wd.chunk_band(j).exists()));
     }
 
     #[test]

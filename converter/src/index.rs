@@ -3,17 +3,17 @@
 //! file is the same whatever the timing.
 
 use crate::chunk_step::{ChunkRows, ChunkStep, GridBox, Halo};
-use crate::error::{ConvertError, Result, io_err, panic_message};
+use crate::error::{ConvertError, Result, panic_message};
 use crate::halo::Halos;
 use crate::journal::{BuiltChunk, Committer, JournalEntry};
 use crate::prepare::Plan;
+use crate::rowfile::read_rows;
 use crate::sampling::Sampling;
 use crate::tree::{ChunkMemory, TreeBuilder};
 use crate::workdir::WorkDir;
 use indicatif::ProgressBar;
 use std::collections::BTreeMap;
-use std::fs::{self, File};
-use std::io::Read;
+use std::fs;
 use std::panic::{AssertUnwindSafe, catch_unwind};
 use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
 use std::sync::{Condvar, Mutex};
@@ -129,7 +129,7 @@ fn build_chunk(
     mut mem: ChunkMemory,
     halo: &mut Halo,
 ) -> Result<(BuiltChunk, ChunkMemory)> {
-    read_chunk(ix.wd, i, ix.threads, &mut mem.rows)?;
+    read_chunk(ix.wd, i, ix.threads, ix.layout.stride, &mut mem.rows)?;
     ix.halos.gather(ix.wd, i, halo)?;
     let chunk = &ix.plan.chunks[i];
     let step = ix.step.process(
@@ -152,6 +152,7 @@ fn build_chunk(
         BuiltChunk {
             finished,
             root_rows,
+            stride: ix.layout.stride,
             root_mask: root.child_mask,
             step,
         },
@@ -169,8 +170,14 @@ fn commit_ready(ix: &Indexing, s: &mut CommitState, abort: &AtomicBool, bar: &Pr
         match s.committer.commit(ix.wd, idx, done) {
             Ok(entry) => {
                 s.entries.push(entry);
+                // Consumed: its files go now, so the work files shrink as the dataset grows.
                 for part in 0..ix.threads {
                     let _ = fs::remove_file(ix.wd.chunk_part(idx, part));
+                }
+                if let Err(e) = ix.halos.release(ix.wd, idx) {
+                    s.error.get_or_insert(e);
+                    abort.store(true, Ordering::SeqCst);
+                    break;
                 }
                 bar.inc(ix.plan.chunks[idx].points);
                 s.next += 1;
@@ -198,24 +205,16 @@ fn chunk_fault(plan: &Plan, i: usize, message: String) -> ConvertError {
 }
 
 /// A chunk's rows: its part files in order (a part with no rows has no file).
-fn read_chunk(wd: &WorkDir, chunk: usize, parts: usize, rows: &mut Vec<u8>) -> Result<()> {
-    let paths: Vec<_> = (0..parts).map(|p| wd.chunk_part(chunk, p)).collect();
-    let total: u64 = paths
-        .iter()
-        .filter_map(|p| fs::metadata(p).ok())
-        .map(|m| m.len())
-        .sum();
+fn read_chunk(
+    wd: &WorkDir,
+    chunk: usize,
+    parts: usize,
+    stride: usize,
+    rows: &mut Vec<u8>,
+) -> Result<()> {
     rows.clear();
-    rows.reserve(total as usize);
-    for path in paths {
-        match File::open(&path) {
-            Ok(mut f) => {
-                f.read_to_end(rows)
-                    .map_err(io_err(&path, "cannot read chunk"))?;
-            }
-            Err(e) if e.kind() == std::io::ErrorKind::NotFound => {}
-            Err(e) => return Err(ConvertError::io(&path, "cannot read chunk", e)),
-        }
+    for part in 0..parts {
+        read_rows(&wd.chunk_part(chunk, part), stride, rows)?;
     }
     Ok(())
 }

@@ -5,6 +5,7 @@
 use crate::build::ConvertOptions;
 use crate::error::{ConvertError, Result, io_err};
 use crate::prepare::Plan;
+use crate::rowfile::RowWriter;
 use crate::tree::FinishedNode;
 use crate::workdir::WorkDir;
 use serde::{Deserialize, Serialize};
@@ -151,6 +152,8 @@ pub fn read_journal(wd: &WorkDir, chunks: usize) -> Vec<JournalEntry> {
 pub struct BuiltChunk {
     pub finished: Vec<FinishedNode>,
     pub root_rows: Vec<u8>,
+    /// Bytes per row of `root_rows`.
+    pub stride: usize,
     pub root_mask: u8,
     pub step: Vec<f64>,
 }
@@ -229,8 +232,10 @@ impl Committer {
             self.end += n.payload.len() as u64;
         }
         let root_path = wd.chunk_root(chunk);
-        fs::write(&root_path, &built.root_rows)
-            .map_err(io_err(&root_path, "cannot write chunk root"))?;
+        // Compressed like every work file of rows; rewritten whole by a resumed run.
+        let mut out = RowWriter::create(&root_path, built.stride)?;
+        out.write(&built.root_rows)?;
+        out.finish()?;
         let entry = JournalEntry {
             chunk,
             end: self.end,

@@ -2,6 +2,9 @@
 
 pub mod build;
 pub mod chunk_step;
+pub mod disk;
+#[cfg(test)]
+mod disk_tests;
 pub mod distribute;
 pub mod error;
 pub mod export;
@@ -17,6 +20,7 @@ pub mod plan;
 pub mod prepare;
 pub mod progress;
 pub mod quantize;
+pub mod rowfile;
 pub mod rows;
 pub mod sampling;
 pub mod scan;

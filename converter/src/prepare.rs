@@ -4,6 +4,7 @@
 
 use crate::build::ConvertOptions;
 use crate::chunk_step::ChunkStep;
+use crate::disk::check_conversion;
 use crate::distribute::{Distribution, distribute};
 use crate::error::{ConvertError, Result, io_err};
 use crate::input::las::LasSource;
@@ -94,6 +95,7 @@ pub fn prepare(
     let added = step.attributes(&attributes)?;
     attributes.extend(added);
     let layout = RowLayout::new(attributes.clone());
+    check_conversion(&opts.inputs, wd.work(), wd.root(), declared, layout.stride)?;
     let staged = match stage_from_headers(opts, &layout, wd, threads, phases) {
         Ok(Some(staged)) if !needlessly_large(&staged) => staged,
         Ok(Some(staged)) => {
@@ -318,6 +320,7 @@ fn stage_from_headers(
                     record_len: src.record_len(),
                     records: src.info().points,
                     convert: Some(conv),
+                    blocks: None,
                 },
                 None => {
                     let rows = wd.decoded_rows(i);

@@ -146,7 +146,8 @@ impl RecordToRow {
 }
 
 /// A file of fixed-length records the count and distribute phases read: an uncompressed LAS
-/// input read in place (`convert` set), or a staging file that already holds rows.
+/// input read in place (`convert` set), or a staging file that already holds rows, compressed
+/// in blocks (`rowfile`).
 #[derive(Debug, Clone)]
 pub struct RowInput {
     pub path: PathBuf,
@@ -154,6 +155,9 @@ pub struct RowInput {
     pub record_len: usize,
     pub records: u64,
     pub convert: Option<RecordToRow>,
+    /// Written by `rowfile::RowWriter` (a staging file), not plain records: where its blocks
+    /// start.
+    pub blocks: Option<Vec<u64>>,
 }
 
 /// Records per read, at most.
@@ -179,8 +183,23 @@ impl RowInput {
     pub fn for_each_raw(
         &self,
         range: Range<u64>,
+        each: impl FnMut(&[u8], u64) -> Result<()>,
+    ) -> Result<()> {
+        self.read_raw(range, false, each)
+    }
+
+    /// As `for_each_raw`; with `release`, a staging file frees what has been read (the last
+    /// reading, by the distribute phase).
+    fn read_raw(
+        &self,
+        range: Range<u64>,
+        release: bool,
         mut each: impl FnMut(&[u8], u64) -> Result<()>,
     ) -> Result<()> {
+        if let Some(blocks) = &self.blocks {
+            let len = self.record_len;
+            return crate::rowfile::for_each_in(&self.path, blocks, len, range, release, each);
+        }
         let file =
             File::open(&self.path).map_err(|e| ConvertError::io(&self.path, "cannot open", e))?;
         let mut raw = Vec::new();
@@ -202,15 +221,17 @@ impl RowInput {
         Ok(())
     }
 
-    /// Calls `each(rows)` on the rows of `range`, in batches.
-    pub fn for_each_rows(
+    /// Calls `each(rows)` on the rows of `range`, in batches, for the last time: the blocks
+    /// of a staging file are freed as they are read (so distributing moves the rows from the
+    /// staging file into the chunk files rather than copying them).
+    pub fn consume_rows(
         &self,
         range: Range<u64>,
         stride: usize,
         mut each: impl FnMut(&[u8]) -> Result<()>,
     ) -> Result<()> {
         let mut rows = Vec::new();
-        self.for_each_raw(range, |raw, first| match &self.convert {
+        self.read_raw(range, true, |raw, first| match &self.convert {
             Some(c) => {
                 c.convert(raw, self.record_len, first, &mut rows, stride)?;
                 each(&rows)

@@ -1,13 +1,13 @@
 //! Phase 1: decode every input once into a staging file of (f64 position, attribute row)
-//! records in the dataset's attribute layout, checking coordinates and measuring extents.
+//! records in the dataset's attribute layout (compressed, `rowfile`), checking coordinates and
+//! measuring extents.
 
 use crate::error::{ConvertError, Result};
 use crate::input::{NO_SCANNER, SCANNER, open_source};
 use crate::quantize::SourceExtent;
+use crate::rowfile::RowWriter;
 use crate::rows::batch_records;
 use indicatif::ProgressBar;
-use std::fs::File;
-use std::io::{BufWriter, Write};
 use std::path::{Path, PathBuf};
 use strata_format::{AttrType, Attribute};
 
@@ -96,9 +96,8 @@ pub fn scan(
     bar: &ProgressBar,
 ) -> Result<ScanResult> {
     let stride = staging_stride(attributes);
-    let file = File::create(staging)
-        .map_err(|e| ConvertError::io(staging, "cannot create staging file", e))?;
-    let mut out = BufWriter::with_capacity(8 << 20, file);
+    // Compressed in blocks like every work file of rows (`rowfile`).
+    let mut out = RowWriter::create(staging, stride)?;
     let mut result = ScanResult {
         attributes: attributes.to_vec(),
         points: 0,
@@ -180,8 +179,7 @@ pub fn scan(
                     rec[d..d + len].copy_from_slice(&row[s..s + len]);
                 }
             }
-            out.write_all(&records)
-                .map_err(|e| ConvertError::io(staging, "cannot write staging file", e))?;
+            out.write(&records)?;
             index += n as u64;
             bar.inc(n as u64);
         }
@@ -192,8 +190,7 @@ pub fn scan(
         }
         result.extents.push(extent);
     }
-    out.flush()
-        .map_err(|e| ConvertError::io(staging, "cannot write staging file", e))?;
+    out.finish()?;
     Ok(result)
 }
 
@@ -207,46 +204,6 @@ fn scanner_at(attributes: &[Attribute]) -> Option<usize> {
         at += a.size();
     }
     None
-}
-
-/// Reads a staging file in batches of whole records.
-pub struct StagingReader {
-    file: File,
-    path: PathBuf,
-    stride: usize,
-    pub buf: Vec<u8>,
-}
-
-impl StagingReader {
-    pub fn open(path: &Path, stride: usize) -> Result<Self> {
-        let file =
-            File::open(path).map_err(|e| ConvertError::io(path, "cannot open staging file", e))?;
-        Ok(StagingReader {
-            file,
-            path: path.to_path_buf(),
-            stride,
-            buf: Vec::new(),
-        })
-    }
-
-    /// Fills `buf` with up to `max` records; returns how many (0 at the end).
-    pub fn next_batch(&mut self, max: usize) -> Result<usize> {
-        use std::io::Read;
-        self.buf.resize(max * self.stride, 0);
-        let mut filled = 0;
-        while filled < self.buf.len() {
-            let n = self
-                .file
-                .read(&mut self.buf[filled..])
-                .map_err(|e| ConvertError::io(&self.path, "cannot read staging file", e))?;
-            if n == 0 {
-                break;
-            }
-            filled += n;
-        }
-        self.buf.truncate(filled - filled % self.stride);
-        Ok(filled / self.stride)
-    }
 }
 
 #[inline]

@@ -5,29 +5,26 @@ use crate::error::{ConvertError, Result, panic_message};
 use crate::input::las::LasSource;
 use crate::plan::Counts;
 use crate::quantize::Quantization;
+use crate::rowfile::{RowWriter, for_each_block};
 use crate::rows::{RecordToRow, RowInput, batch_records};
-use crate::scan::{StagingReader, staging_position};
+use crate::scan::staging_position;
 use indicatif::ProgressBar;
-use std::fs::File;
-use std::io::{BufWriter, Write};
 use std::path::Path;
 use strata_format::row_position;
 
-fn create(path: &Path) -> Result<BufWriter<File>> {
-    let file =
-        File::create(path).map_err(|e| ConvertError::io(path, "cannot create staging file", e))?;
-    Ok(BufWriter::with_capacity(8 << 20, file))
+fn create(path: &Path, stride: usize) -> Result<RowWriter> {
+    RowWriter::create(path, stride)
 }
 
-fn finish(out: BufWriter<File>, path: &Path, stride: usize, records: u64) -> Result<RowInput> {
-    out.into_inner()
-        .map_err(|e| ConvertError::io(path, "cannot write staging file", e.into_error()))?;
+fn finish(out: RowWriter, path: &Path, stride: usize) -> Result<RowInput> {
+    let (records, blocks) = out.finish_indexed()?;
     Ok(RowInput {
         path: path.to_path_buf(),
         start: 0,
         record_len: stride,
         records,
         convert: None,
+        blocks: Some(blocks),
     })
 }
 
@@ -42,12 +39,12 @@ pub fn decode_to_rows(
     counts: &mut Counts,
     bar: &ProgressBar,
 ) -> Result<RowInput> {
-    let out = create(staging)?;
+    let out = create(staging, stride)?;
     let record_len = src.record_len();
     let (full_tx, full_rx) = std::sync::mpsc::sync_channel::<(Vec<u8>, u64)>(1);
     let (empty_tx, empty_rx) = std::sync::mpsc::channel::<Vec<u8>>();
     std::thread::scope(|scope| {
-        let writer = scope.spawn(move || -> Result<(BufWriter<File>, u64)> {
+        let writer = scope.spawn(move || -> Result<(RowWriter, u64)> {
             let mut out = out;
             let mut rows = Vec::new();
             let mut done = 0u64;
@@ -56,8 +53,7 @@ pub fn decode_to_rows(
                 for row in rows.chunks_exact(stride) {
                     counts.add(row_position(row));
                 }
-                out.write_all(&rows)
-                    .map_err(|e| ConvertError::io(staging, "cannot write staging file", e))?;
+                out.write(&rows)?;
                 let n = (records.len() / record_len) as u64;
                 done += n;
                 bar.inc(n);
@@ -92,8 +88,8 @@ pub fn decode_to_rows(
             ))
         });
         read?;
-        let (out, done) = written?;
-        finish(out, staging, stride, done)
+        let (out, _) = written?;
+        finish(out, staging, stride)
     })
 }
 
@@ -106,27 +102,24 @@ pub fn quantize_staging(
     staging: &Path,
     bar: &ProgressBar,
 ) -> Result<RowInput> {
-    let mut out = create(staging)?;
-    let mut reader = StagingReader::open(f64_staging, f64_stride)?;
+    let mut out = create(staging, stride)?;
     let attr_len = stride - 12;
     let mut rows = Vec::new();
     let mut done = 0u64;
-    loop {
-        let n = reader.next_batch(batch_records(f64_stride, 1 << 16))?;
-        if n == 0 {
-            break;
-        }
+    for_each_block(f64_staging, f64_stride, |records| {
         rows.clear();
-        for rec in reader.buf.chunks_exact(f64_stride) {
+        for rec in records.chunks_exact(f64_stride) {
             for v in q.quantize(&staging_position(rec)) {
                 rows.extend_from_slice(&v.to_le_bytes());
             }
             rows.extend_from_slice(&rec[24..24 + attr_len]);
         }
-        out.write_all(&rows)
-            .map_err(|e| ConvertError::io(staging, "cannot write staging file", e))?;
-        done += n as u64;
-        bar.inc(n as u64);
-    }
-    finish(out, staging, stride, done)
+        out.write(&rows)?;
+        let n = (records.len() / f64_stride) as u64;
+        done += n;
+        bar.inc(n);
+        Ok(())
+    })?;
+    debug_assert_eq!(out.rows, done);
+    finish(out, staging, stride)
 }

@@ -1,6 +1,7 @@
 //! Where a conversion keeps its files: `OUTPUT.strata-tmp/`, which becomes the dataset by a
 //! rename once complete. Its `work/` folder holds what only the conversion reads (staging
-//! files, chunk parts, the plan and the journal for `--resume`) and is removed before the rename.
+//! files, chunk parts, the plan and the journal for `--resume`) and is removed before the rename;
+//! with `--temp-dir DIR` that folder is `DIR/OUTPUT.strata-work` instead, on another disk.
 
 use crate::distribute::chunk_path;
 use crate::error::{Result, io_err};
@@ -18,11 +19,37 @@ impl WorkDir {
     /// The work directory of a conversion into `output`: a sibling, so the final rename stays
     /// on one file system.
     pub fn for_output(output: &Path) -> Self {
-        let mut name = output.file_name().unwrap_or_default().to_os_string();
+        Self::new(output, None)
+    }
+
+    /// As `for_output`, with the work folder under `temp` when given.
+    pub fn new(output: &Path, temp: Option<&Path>) -> Self {
+        let base = output.file_name().unwrap_or_default().to_os_string();
+        let mut name = base.clone();
         name.push(".strata-tmp");
         let root = output.with_file_name(name);
-        let work = root.join("work");
+        let work = match temp {
+            Some(t) => {
+                let mut name = base;
+                name.push(".strata-work");
+                t.join(name)
+            }
+            None => root.join("work"),
+        };
         WorkDir { root, work }
+    }
+
+    /// Whether the work folder lies outside the folder that becomes the dataset.
+    pub fn separate(&self) -> bool {
+        !self.work.starts_with(&self.root)
+    }
+
+    /// Removes everything of the conversion: the folder and a separate work folder.
+    pub fn remove_all(&self) {
+        let _ = fs::remove_dir_all(&self.root);
+        if self.separate() {
+            let _ = fs::remove_dir_all(&self.work);
+        }
     }
 
     /// The folder that becomes the dataset.
@@ -108,10 +135,13 @@ impl WorkDir {
 
     /// An empty work directory, clearing what an earlier run left.
     pub fn create_fresh(&self) -> Result<()> {
-        if self.root.exists() {
-            fs::remove_dir_all(&self.root)
-                .map_err(io_err(&self.root, "cannot clear old work directory"))?;
+        for dir in [&self.root, &self.work] {
+            if dir.exists() {
+                fs::remove_dir_all(dir).map_err(io_err(dir, "cannot clear old work directory"))?;
+            }
         }
+        fs::create_dir_all(&self.root)
+            .map_err(io_err(&self.root, "cannot create work directory"))?;
         for dir in [self.chunks(), self.roots()] {
             fs::create_dir_all(&dir).map_err(io_err(&dir, "cannot create work directory"))?;
         }

@@ -33,6 +33,11 @@ pub struct Args {
     /// No progress bars and no summary.
     #[arg(short, long)]
     quiet: bool,
+    /// Put the work files (staging rows, chunk files, halo bands) under this folder, e.g. on
+    /// another disk; the dataset is still written beside the output and renamed. Give it again
+    /// with --resume.
+    #[arg(long, value_name = "DIR")]
+    temp_dir: Option<PathBuf>,
     /// Also write the summary as JSON to this file.
     #[arg(long)]
     stats: Option<PathBuf>,
@@ -106,6 +111,7 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
         overwrite: a.overwrite,
         resume: a.resume,
         quiet: a.quiet,
+        temp_dir: a.temp_dir,
     };
     let step: Box<dyn ChunkStep> = match a.normals {
         None => Box::new(NoStep),
@@ -156,12 +162,13 @@ pub fn print_summary(s: &ConvertSummary) {
         }
     );
     println!(
-        "  {:.2} s  {:.2} M points/s  peak memory {}  dataset {}",
+        "  {:.2} s  {:.2} M points/s  peak memory {}  dataset {}  peak disk {}",
         s.seconds,
         s.points_per_second / 1e6,
         s.peak_memory_bytes
             .map_or_else(|| "unknown".into(), format_bytes),
-        format_bytes(s.dataset_bytes)
+        format_bytes(s.dataset_bytes),
+        format_bytes(s.peak_disk_bytes)
     );
     let phases: Vec<String> = s
         .phases

@@ -44,6 +44,7 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
         overwrite: true,
         resume: false,
         quiet: false,
+        temp_dir: None,
     })?;
     print_summary(&summary);
     println!("3/4 verifying");

@@ -136,6 +136,7 @@ fn convert(input: &Path, output: &Path, orient: Orient, k: usize) -> anyhow::Res
             overwrite: true,
             resume: false,
             quiet: true,
+            temp_dir: None,
         },
         &step,
     )?;

@@ -60,6 +60,7 @@ fn options(input: &Path, output: PathBuf, memory_limit: u64) -> ConvertOptions {
         overwrite: false,
         resume: false,
         quiet: true,
+        temp_dir: None,
     }
 }
 

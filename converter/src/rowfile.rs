@@ -1,0 +1,375 @@
+//! Work files of rows (staging rows, chunk parts, halo bands), compressed as they are written
+//! so that a conversion's peak disk stays well under its rows' size. A file is a sequence of
+//! blocks, each of whole rows: 4 bytes of raw length, 4 of compressed length (little endian),
+//! then the block's rows with their bytes grouped by position in the row (every row's first
+//! byte, then every row's second, ...), which lines up the slowly changing high bytes of
+//! positions and attributes, compressed with lz4.
+
+use crate::error::{ConvertError, Result, io_err};
+use std::fs::{File, OpenOptions};
+use std::io::{BufReader, BufWriter, Read, Seek, SeekFrom, Write};
+use std::ops::Range;
+use std::path::{Path, PathBuf};
+
+const HEADER: usize = 8;
+
+/// Rows per block of a staging file, whose blocks all hold this many rows but the last, so
+/// that a record's block is found by division.
+pub fn block_rows(stride: usize) -> usize {
+    ((1usize << 20) / stride.max(1)).clamp(1, 1 << 14)
+}
+
+/// Groups the bytes of `rows` (of `stride` bytes each) by their place in the row.
+fn shuffle(rows: &[u8], stride: usize, out: &mut Vec<u8>) {
+    let n = rows.len() / stride;
+    out.clear();
+    out.resize(rows.len(), 0);
+    for (i, row) in rows.chunks_exact(stride).enumerate() {
+        for (j, &b) in row.iter().enumerate() {
+            out[j * n + i] = b;
+        }
+    }
+}
+
+fn unshuffle(grouped: &[u8], stride: usize, out: &mut Vec<u8>) {
+    let n = grouped.len() / stride;
+    out.clear();
+    out.resize(grouped.len(), 0);
+    for (i, row) in out.chunks_exact_mut(stride).enumerate() {
+        for (j, b) in row.iter_mut().enumerate() {
+            *b = grouped[j * n + i];
+        }
+    }
+}
+
+/// Reusable buffers for encoding and decoding blocks.
+#[derive(Default)]
+pub struct Scratch {
+    grouped: Vec<u8>,
+    packed: Vec<u8>,
+}
+
+/// Writes `rows` as one block to `out`; returns the bytes written.
+pub fn write_block(
+    out: &mut impl Write,
+    rows: &[u8],
+    stride: usize,
+    scratch: &mut Scratch,
+    path: &Path,
+) -> Result<u64> {
+    shuffle(rows, stride, &mut scratch.grouped);
+    let packed = &mut scratch.packed;
+    packed.clear();
+    packed.resize(
+        HEADER + lz4_flex::block::get_maximum_output_size(rows.len()),
+        0,
+    );
+    let len =
+        lz4_flex::block::compress_into(&scratch.grouped, &mut packed[HEADER..]).map_err(|e| {
+            ConvertError::internal(format!("compressing {}", path.display()), e.to_string())
+        })?;
+    packed[..4].copy_from_slice(&(rows.len() as u32).to_le_bytes());
+    packed[4..8].copy_from_slice(&(len as u32).to_le_bytes());
+    out.write_all(&packed[..HEADER + len])
+        .map_err(io_err(path, "cannot write"))?;
+    Ok((HEADER + len) as u64)
+}
+
+/// Appends `rows` as one block to the file at `path`, creating it; returns the bytes written.
+/// The file is opened per call, so any number of files works within the descriptor limit.
+pub fn append_block(path: &Path, rows: &[u8], stride: usize, scratch: &mut Scratch) -> Result<u64> {
+    let mut f = OpenOptions::new()
+        .create(true)
+        .append(true)
+        .open(path)
+        .map_err(io_err(path, "cannot open"))?;
+    write_block(&mut f, rows, stride, scratch, path)
+}
+
+/// Reads the next block's rows into `rows`; false at the end of the file.
+fn read_block(
+    r: &mut impl Read,
+    stride: usize,
+    path: &Path,
+    scratch: &mut Scratch,
+    rows: &mut Vec<u8>,
+) -> Result<bool> {
+    let mut head = [0u8; HEADER];
+    match r.read_exact(&mut head) {
+        Ok(()) => {}
+        Err(e) if e.kind() == std::io::ErrorKind::UnexpectedEof => return Ok(false),
+        Err(e) => return Err(ConvertError::io(path, "cannot read", e)),
+    }
+    let raw = u32::from_le_bytes([head[0], head[1], head[2], head[3]]) as usize;
+    let len = u32::from_le_bytes([head[4], head[5], head[6], head[7]]) as usize;
+    scratch.packed.resize(len, 0);
+    r.read_exact(&mut scratch.packed)
+        .map_err(io_err(path, "cannot read"))?;
+    scratch.grouped.resize(raw, 0);
+    let got = lz4_flex::block::decompress_into(&scratch.packed, &mut scratch.grouped);
+    if got.ok() != Some(raw) || !raw.is_multiple_of(stride.max(1)) {
+        return Err(ConvertError::internal(
+            format!("reading {}", path.display()),
+            "a block of rows is damaged",
+        ));
+    }
+    unshuffle(&scratch.grouped, stride, rows);
+    Ok(true)
+}
+
+/// Calls `each` on the rows of every block of the file at `path`; no file, no rows (a chunk
+/// part with no rows has no file).
+pub fn for_each_block(
+    path: &Path,
+    stride: usize,
+    mut each: impl FnMut(&[u8]) -> Result<()>,
+) -> Result<()> {
+    let file = match File::open(path) {
+        Ok(f) => f,
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => return Ok(()),
+        Err(e) => return Err(ConvertError::io(path, "cannot open", e)),
+    };
+    let mut r = BufReader::with_capacity(1 << 20, file);
+    let mut scratch = Scratch::default();
+    let mut rows = Vec::new();
+    while read_block(&mut r, stride, path, &mut scratch, &mut rows)? {
+        each(&rows)?;
+    }
+    Ok(())
+}
+
+/// Appends every row of the file at `path` to `out`.
+pub fn read_rows(path: &Path, stride: usize, out: &mut Vec<u8>) -> Result<()> {
+    for_each_block(path, stride, |rows| {
+        out.extend_from_slice(rows);
+        Ok(())
+    })
+}
+
+/// Writes rows to a new file in blocks of `block_rows(stride)` rows.
+pub struct RowWriter {
+    path: PathBuf,
+    out: BufWriter<File>,
+    stride: usize,
+    pending: Vec<u8>,
+    block: usize,
+    scratch: Scratch,
+    pub rows: u64,
+    /// Where each block starts in the file.
+    offsets: Vec<u64>,
+    at: u64,
+}
+
+impl RowWriter {
+    pub fn create(path: &Path, stride: usize) -> Result<Self> {
+        let file = File::create(path).map_err(io_err(path, "cannot create"))?;
+        Ok(RowWriter {
+            path: path.to_path_buf(),
+            out: BufWriter::with_capacity(4 << 20, file),
+            stride,
+            pending: Vec::new(),
+            block: block_rows(stride) * stride,
+            scratch: Scratch::default(),
+            rows: 0,
+            offsets: Vec::new(),
+            at: 0,
+        })
+    }
+
+    /// Adds whole rows.
+    pub fn write(&mut self, mut rows: &[u8]) -> Result<()> {
+        self.rows += (rows.len() / self.stride) as u64;
+        while !rows.is_empty() {
+            let take = (self.block - self.pending.len()).min(rows.len());
+            self.pending.extend_from_slice(&rows[..take]);
+            rows = &rows[take..];
+            if self.pending.len() == self.block {
+                self.flush_block()?;
+            }
+        }
+        Ok(())
+    }
+
+    fn flush_block(&mut self) -> Result<()> {
+        if !self.pending.is_empty() {
+            self.offsets.push(self.at);
+            self.at += write_block(
+                &mut self.out,
+                &self.pending,
+                self.stride,
+                &mut self.scratch,
+                &self.path,
+            )?;
+            self.pending.clear();
+        }
+        Ok(())
+    }
+
+    /// Writes what is pending and closes the file; returns the rows written.
+    pub fn finish(self) -> Result<u64> {
+        self.finish_indexed().map(|(rows, _)| rows)
+    }
+
+    /// As `finish`, also returning where each block starts, for `for_each_in`.
+    pub fn finish_indexed(mut self) -> Result<(u64, Vec<u64>)> {
+        self.flush_block()?;
+        self.out
+            .into_inner()
+            .map_err(|e| io_err(&self.path, "cannot write")(e.into_error()))?;
+        Ok((self.rows, self.offsets))
+    }
+}
+
+/// Frees the disk under `len` bytes at `offset` of `file`, which keeps its length (a hole reads
+/// as zeros). Best effort: a file system without holes keeps the bytes until the file goes.
+fn punch_hole(file: &File, offset: u64, len: u64) {
+    use std::os::fd::AsRawFd;
+    // SAFETY: fallocate on a descriptor this process owns; it changes no memory of ours.
+    unsafe {
+        libc::fallocate(
+            file.as_raw_fd(),
+            libc::FALLOC_FL_PUNCH_HOLE | libc::FALLOC_FL_KEEP_SIZE,
+            offset as libc::off_t,
+            len as libc::off_t,
+        );
+    }
+}
+
+/// Calls `each(rows, first)` on the rows of `range` of a file `RowWriter` wrote, in blocks,
+/// `offsets` where its blocks start. With `release`, frees each block that lies wholly in
+/// `range` once `each` has seen it: a staging file read for the last time shrinks as it is
+/// read (by several readers of ranges apart, which is why blocks are found by `offsets`, not
+/// by the headers of blocks that may already be freed).
+pub fn for_each_in(
+    path: &Path,
+    offsets: &[u64],
+    stride: usize,
+    range: Range<u64>,
+    release: bool,
+    mut each: impl FnMut(&[u8], u64) -> Result<()>,
+) -> Result<()> {
+    if range.is_empty() {
+        return Ok(());
+    }
+    let per = block_rows(stride) as u64;
+    // Freeing blocks needs the file open for writing.
+    let file = OpenOptions::new()
+        .read(true)
+        .write(release)
+        .open(path)
+        .map_err(io_err(path, "cannot open"))?;
+    let mut r = BufReader::with_capacity(1 << 20, file);
+    let block = range.start / per;
+    let Some(&start) = offsets.get(block as usize) else {
+        return Err(ConvertError::internal(
+            format!("reading {}", path.display()),
+            format!("the file ends before row {}", range.start),
+        ));
+    };
+    let mut offset = start;
+    r.seek(SeekFrom::Start(start))
+        .map_err(io_err(path, "cannot read"))?;
+    let mut scratch = Scratch::default();
+    let mut rows = Vec::new();
+    let mut at = block * per;
+    while at < range.end {
+        if !read_block(&mut r, stride, path, &mut scratch, &mut rows)? {
+            return Err(ConvertError::internal(
+                format!("reading {}", path.display()),
+                format!("the file ends before row {at}"),
+            ));
+        }
+        let n = (rows.len() / stride) as u64;
+        let bytes = (HEADER + scratch.packed.len()) as u64;
+        let lo = range.start.max(at);
+        let hi = range.end.min(at + n);
+        if lo < hi {
+            let s = ((lo - at) as usize) * stride;
+            let e = ((hi - at) as usize) * stride;
+            each(&rows[s..e], lo)?;
+        }
+        if release && lo == at && hi == at + n {
+            punch_hole(r.get_ref(), offset, bytes);
+        }
+        offset += bytes;
+        at += n;
+    }
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn rows_come_back_whole_and_smaller() {
+        let dir = tempfile::tempdir().expect("tempdir");
+        let path = dir.path().join("rows.bin");
+        let stride = 16;
+        let rows: Vec<u8> = (0..100_000u32)
+            .flat_map(|i| {
+                let mut r = [0u8; 16];
+                r[..4].copy_from_slice(&(i / 3).to_le_bytes());
+                r[4..8].copy_from_slice(&(1000 + i % 77).to_le_bytes());
+                r[12] = (i % 5) as u8;
+                r
+            })
+            .collect();
+        let mut w = RowWriter::create(&path, stride).expect("create");
+        for part in rows.chunks(stride * 999) {
+            w.write(part).expect("write");
+        }
+        let (n, offsets) = w.finish_indexed().expect("finish");
+        assert_eq!(n, 100_000);
+        let size = std::fs::metadata(&path).expect("meta").len();
+        assert!(size * 3 < rows.len() as u64, "{size} bytes");
+        let mut back = Vec::new();
+        read_rows(&path, stride, &mut back).expect("read");
+        assert!(back == rows);
+        // Any range, across blocks.
+        for range in [0..1, 5..70_000, 65_535..65_537, 99_999..100_000, 7..7] {
+            let mut got = Vec::new();
+            let mut next = range.start;
+            for_each_in(&path, &offsets, stride, range.clone(), false, |r, first| {
+                assert_eq!(first, next);
+                next += (r.len() / stride) as u64;
+                got.extend_from_slice(r);
+                Ok(())
+            })
+            .expect("range");
+            let want = &rows[range.start as usize * stride..range.end as usize * stride];
+            assert!(got == want, "{range:?}");
+        }
+    }
+
+    #[test]
+    fn a_last_reading_frees_the_blocks_it_read() {
+        let dir = tempfile::tempdir().expect("tempdir");
+        let path = dir.path().join("rows.bin");
+        let stride = 16;
+        // Noise, so that blocks stay large enough to free whole pages.
+        let mut x = 0x9e37_79b9_7f4a_7c15u64;
+        let rows: Vec<u8> = (0..400_000)
+            .flat_map(|_| {
+                x ^= x << 13;
+                x ^= x >> 7;
+                x ^= x << 17;
+                x.to_le_bytes()
+            })
+            .collect();
+        let mut w = RowWriter::create(&path, stride).expect("create");
+        w.write(&rows).expect("write");
+        let (_, offsets) = w.finish_indexed().expect("finish");
+        let used =
+            |p: &Path| std::os::unix::fs::MetadataExt::blocks(&std::fs::metadata(p).expect("meta"));
+        let before = used(&path);
+        // Read once without releasing: nothing is freed.
+        for_each_in(&path, &offsets, stride, 0..200_000, false, |_, _| Ok(())).expect("read");
+        assert_eq!(used(&path), before);
+        for range in [0..70_000, 70_000..200_000] {
+            for_each_in(&path, &offsets, stride, range, true, |_, _| Ok(())).expect("release");
+        }
+        let after = used(&path);
+        assert!(after * 4 < before, "{after} of {before} blocks left");
+    }
+}
