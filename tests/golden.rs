@@ -1,5 +1,5 @@
 //! Golden images: every registered pipeline renders fixed views of the shared autzen and bunny
-//! scans headless, and each image is compared with the reference PNG committed under
+//! scans headless (the bunny also converted with `--normals`), and each image is compared with the reference PNG committed under
 //! `tests/golden/`. A pipeline gets its references by registering: the list comes from
 //! `strata pipelines --json`.
 //!
@@ -27,7 +27,7 @@ struct View {
 
 /// The fixed views: each scan whole, and autzen close enough that its points fall apart into
 /// pixels (where the pipelines differ most).
-const VIEWS: [View; 3] = [
+const VIEWS: [View; 4] = [
     View {
         name: "autzen",
         dataset: "autzen",
@@ -41,6 +41,12 @@ const VIEWS: [View; 3] = [
     View {
         name: "bunny",
         dataset: "bunny",
+        camera: None,
+    },
+    // With normals: what the surfels orient and light by (the others draw it as the bunny).
+    View {
+        name: "bunny_normals",
+        dataset: "bunny_normals",
         camera: None,
     },
 ];
@@ -79,8 +85,11 @@ fn changed_pixels(a: &[u8], b: &[u8]) -> (usize, u8) {
     (changed, largest)
 }
 
-fn convert(input: &str, out: &Path) {
-    common::run_ok(&["convert", s(&data(input)), "-o", s(out), "--quiet"]);
+fn convert(input: &str, out: &Path, extra: &[&str]) {
+    let input = data(input);
+    let mut args = vec!["convert", s(&input), "-o", s(out), "--quiet"];
+    args.extend_from_slice(extra);
+    common::run_ok(&args);
 }
 
 #[test]
@@ -88,8 +97,17 @@ fn every_pipeline_matches_its_golden_images() {
     let dir = Path::new(env!("CARGO_TARGET_TMPDIR")).join("golden");
     let _ = std::fs::remove_dir_all(&dir);
     std::fs::create_dir_all(&dir).expect("work dir");
-    convert("autzen_trim.laz", &dir.join("autzen.strata"));
-    convert("bunny_range_scans_merged.ply", &dir.join("bunny.strata"));
+    convert("autzen_trim.laz", &dir.join("autzen.strata"), &[]);
+    convert(
+        "bunny_range_scans_merged.ply",
+        &dir.join("bunny.strata"),
+        &[],
+    );
+    convert(
+        "bunny_range_scans_merged.ply",
+        &dir.join("bunny_normals.strata"),
+        &["--normals"],
+    );
     let bless = std::env::var_os("STRATA_BLESS").is_some();
     let mut failures = Vec::new();
     let names = pipelines();

@@ -1,6 +1,6 @@
 //! Headless rendering on the software adapter (lavapipe): coverage, the point budget, the two
 //! projection paths, corrupt nodes, fly-throughs, bad arguments, colouring by normal and by
-//! curvature, and the window under Xvfb.
+//! curvature, the surfels, and the window under Xvfb.
 
 #[path = "render/colours.rs"]
 mod colours;
@@ -9,6 +9,8 @@ mod common;
 mod paths;
 #[path = "render/pyramid.rs"]
 mod pyramid;
+#[path = "render/surfels.rs"]
+mod surfels;
 
 use common::{data, gpu_ok, gpu_run, read_png, s, strata};
 use std::path::{Path, PathBuf};

@@ -51,8 +51,8 @@ pub fn ensure_city_dataset(points: u64, dir: &Path) -> anyhow::Result<PathBuf> {
     Ok(dataset)
 }
 
-/// Converts one input with the default sampling on all cores, replacing `output`, silently.
-/// `convert_quietly` with `--normals` (k = 16, default orientation).
+/// `convert_quietly` with `--normals` (kept where the input has them, else estimated with
+/// k = 16 and the default orientation).
 pub fn convert_with_normals(
     input: &Path,
     output: &Path,
@@ -79,6 +79,7 @@ fn quiet_options(input: &Path, output: &Path, memory_limit: u64) -> ConvertOptio
     }
 }
 
+/// Converts one input with the default sampling on all cores, replacing `output`, silently.
 pub fn convert_quietly(
     input: &Path,
     output: &Path,

@@ -1,6 +1,6 @@
 //! The quality harness end to end in its quick mode on the software adapter: every output is
-//! written, every number is finite, and on the bunny the pyramid pipeline fills what one-pixel
-//! points leave open.
+//! written, every number is finite, on the bunny the pyramid and the surfels fill what
+//! one-pixel points leave open, and c-surfels pull the outline in.
 
 use std::collections::HashMap;
 use std::process::Command;
@@ -24,13 +24,13 @@ fn quick_run_writes_the_table_the_charts_and_the_images() {
     assert_eq!(
         lines.next(),
         Some(
-            "scene,pipeline,setting,lighting,density,noise,psnr,ssim,psnr_albedo,ssim_albedo,depth_err,normal_err_deg,hole_rate,leak_rate,gpu_ms"
+            "scene,pipeline,setting,lighting,density,noise,psnr,ssim,psnr_albedo,ssim_albedo,depth_err,normal_err_deg,hole_rate,leak_rate,gpu_ms,silhouette_px"
         )
     );
     let rows: Vec<Vec<&str>> = lines.map(|l| l.split(',').collect()).collect();
     assert!(rows.len() >= 30, "only {} rows", rows.len());
     for r in &rows {
-        assert_eq!(r.len(), 15, "{r:?}");
+        assert_eq!(r.len(), 16, "{r:?}");
         for v in &r[4..] {
             let x: f64 = v.parse().unwrap_or(f64::NAN);
             assert!(x.is_finite(), "{r:?}");
@@ -44,6 +44,7 @@ fn quick_run_writes_the_table_the_charts_and_the_images() {
         "thin",
         "near_far",
         "nested",
+        "gradient",
     ] {
         assert!(
             rows.iter().any(|r| r[0].starts_with(scene)),
@@ -75,6 +76,33 @@ fn quick_run_writes_the_table_the_charts_and_the_images() {
             "{scene} at density {density}: pyramid leaves {pyramid} of the surface open"
         );
     }
+    // The surfels close what one-pixel points leave open, and on the sampled bunny (the mesh's
+    // own outward normals) c-surfels pull the outline in: all-curved clearly, hybrid (curved
+    // at the silhouette only) at least as well as planar. Means over the bunny's frames.
+    let bunny = |pipeline: &str, setting: &str, column: usize| {
+        let v: Vec<f64> = rows
+            .iter()
+            .filter(|r| r[0].starts_with("bunny/") && r[1] == pipeline && r[2] == setting)
+            .filter_map(|r| r[column].parse().ok())
+            .collect();
+        assert!(!v.is_empty(), "no bunny rows for {pipeline} {setting}");
+        v.iter().sum::<f64>() / v.len() as f64
+    };
+    let (surfel_holes, point_holes) = (bunny("surfels", "1px", 12), bunny("points", "1px", 12));
+    assert!(
+        surfel_holes <= 0.5 * point_holes && surfel_holes < 0.02,
+        "surfels leave {surfel_holes} of the bunny open, points {point_holes}"
+    );
+    let outline = |setting: &str| bunny("surfels", setting, 15);
+    let (planar, hybrid, curved) = (
+        outline("mode=planar"),
+        outline("1px"),
+        outline("mode=curved"),
+    );
+    assert!(
+        curved < 0.8 * planar && hybrid <= planar,
+        "silhouette error: planar {planar} px, hybrid {hybrid}, curved {curved}"
+    );
     // The hidden-point removal: through the gaps of the sampled outer sphere, points show the
     // inner one and the pull-push would spread it. The pyramid leaks 1.4 % of the outer
     // sphere's pixels on lavapipe, `edl` 2px 10 %, one-pixel points 37 %.

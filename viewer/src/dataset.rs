@@ -234,12 +234,21 @@ impl StreamDataset {
         )
     }
 
-    /// Distance between a node's points in world units (one sampling cell).
     /// Whether the dataset stores normals (the `Normals` stream is all "none" otherwise).
     pub fn has_normals(&self) -> bool {
         self.streams.has_normals()
     }
 
+    /// Whether its normals are oriented (taken from the inputs, or turned towards the scanners
+    /// or up), rather than left facing either way (`--orient none`).
+    pub fn normals_face_outward(&self) -> bool {
+        self.metadata
+            .normals
+            .as_ref()
+            .is_none_or(|n| n.orient != "none" || n.computed == 0)
+    }
+
+    /// Distance between a node's points in world units (one sampling cell).
     pub fn node_spacing(&self, key: NodeKey) -> f32 {
         let (_, edge) = self.node_cube(key);
         edge / (1u32 << GRID_CELLS_LOG2) as f32
@@ -420,9 +429,7 @@ impl StreamDataset {
             colours,
             points,
             attributes,
-            streams: self
-                .streams
-                .streams(&self.layout, cols, self.node_spacing(info.key)),
+            streams: self.streams.streams(&self.layout, cols),
             bytes_read: info.size as u64,
         }
     }

@@ -3,10 +3,11 @@
 //!
 //! - Normals: one u32 a point, SPEC.md's `oct16` (U in the low 16 bits, V in the high;
 //!   `unpack2x16unorm` in WGSL gives U/65535, V/65535), 0 for a point without a normal.
-//! - Radius: one f32 a point, the disc radius to draw in real units: the larger of the
-//!   point's stored `radius` and its node's spacing (SPEC.md section 4: a point of an inner
-//!   node stands for the points its descendants add), the spacing alone where the dataset
-//!   stores no radius.
+//! - Radius: one f32 a point, its stored `radius` in real units (0 where the dataset stores
+//!   none or the value is not a finite positive number). A pipeline draws the larger of it
+//!   and the spacing of the finest level drawn where the point lies (SPEC.md section 4: a
+//!   point of an inner node stands for the points its descendants add; `surfels` applies it
+//!   with the LOD of each frame, so refining a node shrinks what its points drew).
 
 use crate::pipelines::PointStream;
 use strata_format::{AttrType, NodeColumns, RowLayout, oct16_encode};
@@ -53,13 +54,8 @@ impl StreamSource {
         self.normal.is_some()
     }
 
-    /// The streams of a node of `cols.count` points whose spacing is `spacing`.
-    pub fn streams(
-        &self,
-        layout: &RowLayout,
-        cols: &NodeColumns,
-        spacing: f32,
-    ) -> Vec<(PointStream, Vec<u8>)> {
+    /// The streams of a node of `cols.count` points.
+    pub fn streams(&self, layout: &RowLayout, cols: &NodeColumns) -> Vec<(PointStream, Vec<u8>)> {
         let n = cols.count;
         let mut normals = Vec::with_capacity(n * 4);
         match self.normal {
@@ -84,8 +80,13 @@ impl StreamSource {
                 let s = ty.size();
                 ty.read_f64(&cols.attribute(layout, i)[p * s..(p + 1) * s]) as f32
             });
-            // NaN (a damaged value) gives way to the spacing.
-            radii.extend_from_slice(&stored.max(spacing).to_le_bytes());
+            // A damaged value (NaN, infinite, negative) is no radius: the spacing rule holds.
+            let stored = if stored.is_finite() {
+                stored.max(0.0)
+            } else {
+                0.0
+            };
+            radii.extend_from_slice(&stored.to_le_bytes());
         }
         vec![
             (PointStream::Normals, normals),
@@ -106,13 +107,17 @@ mod tests {
     }
 
     #[test]
-    fn normals_pass_through_and_radii_are_at_least_the_spacing() {
+    fn normals_pass_through_and_radii_are_the_stored_ones() {
         let layout = RowLayout::new(vec![
             Attribute::oct16_normal(),
             Attribute::new("radius", AttrType::F32, 1),
         ]);
         let mut rows = Vec::new();
-        for (n, r) in [([0.0, 0.0, 1.0], 0.05f64), ([0.0, 0.0, 0.0], 0.5)] {
+        for (n, r) in [
+            ([0.0, 0.0, 1.0], 0.05f64),
+            ([0.0, 0.0, 0.0], 0.5),
+            ([0.0; 3], f64::NAN),
+        ] {
             rows.extend([0u8; 12]);
             let [u, v] = oct16_encode(n);
             rows.extend(u.to_le_bytes());
@@ -120,7 +125,7 @@ mod tests {
             rows.extend((r as f32).to_le_bytes());
         }
         let cols = columns(&layout, &rows);
-        let streams = StreamSource::of(&layout).streams(&layout, &cols, 0.1);
+        let streams = StreamSource::of(&layout).streams(&layout, &cols);
         let (_, normals) = &streams[0];
         let raw = |p: usize| {
             let w = u32::from_le_bytes(normals[p * 4..p * 4 + 4].try_into().expect("4 bytes"));
@@ -131,24 +136,21 @@ mod tests {
         assert_eq!(raw(1), [0, 0], "no normal stays none");
         let (_, radii) = &streams[1];
         let r = |p: usize| f32::from_le_bytes(radii[p * 4..p * 4 + 4].try_into().expect("4"));
-        assert_eq!(
-            r(0),
-            0.1,
-            "a radius below the node's spacing is the spacing"
-        );
+        assert_eq!(r(0), 0.05);
         assert_eq!(r(1), 0.5);
+        assert_eq!(r(2), 0.0, "a damaged radius is none");
     }
 
     #[test]
-    fn without_normals_or_radii_points_get_none_and_the_spacing() {
+    fn without_normals_or_radii_points_get_none() {
         let layout = RowLayout::new(vec![Attribute::new("intensity", AttrType::U16, 1)]);
         let rows = [0u8; 14 * 3];
         assert_eq!(layout.stride, 14);
         let cols = columns(&layout, &rows);
         let src = StreamSource::of(&layout);
         assert!(!src.has_normals());
-        let streams = src.streams(&layout, &cols, 0.25);
+        let streams = src.streams(&layout, &cols);
         assert!(streams[0].1.iter().all(|b| *b == 0));
-        assert_eq!(streams[1].1, 0.25f32.to_le_bytes().repeat(3));
+        assert!(streams[1].1.iter().all(|b| *b == 0));
     }
 }

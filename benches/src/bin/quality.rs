@@ -9,12 +9,12 @@ use glam::DVec3;
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 use std::time::{Duration, Instant};
-use strata_bench::convert_quietly;
+use strata_bench::convert_with_normals;
 use strata_bench::quality::mesh::y_up_to_z_up;
 use strata_bench::quality::metrics::{Frame, albedo_scores, compare};
 use strata_bench::quality::reference::{ReferenceImage, ReferenceRenderer, lit_as};
 use strata_bench::quality::report::{Row, charts, init_fonts, side_by_side, summary, write_csv};
-use strata_bench::quality::sample::{PointSet, load_scan, sample_mesh, write_ply};
+use strata_bench::quality::sample::{PointSet, load_scan, sample_mesh, thin_along_x, write_ply};
 use strata_bench::quality::scenes::{CLAY, Points, Scene, View, scenes};
 use strata_viewer::gpu::{GpuContext, ProjectionPath};
 use strata_viewer::lod::clip_range;
@@ -90,7 +90,16 @@ struct Config {
     point_size: f32,
     /// An automatic parameter set to a multiple of its automatic value.
     auto_factor: Option<(&'static str, f32)>,
+    /// A parameter set to a value (`--set NAME=VALUE`).
+    fixed: Option<(&'static str, f32)>,
 }
+
+/// Variants compared beside each pipeline's defaults: the surfels' planar and all-curved
+/// modes against their hybrid default (paper 001's Table 2).
+const VARIANTS: &[(&str, &str, f32, &str)] = &[
+    ("surfels", "mode", 0.0, "mode=planar"),
+    ("surfels", "mode", 1.0, "mode=curved"),
+];
 
 /// Every registered pipeline at its defaults with one- and two-pixel points, and, in the full
 /// run, each automatic parameter at half and twice its automatic value: the sweeps come from
@@ -104,6 +113,16 @@ fn configs(full: bool) -> Vec<Config> {
                 setting: format!("{point_size}px"),
                 point_size,
                 auto_factor: None,
+                fixed: None,
+            });
+        }
+        for &(_, name, value, setting) in VARIANTS.iter().filter(|v| v.0 == pipeline.name) {
+            v.push(Config {
+                pipeline,
+                setting: setting.into(),
+                point_size: 1.0,
+                auto_factor: None,
+                fixed: Some((name, value)),
             });
         }
         let automatic = pipeline.params.iter().filter(|p| p.auto.is_some());
@@ -114,6 +133,7 @@ fn configs(full: bool) -> Vec<Config> {
                     setting: format!("{}=auto×{f}", spec.name),
                     point_size: 1.0,
                     auto_factor: Some((spec.name, f)),
+                    fixed: None,
                 });
             }
         }
@@ -170,11 +190,11 @@ fn main() -> anyhow::Result<()> {
                 let density = scan.positions.len() as f64 / screen_area(scene, focal);
                 vec![(density, 0.0, scan)]
             }
-            Points::Sampled => densities
+            Points::Sampled | Points::Gradient(_) => densities
                 .iter()
                 .flat_map(|&d| noises.iter().map(move |&n| (d, n)))
                 .map(|(d, n)| {
-                    let set = sample_mesh(
+                    let mut set = sample_mesh(
                         &scene.mesh,
                         scene.views[0].eye,
                         focal,
@@ -183,6 +203,9 @@ fn main() -> anyhow::Result<()> {
                         7,
                         MAX_POINTS,
                     );
+                    if let Points::Gradient(ratio) = scene.points {
+                        set = thin_along_x(set, ratio, 11);
+                    }
                     (d, n, set)
                 })
                 .collect(),
@@ -210,7 +233,7 @@ fn main() -> anyhow::Result<()> {
                 let mut images: Vec<Vec<u8>> = vec![frames.reference.rgba.clone()];
                 for r in frames.results {
                     // The side-by-side images show every pipeline at its defaults.
-                    if r.config.auto_factor.is_none() {
+                    if r.config.auto_factor.is_none() && r.config.fixed.is_none() {
                         images.push(r.rgba);
                     }
                     rows.push(Row {
@@ -275,6 +298,28 @@ fn main() -> anyhow::Result<()> {
     Ok(())
 }
 
+/// Draws frames until every node the view needs is resident with what `settings` needs.
+fn load_all(
+    renderer: &mut Renderer,
+    camera: &Camera,
+    w: u32,
+    h: u32,
+    settings: &Settings,
+) -> anyhow::Result<()> {
+    let start = Instant::now();
+    loop {
+        let stats = renderer.frame(camera, w, h, settings)?;
+        renderer.wait_gpu()?;
+        if stats.complete {
+            return Ok(());
+        }
+        if start.elapsed() > Duration::from_secs(120) {
+            bail!("the view did not finish loading in 120 s");
+        }
+        renderer.wait_for_loads(Duration::from_millis(50));
+    }
+}
+
 /// The mesh's area in pixels as seen from the first view, facing the eye: the measure that
 /// sampled densities are given in.
 fn screen_area(scene: &Scene, focal: f32) -> f64 {
@@ -304,7 +349,9 @@ fn convert_points(dir: &Path, set: &PointSet) -> anyhow::Result<PathBuf> {
     let ply = dir.join("points.ply");
     write_ply(&ply, set)?;
     let dataset = dir.join("points.strata");
-    convert_quietly(&ply, &dataset, 1 << 30)?;
+    // With normals, as a user converts for the shaded pipelines: the sampled meshes' own
+    // (kept), estimated for the scans.
+    convert_with_normals(&ply, &dataset, 1 << 30)?;
     std::fs::remove_file(&ply).ok();
     Ok(dataset)
 }
@@ -340,18 +387,7 @@ fn render_view(
         ..Settings::default()
     };
     // Load everything the view needs.
-    let start = Instant::now();
-    loop {
-        let stats = renderer.frame(camera, w, h, &base)?;
-        renderer.wait_gpu()?;
-        if stats.complete {
-            break;
-        }
-        if start.elapsed() > Duration::from_secs(120) {
-            bail!("the view did not finish loading in 120 s");
-        }
-        renderer.wait_for_loads(Duration::from_millis(50));
-    }
+    load_all(renderer, camera, w, h, &base)?;
     let aspect = w as f32 / h as f32;
     let (near, far) = clip_range(renderer.dataset(), camera);
     let reference_image = reference.render(
@@ -384,6 +420,12 @@ fn render_view(
             let swept = (value * f).clamp(spec.min, spec.max);
             settings.set_param(&format!("{name}={swept}"))?;
         }
+        if let Some((name, value)) = config.fixed {
+            settings.set_param(&format!("{name}={value}"))?;
+        }
+        // A pipeline that needs other per-point streams (normals, radii) has the nodes loaded
+        // again with them.
+        load_all(renderer, camera, w, h, &settings)?;
         // First with separate passes, which keep the resolved colour plane, for the albedo;
         // it also warms the pipeline up, so the timed frame is of a warm pipeline.
         let separate = Settings {
@@ -402,7 +444,7 @@ fn render_view(
             .collect();
         let stats = renderer.frame(camera, w, h, &settings)?;
         renderer.wait_gpu()?;
-        if config.auto_factor.is_none() {
+        if config.auto_factor.is_none() && config.fixed.is_none() {
             for spec in p.params.iter().filter(|s| s.auto.is_some()) {
                 if let Some(v) = stats.params.get(spec.name) {
                     automatic.entry((p.name, spec.name)).or_insert(*v);

@@ -27,6 +27,8 @@ pub struct Metrics {
     /// Pixels showing a surface behind the reference one, or surface where the reference
     /// shows background, over all reference surface pixels.
     pub leak_rate: f64,
+    /// Mean distance in pixels between the frame's outline and the reference's.
+    pub silhouette_px: f64,
 }
 
 /// A frame's surface is "behind" the reference where its depth exceeds it by this fraction.
@@ -79,6 +81,7 @@ pub fn compare(
         normal_err_deg: mean(normal_err.into_iter()),
         hole_rate: rate(holes),
         leak_rate: rate(leaks),
+        silhouette_px: super::silhouette::silhouette_error(&ref_fg, &test_fg, w, h),
     }
 }
 

@@ -8,3 +8,4 @@ pub mod report;
 pub mod sample;
 pub mod scenes;
 pub mod shapes;
+pub mod silhouette;

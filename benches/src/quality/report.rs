@@ -47,23 +47,24 @@ impl Row {
             self.gpu_ms,
             self.albedo_psnr,
             self.albedo_ssim,
+            m.silhouette_px,
         ]
     }
 }
 
 /// Numbers per row: density, noise, the shaded PSNR and SSIM, depth and normal error, holes,
-/// leaks, GPU ms, the albedo PSNR and SSIM.
-const VALUES: usize = 11;
+/// leaks, GPU ms, the albedo PSNR and SSIM, the silhouette error.
+const VALUES: usize = 12;
 
 pub fn write_csv(path: &Path, rows: &[Row]) -> anyhow::Result<()> {
     let mut out = String::from(
-        "scene,pipeline,setting,lighting,density,noise,psnr,ssim,psnr_albedo,ssim_albedo,depth_err,normal_err_deg,hole_rate,leak_rate,gpu_ms\n",
+        "scene,pipeline,setting,lighting,density,noise,psnr,ssim,psnr_albedo,ssim_albedo,depth_err,normal_err_deg,hole_rate,leak_rate,gpu_ms,silhouette_px\n",
     );
     for r in rows {
         let v = r.values();
         let _ = writeln!(
             out,
-            "{}/view{},{},{},{},{:.4},{:.4},{:.3},{:.4},{:.3},{:.4},{:.5},{:.2},{:.4},{:.4},{:.3}",
+            "{}/view{},{},{},{},{:.4},{:.4},{:.3},{:.4},{:.3},{:.4},{:.5},{:.2},{:.4},{:.4},{:.3},{:.3}",
             r.scene,
             r.view,
             r.pipeline,
@@ -79,10 +80,42 @@ pub fn write_csv(path: &Path, rows: &[Row]) -> anyhow::Result<()> {
             v[5],
             v[6],
             v[7],
-            v[8]
+            v[8],
+            v[SILHOUETTE]
         );
     }
     std::fs::write(path, out).with_context(|| format!("{}", path.display()))
+}
+
+/// The surfels' modes side by side (paper 001's claim: c-surfels at the silhouette fix the
+/// outline at little cost): mean silhouette error, holes and GPU time per mode over every
+/// frame, with the cost relative to all-planar.
+fn surfel_modes(rows: &[Row]) -> String {
+    let surfels: Vec<&Row> = rows.iter().filter(|r| r.pipeline == "surfels").collect();
+    let means = group_means(&surfels, |r| r.setting.clone());
+    let mode = |setting: &str| match setting {
+        "mode=planar" => "planar",
+        "mode=curved" => "curved",
+        _ => "hybrid",
+    };
+    let Some(planar) = means.get("mode=planar") else {
+        return String::new();
+    };
+    let mut md = String::from(
+        "\n## Surfels: planar, curved, hybrid\n\n| mode | setting | silhouette px | holes | GPU ms | cost / planar |\n|---|---|---|---|---|---|\n",
+    );
+    for (setting, v) in &means {
+        let _ = writeln!(
+            md,
+            "| {} | {setting} | {:.3} | {:.4} | {:.2} | {:.3} |",
+            mode(setting),
+            v[SILHOUETTE],
+            v[HOLES],
+            v[GPU_MS],
+            v[GPU_MS] / planar[GPU_MS].max(1e-9)
+        );
+    }
+    md
 }
 
 /// Means of the metrics over `rows`, grouped by `key`, in key order.
@@ -280,6 +313,7 @@ const HOLES: usize = 6;
 const GPU_MS: usize = 8;
 const ALBEDO_PSNR: usize = 9;
 const ALBEDO_SSIM: usize = 10;
+const SILHOUETTE: usize = 11;
 
 pub fn charts(dir: &Path, rows: &[Row]) -> anyhow::Result<()> {
     let main: Vec<&Row> = rows.iter().filter(|r| !r.stability).collect();
@@ -358,7 +392,7 @@ pub fn summary(rows: &[Row], conditions: &str) -> (String, bool) {
          depth with the pipeline's EDL; headlight: Blinn-Phong). Albedo: the unlit colour \
          against the mesh's albedo, comparable across pipelines.\n\n",
     );
-    md.push_str("| scene | pipeline | setting | lighting | shaded PSNR dB | shaded SSIM | albedo PSNR dB | albedo SSIM | depth err | normal err ° | holes | leaks | GPU ms |\n|---|---|---|---|---|---|---|---|---|---|---|---|---|\n");
+    md.push_str("| scene | pipeline | setting | lighting | shaded PSNR dB | shaded SSIM | albedo PSNR dB | albedo SSIM | depth err | normal err ° | holes | leaks | silhouette px | GPU ms |\n|---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n");
     let all: Vec<&Row> = rows.iter().collect();
     let lighting: BTreeMap<String, &str> = rows.iter().map(|r| (r.label(), r.lighting)).collect();
     for ((scene, label), v) in group_means(&all, |r| (r.scene.clone(), r.label())) {
@@ -366,13 +400,27 @@ pub fn summary(rows: &[Row], conditions: &str) -> (String, bool) {
         let light = lighting.get(&label).copied().unwrap_or("");
         let _ = writeln!(
             md,
-            "| {scene} | {p} | {s} | {light} | {:.2} | {:.3} | {:.2} | {:.3} | {:.4} | {:.1} | {:.3} | {:.3} | {:.1} |",
-            v[PSNR], v[SSIM], v[ALBEDO_PSNR], v[ALBEDO_SSIM], v[4], v[5], v[HOLES], v[7], v[GPU_MS]
+            "| {scene} | {p} | {s} | {light} | {:.2} | {:.3} | {:.2} | {:.3} | {:.4} | {:.1} | {:.3} | {:.3} | {:.2} | {:.1} |",
+            v[PSNR],
+            v[SSIM],
+            v[ALBEDO_PSNR],
+            v[ALBEDO_SSIM],
+            v[4],
+            v[5],
+            v[HOLES],
+            v[7],
+            v[SILHOUETTE],
+            v[GPU_MS]
         );
     }
-    let (targets, ok) = check_targets(rows);
+    md.push_str(&surfel_modes(rows));
     md.push_str("\n## Targets\n\n");
-    md.push_str(&targets);
+    let mut ok = true;
+    for reconstruction in ["pyramid", "surfels"] {
+        let (targets, met) = check_targets(rows, reconstruction);
+        md.push_str(&targets);
+        ok &= met;
+    }
     (md, ok)
 }
 
@@ -380,7 +428,7 @@ pub fn summary(rows: &[Row], conditions: &str) -> (String, bool) {
 /// must have at most half its hole rate and an albedo PSNR and SSIM at least those of every `points`
 /// and `edl` setting (the albedo: the shaded images are each against their own lighting).
 /// Compared per frame (scene, view, density, noise).
-fn check_targets(rows: &[Row]) -> (String, bool) {
+fn check_targets(rows: &[Row], name: &str) -> (String, bool) {
     let mut frames: BTreeMap<(String, usize, i64, i64), Vec<&Row>> = BTreeMap::new();
     for r in rows.iter().filter(|r| !r.stability) {
         let key = (
@@ -396,7 +444,8 @@ fn check_targets(rows: &[Row]) -> (String, bool) {
     let (mut checked, mut failed) = (0, 0);
     for ((scene, view, _, _), rs) in &frames {
         let find = |label: &str| rs.iter().find(|r| r.label() == label);
-        let (Some(points), Some(pyramid)) = (find("points 1px"), find("pyramid 1px")) else {
+        let (Some(points), Some(pyramid)) = (find("points 1px"), find(&format!("{name} 1px")))
+        else {
             continue;
         };
         if scene != "bunny_scans" && points.metrics.hole_rate < 0.01 {
@@ -418,7 +467,7 @@ fn check_targets(rows: &[Row]) -> (String, bool) {
             ok = false;
             let _ = writeln!(
                 out,
-                "- MISSED {scene} view {view} density {:.3} noise {:.4}: pyramid holes {:.3} vs points {:.3}, albedo PSNR {:.2} vs best rival {:.2}, albedo SSIM {:.3} vs {:.3}",
+                "- MISSED {scene} view {view} density {:.3} noise {:.4}: {name} holes {:.3} vs points {:.3}, albedo PSNR {:.2} vs best rival {:.2}, albedo SSIM {:.3} vs {:.3}",
                 points.density,
                 points.noise,
                 pm.hole_rate,
@@ -438,7 +487,7 @@ fn check_targets(rows: &[Row]) -> (String, bool) {
     }
     let _ = writeln!(
         out,
-        "\n{} of {checked} frames meet the quality targets (pyramid holes at most half of points 1px; albedo PSNR and SSIM at least those of every points and edl setting).",
+        "\n{name}: {} of {checked} frames meet the quality targets ({name} holes at most half of points 1px; albedo PSNR and SSIM at least those of every points and edl setting).\n",
         checked - failed
     );
     (out, ok)

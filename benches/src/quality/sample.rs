@@ -14,6 +14,9 @@ pub struct PointSet {
     pub positions: Vec<Vec3>,
     /// Albedo, 0..1.
     pub colours: Vec<Vec3>,
+    /// Unit normals, as a scanner that records them gives them (empty: none; the
+    /// conversion estimates them).
+    pub normals: Vec<Vec3>,
 }
 
 /// Samples `mesh` uniformly in screen space as seen from `eye` (focal length `focal_px`):
@@ -43,6 +46,7 @@ pub fn sample_mesh(
     let mut out = PointSet {
         positions: Vec::with_capacity(n),
         colours: Vec::with_capacity(n),
+        normals: Vec::with_capacity(n),
     };
     for _ in 0..n {
         let pick = rng.unit() * total;
@@ -61,6 +65,38 @@ pub fn sample_mesh(
         }
         out.positions.push(p);
         out.colours.push(mesh.albedo(t, w));
+        // The face's own normal, by its winding (outward on the harness's meshes).
+        out.normals.push((b - a).cross(c - a).normalize_or_zero());
+    }
+    out
+}
+
+/// Keeps each point with probability `ratio`^-t, t running from 0 at the set's smallest x to 1
+/// at its largest: the density falls smoothly by `ratio` across the object (paper 001's stated
+/// limitation, holes where sampling is uneven).
+pub fn thin_along_x(set: PointSet, ratio: f64, seed: u64) -> PointSet {
+    let (lo, hi) = set
+        .positions
+        .iter()
+        .fold((f32::MAX, f32::MIN), |(lo, hi), p| {
+            (lo.min(p.x), hi.max(p.x))
+        });
+    let span = (hi - lo).max(1e-9) as f64;
+    let mut rng = Rng::new(seed, 0x7b1d, set.positions.len() as u64);
+    let mut out = PointSet {
+        positions: Vec::new(),
+        colours: Vec::new(),
+        normals: Vec::new(),
+    };
+    for i in 0..set.positions.len() {
+        let t = (set.positions[i].x - lo) as f64 / span;
+        if rng.unit() < ratio.powf(-t) {
+            out.positions.push(set.positions[i]);
+            out.colours.push(set.colours[i]);
+            if let Some(n) = set.normals.get(i) {
+                out.normals.push(*n);
+            }
+        }
     }
     out
 }
@@ -90,24 +126,40 @@ pub fn load_scan(
         positions.push(map(Vec3::new(x, y, z)));
     }
     let colours = vec![colour; positions.len()];
-    Ok(PointSet { positions, colours })
+    Ok(PointSet {
+        positions,
+        colours,
+        normals: Vec::new(),
+    })
 }
 
-/// Binary little-endian PLY: x, y, z as float, red, green, blue as uchar.
+/// Binary little-endian PLY: x, y, z as float, red, green, blue as uchar, then nx, ny, nz as
+/// float where the set has normals.
 pub fn write_ply(path: &Path, points: &PointSet) -> anyhow::Result<()> {
     let file = std::fs::File::create(path).with_context(|| format!("{}", path.display()))?;
     let mut w = std::io::BufWriter::new(file);
+    let with_normals = points.normals.len() == points.positions.len();
     write!(
         w,
-        "ply\nformat binary_little_endian 1.0\nelement vertex {}\nproperty float x\nproperty float y\nproperty float z\nproperty uchar red\nproperty uchar green\nproperty uchar blue\nend_header\n",
-        points.positions.len()
+        "ply\nformat binary_little_endian 1.0\nelement vertex {}\nproperty float x\nproperty float y\nproperty float z\nproperty uchar red\nproperty uchar green\nproperty uchar blue\n{}end_header\n",
+        points.positions.len(),
+        if with_normals {
+            "property float nx\nproperty float ny\nproperty float nz\n"
+        } else {
+            ""
+        }
     )?;
-    for (p, c) in points.positions.iter().zip(&points.colours) {
+    for (i, (p, c)) in points.positions.iter().zip(&points.colours).enumerate() {
         for v in p.to_array() {
             w.write_all(&v.to_le_bytes())?;
         }
         let rgb = (*c * 255.0).round().clamp(Vec3::ZERO, Vec3::splat(255.0));
         w.write_all(&[rgb.x as u8, rgb.y as u8, rgb.z as u8])?;
+        if with_normals {
+            for v in points.normals[i].to_array() {
+                w.write_all(&v.to_le_bytes())?;
+            }
+        }
     }
     w.flush()?;
     Ok(())

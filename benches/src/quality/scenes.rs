@@ -14,6 +14,8 @@ pub enum Points {
     Sampled,
     /// A real scan of the mesh's object (PLY x, y, z in the mesh's frame).
     Scan(PathBuf),
+    /// Sampled, then thinned so that the density falls by this factor across the object.
+    Gradient(f64),
 }
 
 pub struct View {
@@ -179,6 +181,15 @@ fn stability_scenes(quick: bool) -> Vec<Scene> {
             target: Vec3::new(0.0, 1.0, 0.0),
             fov_deg: 60.0,
         }],
+        stability: true,
+    });
+    // A smooth ball whose sampling thins out sixteenfold from one side to the other.
+    let ball = sphere(Vec3::ZERO, 1.0, 64, Vec3::new(0.75, 0.8, 0.9));
+    out.push(Scene {
+        name: "gradient".into(),
+        views: orbit(&ball, &[Vec3::new(0.0, -1.0, 0.3)], 40.0),
+        mesh: ball,
+        points: Points::Gradient(16.0),
         stability: true,
     });
     // A ball inside a ball: nothing of the inner one may show.

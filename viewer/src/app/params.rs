@@ -22,6 +22,9 @@ impl ViewerApp {
             }
             self.param_control(ui, spec);
         }
+        if let Some(note) = self.stats.note {
+            ui.label(egui::RichText::new(note).small().italics());
+        }
         for (name, value) in &self.stats.measures {
             ui.label(format!("{name} = {value:.4}"));
         }

@@ -36,6 +36,7 @@ registry! {
     points,
     edl,
     pyramid,
+    surfels,
 }
 
 /// The shared headlight Blinn-Phong (`headlight(albedo, n, v)`), so that two pipelines and the
@@ -162,6 +163,8 @@ pub fn max_timed_passes() -> u32 {
 /// The view of one frame, for the pipeline's passes.
 #[derive(Debug, Clone, Copy)]
 pub struct ViewFrame {
+    /// World to view (x right, y up, looking down -z).
+    pub view: glam::Mat4,
     pub view_proj: glam::Mat4,
     /// The previous frame's, for pipelines that declare `previous_frame`.
     pub previous_view_proj: Option<glam::Mat4>,
@@ -169,6 +172,8 @@ pub struct ViewFrame {
     pub near: f32,
     pub far: f32,
     pub focal_px: f32,
+    /// Width over height of the image.
+    pub aspect: f32,
 }
 
 /// What a pipeline's passes read and write in one frame.
@@ -181,6 +186,10 @@ pub struct PipelineFrame<'a> {
     pub arenas: &'a [projection::ArenaDraw],
     pub params: &'a ResolvedParams,
     pub view: &'a ViewFrame,
+    /// The dataset stores normals (else the `Normals` stream holds none).
+    pub has_normals: bool,
+    /// Its normals face the outside of the surfaces (`StreamDataset::normals_face_outward`).
+    pub normals_outward: bool,
 }
 
 /// Per pixel, the unlit colour of the surface shown (`None`: background).
@@ -226,6 +235,12 @@ pub trait Pipeline {
         encoder: &mut wgpu::CommandEncoder,
         timer: &mut Timer,
     ) -> Result<(), ViewerError>;
+
+    /// What the pipeline has to say about the last frame (the panel and the stats show it):
+    /// a fallback it took, a stream the dataset lacks.
+    fn note(&self) -> Option<&'static str> {
+        None
+    }
 
     /// After the frame was submitted: start mapping readbacks.
     fn after_submit(&mut self) {}

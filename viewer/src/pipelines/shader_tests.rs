@@ -188,7 +188,9 @@ fn workgroup_sizes_match_the_dispatches() {
         let Some(entry) = module.entry_points.iter().find(|e| e.name == s.entry) else {
             continue;
         };
-        let points = s.label == "clear" || s.label.starts_with("project");
+        let points = s.label == "clear"
+            || s.label.starts_with("project")
+            || ["surfel depth", "surfel blend"].contains(&s.label);
         let pixels = ["finish", "shade", "resolve", "unpack"]
             .iter()
             .any(|k| s.label.ends_with(k));

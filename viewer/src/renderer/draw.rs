@@ -7,10 +7,13 @@ use crate::ViewerError;
 use crate::camera::Camera;
 use crate::lod::{Selection, clip_range};
 use crate::pipelines::params::ResolvedParams;
-use crate::pipelines::projection::{ArenaDraw, FINISH_SLOTS, FrameDraw, FrameUniforms, GpuRange};
+use crate::pipelines::projection::{
+    ArenaDraw, FINISH_SLOTS, FrameDraw, FrameUniforms, GpuRange, RangeLod,
+};
 use crate::pipelines::{PipelineFrame, PipelineInfo, ViewFrame};
 use crate::settings::{Settings, SizeMode};
-use std::collections::BTreeMap;
+use std::collections::{BTreeMap, HashSet};
+use strata_format::NodeKey;
 
 impl Renderer {
     /// Makes the screen and the active pipeline's buffers for this size and pipeline.
@@ -78,21 +81,32 @@ impl Renderer {
     ) -> Result<(), ViewerError> {
         let info = settings.pipeline;
         self.prepare_screen(info, width, height)?;
-        let mut per_arena: BTreeMap<u32, Vec<GpuRange>> = BTreeMap::new();
+        let drawn: HashSet<NodeKey> = sel.draw.iter().copied().collect();
+        let mut per_arena: BTreeMap<u32, ArenaDraw> = BTreeMap::new();
         for key in &sel.draw {
+            let (min, edge) = self.ds.node_cube(*key);
+            let lod = RangeLod {
+                centre: (min + glam::Vec3::splat(edge * 0.5)).to_array(),
+                children: (0..8u8)
+                    .filter(|&c| drawn.contains(&key.child(c)))
+                    .fold(0, |mask, c| mask | 1 << c),
+            };
             for p in self.cache.pieces(*key).unwrap_or_default() {
-                per_arena.entry(p.arena).or_default().push(GpuRange {
+                let d = per_arena.entry(p.arena).or_insert_with(|| ArenaDraw {
+                    arena: p.arena,
+                    ranges: Vec::new(),
+                    lod: Vec::new(),
+                });
+                d.ranges.push(GpuRange {
                     start: p.start,
                     count: p.count,
                     first_group: 0,
                     spacing: self.ds.node_spacing(*key),
                 });
+                d.lod.push(lod);
             }
         }
-        let draws: Vec<ArenaDraw> = per_arena
-            .into_iter()
-            .map(|(arena, ranges)| ArenaDraw { arena, ranges })
-            .collect();
+        let draws: Vec<ArenaDraw> = per_arena.into_values().collect();
         let aspect = width as f32 / height as f32;
         let (near, far) = clip_range(&self.ds, camera);
         let view_proj = camera.projection(aspect, near, far) * camera.view();
@@ -136,13 +150,17 @@ impl Renderer {
         };
         pipeline.uniforms(params, &mut uniforms);
         let view = ViewFrame {
+            view: camera.view(),
             view_proj,
             previous_view_proj: self.previous_view_proj,
             fov_y: camera.fov_y,
             near,
             far,
             focal_px: camera.focal_px(height),
+            aspect,
         };
+        let (has_normals, normals_outward) =
+            (self.ds.has_normals(), self.ds.normals_face_outward());
         let (ctx, projection, cache, timer) =
             (&self.ctx, &self.projection, &self.cache, &mut self.timer);
         let int64 = screen.keys.is_some() && !settings.force_int32;
@@ -176,6 +194,8 @@ impl Renderer {
                     arenas: &draws,
                     params,
                     view: &view,
+                    has_normals,
+                    normals_outward,
                 };
                 pipeline.encode(&frame, &mut encoder, timer)?;
             }

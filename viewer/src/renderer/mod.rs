@@ -317,6 +317,10 @@ impl Renderer {
             pipeline: info.name,
             params: resolved.iter().collect(),
             measures: self.measures.clone(),
+            note: self
+                .active
+                .and_then(|n| self.pipelines.get(n))
+                .and_then(|p| p.note()),
             passes: self.timer.last().clone(),
             pass_clock: if self.wall_clock(settings) {
                 PassClock::Wall.name()

@@ -21,6 +21,8 @@ pub struct FrameStats {
     /// units). In a window the latest that has arrived, a frame or more behind; headless, this
     /// frame's.
     pub measures: BTreeMap<&'static str, f32>,
+    /// What the pipeline has to say about the frame (a fallback it took), if anything.
+    pub note: Option<&'static str>,
     /// GPU ms per pass, by `pass_clock`, in the order the passes ran.
     pub passes: PassTimes,
     /// "timestamps" (queries inside the frame) or "wall" (each pass submitted alone and

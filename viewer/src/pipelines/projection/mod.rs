@@ -19,6 +19,8 @@ use bytemuck::{Pod, Zeroable};
 pub const FRAME_WGSL: &str = include_str!("frame.wgsl");
 const CLEAR_WGSL: &str = include_str!("clear.wgsl");
 const PROJECT_WGSL: &str = include_str!("project.wgsl");
+/// `passes_filters(pos, attribute)`: the frame's point filters, for every pass that splats points.
+pub const FILTERS_WGSL: &str = include_str!("filters.wgsl");
 const EMIT_INT64_WGSL: &str = include_str!("emit_int64.wgsl");
 const EMIT_DEPTH32_WGSL: &str = include_str!("emit_depth32.wgsl");
 const EMIT_INDEX32_WGSL: &str = include_str!("emit_index32.wgsl");
@@ -118,6 +120,18 @@ pub struct FrameDraw<'a> {
 pub struct ArenaDraw {
     pub arena: u32,
     pub ranges: Vec<GpuRange>,
+    /// Beside each range, what the LOD drew below its node (for pipelines that size points
+    /// by the finest level drawn where they lie).
+    pub lod: Vec<RangeLod>,
+}
+
+/// What the LOD drew around one drawn node.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct RangeLod {
+    /// The node's centre, relative to the anchor.
+    pub centre: [f32; 3],
+    /// Bit k: the child in octant k (`NodeKey::child`) is drawn too.
+    pub children: u32,
 }
 
 /// The projection's compiled passes.
@@ -135,14 +149,20 @@ pub struct Projection {
 pub fn shaders(int64: bool) -> Vec<ShaderSource> {
     let mut s = vec![
         ShaderSource::new("clear", &[CLEAR_WGSL]),
-        ShaderSource::new("project depth32", &[EMIT_DEPTH32_WGSL, PROJECT_WGSL]),
-        ShaderSource::new("project index32", &[EMIT_INDEX32_WGSL, PROJECT_WGSL]),
+        ShaderSource::new(
+            "project depth32",
+            &[EMIT_DEPTH32_WGSL, FILTERS_WGSL, PROJECT_WGSL],
+        ),
+        ShaderSource::new(
+            "project index32",
+            &[EMIT_INDEX32_WGSL, FILTERS_WGSL, PROJECT_WGSL],
+        ),
         ShaderSource::new("resolve", &[COLOUR_WGSL, RESOLVE_WGSL]),
     ];
     if int64 {
         s.push(ShaderSource::new(
             "project int64",
-            &[EMIT_INT64_WGSL, PROJECT_WGSL],
+            &[EMIT_INT64_WGSL, FILTERS_WGSL, PROJECT_WGSL],
         ));
         s.push(ShaderSource::new("unpack", &[UNPACK_WGSL]));
     }
@@ -461,7 +481,7 @@ pub fn pixel_groups(width: u32, height: u32) -> (u32, u32) {
 }
 
 /// Spreads `groups` workgroups over x and y within the per-dimension limit.
-fn split_groups(groups: u32) -> (u32, u32) {
+pub fn split_groups(groups: u32) -> (u32, u32) {
     if groups <= MAX_GROUPS_X {
         (groups.max(1), 1)
     } else {

@@ -1,0 +1,217 @@
+//! The `surfels` pipeline on a sampled unit sphere whose outline is known exactly: it closes
+//! the holes `points` leaves, its outline stays on the sphere's, hybrid puts c-surfels exactly
+//! at the silhouette, a coarse LOD leaves no holes, and a dataset without normals falls back
+//! to view-facing discs and says so.
+
+use super::*;
+use std::io::Write;
+use std::sync::Arc;
+use strata_viewer::gpu::{GpuContext, ProjectionPath};
+use strata_viewer::pipelines::surfels::{CURVED_SHARE, NO_NORMALS, SURFELS};
+use strata_viewer::{Camera, Renderer, Settings};
+
+const W: u32 = 480;
+const H: u32 = 360;
+/// The eye on the -y axis at this distance from the sphere's centre (the origin).
+const DISTANCE: f32 = 3.0;
+const FOV_DEG: f32 = 50.0;
+
+/// The sphere's flavours: sparse with normals, sparse without, dense (several levels deep).
+#[derive(Clone, Copy, PartialEq)]
+enum Sphere {
+    Sparse,
+    SparseWithoutNormals,
+    Dense,
+}
+
+/// A unit sphere sampled evenly (a Fibonacci lattice, like a scan), with its outward normals
+/// unless without; converted once per flavour.
+fn sphere(flavour: Sphere) -> &'static Path {
+    static CELLS: [OnceLock<PathBuf>; 3] = [OnceLock::new(), OnceLock::new(), OnceLock::new()];
+    let (k, n, normals) = match flavour {
+        Sphere::Sparse => (0, 40_000, true),
+        Sphere::SparseWithoutNormals => (1, 40_000, false),
+        Sphere::Dense => (2, 400_000, true),
+    };
+    CELLS[k].get_or_init(|| {
+        let dir = Path::new(env!("CARGO_TARGET_TMPDIR")).join(format!("render-surfels-{k}"));
+        let _ = std::fs::remove_dir_all(&dir);
+        std::fs::create_dir_all(&dir).expect("fixture dir");
+        let ply = dir.join("sphere.ply");
+        let mut out = std::io::BufWriter::new(std::fs::File::create(&ply).expect("ply"));
+        let extra = if normals {
+            "property float nx\nproperty float ny\nproperty float nz\n"
+        } else {
+            ""
+        };
+        write!(
+            out,
+            "ply\nformat binary_little_endian 1.0\nelement vertex {n}\nproperty float x\nproperty float y\nproperty float z\nproperty uchar red\nproperty uchar green\nproperty uchar blue\n{extra}end_header\n"
+        )
+        .expect("header");
+        let golden = std::f64::consts::PI * (3.0 - 5f64.sqrt());
+        for i in 0..n {
+            let z = 1.0 - 2.0 * (i as f64 + 0.5) / n as f64;
+            let r = (1.0 - z * z).sqrt();
+            let a = golden * i as f64;
+            let p = [r * a.cos(), r * a.sin(), z].map(|v| v as f32);
+            for v in p {
+                out.write_all(&v.to_le_bytes()).expect("write");
+            }
+            out.write_all(&[200, 180, 150]).expect("write");
+            if normals {
+                for v in p {
+                    out.write_all(&v.to_le_bytes()).expect("write");
+                }
+            }
+        }
+        drop(out);
+        let ds = dir.join("sphere.strata");
+        let mut args = vec!["convert", s(&ply), "-o", s(&ds), "--quiet"];
+        if normals {
+            args.push("--normals");
+        }
+        common::run_ok(&args);
+        ds
+    })
+}
+
+struct Shot {
+    /// Drawn pixels.
+    covered: Vec<bool>,
+    measures: std::collections::BTreeMap<&'static str, f32>,
+    note: Option<&'static str>,
+}
+
+/// Renders the sphere until complete with `pipeline` and the `--set` assignments.
+fn shot(flavour: Sphere, pipeline: &str, set: &[&str], coarse: bool) -> Shot {
+    let dataset = sphere(flavour);
+    let ds = Arc::new(StreamDataset::open_path(dataset).expect("dataset opens"));
+    let ctx = Arc::new(GpuContext::new(ProjectionPath::Auto).expect("GPU adapter"));
+    let mut r = Renderer::new(ctx, ds.clone(), 1 << 30, 1).expect("renderer");
+    let anchor = ds.anchor().as_vec3();
+    let camera = Camera {
+        eye: glam::Vec3::new(0.0, -DISTANCE, 0.0) - anchor,
+        target: -anchor,
+        fov_y: FOV_DEG.to_radians(),
+    };
+    let mut settings = Settings {
+        budget: 10_000_000,
+        // Coarse: refinement stops at the root, whose points stand for all the others.
+        min_spacing_px: if coarse { 1e6 } else { 0.0 },
+        ..Settings::default()
+    };
+    settings.set_pipeline(pipeline).expect("pipeline");
+    // One-pixel points: what `points` leaves open at this density.
+    settings.point_size = 1.0;
+    settings.size_mode = strata_viewer::settings::SizeMode::Fixed;
+    for a in set {
+        settings.set_param(a).expect("parameter");
+    }
+    paths::frame_until_complete(&mut r, &camera, W, H, &settings);
+    let stats = r.frame(&camera, W, H, &settings).expect("frame");
+    r.wait_gpu().expect("GPU");
+    let covered = r
+        .read_surface()
+        .expect("surface")
+        .iter()
+        .map(Option::is_some)
+        .collect();
+    Shot {
+        covered,
+        measures: r.read_measures().expect("measures"),
+        note: stats.note,
+    }
+}
+
+/// The sphere's outline on screen: centre and radius in pixels.
+fn outline() -> ([f32; 2], f32) {
+    let focal = H as f32 * 0.5 / (FOV_DEG.to_radians() * 0.5).tan();
+    // The tangent cone from the eye: half angle asin(1 / d).
+    let half = (1.0 / DISTANCE).asin();
+    ([W as f32 * 0.5, H as f32 * 0.5], focal * half.tan())
+}
+
+/// Pixels inside the outline (by two pixels) left empty, over the pixels inside; and the mean
+/// distance in pixels by which drawn pixels reach beyond the outline.
+fn holes_and_overshoot(covered: &[bool]) -> (f64, f64) {
+    let ([cx, cy], r) = outline();
+    let (mut inside, mut empty, mut over, mut over_n) = (0, 0, 0.0, 0);
+    for (i, c) in covered.iter().enumerate() {
+        let (x, y) = ((i as u32 % W) as f32 + 0.5, (i as u32 / W) as f32 + 0.5);
+        let d = ((x - cx).powi(2) + (y - cy).powi(2)).sqrt();
+        if d < r - 2.0 {
+            inside += 1;
+            empty += usize::from(!c);
+        } else if *c && d > r {
+            over += (d - r) as f64;
+            over_n += 1;
+        }
+    }
+    (
+        empty as f64 / inside.max(1) as f64,
+        over / over_n.max(1) as f64,
+    )
+}
+
+#[test]
+fn surfels_close_the_holes_points_leave_and_keep_the_outline() {
+    let points = shot(Sphere::Sparse, "points", &[], false);
+    let (points_holes, _) = holes_and_overshoot(&points.covered);
+    assert!(
+        points_holes > 0.3,
+        "points at this density leave holes ({points_holes:.3})"
+    );
+    let hybrid = shot(Sphere::Sparse, "surfels", &[], false);
+    let (holes, overshoot) = holes_and_overshoot(&hybrid.covered);
+    assert!(
+        holes < 0.01 && holes <= 0.5 * points_holes,
+        "surfels leave {holes:.4} of the sphere empty (points {points_holes:.3})"
+    );
+    assert!(
+        overshoot < 2.0,
+        "the outline reaches {overshoot:.2} px beyond the sphere's"
+    );
+    assert_eq!(hybrid.note, None);
+    assert!(hybrid.measures[SURFELS] > 1000.0, "{:?}", hybrid.measures);
+    // Hybrid draws c-surfels where the view grazes the surface: a band at the outline.
+    let share = hybrid.measures[CURVED_SHARE];
+    assert!((0.02..0.4).contains(&share), "curved share {share}");
+    let planar = shot(Sphere::Sparse, "surfels", &["mode=0"], false);
+    let curved = shot(Sphere::Sparse, "surfels", &["mode=1"], false);
+    assert_eq!(planar.measures[CURVED_SHARE], 0.0);
+    assert_eq!(curved.measures[CURVED_SHARE], 1.0);
+    let (_, planar_over) = holes_and_overshoot(&planar.covered);
+    let (_, curved_over) = holes_and_overshoot(&curved.covered);
+    assert!(
+        overshoot <= planar_over + 1e-3 && curved_over <= planar_over + 1e-3,
+        "c-surfels bend back at the outline: planar {planar_over:.3} px beyond it, hybrid {overshoot:.3}, curved {curved_over:.3}"
+    );
+}
+
+#[test]
+fn a_coarse_lod_draws_no_holes() {
+    // The root alone: its points stand for its children's, at least the node spacing wide.
+    let coarse = shot(Sphere::Dense, "surfels", &[], true);
+    let full = shot(Sphere::Dense, "surfels", &[], false);
+    let (holes, _) = holes_and_overshoot(&coarse.covered);
+    let drawn = coarse.measures[SURFELS];
+    assert!(
+        drawn < 0.5 * full.measures[SURFELS],
+        "the LOD stopped at the root ({drawn} surfels)"
+    );
+    assert!(
+        holes < 0.02,
+        "a coarse LOD leaves {holes:.4} of the sphere empty"
+    );
+}
+
+#[test]
+fn without_normals_surfels_face_the_eye_and_say_so() {
+    let shot = shot(Sphere::SparseWithoutNormals, "surfels", &[], false);
+    assert_eq!(shot.note, Some(NO_NORMALS));
+    let (holes, overshoot) = holes_and_overshoot(&shot.covered);
+    assert!(holes < 0.05, "{holes:.4} of the sphere empty");
+    assert!(overshoot < 3.0, "{overshoot:.2}");
+    assert_eq!(shot.measures[CURVED_SHARE], 0.0);
+}

@@ -1,0 +1,58 @@
+// Visibility, second pass, and blending (paper sections 3.2 and 3.3): every surfel hit within
+// z_o of the front surface adds its colour, normal and depth weighted by its alpha texture.
+// Sums are fixed point, so that the image does not depend on the order threads run in.
+@group(0) @binding(2) var<storage, read> planes: array<u32>;
+// Per pixel: w, then w * (r, g, b), w * (normal / 2 + 1/2), w * (where in the blended layer).
+@group(0) @binding(3) var<storage, read_write> sums: array<atomic<u32>>;
+
+@compute @workgroup_size(256)
+fn main(
+    @builtin(workgroup_id) wg: vec3<u32>,
+    @builtin(num_workgroups) groups: vec3<u32>,
+    @builtin(local_invocation_index) lane: u32,
+) {
+    let s = surfel_at(wg.x + wg.y * groups.x, lane);
+    if !s.ok {
+        return;
+    }
+    let rgb = point_colour(points[s.idx], attributes[s.idx]);
+    let x0 = u32(max(floor(s.centre_px.x - s.reach_px), 0.0));
+    let y0 = u32(max(floor(s.centre_px.y - s.reach_px), 0.0));
+    let x1 = u32(min(s.centre_px.x + s.reach_px, f32(frame.width - 1u)));
+    let y1 = u32(min(s.centre_px.y + s.reach_px, f32(frame.height - 1u)));
+    for (var y = y0; y <= y1; y++) {
+        for (var x = x0; x <= x1; x++) {
+            if !within_reach(s, x, y) {
+                continue;
+            }
+            let dir = pixel_ray(x, y);
+            let len = length(dir);
+            let e = dir / len;
+            let hit = intersect(s, e);
+            if hit.x < 0.0 {
+                continue;
+            }
+            let depth = hit.x / len;
+            let p = y * frame.width + x;
+            let front = bitcast<f32>(~planes[2u * p]);
+            if depth > front {
+                continue;
+            }
+            let nearest = bitcast<f32>(~planes[2u * p + 1u]);
+            let layer = clamp((depth - nearest) / max(front - nearest, 1e-30), 0.0, 1.0);
+            // Normals blended as seen: each turned towards the eye first.
+            let n = select(s.n, -s.n, dot(s.n, e) > 0.0);
+            // At least one unit: every pixel the depth pass covered is covered here too.
+            let w = max(surfel_weight(hit.y) * WEIGHT_ONE, 1.0);
+            let i = SUM_WORDS * p;
+            atomicAdd(&sums[i], u32(w + 0.5));
+            atomicAdd(&sums[i + 1u], u32(w * rgb.r + 0.5));
+            atomicAdd(&sums[i + 2u], u32(w * rgb.g + 0.5));
+            atomicAdd(&sums[i + 3u], u32(w * rgb.b + 0.5));
+            atomicAdd(&sums[i + 4u], u32(w * (0.5 * n.x + 0.5) + 0.5));
+            atomicAdd(&sums[i + 5u], u32(w * (0.5 * n.y + 0.5) + 0.5));
+            atomicAdd(&sums[i + 6u], u32(w * (0.5 * n.z + 0.5) + 0.5));
+            atomicAdd(&sums[i + 7u], u32(w * layer + 0.5));
+        }
+    }
+}

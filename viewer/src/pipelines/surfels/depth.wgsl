@@ -1,0 +1,41 @@
+// Visibility, first pass (paper section 3.3): every surfel writes its depth pushed back by
+// z_o, and its own depth, as minima. Planes hold the complement of the depth bits, so that a
+// cleared (zero) plane is empty and atomicMax keeps the nearest.
+@group(0) @binding(2) var<storage, read_write> planes: array<atomic<u32>>;
+// Surfels drawn this frame: planar, curved.
+@group(0) @binding(3) var<storage, read_write> counts: array<atomic<u32>, 2>;
+
+@compute @workgroup_size(256)
+fn main(
+    @builtin(workgroup_id) wg: vec3<u32>,
+    @builtin(num_workgroups) groups: vec3<u32>,
+    @builtin(local_invocation_index) lane: u32,
+) {
+    let s = surfel_at(wg.x + wg.y * groups.x, lane);
+    if !s.ok {
+        return;
+    }
+    atomicAdd(&counts[select(0u, 1u, s.curved)], 1u);
+    let offset = surf.depth_offset * s.radius;
+    let x0 = u32(max(floor(s.centre_px.x - s.reach_px), 0.0));
+    let y0 = u32(max(floor(s.centre_px.y - s.reach_px), 0.0));
+    let x1 = u32(min(s.centre_px.x + s.reach_px, f32(frame.width - 1u)));
+    let y1 = u32(min(s.centre_px.y + s.reach_px, f32(frame.height - 1u)));
+    for (var y = y0; y <= y1; y++) {
+        for (var x = x0; x <= x1; x++) {
+            if !within_reach(s, x, y) {
+                continue;
+            }
+            let dir = pixel_ray(x, y);
+            let len = length(dir);
+            let hit = intersect(s, dir / len);
+            if hit.x < 0.0 {
+                continue;
+            }
+            let depth = hit.x / len;
+            let i = 2u * (y * frame.width + x);
+            atomicMax(&planes[i], ~bitcast<u32>(depth + offset));
+            atomicMax(&planes[i + 1u], ~bitcast<u32>(depth));
+        }
+    }
+}

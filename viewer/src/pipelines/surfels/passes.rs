@@ -1,0 +1,436 @@
+//! The surfels' GPU passes: depth (with the offset z_o), blend (fixed-point sums of colour,
+//! normal and depth), shade (normalise, light, keep the surface); their per-screen buffers
+//! and the per-arena range tables with what the LOD drew below each node.
+
+use super::param;
+use crate::ViewerError;
+use crate::gpu::GpuContext;
+use crate::gpu::async_readback::AsyncReadback;
+use crate::gpu::readback::read_buffer;
+use crate::gpu::timing::Timer;
+use crate::pipelines::params::ResolvedParams;
+use crate::pipelines::projection::{
+    COLOUR_WGSL, FILTERS_WGSL, GROUP_SIZE, GpuRange, RangeLod, pixel_groups, split_groups,
+};
+use crate::pipelines::shader::ShaderSource;
+use crate::pipelines::{LIGHTING_WGSL, PipelineFrame, PointStream, ScreenBuffer, ViewFrame};
+use crate::renderer::SurfacePixel;
+use bytemuck::{Pod, Zeroable};
+use wgpu::util::DeviceExt;
+
+const UNIFORMS_WGSL: &str = include_str!("uniforms.wgsl");
+const SURFEL_WGSL: &str = include_str!("surfel.wgsl");
+const SUMS_WGSL: &str = include_str!("sums.wgsl");
+const DEPTH_WGSL: &str = include_str!("depth.wgsl");
+const BLEND_WGSL: &str = include_str!("blend.wgsl");
+const SHADE_WGSL: &str = include_str!("shade.wgsl");
+
+/// Words per pixel of the blend sums (`SUM_WORDS` in sums.wgsl).
+pub const SUM_WORDS: u64 = 8;
+/// Storage buffers the depth and blend passes bind in one stage.
+const STORAGE_BUFFERS: u32 = 7;
+
+/// What the dataset's normals are (`NORMALS_*` in uniforms.wgsl).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Normals {
+    /// None: discs facing the eye.
+    None = 0,
+    /// Oriented (as stored, towards scanners, or up): c-surfels bend away from them.
+    Outward = 1,
+    /// Not oriented (`--orient none`): each is first turned towards the eye, the one side
+    /// known to be outside wherever a surface is seen from the front.
+    FacingEye = 2,
+}
+
+/// The surfels' uniforms, laid out as `Surfels` in uniforms.wgsl.
+#[repr(C)]
+#[derive(Debug, Clone, Copy, Pod, Zeroable)]
+pub struct SurfelUniforms {
+    pub eye: [f32; 4],
+    pub forward: [f32; 4],
+    pub right: [f32; 4],
+    pub up: [f32; 4],
+    pub sides: u32,
+    pub rings: u32,
+    pub mode: u32,
+    pub normals: u32,
+    pub sin_epsilon: f32,
+    pub h: f32,
+    pub falloff: f32,
+    pub depth_offset: f32,
+}
+
+impl SurfelUniforms {
+    pub fn new(view: &ViewFrame, params: &ResolvedParams, normals: Normals) -> SurfelUniforms {
+        let world = view.view.inverse();
+        let eye = world.w_axis.truncate();
+        // look_at: the view's x, y and -z axes in world space.
+        let (right, up, forward) = (
+            world.x_axis.truncate(),
+            world.y_axis.truncate(),
+            -world.z_axis.truncate(),
+        );
+        let tan_y = (view.fov_y * 0.5).tan();
+        let tan_x = tan_y * view.aspect;
+        let v4 = |v: glam::Vec3| [v.x, v.y, v.z, 0.0];
+        SurfelUniforms {
+            eye: v4(eye),
+            forward: v4(forward),
+            right: v4(right * tan_x),
+            up: v4(up * tan_y),
+            sides: param(params, "sides") as u32,
+            rings: param(params, "rings") as u32,
+            mode: param(params, "mode") as u32,
+            normals: normals as u32,
+            sin_epsilon: param(params, "epsilon").to_radians().sin(),
+            h: param(params, "h"),
+            falloff: param(params, "falloff"),
+            depth_offset: param(params, "depth_offset"),
+        }
+    }
+}
+
+/// One row of a surfel range table (`SurfelRange` in surfel.wgsl).
+#[repr(C)]
+#[derive(Debug, Clone, Copy, Pod, Zeroable)]
+pub struct SurfelRange {
+    pub start: u32,
+    pub count: u32,
+    pub first_group: u32,
+    pub spacing: f32,
+    pub centre: [f32; 3],
+    pub children: u32,
+}
+
+/// Every module the surfels compile.
+pub fn shaders() -> Vec<ShaderSource> {
+    vec![
+        ShaderSource::new(
+            "surfel depth",
+            &[UNIFORMS_WGSL, FILTERS_WGSL, SURFEL_WGSL, DEPTH_WGSL],
+        ),
+        ShaderSource::new(
+            "surfel blend",
+            &[
+                UNIFORMS_WGSL,
+                FILTERS_WGSL,
+                COLOUR_WGSL,
+                SUMS_WGSL,
+                SURFEL_WGSL,
+                BLEND_WGSL,
+            ],
+        ),
+        ShaderSource::new(
+            "surfel shade",
+            &[UNIFORMS_WGSL, SUMS_WGSL, LIGHTING_WGSL, SHADE_WGSL],
+        ),
+    ]
+}
+
+pub struct SurfelPasses {
+    depth: wgpu::ComputePipeline,
+    blend: wgpu::ComputePipeline,
+    shade: wgpu::ComputePipeline,
+}
+
+impl SurfelPasses {
+    pub fn new(ctx: &GpuContext) -> Result<SurfelPasses, ViewerError> {
+        let have = ctx.device.limits().max_storage_buffers_per_shader_stage;
+        if have < STORAGE_BUFFERS {
+            return Err(ViewerError::Gpu(format!(
+                "the surfels pipeline binds {STORAGE_BUFFERS} storage buffers in a pass; this adapter allows {have}"
+            )));
+        }
+        let mut compiled = shaders()
+            .into_iter()
+            .map(|s| s.compute(&ctx.device, None));
+        let mut next = || {
+            compiled
+                .next()
+                .ok_or_else(|| ViewerError::Gpu("a surfel shader is missing".into()))
+        };
+        Ok(SurfelPasses {
+            depth: next()?,
+            blend: next()?,
+            shade: next()?,
+        })
+    }
+
+    pub fn screen_buffers(width: u32, height: u32) -> Vec<ScreenBuffer> {
+        let pixels = width as u64 * height as u64;
+        vec![
+            ScreenBuffer {
+                label: "surfel depth planes",
+                bytes: pixels * 8,
+            },
+            ScreenBuffer {
+                label: "surfel blend sums",
+                bytes: pixels * SUM_WORDS * 4,
+            },
+            ScreenBuffer {
+                label: "surfel surface",
+                bytes: pixels * 16,
+            },
+            ScreenBuffer {
+                label: "surfel albedo",
+                bytes: pixels * 4,
+            },
+        ]
+    }
+
+    pub fn encode(
+        &self,
+        frame: &PipelineFrame,
+        encoder: &mut wgpu::CommandEncoder,
+        targets: &mut SurfelTargets,
+        uniforms: &SurfelUniforms,
+        timer: &mut Timer,
+    ) -> Result<(), ViewerError> {
+        let device = &frame.ctx.device;
+        let screen = frame.screen;
+        frame
+            .ctx
+            .queue
+            .write_buffer(&targets.uniforms, 0, bytemuck::bytes_of(uniforms));
+        encoder.clear_buffer(&targets.planes, 0, None);
+        encoder.clear_buffer(&targets.sums, 0, None);
+        encoder.clear_buffer(&targets.counts, 0, None);
+        let tables: Vec<(u32, wgpu::Buffer, u32)> = frame
+            .arenas
+            .iter()
+            .map(|d| {
+                let (table, groups) = range_table(d.arena, &d.ranges, &d.lod);
+                let buffer = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                    label: Some("surfel ranges"),
+                    contents: bytemuck::cast_slice(&table),
+                    usage: wgpu::BufferUsages::STORAGE,
+                });
+                (d.arena, buffer, groups)
+            })
+            .collect();
+        let mut arena_groups = Vec::with_capacity(tables.len());
+        for (arena, ranges, groups) in &tables {
+            let a = frame
+                .cache
+                .arenas
+                .get(*arena as usize)
+                .ok_or_else(|| ViewerError::Gpu(format!("arena {arena} is not resident")))?;
+            let stream = |want: PointStream| {
+                a.streams
+                    .iter()
+                    .find(|(s, _)| *s == want)
+                    .map(|(_, b)| b)
+                    .ok_or_else(|| {
+                        ViewerError::Gpu(format!("arena {arena} holds no {want:?} stream"))
+                    })
+            };
+            arena_groups.push((
+                [
+                    &a.points,
+                    ranges,
+                    &a.attributes,
+                    stream(PointStream::Normals)?,
+                    stream(PointStream::Radius)?,
+                ],
+                *groups,
+            ));
+        }
+        let per_point = |name: &str, pipe: &wgpu::ComputePipeline, own: [&wgpu::Buffer; 2], timer: &mut Timer, encoder: &mut wgpu::CommandEncoder| {
+            let fb = bind(device, pipe, 0, &[&screen.uniforms, &targets.uniforms, own[0], own[1]]);
+            let timestamp_writes = timer.pass(encoder, name);
+            let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
+                label: Some(name),
+                timestamp_writes,
+            });
+            pass.set_pipeline(pipe);
+            pass.set_bind_group(0, &fb, &[]);
+            for (buffers, groups) in &arena_groups {
+                if *groups == 0 {
+                    continue;
+                }
+                pass.set_bind_group(1, &bind(device, pipe, 1, buffers), &[]);
+                let (x, y) = split_groups(*groups);
+                pass.dispatch_workgroups(x, y, 1);
+            }
+        };
+        per_point("surfel depth", &self.depth, [&targets.planes, &targets.counts], timer, encoder);
+        per_point("surfel blend", &self.blend, [&targets.planes, &targets.sums], timer, encoder);
+
+        let view = screen.output.create_view(&Default::default());
+        let mut entries: Vec<wgpu::BindGroupEntry> = [
+            &screen.uniforms,
+            &targets.uniforms,
+            &targets.planes,
+            &targets.sums,
+            &targets.surface,
+            &targets.albedo,
+        ]
+        .iter()
+        .enumerate()
+        .map(|(i, b)| wgpu::BindGroupEntry {
+            binding: i as u32,
+            resource: b.as_entire_binding(),
+        })
+        .collect();
+        entries.push(wgpu::BindGroupEntry {
+            binding: 6,
+            resource: wgpu::BindingResource::TextureView(&view),
+        });
+        let bg = device.create_bind_group(&wgpu::BindGroupDescriptor {
+            label: Some("surfel shade"),
+            layout: &self.shade.get_bind_group_layout(0),
+            entries: &entries,
+        });
+        {
+            let timestamp_writes = timer.pass(encoder, "surfel shade");
+            let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
+                label: Some("surfel shade"),
+                timestamp_writes,
+            });
+            pass.set_pipeline(&self.shade);
+            pass.set_bind_group(0, &bg, &[]);
+            let (gx, gy) = pixel_groups(screen.width, screen.height);
+            pass.dispatch_workgroups(gx, gy, 1);
+        }
+        targets
+            .counts_readback
+            .record(encoder, &targets.counts, 0, 8);
+        Ok(())
+    }
+}
+
+/// The range table of one arena (a header row, then one row per range with the first
+/// workgroup of its points) and the workgroups all its points take.
+pub fn range_table(arena: u32, ranges: &[GpuRange], lod: &[RangeLod]) -> (Vec<SurfelRange>, u32) {
+    let mut table = Vec::with_capacity(ranges.len() + 1);
+    table.push(SurfelRange {
+        start: arena,
+        count: ranges.len() as u32,
+        first_group: 0,
+        spacing: 0.0,
+        centre: [0.0; 3],
+        children: 0,
+    });
+    let mut groups = 0u32;
+    for (k, r) in ranges.iter().enumerate() {
+        let l = lod.get(k).copied().unwrap_or(RangeLod {
+            centre: [0.0; 3],
+            children: 0,
+        });
+        table.push(SurfelRange {
+            start: r.start,
+            count: r.count,
+            first_group: groups,
+            spacing: r.spacing,
+            centre: l.centre,
+            children: l.children,
+        });
+        groups += r.count.div_ceil(GROUP_SIZE);
+    }
+    (table, groups)
+}
+
+fn bind(
+    device: &wgpu::Device,
+    pipe: &wgpu::ComputePipeline,
+    group: u32,
+    buffers: &[&wgpu::Buffer],
+) -> wgpu::BindGroup {
+    let entries: Vec<wgpu::BindGroupEntry> = buffers
+        .iter()
+        .enumerate()
+        .map(|(i, b)| wgpu::BindGroupEntry {
+            binding: i as u32,
+            resource: b.as_entire_binding(),
+        })
+        .collect();
+    device.create_bind_group(&wgpu::BindGroupDescriptor {
+        label: Some("surfels"),
+        layout: &pipe.get_bind_group_layout(group),
+        entries: &entries,
+    })
+}
+
+/// The per-screen buffers.
+pub struct SurfelTargets {
+    pub width: u32,
+    pub height: u32,
+    uniforms: wgpu::Buffer,
+    /// Per pixel: the complement of the offset front depth's bits, then of the nearest's.
+    planes: wgpu::Buffer,
+    sums: wgpu::Buffer,
+    surface: wgpu::Buffer,
+    albedo: wgpu::Buffer,
+    /// Surfels drawn: planar, curved.
+    counts: wgpu::Buffer,
+    pub counts_readback: AsyncReadback,
+}
+
+impl SurfelTargets {
+    pub fn new(device: &wgpu::Device, width: u32, height: u32) -> SurfelTargets {
+        let pixels = width as u64 * height as u64;
+        let storage = |label: &str, bytes: u64| {
+            device.create_buffer(&wgpu::BufferDescriptor {
+                label: Some(label),
+                size: bytes.max(16),
+                usage: wgpu::BufferUsages::STORAGE
+                    | wgpu::BufferUsages::COPY_SRC
+                    | wgpu::BufferUsages::COPY_DST,
+                mapped_at_creation: false,
+            })
+        };
+        SurfelTargets {
+            width,
+            height,
+            uniforms: device.create_buffer(&wgpu::BufferDescriptor {
+                label: Some("surfel uniforms"),
+                size: std::mem::size_of::<SurfelUniforms>() as u64,
+                usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
+                mapped_at_creation: false,
+            }),
+            planes: storage("surfel depth planes", pixels * 8),
+            sums: storage("surfel blend sums", pixels * SUM_WORDS * 4),
+            surface: storage("surfel surface", pixels * 16),
+            albedo: storage("surfel albedo", pixels * 4),
+            counts: storage("surfel counts", 8),
+            counts_readback: AsyncReadback::new(device, "surfel counts readback", 8),
+        }
+    }
+
+    fn pixels(&self) -> u64 {
+        self.width as u64 * self.height as u64
+    }
+
+    pub fn read_counts(&self, ctx: &GpuContext) -> Result<[u32; 2], ViewerError> {
+        let bytes = read_buffer(ctx, &self.counts, 8)?;
+        counts_from(&bytes).ok_or_else(|| ViewerError::Gpu("the surfel counts came back short".into()))
+    }
+
+    pub fn read_albedo(&self, ctx: &GpuContext) -> Result<Vec<Option<[u8; 3]>>, ViewerError> {
+        let bytes = read_buffer(ctx, &self.albedo, self.pixels() * 4)?;
+        Ok(bytes
+            .chunks_exact(4)
+            .map(|c| (c[3] != 0).then_some([c[0], c[1], c[2]]))
+            .collect())
+    }
+
+    pub fn read_surface(&self, ctx: &GpuContext) -> Result<Vec<Option<SurfacePixel>>, ViewerError> {
+        let bytes = read_buffer(ctx, &self.surface, self.pixels() * 16)?;
+        Ok(bytes
+            .chunks_exact(16)
+            .map(|b| {
+                let f = |k: usize| f32::from_le_bytes([b[4 * k], b[4 * k + 1], b[4 * k + 2], b[4 * k + 3]]);
+                (f(3) >= 0.0).then(|| SurfacePixel {
+                    depth: f(3),
+                    normal: Some([f(0), f(1), f(2)]),
+                })
+            })
+            .collect())
+    }
+}
+
+/// Planar and curved surfel counts from the first eight bytes of a readback.
+pub fn counts_from(bytes: &[u8]) -> Option<[u32; 2]> {
+    let word = |k: usize| -> Option<u32> { Some(u32::from_le_bytes(bytes.get(4 * k..4 * k + 4)?.try_into().ok()?)) };
+    Some([word(0)?, word(1)?])
+}

@@ -1,0 +1,260 @@
+// Surfels (paper 001): each drawn point becomes a planar n-gon or a curved c-surfel, oriented by
+// its normal and scaled by its radius, and is ray cast per pixel of its screen box. Shared by
+// the depth and the blend pass, which must agree on every surfel and every hit.
+
+// One drawn node's points in an arena; [0] is a header (start = arena, count = ranges).
+struct SurfelRange {
+    start: u32,
+    count: u32,
+    first_group: u32,
+    spacing: f32,
+    // The node's centre, relative to the anchor.
+    centre: vec3<f32>,
+    // Bit k: the child in octant k (x 4, y 2, z 1) is drawn too.
+    children: u32,
+}
+
+// Largest screen reach of a surfel, in pixels: a thread walks its box alone.
+const MAX_REACH_PX: f32 = 16.0;
+const PI: f32 = 3.14159265;
+
+@group(0) @binding(0) var<uniform> frame: Frame;
+@group(0) @binding(1) var<uniform> surf: Surfels;
+@group(1) @binding(0) var<storage, read> points: array<vec4<u32>>;
+@group(1) @binding(1) var<storage, read> ranges: array<SurfelRange>;
+@group(1) @binding(2) var<storage, read> attributes: array<u32>;
+@group(1) @binding(3) var<storage, read> normals: array<u32>;
+@group(1) @binding(4) var<storage, read> radii: array<f32>;
+
+struct Surfel {
+    ok: bool,
+    idx: u32,
+    p: vec3<f32>,
+    n: vec3<f32>,
+    radius: f32,
+    curved: bool,
+    // Distance from p that bounds the surfel, in multiples of the radius.
+    bound: f32,
+    // Screen box: centre and reach in pixels.
+    centre_px: vec2<f32>,
+    reach_px: f32,
+    // A basis of the surfel's plane that depends on n alone (Duff et al. 2017), for the
+    // n-gon's corners.
+    b1: vec3<f32>,
+    b2: vec3<f32>,
+}
+
+// SPEC.md's oct16 (U low, V high, unorm16 each).
+fn decode_oct16(w: u32) -> vec3<f32> {
+    let uv = unpack2x16unorm(w) * 2.0 - 1.0;
+    var n = vec3<f32>(uv.x, uv.y, 1.0 - abs(uv.x) - abs(uv.y));
+    if n.z < 0.0 {
+        let s = select(vec2<f32>(-1.0), vec2<f32>(1.0), uv >= vec2<f32>(0.0));
+        n = vec3<f32>((1.0 - abs(uv.y)) * s.x, (1.0 - abs(uv.x)) * s.y, n.z);
+    }
+    return normalize(n);
+}
+
+fn phi(r: f32) -> f32 {
+    let q = r * r / (surf.h * surf.h);
+    return 1.0 - exp(-q * q);
+}
+
+// The surfel of this thread's point, or one with ok = false (no point, filtered, off screen).
+fn surfel_at(group: u32, lane: u32) -> Surfel {
+    var s: Surfel;
+    s.ok = false;
+    let n = ranges[0].count;
+    if n == 0u {
+        return s;
+    }
+    var lo = 1u;
+    var hi = n;
+    while lo < hi {
+        let mid = (lo + hi + 1u) / 2u;
+        if ranges[mid].first_group <= group {
+            lo = mid;
+        } else {
+            hi = mid - 1u;
+        }
+    }
+    let r = ranges[lo];
+    let local = (group - r.first_group) * GROUP_SIZE + lane;
+    if group < r.first_group || local >= r.count {
+        return s;
+    }
+    let idx = r.start + local;
+    let p = bitcast<vec3<f32>>(points[idx].xyz);
+    if frame.filters != 0u && !passes_filters(p, attributes[idx]) {
+        return s;
+    }
+    let to_eye = surf.eye.xyz - p;
+    let v = normalize(to_eye);
+    // A point stands for the points its node's descendants would add: its radius is at least
+    // the spacing of the finest level drawn where it lies (its child's where that child is
+    // drawn too, its node's where the LOD stopped), so refining shrinks it and stopping
+    // leaves no hole.
+    let rel = p - r.centre;
+    let octant = select(0u, 4u, rel.x >= 0.0) | select(0u, 2u, rel.y >= 0.0) | select(0u, 1u, rel.z >= 0.0);
+    let drawn_below = (r.children & (1u << octant)) != 0u;
+    let spacing = select(r.spacing, 0.5 * r.spacing, drawn_below);
+    s.radius = max(radii[idx], spacing);
+    let word = normals[idx];
+    if surf.normals != NORMALS_NONE && word != 0u {
+        s.n = decode_oct16(word);
+        if surf.normals == NORMALS_FACING_EYE && dot(s.n, v) < 0.0 {
+            s.n = -s.n;
+        }
+        let grazing = abs(dot(s.n, v)) <= surf.sin_epsilon;
+        s.curved = surf.mode == MODE_CURVED || (surf.mode == MODE_HYBRID && grazing);
+    } else {
+        s.n = v;
+        s.curved = false;
+    }
+    s.bound = 1.0;
+    if s.curved {
+        let drop = phi(1.0);
+        s.bound = sqrt(1.0 + drop * drop);
+    }
+    let clip = frame.view_proj * vec4<f32>(p, 1.0);
+    let reach = s.bound * s.radius;
+    if clip.w <= reach {
+        return s;
+    }
+    let ndc = clip.xy / clip.w;
+    s.centre_px = vec2<f32>((ndc.x * 0.5 + 0.5) * f32(frame.width), (0.5 - ndc.y * 0.5) * f32(frame.height));
+    s.reach_px = min(reach * frame.focal_px / (clip.w - reach), MAX_REACH_PX);
+    let size = vec2<f32>(f32(frame.width), f32(frame.height));
+    if any(s.centre_px + s.reach_px < vec2<f32>(0.0)) || any(s.centre_px - s.reach_px > size) {
+        return s;
+    }
+    let sgn = select(-1.0, 1.0, s.n.z >= 0.0);
+    let a = -1.0 / (sgn + s.n.z);
+    let b = s.n.x * s.n.y * a;
+    s.b1 = vec3<f32>(1.0 + sgn * s.n.x * s.n.x * a, sgn * b, -sgn * s.n.x);
+    s.b2 = vec3<f32>(b, sgn + s.n.y * s.n.y * a, -s.n.y);
+    s.idx = idx;
+    s.p = p;
+    s.ok = true;
+    return s;
+}
+
+// Whether pixel (x, y) lies within the surfel's screen reach (its box's corners do not).
+fn within_reach(s: Surfel, x: u32, y: u32) -> bool {
+    let d = vec2<f32>(f32(x) + 0.5, f32(y) + 0.5) - s.centre_px;
+    let r = s.reach_px + 0.71;
+    return dot(d, d) <= r * r;
+}
+
+// The unnormalised ray through the centre of pixel (x, y): its parameter is linear depth.
+fn pixel_ray(x: u32, y: u32) -> vec3<f32> {
+    let ndc_x = (f32(x) + 0.5) / f32(frame.width) * 2.0 - 1.0;
+    let ndc_y = 1.0 - (f32(y) + 0.5) / f32(frame.height) * 2.0;
+    return surf.forward.xyz + ndc_x * surf.right.xyz + ndc_y * surf.up.xyz;
+}
+
+// Whether a point of the surfel's plane at offset c (radius units) from its centre, at
+// distance u, lies inside its n-gon (corners at angles 2k pi / sides, paper section 3.2).
+fn inside_polygon(s: Surfel, c: vec3<f32>, u: f32) -> bool {
+    let half = PI / f32(surf.sides);
+    let apothem = cos(half);
+    if u > 1.0 {
+        return false;
+    }
+    if u <= apothem {
+        return true;
+    }
+    let theta = atan2(dot(c, s.b2), dot(c, s.b1)) + PI;
+    let sector = 2.0 * half;
+    let off = theta - sector * floor(theta / sector) - half;
+    return u * cos(off) <= apothem;
+}
+
+// Where the ray (unit direction e, from the eye) first meets the surfel: x the distance
+// along e, y the radial distance u in radius units; x < 0 where it misses. Solved around the
+// ray's closest approach to the centre, so that every quantity is of the surfel's size.
+fn intersect(s: Surfel, e: vec3<f32>) -> vec2<f32> {
+    let miss = vec2<f32>(-1.0, 0.0);
+    let tc = dot(s.p - surf.eye.xyz, e);
+    let o = (surf.eye.xyz + tc * e - s.p) / s.radius;
+    if dot(o, o) > s.bound * s.bound {
+        return miss;
+    }
+    let a0 = dot(o, s.n);
+    let ad = dot(e, s.n);
+    let c0 = o - a0 * s.n;
+    let cd = e - ad * s.n;
+    if !s.curved {
+        if abs(ad) < 1e-6 {
+            return miss;
+        }
+        let k = -a0 / ad;
+        let c = c0 + k * cd;
+        let u = length(c);
+        let dist = tc + k * s.radius;
+        if dist > 0.0 && inside_polygon(s, c, u) {
+            return vec2<f32>(dist, u);
+        }
+        return miss;
+    }
+    // The c-surfel: heights a = -phi(rho) along the normal (it bends away from the side its
+    // normal faces, as a convex surface does), its profile linear between `rings` rings, so
+    // each ring is a cone frustum a = alpha + beta rho.
+    var best = miss;
+    let rings = f32(surf.rings);
+    var phi_in = 0.0;
+    for (var k = 0u; k < surf.rings; k++) {
+        let rho_in = f32(k) / rings;
+        let rho_out = f32(k + 1u) / rings;
+        let phi_out = phi(rho_out);
+        let beta = -(phi_out - phi_in) * rings;
+        let alpha = -phi_in - beta * rho_in;
+        phi_in = phi_out;
+        let s0 = a0 - alpha;
+        var roots = vec2<f32>(-1e30);
+        if abs(beta) < 1e-6 {
+            if abs(ad) >= 1e-6 {
+                roots.x = -s0 / ad;
+            }
+        } else {
+            let b2 = beta * beta;
+            let qa = ad * ad - b2 * dot(cd, cd);
+            let qb = 2.0 * (s0 * ad - b2 * dot(c0, cd));
+            let qc = s0 * s0 - b2 * dot(c0, c0);
+            if abs(qa) < 1e-9 {
+                if abs(qb) > 1e-12 {
+                    roots.x = -qc / qb;
+                }
+            } else {
+                let disc = qb * qb - 4.0 * qa * qc;
+                if disc >= 0.0 {
+                    let sq = sqrt(disc);
+                    roots = vec2<f32>((-qb - sq) / (2.0 * qa), (-qb + sq) / (2.0 * qa));
+                }
+            }
+        }
+        for (var j = 0u; j < 2u; j++) {
+            let kk = roots[j];
+            if kk <= -1e29 {
+                continue;
+            }
+            let c = c0 + kk * cd;
+            let u = length(c);
+            let height = s0 + kk * ad;
+            let dist = tc + kk * s.radius;
+            // On this ring, on the cone's sheet (not its mirror), in front of the eye.
+            if u >= rho_in - 1e-4 && u <= rho_out + 1e-4 && height * beta >= -1e-5 && dist > 0.0
+                && (best.x < 0.0 || dist < best.x) && inside_polygon(s, c, u) {
+                best = vec2<f32>(dist, u);
+            }
+        }
+    }
+    return best;
+}
+
+// The paper's alpha texture: exp(-(distance from the texture centre)^2 / d^2), the rim at
+// texture distance 1/2.
+fn surfel_weight(u: f32) -> f32 {
+    let t = 0.5 * u;
+    return exp(-t * t / (surf.falloff * surf.falloff));
+}

@@ -1,0 +1,86 @@
+//! The surfels' Rust structs and constants against their WGSL, and the pieces of their
+//! geometry that do not need a GPU.
+
+use super::passes::{SUM_WORDS, SurfelRange, SurfelUniforms, range_table};
+use crate::pipelines::projection::{GROUP_SIZE, GpuRange, RangeLod};
+use crate::pipelines::shader_tests::{module_named, wgsl_const, wgsl_layout};
+
+macro_rules! layout {
+    ($ty:ident { $($f:ident),* }) => {
+        (
+            std::mem::size_of::<$ty>() as u32,
+            vec![$((stringify!($f).to_string(), std::mem::offset_of!($ty, $f) as u32)),*],
+        )
+    };
+}
+
+#[test]
+fn uniforms_and_ranges_match_their_wgsl() {
+    for label in ["surfel depth", "surfel blend"] {
+        let m = module_named(label);
+        assert_eq!(
+            wgsl_layout(&m, "Surfels"),
+            layout!(SurfelUniforms {
+                eye,
+                forward,
+                right,
+                up,
+                sides,
+                rings,
+                mode,
+                normals,
+                sin_epsilon,
+                h,
+                falloff,
+                depth_offset
+            }),
+            "SurfelUniforms against Surfels (uniforms.wgsl) in {label}"
+        );
+        assert_eq!(
+            wgsl_layout(&m, "SurfelRange"),
+            layout!(SurfelRange {
+                start,
+                count,
+                first_group,
+                spacing,
+                centre,
+                children
+            }),
+            "SurfelRange against surfel.wgsl in {label}"
+        );
+    }
+    assert_eq!(
+        wgsl_const(&module_named("surfel blend"), "SUM_WORDS"),
+        SUM_WORDS
+    );
+    assert_eq!(
+        wgsl_layout(&module_named("surfel shade"), "Surfels"),
+        wgsl_layout(&module_named("surfel depth"), "Surfels")
+    );
+}
+
+#[test]
+fn range_tables_carry_the_lod_beside_each_range_and_count_groups() {
+    let range = |start, count| GpuRange {
+        start,
+        count,
+        first_group: 0,
+        spacing: 0.5,
+    };
+    let lod = |children| RangeLod {
+        centre: [1.0, 2.0, 3.0],
+        children,
+    };
+    let (table, groups) = range_table(
+        3,
+        &[range(0, GROUP_SIZE + 1), range(1000, 5)],
+        &[lod(0b1000_0001), lod(0)],
+    );
+    assert_eq!((table[0].start, table[0].count), (3, 2), "header");
+    assert_eq!(table[1].first_group, 0);
+    assert_eq!(table[2].first_group, 2, "the first range takes two groups");
+    assert_eq!(groups, 3);
+    assert_eq!(table[1].children, 0b1000_0001);
+    assert_eq!(table[2].centre, [1.0, 2.0, 3.0]);
+    assert_eq!(table[2].spacing, 0.5);
+}

@@ -1,0 +1,35 @@
+// The surfel pipeline's own uniforms, read by all its passes.
+
+struct Surfels {
+    // The eye; a pixel's ray is forward + ndc.x * right + ndc.y * up, so that the ray
+    // parameter of a hit is its linear depth (the projection's clip.w).
+    eye: vec4<f32>,
+    forward: vec4<f32>,
+    right: vec4<f32>,
+    up: vec4<f32>,
+    // Corners of the planar n-gon (and of each ring of the c-surfel).
+    sides: u32,
+    // Rings of the c-surfel's mesh: its profile is linear between them.
+    rings: u32,
+    // MODE_*.
+    mode: u32,
+    // NORMALS_*: without, every surfel is a disc facing the eye.
+    normals: u32,
+    // A surfel is curved in hybrid mode where |cos(view, normal)| <= this (90 deg +- epsilon).
+    sin_epsilon: f32,
+    // The c-surfel's curvature constant h of phi(r) = 1 - exp(-(r^2 / h^2)^2).
+    h: f32,
+    // The Gaussian fall-off d of the alpha texture (paper section 3.2, texture units).
+    falloff: f32,
+    // z_o in multiples of each surfel's radius (section 3.3).
+    depth_offset: f32,
+}
+
+const MODE_PLANAR: u32 = 0u;
+const MODE_CURVED: u32 = 1u;
+const MODE_HYBRID: u32 = 2u;
+const NORMALS_NONE: u32 = 0u;
+// Normals oriented (as stored, towards scanners, or up).
+const NORMALS_OUTWARD: u32 = 1u;
+// Normals not oriented: each is turned towards the eye first.
+const NORMALS_FACING_EYE: u32 = 2u;
