@@ -16,23 +16,16 @@ fn main(
         return;
     }
     let rgb = point_colour(points[s.idx], attributes[s.idx]);
-    let x0 = u32(max(floor(s.centre_px.x - s.reach_px), 0.0));
-    let y0 = u32(max(floor(s.centre_px.y - s.reach_px), 0.0));
-    let x1 = u32(min(s.centre_px.x + s.reach_px, f32(frame.width - 1u)));
-    let y1 = u32(min(s.centre_px.y + s.reach_px, f32(frame.height - 1u)));
-    for (var y = y0; y <= y1; y++) {
-        for (var x = x0; x <= x1; x++) {
-            if !within_reach(s, x, y) {
-                continue;
-            }
-            let dir = pixel_ray(x, y);
-            let len = length(dir);
-            let e = dir / len;
-            let hit = intersect(s, e);
+    // Normals blended as seen: each turned towards the eye first.
+    let n = select(s.n, -s.n, dot(s.n, s.p - surf.eye.xyz) > 0.0);
+    let b = pixel_box(s);
+    for (var y = b.y; y <= b.w; y++) {
+        for (var x = b.x; x <= b.z; x++) {
+            let hit = hit_pixel(s, x, y);
             if hit.x < 0.0 {
                 continue;
             }
-            let depth = hit.x / len;
+            let depth = hit.x;
             let p = y * frame.width + x;
             let front = bitcast<f32>(~planes[2u * p]);
             if depth > front {
@@ -40,8 +33,6 @@ fn main(
             }
             let nearest = bitcast<f32>(~planes[2u * p + 1u]);
             let layer = clamp((depth - nearest) / max(front - nearest, 1e-30), 0.0, 1.0);
-            // Normals blended as seen: each turned towards the eye first.
-            let n = select(s.n, -s.n, dot(s.n, e) > 0.0);
             // At least one unit: every pixel the depth pass covered is covered here too.
             let w = max(surfel_weight(hit.y) * WEIGHT_ONE, 1.0);
             let i = SUM_WORDS * p;

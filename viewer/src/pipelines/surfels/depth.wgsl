@@ -17,25 +17,16 @@ fn main(
     }
     atomicAdd(&counts[select(0u, 1u, s.curved)], 1u);
     let offset = surf.depth_offset * s.radius;
-    let x0 = u32(max(floor(s.centre_px.x - s.reach_px), 0.0));
-    let y0 = u32(max(floor(s.centre_px.y - s.reach_px), 0.0));
-    let x1 = u32(min(s.centre_px.x + s.reach_px, f32(frame.width - 1u)));
-    let y1 = u32(min(s.centre_px.y + s.reach_px, f32(frame.height - 1u)));
-    for (var y = y0; y <= y1; y++) {
-        for (var x = x0; x <= x1; x++) {
-            if !within_reach(s, x, y) {
-                continue;
-            }
-            let dir = pixel_ray(x, y);
-            let len = length(dir);
-            let hit = intersect(s, dir / len);
+    let b = pixel_box(s);
+    for (var y = b.y; y <= b.w; y++) {
+        for (var x = b.x; x <= b.z; x++) {
+            let hit = hit_pixel(s, x, y);
             if hit.x < 0.0 {
                 continue;
             }
-            let depth = hit.x / len;
             let i = 2u * (y * frame.width + x);
-            atomicMax(&planes[i], ~bitcast<u32>(depth + offset));
-            atomicMax(&planes[i + 1u], ~bitcast<u32>(depth));
+            atomicMax(&planes[i], ~bitcast<u32>(hit.x + offset));
+            atomicMax(&planes[i + 1u], ~bitcast<u32>(hit.x));
         }
     }
 }

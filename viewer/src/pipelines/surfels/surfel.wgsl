@@ -42,6 +42,14 @@ struct Surfel {
     // n-gon's corners.
     b1: vec3<f32>,
     b2: vec3<f32>,
+    // The n-gon's apothem over its circumradius, cos(pi / sides).
+    apothem: f32,
+    // Linear depth of the centre.
+    depth: f32,
+    // For the planar ray cast: dot(p - eye, n), and n against the ray's three parts
+    // (forward, right, up), so that a pixel costs a few multiply-adds and one division.
+    plane_num: f32,
+    plane_den: vec3<f32>,
 }
 
 // SPEC.md's oct16 (U low, V high, unorm16 each).
@@ -133,41 +141,87 @@ fn surfel_at(group: u32, lane: u32) -> Surfel {
     let b = s.n.x * s.n.y * a;
     s.b1 = vec3<f32>(1.0 + sgn * s.n.x * s.n.x * a, sgn * b, -sgn * s.n.x);
     s.b2 = vec3<f32>(b, sgn + s.n.y * s.n.y * a, -s.n.y);
+    s.apothem = cos(PI / f32(surf.sides));
+    s.plane_num = dot(p - surf.eye.xyz, s.n);
+    s.plane_den = vec3<f32>(dot(surf.forward.xyz, s.n), dot(surf.right.xyz, s.n), dot(surf.up.xyz, s.n));
+    s.depth = clip.w;
     s.idx = idx;
     s.p = p;
     s.ok = true;
     return s;
 }
 
-// Whether pixel (x, y) lies within the surfel's screen reach (its box's corners do not).
-fn within_reach(s: Surfel, x: u32, y: u32) -> bool {
+// Where the surfel covers pixel (x, y): x its linear depth, y the squared radial distance in
+// radius units; x < 0 where it does not. A surfel within half a pixel of its centre covers its
+// centre's pixel alone, as a point does: its shape is below what the pixel can show.
+fn hit_pixel(s: Surfel, x: u32, y: u32) -> vec2<f32> {
+    let miss = vec2<f32>(-1.0, 0.0);
     let d = vec2<f32>(f32(x) + 0.5, f32(y) + 0.5) - s.centre_px;
+    if s.reach_px < 0.5 {
+        return vec2<f32>(s.depth, 0.0);
+    }
+    // The box's corners lie beyond the reach.
     let r = s.reach_px + 0.71;
-    return dot(d, d) <= r * r;
+    if dot(d, d) > r * r {
+        return miss;
+    }
+    let ndc = vec2<f32>(
+        (f32(x) + 0.5) / f32(frame.width) * 2.0 - 1.0,
+        1.0 - (f32(y) + 0.5) / f32(frame.height) * 2.0,
+    );
+    let dir = surf.forward.xyz + ndc.x * surf.right.xyz + ndc.y * surf.up.xyz;
+    if s.curved {
+        let len = length(dir);
+        let hit = intersect(s, dir / len);
+        return vec2<f32>(hit.x / len, hit.y * hit.y);
+    }
+    // The plane: depth t where (eye + t dir - p) . n = 0.
+    let den = s.plane_den.x + ndc.x * s.plane_den.y + ndc.y * s.plane_den.z;
+    if abs(den) < 1e-12 {
+        return miss;
+    }
+    let t = s.plane_num / den;
+    let c = (surf.eye.xyz - s.p + t * dir) / s.radius;
+    let u2 = dot(c, c);
+    if t <= 0.0 || u2 > 1.0 || (u2 > s.apothem * s.apothem && !inside_polygon(s, c, sqrt(u2))) {
+        return miss;
+    }
+    return vec2<f32>(t, u2);
 }
 
-// The unnormalised ray through the centre of pixel (x, y): its parameter is linear depth.
-fn pixel_ray(x: u32, y: u32) -> vec3<f32> {
-    let ndc_x = (f32(x) + 0.5) / f32(frame.width) * 2.0 - 1.0;
-    let ndc_y = 1.0 - (f32(y) + 0.5) / f32(frame.height) * 2.0;
-    return surf.forward.xyz + ndc_x * surf.right.xyz + ndc_y * surf.up.xyz;
+// The pixel box a thread walks: x0, y0, x1, y1 (inclusive).
+fn pixel_box(s: Surfel) -> vec4<u32> {
+    if s.reach_px < 0.5 {
+        let size = vec2<f32>(f32(frame.width), f32(frame.height));
+        if any(s.centre_px < vec2<f32>(0.0)) || any(s.centre_px >= size) {
+            // Empty.
+            return vec4<u32>(1u, 1u, 0u, 0u);
+        }
+        let c = vec2<u32>(floor(s.centre_px));
+        return vec4<u32>(c, c);
+    }
+    return vec4<u32>(
+        u32(max(floor(s.centre_px.x - s.reach_px), 0.0)),
+        u32(max(floor(s.centre_px.y - s.reach_px), 0.0)),
+        u32(min(s.centre_px.x + s.reach_px, f32(frame.width - 1u))),
+        u32(min(s.centre_px.y + s.reach_px, f32(frame.height - 1u))),
+    );
 }
 
 // Whether a point of the surfel's plane at offset c (radius units) from its centre, at
 // distance u, lies inside its n-gon (corners at angles 2k pi / sides, paper section 3.2).
 fn inside_polygon(s: Surfel, c: vec3<f32>, u: f32) -> bool {
-    let half = PI / f32(surf.sides);
-    let apothem = cos(half);
     if u > 1.0 {
         return false;
     }
-    if u <= apothem {
+    if u <= s.apothem {
         return true;
     }
+    let half = PI / f32(surf.sides);
     let theta = atan2(dot(c, s.b2), dot(c, s.b1)) + PI;
     let sector = 2.0 * half;
     let off = theta - sector * floor(theta / sector) - half;
-    return u * cos(off) <= apothem;
+    return u * cos(off) <= s.apothem;
 }
 
 // Where the ray (unit direction e, from the eye) first meets the surfel: x the distance
@@ -252,9 +306,8 @@ fn intersect(s: Surfel, e: vec3<f32>) -> vec2<f32> {
     return best;
 }
 
-// The paper's alpha texture: exp(-(distance from the texture centre)^2 / d^2), the rim at
-// texture distance 1/2.
-fn surfel_weight(u: f32) -> f32 {
-    let t = 0.5 * u;
-    return exp(-t * t / (surf.falloff * surf.falloff));
+// The paper's alpha texture, exp(-(distance from the texture centre)^2 / d^2) with the rim at
+// texture distance 1/2, of the squared radial distance u2 in radius units.
+fn surfel_weight(u2: f32) -> f32 {
+    return exp(-0.25 * u2 / (surf.falloff * surf.falloff));
 }
