@@ -195,7 +195,15 @@ pub fn plan_chunks(counts: &[u64], cube: &Cube, max_points: u64) -> (Vec<Chunk>,
         }
     }
     chunks.sort_by(|a, b| b.points.cmp(&a.points).then(a.key().cmp(&b.key())));
-    let mut lut = vec![u32::MAX; counts.len()];
+    let lut = chunk_lut(&chunks, cube);
+    (chunks, lut)
+}
+
+/// The lookup table from counting-grid cell to chunk index (`u32::MAX` for cells of no
+/// chunk): the chunks alone decide it, so a task rebuilds it from the plan.
+pub fn chunk_lut(chunks: &[Chunk], cube: &Cube) -> Vec<u32> {
+    let (level, _) = grid_shape(cube);
+    let mut lut = vec![u32::MAX; 1 << (3 * level)];
     for (i, c) in chunks.iter().enumerate() {
         let span = 1u32 << (level - c.level as u32);
         for x in c.x * span..(c.x + 1) * span {
@@ -207,7 +215,7 @@ pub fn plan_chunks(counts: &[u64], cube: &Cube, max_points: u64) -> (Vec<Chunk>,
             }
         }
     }
-    (chunks, lut)
+    lut
 }
 
 /// Points per chunk that keep indexing inside `memory_limit` with `threads` workers.
