@@ -100,6 +100,7 @@ fn start_cluster(dir: &Path) -> Result<Cluster, String> {
         .map_err(|e| e.to_string())?;
     let host = String::from_utf8_lossy(&host.stdout).trim().to_string();
     let cpus = std::thread::available_parallelism().map_or(1, |n| n.get());
+    std::fs::create_dir_all(dir).map_err(|e| format!("cannot create {}: {e}", dir.display()))?;
     // munged wants its run folder even when its socket is elsewhere.
     let _ = std::fs::create_dir_all("/run/munge");
     let key = dir.join("munge.key");
