@@ -63,8 +63,12 @@ pub struct TaskPlan {
 /// One input of the distribution.
 #[derive(Debug, Clone, Serialize, Deserialize)]
 pub enum RowSource {
-    /// A LAS input read in place: `inputs[input]`.
-    Las { input: usize },
+    /// A LAS input read in place: `inputs[input]`, with the file of its records' grid cells
+    /// in the plan folder (`plan::count`).
+    Las {
+        input: usize,
+        cells: Option<PathBuf>,
+    },
     /// A staging file of rows in the plan folder (`rowfile`), `blocks` where its blocks start.
     Rows {
         file: PathBuf,
@@ -181,6 +185,17 @@ impl TaskPlan {
         Ok(step)
     }
 
+    /// For each of `row_inputs`, its file of grid cells, where it has one.
+    pub(crate) fn cell_files(&self, plan_dir: &Path) -> Vec<Option<PathBuf>> {
+        self.sources
+            .iter()
+            .map(|s| match s {
+                RowSource::Las { cells: Some(c), .. } => Some(plan_dir.join(c)),
+                _ => None,
+            })
+            .collect()
+    }
+
     /// The distribution's inputs, as `count_and_plan` gave them.
     pub(crate) fn row_inputs(&self, plan_dir: &Path) -> Result<Vec<RowInput>> {
         let layout = RowLayout::new(self.plan.attributes.clone());
@@ -188,7 +203,7 @@ impl TaskPlan {
         let mut out = Vec::new();
         for s in &self.sources {
             out.push(match s {
-                RowSource::Las { input } => {
+                RowSource::Las { input, .. } => {
                     let path = self.inputs.get(*input).ok_or_else(|| {
                         ConvertError::input(plan_file(plan_dir), "the plan names an input it lacks")
                     })?;
@@ -322,11 +337,23 @@ fn write_plan(
     }
     let mut phases = Phases::new(Progress::new(opts.quiet));
     let fp = run_fingerprint(opts, step.as_ref());
-    let counted = count_and_plan(opts, &wd, threads, &mut phases, fp, step.as_ref())?;
+    let counted = count_and_plan(
+        opts,
+        &wd,
+        threads,
+        &mut phases,
+        fp,
+        step.as_ref(),
+        Some(wd.work()),
+    )?;
     let mut sources = Vec::new();
     for (i, input) in counted.inputs.iter().enumerate() {
         sources.push(match &input.blocks {
-            None => RowSource::Las { input: i },
+            None => RowSource::Las {
+                input: i,
+                cells: Some(Path::new("staging").join(format!("cells{i}.bin")))
+                    .filter(|c| plan_dir.join(c).is_file()),
+            },
             Some(blocks) => RowSource::Rows {
                 file: input
                     .path

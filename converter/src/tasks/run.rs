@@ -182,12 +182,14 @@ fn distribute(
         }
     }
     let inputs = tp.row_inputs(plan_dir)?;
+    let cells = tp.cell_files(plan_dir);
     let lut = chunk_lut(&plan.chunks, &plan.cube);
     let threads = tp.threads.max(1);
     let classes = phases.timed("distribute", Some((plan.points, "points")), |bar| {
         distribute_task(
             &TaskDistribution {
                 inputs: &inputs,
+                cells: &cells,
                 stride: layout.stride,
                 cube: &plan.cube,
                 lut: &lut,
