@@ -252,4 +252,16 @@ fn contradictory_options_are_refused_in_one_sentence() {
         &["convert", s(&las), "--plan-only", s(&plan), "--tasks", "2"],
         "already exists",
     );
+    // An input changed since the plan: its chunks would not hold its points.
+    let later = std::time::SystemTime::now() + Duration::from_secs(10);
+    let f = std::fs::File::options()
+        .write(true)
+        .open(&las)
+        .expect("open");
+    f.set_modified(later).expect("touch");
+    fails(
+        &["convert", "--plan", s(&plan), "--task", "1"],
+        "a.las: changed (size or modification time) since the plan was made",
+    );
+    assert!(!plan.join("tasks/1").exists());
 }

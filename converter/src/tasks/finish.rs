@@ -156,8 +156,8 @@ fn gather(tp: &TaskPlan, plan_dir: &Path, wd: &WorkDir) -> Result<(Vec<JournalEn
         src.seek(SeekFrom::Start(OCTREE_HEAD_SIZE))
             .map_err(io_err(&part, "cannot read"))?;
         let len = task_end - OCTREE_HEAD_SIZE;
-        // std copies file to file in the kernel (copy_file_range) where it can.
-        let copied = std::io::copy(&mut (&mut src).take(len), &mut octree)
+        // std copies a `Take<File>` into a file in the kernel (copy_file_range) where it can.
+        let copied = std::io::copy(&mut src.take(len), &mut octree)
             .map_err(io_err(&part, "cannot copy the task's nodes"))?;
         if copied != len {
             return Err(ConvertError::input(

@@ -172,15 +172,33 @@ impl TaskPlan {
     pub fn checked_step(&self, plan_dir: &Path) -> Result<Box<dyn ChunkStep>> {
         let step = step_for(&self.normals)?;
         let opts = self.options(plan_dir.to_path_buf(), false, true);
-        if run_fingerprint(&opts, step.as_ref()) != self.plan.fingerprint {
-            let changed = self.inputs.iter().find(|p| !p.is_file()).map_or(
-                "an input changed (size or modification time)",
-                |_| "an input is missing",
-            );
-            return Err(ConvertError::input(
-                plan_file(plan_dir),
-                format!("{changed} since the plan was made; make the plan again"),
-            ));
+        let now = run_fingerprint(&opts, step.as_ref());
+        if now != self.plan.fingerprint {
+            // The fingerprint lists the inputs first, one `|`-separated part each.
+            let changed = now
+                .split('|')
+                .zip(self.plan.fingerprint.split('|'))
+                .take(self.inputs.len())
+                .position(|(a, b)| a != b)
+                .and_then(|i| self.inputs.get(i));
+            return Err(match changed {
+                Some(input) => ConvertError::input(
+                    input,
+                    format!(
+                        "{} since the plan was made ({}); make the plan again",
+                        if input.is_file() {
+                            "changed (size or modification time)"
+                        } else {
+                            "is gone"
+                        },
+                        plan_file(plan_dir).display()
+                    ),
+                ),
+                None => ConvertError::input(
+                    plan_file(plan_dir),
+                    "made by another version of strata; make the plan again",
+                ),
+            });
         }
         Ok(step)
     }

@@ -71,6 +71,7 @@ pub fn run_task(plan_dir: &Path, k: usize, quiet: bool) -> Result<TaskSummary> {
     if done.is_dir() {
         return Ok(summary(range.len(), true));
     }
+    let step = tp.checked_step(plan_dir)?;
     // Two runs of one task would write the same files: the second refuses.
     let lock_path = tmp.with_extension("lock");
     let lock = File::create(&lock_path).map_err(io_err(&lock_path, "cannot create"))?;
@@ -80,7 +81,6 @@ pub fn run_task(plan_dir: &Path, k: usize, quiet: bool) -> Result<TaskSummary> {
             format!("task {k} is already running (another process holds its lock)"),
         ));
     }
-    let step = tp.checked_step(plan_dir)?;
     let wd = task_workdir(plan_dir, k, false);
     let mut phases = Phases::new(Progress::new(quiet));
     let resumed = build(&tp, plan_dir, &wd, &range, step.as_ref(), &mut phases)?;
