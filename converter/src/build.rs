@@ -8,7 +8,7 @@ use crate::error::{ConvertError, Result};
 use crate::finish::{finish, merge_top};
 use crate::halo::Halos;
 use crate::index::{Indexing, index_chunks};
-use crate::journal::{Committer, fingerprint, read_journal, resumable_plan, save_plan};
+use crate::journal::{Committer, read_journal, resumable_plan, run_fingerprint, save_plan};
 use crate::prepare::prepare;
 use crate::progress::{Phases, Progress};
 use crate::sampling::Sampling;
@@ -107,12 +107,7 @@ fn run(
 ) -> Result<ConvertSummary> {
     let start = Instant::now();
     let mut phases = Phases::new(Progress::new(opts.quiet));
-    let mut fp = fingerprint(opts);
-    // Chunks made by one step (and bands for its margin) are nothing to another.
-    let step_fp = step.fingerprint();
-    if !step_fp.is_empty() {
-        fp.push_str(&format!("|step:{step_fp}"));
-    }
+    let fp = run_fingerprint(opts, step);
     let plan = match resumable_plan(opts, wd, &fp)? {
         Some(plan) => plan,
         None => {
@@ -146,12 +141,19 @@ fn run(
             halos: &halos,
             wd,
         };
-        let (entries, committer) = index_chunks(&ix, resumed, committer, bar)?;
+        let (entries, committer) = index_chunks(&ix, resumed..plan.chunks.len(), committer, bar)?;
         journal.extend(entries);
         Ok(committer)
     })?;
     let merged = phases.timed("merge", None, |_| {
-        merge_top(wd, &plan, &layout, opts.sampling, &journal, committer)
+        merge_top(
+            &|i| wd.chunk_root(i),
+            &plan,
+            &layout,
+            opts.sampling,
+            &journal,
+            committer,
+        )
     })?;
     let mut totals = Vec::new();
     for entry in &journal {

@@ -23,6 +23,13 @@ pub enum ConvertError {
         needed: u64,
         free: u64,
     },
+    /// `--finish` of a plan some of whose tasks have not finished.
+    #[error("{}: cannot finish the conversion: {} of its {total} tasks not finished ({}); run `strata convert --plan {} --task K` for each", plan.display(), missing.len(), task_list(missing), plan.display())]
+    TasksUnfinished {
+        plan: PathBuf,
+        missing: Vec<usize>,
+        total: usize,
+    },
     #[error(transparent)]
     Format(#[from] strata_format::FormatError),
     #[error("{0}")]
@@ -64,6 +71,22 @@ impl ConvertError {
             during: during.into(),
             message: message.into(),
         }
+    }
+}
+
+/// "task 3", "tasks 0, 2 and 5", at most a dozen named.
+fn task_list(tasks: &[usize]) -> String {
+    let named: Vec<String> = tasks.iter().take(12).map(|t| t.to_string()).collect();
+    let more = tasks.len().saturating_sub(named.len());
+    match (named.len(), more) {
+        (1, _) => format!("task {}", named[0]),
+        (_, 0) => {
+            let (last, rest) = named
+                .split_last()
+                .map_or(("", &[][..]), |(l, r)| (l.as_str(), r));
+            format!("tasks {} and {last}", rest.join(", "))
+        }
+        _ => format!("tasks {} and {more} more", named.join(", ")),
     }
 }
 

@@ -15,7 +15,7 @@ use std::collections::BTreeMap;
 use std::fs::{self, File};
 use std::io::Write;
 use std::os::unix::fs::FileExt;
-use std::path::Path;
+use std::path::{Path, PathBuf};
 use strata_format::{
     Bounds, BuiltHierarchy, Cube, DatasetFile, DatasetId, FileInfo, Files, HierarchyInfo, Layout,
     Metadata, NodeKey, NodeRecord, PAGE_LEVELS, RowLayout, Scanner, build_hierarchy, octree_head,
@@ -25,7 +25,7 @@ use strata_format::{
 pub struct Merged {
     records: BTreeMap<NodeKey, NodeRecord>,
     octree: File,
-    octree_path: std::path::PathBuf,
+    octree_path: PathBuf,
     octree_len: u64,
 }
 
@@ -38,8 +38,9 @@ pub struct Finished {
 }
 
 /// Builds the levels above the chunks from the chunks' roots and appends them to the octree.
+/// `root_of(chunk)` is where a chunk's root rows were left (`WorkDir::chunk_root`, or a task's).
 pub fn merge_top(
-    wd: &WorkDir,
+    root_of: &dyn Fn(usize) -> PathBuf,
     plan: &Plan,
     layout: &RowLayout,
     sampling: Sampling,
@@ -55,7 +56,7 @@ pub fn merge_top(
         .map(|(entry, chunk)| (chunk.key(), entry.root_mask))
         .collect();
     let load = |i: usize| {
-        let p = wd.chunk_root(journal[i].chunk);
+        let p = root_of(journal[i].chunk);
         let mut rows = Vec::new();
         read_rows(&p, layout.stride, &mut rows).map(|()| rows)
     };

@@ -73,6 +73,22 @@ impl Halos {
         }
     }
 
+    /// The chunks whose bands chunk `chunk`'s halo is gathered from.
+    pub fn neighbours(&self, chunk: usize) -> &[usize] {
+        &self.neighbours[chunk]
+    }
+
+    /// Chunk `chunk`'s box grown by the margin: its halo lies in here.
+    pub fn reach(&self, chunk: usize) -> GridBox {
+        self.boxes[chunk].grown(self.margin)
+    }
+
+    /// Chunk `chunk`'s box shrunk by the margin: no other chunk's halo reaches in here, so its
+    /// band holds the rest.
+    pub fn inner(&self, chunk: usize) -> GridBox {
+        self.boxes[chunk].grown(self.margin.map(|m| -m))
+    }
+
     /// Whether any chunk can have a halo, so that bands are worth writing.
     pub fn needed(&self) -> bool {
         self.margin != [0; 3]
@@ -92,18 +108,30 @@ impl Halos {
         threads: usize,
         bar: &ProgressBar,
     ) -> Result<()> {
+        let chunks: Vec<usize> = (first..self.boxes.len()).collect();
+        self.write_bands_of(wd, &chunks, parts, threads, bar)
+    }
+
+    /// Writes the bands of `chunks` that have none yet, `threads` at a time.
+    pub fn write_bands_of(
+        &self,
+        wd: &WorkDir,
+        chunks: &[usize],
+        parts: usize,
+        threads: usize,
+        bar: &ProgressBar,
+    ) -> Result<()> {
         let dir = wd.bands();
         fs::create_dir_all(&dir).map_err(io_err(&dir, "cannot create work directory"))?;
-        let next = AtomicUsize::new(first);
+        let next = AtomicUsize::new(0);
         let results: Vec<Result<()>> = std::thread::scope(|scope| {
             let workers: Vec<_> = (0..threads.max(1))
                 .map(|_| {
                     scope.spawn(|| {
                         loop {
-                            let i = next.fetch_add(1, Ordering::SeqCst);
-                            if i >= self.boxes.len() {
+                            let Some(&i) = chunks.get(next.fetch_add(1, Ordering::SeqCst)) else {
                                 return Ok(());
-                            }
+                            };
                             self.write_band(wd, i, parts)?;
                             bar.inc(1);
                         }
@@ -130,7 +158,7 @@ impl Halos {
         if path.exists() {
             return Ok(());
         }
-        let inner = self.boxes[chunk].grown(self.margin.map(|m| -m));
+        let inner = self.inner(chunk);
         let part_path = path.with_extension("part");
         let mut out = RowWriter::create(&part_path, self.stride)?;
         for part in 0..parts {
@@ -170,7 +198,7 @@ impl Halos {
         halo.rows.clear();
         halo.stride = self.stride;
         halo.margin = self.asked;
-        halo.reach = self.boxes[chunk].grown(self.margin);
+        halo.reach = self.reach(chunk);
         let reach = halo.reach;
         let mut read = 0u64;
         for &j in &self.neighbours[chunk] {

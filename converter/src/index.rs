@@ -14,6 +14,7 @@ use crate::workdir::WorkDir;
 use indicatif::ProgressBar;
 use std::collections::BTreeMap;
 use std::fs;
+use std::ops::Range;
 use std::panic::{AssertUnwindSafe, catch_unwind};
 use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
 use std::sync::{Condvar, Mutex};
@@ -38,15 +39,16 @@ struct CommitState {
     error: Option<ConvertError>,
 }
 
-/// Indexes chunks `first..` and commits them after `committer`'s; returns their journal
-/// entries and the committer, positioned after the last one.
+/// Indexes chunks `chunks` (all that are left of the plan, or of a task) and commits them
+/// after `committer`'s; returns their journal entries and the committer, positioned after the
+/// last one.
 pub fn index_chunks(
     ix: &Indexing,
-    first: usize,
+    chunks: Range<usize>,
     committer: Committer,
     bar: &ProgressBar,
 ) -> Result<(Vec<JournalEntry>, Committer)> {
-    let n = ix.plan.chunks.len();
+    let (first, n) = (chunks.start, chunks.end);
     let threads = ix.threads;
     let next_chunk = AtomicUsize::new(first);
     let abort = AtomicBool::new(false);

@@ -3,6 +3,7 @@
 //! order, one JSON line each.
 
 use crate::build::ConvertOptions;
+use crate::chunk_step::ChunkStep;
 use crate::error::{ConvertError, Result, io_err};
 use crate::prepare::Plan;
 use crate::rowfile::RowWriter;
@@ -11,6 +12,7 @@ use crate::workdir::WorkDir;
 use serde::{Deserialize, Serialize};
 use std::fs::{self, File, OpenOptions};
 use std::io::{BufRead, BufReader, Seek, SeekFrom, Write};
+use std::ops::Range;
 use std::path::PathBuf;
 use strata_format::{DatasetId, NodeKey, NodeRecord, OCTREE_HEAD_SIZE, octree_head};
 
@@ -31,6 +33,19 @@ pub struct JournalEntry {
 }
 
 impl JournalEntry {
+    /// The entry as it reads once its octree file's bytes after the head have moved `by`
+    /// bytes on (a task's nodes copied into the dataset's octree file).
+    pub fn moved(mut self, by: u64) -> Self {
+        self.end += by;
+        for n in &mut self.nodes {
+            // A node without a payload keeps offset 0 (`record_of`).
+            if n.6 > 0 {
+                n.5 += by;
+            }
+        }
+        self
+    }
+
     pub fn records(&self) -> impl Iterator<Item = (NodeKey, NodeRecord)> + '_ {
         self.nodes.iter().map(
             |&(level, x, y, z, point_count, offset, size, checksum, child_mask)| {
@@ -95,6 +110,17 @@ pub fn fingerprint(opts: &ConvertOptions) -> String {
     parts.join("|")
 }
 
+/// `fingerprint`, and the step's where it changes the chunks: chunks made by one step (and
+/// bands for its margin) are nothing to another.
+pub fn run_fingerprint(opts: &ConvertOptions, step: &dyn ChunkStep) -> String {
+    let mut fp = fingerprint(opts);
+    let step_fp = step.fingerprint();
+    if !step_fp.is_empty() {
+        fp.push_str(&format!("|step:{step_fp}"));
+    }
+    fp
+}
+
 /// The plan an interrupted run left, if `--resume` asks for it and one is there; an error if
 /// it was made from other inputs or options.
 pub fn resumable_plan(opts: &ConvertOptions, wd: &WorkDir, fp: &str) -> Result<Option<Plan>> {
@@ -134,6 +160,12 @@ pub fn save_plan(wd: &WorkDir, plan: &Plan) -> Result<()> {
 
 /// The valid prefix of the journal: whole lines for chunks 0, 1, 2... in order.
 pub fn read_journal(wd: &WorkDir, chunks: usize) -> Vec<JournalEntry> {
+    read_journal_of(wd, 0..chunks)
+}
+
+/// The valid prefix of a journal of the chunks `chunks` (a task's): whole lines for its
+/// chunks in order.
+pub fn read_journal_of(wd: &WorkDir, chunks: Range<usize>) -> Vec<JournalEntry> {
     let Ok(f) = File::open(wd.journal()) else {
         return Vec::new();
     };
@@ -141,7 +173,7 @@ pub fn read_journal(wd: &WorkDir, chunks: usize) -> Vec<JournalEntry> {
     for line in BufReader::new(f).lines() {
         let Ok(line) = line else { break };
         match serde_json::from_str::<JournalEntry>(&line) {
-            Ok(e) if e.chunk == out.len() && e.chunk < chunks => out.push(e),
+            Ok(e) if e.chunk == chunks.start + out.len() && e.chunk < chunks.end => out.push(e),
             _ => break,
         }
     }

@@ -27,6 +27,7 @@ pub mod scan;
 pub mod staging;
 pub mod synth;
 pub mod sys;
+pub mod tasks;
 pub mod tree;
 pub mod workdir;
 pub mod writers;

@@ -1,10 +1,13 @@
 //! Phase 2: count points on a coarse grid and cut the cube into chunks that fit in memory.
 
-use crate::error::{ConvertError, Result, panic_message};
+use crate::error::{ConvertError, Result, io_err, panic_message};
 use crate::quantize::Quantization;
 use crate::rows::RowInput;
 use indicatif::ProgressBar;
 use serde::{Deserialize, Serialize};
+use std::fs::OpenOptions;
+use std::os::unix::fs::FileExt;
+use std::path::PathBuf;
 use strata_format::{Cube, GRID_CELLS_LOG2, NodeKey, row_position};
 
 /// The counting grid has 2^7 = 128 cells per axis (8 MiB of counters).
@@ -106,26 +109,53 @@ impl Counts {
 }
 
 /// Counts the rows of `inputs` per grid cell into `total`, `threads` parts of each input at
-/// once.
+/// once. Where `cells` names a file for an input, each record's grid cell is written there
+/// too (a little-endian u32 per record, in record order): a task of a plan reads it to find
+/// its records without looking at the others.
 pub fn count(
     inputs: &[&RowInput],
     total: &mut Counts,
     threads: usize,
     bar: &ProgressBar,
+    cells: &[Option<PathBuf>],
 ) -> Result<()> {
     let cube = total.cube;
+    let (level, shift) = (total.level, total.shift);
     let parts: Vec<Result<Counts>> = std::thread::scope(|scope| {
         let workers: Vec<_> = (0..threads)
             .map(|t| {
                 scope.spawn(move || {
                     let mut c = Counts::new(&cube);
-                    for input in inputs {
+                    let mut out = Vec::new();
+                    for (j, input) in inputs.iter().enumerate() {
+                        let sink = match cells.get(j) {
+                            Some(Some(path)) => Some((
+                                path,
+                                OpenOptions::new()
+                                    .write(true)
+                                    .create(true)
+                                    .truncate(false)
+                                    .open(path)
+                                    .map_err(io_err(path, "cannot create"))?,
+                            )),
+                            _ => None,
+                        };
                         input.for_each_raw(input.part(t, threads), |raw, first| {
+                            out.clear();
                             for (i, rec) in raw.chunks_exact(input.record_len).enumerate() {
-                                c.add(match &input.convert {
+                                let p = match &input.convert {
                                     Some(conv) => conv.position(rec, first + i as u64)?,
                                     None => row_position(rec),
-                                });
+                                };
+                                c.add(p);
+                                if sink.is_some() {
+                                    let cell = grid_cell(p, &cube, level, shift) as u32;
+                                    out.extend_from_slice(&cell.to_le_bytes());
+                                }
+                            }
+                            if let Some((path, f)) = &sink {
+                                f.write_all_at(&out, first * 4)
+                                    .map_err(io_err(path, "cannot write"))?;
                             }
                             bar.inc((raw.len() / input.record_len) as u64);
                             Ok(())
@@ -195,7 +225,15 @@ pub fn plan_chunks(counts: &[u64], cube: &Cube, max_points: u64) -> (Vec<Chunk>,
         }
     }
     chunks.sort_by(|a, b| b.points.cmp(&a.points).then(a.key().cmp(&b.key())));
-    let mut lut = vec![u32::MAX; counts.len()];
+    let lut = chunk_lut(&chunks, cube);
+    (chunks, lut)
+}
+
+/// The lookup table from counting-grid cell to chunk index (`u32::MAX` for cells of no
+/// chunk): the chunks alone decide it, so a task rebuilds it from the plan.
+pub fn chunk_lut(chunks: &[Chunk], cube: &Cube) -> Vec<u32> {
+    let (level, _) = grid_shape(cube);
+    let mut lut = vec![u32::MAX; 1 << (3 * level)];
     for (i, c) in chunks.iter().enumerate() {
         let span = 1u32 << (level - c.level as u32);
         for x in c.x * span..(c.x + 1) * span {
@@ -207,7 +245,7 @@ pub fn plan_chunks(counts: &[u64], cube: &Cube, max_points: u64) -> (Vec<Chunk>,
             }
         }
     }
-    (chunks, lut)
+    lut
 }
 
 /// Points per chunk that keep indexing inside `memory_limit` with `threads` workers.

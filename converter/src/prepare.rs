@@ -5,7 +5,7 @@
 use crate::build::ConvertOptions;
 use crate::chunk_step::ChunkStep;
 use crate::disk::check_conversion;
-use crate::distribute::{Distribution, distribute};
+use crate::distribute::{ClassCounts, Distribution, distribute};
 use crate::error::{ConvertError, Result, io_err};
 use crate::input::las::LasSource;
 use crate::input::{PointSource, Precision};
@@ -89,6 +89,74 @@ pub fn prepare(
     fingerprint: String,
     step: &dyn ChunkStep,
 ) -> Result<Plan> {
+    let Counted {
+        mut plan,
+        inputs,
+        lut,
+        class_at,
+    } = count_and_plan(opts, wd, threads, phases, fingerprint, step, None)?;
+    let layout = RowLayout::new(plan.attributes.clone());
+    let class_counts = phases.timed("distribute", Some((plan.points, "points")), |bar| {
+        distribute(
+            &Distribution {
+                inputs: &inputs,
+                stride: layout.stride,
+                cube: &plan.cube,
+                lut: &lut,
+                chunk_count: plan.chunks.len(),
+                chunk_dir: &wd.chunks(),
+                buffer_budget: distribute_budget(opts.memory_limit),
+                threads,
+                class_at,
+            },
+            bar,
+        )
+    })?;
+    remove_staging(&inputs, wd)?;
+    plan.classes = class_list(class_at, &class_counts);
+    Ok(plan)
+}
+
+/// Bytes of row buffers the distribution may hold, all workers together.
+pub fn distribute_budget(memory_limit: u64) -> u64 {
+    (memory_limit / 6).min(256 << 20)
+}
+
+/// The plan's points per classification code, from the distribution's counts (none where the
+/// rows have no one-byte classification).
+pub fn class_list(class_at: Option<usize>, counts: &ClassCounts) -> Vec<(u8, u64)> {
+    class_at
+        .map(|_| {
+            (0..=255u8)
+                .zip(counts.iter().copied())
+                .filter(|(_, n)| *n > 0)
+                .collect()
+        })
+        .unwrap_or_default()
+}
+
+/// Everything up to the distribution: the plan (its class counts still empty: the
+/// distribution counts them), the inputs as rows and the lookup from grid cell to chunk.
+pub struct Counted {
+    pub plan: Plan,
+    pub inputs: Vec<RowInput>,
+    pub lut: Vec<u32>,
+    /// Where a row holds its one-byte classification, if it has one.
+    pub class_at: Option<usize>,
+}
+
+/// Read and count the inputs and cut the cube into chunks: what `--plan-only` stops after.
+/// With `cells_dir`, each LAS input read in place leaves its records' grid cells there
+/// (`count`), as `cells{input}.bin`.
+pub fn count_and_plan(
+    opts: &ConvertOptions,
+    wd: &WorkDir,
+    threads: usize,
+    phases: &mut Phases,
+    fingerprint: String,
+    step: &dyn ChunkStep,
+    cells_dir: Option<&Path>,
+) -> Result<Counted> {
     let mut warnings = Vec::new();
     let summary = union_attributes(&opts.inputs, &mut warnings)?;
     let (mut attributes, declared) = (summary.attributes, summary.points);
@@ -96,7 +164,7 @@ pub fn prepare(
     attributes.extend(added);
     let layout = RowLayout::new(attributes.clone());
     check_conversion(&opts.inputs, wd.work(), wd.root(), declared, layout.stride)?;
-    let staged = match stage_from_headers(opts, &layout, wd, threads, phases) {
+    let staged = match stage_from_headers(opts, &layout, wd, threads, phases, cells_dir) {
         Ok(Some(staged)) if !needlessly_large(&staged) => staged,
         Ok(Some(staged)) => {
             // The header's bounds hold the points but are far larger than they are: its cube
@@ -145,28 +213,11 @@ pub fn prepare(
         .index_of("classification")
         .filter(|&i| layout.attributes[i].ty == AttrType::U8 && layout.attributes[i].count == 1)
         .map(|i| layout.offsets[i]);
-    let class_counts = phases.timed("distribute", Some((points, "points")), |bar| {
-        distribute(
-            &Distribution {
-                inputs: &staged.inputs,
-                stride: layout.stride,
-                cube: &staged.cube,
-                lut: &lut,
-                chunk_count: chunks.len(),
-                chunk_dir: &wd.chunks(),
-                buffer_budget: (opts.memory_limit / 6).min(256 << 20),
-                threads,
-                class_at,
-            },
-            bar,
-        )
-    })?;
-    remove_staging(&staged.inputs, wd)?;
     let spacing_quantiles = spacing_quantiles(&staged.counts, &staged.cube, staged.q.scale);
     let q = staged.q;
     let to_real =
         |p: [i32; 3]| -> [f64; 3] { [0, 1, 2].map(|a| q.offset[a] + q.scale[a] * p[a] as f64) };
-    Ok(Plan {
+    let plan = Plan {
         fingerprint,
         attributes,
         points,
@@ -178,17 +229,16 @@ pub fn prepare(
         max: to_real(staged.counts.max),
         cube: staged.cube,
         chunks,
-        classes: class_at
-            .map(|_| {
-                (0..=255u8)
-                    .zip(class_counts)
-                    .filter(|(_, n)| *n > 0)
-                    .collect()
-            })
-            .unwrap_or_default(),
+        classes: Vec::new(),
         spacing_quantiles,
         scanners: summary.scanners,
         scanner_inputs: summary.scanner_inputs,
+    };
+    Ok(Counted {
+        plan,
+        inputs: staged.inputs,
+        lut,
+        class_at,
     })
 }
 
@@ -259,6 +309,7 @@ fn stage_from_headers(
     wd: &WorkDir,
     threads: usize,
     phases: &mut Phases,
+    cells_dir: Option<&Path>,
 ) -> Result<Option<Staged>> {
     let is_las = |p: &PathBuf| {
         p.extension()
@@ -338,9 +389,17 @@ fn stage_from_headers(
     };
     // Decoded inputs were counted as they were decoded; those read in place are counted here.
     let rest: Vec<&RowInput> = inputs.iter().filter(|i| !wd.holds(&i.path)).collect();
+    // A plan keeps each in-place input's grid cells for its tasks (`count`).
+    let cells: Vec<Option<PathBuf>> = match cells_dir {
+        Some(dir) => (0..inputs.len())
+            .filter(|&i| !wd.holds(&inputs[i].path))
+            .map(|i| Some(dir.join(format!("cells{i}.bin"))))
+            .collect(),
+        None => Vec::new(),
+    };
     let total = rest.iter().map(|i| i.records).sum();
     phases.timed("count", Some((total, "points")), |bar| {
-        count(&rest, &mut counts, threads, bar)
+        count(&rest, &mut counts, threads, bar, &cells)
     })?;
     Ok(Some(Staged {
         inputs,
@@ -386,7 +445,7 @@ fn stage_measured(
     })?;
     let mut counts = Counts::new(&cube);
     phases.timed("count", Some((declared, "points")), |bar| {
-        count(&[&input], &mut counts, threads, bar)
+        count(&[&input], &mut counts, threads, bar, &[])
     })?;
     Ok(Staged {
         inputs: vec![input],

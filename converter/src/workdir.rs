@@ -39,6 +39,11 @@ impl WorkDir {
         WorkDir { root, work }
     }
 
+    /// A conversion's files in `root`, its work files in `work`: a plan's folder, a task's.
+    pub fn at(root: PathBuf, work: PathBuf) -> Self {
+        WorkDir { root, work }
+    }
+
     /// Whether the work folder lies outside the folder that becomes the dataset.
     pub fn separate(&self) -> bool {
         !self.work.starts_with(&self.root)

@@ -1,20 +1,45 @@
 use anyhow::Context;
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 use strata_converter::sys::{format_bytes, parse_size};
+use strata_converter::tasks::{finish_tasks, plan_tasks, run_task, step_for};
 use strata_converter::{
-    ChunkStep, ConvertOptions, ConvertSummary, NoStep, NormalMode, NormalOptions, NormalStep,
-    Orient, Sampling, convert_with,
+    ConvertOptions, ConvertSummary, NormalMode, NormalOptions, Orient, Sampling, convert_with,
 };
 
 #[derive(Debug, clap::Args)]
 pub struct Args {
     /// Input files (.las, .laz, .ply, .e57); several make one dataset.
-    #[arg(required = true)]
+    #[arg(required_unless_present = "plan")]
     inputs: Vec<PathBuf>,
     /// The dataset directory to create.
-    #[arg(short, long)]
-    output: PathBuf,
+    #[arg(short, long, required_unless_present_any = ["plan_only", "plan"])]
+    output: Option<PathBuf>,
+    /// Instead of converting, count the inputs and write into this folder (on storage every
+    /// machine shares) a plan of --tasks independent tasks, for a batch engine to run with
+    /// --plan PLAN --task K and then --plan PLAN --finish.
+    #[arg(long, value_name = "PLAN", requires = "tasks",
+          conflicts_with_all = ["output", "plan", "resume", "temp_dir"])]
+    plan_only: Option<PathBuf>,
+    /// How many tasks --plan-only groups the chunks into.
+    #[arg(long, value_name = "N", requires = "plan_only")]
+    tasks: Option<usize>,
+    /// A plan --plan-only wrote, to run one of its tasks (--task K) or to finish it into the
+    /// dataset (--finish -o DATASET). The plan fixes the inputs and every option that shapes
+    /// the dataset (--memory-limit, --threads, --sampling, --normals...): give them to
+    /// --plan-only, not here.
+    #[arg(long, value_name = "PLAN",
+          conflicts_with_all = ["inputs", "memory_limit", "threads", "sampling", "normals",
+              "normal_k", "orient", "viewpoint", "normal_radius", "temp_dir", "plan_only"])]
+    plan: Option<PathBuf>,
+    /// Build task K (0 to N-1) of --plan: its chunks, continuing what an interrupted run of it
+    /// left; a finished task is not run again.
+    #[arg(long, value_name = "K", requires = "plan", conflicts_with_all = ["finish", "output"])]
+    task: Option<usize>,
+    /// Merge the tasks of --plan, all finished, into the dataset -o names; the plan folder is
+    /// removed once the dataset is in place.
+    #[arg(long, requires_all = ["plan", "output"])]
+    finish: bool,
     /// Peak memory to stay within, e.g. 512MiB or 4GiB.
     #[arg(long, default_value = "2GiB", value_parser = parse_size)]
     memory_limit: u64,
@@ -96,12 +121,17 @@ enum SamplingArg {
 }
 
 pub fn run(a: Args) -> anyhow::Result<ExitCode> {
+    if let Some(plan) = &a.plan {
+        return run_plan(plan, &a);
+    }
     let threads = a
         .threads
         .unwrap_or_else(|| std::thread::available_parallelism().map_or(1, |n| n.get()));
+    let normals = normal_options(&a);
     let opts = ConvertOptions {
         inputs: a.inputs,
-        output: a.output,
+        // Clap requires one of them.
+        output: a.plan_only.clone().or(a.output).unwrap_or_default(),
         memory_limit: a.memory_limit,
         threads,
         sampling: match a.sampling {
@@ -113,36 +143,107 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
         quiet: a.quiet,
         temp_dir: a.temp_dir,
     };
-    let step: Box<dyn ChunkStep> = match a.normals {
-        None => Box::new(NoStep),
-        Some(mode) => Box::new(NormalStep::new(NormalOptions {
-            k: a.normal_k,
-            mode: match mode {
-                NormalsArg::Keep => NormalMode::Keep,
-                NormalsArg::Compute => NormalMode::Compute,
-            },
-            orient: match a.orient {
-                None => Orient::Auto,
-                Some(OrientArg::Up) => Orient::Up,
-                Some(OrientArg::Scanner) => Orient::Scanner,
-                Some(OrientArg::None) => Orient::None,
-            },
-            viewpoint: a.viewpoint,
-            radius: a.normal_radius,
-        })?),
-    };
+    if let Some(tasks) = a.tasks {
+        let summary = plan_tasks(&opts, normals, tasks)?;
+        for w in &summary.warnings {
+            eprintln!("warning: {w}");
+        }
+        if !a.quiet {
+            let empty = summary.tasks.iter().filter(|&&n| n == 0).count();
+            println!(
+                "planned {} points in {} chunks as {} tasks -> {} ({:.2} s){}",
+                summary.points,
+                summary.chunks,
+                summary.tasks.len(),
+                summary.plan.display(),
+                summary.seconds,
+                if empty > 0 {
+                    format!("; {empty} tasks have no chunk (fewer chunks than tasks)")
+                } else {
+                    String::new()
+                }
+            );
+        }
+        return write_stats(&a.stats, serde_json::to_string_pretty(&summary));
+    }
+    let step = step_for(&normals)?;
     let summary = convert_with(&opts, step.as_ref())?;
+    report(&summary, a.quiet, &a.stats)
+}
+
+/// `--plan PLAN --task K` or `--plan PLAN --finish -o DATASET`.
+fn run_plan(plan: &Path, a: &Args) -> anyhow::Result<ExitCode> {
+    if let Some(k) = a.task {
+        let summary = run_task(plan, k, a.quiet)?;
+        if !a.quiet {
+            println!(
+                "task {} of {}: chunks {}..{}, {} points, {}{:.2} s",
+                summary.task,
+                summary.tasks,
+                summary.chunks.start,
+                summary.chunks.end,
+                summary.points,
+                if summary.already_done {
+                    "finished before, nothing to do, ".to_string()
+                } else if summary.resumed_chunks > 0 {
+                    format!("{} chunks resumed, ", summary.resumed_chunks)
+                } else {
+                    String::new()
+                },
+                summary.seconds
+            );
+        }
+        return write_stats(&a.stats, serde_json::to_string_pretty(&summary));
+    }
+    let Some(output) = a.output.as_deref().filter(|_| a.finish) else {
+        anyhow::bail!("--plan needs --task K (to run a task) or --finish -o DATASET (to finish)");
+    };
+    let summary = finish_tasks(plan, output, a.overwrite, a.quiet)?;
+    report(&summary, a.quiet, &a.stats)
+}
+
+fn normal_options(a: &Args) -> Option<NormalOptions> {
+    a.normals.map(|mode| NormalOptions {
+        k: a.normal_k,
+        mode: match mode {
+            NormalsArg::Keep => NormalMode::Keep,
+            NormalsArg::Compute => NormalMode::Compute,
+        },
+        orient: match a.orient {
+            None => Orient::Auto,
+            Some(OrientArg::Up) => Orient::Up,
+            Some(OrientArg::Scanner) => Orient::Scanner,
+            Some(OrientArg::None) => Orient::None,
+        },
+        viewpoint: a.viewpoint,
+        radius: a.normal_radius,
+    })
+}
+
+/// Prints a conversion's warnings and summary and writes its stats.
+fn report(
+    summary: &ConvertSummary,
+    quiet: bool,
+    stats: &Option<PathBuf>,
+) -> anyhow::Result<ExitCode> {
     // Warnings say the result differs from the input (a coarsened scale): --quiet does not
     // hide them.
     for w in &summary.warnings {
         eprintln!("warning: {w}");
     }
-    if !a.quiet {
-        print_summary(&summary);
+    if !quiet {
+        print_summary(summary);
     }
-    if let Some(path) = a.stats {
-        std::fs::write(&path, serde_json::to_string_pretty(&summary)?)
-            .with_context(|| format!("cannot write {}", path.display()))?;
+    write_stats(stats, serde_json::to_string_pretty(summary))
+}
+
+/// Writes `json` (a summary) to `--stats`, if given.
+fn write_stats(
+    stats: &Option<PathBuf>,
+    json: serde_json::Result<String>,
+) -> anyhow::Result<ExitCode> {
+    if let Some(path) = stats {
+        std::fs::write(path, json?).with_context(|| format!("cannot write {}", path.display()))?;
     }
     Ok(ExitCode::SUCCESS)
 }

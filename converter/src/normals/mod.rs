@@ -20,7 +20,7 @@ use strata_format::{Attribute, Metadata, NormalsInfo, row_position};
 use surfel_size::{REGION, SAMPLE_EVERY, TriangleSizes, cluster};
 
 /// Which normals the step estimates.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
 pub enum NormalMode {
     /// Keep the inputs' normals where a point has one; estimate the others.
     Keep,
@@ -29,7 +29,7 @@ pub enum NormalMode {
 }
 
 /// Which way an estimated normal points (PCA gives a line, not a direction).
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
 pub enum Orient {
     /// Towards the scanner where the input says where it stood (or `--viewpoint`), else up.
     Auto,
@@ -41,7 +41,7 @@ pub enum Orient {
     None,
 }
 
-#[derive(Debug, Clone, PartialEq)]
+#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct NormalOptions {
     /// Points per neighbourhood, the point itself included.
     pub k: usize,

@@ -1,0 +1,176 @@
+//! `strata convert --plan PLAN --finish -o DATASET`: the tasks' nodes, copied into one octree
+//! file in plan order (as the single run commits them), then the top levels merged from the
+//! chunk roots and the dataset written and renamed into place, as `convert` finishes.
+
+use super::run::{TaskCounts, counts_file};
+use super::{TaskPlan, task_dirs, task_workdir};
+use crate::build::ConvertSummary;
+use crate::chunk_step::add_totals;
+use crate::disk::tree_bytes;
+use crate::error::{ConvertError, Result, io_err};
+use crate::finish::{finish, merge_top};
+use crate::journal::{Committer, JournalEntry, read_journal_of};
+use crate::prepare::class_list;
+use crate::progress::{Phases, Progress};
+use crate::sys::peak_rss_bytes;
+use crate::workdir::WorkDir;
+use std::fs::{self, File, OpenOptions};
+use std::io::{Read, Seek, SeekFrom, Write};
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+use strata_format::{DatasetFile, DatasetId, OCTREE_HEAD_SIZE, RowLayout, octree_head};
+
+/// Finishes the dataset at `output` from the tasks of the plan in `plan_dir`, then removes the
+/// plan folder (its tasks' results are in the dataset now).
+pub fn finish_tasks(
+    plan_dir: &Path,
+    output: &Path,
+    overwrite: bool,
+    quiet: bool,
+) -> Result<ConvertSummary> {
+    let start = Instant::now();
+    let tp = TaskPlan::load(plan_dir)?;
+    let missing: Vec<usize> = (0..tp.tasks.len())
+        .filter(|&k| !task_dirs(plan_dir, k).1.is_dir())
+        .collect();
+    if !missing.is_empty() {
+        return Err(ConvertError::TasksUnfinished {
+            plan: plan_dir.to_path_buf(),
+            missing,
+            total: tp.tasks.len(),
+        });
+    }
+    if output.exists() && !overwrite {
+        return Err(ConvertError::output(
+            output,
+            "output already exists (pass --overwrite to replace it)",
+        ));
+    }
+    let opts = tp.options(output.to_path_buf(), overwrite, quiet);
+    let step = tp.checked_step(plan_dir)?;
+    let wd = WorkDir::new(output, None);
+    wd.create_fresh()?;
+    let mut phases = Phases::new(Progress::new(quiet));
+    let result = (|| {
+        let (journal, classes) = phases.timed("gather", None, |_| gather(&tp, plan_dir, &wd))?;
+        let mut plan = tp.plan.clone();
+        plan.classes = class_list(tp.class_at, &classes);
+        let layout = RowLayout::new(plan.attributes.clone());
+        let committer = Committer::open(&wd, &journal)?;
+        // Where each chunk's root rows are: in the result of the task that built it.
+        let owner: Vec<usize> = tp
+            .tasks
+            .iter()
+            .enumerate()
+            .flat_map(|(k, r)| r.clone().map(move |_| k))
+            .collect();
+        let root_of = |chunk: usize| -> PathBuf {
+            let k = owner.get(chunk).copied().unwrap_or(0);
+            task_workdir(plan_dir, k, true).chunk_root(chunk)
+        };
+        let merged = phases.timed("merge", None, |_| {
+            merge_top(&root_of, &plan, &layout, tp.sampling, &journal, committer)
+        })?;
+        let mut totals = Vec::new();
+        for entry in &journal {
+            add_totals(&mut totals, &entry.step);
+        }
+        // The step's metadata (the normals' search radius) comes from the plan, as in a run.
+        step.halo_margin(&plan);
+        phases.timed("finish", None, |_| {
+            finish(&opts, &wd, &plan, merged, &|meta| {
+                step.record(&totals, meta)
+            })
+        })
+    })();
+    let done = match result {
+        Ok(done) => done,
+        Err(e) => {
+            // The tasks' results are untouched: --finish can run again.
+            wd.remove_all();
+            return Err(e);
+        }
+    };
+    let plan_bytes = tree_bytes(plan_dir);
+    fs::remove_dir_all(plan_dir).map_err(io_err(plan_dir, "cannot remove the finished plan"))?;
+    let seconds = start.elapsed().as_secs_f64();
+    Ok(ConvertSummary {
+        output: output.to_path_buf(),
+        points: done.points,
+        nodes: done.nodes,
+        depth: done.depth,
+        chunks: tp.plan.chunks.len(),
+        seconds,
+        points_per_second: done.points as f64 / seconds.max(1e-9),
+        peak_memory_bytes: peak_rss_bytes(),
+        dataset_bytes: done.dataset_bytes,
+        peak_disk_bytes: plan_bytes + done.dataset_bytes,
+        resumed_chunks: 0,
+        phases: phases.into_times(),
+        warnings: tp.plan.warnings.clone(),
+    })
+}
+
+/// Copies every task's nodes into the work directory's octree file, in task (so plan)
+/// order; returns the journal of every chunk, its offsets moved to where the nodes are now,
+/// and the class counts of all tasks together.
+fn gather(tp: &TaskPlan, plan_dir: &Path, wd: &WorkDir) -> Result<(Vec<JournalEntry>, [u64; 256])> {
+    let octree_path = wd.dataset_file(DatasetFile::Octree);
+    let mut octree = File::create(&octree_path).map_err(io_err(&octree_path, "cannot create"))?;
+    octree
+        .write_all(&octree_head(DatasetId::default()))
+        .map_err(io_err(&octree_path, "cannot write"))?;
+    let mut end = OCTREE_HEAD_SIZE;
+    let mut journal = Vec::new();
+    let mut classes = [0u64; 256];
+    for (k, range) in tp.tasks.iter().enumerate() {
+        let twd = task_workdir(plan_dir, k, true);
+        let entries = read_journal_of(&twd, range.clone());
+        if entries.len() != range.len() {
+            return Err(ConvertError::input(
+                twd.journal(),
+                format!(
+                    "task {k}'s journal holds {} of its {} chunks; run the task again after removing {}",
+                    entries.len(),
+                    range.len(),
+                    twd.root().display()
+                ),
+            ));
+        }
+        let counts_path = counts_file(&twd);
+        let counts: TaskCounts = fs::read(&counts_path)
+            .ok()
+            .and_then(|b| serde_json::from_slice(&b).ok())
+            .ok_or_else(|| {
+                ConvertError::input(&counts_path, "missing or unreadable task counts")
+            })?;
+        for (t, c) in classes.iter_mut().zip(&counts.classes) {
+            *t += c;
+        }
+        let task_end = entries.last().map_or(OCTREE_HEAD_SIZE, |e| e.end);
+        let part = twd.dataset_file(DatasetFile::Octree);
+        let mut src = OpenOptions::new()
+            .read(true)
+            .open(&part)
+            .map_err(io_err(&part, "cannot open"))?;
+        src.seek(SeekFrom::Start(OCTREE_HEAD_SIZE))
+            .map_err(io_err(&part, "cannot read"))?;
+        let len = task_end - OCTREE_HEAD_SIZE;
+        // std copies a `Take<File>` into a file in the kernel (copy_file_range) where it can.
+        let copied = std::io::copy(&mut src.take(len), &mut octree)
+            .map_err(io_err(&part, "cannot copy the task's nodes"))?;
+        if copied != len {
+            return Err(ConvertError::input(
+                &part,
+                format!("holds {copied} bytes of nodes where its journal says {len}"),
+            ));
+        }
+        let by = end - OCTREE_HEAD_SIZE;
+        journal.extend(entries.into_iter().map(|e| e.moved(by)));
+        end += len;
+    }
+    octree
+        .sync_all()
+        .map_err(io_err(&octree_path, "cannot sync"))?;
+    Ok((journal, classes))
+}

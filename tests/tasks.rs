@@ -1,0 +1,267 @@
+//! Conversion as independent tasks (`--plan-only`, `--task`, `--finish`), each step its own
+//! process as a batch engine runs them: the tasks concurrently and in shuffled order, one of
+//! them killed and run again, and the dataset compared byte for byte with a single run's.
+
+mod common;
+
+use common::{run, run_ok, s, strata};
+use std::path::{Path, PathBuf};
+use std::process::Child;
+use std::time::{Duration, Instant};
+
+/// The options every run of a test shares: small chunks, so that there are several.
+const SHAPE: [&str; 4] = ["--memory-limit", "64MiB", "--threads", "2"];
+
+fn synth(dir: &Path, name: &str, points: &str, seed: &str) -> PathBuf {
+    let path = dir.join(name);
+    run_ok(&["synth", "--points", points, "--seed", seed, "-o", s(&path)]);
+    path
+}
+
+fn args<'a>(head: &[&'a str], inputs: &'a [PathBuf], extra: &[&'a str]) -> Vec<&'a str> {
+    let mut v: Vec<&str> = head.to_vec();
+    v.extend(inputs.iter().map(|p| s(p)));
+    v.extend(SHAPE);
+    v.extend(extra);
+    v.push("-q");
+    v
+}
+
+/// Every file of dataset `a` has the same bytes in dataset `b`, and there are no others.
+fn assert_same_dataset(a: &Path, b: &Path) {
+    let names = |d: &Path| -> Vec<_> {
+        let mut v: Vec<_> = std::fs::read_dir(d)
+            .expect("dataset dir")
+            .map(|e| e.expect("entry").file_name())
+            .collect();
+        v.sort();
+        v
+    };
+    assert_eq!(names(a), names(b));
+    for name in names(a) {
+        let (x, y) = (std::fs::read(a.join(&name)), std::fs::read(b.join(&name)));
+        assert!(x.expect("read") == y.expect("read"), "{name:?} differs");
+    }
+}
+
+/// 0..n in an order that changes from run to run (printed, to repeat a failure).
+fn shuffled(n: usize) -> Vec<usize> {
+    let mut seed = std::time::SystemTime::now()
+        .duration_since(std::time::UNIX_EPOCH)
+        .map_or(1, |d| d.as_nanos() as u64)
+        | 1;
+    let mut order: Vec<usize> = (0..n).collect();
+    for i in (1..n).rev() {
+        seed ^= seed << 13;
+        seed ^= seed >> 7;
+        seed ^= seed << 17;
+        order.swap(i, (seed % (i as u64 + 1)) as usize);
+    }
+    println!("task order {order:?}");
+    order
+}
+
+fn spawn_task(plan: &Path, k: usize) -> Child {
+    strata()
+        .args(["convert", "--plan", s(plan), "--task", &k.to_string(), "-q"])
+        .spawn()
+        .expect("spawn task")
+}
+
+/// Plans `tasks` tasks, runs them all at once in shuffled order except `skip`, and finishes
+/// into `out`.
+fn split_run(
+    inputs: &[PathBuf],
+    extra: &[&str],
+    plan: &Path,
+    out: &Path,
+    tasks: usize,
+    skip: &[usize],
+) {
+    let n = tasks.to_string();
+    run_ok(&args(
+        &["convert", "--plan-only", s(plan), "--tasks", &n],
+        inputs,
+        extra,
+    ));
+    let children: Vec<(usize, Child)> = shuffled(tasks)
+        .into_iter()
+        .filter(|k| !skip.contains(k))
+        .map(|k| (k, spawn_task(plan, k)))
+        .collect();
+    for (k, mut c) in children {
+        assert!(c.wait().expect("wait").success(), "task {k} failed");
+    }
+    if skip.is_empty() {
+        run_ok(&["convert", "--plan", s(plan), "--finish", "-o", s(out), "-q"]);
+    }
+}
+
+#[test]
+fn tasks_in_any_order_give_the_single_runs_bytes() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    // A LAS read in place and a LAZ decoded into the plan's staging rows.
+    let inputs = [
+        synth(dir.path(), "a.las", "250000", "3"),
+        synth(dir.path(), "b.laz", "150000", "4"),
+    ];
+    let single = dir.path().join("single");
+    run_ok(&args(&["convert"], &inputs, &["-o", s(&single)]));
+    let (plan, out) = (dir.path().join("plan"), dir.path().join("split"));
+    // Two tasks left out: the finish names them and leaves nothing behind.
+    split_run(&inputs, &[], &plan, &out, 6, &[1, 4]);
+    let o = run(&["convert", "--plan", s(&plan), "--finish", "-o", s(&out)]);
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(!o.status.success());
+    assert!(err.contains("tasks 1 and 4"), "{err}");
+    assert!(err.contains(s(&plan)), "the error names the plan: {err}");
+    assert_eq!(err.trim().lines().count(), 1, "one sentence: {err}");
+    assert!(!out.exists() && !dir.path().join("split.strata-tmp").exists());
+    for k in [4, 1] {
+        assert!(spawn_task(&plan, k).wait().expect("wait").success());
+    }
+    // A finished task run again does nothing.
+    assert!(spawn_task(&plan, 0).wait().expect("wait").success());
+    run_ok(&[
+        "convert",
+        "--plan",
+        s(&plan),
+        "--finish",
+        "-o",
+        s(&out),
+        "-q",
+    ]);
+    run_ok(&["verify", s(&out)]);
+    assert_same_dataset(&single, &out);
+    assert!(!plan.exists(), "the finish removes the plan");
+}
+
+/// With normals, a chunk's halo holds points of other tasks' chunks.
+#[test]
+fn tasks_with_normals_give_the_single_runs_bytes() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let inputs = [synth(dir.path(), "city.las", "300000", "7")];
+    let single = dir.path().join("single");
+    run_ok(&args(
+        &["convert"],
+        &inputs,
+        &["-o", s(&single), "--normals"],
+    ));
+    let (plan, out) = (dir.path().join("plan"), dir.path().join("split"));
+    split_run(&inputs, &["--normals"], &plan, &out, 3, &[]);
+    assert_same_dataset(&single, &out);
+}
+
+#[test]
+fn a_killed_task_resumes_to_the_same_bytes() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let inputs = [synth(dir.path(), "city.las", "1500000", "7")];
+    let one = ["--memory-limit", "64MiB", "--threads", "1", "-q"];
+    let single = dir.path().join("single");
+    let mut a = vec!["convert", s(&inputs[0]), "-o", s(&single)];
+    a.extend(one);
+    run_ok(&a);
+    let plan = dir.path().join("plan");
+    let mut a = vec![
+        "convert",
+        s(&inputs[0]),
+        "--plan-only",
+        s(&plan),
+        "--tasks",
+        "2",
+    ];
+    a.extend(one);
+    run_ok(&a);
+    let journal = plan.join("tasks/0.strata-tmp/work/journal.jsonl");
+    let mut child = spawn_task(&plan, 0);
+    let start = Instant::now();
+    // Killed once at least one chunk has been committed.
+    while std::fs::read_to_string(&journal).map_or(0, |t| t.lines().count()) < 1
+        && start.elapsed() < Duration::from_secs(60)
+    {
+        std::thread::sleep(Duration::from_millis(2));
+    }
+    child.kill().expect("kill -9");
+    assert!(!child.wait().expect("wait").success(), "killed before done");
+    assert!(!plan.join("tasks/0").exists());
+    let o = run_ok(&["convert", "--plan", s(&plan), "--task", "0"]);
+    let text = String::from_utf8_lossy(&o.stdout);
+    assert!(text.contains("resumed"), "{text}");
+    run_ok(&["convert", "--plan", s(&plan), "--task", "1", "-q"]);
+    let out = dir.path().join("split");
+    run_ok(&[
+        "convert",
+        "--plan",
+        s(&plan),
+        "--finish",
+        "-o",
+        s(&out),
+        "-q",
+    ]);
+    assert_same_dataset(&single, &out);
+}
+
+#[test]
+fn contradictory_options_are_refused_in_one_sentence() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let las = synth(dir.path(), "a.las", "20000", "1");
+    let plan = dir.path().join("plan");
+    let fails = |a: &[&str], expect: &str| {
+        let o = run(a);
+        let err = String::from_utf8_lossy(&o.stderr).to_string();
+        assert!(!o.status.success(), "{a:?} should fail");
+        assert!(err.contains(expect), "expected {expect:?} in: {err}");
+        assert!(!err.contains("panicked"), "{err}");
+    };
+    fails(&["convert", s(&las), "--plan-only", s(&plan)], "--tasks");
+    fails(
+        &["convert", "--plan", s(&plan), "--task", "0"],
+        "no conversion plan here",
+    );
+    run_ok(&[
+        "convert",
+        s(&las),
+        "--plan-only",
+        s(&plan),
+        "--tasks",
+        "2",
+        "-q",
+    ]);
+    fails(
+        &[
+            "convert",
+            "--plan",
+            s(&plan),
+            "--task",
+            "0",
+            "--threads",
+            "3",
+        ],
+        "--threads",
+    );
+    fails(
+        &["convert", "--plan", s(&plan), "--task", "0", "--normals"],
+        "--normals",
+    );
+    fails(&["convert", "--plan", s(&plan)], "--task K");
+    fails(
+        &["convert", "--plan", s(&plan), "--task", "2"],
+        "task 2 is not in the plan",
+    );
+    fails(
+        &["convert", s(&las), "--plan-only", s(&plan), "--tasks", "2"],
+        "already exists",
+    );
+    // An input changed since the plan: its chunks would not hold its points.
+    let later = std::time::SystemTime::now() + Duration::from_secs(10);
+    let f = std::fs::File::options()
+        .write(true)
+        .open(&las)
+        .expect("open");
+    f.set_modified(later).expect("touch");
+    fails(
+        &["convert", "--plan", s(&plan), "--task", "1"],
+        "a.las: changed (size or modification time) since the plan was made",
+    );
+    assert!(!plan.join("tasks/1").exists());
+}
