@@ -29,7 +29,31 @@ fn registry() -> Vec<serde_json::Value> {
 fn pipelines_lists_every_pipeline_with_its_parameters() {
     let list = registry();
     let names: Vec<&str> = list.iter().filter_map(|p| p["name"].as_str()).collect();
-    assert_eq!(names, ["points", "edl", "pyramid"]);
+    assert_eq!(names, ["points", "edl", "pyramid", "surfels"]);
+    let surfels = &list[3];
+    assert!(
+        surfels["paper"]
+            .as_str()
+            .is_some_and(|p| p.starts_with("001"))
+    );
+    let surfel_params: Vec<&str> = surfels["params"]
+        .as_array()
+        .expect("params")
+        .iter()
+        .filter_map(|p| p["name"].as_str())
+        .collect();
+    assert_eq!(
+        surfel_params,
+        [
+            "mode",
+            "sides",
+            "rings",
+            "epsilon",
+            "h",
+            "falloff",
+            "depth_offset"
+        ]
+    );
     let pyramid = &list[2];
     assert!(
         pyramid["paper"]

@@ -45,18 +45,26 @@ pub type ClassCounts = [u64; 256];
 
 /// Distributes every row into its chunk's files; returns the points per classification code.
 pub fn distribute(d: &Distribution, bar: &ProgressBar) -> Result<ClassCounts> {
+    in_parts(d.threads, "distributing points", |part| {
+        distribute_part(d, part, bar)
+    })
+}
+
+/// Runs `part(0..parts)` on threads of their own and adds up their class counts; a panicking
+/// part is an internal error naming `what`.
+pub(crate) fn in_parts(
+    parts: usize,
+    what: &str,
+    part: impl Fn(usize) -> Result<ClassCounts> + Sync,
+) -> Result<ClassCounts> {
+    let part = &part;
     let results: Vec<Result<ClassCounts>> = std::thread::scope(|scope| {
-        let workers: Vec<_> = (0..d.threads)
-            .map(|part| scope.spawn(move || distribute_part(d, part, bar)))
-            .collect();
+        let workers: Vec<_> = (0..parts).map(|k| scope.spawn(move || part(k))).collect();
         workers
             .into_iter()
             .map(|w| {
                 w.join().unwrap_or_else(|p| {
-                    Err(ConvertError::internal(
-                        "distributing points",
-                        panic_message(p.as_ref()),
-                    ))
+                    Err(ConvertError::internal(what, panic_message(p.as_ref())))
                 })
             })
             .collect()

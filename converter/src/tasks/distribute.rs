@@ -7,7 +7,7 @@
 
 use crate::chunk_step::GridBox;
 use crate::distribute::{ClassCounts, chunk_path};
-use crate::error::{ConvertError, Result, io_err, panic_message};
+use crate::error::{ConvertError, Result, io_err};
 use crate::plan::{grid_cell, grid_shape};
 use crate::rowfile::{Scratch, append_block};
 use crate::rows::RowInput;
@@ -63,29 +63,9 @@ pub fn distribute_task(d: &TaskDistribution, bar: &ProgressBar) -> Result<ClassC
         }
     }
     let wanted = &wanted;
-    let results: Vec<Result<ClassCounts>> = std::thread::scope(|scope| {
-        let workers: Vec<_> = (0..d.parts)
-            .map(|part| scope.spawn(move || Worker::new(d, part).run(wanted, bar)))
-            .collect();
-        workers
-            .into_iter()
-            .map(|w| {
-                w.join().unwrap_or_else(|p| {
-                    Err(ConvertError::internal(
-                        "distributing a task's points",
-                        panic_message(p.as_ref()),
-                    ))
-                })
-            })
-            .collect()
-    });
-    let mut total = [0u64; 256];
-    for r in results {
-        for (t, c) in total.iter_mut().zip(r?) {
-            *t += c;
-        }
-    }
-    Ok(total)
+    crate::distribute::in_parts(d.parts, "distributing a task's points", |part| {
+        Worker::new(d, part).run(wanted, bar)
+    })
 }
 
 /// Records of a LAS input mapped at once: bounded, so that the pages a task touches are let
