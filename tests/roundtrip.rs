@@ -277,3 +277,22 @@ fn info_json_has_the_promised_fields() {
             .is_some_and(|a| a.iter().any(|x| x["name"] == "rgb"))
     );
 }
+
+#[test]
+fn a_reader_that_stops_early_ends_info_quietly() {
+    // `strata info DS | head -1`: the pipe closes before info has written everything.
+    let dir = tempfile::tempdir().expect("tempdir");
+    let ds = dir.path().join("ds");
+    run_ok(&["convert", s(&data("autzen_trim.laz")), "-o", s(&ds), "-q"]);
+    let mut child = common::strata()
+        .args(["info", s(&ds)])
+        .stdout(std::process::Stdio::piped())
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .expect("strata runs");
+    // Close the reading end at once: every write of info meets a closed pipe.
+    drop(child.stdout.take());
+    let out = child.wait_with_output().expect("strata ends");
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(!stderr.contains("panicked"), "{stderr}");
+}
