@@ -6,15 +6,18 @@ use clap::Parser;
 use std::process::ExitCode;
 
 fn main() -> ExitCode {
-    // A reader that stops early (`strata info DS | head -3`) ends the process quietly, as it
-    // ends other command-line tools, rather than as a panic in the next print: Rust starts with
-    // SIGPIPE ignored, so a closed pipe is an error on every write after it.
-    #[cfg(unix)]
-    // SAFETY: at the start of main, before any thread exists; restores the default action.
-    unsafe {
-        libc::signal(libc::SIGPIPE, libc::SIG_DFL);
-    }
     let args = cli::Cli::parse();
+    // A reader that stops early (`strata info DS | head -3`) ends a command that only prints
+    // quietly, as it ends other command-line tools, rather than as a panic in the next print:
+    // Rust starts with SIGPIPE ignored, so a closed pipe is an error on every write after it.
+    // Commands with sockets keep it ignored: a peer that went away is an error there.
+    #[cfg(unix)]
+    if args.prints_local_text() {
+        // SAFETY: before any thread exists; restores the default action.
+        unsafe {
+            libc::signal(libc::SIGPIPE, libc::SIG_DFL);
+        }
+    }
     match cli::run(args) {
         Ok(code) => code,
         Err(e) => {

@@ -49,6 +49,14 @@ enum Command {
     Demo(demo::Args),
 }
 
+impl Cli {
+    /// The command reads local files and prints text, and opens no socket: a closed pipe may
+    /// end it quietly (a server or an HTTP client must not die of a peer that went away).
+    pub fn prints_local_text(&self) -> bool {
+        matches!(self.command, Command::Info(_) | Command::Pipelines(_))
+    }
+}
+
 pub fn run(cli: Cli) -> anyhow::Result<ExitCode> {
     match cli.command {
         Command::Convert(a) => convert::run(a),
