@@ -190,7 +190,8 @@ fn workgroup_sizes_match_the_dispatches() {
         };
         let points = s.label == "clear"
             || s.label.starts_with("project")
-            || ["surfel depth", "surfel blend"].contains(&s.label);
+            || s.label.starts_with("surfel depth")
+            || s.label.starts_with("surfel blend");
         let pixels = ["finish", "shade", "resolve", "unpack"]
             .iter()
             .any(|k| s.label.ends_with(k));

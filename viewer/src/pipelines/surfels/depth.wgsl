@@ -12,7 +12,8 @@ fn main(
     @builtin(local_invocation_index) lane: u32,
 ) {
     let s = surfel_at(wg.x + wg.y * groups.x, lane);
-    if !s.ok {
+    // This module draws one kind of surfel; the other kind's module draws the rest.
+    if !s.ok || s.curved != DRAWS_CURVED {
         return;
     }
     atomicAdd(&counts[select(0u, 1u, s.curved)], 1u);

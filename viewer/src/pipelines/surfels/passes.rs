@@ -21,10 +21,14 @@ use wgpu::util::DeviceExt;
 const UNIFORMS_WGSL: &str = include_str!("uniforms.wgsl");
 const SURFEL_WGSL: &str = include_str!("surfel.wgsl");
 const SUMS_WGSL: &str = include_str!("sums.wgsl");
+const PLANAR_WGSL: &str = include_str!("planar.wgsl");
+const CURVED_WGSL: &str = include_str!("curved.wgsl");
 const DEPTH_WGSL: &str = include_str!("depth.wgsl");
 const BLEND_WGSL: &str = include_str!("blend.wgsl");
 const SHADE_WGSL: &str = include_str!("shade.wgsl");
 
+/// `mode` of the planar surfels (`MODE_PLANAR` in uniforms.wgsl).
+pub const MODE_PLANAR: u32 = 0;
 /// Words per pixel of the blend sums (`SUM_WORDS` in sums.wgsl).
 pub const SUM_WORDS: u64 = 8;
 /// Storage buffers the depth and blend passes bind in one stage.
@@ -102,34 +106,53 @@ pub struct SurfelRange {
     pub children: u32,
 }
 
-/// Every module the surfels compile.
+/// Every module the surfels compile: the depth and the blend pass once for planar and once for
+/// curved surfels (a module that carries the c-surfel's code draws planar surfels at half the
+/// speed on lavapipe), then the shading.
 pub fn shaders() -> Vec<ShaderSource> {
-    vec![
-        ShaderSource::new(
-            "surfel depth",
-            &[UNIFORMS_WGSL, FILTERS_WGSL, SURFEL_WGSL, DEPTH_WGSL],
-        ),
-        ShaderSource::new(
-            "surfel blend",
+    let mut v = Vec::new();
+    for (label, shape) in [
+        ("surfel depth planar", PLANAR_WGSL),
+        ("surfel depth curved", CURVED_WGSL),
+    ] {
+        v.push(ShaderSource::new(
+            label,
+            &[UNIFORMS_WGSL, FILTERS_WGSL, SURFEL_WGSL, shape, DEPTH_WGSL],
+        ));
+    }
+    for (label, shape) in [
+        ("surfel blend planar", PLANAR_WGSL),
+        ("surfel blend curved", CURVED_WGSL),
+    ] {
+        v.push(ShaderSource::new(
+            label,
             &[
                 UNIFORMS_WGSL,
                 FILTERS_WGSL,
                 COLOUR_WGSL,
                 SUMS_WGSL,
                 SURFEL_WGSL,
+                shape,
                 BLEND_WGSL,
             ],
-        ),
-        ShaderSource::new(
-            "surfel shade",
-            &[UNIFORMS_WGSL, SUMS_WGSL, LIGHTING_WGSL, SHADE_WGSL],
-        ),
-    ]
+        ));
+    }
+    v.push(ShaderSource::new(
+        "surfel shade",
+        &[UNIFORMS_WGSL, SUMS_WGSL, LIGHTING_WGSL, SHADE_WGSL],
+    ));
+    v
+}
+
+/// A pass's two modules: for planar and for curved surfels.
+struct Kinds {
+    planar: wgpu::ComputePipeline,
+    curved: wgpu::ComputePipeline,
 }
 
 pub struct SurfelPasses {
-    depth: wgpu::ComputePipeline,
-    blend: wgpu::ComputePipeline,
+    depth: Kinds,
+    blend: Kinds,
     shade: wgpu::ComputePipeline,
 }
 
@@ -150,8 +173,14 @@ impl SurfelPasses {
                 .ok_or_else(|| ViewerError::Gpu("a surfel shader is missing".into()))
         };
         Ok(SurfelPasses {
-            depth: next()?,
-            blend: next()?,
+            depth: Kinds {
+                planar: next()?,
+                curved: next()?,
+            },
+            blend: Kinds {
+                planar: next()?,
+                curved: next()?,
+            },
             shade: next()?,
         })
     }
@@ -235,26 +264,53 @@ impl SurfelPasses {
                 *groups,
             ));
         }
-        let per_point = |name: &str, pipe: &wgpu::ComputePipeline, own: [&wgpu::Buffer; 2], timer: &mut Timer, encoder: &mut wgpu::CommandEncoder| {
-            let fb = bind(device, pipe, 0, &[&screen.uniforms, &targets.uniforms, own[0], own[1]]);
+        // Planar surfels exist in every mode (points without a normal are discs); curved ones
+        // only where the mode and the normals allow them.
+        let curved = uniforms.mode != MODE_PLANAR && uniforms.normals != Normals::None as u32;
+        let per_point = |name: &str,
+                         kinds: &Kinds,
+                         own: [&wgpu::Buffer; 2],
+                         timer: &mut Timer,
+                         encoder: &mut wgpu::CommandEncoder| {
             let timestamp_writes = timer.pass(encoder, name);
             let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
                 label: Some(name),
                 timestamp_writes,
             });
-            pass.set_pipeline(pipe);
-            pass.set_bind_group(0, &fb, &[]);
-            for (buffers, groups) in &arena_groups {
-                if *groups == 0 {
-                    continue;
+            let pipes = [Some(&kinds.planar), curved.then_some(&kinds.curved)];
+            for pipe in pipes.into_iter().flatten() {
+                let fb = bind(
+                    device,
+                    pipe,
+                    0,
+                    &[&screen.uniforms, &targets.uniforms, own[0], own[1]],
+                );
+                pass.set_pipeline(pipe);
+                pass.set_bind_group(0, &fb, &[]);
+                for (buffers, groups) in &arena_groups {
+                    if *groups == 0 {
+                        continue;
+                    }
+                    pass.set_bind_group(1, &bind(device, pipe, 1, buffers), &[]);
+                    let (x, y) = split_groups(*groups);
+                    pass.dispatch_workgroups(x, y, 1);
                 }
-                pass.set_bind_group(1, &bind(device, pipe, 1, buffers), &[]);
-                let (x, y) = split_groups(*groups);
-                pass.dispatch_workgroups(x, y, 1);
             }
         };
-        per_point("surfel depth", &self.depth, [&targets.planes, &targets.counts], timer, encoder);
-        per_point("surfel blend", &self.blend, [&targets.planes, &targets.sums], timer, encoder);
+        per_point(
+            "surfel depth",
+            &self.depth,
+            [&targets.planes, &targets.counts],
+            timer,
+            encoder,
+        );
+        per_point(
+            "surfel blend",
+            &self.blend,
+            [&targets.planes, &targets.sums],
+            timer,
+            encoder,
+        );
 
         let view = screen.output.create_view(&Default::default());
         let mut entries: Vec<wgpu::BindGroupEntry> = [

@@ -1,6 +1,8 @@
 // Surfels (paper 001): each drawn point becomes a planar n-gon or a curved c-surfel, oriented by
 // its normal and scaled by its radius, and is ray cast per pixel of its screen box. Shared by
-// the depth and the blend pass, which must agree on every surfel and every hit.
+// the depth and the blend pass, which must agree on every surfel and every hit. Each pass is
+// compiled twice, with planar.wgsl or curved.wgsl giving `shape_hit` and `DRAWS_CURVED`: a
+// module carrying the c-surfel's code runs planar surfels at half the speed (lavapipe).
 
 // One drawn node's points in an arena; [0] is a header (start = arena, count = ranges).
 struct SurfelRange {
@@ -170,23 +172,7 @@ fn hit_pixel(s: Surfel, x: u32, y: u32) -> vec2<f32> {
         1.0 - (f32(y) + 0.5) / f32(frame.height) * 2.0,
     );
     let dir = surf.forward.xyz + ndc.x * surf.right.xyz + ndc.y * surf.up.xyz;
-    if s.curved {
-        let len = length(dir);
-        let hit = intersect(s, dir / len);
-        return vec2<f32>(hit.x / len, hit.y * hit.y);
-    }
-    // The plane: depth t where (eye + t dir - p) . n = 0.
-    let den = s.plane_den.x + ndc.x * s.plane_den.y + ndc.y * s.plane_den.z;
-    if abs(den) < 1e-12 {
-        return miss;
-    }
-    let t = s.plane_num / den;
-    let c = (surf.eye.xyz - s.p + t * dir) / s.radius;
-    let u2 = dot(c, c);
-    if t <= 0.0 || u2 > 1.0 || (u2 > s.apothem * s.apothem && !inside_polygon(s, c, sqrt(u2))) {
-        return miss;
-    }
-    return vec2<f32>(t, u2);
+    return shape_hit(s, ndc, dir);
 }
 
 // The pixel box a thread walks: x0, y0, x1, y1 (inclusive).
@@ -222,88 +208,6 @@ fn inside_polygon(s: Surfel, c: vec3<f32>, u: f32) -> bool {
     let sector = 2.0 * half;
     let off = theta - sector * floor(theta / sector) - half;
     return u * cos(off) <= s.apothem;
-}
-
-// Where the ray (unit direction e, from the eye) first meets the surfel: x the distance
-// along e, y the radial distance u in radius units; x < 0 where it misses. Solved around the
-// ray's closest approach to the centre, so that every quantity is of the surfel's size.
-fn intersect(s: Surfel, e: vec3<f32>) -> vec2<f32> {
-    let miss = vec2<f32>(-1.0, 0.0);
-    let tc = dot(s.p - surf.eye.xyz, e);
-    let o = (surf.eye.xyz + tc * e - s.p) / s.radius;
-    if dot(o, o) > s.bound * s.bound {
-        return miss;
-    }
-    let a0 = dot(o, s.n);
-    let ad = dot(e, s.n);
-    let c0 = o - a0 * s.n;
-    let cd = e - ad * s.n;
-    if !s.curved {
-        if abs(ad) < 1e-6 {
-            return miss;
-        }
-        let k = -a0 / ad;
-        let c = c0 + k * cd;
-        let u = length(c);
-        let dist = tc + k * s.radius;
-        if dist > 0.0 && inside_polygon(s, c, u) {
-            return vec2<f32>(dist, u);
-        }
-        return miss;
-    }
-    // The c-surfel: heights a = -phi(rho) along the normal (it bends away from the side its
-    // normal faces, as a convex surface does), its profile linear between `rings` rings, so
-    // each ring is a cone frustum a = alpha + beta rho.
-    var best = miss;
-    let rings = f32(surf.rings);
-    var phi_in = 0.0;
-    for (var k = 0u; k < surf.rings; k++) {
-        let rho_in = f32(k) / rings;
-        let rho_out = f32(k + 1u) / rings;
-        let phi_out = phi(rho_out);
-        let beta = -(phi_out - phi_in) * rings;
-        let alpha = -phi_in - beta * rho_in;
-        phi_in = phi_out;
-        let s0 = a0 - alpha;
-        var roots = vec2<f32>(-1e30);
-        if abs(beta) < 1e-6 {
-            if abs(ad) >= 1e-6 {
-                roots.x = -s0 / ad;
-            }
-        } else {
-            let b2 = beta * beta;
-            let qa = ad * ad - b2 * dot(cd, cd);
-            let qb = 2.0 * (s0 * ad - b2 * dot(c0, cd));
-            let qc = s0 * s0 - b2 * dot(c0, c0);
-            if abs(qa) < 1e-9 {
-                if abs(qb) > 1e-12 {
-                    roots.x = -qc / qb;
-                }
-            } else {
-                let disc = qb * qb - 4.0 * qa * qc;
-                if disc >= 0.0 {
-                    let sq = sqrt(disc);
-                    roots = vec2<f32>((-qb - sq) / (2.0 * qa), (-qb + sq) / (2.0 * qa));
-                }
-            }
-        }
-        for (var j = 0u; j < 2u; j++) {
-            let kk = roots[j];
-            if kk <= -1e29 {
-                continue;
-            }
-            let c = c0 + kk * cd;
-            let u = length(c);
-            let height = s0 + kk * ad;
-            let dist = tc + kk * s.radius;
-            // On this ring, on the cone's sheet (not its mirror), in front of the eye.
-            if u >= rho_in - 1e-4 && u <= rho_out + 1e-4 && height * beta >= -1e-5 && dist > 0.0
-                && (best.x < 0.0 || dist < best.x) && inside_polygon(s, c, u) {
-                best = vec2<f32>(dist, u);
-            }
-        }
-    }
-    return best;
 }
 
 // The paper's alpha texture, exp(-(distance from the texture centre)^2 / d^2) with the rim at

@@ -1,7 +1,7 @@
 //! The surfels' Rust structs and constants against their WGSL, and the pieces of their
 //! geometry that do not need a GPU.
 
-use super::passes::{SUM_WORDS, SurfelRange, SurfelUniforms, range_table};
+use super::passes::{MODE_PLANAR, SUM_WORDS, SurfelRange, SurfelUniforms, range_table};
 use crate::pipelines::projection::{GROUP_SIZE, GpuRange, RangeLod};
 use crate::pipelines::shader_tests::{module_named, wgsl_const, wgsl_layout};
 
@@ -16,7 +16,12 @@ macro_rules! layout {
 
 #[test]
 fn uniforms_and_ranges_match_their_wgsl() {
-    for label in ["surfel depth", "surfel blend"] {
+    for label in [
+        "surfel depth planar",
+        "surfel depth curved",
+        "surfel blend planar",
+        "surfel blend curved",
+    ] {
         let m = module_named(label);
         assert_eq!(
             wgsl_layout(&m, "Surfels"),
@@ -50,12 +55,16 @@ fn uniforms_and_ranges_match_their_wgsl() {
         );
     }
     assert_eq!(
-        wgsl_const(&module_named("surfel blend"), "SUM_WORDS"),
+        wgsl_const(&module_named("surfel blend planar"), "SUM_WORDS"),
         SUM_WORDS
     );
     assert_eq!(
+        wgsl_const(&module_named("surfel depth planar"), "MODE_PLANAR"),
+        MODE_PLANAR as u64
+    );
+    assert_eq!(
         wgsl_layout(&module_named("surfel shade"), "Surfels"),
-        wgsl_layout(&module_named("surfel depth"), "Surfels")
+        wgsl_layout(&module_named("surfel depth planar"), "Surfels")
     );
 }
 
