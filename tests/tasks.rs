@@ -252,6 +252,17 @@ fn contradictory_options_are_refused_in_one_sentence() {
         &["convert", s(&las), "--plan-only", s(&plan), "--tasks", "2"],
         "already exists",
     );
+    // A damaged plan whose task ranges run past its chunks is refused, not a panic.
+    let plan_json = plan.join("plan.json");
+    let good = std::fs::read(&plan_json).expect("plan.json");
+    let mut v: serde_json::Value = serde_json::from_slice(&good).expect("plan JSON");
+    v["tasks"][1]["end"] = serde_json::json!(1_000_000);
+    std::fs::write(&plan_json, serde_json::to_vec(&v).expect("JSON")).expect("write");
+    fails(
+        &["convert", "--plan", s(&plan), "--task", "1"],
+        "do not follow on from chunk",
+    );
+    std::fs::write(&plan_json, &good).expect("restore");
     // An input changed since the plan: its chunks would not hold its points.
     let later = std::time::SystemTime::now() + Duration::from_secs(10);
     let f = std::fs::File::options()

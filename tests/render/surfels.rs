@@ -190,11 +190,14 @@ fn surfels_close_the_holes_points_leave_and_keep_the_outline() {
 }
 
 #[test]
-fn a_coarse_lod_draws_no_holes() {
+fn a_coarse_lod_and_a_refined_one_draw_no_holes() {
     // The root alone: its points stand for its children's, at least the node spacing wide.
     let coarse = shot(Sphere::Dense, "surfels", &[], true);
     let full = shot(Sphere::Dense, "surfels", &[], false);
     let (holes, _) = holes_and_overshoot(&coarse.covered);
+    // Refined, the root's points shrink to their children's spacing and still leave no hole.
+    let (full_holes, _) = holes_and_overshoot(&full.covered);
+    assert!(full_holes < 0.01, "{full_holes:.4} of the sphere empty");
     let drawn = coarse.measures[SURFELS];
     assert!(
         drawn < 0.5 * full.measures[SURFELS],

@@ -138,12 +138,14 @@ fn gather(tp: &TaskPlan, plan_dir: &Path, wd: &WorkDir) -> Result<(Vec<JournalEn
             ));
         }
         let counts_path = counts_file(&twd);
-        let counts: TaskCounts = fs::read(&counts_path)
-            .ok()
-            .and_then(|b| serde_json::from_slice(&b).ok())
-            .ok_or_else(|| {
-                ConvertError::input(&counts_path, "missing or unreadable task counts")
-            })?;
+        let bytes = fs::read(&counts_path)
+            .map_err(io_err(&counts_path, "cannot read the task's counts"))?;
+        let counts: TaskCounts = serde_json::from_slice(&bytes).map_err(|e| {
+            ConvertError::input(
+                &counts_path,
+                format!("the task's counts do not parse ({e})"),
+            )
+        })?;
         for (t, c) in classes.iter_mut().zip(&counts.classes) {
             *t += c;
         }
@@ -155,7 +157,12 @@ fn gather(tp: &TaskPlan, plan_dir: &Path, wd: &WorkDir) -> Result<(Vec<JournalEn
             .map_err(io_err(&part, "cannot open"))?;
         src.seek(SeekFrom::Start(OCTREE_HEAD_SIZE))
             .map_err(io_err(&part, "cannot read"))?;
-        let len = task_end - OCTREE_HEAD_SIZE;
+        let len = task_end.checked_sub(OCTREE_HEAD_SIZE).ok_or_else(|| {
+            ConvertError::input(
+                &part,
+                format!("its journal ends its nodes at byte {task_end}, inside the file head"),
+            )
+        })?;
         // std copies a `Take<File>` into a file in the kernel (copy_file_range) where it can.
         let copied = std::io::copy(&mut src.take(len), &mut octree)
             .map_err(io_err(&part, "cannot copy the task's nodes"))?;

@@ -149,6 +149,31 @@ impl TaskPlan {
                 ),
             ));
         }
+        // Tasks index the chunks by these ranges: they must cover them in order, exactly.
+        let mut next = 0;
+        for (k, r) in plan.tasks.iter().enumerate() {
+            if r.start != next || r.end < r.start || r.end > plan.plan.chunks.len() {
+                return Err(ConvertError::input(
+                    &path,
+                    format!(
+                        "task {k}'s chunks {}..{} do not follow on from chunk {next} within the plan's {} chunks",
+                        r.start,
+                        r.end,
+                        plan.plan.chunks.len()
+                    ),
+                ));
+            }
+            next = r.end;
+        }
+        if next != plan.plan.chunks.len() {
+            return Err(ConvertError::input(
+                &path,
+                format!(
+                    "its tasks cover {next} of the plan's {} chunks",
+                    plan.plan.chunks.len()
+                ),
+            ));
+        }
         Ok(plan)
     }
 
@@ -316,12 +341,14 @@ pub fn plan_tasks(
         }
         inputs.push(std::path::absolute(input).map_err(io_err(input, "cannot resolve"))?);
     }
+    // The plan's fingerprint and every task use the thread count actually run (0 means 1).
     let opts = ConvertOptions {
         inputs,
         output: plan_dir.clone(),
+        threads: opts.threads.max(1),
         ..opts.clone()
     };
-    let threads = opts.threads.max(1);
+    let threads = opts.threads;
     // The LAZ decompressor runs on rayon's global pool; size it once to --threads.
     let _ = rayon::ThreadPoolBuilder::new()
         .num_threads(threads)

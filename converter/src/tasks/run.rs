@@ -81,6 +81,10 @@ pub fn run_task(plan_dir: &Path, k: usize, quiet: bool) -> Result<TaskSummary> {
             format!("task {k} is already running (another process holds its lock)"),
         ));
     }
+    // Another run may have finished it between the first look and the lock.
+    if done.is_dir() {
+        return Ok(summary(range.len(), true));
+    }
     let wd = task_workdir(plan_dir, k, false);
     let mut phases = Phases::new(Progress::new(quiet));
     let resumed = build(&tp, plan_dir, &wd, &range, step.as_ref(), &mut phases)?;
@@ -93,8 +97,9 @@ pub fn run_task(plan_dir: &Path, k: usize, quiet: bool) -> Result<TaskSummary> {
     let _ = fs::remove_file(wd.plan());
     fs::rename(wd.root(), &done)
         .map_err(io_err(&done, "cannot move the finished task into place"))?;
+    // The lock file stays: deleting it would let a run that opened the old file and one that
+    // creates a new one both hold "the" lock.
     drop(lock);
-    let _ = fs::remove_file(&lock_path);
     Ok(summary(resumed, false))
 }
 

@@ -6,7 +6,7 @@
 mod bind;
 mod screen;
 
-pub use screen::{Screen, ScreenLimitError, check_screen, largest_fitting};
+pub use screen::{Screen, ScreenLimitError, check_screen, largest_fitting, plane_buffer};
 
 use super::ScreenBuffer;
 use super::shader::ShaderSource;
@@ -21,6 +21,8 @@ const CLEAR_WGSL: &str = include_str!("clear.wgsl");
 const PROJECT_WGSL: &str = include_str!("project.wgsl");
 /// `passes_filters(pos, attribute)`: the frame's point filters, for every pass that splats points.
 pub const FILTERS_WGSL: &str = include_str!("filters.wgsl");
+/// `range_of(group)`: the drawn range of a point workgroup, for every pass that walks them.
+pub const RANGE_SEARCH_WGSL: &str = include_str!("range_search.wgsl");
 const EMIT_INT64_WGSL: &str = include_str!("emit_int64.wgsl");
 const EMIT_DEPTH32_WGSL: &str = include_str!("emit_depth32.wgsl");
 const EMIT_INDEX32_WGSL: &str = include_str!("emit_index32.wgsl");
@@ -151,18 +153,33 @@ pub fn shaders(int64: bool) -> Vec<ShaderSource> {
         ShaderSource::new("clear", &[CLEAR_WGSL]),
         ShaderSource::new(
             "project depth32",
-            &[EMIT_DEPTH32_WGSL, FILTERS_WGSL, PROJECT_WGSL],
+            &[
+                EMIT_DEPTH32_WGSL,
+                FILTERS_WGSL,
+                RANGE_SEARCH_WGSL,
+                PROJECT_WGSL,
+            ],
         ),
         ShaderSource::new(
             "project index32",
-            &[EMIT_INDEX32_WGSL, FILTERS_WGSL, PROJECT_WGSL],
+            &[
+                EMIT_INDEX32_WGSL,
+                FILTERS_WGSL,
+                RANGE_SEARCH_WGSL,
+                PROJECT_WGSL,
+            ],
         ),
         ShaderSource::new("resolve", &[COLOUR_WGSL, RESOLVE_WGSL]),
     ];
     if int64 {
         s.push(ShaderSource::new(
             "project int64",
-            &[EMIT_INT64_WGSL, FILTERS_WGSL, PROJECT_WGSL],
+            &[
+                EMIT_INT64_WGSL,
+                FILTERS_WGSL,
+                RANGE_SEARCH_WGSL,
+                PROJECT_WGSL,
+            ],
         ));
         s.push(ShaderSource::new("unpack", &[UNPACK_WGSL]));
     }

@@ -15,22 +15,10 @@ fn main(
     @builtin(local_invocation_index) lane: u32,
 ) {
     let group = wg.x + wg.y * groups.x;
-    let n = ranges[0].count;
-    if n == 0u {
+    if ranges[0].count == 0u {
         return;
     }
-    // The last range whose first group is not after this one.
-    var lo = 1u;
-    var hi = n;
-    while lo < hi {
-        let mid = (lo + hi + 1u) / 2u;
-        if ranges[mid].first_group <= group {
-            lo = mid;
-        } else {
-            hi = mid - 1u;
-        }
-    }
-    let r = ranges[lo];
+    let r = ranges[range_of(group)];
     let local = (group - r.first_group) * GROUP_SIZE + lane;
     if group < r.first_group || local >= r.count {
         return;

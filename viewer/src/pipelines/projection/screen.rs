@@ -60,16 +60,7 @@ impl Screen {
         previous: bool,
     ) -> Screen {
         let pixels = width as u64 * height as u64;
-        let buffer = |label: &str, bytes: u64| {
-            device.create_buffer(&wgpu::BufferDescriptor {
-                label: Some(label),
-                size: bytes.max(16),
-                usage: wgpu::BufferUsages::STORAGE
-                    | wgpu::BufferUsages::COPY_SRC
-                    | wgpu::BufferUsages::COPY_DST,
-                mapped_at_creation: false,
-            })
-        };
+        let buffer = |label: &str, bytes: u64| plane_buffer(device, label, bytes);
         Screen {
             width,
             height,
@@ -114,6 +105,18 @@ impl Screen {
             encoder.copy_buffer_to_buffer(&self.depths, 0, prev, 0, self.depths.size());
         }
     }
+}
+
+/// A per-pixel buffer that passes read and write and that can be cleared and read back.
+pub fn plane_buffer(device: &wgpu::Device, label: &str, bytes: u64) -> wgpu::Buffer {
+    device.create_buffer(&wgpu::BufferDescriptor {
+        label: Some(label),
+        size: bytes.max(16),
+        usage: wgpu::BufferUsages::STORAGE
+            | wgpu::BufferUsages::COPY_SRC
+            | wgpu::BufferUsages::COPY_DST,
+        mapped_at_creation: false,
+    })
 }
 
 /// A screen size the adapter cannot hold.

@@ -10,7 +10,8 @@ use crate::gpu::readback::read_buffer;
 use crate::gpu::timing::Timer;
 use crate::pipelines::params::ResolvedParams;
 use crate::pipelines::projection::{
-    COLOUR_WGSL, FILTERS_WGSL, GROUP_SIZE, GpuRange, RangeLod, pixel_groups, split_groups,
+    plane_buffer,
+    COLOUR_WGSL, FILTERS_WGSL, GROUP_SIZE, GpuRange, RANGE_SEARCH_WGSL, RangeLod, pixel_groups, split_groups,
 };
 use crate::pipelines::shader::ShaderSource;
 use crate::pipelines::{LIGHTING_WGSL, PipelineFrame, PointStream, ScreenBuffer, ViewFrame};
@@ -117,7 +118,7 @@ pub fn shaders() -> Vec<ShaderSource> {
     ] {
         v.push(ShaderSource::new(
             label,
-            &[UNIFORMS_WGSL, FILTERS_WGSL, SURFEL_WGSL, shape, DEPTH_WGSL],
+            &[UNIFORMS_WGSL, FILTERS_WGSL, RANGE_SEARCH_WGSL, SURFEL_WGSL, shape, DEPTH_WGSL],
         ));
     }
     for (label, shape) in [
@@ -129,6 +130,7 @@ pub fn shaders() -> Vec<ShaderSource> {
             &[
                 UNIFORMS_WGSL,
                 FILTERS_WGSL,
+                RANGE_SEARCH_WGSL,
                 COLOUR_WGSL,
                 SUMS_WGSL,
                 SURFEL_WGSL,
@@ -425,16 +427,7 @@ pub struct SurfelTargets {
 impl SurfelTargets {
     pub fn new(device: &wgpu::Device, width: u32, height: u32) -> SurfelTargets {
         let pixels = width as u64 * height as u64;
-        let storage = |label: &str, bytes: u64| {
-            device.create_buffer(&wgpu::BufferDescriptor {
-                label: Some(label),
-                size: bytes.max(16),
-                usage: wgpu::BufferUsages::STORAGE
-                    | wgpu::BufferUsages::COPY_SRC
-                    | wgpu::BufferUsages::COPY_DST,
-                mapped_at_creation: false,
-            })
-        };
+        let storage = |label: &str, bytes: u64| plane_buffer(device, label, bytes);
         SurfelTargets {
             width,
             height,

@@ -74,21 +74,10 @@ fn phi(r: f32) -> f32 {
 fn surfel_at(group: u32, lane: u32) -> Surfel {
     var s: Surfel;
     s.ok = false;
-    let n = ranges[0].count;
-    if n == 0u {
+    if ranges[0].count == 0u {
         return s;
     }
-    var lo = 1u;
-    var hi = n;
-    while lo < hi {
-        let mid = (lo + hi + 1u) / 2u;
-        if ranges[mid].first_group <= group {
-            lo = mid;
-        } else {
-            hi = mid - 1u;
-        }
-    }
-    let r = ranges[lo];
+    let r = ranges[range_of(group)];
     let local = (group - r.first_group) * GROUP_SIZE + lane;
     if group < r.first_group || local >= r.count {
         return s;
@@ -128,7 +117,9 @@ fn surfel_at(group: u32, lane: u32) -> Surfel {
     }
     let clip = frame.view_proj * vec4<f32>(p, 1.0);
     let reach = s.bound * s.radius;
-    if clip.w <= reach {
+    // Beyond the far plane, or reaching behind the eye: not drawn (the projection drops the
+    // first too).
+    if clip.w <= reach || clip.z > clip.w {
         return s;
     }
     let ndc = clip.xy / clip.w;
