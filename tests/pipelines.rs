@@ -29,7 +29,31 @@ fn registry() -> Vec<serde_json::Value> {
 fn pipelines_lists_every_pipeline_with_its_parameters() {
     let list = registry();
     let names: Vec<&str> = list.iter().filter_map(|p| p["name"].as_str()).collect();
-    assert_eq!(names, ["points", "edl", "pyramid", "surfels"]);
+    assert_eq!(names, ["points", "edl", "pyramid", "surfels", "filters"]);
+    let filters = &list[4];
+    assert!(
+        filters["paper"]
+            .as_str()
+            .is_some_and(|p| p.starts_with("004"))
+    );
+    let filter_params: Vec<&str> = filters["params"]
+        .as_array()
+        .expect("params")
+        .iter()
+        .filter_map(|p| p["name"].as_str())
+        .collect();
+    for name in [
+        "dtilde",
+        "fill_iterations",
+        "antialias",
+        "layers",
+        "opacity",
+        "light.x",
+        "opacity.6",
+    ] {
+        assert!(filter_params.contains(&name), "{name} in {filter_params:?}");
+    }
+    assert_eq!(filters["params"][0]["default"], "auto");
     let surfels = &list[3];
     assert!(
         surfels["paper"]
@@ -135,6 +159,14 @@ fn set_takes_any_parameter_and_names_a_wrong_one() {
         (
             &["--pipeline", "pyramid", "--set", "edl=0.5"],
             &["edl", "whole"],
+        ),
+        (
+            &["--pipeline", "filters", "--set", "light=1,2"],
+            &["light", "three numbers"],
+        ),
+        (
+            &["--pipeline", "filters", "--set", "layers=9"],
+            &["layers", "1", "8"],
         ),
     ] {
         let mut all = vec!["render", s(ds), "-o", s(&out), "--size", "64x48"];
@@ -319,7 +351,16 @@ fn every_declared_pass_runs_and_the_stats_list_them_in_run_order() {
             .chain(declared.iter().copied())
             .collect();
         let mut seen = std::collections::BTreeSet::new();
-        for extra in [&[][..], &["--separate-passes"][..]] {
+        // A depth-peeling pipeline runs its peel from the second layer on.
+        let peels = p["params"]
+            .as_array()
+            .is_some_and(|a| a.iter().any(|s| s["name"] == "layers"));
+        let runs: &[&[&str]] = if peels {
+            &[&[], &["--separate-passes"], &["--set", "layers=2"]]
+        } else {
+            &[&[], &["--separate-passes"]]
+        };
+        for extra in runs.iter().copied() {
             let mut args = vec![
                 "render",
                 s(ds),

@@ -1,10 +1,12 @@
 //! Headless rendering on the software adapter (lavapipe): coverage, the point budget, the two
 //! projection paths, corrupt nodes, fly-throughs, bad arguments, colouring by normal and by
-//! curvature, the surfels, and the window under Xvfb.
+//! curvature, the surfels, the filters, and the window under Xvfb.
 
 #[path = "render/colours.rs"]
 mod colours;
 mod common;
+#[path = "render/filters.rs"]
+mod filters;
 #[path = "render/paths.rs"]
 mod paths;
 #[path = "render/pyramid.rs"]

@@ -248,6 +248,19 @@ impl StreamDataset {
             .is_none_or(|n| n.orient != "none" || n.computed == 0)
     }
 
+    /// Whether its normals point out of every surface (kept from the inputs, or turned towards
+    /// the scanner that saw each point), so that a normal facing away from the eye marks a back
+    /// face. Normals turned up are right only for surfaces seen from above (a wall's face
+    /// either way), so they do not qualify.
+    pub fn normals_mark_back_faces(&self) -> bool {
+        self.has_normals()
+            && self
+                .metadata
+                .normals
+                .as_ref()
+                .is_none_or(|n| n.orient == "scanner" || n.computed == 0)
+    }
+
     /// Distance between a node's points in world units (one sampling cell).
     pub fn node_spacing(&self, key: NodeKey) -> f32 {
         let (_, edge) = self.node_cube(key);

@@ -37,6 +37,7 @@ registry! {
     edl,
     pyramid,
     surfels,
+    filters,
 }
 
 /// The shared headlight Blinn-Phong (`headlight(albedo, n, v)`), so that two pipelines and the
@@ -104,6 +105,9 @@ pub struct PipelineInfo {
     pub passes: &'static [&'static str],
     /// It reads the previous frame's view-projection and depth (temporal coherence).
     pub previous_frame: bool,
+    /// The projection skips points whose normal faces away from the eye, where the dataset's
+    /// normals mark back faces (the pipeline then declares the Normals stream).
+    pub cull_back_faces: bool,
     /// The buffers its `make_targets` creates for a `width` x `height` screen, for the check
     /// against the adapter's limits before anything is created or compiled.
     pub screen_buffers: fn(width: u32, height: u32) -> Vec<ScreenBuffer>,
@@ -153,11 +157,15 @@ pub fn no_screen_buffers(_: u32, _: u32) -> Vec<ScreenBuffer> {
     Vec::new()
 }
 
-/// The most passes one frame times: the projection's and the longest pipeline's, twice over
-/// for passes that run more than once under one name.
+/// The most times one pass runs in a frame under its name (a depth-peeling pipeline's passes
+/// run once per layer).
+pub const MAX_PASS_REPEATS: u32 = 8;
+
+/// The most passes one frame times: the projection's and the longest pipeline's, each run up
+/// to `MAX_PASS_REPEATS` times.
 pub fn max_timed_passes() -> u32 {
     let longest = REGISTRY.iter().map(|p| p.passes.len()).max().unwrap_or(0);
-    2 * (projection::PASSES.len() + longest) as u32
+    MAX_PASS_REPEATS * (projection::PASSES.len() + longest) as u32
 }
 
 /// The view of one frame, for the pipeline's passes.
@@ -190,6 +198,9 @@ pub struct PipelineFrame<'a> {
     pub has_normals: bool,
     /// Its normals face the outside of the surfaces (`StreamDataset::normals_face_outward`).
     pub normals_outward: bool,
+    /// The projection culled back faces (the pipeline declared `cull_back_faces` and the
+    /// dataset's normals mark them: `StreamDataset::normals_mark_back_faces`).
+    pub back_faces_culled: bool,
 }
 
 /// Per pixel, the unlit colour of the surface shown (`None`: background).

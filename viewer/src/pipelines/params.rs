@@ -22,6 +22,8 @@ pub enum Scale {
 pub enum Auto {
     /// The mean point spacing of the nodes drawn (paper 003's s0, and others' defaults).
     DrawnSpacing,
+    /// That many times the mean point spacing of the nodes drawn.
+    DrawnSpacings(u32),
 }
 
 #[derive(Debug, Clone, Copy)]
@@ -96,6 +98,25 @@ impl ParamValues {
         name: &str,
         text: &str,
     ) -> Result<(), ViewerError> {
+        // A vector (`light=X,Y,Z`) sets its three parameters NAME.x, NAME.y, NAME.z.
+        let axes = ["x", "y", "z"].map(|a| format!("{name}.{a}"));
+        if pipeline.param(name).is_err()
+            && axes
+                .iter()
+                .all(|a| pipeline.params.iter().any(|p| p.name == a))
+        {
+            let parts: Vec<&str> = text.split(',').collect();
+            if parts.len() != 3 {
+                return Err(ViewerError::argument(
+                    format!("{name}={text}"),
+                    format!("{}'s {name} takes three numbers X,Y,Z", pipeline.name),
+                ));
+            }
+            for (axis, part) in axes.iter().zip(parts) {
+                self.set_text(pipeline, axis, part)?;
+            }
+            return Ok(());
+        }
         let spec = pipeline.param(name)?;
         let text = text.trim();
         let value = match text {
@@ -157,11 +178,15 @@ impl ResolvedParams {
             let v = match values.get(pipeline, spec) {
                 ParamValue::Value(v) => Some(v),
                 ParamValue::Auto => match spec.auto {
-                    Some(Auto::DrawnSpacing) => {
+                    Some(auto @ (Auto::DrawnSpacing | Auto::DrawnSpacings(_))) => {
                         if let Some(f) = spacing.take() {
                             spacing_value = f();
                         }
-                        spacing_value
+                        let times = match auto {
+                            Auto::DrawnSpacings(n) => n as f32,
+                            _ => 1.0,
+                        };
+                        spacing_value.map(|s| s * times)
                     }
                     None => Some(spec.default),
                 },

@@ -131,6 +131,7 @@ fn rust_structs_match_their_wgsl_layouts() {
             ranges,
             class_mask,
             clip_boxes,
+            eye,
         }),
         "FrameUniforms against Frame (frame.wgsl)"
     );

@@ -10,7 +10,7 @@ use crate::pipelines::params::ResolvedParams;
 use crate::pipelines::projection::{
     ArenaDraw, FINISH_SLOTS, FrameDraw, FrameUniforms, GpuRange, RangeLod,
 };
-use crate::pipelines::{PipelineFrame, PipelineInfo, ViewFrame};
+use crate::pipelines::{PipelineFrame, PipelineInfo, PointStream, ViewFrame};
 use crate::settings::{Settings, SizeMode};
 use std::collections::{BTreeMap, HashSet};
 use strata_format::NodeKey;
@@ -138,6 +138,7 @@ impl Renderer {
             ranges: [0.0; 4],
             class_mask: [[0; 4]; 2],
             clip_boxes: [[0.0; 4]; 8],
+            eye: camera.view().inverse().w_axis.to_array(),
         };
         set_filter(&mut uniforms, &settings.filter, self.ds.anchor());
         let wall = self.wall_clock(settings);
@@ -161,6 +162,9 @@ impl Renderer {
         };
         let (has_normals, normals_outward) =
             (self.ds.has_normals(), self.ds.normals_face_outward());
+        let cull = info.cull_back_faces
+            && self.ds.normals_mark_back_faces()
+            && info.streams.contains(&PointStream::Normals);
         let (ctx, projection, cache, timer) =
             (&self.ctx, &self.projection, &self.cache, &mut self.timer);
         let int64 = screen.keys.is_some() && !settings.force_int32;
@@ -183,6 +187,7 @@ impl Renderer {
                     allow_fused: settings.fused_finish && !info.previous_frame,
                     force_int32: settings.force_int32,
                     fused: pipeline.fused(params),
+                    cull_back_faces: cull,
                 },
                 timer,
             );
@@ -196,6 +201,7 @@ impl Renderer {
                     view: &view,
                     has_normals,
                     normals_outward,
+                    back_faces_culled: cull,
                 };
                 pipeline.encode(&frame, &mut encoder, timer)?;
             }

@@ -47,6 +47,7 @@ pub static INFO: PipelineInfo = PipelineInfo {
     streams: &[],
     passes: &[SHADING.passes.0, SHADING.passes.1],
     previous_frame: false,
+    cull_back_faces: false,
     screen_buffers: super::no_screen_buffers,
     create: |ctx| Ok(SHADING.create(ctx)),
     shaders: |int64| SHADING.shaders(int64),

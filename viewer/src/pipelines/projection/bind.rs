@@ -4,6 +4,7 @@
 use super::{ArenaDraw, FINISH_SLOTS, GpuRange, Screen, pixel_groups};
 use crate::gpu::cache::NodeCache;
 use crate::gpu::timing::Timer;
+use crate::pipelines::PointStream;
 use wgpu::util::DeviceExt;
 
 /// One arena's range table on the GPU and the workgroups its points take.
@@ -72,6 +73,36 @@ pub fn arena_bind(
         layout: &pipe.get_bind_group_layout(1),
         entries: &entries,
     })
+}
+
+/// Group 1 of the culling projection: points, ranges, attributes and the Normals stream;
+/// `None` where the arena holds no normals (the renderer culls only where the pipeline
+/// declared the stream).
+pub fn arena_bind_with_normals(
+    device: &wgpu::Device,
+    cache: &NodeCache,
+    pipe: &wgpu::ComputePipeline,
+    g: &ArenaGroup,
+) -> Option<wgpu::BindGroup> {
+    let a = &cache.arenas[g.arena as usize];
+    let normals = a
+        .streams
+        .iter()
+        .find(|(s, _)| *s == PointStream::Normals)
+        .map(|(_, b)| b)?;
+    let entries: Vec<wgpu::BindGroupEntry> = [&a.points, &g.ranges, &a.attributes, normals]
+        .iter()
+        .enumerate()
+        .map(|(i, b)| wgpu::BindGroupEntry {
+            binding: i as u32,
+            resource: b.as_entire_binding(),
+        })
+        .collect();
+    Some(device.create_bind_group(&wgpu::BindGroupDescriptor {
+        label: Some("arena with normals"),
+        layout: &pipe.get_bind_group_layout(1),
+        entries: &entries,
+    }))
 }
 
 /// Group 0: the frame uniforms, then `buffers` from binding 1 on.

@@ -34,6 +34,8 @@ struct Frame {
     // Box k: minimum in [2k].xyz (w 1: hides its inside, 0: keeps it), maximum in [2k + 1].xyz;
     // relative to the anchor.
     clip_boxes: array<vec4<f32>, 8>,
+    // The eye, relative to the anchor (the projection's back-face culling).
+    eye: vec4<f32>,
 }
 
 const FILTER_CLASSES: u32 = 1u;

@@ -13,12 +13,19 @@ use super::shader::ShaderSource;
 use crate::gpu::GpuContext;
 use crate::gpu::cache::NodeCache;
 use crate::gpu::timing::Timer;
-use bind::{ArenaGroup, arena_bind, frame_bind};
+pub use bind::ArenaGroup;
+use bind::{arena_bind, arena_bind_with_normals, frame_bind};
 use bytemuck::{Pod, Zeroable};
 
 pub const FRAME_WGSL: &str = include_str!("frame.wgsl");
 const CLEAR_WGSL: &str = include_str!("clear.wgsl");
-const PROJECT_WGSL: &str = include_str!("project.wgsl");
+/// The projection pass, for pipelines that splat points with an `emit` of their own.
+pub const PROJECT_WGSL: &str = include_str!("project.wgsl");
+/// `culled(idx, pos)` by the Normals stream (group 1, binding 3), or never.
+pub const CULL_WGSL: &str = include_str!("cull.wgsl");
+pub const NO_CULL_WGSL: &str = include_str!("no_cull.wgsl");
+/// `decode_oct16(word)`: a normal of the Normals stream (SPEC.md's oct16).
+pub const OCT16_WGSL: &str = include_str!("oct16.wgsl");
 /// `passes_filters(pos, attribute)`: the frame's point filters, for every pass that splats points.
 pub const FILTERS_WGSL: &str = include_str!("filters.wgsl");
 /// `range_of(group)`: the drawn range of a point workgroup, for every pass that walks them.
@@ -79,6 +86,8 @@ pub struct FrameUniforms {
     pub class_mask: [[u32; 4]; 2],
     /// Box k: minimum at 2k (w 1: hides its inside), maximum at 2k + 1; relative to the anchor.
     pub clip_boxes: [[f32; 4]; 8],
+    /// The eye, relative to the anchor, for the back-face culling of the projection.
+    pub eye: [f32; 4],
 }
 
 /// The filter bits of `FrameUniforms::filters` (`FILTER_*` in frame.wgsl).
@@ -116,6 +125,9 @@ pub struct FrameDraw<'a> {
     pub force_int32: bool,
     /// The pipeline's fused finish and its pass name, where it has one.
     pub fused: Option<(&'a FusedFinish, &'static str)>,
+    /// Skip the points whose normal faces away from the eye (the arenas hold the Normals
+    /// stream, and the dataset's normals face outwards).
+    pub cull_back_faces: bool,
 }
 
 /// What one arena draws this frame.
@@ -140,50 +152,57 @@ pub struct RangeLod {
 pub struct Projection {
     int64: bool,
     clear: wgpu::ComputePipeline,
-    project64: Option<wgpu::ComputePipeline>,
+    plain: ProjectPasses,
+    /// The same passes culling back faces by the Normals stream.
+    culling: ProjectPasses,
     unpack: Option<wgpu::ComputePipeline>,
-    depth32: wgpu::ComputePipeline,
-    index32: wgpu::ComputePipeline,
     resolve: wgpu::ComputePipeline,
 }
 
-/// Every module the projection compiles, as it composes them.
+/// Every module the projection compiles, as it composes them: the projection passes once
+/// drawing every point and once culling back faces (`culled` labels).
 pub fn shaders(int64: bool) -> Vec<ShaderSource> {
     let mut s = vec![
         ShaderSource::new("clear", &[CLEAR_WGSL]),
-        ShaderSource::new(
-            "project depth32",
-            &[
-                EMIT_DEPTH32_WGSL,
-                FILTERS_WGSL,
-                RANGE_SEARCH_WGSL,
-                PROJECT_WGSL,
-            ],
-        ),
-        ShaderSource::new(
-            "project index32",
-            &[
-                EMIT_INDEX32_WGSL,
-                FILTERS_WGSL,
-                RANGE_SEARCH_WGSL,
-                PROJECT_WGSL,
-            ],
-        ),
         ShaderSource::new("resolve", &[COLOUR_WGSL, RESOLVE_WGSL]),
     ];
-    if int64 {
-        s.push(ShaderSource::new(
-            "project int64",
-            &[
-                EMIT_INT64_WGSL,
-                FILTERS_WGSL,
-                RANGE_SEARCH_WGSL,
-                PROJECT_WGSL,
-            ],
+    for cull in [false, true] {
+        let label = |plain: &'static str, culling: &'static str| if cull { culling } else { plain };
+        s.push(project_source(
+            label("project depth32", "project depth32 culled"),
+            EMIT_DEPTH32_WGSL,
+            cull,
         ));
+        s.push(project_source(
+            label("project index32", "project index32 culled"),
+            EMIT_INDEX32_WGSL,
+            cull,
+        ));
+        if int64 {
+            s.push(project_source(
+                label("project int64", "project int64 culled"),
+                EMIT_INT64_WGSL,
+                cull,
+            ));
+        }
+    }
+    if int64 {
         s.push(ShaderSource::new("unpack", &[UNPACK_WGSL]));
     }
     s
+}
+
+/// The projection pass with `emit`, culling back faces or not.
+fn project_source(label: &'static str, emit: &'static str, cull: bool) -> ShaderSource {
+    let culling: &[&'static str] = if cull {
+        &[OCT16_WGSL, CULL_WGSL]
+    } else {
+        &[NO_CULL_WGSL]
+    };
+    let mut parts = vec![emit, FILTERS_WGSL, RANGE_SEARCH_WGSL];
+    parts.extend_from_slice(culling);
+    parts.push(PROJECT_WGSL);
+    ShaderSource::new(label, &parts)
 }
 
 fn compile(ctx: &GpuContext, label: &str) -> Option<wgpu::ComputePipeline> {
@@ -191,6 +210,28 @@ fn compile(ctx: &GpuContext, label: &str) -> Option<wgpu::ComputePipeline> {
         .into_iter()
         .find(|s| s.label == label)
         .map(|s| s.compute(&ctx.device, None))
+}
+
+/// The projection passes of one culling rule.
+struct ProjectPasses {
+    project64: Option<wgpu::ComputePipeline>,
+    depth32: wgpu::ComputePipeline,
+    index32: wgpu::ComputePipeline,
+}
+
+impl ProjectPasses {
+    fn new(ctx: &GpuContext, cull: bool) -> Result<ProjectPasses, crate::ViewerError> {
+        let suffix = if cull { " culled" } else { "" };
+        let need = |label: String| {
+            compile(ctx, &label)
+                .ok_or_else(|| crate::ViewerError::Gpu(format!("no shader named {label}")))
+        };
+        Ok(ProjectPasses {
+            project64: compile(ctx, &format!("project int64{suffix}")),
+            depth32: need(format!("project depth32{suffix}"))?,
+            index32: need(format!("project index32{suffix}"))?,
+        })
+    }
 }
 
 impl Projection {
@@ -202,10 +243,9 @@ impl Projection {
         Ok(Projection {
             int64: ctx.int64_atomics,
             clear: need("clear")?,
-            project64: compile(ctx, "project int64"),
+            plain: ProjectPasses::new(ctx, false)?,
+            culling: ProjectPasses::new(ctx, true)?,
             unpack: compile(ctx, "unpack"),
-            depth32: need("project depth32")?,
-            index32: need("project index32")?,
             resolve: need("resolve")?,
         })
     }
@@ -293,6 +333,11 @@ impl Projection {
         }
 
         // Projection.
+        let passes = if frame.cull_back_faces {
+            &self.culling
+        } else {
+            &self.plain
+        };
         let mut project =
             |name: &str, pipe: &wgpu::ComputePipeline, frame_buffers: &[&wgpu::Buffer]| {
                 let fb = frame_bind(device, screen, pipe, frame_buffers);
@@ -307,18 +352,24 @@ impl Projection {
                     if g.groups == 0 {
                         continue;
                     }
-                    pass.set_bind_group(1, &arena_bind(device, cache, pipe, g, true), &[]);
+                    let bound = if frame.cull_back_faces {
+                        arena_bind_with_normals(device, cache, pipe, g)
+                    } else {
+                        Some(arena_bind(device, cache, pipe, g, true))
+                    };
+                    let Some(bound) = bound else { continue };
+                    pass.set_bind_group(1, &bound, &[]);
                     let (x, y) = split_groups(g.groups);
                     pass.dispatch_workgroups(x, y, 1);
                 }
             };
-        match (&self.project64, keys) {
+        match (&passes.project64, keys) {
             (Some(p64), Some(keys)) => project("project", p64, &[keys]),
             _ => {
-                project("project_depth", &self.depth32, &[&screen.depths]);
+                project("project_depth", &passes.depth32, &[&screen.depths]);
                 project(
                     "project_index",
-                    &self.index32,
+                    &passes.index32,
                     &[&screen.depths, &screen.indices],
                 );
             }

@@ -1,5 +1,6 @@
 // Projection: one thread per point, each writing the pixels its splat covers through `emit`,
-// which the variant appended to this file defines (64-bit atomicMin, or the two 32-bit passes).
+// which the variant appended to this file defines (64-bit atomicMin, or the two 32-bit passes),
+// skipping the points `culled` (cull.wgsl or no_cull.wgsl) turns away.
 
 @group(0) @binding(0) var<uniform> frame: Frame;
 @group(1) @binding(0) var<storage, read> points: array<vec4<u32>>;
@@ -27,6 +28,9 @@ fn main(
     let p = points[idx];
     // A point the filters hide is never drawn: it leaves no hole and costs nothing downstream.
     if frame.filters != 0u && !passes_filters(bitcast<vec3<f32>>(p.xyz), attributes[idx]) {
+        return;
+    }
+    if culled(idx, bitcast<vec3<f32>>(p.xyz)) {
         return;
     }
     let clip = frame.view_proj * vec4<f32>(bitcast<vec3<f32>>(p.xyz), 1.0);

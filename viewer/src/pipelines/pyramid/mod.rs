@@ -59,6 +59,7 @@ pub static INFO: PipelineInfo = PipelineInfo {
         "pyramid shade",
     ],
     previous_frame: false,
+    cull_back_faces: false,
     screen_buffers: PyramidPasses::screen_buffers,
     create,
     shaders: |_| passes::shaders(),

@@ -95,6 +95,7 @@ pub static INFO: PipelineInfo = PipelineInfo {
     streams: &[PointStream::Normals, PointStream::Radius],
     passes: &["surfel depth", "surfel blend", "surfel shade"],
     previous_frame: false,
+    cull_back_faces: false,
     screen_buffers: SurfelPasses::screen_buffers,
     create,
     shaders: |_| passes::shaders(),

@@ -11,7 +11,7 @@ use crate::gpu::timing::Timer;
 use crate::pipelines::params::ResolvedParams;
 use crate::pipelines::projection::{
     plane_buffer,
-    COLOUR_WGSL, FILTERS_WGSL, GROUP_SIZE, GpuRange, RANGE_SEARCH_WGSL, RangeLod, pixel_groups, split_groups,
+    COLOUR_WGSL, FILTERS_WGSL, GROUP_SIZE, OCT16_WGSL, GpuRange, RANGE_SEARCH_WGSL, RangeLod, pixel_groups, split_groups,
 };
 use crate::pipelines::shader::ShaderSource;
 use crate::pipelines::{LIGHTING_WGSL, PipelineFrame, PointStream, ScreenBuffer, ViewFrame};
@@ -118,7 +118,7 @@ pub fn shaders() -> Vec<ShaderSource> {
     ] {
         v.push(ShaderSource::new(
             label,
-            &[UNIFORMS_WGSL, FILTERS_WGSL, RANGE_SEARCH_WGSL, SURFEL_WGSL, shape, DEPTH_WGSL],
+            &[UNIFORMS_WGSL, FILTERS_WGSL, RANGE_SEARCH_WGSL, OCT16_WGSL, SURFEL_WGSL, shape, DEPTH_WGSL],
         ));
     }
     for (label, shape) in [
@@ -133,6 +133,7 @@ pub fn shaders() -> Vec<ShaderSource> {
                 RANGE_SEARCH_WGSL,
                 COLOUR_WGSL,
                 SUMS_WGSL,
+                OCT16_WGSL,
                 SURFEL_WGSL,
                 shape,
                 BLEND_WGSL,

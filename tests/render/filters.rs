@@ -1,0 +1,274 @@
+//! The `filters` pipeline (paper 004) on spheres whose outline and layers are known exactly:
+//! it closes the holes `points` leaves without growing past the outline, back faces are culled
+//! in the projection and in every peel, the layers blend front to back with the opacities
+//! (per class too), and without normals it says so and peels back faces as layers.
+
+use super::*;
+use std::io::Write;
+use std::sync::Arc;
+use strata_viewer::gpu::{GpuContext, ProjectionPath};
+use strata_viewer::pipelines::filters::{LAYERS_USED, NO_NORMALS};
+use strata_viewer::{Camera, Renderer, Settings};
+
+const W: u32 = 480;
+const H: u32 = 360;
+/// The eye on the -y axis at this distance from the spheres' centre (the origin).
+const DISTANCE: f32 = 3.0;
+const FOV_DEG: f32 = 50.0;
+const OUTER: [u8; 3] = [40, 80, 200];
+const INNER: [u8; 3] = [200, 60, 40];
+
+/// Points evenly over a sphere of `radius` (a Fibonacci lattice, like a scan).
+fn lattice(n: usize, radius: f64) -> impl Iterator<Item = [f64; 3]> {
+    let golden = std::f64::consts::PI * (3.0 - 5f64.sqrt());
+    (0..n).map(move |i| {
+        let z = 1.0 - 2.0 * (i as f64 + 0.5) / n as f64;
+        let r = (1.0 - z * z).sqrt();
+        let a = golden * i as f64;
+        [radius * r * a.cos(), radius * r * a.sin(), radius * z]
+    })
+}
+
+/// Two nested spheres (radius 1, blue, and 0.5, red), as a PLY with their outward normals
+/// (`normals`) or as a LAS without normals whose outer sphere is class 2 and inner class 6.
+fn nested(normals: bool) -> &'static Path {
+    static CELLS: [OnceLock<PathBuf>; 2] = [OnceLock::new(), OnceLock::new()];
+    CELLS[normals as usize].get_or_init(|| {
+        let dir = Path::new(env!("CARGO_TARGET_TMPDIR")).join(format!("render-filters-{normals}"));
+        let _ = std::fs::remove_dir_all(&dir);
+        std::fs::create_dir_all(&dir).expect("fixture dir");
+        let spheres = [(1.0, 60_000, OUTER, 2u8), (0.5, 15_000, INNER, 6u8)];
+        let input = if normals {
+            let ply = dir.join("nested.ply");
+            let mut out = std::io::BufWriter::new(std::fs::File::create(&ply).expect("ply"));
+            write!(
+                out,
+                "ply\nformat binary_little_endian 1.0\nelement vertex 75000\nproperty float x\nproperty float y\nproperty float z\nproperty uchar red\nproperty uchar green\nproperty uchar blue\nproperty float nx\nproperty float ny\nproperty float nz\nend_header\n"
+            )
+            .expect("header");
+            for (radius, n, rgb, _) in spheres {
+                for p in lattice(n, radius) {
+                    for v in p {
+                        out.write_all(&(v as f32).to_le_bytes()).expect("write");
+                    }
+                    out.write_all(&rgb).expect("write");
+                    for v in p {
+                        out.write_all(&((v / radius) as f32).to_le_bytes()).expect("write");
+                    }
+                }
+            }
+            drop(out);
+            ply
+        } else {
+            let path = dir.join("nested.las");
+            let mut builder = las::Builder::from((1, 2));
+            builder.point_format = las::point::Format::new(2).expect("format 2");
+            builder.transforms = las::Vector {
+                x: las::Transform { scale: 1e-4, offset: 0.0 },
+                y: las::Transform { scale: 1e-4, offset: 0.0 },
+                z: las::Transform { scale: 1e-4, offset: 0.0 },
+            };
+            let header = builder.into_header().expect("header");
+            let mut writer = las::Writer::from_path(&path, header).expect("las");
+            for (radius, n, [r, g, b], class) in spheres {
+                for [x, y, z] in lattice(n, radius) {
+                    let point = las::Point {
+                        x,
+                        y,
+                        z,
+                        classification: las::point::Classification::new(class).expect("class"),
+                        color: Some(las::Color::new(
+                            u16::from(r) * 257,
+                            u16::from(g) * 257,
+                            u16::from(b) * 257,
+                        )),
+                        ..Default::default()
+                    };
+                    writer.write_point(point).expect("point");
+                }
+            }
+            writer.close().expect("close");
+            path
+        };
+        let ds = dir.join("nested.strata");
+        common::run_ok(&["convert", s(&input), "-o", s(&ds), "--quiet"]);
+        ds
+    })
+}
+
+struct Shot {
+    rgb: Vec<[u8; 3]>,
+    covered: Vec<bool>,
+    measures: std::collections::BTreeMap<&'static str, f32>,
+    note: Option<&'static str>,
+}
+
+impl Shot {
+    fn centre(&self) -> [u8; 3] {
+        self.rgb[(H / 2 * W + W / 2) as usize]
+    }
+}
+
+fn shot(dataset: &Path, pipeline: &str, set: &[&str]) -> Shot {
+    let ds = Arc::new(StreamDataset::open_path(dataset).expect("dataset opens"));
+    let ctx = Arc::new(GpuContext::new(ProjectionPath::Auto).expect("GPU adapter"));
+    let mut r = Renderer::new(ctx, ds.clone(), 1 << 30, 1).expect("renderer");
+    let anchor = ds.anchor().as_vec3();
+    let camera = Camera {
+        eye: glam::Vec3::new(0.0, -DISTANCE, 0.0) - anchor,
+        target: -anchor,
+        fov_y: FOV_DEG.to_radians(),
+    };
+    let mut settings = Settings {
+        budget: 10_000_000,
+        ..Settings::default()
+    };
+    settings.set_pipeline(pipeline).expect("pipeline");
+    // One-pixel points: what `points` leaves open at this density.
+    settings.point_size = 1.0;
+    settings.size_mode = strata_viewer::settings::SizeMode::Fixed;
+    for a in set {
+        settings.set_param(a).expect("parameter");
+    }
+    paths::frame_until_complete(&mut r, &camera, W, H, &settings);
+    let stats = r.frame(&camera, W, H, &settings).expect("frame");
+    r.wait_gpu().expect("GPU");
+    let (_, _, rgba) = r.read_image().expect("image");
+    let covered = r
+        .read_surface()
+        .expect("surface")
+        .iter()
+        .map(Option::is_some)
+        .collect();
+    Shot {
+        rgb: rgba.chunks_exact(4).map(|p| [p[0], p[1], p[2]]).collect(),
+        covered,
+        measures: r.read_measures().expect("measures"),
+        note: stats.note,
+    }
+}
+
+/// A surface seen head-on under the shared headlight: albedo · (ambient + diffuse) + specular.
+fn head_on(albedo: [u8; 3]) -> [f32; 3] {
+    albedo.map(|c| (c as f32 / 255.0 + 0.25).min(1.0) * 255.0)
+}
+
+fn near(got: [u8; 3], want: [f32; 3], tolerance: f32) -> bool {
+    got.iter()
+        .zip(want)
+        .all(|(g, w)| (*g as f32 - w).abs() <= tolerance)
+}
+
+/// Pixels inside the outer sphere's outline (by two pixels) left empty, over the pixels
+/// inside; and the mean distance by which drawn pixels reach beyond the outline.
+fn holes_and_overshoot(covered: &[bool]) -> (f64, f64) {
+    let focal = H as f32 * 0.5 / (FOV_DEG.to_radians() * 0.5).tan();
+    let r = focal * (1.0 / DISTANCE).asin().tan();
+    let (cx, cy) = (W as f32 * 0.5, H as f32 * 0.5);
+    let (mut inside, mut empty, mut over, mut over_n) = (0, 0, 0.0, 0);
+    for (i, c) in covered.iter().enumerate() {
+        let (x, y) = ((i as u32 % W) as f32 + 0.5, (i as u32 / W) as f32 + 0.5);
+        let d = ((x - cx).powi(2) + (y - cy).powi(2)).sqrt();
+        if d < r - 2.0 {
+            inside += 1;
+            empty += usize::from(!c);
+        } else if *c && d > r {
+            over += (d - r) as f64;
+            over_n += 1;
+        }
+    }
+    (
+        empty as f64 / inside.max(1) as f64,
+        over / over_n.max(1) as f64,
+    )
+}
+
+#[test]
+fn filters_close_the_holes_points_leave_without_growing_past_the_outline() {
+    let points = shot(nested(true), "points", &[]);
+    let (points_holes, _) = holes_and_overshoot(&points.covered);
+    assert!(
+        points_holes > 0.2,
+        "points at this density leave holes ({points_holes:.3})"
+    );
+    let filters = shot(nested(true), "filters", &[]);
+    let (holes, overshoot) = holes_and_overshoot(&filters.covered);
+    assert!(
+        holes < 0.01 && holes <= 0.5 * points_holes,
+        "filters leave {holes:.4} of the sphere empty (points {points_holes:.3})"
+    );
+    assert!(
+        overshoot < 1.5,
+        "the outline reaches {overshoot:.2} px beyond the sphere's"
+    );
+    assert_eq!(filters.note, None, "kept normals face out: culling applies");
+    // The outer sphere's front, lit head-on, in front of everything at the centre.
+    assert!(
+        near(filters.centre(), head_on(OUTER), 12.0),
+        "{:?}",
+        filters.centre()
+    );
+}
+
+#[test]
+fn peeled_layers_blend_front_to_back_and_back_faces_stay_culled() {
+    let one = shot(nested(true), "filters", &["layers=1", "opacity=0.5"]);
+    assert_eq!(one.measures[LAYERS_USED], 1.0);
+    let background = BACKGROUND.map(f32::from);
+    let (outer, inner) = (head_on(OUTER), head_on(INNER));
+    let blend = |parts: &[([f32; 3], f32)]| {
+        let mut out = [0.0; 3];
+        for (c, w) in parts {
+            for k in 0..3 {
+                out[k] += c[k] * w;
+            }
+        }
+        out
+    };
+    assert!(
+        near(
+            one.centre(),
+            blend(&[(outer, 0.5), (background, 0.5)]),
+            12.0
+        ),
+        "{:?}",
+        one.centre()
+    );
+    // Four layers asked, two there: the back halves are culled in every peel.
+    let four = shot(nested(true), "filters", &["layers=4", "opacity=0.5"]);
+    assert_eq!(four.measures[LAYERS_USED], 2.0, "{:?}", four.measures);
+    assert!(
+        near(
+            four.centre(),
+            blend(&[(outer, 0.5), (inner, 0.25), (background, 0.25)]),
+            12.0
+        ),
+        "{:?}",
+        four.centre()
+    );
+}
+
+#[test]
+fn class_opacities_and_without_normals_every_surface_is_a_layer() {
+    let opaque = shot(nested(false), "filters", &["layers=4"]);
+    assert_eq!(opaque.note, Some(NO_NORMALS));
+    // Not culled: both halves of both spheres are layers.
+    assert_eq!(opaque.measures[LAYERS_USED], 4.0, "{:?}", opaque.measures);
+    assert!(
+        near(opaque.centre(), head_on(OUTER), 16.0),
+        "{:?}",
+        opaque.centre()
+    );
+    // The outer sphere (class 2) made clear: the inner one shows, lit head-on.
+    let clear = shot(nested(false), "filters", &["layers=4", "opacity.2=0"]);
+    assert!(
+        near(clear.centre(), head_on(INNER), 16.0),
+        "{:?}",
+        clear.centre()
+    );
+    let (holes, _) = holes_and_overshoot(&clear.covered);
+    assert!(
+        holes < 0.01,
+        "the first layer's surface is kept for the harness ({holes:.4} empty)"
+    );
+}

@@ -1,0 +1,134 @@
+// Hole filling (sections 3.2 and 3.3), one iteration per dispatch, from `src` into `dst`.
+// A candidate keeps its texel where one of eight 3x3 masks finds all its cells
+// "white": it then lies beyond a silhouette (background fill) or beyond the border of a front
+// surface (occluded fill). Else it takes the texel of its nearest neighbour. Every texel is
+// written, so that an iteration that changed nothing leaves `dst` equal to `src`.
+@group(0) @binding(0) var<uniform> frame: Frame;
+@group(0) @binding(2) var<storage, read> src: array<Texel>;
+@group(0) @binding(3) var<storage, read_write> dst: array<Texel>;
+@group(0) @binding(4) var<storage, read_write> counters: array<u32>;
+@group(1) @binding(0) var<uniform> step: Step;
+
+// The eight neighbours, row by row: TL T TR / L R / BL B BR.
+const OFFSETS = array<vec2<i32>, 8>(
+    vec2<i32>(-1, -1), vec2<i32>(0, -1), vec2<i32>(1, -1),
+    vec2<i32>(-1, 0), vec2<i32>(1, 0),
+    vec2<i32>(-1, 1), vec2<i32>(0, 1), vec2<i32>(1, 1),
+);
+
+// The eight masks of Figure 3 as bit sets over OFFSETS: a full row or column on one side and
+// one of the two cells beside the centre next to it. Beyond a straight outline, and beside a
+// pixel sticking out of one, some mask is all background, so iterating does not grow the
+// silhouette (half-plane masks of five cells let it grow by a pixel an iteration along every
+// protrusion); inside a hole none is, and a hole n pixels across closes in n iterations.
+const MASKS = array<u32, 8>(
+    0x0fu,  // top row and L
+    0x17u,  // top row and R
+    0xe8u,  // bottom row and L
+    0xf0u,  // bottom row and R
+    0x2bu,  // left column and T
+    0x69u,  // left column and B
+    0x96u,  // right column and T
+    0xd4u,  // right column and B
+);
+
+struct Neighbours {
+    // Bit k: cell OFFSETS[k] is background (or off the image).
+    background: u32,
+    // Depths (0 for background).
+    depth: array<f32, 8>,
+    // The pixel of the nearest non-background neighbour; none where `nearest_depth` is 0.
+    nearest: u32,
+    nearest_depth: f32,
+}
+
+// Reads the neighbours' depths only (a quarter of their texels); the caller fetches the one
+// texel it copies.
+fn neighbours(c: vec2<i32>) -> Neighbours {
+    var n: Neighbours;
+    n.background = 0u;
+    n.nearest = 0u;
+    n.nearest_depth = 0.0;
+    var best = 3.4e38;
+    for (var k = 0; k < 8; k++) {
+        let q = c + OFFSETS[k];
+        var bits = 0u;
+        var at = 0u;
+        if q.x >= 0 && q.y >= 0 && q.x < i32(frame.width) && q.y < i32(frame.height) {
+            at = u32(q.y) * frame.width + u32(q.x);
+            bits = src[at].x;
+        }
+        let d = bitcast<f32>(bits);
+        n.depth[k] = d;
+        if bits == 0u {
+            n.background |= 1u << u32(k);
+        } else if d < best {
+            best = d;
+            n.nearest = at;
+            n.nearest_depth = d;
+        }
+    }
+    return n;
+}
+
+// Whether some mask has all its cells in `white`.
+fn some_mask_white(white: u32) -> bool {
+    for (var m = 0; m < 8; m++) {
+        if (white & MASKS[m]) == MASKS[m] {
+            return true;
+        }
+    }
+    return false;
+}
+
+fn finish(i: u32, keep: Texel, fill: bool, n: Neighbours) {
+    if fill && n.nearest_depth > 0.0 {
+        dst[i] = src[n.nearest];
+        counters[changed_slot(step.layer, step.kind, step.iteration)] = 1u;
+    } else {
+        dst[i] = keep;
+    }
+}
+
+// Section 3.2: a background pixel is filled unless it lies beyond the silhouette.
+@compute @workgroup_size(16, 16)
+fn background(@builtin(global_invocation_id) id: vec3<u32>) {
+    if id.x >= frame.width || id.y >= frame.height {
+        return;
+    }
+    let i = id.y * frame.width + id.x;
+    let t = src[i];
+    if t.x != 0u {
+        dst[i] = t;
+        return;
+    }
+    let n = neighbours(vec2<i32>(id.xy));
+    finish(i, t, n.background != 0xffu && !some_mask_white(n.background), n);
+}
+
+// Section 3.3: a pixel showing a surface more than d~ behind its neighbours is filled with the
+// nearest of them unless it lies beyond the border of that front surface. Cells at the
+// candidate's depth or behind (within d~) are white, and so is background: nothing occludes
+// beyond a silhouette (taking background as depth 0, in front, as a literal reading would, lets
+// the pixels along a silhouette take each other's texels iteration after iteration).
+@compute @workgroup_size(16, 16)
+fn occluded(@builtin(global_invocation_id) id: vec3<u32>) {
+    if id.x >= frame.width || id.y >= frame.height {
+        return;
+    }
+    let i = id.y * frame.width + id.x;
+    let t = src[i];
+    if t.x == 0u {
+        dst[i] = t;
+        return;
+    }
+    let n = neighbours(vec2<i32>(id.xy));
+    let limit = bitcast<f32>(t.x) - fil.dtilde;
+    var white = 0u;
+    for (var k = 0u; k < 8u; k++) {
+        if n.depth[k] > limit || (n.background & (1u << k)) != 0u {
+            white |= 1u << k;
+        }
+    }
+    finish(i, t, !some_mask_white(white), n);
+}

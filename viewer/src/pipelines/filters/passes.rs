@@ -1,0 +1,507 @@
+//! The filters pipeline's GPU passes, per layer: peel (layers after the first, which is the
+//! projection's own, culled by the normals), resolve into texels, fill background and occluded
+//! pixels (iterated, each iteration skipped by an indirect dispatch once one changed nothing),
+//! smooth, and shade with anti-aliasing and front-to-back blending.
+
+use super::targets::{FiltersTargets, STEP_STRIDE};
+use crate::ViewerError;
+use crate::gpu::GpuContext;
+use crate::gpu::timing::Timer;
+use crate::pipelines::projection::{
+    ArenaGroup, COLOUR_WGSL, CULL_WGSL, FILTERS_WGSL, GROUP_SIZE, NO_CULL_WGSL, OCT16_WGSL,
+    PROJECT_WGSL, RANGE_SEARCH_WGSL, pixel_groups, split_groups,
+};
+use crate::pipelines::shader::ShaderSource;
+use crate::pipelines::{LIGHTING_WGSL, PipelineFrame, PointStream};
+use bytemuck::{Pod, Zeroable};
+
+const UNIFORMS_WGSL: &str = include_str!("uniforms.wgsl");
+const PEEL_DEPTH_WGSL: &str = include_str!("peel_depth.wgsl");
+const PEEL_INDEX_WGSL: &str = include_str!("peel_index.wgsl");
+const REACH_NORMAL_WGSL: &str = include_str!("reach_normal.wgsl");
+const REACH_FLAT_WGSL: &str = include_str!("reach_flat.wgsl");
+const RESOLVE_WGSL: &str = include_str!("resolve.wgsl");
+const FILL_WGSL: &str = include_str!("fill.wgsl");
+const SMOOTH_WGSL: &str = include_str!("smooth.wgsl");
+const SHADE_WGSL: &str = include_str!("shade.wgsl");
+const ARGS_WGSL: &str = include_str!("args.wgsl");
+
+/// Layers at most (`MAX_LAYERS` in uniforms.wgsl).
+pub const MAX_LAYERS: u32 = 8;
+/// Fill iterations at most, per kind and layer (`MAX_ITERATIONS`).
+pub const MAX_ITERATIONS: u32 = 16;
+/// Classes with an opacity of their own (`CLASSES`): the ASPRS standard classes 0 to 18.
+pub const CLASSES: usize = 19;
+/// Words of the counters buffer (`COUNTERS`): a flag per layer, then a flag per layer, kind
+/// and iteration.
+pub const COUNTERS: u64 = (MAX_LAYERS + MAX_LAYERS * 2 * MAX_ITERATIONS) as u64;
+
+/// `kind` of a step (`ARGS_*` in uniforms.wgsl).
+pub const ARGS_LAYER: u32 = 0;
+pub const ARGS_BACKGROUND: u32 = 1;
+pub const ARGS_OCCLUDED: u32 = 2;
+
+/// The filters' uniforms, laid out as `Filters` in uniforms.wgsl.
+#[repr(C)]
+#[derive(Debug, Clone, Copy, Pod, Zeroable)]
+pub struct FiltersUniforms {
+    pub eye: [f32; 4],
+    pub forward: [f32; 4],
+    pub right: [f32; 4],
+    pub up: [f32; 4],
+    pub light: [f32; 4],
+    pub class_opacity: [[f32; 4]; 5],
+    pub dtilde: f32,
+    pub antialias: u32,
+    pub normals: u32,
+    pub opacity: f32,
+}
+
+/// What one dispatch works on, laid out as `Step` in uniforms.wgsl.
+#[repr(C)]
+#[derive(Debug, Clone, Copy, Pod, Zeroable)]
+pub struct Step {
+    pub layer: u32,
+    pub iteration: u32,
+    pub kind: u32,
+    pub complemented: u32,
+}
+
+/// Every module the filters compile.
+pub fn shaders() -> Vec<ShaderSource> {
+    let peel = |label, emit, cull: bool| {
+        let mut parts = vec![UNIFORMS_WGSL, emit, FILTERS_WGSL, RANGE_SEARCH_WGSL];
+        let reach = emit == PEEL_DEPTH_WGSL;
+        if cull {
+            parts.extend([OCT16_WGSL, CULL_WGSL]);
+            parts.extend(reach.then_some(REACH_NORMAL_WGSL));
+        } else {
+            parts.push(NO_CULL_WGSL);
+            parts.extend(reach.then_some(REACH_FLAT_WGSL));
+        }
+        parts.push(PROJECT_WGSL);
+        ShaderSource::new(label, &parts)
+    };
+    vec![
+        peel("peel depth", PEEL_DEPTH_WGSL, false),
+        peel("peel index", PEEL_INDEX_WGSL, false),
+        peel("peel depth culled", PEEL_DEPTH_WGSL, true),
+        peel("peel index culled", PEEL_INDEX_WGSL, true),
+        ShaderSource::new(
+            "filters resolve",
+            &[UNIFORMS_WGSL, COLOUR_WGSL, OCT16_WGSL, RESOLVE_WGSL],
+        ),
+        ShaderSource::new("fill background", &[UNIFORMS_WGSL, FILL_WGSL]).with_entry("background"),
+        ShaderSource::new("fill occluded", &[UNIFORMS_WGSL, FILL_WGSL]).with_entry("occluded"),
+        ShaderSource::new("smooth", &[UNIFORMS_WGSL, OCT16_WGSL, SMOOTH_WGSL]),
+        ShaderSource::new(
+            "filters shade",
+            &[UNIFORMS_WGSL, OCT16_WGSL, LIGHTING_WGSL, SHADE_WGSL],
+        ),
+        ShaderSource::new("filters args", &[UNIFORMS_WGSL, ARGS_WGSL]),
+    ]
+}
+
+/// A peel pass's two modules: nearest depth, then lowest index at it.
+struct Peel {
+    depth: wgpu::ComputePipeline,
+    index: wgpu::ComputePipeline,
+}
+
+pub struct FiltersPasses {
+    peel: Peel,
+    peel_culled: Peel,
+    resolve: wgpu::ComputePipeline,
+    background: wgpu::ComputePipeline,
+    occluded: wgpu::ComputePipeline,
+    smooth: wgpu::ComputePipeline,
+    shade: wgpu::ComputePipeline,
+    args: wgpu::ComputePipeline,
+}
+
+/// What a frame's passes are told beyond the uniforms.
+pub struct FrameSetup {
+    pub layers: u32,
+    pub fill_iterations: u32,
+    /// The projection culled back faces (the peels then cull too).
+    pub cull: bool,
+}
+
+/// A bind group entry: binding and buffer.
+type Entry<'a> = (u32, wgpu::BindingResource<'a>);
+
+fn bind(device: &wgpu::Device, pipe: &wgpu::ComputePipeline, group: u32, entries: &[Entry]) -> wgpu::BindGroup {
+    let entries: Vec<wgpu::BindGroupEntry> = entries
+        .iter()
+        .map(|(binding, resource)| wgpu::BindGroupEntry {
+            binding: *binding,
+            resource: resource.clone(),
+        })
+        .collect();
+    device.create_bind_group(&wgpu::BindGroupDescriptor {
+        label: Some("filters"),
+        layout: &pipe.get_bind_group_layout(group),
+        entries: &entries,
+    })
+}
+
+impl FiltersPasses {
+    pub fn new(ctx: &GpuContext) -> Result<FiltersPasses, ViewerError> {
+        let mut compiled = shaders().into_iter().map(|s| s.compute(&ctx.device, None));
+        let mut next = || {
+            compiled
+                .next()
+                .ok_or_else(|| ViewerError::Gpu("a filters shader is missing".into()))
+        };
+        Ok(FiltersPasses {
+            peel: Peel {
+                depth: next()?,
+                index: next()?,
+            },
+            peel_culled: Peel {
+                depth: next()?,
+                index: next()?,
+            },
+            resolve: next()?,
+            background: next()?,
+            occluded: next()?,
+            smooth: next()?,
+            shade: next()?,
+            args: next()?,
+        })
+    }
+
+    pub fn encode(
+        &self,
+        frame: &PipelineFrame,
+        encoder: &mut wgpu::CommandEncoder,
+        targets: &mut FiltersTargets,
+        uniforms: &FiltersUniforms,
+        setup: &FrameSetup,
+        timer: &mut Timer,
+    ) -> Result<(), ViewerError> {
+        let device = &frame.ctx.device;
+        let screen = frame.screen;
+        let queue = &frame.ctx.queue;
+        queue.write_buffer(&targets.uniforms, 0, bytemuck::bytes_of(uniforms));
+        encoder.clear_buffer(&targets.counters, 0, None);
+        encoder.clear_buffer(&targets.accum, 0, None);
+
+        let arenas: Vec<(ArenaGroup, [&wgpu::Buffer; 3], &wgpu::Buffer)> = frame
+            .arenas
+            .iter()
+            .map(|d| {
+                let a = frame
+                    .cache
+                    .arenas
+                    .get(d.arena as usize)
+                    .ok_or_else(|| ViewerError::Gpu(format!("arena {} is not resident", d.arena)))?;
+                let normals = a
+                    .streams
+                    .iter()
+                    .find(|(s, _)| *s == PointStream::Normals)
+                    .map(|(_, b)| b)
+                    .ok_or_else(|| {
+                        ViewerError::Gpu(format!("arena {} holds no normals stream", d.arena))
+                    })?;
+                Ok((
+                    ArenaGroup::new(device, d, GROUP_SIZE),
+                    [&a.points, &a.attributes, normals],
+                    normals,
+                ))
+            })
+            .collect::<Result<_, ViewerError>>()?;
+
+        // Every dispatch's step, at its own 256-byte slot of the steps buffer.
+        let mut steps: Vec<Step> = Vec::new();
+        let mut step_bind = |pipe: &wgpu::ComputePipeline, group: u32, step: Step| {
+            let offset = steps.len() as u64 * STEP_STRIDE;
+            steps.push(step);
+            bind(
+                device,
+                pipe,
+                group,
+                &[(
+                    0,
+                    wgpu::BindingResource::Buffer(wgpu::BufferBinding {
+                        buffer: &targets.steps,
+                        offset,
+                        size: wgpu::BufferSize::new(std::mem::size_of::<Step>() as u64),
+                    }),
+                )],
+            )
+        };
+        let frame_entry = || (0, screen.uniforms.as_entire_binding());
+        let fil_entry = || (1, targets.uniforms.as_entire_binding());
+        let (gx, gy) = pixel_groups(screen.width, screen.height);
+        let peel = if setup.cull {
+            &self.peel_culled
+        } else {
+            &self.peel
+        };
+        let output = screen.output.create_view(&Default::default());
+
+        // The buffer holding the previous layer's final texels (the peel's reference).
+        let mut reference: Option<usize> = None;
+        for layer in 0..setup.layers.min(MAX_LAYERS) {
+            if let Some(r) = reference {
+                encoder.clear_buffer(&targets.peel_depths, 0, None);
+                encoder.clear_buffer(&targets.peel_indices, 0, None);
+                let depth_group = bind(
+                    device,
+                    &peel.depth,
+                    0,
+                    &[
+                        frame_entry(),
+                        fil_entry(),
+                        (2, targets.peel_depths.as_entire_binding()),
+                        (3, targets.texels[r].as_entire_binding()),
+                    ],
+                );
+                let index_group = bind(
+                    device,
+                    &peel.index,
+                    0,
+                    &[
+                        frame_entry(),
+                        (2, targets.peel_depths.as_entire_binding()),
+                        (3, targets.peel_indices.as_entire_binding()),
+                    ],
+                );
+                let timestamp_writes = timer.pass(encoder, "peel");
+                let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
+                    label: Some("peel"),
+                    timestamp_writes,
+                });
+                for (pipe, group) in [(&peel.depth, &depth_group), (&peel.index, &index_group)] {
+                    pass.set_pipeline(pipe);
+                    pass.set_bind_group(0, group, &[]);
+                    for (g, [points, attributes, _], normals) in &arenas {
+                        if g.groups == 0 {
+                            continue;
+                        }
+                        let mut entries = vec![
+                            (0, points.as_entire_binding()),
+                            (1, g.ranges.as_entire_binding()),
+                            (2, attributes.as_entire_binding()),
+                        ];
+                        if setup.cull {
+                            entries.push((3, normals.as_entire_binding()));
+                        }
+                        pass.set_bind_group(1, &bind(device, pipe, 1, &entries), &[]);
+                        let (x, y) = split_groups(g.groups);
+                        pass.dispatch_workgroups(x, y, 1);
+                    }
+                }
+            }
+
+            // Resolve into the buffer that is not the reference.
+            let mut current = match reference {
+                Some(r) => 1 - r,
+                None => 0,
+            };
+            encoder.clear_buffer(&targets.texels[current], 0, None);
+            {
+                let (depths, indices) = if reference.is_some() {
+                    (&targets.peel_depths, &targets.peel_indices)
+                } else {
+                    (&screen.depths, &screen.indices)
+                };
+                let fb = bind(
+                    device,
+                    &self.resolve,
+                    0,
+                    &[
+                        frame_entry(),
+                        fil_entry(),
+                        (2, depths.as_entire_binding()),
+                        (3, indices.as_entire_binding()),
+                        (4, targets.texels[current].as_entire_binding()),
+                        (5, targets.counters.as_entire_binding()),
+                    ],
+                );
+                let sb = step_bind(
+                    &self.resolve,
+                    2,
+                    Step {
+                        layer,
+                        iteration: 0,
+                        kind: ARGS_LAYER,
+                        complemented: reference.is_some() as u32,
+                    },
+                );
+                let timestamp_writes = timer.pass(encoder, "filters resolve");
+                let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
+                    label: Some("filters resolve"),
+                    timestamp_writes,
+                });
+                pass.set_pipeline(&self.resolve);
+                pass.set_bind_group(0, &fb, &[]);
+                pass.set_bind_group(2, &sb, &[]);
+                for (g, [points, attributes, normals], _) in &arenas {
+                    if g.groups == 0 {
+                        continue;
+                    }
+                    let ab = bind(
+                        device,
+                        &self.resolve,
+                        1,
+                        &[
+                            (0, points.as_entire_binding()),
+                            (1, g.ranges.as_entire_binding()),
+                            (2, attributes.as_entire_binding()),
+                            (3, normals.as_entire_binding()),
+                        ],
+                    );
+                    pass.set_bind_group(1, &ab, &[]);
+                    pass.dispatch_workgroups(gx, gy, 1);
+                }
+            }
+
+            // Arguments of the next indirect dispatch, from the counters.
+            let args_group = bind(
+                device,
+                &self.args,
+                0,
+                &[
+                    frame_entry(),
+                    (2, targets.counters.as_entire_binding()),
+                    (3, targets.args.as_entire_binding()),
+                ],
+            );
+            let set_args = |pass: &mut wgpu::ComputePass, step_group: &wgpu::BindGroup| {
+                pass.set_pipeline(&self.args);
+                pass.set_bind_group(0, &args_group, &[]);
+                pass.set_bind_group(1, step_group, &[]);
+                pass.dispatch_workgroups(1, 1, 1);
+            };
+
+            // Fill: background pixels, then occluded ones, ping-ponging between the texel buffers.
+            if setup.fill_iterations > 0 {
+                let timestamp_writes = timer.pass(encoder, "fill");
+                let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
+                    label: Some("fill"),
+                    timestamp_writes,
+                });
+                for (kind, pipe) in [
+                    (ARGS_BACKGROUND, &self.background),
+                    (ARGS_OCCLUDED, &self.occluded),
+                ] {
+                    for iteration in 0..setup.fill_iterations.min(MAX_ITERATIONS) {
+                        let step = Step {
+                            layer,
+                            iteration,
+                            kind,
+                            complemented: 0,
+                        };
+                        let args_step = step_bind(&self.args, 1, step);
+                        set_args(&mut pass, &args_step);
+                        let fill_step = step_bind(pipe, 1, step);
+                        let mut entries = vec![
+                            frame_entry(),
+                            (2, targets.texels[current].as_entire_binding()),
+                            (3, targets.texels[1 - current].as_entire_binding()),
+                            (4, targets.counters.as_entire_binding()),
+                        ];
+                        // Only the occluded fill reads d~.
+                        if kind == ARGS_OCCLUDED {
+                            entries.push(fil_entry());
+                        }
+                        let fb = bind(device, pipe, 0, &entries);
+                        pass.set_pipeline(pipe);
+                        pass.set_bind_group(0, &fb, &[]);
+                        pass.set_bind_group(1, &fill_step, &[]);
+                        pass.dispatch_workgroups_indirect(&targets.args, 0);
+                        current = 1 - current;
+                    }
+                }
+            }
+
+            let layer_step = Step {
+                layer,
+                iteration: 0,
+                kind: ARGS_LAYER,
+                complemented: 0,
+            };
+            // Smooth into the other buffer, which becomes the layer's final texels.
+            {
+                let fb = bind(
+                    device,
+                    &self.smooth,
+                    0,
+                    &[
+                        frame_entry(),
+                        fil_entry(),
+                        (2, targets.texels[current].as_entire_binding()),
+                        (3, targets.texels[1 - current].as_entire_binding()),
+                    ],
+                );
+                let timestamp_writes = timer.pass(encoder, "smooth");
+                let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
+                    label: Some("smooth"),
+                    timestamp_writes,
+                });
+                // Always: the next layer's peel reads what it writes.
+                pass.set_pipeline(&self.smooth);
+                pass.set_bind_group(0, &fb, &[]);
+                pass.dispatch_workgroups(gx, gy, 1);
+                current = 1 - current;
+            }
+            {
+                let args_step = step_bind(&self.args, 1, layer_step);
+                let shade_step = step_bind(&self.shade, 1, layer_step);
+                let fb = bind(
+                    device,
+                    &self.shade,
+                    0,
+                    &[
+                        frame_entry(),
+                        fil_entry(),
+                        (2, targets.texels[current].as_entire_binding()),
+                        (3, targets.accum.as_entire_binding()),
+                        (4, targets.surface.as_entire_binding()),
+                        (5, targets.albedo.as_entire_binding()),
+                        (6, wgpu::BindingResource::TextureView(&output)),
+                    ],
+                );
+                let timestamp_writes = timer.pass(encoder, "filters shade");
+                let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
+                    label: Some("filters shade"),
+                    timestamp_writes,
+                });
+                // The first layer always shades: it writes the background where nothing is.
+                if layer > 0 {
+                    set_args(&mut pass, &args_step);
+                }
+                pass.set_pipeline(&self.shade);
+                pass.set_bind_group(0, &fb, &[]);
+                pass.set_bind_group(1, &shade_step, &[]);
+                if layer > 0 {
+                    pass.dispatch_workgroups_indirect(&targets.args, 0);
+                } else {
+                    pass.dispatch_workgroups(gx, gy, 1);
+                }
+            }
+            reference = Some(current);
+        }
+        if steps.len() > targets.step_slots() {
+            return Err(ViewerError::Gpu(format!(
+                "the filters encoded {} steps, their buffer holds {}",
+                steps.len(),
+                targets.step_slots()
+            )));
+        }
+        let mut bytes = vec![0u8; steps.len() * STEP_STRIDE as usize];
+        for (k, s) in steps.iter().enumerate() {
+            let at = k * STEP_STRIDE as usize;
+            bytes[at..at + std::mem::size_of::<Step>()].copy_from_slice(bytemuck::bytes_of(s));
+        }
+        if !bytes.is_empty() {
+            queue.write_buffer(&targets.steps, 0, &bytes);
+        }
+        targets
+            .counters_readback
+            .record(encoder, &targets.counters, 0, COUNTERS * 4);
+        Ok(())
+    }
+}

@@ -1,0 +1,54 @@
+// A layer's texels from its depth and index planes, once per arena: each pixel whose point
+// lives in this arena takes that point's colour, opacity (by its class) and normal, turned to
+// face the eye. Marks the layer as holding a pixel.
+@group(0) @binding(0) var<uniform> frame: Frame;
+@group(0) @binding(2) var<storage, read> depths: array<u32>;
+@group(0) @binding(3) var<storage, read> indices: array<u32>;
+@group(0) @binding(4) var<storage, read_write> texels: array<Texel>;
+@group(0) @binding(5) var<storage, read_write> counters: array<u32>;
+@group(1) @binding(0) var<storage, read> points: array<vec4<u32>>;
+@group(1) @binding(1) var<storage, read> ranges: array<Range>;
+@group(1) @binding(2) var<storage, read> attributes: array<u32>;
+@group(1) @binding(3) var<storage, read> normals: array<u32>;
+@group(2) @binding(0) var<uniform> step: Step;
+
+fn point_opacity(a: u32) -> f32 {
+    let c = attribute_class(a);
+    if c >= CLASSES {
+        return fil.opacity;
+    }
+    return fil.opacity * fil.class_opacity[c / 4u][c % 4u];
+}
+
+@compute @workgroup_size(16, 16)
+fn main(@builtin(global_invocation_id) id: vec3<u32>) {
+    if id.x >= frame.width || id.y >= frame.height {
+        return;
+    }
+    let i = id.y * frame.width + id.x;
+    var depth = depths[i];
+    var g = indices[i];
+    if step.complemented != 0u {
+        depth = ~depth;
+        g = ~g;
+    }
+    if depth == EMPTY || (g >> frame.arena_shift) != ranges[0].start {
+        return;
+    }
+    let local = g & ((1u << frame.arena_shift) - 1u);
+    let p = points[local];
+    let a = attributes[local];
+    let rgb = point_colour(p, a);
+    var t = Texel(depth, pack4x8unorm(vec4<f32>(rgb, point_opacity(a))), 0u, 0u);
+    let w = normals[local];
+    if fil.normals != 0u && w != 0u {
+        var n = decode_oct16(w);
+        if dot(n, fil.eye.xyz - bitcast<vec3<f32>>(p.xyz)) < 0.0 {
+            n = -n;
+        }
+        t.z = encode_oct16(n);
+        t.w = 1u;
+    }
+    texels[i] = t;
+    counters[step.layer] = 1u;
+}

@@ -1,0 +1,70 @@
+// The filters pipeline's uniforms (paper 004), its per-pixel layer record and the step each
+// dispatch belongs to.
+
+struct Filters {
+    // The eye; a pixel's ray is forward + ndc.x * right + ndc.y * up, so that the point at
+    // linear depth d along it is eye + d * ray.
+    eye: vec4<f32>,
+    forward: vec4<f32>,
+    right: vec4<f32>,
+    up: vec4<f32>,
+    // w 0: the headlight; w 1: xyz is the unit direction towards a light fixed in the world.
+    light: vec4<f32>,
+    // Opacity of a point of class c: class_opacity[c / 4][c % 4] (classes from CLASSES on: [0].x
+    // is not used for them, see `point_opacity`).
+    class_opacity: array<vec4<f32>, 5>,
+    // The minimum distance between two surface layers (section 3.3), in dataset units.
+    dtilde: f32,
+    // ANTIALIAS_*.
+    antialias: u32,
+    // 1: the points carry normals (else the shading estimates them from the filled depth).
+    normals: u32,
+    // The opacity of classes without an entry of their own.
+    opacity: f32,
+}
+
+@group(0) @binding(1) var<uniform> fil: Filters;
+
+// Classes with an opacity of their own (the ASPRS standard classes 0 to 18).
+const CLASSES: u32 = 19u;
+const ANTIALIAS_OFF: u32 = 0u;
+const ANTIALIAS_SILHOUETTES: u32 = 1u;
+const ANTIALIAS_EDGES: u32 = 2u;
+
+// What one dispatch works on: its layer and fill iteration, and for the resolve whether its
+// depth and index planes hold complements (the peeled layers) or the projection's planes.
+struct Step {
+    layer: u32,
+    iteration: u32,
+    // ARGS_* for the dispatch-arguments pass.
+    kind: u32,
+    complemented: u32,
+}
+
+const ARGS_LAYER: u32 = 0u;
+const ARGS_BACKGROUND: u32 = 1u;
+const ARGS_OCCLUDED: u32 = 2u;
+
+// Layers at most; fill iterations at most (per kind and layer).
+const MAX_LAYERS: u32 = 8u;
+const MAX_ITERATIONS: u32 = 16u;
+// The counters: per layer 1 where it holds a pixel, then per layer, kind and iteration 1 where
+// the iteration changed a pixel.
+const COUNTERS: u32 = 264u;
+
+fn changed_slot(layer: u32, kind: u32, iteration: u32) -> u32 {
+    return MAX_LAYERS + (layer * 2u + kind - 1u) * MAX_ITERATIONS + iteration;
+}
+
+// One pixel of a layer: x linear depth bits (0: background, as in the paper), y colour (RGBA8,
+// alpha the opacity), z the normal (oct16, world space, facing the eye), w 1 where z holds one.
+alias Texel = vec4<u32>;
+
+fn encode_oct16(n: vec3<f32>) -> u32 {
+    var p = n.xy / (abs(n.x) + abs(n.y) + abs(n.z));
+    if n.z < 0.0 {
+        let s = select(vec2<f32>(-1.0), vec2<f32>(1.0), p >= vec2<f32>(0.0));
+        p = (1.0 - abs(p.yx)) * s;
+    }
+    return pack2x16unorm(p * 0.5 + 0.5);
+}
