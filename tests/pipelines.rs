@@ -331,12 +331,41 @@ fn frame_passes(args: &[&str], stats: &Path) -> Vec<String> {
         .collect()
 }
 
+/// A fly-through of two views of `ds` (from `strata info`'s bounds), written beside it.
+fn moving_path(ds: &Path) -> PathBuf {
+    let o = common::run_ok(&["info", s(ds)]);
+    let info = String::from_utf8_lossy(&o.stdout).to_string();
+    let corner = |label: &str| -> Vec<f64> {
+        let line = info
+            .lines()
+            .find(|l| {
+                l.contains(label) && (l.starts_with("bounds") || l.trim_start().starts_with(label))
+            })
+            .unwrap_or_else(|| panic!("no {label} bounds in {info}"));
+        let words: Vec<&str> = line.split_whitespace().collect();
+        let at = words.iter().position(|w| *w == label).expect("label") + 1;
+        words[at..at + 3]
+            .iter()
+            .map(|w| w.parse().expect("a number"))
+            .collect()
+    };
+    let (lo, hi) = (corner("min"), corner("max"));
+    let c: Vec<f64> = (0..3).map(|k| (lo[k] + hi[k]) / 2.0).collect();
+    let r = (hi[0] - lo[0]).max(hi[1] - lo[1]);
+    let key = |dx: f64| serde_json::json!({"eye": [c[0] + dx * r, c[1] - r, c[2] + r], "target": c, "fov": 50.0});
+    let path = ds.with_file_name("moving.json");
+    let json = serde_json::json!({"keyframes": [key(-0.5), key(0.5)]});
+    std::fs::write(&path, json.to_string()).expect("path written");
+    path
+}
+
 #[test]
 fn every_declared_pass_runs_and_the_stats_list_them_in_run_order() {
     let ds = &dataset();
     let dir = ds.parent().expect("parent");
     let stats = dir.join("passes.json");
     let out = dir.join("passes.png");
+    let path = moving_path(ds);
     for p in registry() {
         let name = p["name"].as_str().expect("name");
         let declared: Vec<&str> = p["passes"]
@@ -351,16 +380,24 @@ fn every_declared_pass_runs_and_the_stats_list_them_in_run_order() {
             .chain(declared.iter().copied())
             .collect();
         let mut seen = std::collections::BTreeSet::new();
-        // A depth-peeling pipeline runs its peel from the second layer on.
-        let peels = p["params"]
-            .as_array()
-            .is_some_and(|a| a.iter().any(|s| s["name"] == "layers"));
-        let runs: &[&[&str]] = if peels {
-            &[&[], &["--separate-passes"], &["--set", "layers=2"]]
-        } else {
-            &[&[], &["--separate-passes"]]
+        // Passes that run only where a parameter asks: a depth-peeling pipeline's peel from
+        // the second layer on, its shadows where they are on.
+        let has = |param: &str| {
+            p["params"]
+                .as_array()
+                .is_some_and(|a| a.iter().any(|s| s["name"] == param))
         };
-        for extra in runs.iter().copied() {
+        let mut runs: Vec<&[&str]> = vec![&[], &["--separate-passes"]];
+        if has("layers") {
+            runs.push(&["--set", "layers=2"]);
+        }
+        // Shadows are computed when the view or what is drawn changes: a moving camera, one
+        // light sample a frame.
+        let moving = ["--set", "shadows=2", "--path", s(&path), "--frames", "2"];
+        if has("shadows") {
+            runs.push(&moving);
+        }
+        for extra in runs {
             let mut args = vec![
                 "render",
                 s(ds),

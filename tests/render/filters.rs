@@ -272,3 +272,136 @@ fn class_opacities_and_without_normals_every_surface_is_a_layer() {
         "the first layer's surface is kept for the harness ({holes:.4} empty)"
     );
 }
+
+/// A grey ground (3 x 3, z = 0) under a plate (0.6 x 0.6 at z = 0.6), points 0.01 apart with
+/// normals up, as a PLY.
+fn plate_over_ground() -> &'static Path {
+    static CELL: OnceLock<PathBuf> = OnceLock::new();
+    CELL.get_or_init(|| {
+        let dir = Path::new(env!("CARGO_TARGET_TMPDIR")).join("render-filters-shadow");
+        let _ = std::fs::remove_dir_all(&dir);
+        std::fs::create_dir_all(&dir).expect("fixture dir");
+        let mut pts = Vec::new();
+        let step = 0.01;
+        for (half, z) in [(1.5, 0.0), (0.3, 0.6)] {
+            let n = (2.0 * half / step) as i32;
+            for i in 0..=n {
+                for j in 0..=n {
+                    pts.push([-half + i as f64 * step, -half + j as f64 * step, z]);
+                }
+            }
+        }
+        let ply = dir.join("plate.ply");
+        let mut out = std::io::BufWriter::new(std::fs::File::create(&ply).expect("ply"));
+        write!(
+            out,
+            "ply\nformat binary_little_endian 1.0\nelement vertex {}\nproperty float x\nproperty float y\nproperty float z\nproperty uchar red\nproperty uchar green\nproperty uchar blue\nproperty float nx\nproperty float ny\nproperty float nz\nend_header\n",
+            pts.len()
+        )
+        .expect("header");
+        for p in &pts {
+            for v in p {
+                out.write_all(&(*v as f32).to_le_bytes()).expect("write");
+            }
+            out.write_all(&[180, 180, 180]).expect("write");
+            for v in [0.0f32, 0.0, 1.0] {
+                out.write_all(&v.to_le_bytes()).expect("write");
+            }
+        }
+        drop(out);
+        let ds = dir.join("plate.strata");
+        common::run_ok(&["convert", s(&ply), "-o", s(&ds), "--quiet"]);
+        ds
+    })
+}
+
+/// The plate scene seen from above, lit from +x and above; the image and the pixel of each
+/// ground point asked for.
+fn shadow_shot(set: &[&str], ground: &[[f32; 2]]) -> (Vec<[u8; 3]>, Vec<usize>) {
+    let ds = Arc::new(StreamDataset::open_path(plate_over_ground()).expect("dataset opens"));
+    let ctx = Arc::new(GpuContext::new(ProjectionPath::Auto).expect("GPU adapter"));
+    let mut r = Renderer::new(ctx, ds.clone(), 1 << 30, 1).expect("renderer");
+    let anchor = ds.anchor().as_vec3();
+    let camera = Camera {
+        eye: glam::Vec3::new(0.0, -0.5, 4.0) - anchor,
+        target: -anchor,
+        fov_y: 45f32.to_radians(),
+    };
+    let mut settings = Settings {
+        budget: 10_000_000,
+        ..Settings::default()
+    };
+    settings.set_pipeline("filters").expect("pipeline");
+    for a in ["light=1,0,1"].iter().chain(set) {
+        settings.set_param(a).expect("parameter");
+    }
+    paths::frame_until_complete(&mut r, &camera, W, H, &settings);
+    r.frame(&camera, W, H, &settings).expect("frame");
+    r.wait_gpu().expect("GPU");
+    let (_, _, rgba) = r.read_image().expect("image");
+    let view_proj =
+        glam::camera::rh::proj::directx::perspective(camera.fov_y, W as f32 / H as f32, 0.1, 100.0)
+            * camera.view();
+    let pixels = ground
+        .iter()
+        .map(|[x, y]| {
+            let clip = view_proj * (glam::Vec3::new(*x, *y, 0.0) - anchor).extend(1.0);
+            let ndc = clip.truncate() / clip.w;
+            let px = ((ndc.x * 0.5 + 0.5) * W as f32) as usize;
+            let py = ((0.5 - ndc.y * 0.5) * H as f32) as usize;
+            py * W as usize + px
+        })
+        .collect();
+    (
+        rgba.chunks_exact(4).map(|p| [p[0], p[1], p[2]]).collect(),
+        pixels,
+    )
+}
+
+fn grey(p: [u8; 3]) -> f32 {
+    p.iter().map(|&c| c as f32).sum::<f32>() / 3.0
+}
+
+#[test]
+fn the_plate_shades_the_ground_hard_and_soft() {
+    // The light from +x at 45°: the plate's shadow lies 0.6 towards -x, x in [-0.9, -0.3].
+    let ground = [[-0.6, 0.0], [0.6, 0.0], [-0.6, 0.8]];
+    let (plain, at) = shadow_shot(&[], &ground);
+    let (hard, _) = shadow_shot(&["shadows=1"], &ground);
+    let [shadowed, lit, beside] = [at[0], at[1], at[2]].map(|i| grey(hard[i]));
+    let albedo = 180.0;
+    assert!(
+        (shadowed - albedo * 0.25).abs() < 12.0,
+        "in the shadow only the ambient term: {shadowed} (lit {lit})"
+    );
+    assert!(
+        lit > 2.0 * shadowed && beside > 2.0 * shadowed,
+        "{shadowed} {lit} {beside}"
+    );
+    assert!(
+        (grey(plain[at[1]]) - lit).abs() < 4.0,
+        "a lit point is lit as without shadows: {} against {lit}",
+        grey(plain[at[1]])
+    );
+    // Soft: across the shadow's edge at x = -0.3 the light's share rises monotonically.
+    let across: Vec<[f32; 2]> = (0..=40).map(|k| [-0.6 + 0.015 * k as f32, 0.0]).collect();
+    let (soft, line) = shadow_shot(
+        &["shadows=2", "shadow_samples=16", "light_size=20"],
+        &across,
+    );
+    let values: Vec<f32> = line.iter().map(|&i| grey(soft[i])).collect();
+    let dips = values
+        .windows(3)
+        .filter(|w| w[1] < w[0] - 2.0 && w[1] < w[2] - 2.0)
+        .count();
+    assert_eq!(dips, 0, "speckle across the penumbra: {values:?}");
+    let (first, last) = (values[0], values[values.len() - 1]);
+    let middle = values
+        .iter()
+        .filter(|v| **v > first + 8.0 && **v < last - 8.0)
+        .count();
+    assert!(
+        last > 2.0 * first && middle >= 3,
+        "a penumbra, not a step: {values:?}"
+    );
+}

@@ -416,7 +416,7 @@ pub fn summary(rows: &[Row], conditions: &str) -> (String, bool) {
     md.push_str(&surfel_modes(rows));
     md.push_str("\n## Targets\n\n");
     let mut ok = true;
-    for reconstruction in ["pyramid", "surfels"] {
+    for reconstruction in ["pyramid", "surfels", "filters"] {
         let (targets, met) = check_targets(rows, reconstruction);
         md.push_str(&targets);
         ok &= met;

@@ -201,6 +201,8 @@ pub struct PipelineFrame<'a> {
     /// The projection culled back faces (the pipeline declared `cull_back_faces` and the
     /// dataset's normals mark them: `StreamDataset::normals_mark_back_faces`).
     pub back_faces_culled: bool,
+    /// The dataset's bounds, relative to the anchor.
+    pub bounds: [glam::Vec3; 2],
 }
 
 /// Per pixel, the unlit colour of the surface shown (`None`: background).

@@ -202,6 +202,7 @@ impl Renderer {
                     has_normals,
                     normals_outward,
                     back_faces_culled: cull,
+                    bounds: [bmin, bmax],
                 };
                 pipeline.encode(&frame, &mut encoder, timer)?;
             }

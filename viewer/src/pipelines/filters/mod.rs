@@ -7,6 +7,7 @@
 //! front to back with per-class opacities.
 
 mod passes;
+mod shadow;
 mod targets;
 
 use super::params::{Auto, ParamSpec, ResolvedParams, Scale};
@@ -53,7 +54,10 @@ const fn param(name: &'static str, help: &'static str, default: f32, min: f32, m
 /// neighbours (16 iterations on the bunny scans against 7 at four spacings).
 pub const DTILDE_SPACINGS: u32 = 4;
 
-static PARAMS: [ParamSpec; 27] = {
+/// Parameters before the per-class opacities.
+const OWN: usize = 11;
+
+static PARAMS: [ParamSpec; OWN + CLASSES] = {
     let own = [
         ParamSpec {
             name: "dtilde",
@@ -99,6 +103,30 @@ static PARAMS: [ParamSpec; 27] = {
         ),
         param("light.y", "direction towards the light, y", 0.0, -1.0, 1.0, Scale::Linear),
         param("light.z", "direction towards the light, z", 0.0, -1.0, 1.0, Scale::Linear),
+        param(
+            "shadows",
+            "point shadow textures: 0 off, 1 hard (a point light), 2 soft (an area light)",
+            0.0,
+            0.0,
+            2.0,
+            Scale::Integer,
+        ),
+        param(
+            "shadow_samples",
+            "light samples of soft shadows (Monte-Carlo over the area light)",
+            16.0,
+            1.0,
+            64.0,
+            Scale::Integer,
+        ),
+        param(
+            "light_size",
+            "the area light's angular diameter, degrees (soft shadows)",
+            5.0,
+            0.0,
+            45.0,
+            Scale::Linear,
+        ),
     ];
     let classes = class_opacities![
         0: "created, never classified",
@@ -121,7 +149,7 @@ static PARAMS: [ParamSpec; 27] = {
         17: "bridge deck",
         18: "high noise",
     ];
-    let mut all = [own[0]; 27];
+    let mut all = [own[0]; OWN + CLASSES];
     let mut k = 0;
     while k < own.len() {
         all[k] = own[k];
@@ -141,20 +169,35 @@ pub static INFO: PipelineInfo = PipelineInfo {
     paper: Some("004_d47bc4d6e82cf0e9.txt (Dobrev, Rosenthal, Linsen)"),
     lighting: Lighting::Headlight,
     params: &PARAMS,
-    streams: &[PointStream::Normals],
+    streams: &[PointStream::Normals, shadow::LIT_STREAM],
     // In the order they first run: the peel starts the second layer.
-    passes: &["filters resolve", "fill", "smooth", "filters shade", "peel"],
+    passes: &[
+        "shadows",
+        "filters resolve",
+        "fill",
+        "smooth",
+        "filters shade",
+        "peel",
+    ],
     previous_frame: false,
     cull_back_faces: true,
     screen_buffers: FiltersTargets::screen_buffers,
     create,
-    shaders: |_| passes::shaders(),
+    shaders: |_| {
+        let mut all = passes::shaders();
+        all.extend(shadow::shaders());
+        all
+    },
 };
 
 /// What the pipeline says where it cannot cull: without normals, and with normals that may
 /// face into a surface.
 pub const NO_NORMALS: &str = "the dataset has no normals (convert with --normals): no back-face culling, normals estimated from the filled depth";
 pub const NOT_OUTWARD: &str = "the dataset's normals are not known to face out of every surface (computed with --orient up or none; kept or --orient scanner normals are): no back-face culling";
+
+/// `shadows`: off, hard, soft.
+const SHADOWS_OFF: u32 = 0;
+const SHADOWS_HARD: u32 = 1;
 
 /// The measures it reports.
 pub const LAYERS_USED: &str = "layers_used";
@@ -163,6 +206,7 @@ pub const OCCLUDED_ITERATIONS: &str = "occluded_fill_iterations";
 
 struct Filters {
     passes: FiltersPasses,
+    shadows: shadow::Shadows,
     targets: Option<FiltersTargets>,
     note: Option<&'static str>,
     counts: Option<LayerCounts>,
@@ -171,6 +215,7 @@ struct Filters {
 fn create(ctx: &GpuContext) -> Result<Box<dyn Pipeline>, ViewerError> {
     Ok(Box::new(Filters {
         passes: FiltersPasses::new(ctx)?,
+        shadows: shadow::Shadows::new(&ctx.device)?,
         targets: None,
         note: None,
         counts: None,
@@ -216,7 +261,7 @@ pub fn uniforms(view: &ViewFrame, params: &ResolvedParams, has_normals: bool) ->
     };
     let mut class_opacity = [[1.0f32; 4]; 5];
     for c in 0..CLASSES {
-        class_opacity[c / 4][c % 4] = value(params, PARAMS[8 + c].name);
+        class_opacity[c / 4][c % 4] = value(params, PARAMS[OWN + c].name);
     }
     FiltersUniforms {
         eye: world.w_axis.to_array(),
@@ -229,6 +274,10 @@ pub fn uniforms(view: &ViewFrame, params: &ResolvedParams, has_normals: bool) ->
         antialias: value(params, "antialias") as u32,
         normals: has_normals as u32,
         opacity: value(params, "opacity"),
+        lit_scale: 0.0,
+        pad0: 0.0,
+        pad1: 0.0,
+        pad2: 0.0,
     }
 }
 
@@ -244,6 +293,7 @@ impl Pipeline for Filters {
     fn release_targets(&mut self) {
         self.targets = None;
         self.counts = None;
+        self.shadows.reset();
     }
 
     fn encode(
@@ -266,7 +316,28 @@ impl Pipeline for Filters {
             fill_iterations: value(frame.params, "fill_iterations") as u32,
             cull: frame.back_faces_culled,
         };
-        let u = uniforms(frame.view, frame.params, frame.has_normals);
+        let mut u = uniforms(frame.view, frame.params, frame.has_normals);
+        let mode = value(frame.params, "shadows") as u32;
+        if mode != SHADOWS_OFF {
+            // With the headlight the light comes from the eye: nothing seen is in shadow.
+            let light = match u.light {
+                [x, y, z, w] if w != 0.0 => glam::Vec3::new(x, y, z),
+                _ => -glam::Vec3::from_slice(&u.forward[..3]),
+            };
+            let setup = shadow::ShadowSetup {
+                samples: if mode == SHADOWS_HARD {
+                    1
+                } else {
+                    value(frame.params, "shadow_samples") as u32
+                },
+                light,
+                light_size: value(frame.params, "light_size").to_radians(),
+                dtilde: u.dtilde,
+                normals: frame.has_normals,
+                bounds: frame.bounds,
+            };
+            u.lit_scale = self.shadows.encode(frame, encoder, &setup, timer)?;
+        }
         self.passes.encode(frame, encoder, targets, &u, &setup, timer)
     }
 

@@ -12,6 +12,7 @@ use crate::pipelines::projection::{
     PROJECT_WGSL, RANGE_SEARCH_WGSL, pixel_groups, split_groups,
 };
 use crate::pipelines::shader::ShaderSource;
+use super::shadow::LIT_STREAM;
 use crate::pipelines::{LIGHTING_WGSL, PipelineFrame, PointStream};
 use bytemuck::{Pod, Zeroable};
 
@@ -22,6 +23,8 @@ const REACH_NORMAL_WGSL: &str = include_str!("reach_normal.wgsl");
 const REACH_FLAT_WGSL: &str = include_str!("reach_flat.wgsl");
 const RESOLVE_WGSL: &str = include_str!("resolve.wgsl");
 const FILL_WGSL: &str = include_str!("fill.wgsl");
+/// The hole filling's 3x3 masks, shared with the light map's fill.
+pub(super) const MASKS_WGSL: &str = include_str!("masks.wgsl");
 const SMOOTH_WGSL: &str = include_str!("smooth.wgsl");
 const SHADE_WGSL: &str = include_str!("shade.wgsl");
 const ARGS_WGSL: &str = include_str!("args.wgsl");
@@ -55,6 +58,10 @@ pub struct FiltersUniforms {
     pub antialias: u32,
     pub normals: u32,
     pub opacity: f32,
+    pub lit_scale: f32,
+    pub pad0: f32,
+    pub pad1: f32,
+    pub pad2: f32,
 }
 
 /// What one dispatch works on, laid out as `Step` in uniforms.wgsl.
@@ -91,8 +98,10 @@ pub fn shaders() -> Vec<ShaderSource> {
             "filters resolve",
             &[UNIFORMS_WGSL, COLOUR_WGSL, OCT16_WGSL, RESOLVE_WGSL],
         ),
-        ShaderSource::new("fill background", &[UNIFORMS_WGSL, FILL_WGSL]).with_entry("background"),
-        ShaderSource::new("fill occluded", &[UNIFORMS_WGSL, FILL_WGSL]).with_entry("occluded"),
+        ShaderSource::new("fill background", &[UNIFORMS_WGSL, MASKS_WGSL, FILL_WGSL])
+            .with_entry("background"),
+        ShaderSource::new("fill occluded", &[UNIFORMS_WGSL, MASKS_WGSL, FILL_WGSL])
+            .with_entry("occluded"),
         ShaderSource::new("smooth", &[UNIFORMS_WGSL, OCT16_WGSL, SMOOTH_WGSL]),
         ShaderSource::new(
             "filters shade",
@@ -187,7 +196,7 @@ impl FiltersPasses {
         encoder.clear_buffer(&targets.counters, 0, None);
         encoder.clear_buffer(&targets.accum, 0, None);
 
-        let arenas: Vec<(ArenaGroup, [&wgpu::Buffer; 3], &wgpu::Buffer)> = frame
+        let arenas: Vec<(ArenaGroup, [&wgpu::Buffer; 4], &wgpu::Buffer)> = frame
             .arenas
             .iter()
             .map(|d| {
@@ -196,17 +205,19 @@ impl FiltersPasses {
                     .arenas
                     .get(d.arena as usize)
                     .ok_or_else(|| ViewerError::Gpu(format!("arena {} is not resident", d.arena)))?;
-                let normals = a
-                    .streams
-                    .iter()
-                    .find(|(s, _)| *s == PointStream::Normals)
-                    .map(|(_, b)| b)
-                    .ok_or_else(|| {
-                        ViewerError::Gpu(format!("arena {} holds no normals stream", d.arena))
-                    })?;
+                let stream = |want: PointStream| {
+                    a.streams
+                        .iter()
+                        .find(|(s, _)| *s == want)
+                        .map(|(_, b)| b)
+                        .ok_or_else(|| {
+                            ViewerError::Gpu(format!("arena {} holds no {want:?} stream", d.arena))
+                        })
+                };
+                let normals = stream(PointStream::Normals)?;
                 Ok((
                     ArenaGroup::new(device, d, GROUP_SIZE),
-                    [&a.points, &a.attributes, normals],
+                    [&a.points, &a.attributes, normals, stream(LIT_STREAM)?],
                     normals,
                 ))
             })
@@ -276,7 +287,7 @@ impl FiltersPasses {
                 for (pipe, group) in [(&peel.depth, &depth_group), (&peel.index, &index_group)] {
                     pass.set_pipeline(pipe);
                     pass.set_bind_group(0, group, &[]);
-                    for (g, [points, attributes, _], normals) in &arenas {
+                    for (g, [points, attributes, _, _], normals) in &arenas {
                         if g.groups == 0 {
                             continue;
                         }
@@ -338,7 +349,7 @@ impl FiltersPasses {
                 pass.set_pipeline(&self.resolve);
                 pass.set_bind_group(0, &fb, &[]);
                 pass.set_bind_group(2, &sb, &[]);
-                for (g, [points, attributes, normals], _) in &arenas {
+                for (g, [points, attributes, normals, lit], _) in &arenas {
                     if g.groups == 0 {
                         continue;
                     }
@@ -351,6 +362,7 @@ impl FiltersPasses {
                             (1, g.ranges.as_entire_binding()),
                             (2, attributes.as_entire_binding()),
                             (3, normals.as_entire_binding()),
+                            (4, lit.as_entire_binding()),
                         ],
                     );
                     pass.set_bind_group(1, &ab, &[]);

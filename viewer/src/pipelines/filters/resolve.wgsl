@@ -1,6 +1,6 @@
 // A layer's texels from its depth and index planes, once per arena: each pixel whose point
-// lives in this arena takes that point's colour, opacity (by its class) and normal, turned to
-// face the eye. Marks the layer as holding a pixel.
+// lives in this arena takes that point's colour, opacity (by its class), normal (turned to face
+// the eye) and share of the light. Marks the layer as holding a pixel.
 @group(0) @binding(0) var<uniform> frame: Frame;
 @group(0) @binding(2) var<storage, read> depths: array<u32>;
 @group(0) @binding(3) var<storage, read> indices: array<u32>;
@@ -10,6 +10,8 @@
 @group(1) @binding(1) var<storage, read> ranges: array<Range>;
 @group(1) @binding(2) var<storage, read> attributes: array<u32>;
 @group(1) @binding(3) var<storage, read> normals: array<u32>;
+// Per point: the light samples that reached it (shadow.wgsl).
+@group(1) @binding(4) var<storage, read> lit: array<f32>;
 @group(2) @binding(0) var<uniform> step: Step;
 
 fn point_opacity(a: u32) -> f32 {
@@ -39,7 +41,11 @@ fn main(@builtin(global_invocation_id) id: vec3<u32>) {
     let p = points[local];
     let a = attributes[local];
     let rgb = point_colour(p, a);
-    var t = Texel(depth, pack4x8unorm(vec4<f32>(rgb, point_opacity(a))), 0u, 0u);
+    var share = 1.0;
+    if fil.lit_scale > 0.0 {
+        share = lit[local] * fil.lit_scale;
+    }
+    var t = Texel(depth, pack4x8unorm(vec4<f32>(rgb, point_opacity(a))), 0u, with_lit(0u, share));
     let w = normals[local];
     if fil.normals != 0u && w != 0u {
         var n = decode_oct16(w);
@@ -47,7 +53,7 @@ fn main(@builtin(global_invocation_id) id: vec3<u32>) {
             n = -n;
         }
         t.z = encode_oct16(n);
-        t.w = 1u;
+        t.w |= 1u;
     }
     texels[i] = t;
     counters[step.layer] = 1u;

@@ -55,7 +55,7 @@ fn tangent(q: vec2<i32>, d: f32, axis: vec2<i32>) -> vec3<f32> {
 // The unit normal of texel `t` at `q`, facing the eye.
 fn normal_of(t: Texel, q: vec2<i32>, to_eye: vec3<f32>) -> vec3<f32> {
     var n = to_eye;
-    if t.w != 0u {
+    if (t.w & 1u) != 0u {
         n = decode_oct16(t.z);
     } else {
         let d = bitcast<f32>(t.x);
@@ -71,10 +71,12 @@ fn lit_colour(t: Texel, q: vec2<i32>) -> vec3<f32> {
     let to_eye = -normalize(pixel_ray(vec2<f32>(q) + 0.5));
     let n = normal_of(t, q, to_eye);
     let rgb = unpack4x8unorm(t.y).rgb;
-    if fil.light.w == 0.0 {
+    if fil.light.w == 0.0 && fil.lit_scale == 0.0 {
         return headlight(rgb, n, to_eye);
     }
-    return phong(rgb, n, to_eye, fil.light.xyz, 1.0);
+    // Section 6: c = k_a + m (k_d + k_s), m the share of the light that reaches the point.
+    let l = select(to_eye, fil.light.xyz, fil.light.w != 0.0);
+    return phong(rgb, n, to_eye, l, texel_lit(t));
 }
 
 const AXES = array<vec2<i32>, 4>(vec2<i32>(1, 0), vec2<i32>(-1, 0), vec2<i32>(0, 1), vec2<i32>(0, -1));

@@ -35,7 +35,11 @@ fn uniforms_steps_and_constants_match_their_wgsl() {
                 dtilde,
                 antialias,
                 normals,
-                opacity
+                opacity,
+                lit_scale,
+                pad0,
+                pad1,
+                pad2
             }),
             "FiltersUniforms against Filters (uniforms.wgsl) in {label}"
         );

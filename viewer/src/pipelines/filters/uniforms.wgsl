@@ -21,6 +21,11 @@ struct Filters {
     normals: u32,
     // The opacity of classes without an entry of their own.
     opacity: f32,
+    // 1 / the light samples summed in each point's lit count; 0: no shadows (every point lit).
+    lit_scale: f32,
+    pad0: f32,
+    pad1: f32,
+    pad2: f32,
 }
 
 @group(0) @binding(1) var<uniform> fil: Filters;
@@ -57,8 +62,17 @@ fn changed_slot(layer: u32, kind: u32, iteration: u32) -> u32 {
 }
 
 // One pixel of a layer: x linear depth bits (0: background, as in the paper), y colour (RGBA8,
-// alpha the opacity), z the normal (oct16, world space, facing the eye), w 1 where z holds one.
+// alpha the opacity), z the normal (oct16, world space, facing the eye), w: bit 0 set where z
+// holds one, bits 16 to 31 the share of the light that reaches the point (unorm16).
 alias Texel = vec4<u32>;
+
+fn texel_lit(t: Texel) -> f32 {
+    return f32(t.w >> 16u) / 65535.0;
+}
+
+fn with_lit(w: u32, lit: f32) -> u32 {
+    return (w & 0xffffu) | (u32(clamp(lit, 0.0, 1.0) * 65535.0 + 0.5) << 16u);
+}
 
 fn encode_oct16(n: vec3<f32>) -> u32 {
     var p = n.xy / (abs(n.x) + abs(n.y) + abs(n.z));

@@ -1,0 +1,402 @@
+//! Point shadow textures (paper 004, section 6): per light sample, the drawn points splatted
+//! into a light map along the light, its occluded pixels filled, and every point within Δd of
+//! the front layer counted lit, in a per-point stream beside the node arenas. Soft shadows
+//! average samples spread over an area light (Monte-Carlo). The counts are kept between frames
+//! and added to progressively (one sample a frame while the view moves, the rest once it
+//! stops); they start again when the light, the parameters or the drawn points change.
+
+use super::DTILDE_SPACINGS;
+use crate::ViewerError;
+use crate::gpu::timing::Timer;
+use crate::pipelines::projection::{
+    ArenaGroup, FILTERS_WGSL, GROUP_SIZE, OCT16_WGSL, RANGE_SEARCH_WGSL, pixel_groups,
+    plane_buffer, split_groups,
+};
+use crate::pipelines::shader::ShaderSource;
+use crate::pipelines::{PipelineFrame, PointStream};
+use bytemuck::{Pod, Zeroable};
+use glam::Vec3;
+use std::hash::{Hash, Hasher};
+
+const SHADOW_UNIFORMS_WGSL: &str = include_str!("shadow_uniforms.wgsl");
+const SHADOW_WGSL: &str = include_str!("shadow.wgsl");
+const SHADOW_FILL_WGSL: &str = include_str!("shadow_fill.wgsl");
+
+/// The light map's side at most, in pixels.
+pub const MAX_MAP: u32 = 2048;
+const MIN_MAP: u32 = 64;
+/// Occluded-fill iterations on the light map: its pixels are about a point spacing, so the gaps
+/// it must close are a pixel or two across.
+const FILL_ITERATIONS: u32 = 4;
+/// Samples one frame computes at most (the uniforms' slots).
+const SAMPLES_PER_FRAME: u64 = 64;
+const SLOT: u64 = 256;
+/// The per-point stream of lit counts.
+pub const LIT_STREAM: PointStream = PointStream::Kept { bytes: 4 };
+
+/// One light sample's uniforms, laid out as `Shadow` in shadow_uniforms.wgsl.
+#[repr(C)]
+#[derive(Debug, Clone, Copy, Pod, Zeroable)]
+pub struct ShadowUniforms {
+    pub light: [f32; 4],
+    pub u_axis: [f32; 4],
+    pub v_axis: [f32; 4],
+    pub width: u32,
+    pub height: u32,
+    pub dtilde: f32,
+    pub normals: u32,
+}
+
+/// Every module the shadows compile.
+pub fn shaders() -> Vec<ShaderSource> {
+    let points = [
+        SHADOW_UNIFORMS_WGSL,
+        FILTERS_WGSL,
+        RANGE_SEARCH_WGSL,
+        OCT16_WGSL,
+        SHADOW_WGSL,
+    ];
+    vec![
+        ShaderSource::new("shadow splat", &points).with_entry("splat"),
+        ShaderSource::new("shadow mark", &points).with_entry("mark"),
+        ShaderSource::new(
+            "shadow fill",
+            &[SHADOW_UNIFORMS_WGSL, super::passes::MASKS_WGSL, SHADOW_FILL_WGSL],
+        ),
+        ShaderSource::new(
+            "shadow clear",
+            &[SHADOW_UNIFORMS_WGSL, super::passes::MASKS_WGSL, SHADOW_FILL_WGSL],
+        )
+        .with_entry("clear"),
+    ]
+}
+
+/// What the frame asks of the shadows.
+#[derive(Debug, Clone, Copy)]
+pub struct ShadowSetup {
+    /// Light samples in all: 1 for hard shadows.
+    pub samples: u32,
+    /// Unit direction towards the light's centre.
+    pub light: Vec3,
+    /// The area light's angular diameter, radians (0: a point light).
+    pub light_size: f32,
+    pub dtilde: f32,
+    pub normals: bool,
+    /// The dataset's bounds, relative to the anchor.
+    pub bounds: [Vec3; 2],
+}
+
+/// The compiled passes and what is kept between frames.
+pub struct Shadows {
+    splat: wgpu::ComputePipeline,
+    mark: wgpu::ComputePipeline,
+    fill: wgpu::ComputePipeline,
+    clear: wgpu::ComputePipeline,
+    maps: Option<[wgpu::Buffer; 2]>,
+    uniforms: wgpu::Buffer,
+    /// What the kept counts were made for.
+    key: Option<u64>,
+    /// Samples summed in the kept counts.
+    done: u32,
+    last_view: Option<glam::Mat4>,
+}
+
+impl Shadows {
+    pub fn new(device: &wgpu::Device) -> Result<Shadows, ViewerError> {
+        let mut compiled = shaders().into_iter().map(|s| s.compute(device, None));
+        let mut next = || {
+            compiled
+                .next()
+                .ok_or_else(|| ViewerError::Gpu("a shadow shader is missing".into()))
+        };
+        Ok(Shadows {
+            splat: next()?,
+            mark: next()?,
+            fill: next()?,
+            clear: next()?,
+            maps: None,
+            uniforms: device.create_buffer(&wgpu::BufferDescriptor {
+                label: Some("shadow uniforms"),
+                size: SAMPLES_PER_FRAME * SLOT,
+                usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
+                mapped_at_creation: false,
+            }),
+            key: None,
+            done: 0,
+            last_view: None,
+        })
+    }
+
+    /// Forgets the kept counts (another screen, another pipeline).
+    pub fn reset(&mut self) {
+        self.key = None;
+        self.done = 0;
+        self.maps = None;
+    }
+
+    /// Adds this frame's samples to the kept counts; returns 1 / the samples summed (0: none).
+    pub fn encode(
+        &mut self,
+        frame: &PipelineFrame,
+        encoder: &mut wgpu::CommandEncoder,
+        setup: &ShadowSetup,
+        timer: &mut Timer,
+    ) -> Result<f32, ViewerError> {
+        let device = &frame.ctx.device;
+        let mut arenas = Vec::with_capacity(frame.arenas.len());
+        for d in frame.arenas {
+            let a = frame
+                .cache
+                .arenas
+                .get(d.arena as usize)
+                .ok_or_else(|| ViewerError::Gpu(format!("arena {} is not resident", d.arena)))?;
+            let stream = |want: PointStream| {
+                a.streams
+                    .iter()
+                    .find(|(s, _)| *s == want)
+                    .map(|(_, b)| b)
+                    .ok_or_else(|| {
+                        ViewerError::Gpu(format!("arena {} holds no {want:?} stream", d.arena))
+                    })
+            };
+            arenas.push((
+                ArenaGroup::new(device, d, GROUP_SIZE),
+                [
+                    &a.points,
+                    &a.attributes,
+                    stream(PointStream::Normals)?,
+                    stream(LIT_STREAM)?,
+                ],
+            ));
+        }
+        let key = key_of(frame, setup);
+        if self.key != Some(key) {
+            for (_, [_, _, _, lit]) in &arenas {
+                encoder.clear_buffer(lit, 0, None);
+            }
+            self.key = Some(key);
+            self.done = 0;
+        }
+        let moving = self.last_view.is_some_and(|v| v != frame.view.view);
+        self.last_view = Some(frame.view.view);
+        let todo = if self.done >= setup.samples {
+            0
+        } else if moving {
+            1
+        } else {
+            (setup.samples - self.done).min(SAMPLES_PER_FRAME as u32)
+        };
+        if todo == 0 {
+            return Ok(scale(self.done));
+        }
+        let map = light_map(setup);
+        let pixels = map.width as u64 * map.height as u64;
+        if self.maps.as_ref().is_none_or(|m| m[0].size() < pixels * 4) {
+            self.maps = Some([
+                plane_buffer(device, "light map a", pixels * 4),
+                plane_buffer(device, "light map b", pixels * 4),
+            ]);
+        }
+        let Some(maps) = &self.maps else {
+            return Ok(scale(self.done));
+        };
+        let mut slots = vec![0u8; (todo as u64 * SLOT) as usize];
+        let timestamp_writes = timer.pass(encoder, "shadows");
+        // One compute pass for every sample: the splat, fill and mark of each in turn.
+        let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
+            label: Some("shadows"),
+            timestamp_writes,
+        });
+        for k in 0..todo {
+            let u = map.sample(sample_direction(setup, self.done + k));
+            let at = (k as u64 * SLOT) as usize;
+            slots[at..at + std::mem::size_of::<ShadowUniforms>()]
+                .copy_from_slice(bytemuck::bytes_of(&u));
+            let uniform = wgpu::BindingResource::Buffer(wgpu::BufferBinding {
+                buffer: &self.uniforms,
+                offset: k as u64 * SLOT,
+                size: wgpu::BufferSize::new(std::mem::size_of::<ShadowUniforms>() as u64),
+            });
+            let per_point = |pass: &mut wgpu::ComputePass,
+                             pipe: &wgpu::ComputePipeline,
+                             map: &wgpu::Buffer,
+                             lit: bool| {
+                let frame_group = bind(
+                    device,
+                    pipe,
+                    0,
+                    &[
+                        (0, uniform.clone()),
+                        (1, map.as_entire_binding()),
+                        (2, frame.screen.uniforms.as_entire_binding()),
+                    ],
+                );
+                pass.set_pipeline(pipe);
+                pass.set_bind_group(0, &frame_group, &[]);
+                for (g, [points, attributes, normals, counts]) in &arenas {
+                    if g.groups == 0 {
+                        continue;
+                    }
+                    let mut entries = vec![
+                        (0, points.as_entire_binding()),
+                        (1, g.ranges.as_entire_binding()),
+                        (2, attributes.as_entire_binding()),
+                    ];
+                    if lit {
+                        entries.push((3, normals.as_entire_binding()));
+                        entries.push((4, counts.as_entire_binding()));
+                    }
+                    pass.set_bind_group(1, &bind(device, pipe, 1, &entries), &[]);
+                    let (x, y) = split_groups(g.groups);
+                    pass.dispatch_workgroups(x, y, 1);
+                }
+            };
+            let (gx, gy) = pixel_groups(map.width, map.height);
+            let full_screen =
+                |pass: &mut wgpu::ComputePass, pipe: &wgpu::ComputePipeline, from: &wgpu::Buffer, to: &wgpu::Buffer| {
+                    let mut entries = vec![(0, uniform.clone()), (2, to.as_entire_binding())];
+                    if std::ptr::eq(pipe, &self.fill) {
+                        entries.push((1, from.as_entire_binding()));
+                    }
+                    pass.set_pipeline(pipe);
+                    pass.set_bind_group(0, &bind(device, pipe, 0, &entries), &[]);
+                    pass.dispatch_workgroups(gx, gy, 1);
+                };
+            full_screen(&mut pass, &self.clear, &maps[1], &maps[0]);
+            per_point(&mut pass, &self.splat, &maps[0], false);
+            for i in 0..FILL_ITERATIONS as usize {
+                full_screen(&mut pass, &self.fill, &maps[i % 2], &maps[1 - i % 2]);
+            }
+            per_point(
+                &mut pass,
+                &self.mark,
+                &maps[(FILL_ITERATIONS % 2) as usize],
+                true,
+            );
+        }
+        drop(pass);
+        frame.ctx.queue.write_buffer(&self.uniforms, 0, &slots);
+        self.done += todo;
+        Ok(scale(self.done))
+    }
+}
+
+fn scale(done: u32) -> f32 {
+    if done == 0 { 0.0 } else { 1.0 / done as f32 }
+}
+
+type Entry<'a> = (u32, wgpu::BindingResource<'a>);
+
+fn bind(
+    device: &wgpu::Device,
+    pipe: &wgpu::ComputePipeline,
+    group: u32,
+    entries: &[Entry],
+) -> wgpu::BindGroup {
+    let entries: Vec<wgpu::BindGroupEntry> = entries
+        .iter()
+        .map(|(binding, resource)| wgpu::BindGroupEntry {
+            binding: *binding,
+            resource: resource.clone(),
+        })
+        .collect();
+    device.create_bind_group(&wgpu::BindGroupDescriptor {
+        label: Some("shadows"),
+        layout: &pipe.get_bind_group_layout(group),
+        entries: &entries,
+    })
+}
+
+/// What the kept counts depend on: the setup and the drawn ranges.
+fn key_of(frame: &PipelineFrame, setup: &ShadowSetup) -> u64 {
+    let mut h = std::hash::DefaultHasher::new();
+    setup.samples.hash(&mut h);
+    for v in [
+        setup.light.x,
+        setup.light.y,
+        setup.light.z,
+        setup.light_size,
+        setup.dtilde,
+    ] {
+        v.to_bits().hash(&mut h);
+    }
+    setup.normals.hash(&mut h);
+    for d in frame.arenas {
+        d.arena.hash(&mut h);
+        for r in &d.ranges {
+            (r.start, r.count).hash(&mut h);
+        }
+    }
+    h.finish()
+}
+
+/// The light map's frame: the plane across the light and its pixel size.
+#[derive(Debug, Clone, Copy)]
+pub struct LightMap {
+    pub width: u32,
+    pub height: u32,
+    pixel: f32,
+    bounds: [Vec3; 2],
+    dtilde: f32,
+    normals: bool,
+}
+
+/// A light map over the bounds with pixels of about a point spacing (d~ / DTILDE_SPACINGS),
+/// coarser where the bounds need more than `MAX_MAP` of them. Its extent is the same for every
+/// direction of an area light: the bounds' diagonal.
+pub fn light_map(setup: &ShadowSetup) -> LightMap {
+    let extent = (setup.bounds[1] - setup.bounds[0]).length().max(1e-6);
+    let wanted = (setup.dtilde / DTILDE_SPACINGS as f32).max(extent / MAX_MAP as f32);
+    let side = ((extent / wanted).ceil() as u32).clamp(MIN_MAP, MAX_MAP);
+    LightMap {
+        width: side,
+        height: side,
+        pixel: extent / side as f32,
+        bounds: setup.bounds,
+        dtilde: setup.dtilde,
+        normals: setup.normals,
+    }
+}
+
+impl LightMap {
+    /// The uniforms for light direction `l` (unit, towards the light).
+    pub fn sample(&self, l: Vec3) -> ShadowUniforms {
+        let (u, v) = l.any_orthonormal_pair();
+        let centre = (self.bounds[0] + self.bounds[1]) * 0.5;
+        let half = self.width as f32 * self.pixel * 0.5;
+        let corners = (0..8).map(|k| {
+            Vec3::new(
+                if k & 1 == 0 { self.bounds[0].x } else { self.bounds[1].x },
+                if k & 2 == 0 { self.bounds[0].y } else { self.bounds[1].y },
+                if k & 4 == 0 { self.bounds[0].z } else { self.bounds[1].z },
+            )
+        });
+        let top = corners.map(|c| c.dot(l)).fold(f32::MIN, f32::max);
+        let axis = |a: Vec3| {
+            let s = a / self.pixel;
+            [s.x, s.y, s.z, (centre.dot(a) - half) / self.pixel]
+        };
+        ShadowUniforms {
+            light: [l.x, l.y, l.z, top],
+            u_axis: axis(u),
+            v_axis: axis(v),
+            width: self.width,
+            height: self.height,
+            dtilde: self.dtilde,
+            normals: self.normals as u32,
+        }
+    }
+}
+
+/// Sample `k` of the area light: directions over the disc of its angular size, spread evenly
+/// (a Fibonacci spiral, the same every time, so that a still picture does not flicker).
+pub fn sample_direction(setup: &ShadowSetup, k: u32) -> Vec3 {
+    let l = setup.light.normalize_or(Vec3::Z);
+    if setup.samples <= 1 || setup.light_size <= 0.0 {
+        return l;
+    }
+    let radius = (setup.light_size * 0.5).tan() * ((k as f32 + 0.5) / setup.samples as f32).sqrt();
+    let angle = k as f32 * std::f32::consts::PI * (3.0 - 5f32.sqrt());
+    let (u, v) = l.any_orthonormal_pair();
+    (l + radius * (angle.cos() * u + angle.sin() * v)).normalize()
+}
