@@ -1,6 +1,6 @@
 //! The quality harness end to end in its quick mode on the software adapter: every output is
-//! written, every number is finite, on the bunny the pyramid and the surfels fill what
-//! one-pixel points leave open, and c-surfels pull the outline in.
+//! written, every number is finite, on the bunny the pyramid, the surfels and the filters fill
+//! what one-pixel points leave open, and c-surfels pull the outline in.
 
 use std::collections::HashMap;
 use std::process::Command;
@@ -117,12 +117,43 @@ fn quick_run_writes_the_table_the_charts_and_the_images() {
         pyramid_leak < 0.05 && pyramid_leak < edl_leak * 0.5,
         "nested spheres: pyramid leaks {pyramid_leak}, edl 2px {edl_leak}"
     );
+    // The filters close what one-pixel points leave open where there is about a point per
+    // pixel (their 3x3 masks cannot tell a gap several pixels wide from the outside, so at one
+    // point per ten pixels they do not), shade better than eye-dome lighting there, and do
+    // not let the inner sphere through the outer one's gaps.
+    let at = |scene: &str, pipeline: &str, setting: &str, column: usize| {
+        rows.iter()
+            .find(|r| {
+                r[0].starts_with(scene) && r[1] == pipeline && r[2] == setting && r[4] == "1.0000"
+            })
+            .and_then(|r| r[column].parse::<f64>().ok())
+            .unwrap_or(f64::NAN)
+    };
+    for scene in ["bunny/", "spot/"] {
+        let (filters, points) = (
+            at(scene, "filters", "1px", 12),
+            at(scene, "points", "1px", 12),
+        );
+        assert!(
+            filters <= 0.5 * points && filters < 0.02,
+            "{scene}: filters leave {filters} open, points {points}"
+        );
+        let ssim = at(scene, "filters", "1px", 7);
+        let edl = at(scene, "edl", "1px", 7).max(at(scene, "edl", "2px", 7));
+        assert!(ssim > edl, "{scene}: filters SSIM {ssim}, edl {edl}");
+    }
+    let filters_leak = leak("filters", "1px");
+    assert!(
+        filters_leak < 0.05 && filters_leak < edl_leak * 0.5,
+        "nested spheres: filters leak {filters_leak}, edl 2px {edl_leak}"
+    );
     // Each pipeline is scored against the light it uses: points are unlit, so their shaded
     // image is scored against the mesh's albedo, exactly as their albedo is.
     let lighting: HashMap<&str, &str> = rows.iter().map(|r| (r[1], r[3])).collect();
     assert_eq!(lighting.get("points"), Some(&"none"));
     assert_eq!(lighting.get("edl"), Some(&"eye-dome"));
     assert_eq!(lighting.get("pyramid"), Some(&"headlight Blinn-Phong"));
+    assert_eq!(lighting.get("filters"), Some(&"headlight Blinn-Phong"));
     for r in rows.iter().filter(|r| r[1] == "points") {
         assert_eq!((r[6], r[7]), (r[8], r[9]), "{r:?}");
     }

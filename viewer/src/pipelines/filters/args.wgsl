@@ -1,21 +1,26 @@
-// Dispatch arguments for the next full-screen pass of a layer. A layer's shading: none where the
-// layer is empty. A fill iteration: none once the previous one changed nothing (its output then
-// equals its input in both buffers, so skipping the rest leaves the result where the last
-// iteration would have put it); the first always runs, so that both buffers are this frame's.
+// Dispatch arguments for the next pass of a layer. A layer's shading: none where the layer is
+// empty. A fill iteration: a workgroup per tile of the list tiles.wgsl made (all of them in the
+// first iteration, so that both buffers are this frame's; none once an iteration changed
+// nothing, its output then equal to its input in both buffers).
 @group(0) @binding(0) var<uniform> frame: Frame;
 @group(0) @binding(2) var<storage, read> counters: array<u32>;
 @group(0) @binding(3) var<storage, read_write> args: array<u32>;
+// [0]: the tiles a fill iteration works on (tiles.wgsl); read and reset to 0 for the next.
+@group(0) @binding(4) var<storage, read_write> tile_list: array<u32>;
 @group(1) @binding(0) var<uniform> step: Step;
 
 @compute @workgroup_size(1)
 fn main() {
-    var run = counters[step.layer] != 0u;
     if step.kind != ARGS_LAYER {
-        run = step.iteration == 0u
-            || counters[changed_slot(step.layer, step.kind, step.iteration - 1u)] != 0u;
+        // A workgroup per listed tile.
+        args[0] = tile_list[0];
+        args[1] = 1u;
+        args[2] = 1u;
+        tile_list[0] = 0u;
+        return;
     }
-    let groups = vec2<u32>((frame.width + 15u) / 16u, (frame.height + 15u) / 16u);
-    args[0] = select(0u, groups.x, run);
-    args[1] = select(0u, groups.y, run);
+    let run = counters[step.layer] != 0u;
+    args[0] = select(0u, tiles_x(), run);
+    args[1] = select(0u, tiles_y(), run);
     args[2] = 1u;
 }

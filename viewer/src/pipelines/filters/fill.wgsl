@@ -2,12 +2,21 @@
 // A candidate keeps its texel where one of eight 3x3 masks finds all its cells
 // "white": it then lies beyond a silhouette (background fill) or beyond the border of a front
 // surface (occluded fill). Else it takes the texel of its nearest neighbour. Every texel is
-// written, so that an iteration that changed nothing leaves `dst` equal to `src`.
+// written, so that an iteration that changed nothing leaves `dst` equal to `src`. A workgroup
+// is one 16x16 tile of the list tiles.wgsl made: after the first iteration only tiles that
+// changed, or lie beside one that changed, in the iteration before. Any other tile cannot
+// change, and both buffers already hold it (it did not change when the other was written), so
+// the late iterations that close a few long gaps cost little.
 @group(0) @binding(0) var<uniform> frame: Frame;
 @group(0) @binding(2) var<storage, read> src: array<Texel>;
 @group(0) @binding(3) var<storage, read_write> dst: array<Texel>;
 @group(0) @binding(4) var<storage, read_write> counters: array<u32>;
+// Per kind, iteration and 16x16 tile: 1 where the iteration changed a pixel of the tile.
+@group(0) @binding(5) var<storage, read_write> tiles: array<u32>;
+// [0]: the count (tiles.wgsl), then the tiles to work on, y << 16 | x.
+@group(0) @binding(6) var<storage, read> tile_list: array<u32>;
 @group(1) @binding(0) var<uniform> step: Step;
+
 
 struct Neighbours {
     // Bit k: cell OFFSETS[k] is background (or off the image).
@@ -48,10 +57,11 @@ fn neighbours(c: vec2<i32>) -> Neighbours {
     return n;
 }
 
-fn finish(i: u32, keep: Texel, fill: bool, n: Neighbours) {
+fn finish(i: u32, keep: Texel, fill: bool, n: Neighbours, tile: vec2<u32>) {
     if fill && n.nearest_depth > 0.0 {
         dst[i] = src[n.nearest];
         counters[changed_slot(step.layer, step.kind, step.iteration)] = 1u;
+        tiles[tile_slot(step.kind, step.iteration, tile)] = 1u;
     } else {
         dst[i] = keep;
     }
@@ -59,7 +69,10 @@ fn finish(i: u32, keep: Texel, fill: bool, n: Neighbours) {
 
 // Section 3.2: a background pixel is filled unless it lies beyond the silhouette.
 @compute @workgroup_size(16, 16)
-fn background(@builtin(global_invocation_id) id: vec3<u32>) {
+fn background(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_id) local: vec3<u32>) {
+    let packed = tile_list[1u + wg.x];
+    let tile = vec2<u32>(packed & 0xffffu, packed >> 16u);
+    let id = tile * 16u + local.xy;
     if id.x >= frame.width || id.y >= frame.height {
         return;
     }
@@ -70,7 +83,7 @@ fn background(@builtin(global_invocation_id) id: vec3<u32>) {
         return;
     }
     let n = neighbours(vec2<i32>(id.xy));
-    finish(i, t, n.background != 0xffu && !some_mask_white(n.background), n);
+    finish(i, t, n.background != 0xffu && !some_mask_white(n.background), n, tile);
 }
 
 // Section 3.3: a pixel showing a surface more than d~ behind its neighbours is filled with the
@@ -79,7 +92,10 @@ fn background(@builtin(global_invocation_id) id: vec3<u32>) {
 // beyond a silhouette (taking background as depth 0, in front, as a literal reading would, lets
 // the pixels along a silhouette take each other's texels iteration after iteration).
 @compute @workgroup_size(16, 16)
-fn occluded(@builtin(global_invocation_id) id: vec3<u32>) {
+fn occluded(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_id) local: vec3<u32>) {
+    let packed = tile_list[1u + wg.x];
+    let tile = vec2<u32>(packed & 0xffffu, packed >> 16u);
+    let id = tile * 16u + local.xy;
     if id.x >= frame.width || id.y >= frame.height {
         return;
     }
@@ -97,5 +113,5 @@ fn occluded(@builtin(global_invocation_id) id: vec3<u32>) {
             white |= 1u << k;
         }
     }
-    finish(i, t, !some_mask_white(white), n);
+    finish(i, t, !some_mask_white(white), n, tile);
 }

@@ -28,6 +28,7 @@ pub(super) const MASKS_WGSL: &str = include_str!("masks.wgsl");
 const SMOOTH_WGSL: &str = include_str!("smooth.wgsl");
 const SHADE_WGSL: &str = include_str!("shade.wgsl");
 const ARGS_WGSL: &str = include_str!("args.wgsl");
+const TILES_WGSL: &str = include_str!("tiles.wgsl");
 
 /// Layers at most (`MAX_LAYERS` in uniforms.wgsl).
 pub const MAX_LAYERS: u32 = 8;
@@ -108,6 +109,7 @@ pub fn shaders() -> Vec<ShaderSource> {
             &[UNIFORMS_WGSL, OCT16_WGSL, LIGHTING_WGSL, SHADE_WGSL],
         ),
         ShaderSource::new("filters args", &[UNIFORMS_WGSL, ARGS_WGSL]),
+        ShaderSource::new("filters tiles", &[UNIFORMS_WGSL, TILES_WGSL]),
     ]
 }
 
@@ -126,6 +128,7 @@ pub struct FiltersPasses {
     smooth: wgpu::ComputePipeline,
     shade: wgpu::ComputePipeline,
     args: wgpu::ComputePipeline,
+    tiles: wgpu::ComputePipeline,
 }
 
 /// What a frame's passes are told beyond the uniforms.
@@ -177,6 +180,7 @@ impl FiltersPasses {
             smooth: next()?,
             shade: next()?,
             args: next()?,
+            tiles: next()?,
         })
     }
 
@@ -195,6 +199,7 @@ impl FiltersPasses {
         queue.write_buffer(&targets.uniforms, 0, bytemuck::bytes_of(uniforms));
         encoder.clear_buffer(&targets.counters, 0, None);
         encoder.clear_buffer(&targets.accum, 0, None);
+        encoder.clear_buffer(&targets.tile_list, 0, None);
 
         let arenas: Vec<(ArenaGroup, [&wgpu::Buffer; 4], &wgpu::Buffer)> = frame
             .arenas
@@ -379,8 +384,20 @@ impl FiltersPasses {
                     frame_entry(),
                     (2, targets.counters.as_entire_binding()),
                     (3, targets.args.as_entire_binding()),
+                    (4, targets.tile_list.as_entire_binding()),
                 ],
             );
+            let tiles_group = bind(
+                device,
+                &self.tiles,
+                0,
+                &[
+                    frame_entry(),
+                    (2, targets.tiles.as_entire_binding()),
+                    (3, targets.tile_list.as_entire_binding()),
+                ],
+            );
+            let tile_groups = (gx * gy).div_ceil(64);
             let set_args = |pass: &mut wgpu::ComputePass, step_group: &wgpu::BindGroup| {
                 pass.set_pipeline(&self.args);
                 pass.set_bind_group(0, &args_group, &[]);
@@ -390,6 +407,7 @@ impl FiltersPasses {
 
             // Fill: background pixels, then occluded ones, ping-ponging between the texel buffers.
             if setup.fill_iterations > 0 {
+                encoder.clear_buffer(&targets.tiles, 0, None);
                 let timestamp_writes = timer.pass(encoder, "fill");
                 let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
                     label: Some("fill"),
@@ -406,6 +424,11 @@ impl FiltersPasses {
                             kind,
                             complemented: 0,
                         };
+                        let tiles_step = step_bind(&self.tiles, 1, step);
+                        pass.set_pipeline(&self.tiles);
+                        pass.set_bind_group(0, &tiles_group, &[]);
+                        pass.set_bind_group(1, &tiles_step, &[]);
+                        pass.dispatch_workgroups(tile_groups, 1, 1);
                         let args_step = step_bind(&self.args, 1, step);
                         set_args(&mut pass, &args_step);
                         let fill_step = step_bind(pipe, 1, step);
@@ -414,6 +437,8 @@ impl FiltersPasses {
                             (2, targets.texels[current].as_entire_binding()),
                             (3, targets.texels[1 - current].as_entire_binding()),
                             (4, targets.counters.as_entire_binding()),
+                            (5, targets.tiles.as_entire_binding()),
+                            (6, targets.tile_list.as_entire_binding()),
                         ];
                         // Only the occluded fill reads d~.
                         if kind == ARGS_OCCLUDED {

@@ -13,9 +13,19 @@ use crate::renderer::SurfacePixel;
 /// Bytes between two steps in the steps buffer: the least uniform offset alignment WebGPU
 /// guarantees.
 pub const STEP_STRIDE: u64 = 256;
-/// Steps one frame encodes at most: per layer the resolve, the shading and its arguments, and per fill iteration
-/// of each kind the arguments and the fill.
-const STEP_SLOTS: u64 = MAX_LAYERS as u64 * (3 + 4 * MAX_ITERATIONS as u64);
+/// Steps one frame encodes at most: per layer the resolve, the shading and its arguments, and
+/// per fill iteration of each kind the tile list, the arguments and the fill.
+const STEP_SLOTS: u64 = MAX_LAYERS as u64 * (3 + 6 * MAX_ITERATIONS as u64);
+
+/// Flags of the fill's changed tiles (`tile_slot` in fill.wgsl): per kind and iteration, one
+/// per 16x16 tile.
+fn tile_flags(width: u32, height: u32) -> u64 {
+    2 * MAX_ITERATIONS as u64 * tile_count(width, height)
+}
+
+fn tile_count(width: u32, height: u32) -> u64 {
+    width.div_ceil(16) as u64 * height.div_ceil(16) as u64
+}
 
 /// Bytes per pixel of a texel (`Texel` in uniforms.wgsl).
 const TEXEL_BYTES: u64 = 16;
@@ -38,6 +48,10 @@ pub struct FiltersTargets {
     pub counters_readback: AsyncReadback,
     /// Dispatch arguments of the next indirect pass.
     pub args: wgpu::Buffer,
+    /// Per fill kind, iteration and 16x16 tile: whether the iteration changed the tile.
+    pub tiles: wgpu::Buffer,
+    /// The tiles the next fill iteration works on, after their count.
+    pub tile_list: wgpu::Buffer,
 }
 
 impl FiltersTargets {
@@ -63,6 +77,10 @@ impl FiltersTargets {
             ScreenBuffer {
                 label: "filters albedo",
                 bytes: pixels * 4,
+            },
+            ScreenBuffer {
+                label: "filters fill tiles",
+                bytes: tile_flags(width, height) * 4,
             },
         ]
     }
@@ -102,6 +120,11 @@ impl FiltersTargets {
                 usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::INDIRECT,
                 mapped_at_creation: false,
             }),
+            tiles: storage("filters fill tiles", tile_flags(width, height) * 4),
+            tile_list: storage(
+                "filters fill tile list",
+                (1 + tile_count(width, height)) * 4,
+            ),
         }
     }
 

@@ -66,6 +66,20 @@ fn changed_slot(layer: u32, kind: u32, iteration: u32) -> u32 {
 // holds one, bits 16 to 31 the share of the light that reaches the point (unorm16).
 alias Texel = vec4<u32>;
 
+// The fill's 16x16 tiles: per row, per column, and the flag of `tile` for a fill kind
+// (ARGS_BACKGROUND or ARGS_OCCLUDED) and iteration.
+fn tiles_x() -> u32 {
+    return (frame.width + 15u) / 16u;
+}
+
+fn tiles_y() -> u32 {
+    return (frame.height + 15u) / 16u;
+}
+
+fn tile_slot(kind: u32, iteration: u32, tile: vec2<u32>) -> u32 {
+    return ((kind - 1u) * MAX_ITERATIONS + iteration) * tiles_x() * tiles_y() + tile.y * tiles_x() + tile.x;
+}
+
 fn texel_lit(t: Texel) -> f32 {
     return f32(t.w >> 16u) / 65535.0;
 }

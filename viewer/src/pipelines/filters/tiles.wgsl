@@ -1,0 +1,33 @@
+// The tiles a fill iteration works on: every tile in the first iteration, then those that
+// changed, or lie beside one that changed, in the iteration before; appended to `tile_list`
+// after its count, which args.wgsl turns into the fill's workgroups.
+@group(0) @binding(0) var<uniform> frame: Frame;
+@group(0) @binding(2) var<storage, read> tiles: array<u32>;
+@group(0) @binding(3) var<storage, read_write> tile_list: array<atomic<u32>>;
+@group(1) @binding(0) var<uniform> step: Step;
+
+fn changed_near(tile: vec2<u32>) -> bool {
+    for (var dy = -1; dy <= 1; dy++) {
+        for (var dx = -1; dx <= 1; dx++) {
+            let t = vec2<i32>(tile) + vec2<i32>(dx, dy);
+            if t.x >= 0 && t.y >= 0 && t.x < i32(tiles_x()) && t.y < i32(tiles_y())
+                && tiles[tile_slot(step.kind, step.iteration - 1u, vec2<u32>(t))] != 0u {
+                return true;
+            }
+        }
+    }
+    return false;
+}
+
+@compute @workgroup_size(64)
+fn main(@builtin(global_invocation_id) id: vec3<u32>) {
+    let n = tiles_x() * tiles_y();
+    if id.x >= n {
+        return;
+    }
+    let tile = vec2<u32>(id.x % tiles_x(), id.x / tiles_x());
+    if step.iteration == 0u || changed_near(tile) {
+        let at = atomicAdd(&tile_list[0], 1u);
+        atomicStore(&tile_list[1u + at], tile.y << 16u | tile.x);
+    }
+}
