@@ -16,6 +16,7 @@ use strata_bench::quality::reference::{ReferenceImage, ReferenceRenderer, lit_as
 use strata_bench::quality::report::{Row, charts, init_fonts, side_by_side, summary, write_csv};
 use strata_bench::quality::sample::{PointSet, load_scan, sample_mesh, thin_along_x, write_ply};
 use strata_bench::quality::scenes::{CLAY, Points, Scene, View, scenes};
+use strata_bench::quality::shadows;
 use strata_viewer::gpu::{GpuContext, ProjectionPath};
 use strata_viewer::lod::clip_range;
 use strata_viewer::pipelines::params::ParamSpec;
@@ -90,16 +91,66 @@ struct Config {
     point_size: f32,
     /// An automatic parameter set to a multiple of its automatic value.
     auto_factor: Option<(&'static str, f32)>,
-    /// A parameter set to a value (`--set NAME=VALUE`).
-    fixed: Option<(&'static str, f32)>,
+    /// Parameters set to values (`--set NAME=VALUE`); none at the defaults.
+    fixed: &'static [(&'static str, f32)],
+}
+
+impl Config {
+    fn fixed(&self, name: &str) -> Option<f32> {
+        self.fixed.iter().find(|(n, _)| *n == name).map(|(_, v)| *v)
+    }
+
+    /// Layers and opacity of a configuration that peels and blends layers: scored against
+    /// the mesh peeled and blended the same way, on the nested layers scene only.
+    fn peeled(&self) -> Option<(u32, f32)> {
+        Some((self.fixed("layers")? as u32, self.fixed("opacity")?))
+    }
+
+    fn shadowed(&self) -> bool {
+        self.fixed("shadows").is_some_and(|s| s > 0.0)
+    }
+
+    /// The scene a variant is made for; `None`: every scene.
+    fn scene(&self) -> Option<&'static str> {
+        if self.peeled().is_some() {
+            Some(LAYERS_SCENE)
+        } else if self.shadowed() {
+            Some(SHADOW_SCENE)
+        } else {
+            None
+        }
+    }
 }
 
 /// Variants compared beside each pipeline's defaults: the surfels' planar and all-curved
-/// modes against their hybrid default (paper 001's Table 2).
-const VARIANTS: &[(&str, &str, f32, &str)] = &[
-    ("surfels", "mode", 0.0, "mode=planar"),
-    ("surfels", "mode", 1.0, "mode=curved"),
+/// modes against their hybrid default (paper 001's Table 2); the filters' transparency, six
+/// layers at half opacity (paper 004's Figure 17).
+const VARIANTS: &[(&str, &[(&str, f32)], f32, &str)] = &[
+    ("surfels", &[("mode", 0.0)], 1.0, "mode=planar"),
+    ("surfels", &[("mode", 1.0)], 1.0, "mode=curved"),
+    (
+        "filters",
+        &[("layers", 6.0), ("opacity", 0.5)],
+        2.0,
+        "layers=6 opacity=0.5 2px",
+    ),
+    (
+        "filters",
+        &[
+            ("shadows", 1.0),
+            ("light.x", SHADOW_LIGHT[0]),
+            ("light.y", SHADOW_LIGHT[1]),
+            ("light.z", SHADOW_LIGHT[2]),
+        ],
+        2.0,
+        "shadows=1 2px",
+    ),
 ];
+/// The scene the peeled variants run on, and the one the shadowed ones run on.
+const LAYERS_SCENE: &str = "layers";
+const SHADOW_SCENE: &str = "shadow";
+/// The shadow scene's light: towards +x, -y and up.
+const SHADOW_LIGHT: [f32; 3] = [0.5, -0.3, 1.0];
 
 /// Every registered pipeline at its defaults with one- and two-pixel points, and, in the full
 /// run, each automatic parameter at half and twice its automatic value: the sweeps come from
@@ -113,16 +164,16 @@ fn configs(full: bool) -> Vec<Config> {
                 setting: format!("{point_size}px"),
                 point_size,
                 auto_factor: None,
-                fixed: None,
+                fixed: &[],
             });
         }
-        for &(_, name, value, setting) in VARIANTS.iter().filter(|v| v.0 == pipeline.name) {
+        for &(_, fixed, point_size, setting) in VARIANTS.iter().filter(|v| v.0 == pipeline.name) {
             v.push(Config {
                 pipeline,
                 setting: setting.into(),
-                point_size: 1.0,
+                point_size,
                 auto_factor: None,
-                fixed: Some((name, value)),
+                fixed,
             });
         }
         let automatic = pipeline.params.iter().filter(|p| p.auto.is_some());
@@ -133,7 +184,7 @@ fn configs(full: bool) -> Vec<Config> {
                     setting: format!("{}=auto×{f}", spec.name),
                     point_size: 1.0,
                     auto_factor: Some((spec.name, f)),
-                    fixed: None,
+                    fixed: &[],
                 });
             }
         }
@@ -223,6 +274,7 @@ fn main() -> anyhow::Result<()> {
             for (vi, view) in scene.views.iter().enumerate() {
                 let camera = camera_of(view, ds.anchor());
                 let frames = render_view(
+                    scene,
                     &mut renderer,
                     &reference,
                     &ctx,
@@ -233,7 +285,7 @@ fn main() -> anyhow::Result<()> {
                 let mut images: Vec<Vec<u8>> = vec![frames.reference.rgba.clone()];
                 for r in frames.results {
                     // The side-by-side images show every pipeline at its defaults.
-                    if r.config.auto_factor.is_none() && r.config.fixed.is_none() {
+                    if r.config.auto_factor.is_none() && r.config.fixed.is_empty() {
                         images.push(r.rgba);
                     }
                     rows.push(Row {
@@ -249,6 +301,7 @@ fn main() -> anyhow::Result<()> {
                         albedo_ssim: r.albedo_ssim,
                         gpu_ms: r.gpu_ms,
                         stability: scene.stability,
+                        shadow_match: r.shadow_match,
                     });
                 }
                 if vi == 0 && noise == 0.0 {
@@ -369,9 +422,11 @@ struct ConfigResult {
     albedo_psnr: f64,
     albedo_ssim: f64,
     gpu_ms: f64,
+    shadow_match: Option<f64>,
 }
 
 fn render_view(
+    scene: &Scene,
     renderer: &mut Renderer,
     reference: &ReferenceRenderer,
     ctx: &GpuContext,
@@ -420,7 +475,11 @@ fn render_view(
             let swept = (value * f).clamp(spec.min, spec.max);
             settings.set_param(&format!("{name}={swept}"))?;
         }
-        if let Some((name, value)) = config.fixed {
+        let peeled = config.peeled();
+        if config.scene().is_some_and(|only| only != scene.name) {
+            continue;
+        }
+        for (name, value) in config.fixed {
             settings.set_param(&format!("{name}={value}"))?;
         }
         // A pipeline that needs other per-point streams (normals, radii) has the nodes loaded
@@ -444,7 +503,7 @@ fn render_view(
             .collect();
         let stats = renderer.frame(camera, w, h, &settings)?;
         renderer.wait_gpu()?;
-        if config.auto_factor.is_none() && config.fixed.is_none() {
+        if config.auto_factor.is_none() && config.fixed.is_empty() {
             for spec in p.params.iter().filter(|s| s.auto.is_some()) {
                 if let Some(v) = stats.params.get(spec.name) {
                     automatic.entry((p.name, spec.name)).or_insert(*v);
@@ -465,12 +524,53 @@ fn render_view(
             surface,
         };
         let param = |spec: &ParamSpec| stats.params.get(spec.name).copied().unwrap_or(spec.default);
-        let lit = lit_as(
-            &reference_image,
-            p.lighting,
-            (param(&edl::STRENGTH), param(&edl::RADIUS)),
-        );
-        let metrics = compare(&lit, &reference_image.surface, &frame, tan_half);
+        let lit = match peeled {
+            Some((layers, opacity)) => reference.render_peeled(
+                ctx,
+                camera.view(),
+                camera.projection(aspect, near, far),
+                w,
+                h,
+                base.background,
+                layers,
+                opacity,
+            )?,
+            None => lit_as(
+                &reference_image,
+                p.lighting,
+                (param(&edl::STRENGTH), param(&edl::RADIUS)),
+            ),
+        };
+        let mut metrics = compare(&lit, &reference_image.surface, &frame, tan_half);
+        let mut shadow_match = None;
+        if config.shadowed() {
+            // The same view without shadows: the lit colours the mesh's lit pixels keep.
+            let mut unshadowed = settings.clone();
+            unshadowed.set_param("shadows=0")?;
+            renderer.frame(camera, w, h, &unshadowed)?;
+            renderer.wait_gpu()?;
+            let (_, _, plain) = renderer.read_image()?;
+            let lit_by_mesh = shadows::lit_by_mesh(
+                &scene.mesh,
+                renderer.dataset().anchor(),
+                camera.view(),
+                tan_half,
+                (w, h),
+                &reference_image.surface,
+                glam::Vec3::from_array(SHADOW_LIGHT),
+            );
+            let region: Vec<bool> = reference_image
+                .surface
+                .iter()
+                .zip(&frame.surface)
+                .map(|(r, f)| r.is_some() && f.is_some())
+                .collect();
+            let (matched, psnr, ssim) =
+                shadows::shadow_scores(&rgba, &plain, &albedo, &lit_by_mesh, &region, (w, h));
+            metrics.psnr = psnr;
+            metrics.ssim = ssim;
+            shadow_match = Some(matched);
+        }
         let (albedo_psnr, albedo_ssim) = albedo_scores(
             &reference_image.albedo,
             &reference_image.surface,
@@ -484,6 +584,7 @@ fn render_view(
             albedo_psnr,
             albedo_ssim,
             gpu_ms,
+            shadow_match,
         });
     }
     Ok(ViewFrames {

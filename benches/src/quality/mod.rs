@@ -7,5 +7,6 @@ pub mod reference;
 pub mod report;
 pub mod sample;
 pub mod scenes;
+pub mod shadows;
 pub mod shapes;
 pub mod silhouette;

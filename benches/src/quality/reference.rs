@@ -15,6 +15,7 @@ const SHADER: &str = r#"
 struct Uniforms {
     view_proj: mat4x4<f32>,
     view: mat4x4<f32>,
+    width: u32,
 }
 @group(0) @binding(0) var<uniform> u: Uniforms;
 @group(0) @binding(1) var albedo_map: texture_2d<f32>;
@@ -54,6 +55,26 @@ struct Targets {
 
 @fragment
 fn fs(f: Out) -> Targets {
+    return shade(f);
+}
+
+// Depth peeling of the mesh (paper 004's reference for transparency): front faces only (the
+// normals face out, as the points' do), behind the layer before at this pixel.
+@group(0) @binding(3) var<storage, read> previous: array<f32>;
+
+@fragment
+fn fs_peel(f: Out) -> Targets {
+    if dot(f.view_normal, -f.view_pos) < 0.0 {
+        discard;
+    }
+    let before = previous[u32(f.clip.y) * u.width + u32(f.clip.x)];
+    if -f.view_pos.z <= before * (1.0 + 1e-4) {
+        discard;
+    }
+    return shade(f);
+}
+
+fn shade(f: Out) -> Targets {
     let albedo = f.colour * textureSample(albedo_map, albedo_sampler, vec2<f32>(f.uv.x, 1.0 - f.uv.y)).rgb;
     var n = normalize(f.view_normal);
     let v = normalize(-f.view_pos);
@@ -82,6 +103,8 @@ struct Vertex {
 struct Uniforms {
     view_proj: [[f32; 4]; 4],
     view: [[f32; 4]; 4],
+    width: u32,
+    pad: [u32; 3],
 }
 
 /// What the reference shows at each pixel.
@@ -99,6 +122,8 @@ pub struct ReferenceImage {
 /// A mesh uploaded once, drawn from any camera.
 pub struct ReferenceRenderer {
     pipeline: wgpu::RenderPipeline,
+    /// The same, drawing one peeled layer of front faces (`fs_peel`).
+    peel: wgpu::RenderPipeline,
     vertices: wgpu::Buffer,
     indices: wgpu::Buffer,
     index_count: u32,
@@ -129,7 +154,8 @@ impl ReferenceRenderer {
             label: Some("reference mesh"),
             source: wgpu::ShaderSource::Wgsl(format!("{LIGHTING_WGSL}\n{SHADER}").into()),
         });
-        let pipeline = device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
+        let pipeline_with = |fragment: &str| {
+            device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
             label: Some("reference mesh"),
             layout: None,
             vertex: wgpu::VertexState {
@@ -156,7 +182,7 @@ impl ReferenceRenderer {
             multisample: Default::default(),
             fragment: Some(wgpu::FragmentState {
                 module: &module,
-                entry_point: Some("fs"),
+                entry_point: Some(fragment),
                 compilation_options: Default::default(),
                 targets: &[
                     Some(COLOUR_FORMAT.into()),
@@ -166,7 +192,10 @@ impl ReferenceRenderer {
             }),
             multiview_mask: None,
             cache: None,
-        });
+        })
+        };
+        let pipeline = pipeline_with("fs");
+        let peel = pipeline_with("fs_peel");
         let tex = &mesh.texture;
         let texture = device.create_texture_with_data(
             &ctx.queue,
@@ -189,6 +218,7 @@ impl ReferenceRenderer {
         );
         ReferenceRenderer {
             pipeline,
+            peel,
             vertices: device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
                 label: Some("reference vertices"),
                 contents: bytemuck::cast_slice(&vertices),
@@ -220,6 +250,78 @@ impl ReferenceRenderer {
         height: u32,
         background: [u8; 3],
     ) -> anyhow::Result<ReferenceImage> {
+        self.draw(ctx, view, projection, width, height, background, None)
+    }
+
+    /// The mesh as `layers` depth-peeled layers of front faces, each lit by the headlight and
+    /// blended front to back with `opacity` over the background: the reference of a pipeline
+    /// that peels and blends the points' layers the same way.
+    #[allow(clippy::too_many_arguments)]
+    pub fn render_peeled(
+        &self,
+        ctx: &GpuContext,
+        view: Mat4,
+        projection: Mat4,
+        width: u32,
+        height: u32,
+        background: [u8; 3],
+        layers: u32,
+        opacity: f32,
+    ) -> anyhow::Result<Vec<u8>> {
+        let pixels = (width * height) as usize;
+        let mut before = vec![0f32; pixels];
+        let mut sum = vec![[0f32; 4]; pixels];
+        for _ in 0..layers {
+            let layer = self.draw(
+                ctx,
+                view,
+                projection,
+                width,
+                height,
+                background,
+                Some(before.as_slice()),
+            )?;
+            for (i, s) in layer.surface.iter().enumerate() {
+                match s {
+                    Some((_, depth)) => {
+                        let a = opacity * (1.0 - sum[i][3]);
+                        for c in 0..3 {
+                            sum[i][c] += a * layer.rgba[4 * i + c] as f32;
+                        }
+                        sum[i][3] += a;
+                        before[i] = *depth;
+                    }
+                    // Nothing left behind this pixel.
+                    None => before[i] = f32::INFINITY,
+                }
+            }
+        }
+        Ok(sum
+            .iter()
+            .flat_map(|s| {
+                let mut px = [255u8; 4];
+                for c in 0..3 {
+                    px[c] = (s[c] + (1.0 - s[3]) * background[c] as f32)
+                        .round()
+                        .clamp(0.0, 255.0) as u8;
+                }
+                px
+            })
+            .collect())
+    }
+
+    /// One draw of the mesh; with `before` (linear depth per pixel) a peeled layer.
+    #[allow(clippy::too_many_arguments)]
+    fn draw(
+        &self,
+        ctx: &GpuContext,
+        view: Mat4,
+        projection: Mat4,
+        width: u32,
+        height: u32,
+        background: [u8; 3],
+        before: Option<&[f32]>,
+    ) -> anyhow::Result<ReferenceImage> {
         let device = &ctx.device;
         let target = |label: &str, format: wgpu::TextureFormat| {
             device.create_texture(&wgpu::TextureDescriptor {
@@ -244,29 +346,50 @@ impl ReferenceRenderer {
         let uniforms = Uniforms {
             view_proj: (projection * view).to_cols_array_2d(),
             view: view.to_cols_array_2d(),
+            width,
+            pad: [0; 3],
         };
+        let pipeline = if before.is_some() {
+            &self.peel
+        } else {
+            &self.pipeline
+        };
+        let previous = before.map(|b| {
+            device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                label: Some("reference layer before"),
+                contents: bytemuck::cast_slice(b),
+                usage: wgpu::BufferUsages::STORAGE,
+            })
+        });
         let ubuf = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
             label: Some("reference uniforms"),
             contents: bytemuck::bytes_of(&uniforms),
             usage: wgpu::BufferUsages::UNIFORM,
         });
+        let mut entries = vec![
+            wgpu::BindGroupEntry {
+                binding: 0,
+                resource: ubuf.as_entire_binding(),
+            },
+            wgpu::BindGroupEntry {
+                binding: 1,
+                resource: wgpu::BindingResource::TextureView(&self.texture_view),
+            },
+            wgpu::BindGroupEntry {
+                binding: 2,
+                resource: wgpu::BindingResource::Sampler(&self.sampler),
+            },
+        ];
+        if let Some(p) = &previous {
+            entries.push(wgpu::BindGroupEntry {
+                binding: 3,
+                resource: p.as_entire_binding(),
+            });
+        }
         let bind = device.create_bind_group(&wgpu::BindGroupDescriptor {
             label: Some("reference"),
-            layout: &self.pipeline.get_bind_group_layout(0),
-            entries: &[
-                wgpu::BindGroupEntry {
-                    binding: 0,
-                    resource: ubuf.as_entire_binding(),
-                },
-                wgpu::BindGroupEntry {
-                    binding: 1,
-                    resource: wgpu::BindingResource::TextureView(&self.texture_view),
-                },
-                wgpu::BindGroupEntry {
-                    binding: 2,
-                    resource: wgpu::BindingResource::Sampler(&self.sampler),
-                },
-            ],
+            layout: &pipeline.get_bind_group_layout(0),
+            entries: &entries,
         });
         let mut encoder = device.create_command_encoder(&Default::default());
         {
@@ -323,7 +446,7 @@ impl ReferenceRenderer {
                 occlusion_query_set: None,
                 multiview_mask: None,
             });
-            pass.set_pipeline(&self.pipeline);
+            pass.set_pipeline(pipeline);
             pass.set_bind_group(0, &bind, &[]);
             pass.set_vertex_buffer(0, self.vertices.slice(..));
             pass.set_index_buffer(self.indices.slice(..), wgpu::IndexFormat::Uint32);

@@ -26,6 +26,9 @@ pub struct Row {
     pub albedo_ssim: f64,
     pub gpu_ms: f64,
     pub stability: bool,
+    /// Shadowed frames: the share of the scored pixels whose lit or shadowed state matches
+    /// the mesh's (`shadows::shadow_scores`).
+    pub shadow_match: Option<f64>,
 }
 
 impl Row {
@@ -85,6 +88,38 @@ pub fn write_csv(path: &Path, rows: &[Row]) -> anyhow::Result<()> {
         );
     }
     std::fs::write(path, out).with_context(|| format!("{}", path.display()))
+}
+
+/// Transparency and shadows (paper 004): the filters' peeled layers against the mesh peeled
+/// and blended the same way, and their shadows against the mesh's (lit or shadowed state per
+/// pixel, and the image against the same picture with the mesh's shadows).
+fn layers_and_shadows(rows: &[Row]) -> String {
+    let picked: Vec<&Row> = rows
+        .iter()
+        .filter(|r| r.shadow_match.is_some() || r.setting.starts_with("layers="))
+        .collect();
+    if picked.is_empty() {
+        return String::new();
+    }
+    let mut md = String::from(
+        "
+## Transparency and shadows
+
+| scene | density | setting | PSNR dB | SSIM | lit/shadowed state right | GPU ms |
+|---|---|---|---|---|---|---|
+",
+    );
+    for r in picked {
+        let state = r
+            .shadow_match
+            .map_or("-".to_string(), |m| format!("{:.1} %", 100.0 * m));
+        let _ = writeln!(
+            md,
+            "| {} | {:.3} | {} | {:.2} | {:.3} | {state} | {:.1} |",
+            r.scene, r.density, r.setting, r.metrics.psnr, r.metrics.ssim, r.gpu_ms
+        );
+    }
+    md
 }
 
 /// The surfels' modes side by side (paper 001's claim: c-surfels at the silhouette fix the
@@ -414,6 +449,7 @@ pub fn summary(rows: &[Row], conditions: &str) -> (String, bool) {
         );
     }
     md.push_str(&surfel_modes(rows));
+    md.push_str(&layers_and_shadows(rows));
     md.push_str("\n## Targets\n\n");
     let mut ok = true;
     for reconstruction in ["pyramid", "surfels", "filters"] {

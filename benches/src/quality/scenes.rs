@@ -202,5 +202,41 @@ fn stability_scenes(quick: bool) -> Vec<Scene> {
         points: Points::Sampled,
         stability: true,
     });
+    // A ball over a floor, for shadows (the light is the harness's SHADOW_LIGHT).
+    let mut shadow = plane(
+        Vec3::new(-1.5, -1.5, 0.0),
+        Vec3::X * 3.0,
+        Vec3::Y * 3.0,
+        16,
+        Vec3::new(0.8, 0.75, 0.7),
+    );
+    shadow.append(&sphere(
+        Vec3::new(0.0, 0.0, 0.6),
+        0.35,
+        24,
+        Vec3::new(0.3, 0.5, 0.8),
+    ));
+    out.push(Scene {
+        name: "shadow".into(),
+        views: vec![View {
+            eye: Vec3::new(0.3, -3.2, 2.6),
+            target: Vec3::new(0.0, 0.0, 0.2),
+            fov_deg: 40.0,
+        }],
+        mesh: shadow,
+        points: Points::Sampled,
+        stability: true,
+    });
+    // Three nested spheres of different colours, for transparency (paper 004's Figure 17).
+    let mut layers = sphere(Vec3::ZERO, 1.0, 32, Vec3::new(0.2, 0.35, 0.85));
+    layers.append(&sphere(Vec3::ZERO, 0.7, 32, Vec3::new(0.2, 0.75, 0.3)));
+    layers.append(&sphere(Vec3::ZERO, 0.4, 32, Vec3::new(0.6, 0.4, 0.2)));
+    out.push(Scene {
+        name: "layers".into(),
+        views: orbit(&layers, &[Vec3::new(0.2, -1.0, 0.3)], 40.0),
+        mesh: layers,
+        points: Points::Sampled,
+        stability: true,
+    });
     out
 }

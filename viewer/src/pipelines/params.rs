@@ -112,6 +112,22 @@ impl ParamValues {
                     format!("{}'s {name} takes three numbers X,Y,Z", pipeline.name),
                 ));
             }
+            // Components confined to -1..1 make a direction: given at any length, it is
+            // normalised (`light=1,1,2`).
+            let unit = axes.iter().all(|a| {
+                pipeline
+                    .params
+                    .iter()
+                    .any(|p| p.name == a && p.min == -1.0 && p.max == 1.0)
+            });
+            let numbers: Vec<f32> = parts.iter().filter_map(|p| p.trim().parse().ok()).collect();
+            let length = numbers.iter().map(|v| v * v).sum::<f32>().sqrt();
+            if unit && numbers.len() == 3 && length > 0.0 && length.is_finite() {
+                for (axis, v) in axes.iter().zip(numbers) {
+                    self.set_text(pipeline, axis, &(v / length).to_string())?;
+                }
+                return Ok(());
+            }
             for (axis, part) in axes.iter().zip(parts) {
                 self.set_text(pipeline, axis, part)?;
             }

@@ -95,7 +95,7 @@ static PARAMS: [ParamSpec; OWN + CLASSES] = {
         param("opacity", "opacity of every layer's points", 1.0, 0.0, 1.0, Scale::Linear),
         param(
             "light.x",
-            "direction towards a light fixed in the world, x (0,0,0: the headlight)",
+            "direction towards a light fixed in the world, x (0,0,0: the headlight; light=X,Y,Z takes any length)",
             0.0,
             -1.0,
             1.0,

@@ -127,7 +127,7 @@ fn uniforms_take_the_light_the_class_opacities_and_the_drawn_spacing() {
 
     let u = uniforms(
         &view(),
-        &resolved(&[("light", "0,0,0.5"), ("opacity.6", "0.25"), ("opacity", "0.5"), ("dtilde", "0.1")]),
+        &resolved(&[("light", "0,0,2"), ("opacity.6", "0.25"), ("opacity", "0.5"), ("dtilde", "0.1")]),
         false,
     );
     assert_eq!(u.light, [0.0, 0.0, 1.0, 1.0], "a direction, normalised");
