@@ -405,3 +405,38 @@ fn the_plate_shades_the_ground_hard_and_soft() {
         "a penumbra, not a step: {values:?}"
     );
 }
+
+#[test]
+fn shadow_casters_outside_the_view_are_loaded_for_the_light() {
+    // Close over one corner of the floor: the plate and most of the floor lie outside the view.
+    let ds = Arc::new(StreamDataset::open_path(plate_over_ground()).expect("dataset opens"));
+    let ctx = Arc::new(GpuContext::new(ProjectionPath::Auto).expect("GPU adapter"));
+    let anchor = ds.anchor().as_vec3();
+    let camera = Camera {
+        eye: glam::Vec3::new(-1.2, -1.2, 0.5) - anchor,
+        target: glam::Vec3::new(-1.4, -1.4, 0.0) - anchor,
+        fov_y: 30f32.to_radians(),
+    };
+    let resident = |set: &[&str]| {
+        let mut r = Renderer::new(ctx.clone(), ds.clone(), 1 << 30, 1).expect("renderer");
+        let mut settings = Settings {
+            budget: 10_000_000,
+            ..Settings::default()
+        };
+        settings.set_pipeline("filters").expect("pipeline");
+        for a in ["light=1,0,1"].iter().chain(set) {
+            settings.set_param(a).expect("parameter");
+        }
+        paths::frame_until_complete(&mut r, &camera, W, H, &settings);
+        let stats = r.frame(&camera, W, H, &settings).expect("frame");
+        assert!(stats.complete);
+        (stats.nodes_resident, stats.nodes_drawn)
+    };
+    let (plain, drawn) = resident(&[]);
+    let (shadowed, shadowed_drawn) = resident(&["shadows=1"]);
+    assert_eq!(drawn, shadowed_drawn, "the camera draws the same nodes");
+    assert!(
+        shadowed > plain,
+        "the light's view loads casters beyond the {plain} nodes the view needs ({shadowed})"
+    );
+}

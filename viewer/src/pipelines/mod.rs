@@ -192,6 +192,9 @@ pub struct PipelineFrame<'a> {
     pub cache: &'a crate::gpu::NodeCache,
     /// The ranges of points drawn this frame, per arena.
     pub arenas: &'a [projection::ArenaDraw],
+    /// The drawn ranges and those of the pipeline's `extra_view` (the same as `arenas`
+    /// without one).
+    pub casters: &'a [projection::ArenaDraw],
     pub params: &'a ResolvedParams,
     pub view: &'a ViewFrame,
     /// The dataset stores normals (else the `Normals` stream holds none).
@@ -239,6 +242,20 @@ pub trait Pipeline {
 
     /// Frees the per-screen buffers: another pipeline was chosen.
     fn release_targets(&mut self) {}
+
+    /// Another view whose nodes the passes need beside the camera's (the light's: shadow
+    /// casters outside the camera's view), as a camera and a point budget of its own; its
+    /// nodes reach the passes as `PipelineFrame::casters`. `bounds`: the dataset's, relative
+    /// to the anchor.
+    fn extra_view(
+        &self,
+        params: &ResolvedParams,
+        camera: &crate::Camera,
+        bounds: [glam::Vec3; 2],
+    ) -> Option<(crate::Camera, u64)> {
+        let _ = (params, camera, bounds);
+        None
+    }
 
     /// Encodes the passes after the projection resolved the depth and colour planes; they
     /// write `screen.output`.

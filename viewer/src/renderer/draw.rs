@@ -70,20 +70,11 @@ impl Renderer {
         Ok(())
     }
 
-    pub(super) fn draw(
-        &mut self,
-        camera: &Camera,
-        width: u32,
-        height: u32,
-        settings: &Settings,
-        sel: &Selection,
-        params: &ResolvedParams,
-    ) -> Result<(), ViewerError> {
-        let info = settings.pipeline;
-        self.prepare_screen(info, width, height)?;
-        let drawn: HashSet<NodeKey> = sel.draw.iter().copied().collect();
+    /// The drawn ranges of `keys` per arena, each with what the LOD drew below its node.
+    fn arena_draws(&self, keys: &[NodeKey]) -> Vec<ArenaDraw> {
+        let drawn: HashSet<NodeKey> = keys.iter().copied().collect();
         let mut per_arena: BTreeMap<u32, ArenaDraw> = BTreeMap::new();
-        for key in &sel.draw {
+        for key in keys {
             let (min, edge) = self.ds.node_cube(*key);
             let lod = RangeLod {
                 centre: (min + glam::Vec3::splat(edge * 0.5)).to_array(),
@@ -106,7 +97,31 @@ impl Renderer {
                 d.lod.push(lod);
             }
         }
-        let draws: Vec<ArenaDraw> = per_arena.into_values().collect();
+        per_arena.into_values().collect()
+    }
+
+    pub(super) fn draw(
+        &mut self,
+        camera: &Camera,
+        width: u32,
+        height: u32,
+        settings: &Settings,
+        (sel, extra): (&Selection, Option<&Selection>),
+        params: &ResolvedParams,
+    ) -> Result<(), ViewerError> {
+        let info = settings.pipeline;
+        self.prepare_screen(info, width, height)?;
+        let draws = self.arena_draws(&sel.draw);
+        // The extra view's nodes beside the drawn ones, each once.
+        let casters = match extra {
+            Some(e) => {
+                let drawn: HashSet<NodeKey> = sel.draw.iter().copied().collect();
+                let mut keys = sel.draw.clone();
+                keys.extend(e.draw.iter().filter(|k| !drawn.contains(k)));
+                Some(self.arena_draws(&keys))
+            }
+            None => None,
+        };
         let aspect = width as f32 / height as f32;
         let (near, far) = clip_range(&self.ds, camera);
         let view_proj = camera.projection(aspect, near, far) * camera.view();
@@ -197,6 +212,7 @@ impl Renderer {
                     screen,
                     cache,
                     arenas: &draws,
+                    casters: casters.as_deref().unwrap_or(&draws),
                     params,
                     view: &view,
                     has_normals,

@@ -61,6 +61,10 @@ pub struct Renderer {
     bytes_total: u64,
 }
 
+/// Pixels on a side of a pipeline's extra view, for its level of detail (the light map's
+/// size at most).
+const EXTRA_VIEW_PX: u32 = 1024;
+
 /// How long a node or page whose source did not answer waits before it is asked for again.
 const RETRY_PAUSE: Duration = Duration::from_millis(500);
 
@@ -296,16 +300,50 @@ impl Renderer {
             &self.failed,
             &region,
         );
-        self.request(&sel);
-        self.cache.touch(&sel.draw, self.frame);
-        self.last_drawn = sel.draw.iter().copied().collect();
-
         let info = settings.pipeline;
         let (tree, ds) = (&self.tree, &self.ds);
         let resolved = ResolvedParams::resolve(&settings.params, info, || {
             drawn_spacing(tree, ds, &sel.draw)
         });
-        self.draw(camera, width, height, settings, &sel, &resolved)?;
+        // The pipeline's second view (the light's), within what the cache holds beside the
+        // camera's nodes.
+        let extra = self
+            .pipelines
+            .get(info.name)
+            .and_then(|p| p.extra_view(&resolved, camera, self.ds.bounds().into()))
+            .map(|(view, budget)| {
+                let room =
+                    (self.cache.capacity_points() / 10 * 9).saturating_sub(sel.chosen_points);
+                let light = SelectionParams {
+                    budget: budget.min(room),
+                    width: EXTRA_VIEW_PX,
+                    height: EXTRA_VIEW_PX,
+                    min_spacing_px: settings.min_spacing_px,
+                };
+                select(
+                    tree,
+                    ds,
+                    &view,
+                    &light,
+                    |k| cache.contains(k),
+                    &self.failed,
+                    &region,
+                )
+            });
+        self.request(&sel, extra.as_ref());
+        self.cache.touch(&sel.draw, self.frame);
+        if let Some(e) = &extra {
+            self.cache.touch(&e.draw, self.frame);
+        }
+        self.last_drawn = sel.draw.iter().copied().collect();
+        self.draw(
+            camera,
+            width,
+            height,
+            settings,
+            (&sel, extra.as_ref()),
+            &resolved,
+        )?;
         self.collect_readbacks();
 
         let (queued, in_flight) = self.loader.counts();
@@ -345,6 +383,9 @@ impl Renderer {
             gpu_bytes: self.cache.gpu_bytes(),
             complete: sel.missing_nodes.is_empty()
                 && sel.missing_pages.is_empty()
+                && extra
+                    .as_ref()
+                    .is_none_or(|e| e.missing_nodes.is_empty() && e.missing_pages.is_empty())
                 && self.uploads.is_empty(),
         })
     }
@@ -390,23 +431,34 @@ impl Renderer {
         }
     }
 
-    fn request(&mut self, sel: &Selection) {
+    /// Asks the loader for what the view misses, most important first, then what the
+    /// pipeline's extra view misses.
+    fn request(&mut self, sel: &Selection, extra: Option<&Selection>) {
         let now = Instant::now();
         self.retry_after.retain(|_, t| *t > now);
         let waiting: HashSet<NodeKey> = self.uploads.iter().map(|u| u.key).collect();
-        let mut jobs: Vec<(f32, Job)> = sel
-            .missing_pages
-            .iter()
-            .map(|(p, pr)| (*pr, Job::Page(*p)))
-            .chain(sel.missing_nodes.iter().map(|(n, pr)| (*pr, Job::Node(*n))))
-            .filter(|(_, j)| match j {
-                Job::Node(n) => !waiting.contains(&n.key),
-                Job::Page(_) => true,
-            })
-            .filter(|(_, j)| self.retry_after.get(&j.key()).is_none_or(|t| *t <= now))
-            .collect();
-        jobs.sort_by(|a, b| b.0.total_cmp(&a.0));
-        self.loader.set_wanted(jobs.into_iter().map(|(_, j)| j));
+        let jobs_of = |sel: &Selection| {
+            let mut jobs: Vec<(f32, Job)> = sel
+                .missing_pages
+                .iter()
+                .map(|(p, pr)| (*pr, Job::Page(*p)))
+                .chain(sel.missing_nodes.iter().map(|(n, pr)| (*pr, Job::Node(*n))))
+                .filter(|(_, j)| match j {
+                    Job::Node(n) => !waiting.contains(&n.key),
+                    Job::Page(_) => true,
+                })
+                .filter(|(_, j)| self.retry_after.get(&j.key()).is_none_or(|t| *t <= now))
+                .collect();
+            jobs.sort_by(|a, b| b.0.total_cmp(&a.0));
+            jobs.into_iter().map(|(_, j)| j)
+        };
+        let mut jobs: Vec<Job> = jobs_of(sel).collect();
+        if let Some(e) = extra {
+            let asked: HashSet<JobKey> = jobs.iter().map(Job::key).collect();
+            let more: Vec<Job> = jobs_of(e).filter(|j| !asked.contains(&j.key())).collect();
+            jobs.extend(more);
+        }
+        self.loader.set_wanted(jobs);
     }
 
     /// Whether `settings` time the passes by the wall clock on this adapter.

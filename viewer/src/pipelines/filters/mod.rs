@@ -55,7 +55,7 @@ const fn param(name: &'static str, help: &'static str, default: f32, min: f32, m
 pub const DTILDE_SPACINGS: u32 = 4;
 
 /// Parameters before the per-class opacities.
-const OWN: usize = 11;
+const OWN: usize = 12;
 
 static PARAMS: [ParamSpec; OWN + CLASSES] = {
     let own = [
@@ -127,6 +127,14 @@ static PARAMS: [ParamSpec; OWN + CLASSES] = {
             45.0,
             Scale::Linear,
         ),
+        param(
+            "shadow_budget",
+            "points the light's own view loads for casters outside the camera's view",
+            2e6,
+            1e5,
+            1e8,
+            Scale::Log,
+        ),
     ];
     let classes = class_opacities![
         0: "created, never classified",
@@ -194,6 +202,15 @@ pub static INFO: PipelineInfo = PipelineInfo {
 /// face into a surface.
 pub const NO_NORMALS: &str = "the dataset has no normals (convert with --normals): no back-face culling, normals estimated from the filled depth";
 pub const NOT_OUTWARD: &str = "the dataset's normals are not known to face out of every surface (computed with --orient up or none; kept or --orient scanner normals are): no back-face culling";
+
+/// The direction towards the light: the one fixed in the world, or with the headlight the eye's
+/// (whose shadows hide behind what casts them).
+fn shadow_light(u: &FiltersUniforms) -> glam::Vec3 {
+    match u.light {
+        [x, y, z, w] if w != 0.0 => glam::Vec3::new(x, y, z),
+        _ => -glam::Vec3::from_slice(&u.forward[..3]),
+    }
+}
 
 /// `shadows`: off, hard, soft.
 const SHADOWS_OFF: u32 = 0;
@@ -296,6 +313,35 @@ impl Pipeline for Filters {
         self.shadows.reset();
     }
 
+    fn extra_view(
+        &self,
+        params: &ResolvedParams,
+        camera: &crate::Camera,
+        bounds: [glam::Vec3; 2],
+    ) -> Option<(crate::Camera, u64)> {
+        if value(params, "shadows") as u32 == SHADOWS_OFF {
+            return None;
+        }
+        let u = uniforms(
+            &ViewFrame {
+                view: camera.view(),
+                view_proj: glam::Mat4::IDENTITY,
+                previous_view_proj: None,
+                fov_y: camera.fov_y,
+                near: 1.0,
+                far: 2.0,
+                focal_px: 1.0,
+                aspect: 1.0,
+            },
+            params,
+            false,
+        );
+        Some((
+            shadow::light_camera(shadow_light(&u), bounds),
+            value(params, "shadow_budget") as u64,
+        ))
+    }
+
     fn encode(
         &mut self,
         frame: &PipelineFrame,
@@ -319,11 +365,7 @@ impl Pipeline for Filters {
         let mut u = uniforms(frame.view, frame.params, frame.has_normals);
         let mode = value(frame.params, "shadows") as u32;
         if mode != SHADOWS_OFF {
-            // With the headlight the light comes from the eye: nothing seen is in shadow.
-            let light = match u.light {
-                [x, y, z, w] if w != 0.0 => glam::Vec3::new(x, y, z),
-                _ => -glam::Vec3::from_slice(&u.forward[..3]),
-            };
+            let light = shadow_light(&u);
             let setup = shadow::ShadowSetup {
                 samples: if mode == SHADOWS_HARD {
                     1

@@ -1,5 +1,5 @@
-//! Point shadow textures (paper 004, section 6): per light sample, the drawn points splatted
-//! into a light map along the light, its occluded pixels filled, and every point within Δd of
+//! Point shadow textures (paper 004, section 6): per light sample, the drawn points and those
+//! the light's own view selected (`Pipeline::extra_view`) splatted into a light map along the light, its occluded pixels filled, and every point within Δd of
 //! the front layer counted lit, in a per-point stream beside the node arenas. Soft shadows
 //! average samples spread over an area light (Monte-Carlo). The counts are kept between frames
 //! and added to progressively (one sample a frame while the view moves, the rest once it
@@ -143,35 +143,43 @@ impl Shadows {
         timer: &mut Timer,
     ) -> Result<f32, ViewerError> {
         let device = &frame.ctx.device;
-        let mut arenas = Vec::with_capacity(frame.arenas.len());
-        for d in frame.arenas {
-            let a = frame
-                .cache
-                .arenas
-                .get(d.arena as usize)
-                .ok_or_else(|| ViewerError::Gpu(format!("arena {} is not resident", d.arena)))?;
-            let stream = |want: PointStream| {
-                a.streams
-                    .iter()
-                    .find(|(s, _)| *s == want)
-                    .map(|(_, b)| b)
-                    .ok_or_else(|| {
-                        ViewerError::Gpu(format!("arena {} holds no {want:?} stream", d.arena))
-                    })
-            };
-            arenas.push((
-                ArenaGroup::new(device, d, GROUP_SIZE),
-                [
-                    &a.points,
-                    &a.attributes,
-                    stream(PointStream::Normals)?,
-                    stream(LIT_STREAM)?,
-                ],
-            ));
-        }
+        // Every caster (the drawn points and the light's own view) splats; the drawn points
+        // are marked.
+        let groups = |list: &[crate::pipelines::projection::ArenaDraw]| {
+            list.iter()
+                .map(|d| {
+                    let a = frame.cache.arenas.get(d.arena as usize).ok_or_else(|| {
+                        ViewerError::Gpu(format!("arena {} is not resident", d.arena))
+                    })?;
+                    let stream = |want: PointStream| {
+                        a.streams
+                            .iter()
+                            .find(|(s, _)| *s == want)
+                            .map(|(_, b)| b)
+                            .ok_or_else(|| {
+                                ViewerError::Gpu(format!(
+                                    "arena {} holds no {want:?} stream",
+                                    d.arena
+                                ))
+                            })
+                    };
+                    Ok((
+                        ArenaGroup::new(device, d, GROUP_SIZE),
+                        [
+                            &a.points,
+                            &a.attributes,
+                            stream(PointStream::Normals)?,
+                            stream(LIT_STREAM)?,
+                        ],
+                    ))
+                })
+                .collect::<Result<Vec<_>, ViewerError>>()
+        };
+        let casters = groups(frame.casters)?;
+        let drawn = groups(frame.arenas)?;
         let key = key_of(frame, setup);
         if self.key != Some(key) {
-            for (_, [_, _, _, lit]) in &arenas {
+            for (_, [_, _, _, lit]) in &casters {
                 encoder.clear_buffer(lit, 0, None);
             }
             self.key = Some(key);
@@ -221,6 +229,7 @@ impl Shadows {
                              pipe: &wgpu::ComputePipeline,
                              map: &wgpu::Buffer,
                              lit: bool| {
+                let arenas = if lit { &drawn } else { &casters };
                 let frame_group = bind(
                     device,
                     pipe,
@@ -233,7 +242,7 @@ impl Shadows {
                 );
                 pass.set_pipeline(pipe);
                 pass.set_bind_group(0, &frame_group, &[]);
-                for (g, [points, attributes, normals, counts]) in &arenas {
+                for (g, [points, attributes, normals, counts]) in arenas {
                     if g.groups == 0 {
                         continue;
                     }
@@ -321,10 +330,12 @@ fn key_of(frame: &PipelineFrame, setup: &ShadowSetup) -> u64 {
         v.to_bits().hash(&mut h);
     }
     setup.normals.hash(&mut h);
-    for d in frame.arenas {
-        d.arena.hash(&mut h);
-        for r in &d.ranges {
-            (r.start, r.count).hash(&mut h);
+    for list in [frame.arenas, frame.casters] {
+        for d in list {
+            d.arena.hash(&mut h);
+            for r in &d.ranges {
+                (r.start, r.count).hash(&mut h);
+            }
         }
     }
     h.finish()
@@ -385,6 +396,20 @@ impl LightMap {
             dtilde: self.dtilde,
             normals: self.normals as u32,
         }
+    }
+}
+
+/// A camera for the light's own node selection: far along the light from the bounds' centre,
+/// its narrow view just holding them (near enough to the parallel light for the level of
+/// detail).
+pub fn light_camera(light: Vec3, bounds: [Vec3; 2]) -> crate::Camera {
+    let centre = (bounds[0] + bounds[1]) * 0.5;
+    let radius = ((bounds[1] - bounds[0]).length() * 0.5).max(1e-6);
+    let distance = 20.0 * radius;
+    crate::Camera {
+        eye: centre + light.normalize_or(Vec3::Z) * distance,
+        target: centre,
+        fov_y: 2.0 * (1.05 * radius / distance).atan(),
     }
 }
 
