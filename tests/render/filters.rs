@@ -10,11 +10,8 @@ use strata_viewer::gpu::{GpuContext, ProjectionPath};
 use strata_viewer::pipelines::filters::{LAYERS_USED, NO_NORMALS};
 use strata_viewer::{Camera, Renderer, Settings};
 
-const W: u32 = 480;
-const H: u32 = 360;
-/// The eye on the -y axis at this distance from the spheres' centre (the origin).
-const DISTANCE: f32 = 3.0;
-const FOV_DEG: f32 = 50.0;
+// The surfels' view of a unit sphere, and their measure of its outline.
+use super::surfels::{DISTANCE, FOV_DEG, H, W, holes_and_overshoot};
 const OUTER: [u8; 3] = [40, 80, 200];
 const INNER: [u8; 3] = [200, 60, 40];
 
@@ -157,30 +154,6 @@ fn near(got: [u8; 3], want: [f32; 3], tolerance: f32) -> bool {
     got.iter()
         .zip(want)
         .all(|(g, w)| (*g as f32 - w).abs() <= tolerance)
-}
-
-/// Pixels inside the outer sphere's outline (by two pixels) left empty, over the pixels
-/// inside; and the mean distance by which drawn pixels reach beyond the outline.
-fn holes_and_overshoot(covered: &[bool]) -> (f64, f64) {
-    let focal = H as f32 * 0.5 / (FOV_DEG.to_radians() * 0.5).tan();
-    let r = focal * (1.0 / DISTANCE).asin().tan();
-    let (cx, cy) = (W as f32 * 0.5, H as f32 * 0.5);
-    let (mut inside, mut empty, mut over, mut over_n) = (0, 0, 0.0, 0);
-    for (i, c) in covered.iter().enumerate() {
-        let (x, y) = ((i as u32 % W) as f32 + 0.5, (i as u32 / W) as f32 + 0.5);
-        let d = ((x - cx).powi(2) + (y - cy).powi(2)).sqrt();
-        if d < r - 2.0 {
-            inside += 1;
-            empty += usize::from(!c);
-        } else if *c && d > r {
-            over += (d - r) as f64;
-            over_n += 1;
-        }
-    }
-    (
-        empty as f64 / inside.max(1) as f64,
-        over / over_n.max(1) as f64,
-    )
 }
 
 #[test]

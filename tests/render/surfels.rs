@@ -10,11 +10,12 @@ use strata_viewer::gpu::{GpuContext, ProjectionPath};
 use strata_viewer::pipelines::surfels::{CURVED_SHARE, NO_NORMALS, SURFELS};
 use strata_viewer::{Camera, Renderer, Settings};
 
-const W: u32 = 480;
-const H: u32 = 360;
+/// The view the tests of `filters` share (`holes_and_overshoot`).
+pub(super) const W: u32 = 480;
+pub(super) const H: u32 = 360;
 /// The eye on the -y axis at this distance from the sphere's centre (the origin).
-const DISTANCE: f32 = 3.0;
-const FOV_DEG: f32 = 50.0;
+pub(super) const DISTANCE: f32 = 3.0;
+pub(super) const FOV_DEG: f32 = 50.0;
 
 /// The sphere's flavours: sparse with normals, sparse without, dense (several levels deep).
 #[derive(Clone, Copy, PartialEq)]
@@ -134,7 +135,7 @@ fn outline() -> ([f32; 2], f32) {
 
 /// Pixels inside the outline (by two pixels) left empty, over the pixels inside; and the mean
 /// distance in pixels by which drawn pixels reach beyond the outline.
-fn holes_and_overshoot(covered: &[bool]) -> (f64, f64) {
+pub(super) fn holes_and_overshoot(covered: &[bool]) -> (f64, f64) {
     let ([cx, cy], r) = outline();
     let (mut inside, mut empty, mut over, mut over_n) = (0, 0, 0.0, 0);
     for (i, c) in covered.iter().enumerate() {

@@ -139,10 +139,16 @@ pub struct FrameSetup {
     pub cull: bool,
 }
 
-/// A bind group entry: binding and buffer.
-type Entry<'a> = (u32, wgpu::BindingResource<'a>);
+/// A bind group entry: binding and resource.
+pub(super) type Entry<'a> = (u32, wgpu::BindingResource<'a>);
 
-fn bind(device: &wgpu::Device, pipe: &wgpu::ComputePipeline, group: u32, entries: &[Entry]) -> wgpu::BindGroup {
+/// A bind group of `pipe`'s layout `group` from (binding, resource) pairs.
+pub(super) fn bind(
+    device: &wgpu::Device,
+    pipe: &wgpu::ComputePipeline,
+    group: u32,
+    entries: &[Entry],
+) -> wgpu::BindGroup {
     let entries: Vec<wgpu::BindGroupEntry> = entries
         .iter()
         .map(|(binding, resource)| wgpu::BindGroupEntry {

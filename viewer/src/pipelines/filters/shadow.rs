@@ -6,6 +6,7 @@
 //! stops); they start again when the light, the parameters or the drawn points change.
 
 use super::DTILDE_SPACINGS;
+use super::passes::bind;
 use crate::ViewerError;
 use crate::gpu::timing::Timer;
 use crate::pipelines::projection::{
@@ -292,28 +293,6 @@ impl Shadows {
 
 fn scale(done: u32) -> f32 {
     if done == 0 { 0.0 } else { 1.0 / done as f32 }
-}
-
-type Entry<'a> = (u32, wgpu::BindingResource<'a>);
-
-fn bind(
-    device: &wgpu::Device,
-    pipe: &wgpu::ComputePipeline,
-    group: u32,
-    entries: &[Entry],
-) -> wgpu::BindGroup {
-    let entries: Vec<wgpu::BindGroupEntry> = entries
-        .iter()
-        .map(|(binding, resource)| wgpu::BindGroupEntry {
-            binding: *binding,
-            resource: resource.clone(),
-        })
-        .collect();
-    device.create_bind_group(&wgpu::BindGroupDescriptor {
-        label: Some("shadows"),
-        layout: &pipe.get_bind_group_layout(group),
-        entries: &entries,
-    })
 }
 
 /// What the kept counts depend on: the setup and the drawn ranges.

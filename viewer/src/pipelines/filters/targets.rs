@@ -142,26 +142,12 @@ impl FiltersTargets {
 
     pub fn read_albedo(&self, ctx: &GpuContext) -> Result<Vec<Option<[u8; 3]>>, ViewerError> {
         let bytes = read_buffer(ctx, &self.albedo, self.pixels() * 4)?;
-        Ok(bytes
-            .chunks_exact(4)
-            .map(|c| (c[3] != 0).then_some([c[0], c[1], c[2]]))
-            .collect())
+        Ok(crate::pipelines::surface::albedo_from(&bytes))
     }
 
     pub fn read_surface(&self, ctx: &GpuContext) -> Result<Vec<Option<SurfacePixel>>, ViewerError> {
         let bytes = read_buffer(ctx, &self.surface, self.pixels() * 16)?;
-        Ok(bytes
-            .chunks_exact(16)
-            .map(|b| {
-                let f = |k: usize| {
-                    f32::from_le_bytes([b[4 * k], b[4 * k + 1], b[4 * k + 2], b[4 * k + 3]])
-                };
-                (f(3) >= 0.0).then(|| SurfacePixel {
-                    depth: f(3),
-                    normal: Some([f(0), f(1), f(2)]),
-                })
-            })
-            .collect())
+        Ok(crate::pipelines::surface::surface_from(&bytes))
     }
 }
 
