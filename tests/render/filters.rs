@@ -107,8 +107,12 @@ impl Shot {
 }
 
 fn shot(dataset: &Path, pipeline: &str, set: &[&str]) -> Shot {
+    shot_on(ProjectionPath::Auto, dataset, pipeline, set)
+}
+
+fn shot_on(path: ProjectionPath, dataset: &Path, pipeline: &str, set: &[&str]) -> Shot {
     let ds = Arc::new(StreamDataset::open_path(dataset).expect("dataset opens"));
-    let ctx = Arc::new(GpuContext::new(ProjectionPath::Auto).expect("GPU adapter"));
+    let ctx = Arc::new(GpuContext::new(path).expect("GPU adapter"));
     let mut r = Renderer::new(ctx, ds.clone(), 1 << 30, 1).expect("renderer");
     let anchor = ds.anchor().as_vec3();
     let camera = Camera {
@@ -218,6 +222,19 @@ fn peeled_layers_blend_front_to_back_and_back_faces_stay_culled() {
         ),
         "{:?}",
         four.centre()
+    );
+}
+
+#[test]
+fn peels_are_the_same_on_the_32_and_64_bit_paths() {
+    // One 64-bit pass where the device has the atomics, two 32-bit passes where not (GL).
+    let set = ["layers=4", "opacity=0.5"];
+    let wide = shot_on(ProjectionPath::Auto, nested(true), "filters", &set);
+    let narrow = shot_on(ProjectionPath::Int32, nested(true), "filters", &set);
+    assert_eq!(wide.measures[LAYERS_USED], narrow.measures[LAYERS_USED]);
+    assert!(
+        wide.rgb == narrow.rgb,
+        "the two paths peel different layers"
     );
 }
 

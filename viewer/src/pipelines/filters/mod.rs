@@ -191,8 +191,8 @@ pub static INFO: PipelineInfo = PipelineInfo {
     cull_back_faces: true,
     screen_buffers: FiltersTargets::screen_buffers,
     create,
-    shaders: |_| {
-        let mut all = passes::shaders();
+    shaders: |int64| {
+        let mut all = passes::shaders(int64);
         all.extend(shadow::shaders());
         all
     },

@@ -19,6 +19,8 @@ use bytemuck::{Pod, Zeroable};
 const UNIFORMS_WGSL: &str = include_str!("uniforms.wgsl");
 const PEEL_DEPTH_WGSL: &str = include_str!("peel_depth.wgsl");
 const PEEL_INDEX_WGSL: &str = include_str!("peel_index.wgsl");
+const PEEL_INT64_WGSL: &str = include_str!("peel_int64.wgsl");
+const PEEL_UNPACK_WGSL: &str = include_str!("peel_unpack.wgsl");
 const REACH_NORMAL_WGSL: &str = include_str!("reach_normal.wgsl");
 const REACH_FLAT_WGSL: &str = include_str!("reach_flat.wgsl");
 const RESOLVE_WGSL: &str = include_str!("resolve.wgsl");
@@ -75,11 +77,11 @@ pub struct Step {
     pub complemented: u32,
 }
 
-/// Every module the filters compile.
-pub fn shaders() -> Vec<ShaderSource> {
+/// Every module the filters compile; `int64`: the device has 64-bit atomics (one-pass peels).
+pub fn shaders(int64: bool) -> Vec<ShaderSource> {
     let peel = |label, emit, cull: bool| {
         let mut parts = vec![UNIFORMS_WGSL, emit, FILTERS_WGSL, RANGE_SEARCH_WGSL];
-        let reach = emit == PEEL_DEPTH_WGSL;
+        let reach = emit != PEEL_INDEX_WGSL;
         if cull {
             parts.extend([OCT16_WGSL, CULL_WGSL]);
             parts.extend(reach.then_some(REACH_NORMAL_WGSL));
@@ -90,7 +92,7 @@ pub fn shaders() -> Vec<ShaderSource> {
         parts.push(PROJECT_WGSL);
         ShaderSource::new(label, &parts)
     };
-    vec![
+    let mut v = vec![
         peel("peel depth", PEEL_DEPTH_WGSL, false),
         peel("peel index", PEEL_INDEX_WGSL, false),
         peel("peel depth culled", PEEL_DEPTH_WGSL, true),
@@ -110,13 +112,24 @@ pub fn shaders() -> Vec<ShaderSource> {
         ),
         ShaderSource::new("filters args", &[UNIFORMS_WGSL, ARGS_WGSL]),
         ShaderSource::new("filters tiles", &[UNIFORMS_WGSL, TILES_WGSL]),
-    ]
+    ];
+    if int64 {
+        v.push(peel("peel int64", PEEL_INT64_WGSL, false));
+        v.push(peel("peel int64 culled", PEEL_INT64_WGSL, true));
+        v.push(ShaderSource::new(
+            "peel unpack",
+            &[UNIFORMS_WGSL, PEEL_UNPACK_WGSL],
+        ));
+    }
+    v
 }
 
-/// A peel pass's two modules: nearest depth, then lowest index at it.
+/// A peel pass's two modules: nearest depth, then lowest index at it; and the one pass of
+/// both where the device has 64-bit atomics.
 struct Peel {
     depth: wgpu::ComputePipeline,
     index: wgpu::ComputePipeline,
+    int64: Option<wgpu::ComputePipeline>,
 }
 
 pub struct FiltersPasses {
@@ -129,6 +142,7 @@ pub struct FiltersPasses {
     shade: wgpu::ComputePipeline,
     args: wgpu::ComputePipeline,
     tiles: wgpu::ComputePipeline,
+    unpack: Option<wgpu::ComputePipeline>,
 }
 
 /// What a frame's passes are told beyond the uniforms.
@@ -165,28 +179,49 @@ pub(super) fn bind(
 
 impl FiltersPasses {
     pub fn new(ctx: &GpuContext) -> Result<FiltersPasses, ViewerError> {
-        let mut compiled = shaders().into_iter().map(|s| s.compute(&ctx.device, None));
+        let mut compiled = shaders(ctx.int64_atomics)
+            .into_iter()
+            .map(|s| s.compute(&ctx.device, None));
         let mut next = || {
             compiled
                 .next()
                 .ok_or_else(|| ViewerError::Gpu("a filters shader is missing".into()))
         };
+        let (depth, index) = (next()?, next()?);
+        let (depth_culled, index_culled) = (next()?, next()?);
+        let (resolve, background, occluded, smooth, shade, args, tiles) = (
+            next()?,
+            next()?,
+            next()?,
+            next()?,
+            next()?,
+            next()?,
+            next()?,
+        );
+        let (int64, int64_culled, unpack) = if ctx.int64_atomics {
+            (Some(next()?), Some(next()?), Some(next()?))
+        } else {
+            (None, None, None)
+        };
         Ok(FiltersPasses {
             peel: Peel {
-                depth: next()?,
-                index: next()?,
+                depth,
+                index,
+                int64,
             },
             peel_culled: Peel {
-                depth: next()?,
-                index: next()?,
+                depth: depth_culled,
+                index: index_culled,
+                int64: int64_culled,
             },
-            resolve: next()?,
-            background: next()?,
-            occluded: next()?,
-            smooth: next()?,
-            shade: next()?,
-            args: next()?,
-            tiles: next()?,
+            resolve,
+            background,
+            occluded,
+            smooth,
+            shade,
+            args,
+            tiles,
+            unpack,
         })
     }
 
@@ -267,35 +302,59 @@ impl FiltersPasses {
         let mut reference: Option<usize> = None;
         for layer in 0..setup.layers.min(MAX_LAYERS) {
             if let Some(r) = reference {
-                encoder.clear_buffer(&targets.peel_depths, 0, None);
-                encoder.clear_buffer(&targets.peel_indices, 0, None);
-                let depth_group = bind(
-                    device,
-                    &peel.depth,
-                    0,
-                    &[
-                        frame_entry(),
-                        fil_entry(),
-                        (2, targets.peel_depths.as_entire_binding()),
-                        (3, targets.texels[r].as_entire_binding()),
-                    ],
-                );
-                let index_group = bind(
-                    device,
-                    &peel.index,
-                    0,
-                    &[
-                        frame_entry(),
-                        (2, targets.peel_depths.as_entire_binding()),
-                        (3, targets.peel_indices.as_entire_binding()),
-                    ],
-                );
+                // One 64-bit pass and an unpack where the device can, else two 32-bit passes.
+                let one_pass = match (&peel.int64, &self.unpack, &targets.peel_keys) {
+                    (Some(p), Some(u), Some(k)) => Some((p, u, k)),
+                    _ => None,
+                };
+                let mut passes: Vec<(&wgpu::ComputePipeline, wgpu::BindGroup)> = Vec::new();
+                if let Some((pipe, _, keys)) = one_pass {
+                    encoder.clear_buffer(keys, 0, None);
+                    let group = bind(
+                        device,
+                        pipe,
+                        0,
+                        &[
+                            frame_entry(),
+                            fil_entry(),
+                            (2, keys.as_entire_binding()),
+                            (3, targets.texels[r].as_entire_binding()),
+                        ],
+                    );
+                    passes.push((pipe, group));
+                } else {
+                    encoder.clear_buffer(&targets.peel_depths, 0, None);
+                    encoder.clear_buffer(&targets.peel_indices, 0, None);
+                    let depth_group = bind(
+                        device,
+                        &peel.depth,
+                        0,
+                        &[
+                            frame_entry(),
+                            fil_entry(),
+                            (2, targets.peel_depths.as_entire_binding()),
+                            (3, targets.texels[r].as_entire_binding()),
+                        ],
+                    );
+                    let index_group = bind(
+                        device,
+                        &peel.index,
+                        0,
+                        &[
+                            frame_entry(),
+                            (2, targets.peel_depths.as_entire_binding()),
+                            (3, targets.peel_indices.as_entire_binding()),
+                        ],
+                    );
+                    passes.push((&peel.depth, depth_group));
+                    passes.push((&peel.index, index_group));
+                }
                 let timestamp_writes = timer.pass(encoder, "peel");
                 let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
                     label: Some("peel"),
                     timestamp_writes,
                 });
-                for (pipe, group) in [(&peel.depth, &depth_group), (&peel.index, &index_group)] {
+                for (pipe, group) in &passes {
                     pass.set_pipeline(pipe);
                     pass.set_bind_group(0, group, &[]);
                     for (g, [points, attributes, _, _], normals) in &arenas {
@@ -314,6 +373,22 @@ impl FiltersPasses {
                         let (x, y) = split_groups(g.groups);
                         pass.dispatch_workgroups(x, y, 1);
                     }
+                }
+                if let Some((_, unpack, keys)) = one_pass {
+                    let group = bind(
+                        device,
+                        unpack,
+                        0,
+                        &[
+                            frame_entry(),
+                            (2, keys.as_entire_binding()),
+                            (3, targets.peel_depths.as_entire_binding()),
+                            (4, targets.peel_indices.as_entire_binding()),
+                        ],
+                    );
+                    pass.set_pipeline(unpack);
+                    pass.set_bind_group(0, &group, &[]);
+                    pass.dispatch_workgroups(gx, gy, 1);
                 }
             }
 

@@ -35,6 +35,9 @@ pub struct FiltersTargets {
     pub height: u32,
     pub uniforms: wgpu::Buffer,
     pub steps: wgpu::Buffer,
+    /// A peeled layer's 64-bit keys (complements; 0 is empty), where the device has 64-bit
+    /// atomics.
+    pub peel_keys: Option<wgpu::Buffer>,
     /// A peeled layer's depth and index planes (complements; 0 is empty).
     pub peel_depths: wgpu::Buffer,
     pub peel_indices: wgpu::Buffer,
@@ -60,6 +63,10 @@ impl FiltersTargets {
         vec![
             ScreenBuffer {
                 label: "filters peel planes",
+                bytes: pixels * 8,
+            },
+            ScreenBuffer {
+                label: "filters peel keys",
                 bytes: pixels * 8,
             },
             ScreenBuffer {
@@ -103,6 +110,10 @@ impl FiltersTargets {
                 usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
                 mapped_at_creation: false,
             }),
+            peel_keys: device
+                .features()
+                .contains(wgpu::Features::SHADER_INT64_ATOMIC_MIN_MAX)
+                .then(|| storage("filters peel keys", pixels * 8)),
             peel_depths: storage("filters peel depths", pixels * 4),
             peel_indices: storage("filters peel indices", pixels * 4),
             texels: [
