@@ -178,7 +178,7 @@ fn quick_run_writes_the_table_the_charts_and_the_images() {
     // Paper 004's transparency and shadows against the mesh peeled and shadowed the same way:
     // six layers at half opacity at least 25 dB; the lit or shadowed state right for at least
     // 95 % of the pixels (37.2 dB and 99.3 % on lavapipe).
-    // Rows of that table: scene, density, setting, PSNR, SSIM, state, GPU ms.
+    // Rows of that table: scene, density, setting, PSNR, SSIM, state, speckle, GPU ms.
     let cells = |scene: &str, setting: &str| -> Vec<String> {
         summary
             .lines()
@@ -198,8 +198,13 @@ fn quick_run_writes_the_table_the_charts_and_the_images() {
     let number = |c: &str| -> f64 { c.trim_end_matches(" %").parse().unwrap_or(f64::NAN) };
     let layers = cells("layers", "layers=6 opacity=0.5");
     assert!(number(&layers[4]) >= 25.0, "transparency: {layers:?}");
-    let shadow = cells("shadow", "shadows=1");
+    let shadow = cells("shadow", "shadows=1 2px");
     assert!(number(&shadow[6]) >= 95.0, "shadows: {shadow:?}");
+    // A light grazing the floor, and soft shadows whose penumbra has no speckle (0.29 %).
+    let grazing = cells("shadow", "shadows=1 grazing");
+    assert!(number(&grazing[6]) >= 90.0, "grazing light: {grazing:?}");
+    let soft = cells("shadow", "shadows=2");
+    assert!(number(&soft[7]) < 1.0, "soft shadows' speckle: {soft:?}");
     let images = std::fs::read_dir(out.path().join("images"))
         .expect("images")
         .count();

@@ -110,6 +110,12 @@ impl Config {
         self.fixed("shadows").is_some_and(|s| s > 0.0)
     }
 
+    /// The direction towards the light a shadowed configuration sets.
+    fn light(&self) -> glam::Vec3 {
+        let axis = |name| self.fixed(name).unwrap_or(0.0);
+        glam::Vec3::new(axis("light.x"), axis("light.y"), axis("light.z"))
+    }
+
     /// The scene a variant is made for; `None`: every scene.
     fn scene(&self) -> Option<&'static str> {
         if self.peeled().is_some() {
@@ -145,12 +151,39 @@ const VARIANTS: &[(&str, &[(&str, f32)], f32, &str)] = &[
         2.0,
         "shadows=1 2px",
     ),
+    // The stability sweep of the shadows: a light grazing the floor (about 10° above it).
+    (
+        "filters",
+        &[
+            ("shadows", 1.0),
+            ("light.x", GRAZING_LIGHT[0]),
+            ("light.y", GRAZING_LIGHT[1]),
+            ("light.z", GRAZING_LIGHT[2]),
+        ],
+        2.0,
+        "shadows=1 grazing 2px",
+    ),
+    // Soft shadows: 16 samples over a 10° light.
+    (
+        "filters",
+        &[
+            ("shadows", 2.0),
+            ("shadow_samples", 16.0),
+            ("light_size", 10.0),
+            ("light.x", SHADOW_LIGHT[0]),
+            ("light.y", SHADOW_LIGHT[1]),
+            ("light.z", SHADOW_LIGHT[2]),
+        ],
+        2.0,
+        "shadows=2 2px",
+    ),
 ];
 /// The scene the peeled variants run on, and the one the shadowed ones run on.
 const LAYERS_SCENE: &str = "layers";
 const SHADOW_SCENE: &str = "shadow";
-/// The shadow scene's light: towards +x, -y and up.
+/// The shadow scene's light: towards +x, -y and up; and one grazing the floor.
 const SHADOW_LIGHT: [f32; 3] = [0.5, -0.3, 1.0];
+const GRAZING_LIGHT: [f32; 3] = [0.98, -0.2, 0.18];
 
 /// Every registered pipeline at its defaults with one- and two-pixel points, and, in the full
 /// run, each automatic parameter at half and twice its automatic value: the sweeps come from
@@ -422,7 +455,7 @@ struct ConfigResult {
     albedo_psnr: f64,
     albedo_ssim: f64,
     gpu_ms: f64,
-    shadow_match: Option<f64>,
+    shadow_match: Option<(f64, f64)>,
 }
 
 fn render_view(
@@ -557,7 +590,7 @@ fn render_view(
                 tan_half,
                 (w, h),
                 &reference_image.surface,
-                glam::Vec3::from_array(SHADOW_LIGHT),
+                config.light(),
             );
             let region: Vec<bool> = reference_image
                 .surface
@@ -565,11 +598,11 @@ fn render_view(
                 .zip(&frame.surface)
                 .map(|(r, f)| r.is_some() && f.is_some())
                 .collect();
-            let (matched, psnr, ssim) =
+            let scores =
                 shadows::shadow_scores(&rgba, &plain, &albedo, &lit_by_mesh, &region, (w, h));
-            metrics.psnr = psnr;
-            metrics.ssim = ssim;
-            shadow_match = Some(matched);
+            metrics.psnr = scores.psnr;
+            metrics.ssim = scores.ssim;
+            shadow_match = Some((scores.state, scores.speckle));
         }
         let (albedo_psnr, albedo_ssim) = albedo_scores(
             &reference_image.albedo,

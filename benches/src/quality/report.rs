@@ -27,8 +27,9 @@ pub struct Row {
     pub gpu_ms: f64,
     pub stability: bool,
     /// Shadowed frames: the share of the scored pixels whose lit or shadowed state matches
-    /// the mesh's (`shadows::shadow_scores`).
-    pub shadow_match: Option<f64>,
+    /// the mesh's, and the share of the penumbra's pixels that are speckle
+    /// (`shadows::shadow_scores`).
+    pub shadow_match: Option<(f64, f64)>,
 }
 
 impl Row {
@@ -102,20 +103,16 @@ fn layers_and_shadows(rows: &[Row]) -> String {
         return String::new();
     }
     let mut md = String::from(
-        "
-## Transparency and shadows
-
-| scene | density | setting | PSNR dB | SSIM | lit/shadowed state right | GPU ms |
-|---|---|---|---|---|---|---|
-",
+        "\n## Transparency and shadows\n\n| scene | density | setting | PSNR dB | SSIM | lit/shadowed state right | penumbra speckle | GPU ms |\n|---|---|---|---|---|---|---|---|\n",
     );
     for r in picked {
-        let state = r
-            .shadow_match
-            .map_or("-".to_string(), |m| format!("{:.1} %", 100.0 * m));
+        let (state, speckle) = match r.shadow_match {
+            Some((m, s)) => (format!("{:.1} %", 100.0 * m), format!("{:.2} %", 100.0 * s)),
+            None => ("-".to_string(), "-".to_string()),
+        };
         let _ = writeln!(
             md,
-            "| {} | {:.3} | {} | {:.2} | {:.3} | {state} | {:.1} |",
+            "| {} | {:.3} | {} | {:.2} | {:.3} | {state} | {speckle} | {:.1} |",
             r.scene, r.density, r.setting, r.metrics.psnr, r.metrics.ssim, r.gpu_ms
         );
     }

@@ -96,10 +96,21 @@ fn hits(o: Vec3, d: Vec3, [a, b, c]: &[Vec3; 3]) -> bool {
     e2.dot(q) * inv > 0.0
 }
 
-/// How a shadowed frame matches the mesh's shadows: the share of the scored pixels (a surface
-/// in both, facing the light) whose state agrees, and PSNR and SSIM of the frame against the
-/// same pipeline's picture without shadows where the mesh is lit and its ambient colour
-/// (`albedo` times the ambient share) where the mesh is in shadow.
+/// How a shadowed frame matches the mesh's shadows.
+pub struct ShadowScores {
+    /// The share of the scored pixels (a surface in both, facing the light) whose lit or
+    /// shadowed state agrees with the mesh's.
+    pub state: f64,
+    /// PSNR and SSIM of the frame against the same pipeline's picture without shadows where
+    /// the mesh is lit and its ambient colour (albedo times the ambient share) where not.
+    pub psnr: f64,
+    pub ssim: f64,
+    /// Of the penumbra's pixels (between lit and shadowed by more than a tenth either way),
+    /// the share darker, by more than 2 % of the way from shadowed to lit, than both
+    /// neighbours across the penumbra (along the axis its brightness changes most on): speckle.
+    pub speckle: f64,
+}
+
 pub fn shadow_scores(
     frame: &[u8],
     unshadowed: &[u8],
@@ -107,7 +118,7 @@ pub fn shadow_scores(
     lit: &[Option<bool>],
     region: &[bool],
     size: (u32, u32),
-) -> (f64, f64, f64) {
+) -> ShadowScores {
     let ambient = ambient();
     let luma = |p: &[u8]| 0.299 * p[0] as f32 + 0.587 * p[1] as f32 + 0.114 * p[2] as f32;
     let mut reference = unshadowed.to_vec();
@@ -131,7 +142,42 @@ pub fn shadow_scores(
         }
     }
     let (psnr, ssim) = colour_scores(&reference, frame, region, size.0 as usize, size.1 as usize);
-    (agree as f64 / scored.max(1) as f64, psnr, ssim)
+    // Speckle across the penumbra.
+    let (w, h) = (size.0 as usize, size.1 as usize);
+    let y = |i: usize| luma(&frame[4 * i..4 * i + 4]);
+    let (mut penumbra, mut speckled) = (0usize, 0usize);
+    for yy in 1..h.saturating_sub(1) {
+        for x in 1..w.saturating_sub(1) {
+            let i = yy * w + x;
+            if !region[i] || lit[i].is_none() {
+                continue;
+            }
+            let bright = luma(&unshadowed[4 * i..4 * i + 4]);
+            let low = luma(&albedo[4 * i..4 * i + 4]) * ambient;
+            let margin = 0.1 * (bright - low).abs();
+            let v = y(i);
+            if v <= low + margin || v >= bright - margin {
+                continue;
+            }
+            penumbra += 1;
+            // Across the penumbra: along the axis its brightness changes most on.
+            let (a, b) = if (y(i + 1) - y(i - 1)).abs() >= (y(i + w) - y(i - w)).abs() {
+                (i - 1, i + 1)
+            } else {
+                (i - w, i + w)
+            };
+            let step = 0.02 * (bright - low).abs();
+            if v < y(a) - step && v < y(b) - step {
+                speckled += 1;
+            }
+        }
+    }
+    ShadowScores {
+        state: agree as f64 / scored.max(1) as f64,
+        psnr,
+        ssim,
+        speckle: speckled as f64 / penumbra.max(1) as f64,
+    }
 }
 
 #[cfg(test)]
