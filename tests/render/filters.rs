@@ -430,3 +430,46 @@ fn shadow_casters_outside_the_view_are_loaded_for_the_light() {
         "the light's view loads casters beyond the {plain} nodes the view needs ({shadowed})"
     );
 }
+
+#[test]
+fn hiding_the_caster_takes_its_shadow_away() {
+    // The same renderer, so the kept shadow must be computed again when the filters change.
+    let ds = Arc::new(StreamDataset::open_path(plate_over_ground()).expect("dataset opens"));
+    let ctx = Arc::new(GpuContext::new(ProjectionPath::Auto).expect("GPU adapter"));
+    let mut r = Renderer::new(ctx, ds.clone(), 1 << 30, 1).expect("renderer");
+    let anchor = ds.anchor().as_vec3();
+    let camera = Camera {
+        eye: glam::Vec3::new(0.0, -0.5, 4.0) - anchor,
+        target: -anchor,
+        fov_y: 45f32.to_radians(),
+    };
+    let mut settings = Settings {
+        budget: 10_000_000,
+        ..Settings::default()
+    };
+    settings.set_pipeline("filters").expect("pipeline");
+    for a in ["light=1,0,1", "shadows=1"] {
+        settings.set_param(a).expect("parameter");
+    }
+    let view_proj =
+        glam::camera::rh::proj::directx::perspective(camera.fov_y, W as f32 / H as f32, 0.1, 100.0)
+            * camera.view();
+    let clip = view_proj * (glam::Vec3::new(-0.6, 0.0, 0.0) - anchor).extend(1.0);
+    let ndc = clip.truncate() / clip.w;
+    let at = ((0.5 - ndc.y * 0.5) * H as f32) as usize * W as usize
+        + ((ndc.x * 0.5 + 0.5) * W as f32) as usize;
+    let mut grey_at = |settings: &Settings| {
+        paths::frame_until_complete(&mut r, &camera, W, H, settings);
+        r.frame(&camera, W, H, settings).expect("frame");
+        r.wait_gpu().expect("GPU");
+        let (_, _, rgba) = r.read_image().expect("image");
+        grey([rgba[4 * at], rgba[4 * at + 1], rgba[4 * at + 2]])
+    };
+    let shadowed = grey_at(&settings);
+    settings.filter.elevation = Some((-1.0, 0.3));
+    let uncovered = grey_at(&settings);
+    assert!(
+        uncovered > 2.0 * shadowed,
+        "the hidden plate still casts: {shadowed} before, {uncovered} after"
+    );
+}

@@ -207,6 +207,9 @@ pub struct PipelineFrame<'a> {
     pub back_faces_culled: bool,
     /// The dataset's bounds, relative to the anchor.
     pub bounds: [glam::Vec3; 2],
+    /// Changes whenever the point filters or clip boxes do (for what a pipeline keeps between
+    /// frames that depends on which points are shown).
+    pub filters_key: u64,
 }
 
 /// Per pixel, the unlit colour of the surface shown (`None`: background).

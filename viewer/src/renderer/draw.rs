@@ -219,6 +219,7 @@ impl Renderer {
                     normals_outward,
                     back_faces_culled: cull,
                     bounds: [bmin, bmax],
+                    filters_key: filters_key(&uniforms),
                 };
                 pipeline.encode(&frame, &mut encoder, timer)?;
             }
@@ -246,6 +247,18 @@ impl Renderer {
             .map_err(|e| ViewerError::Gpu(format!("polling the GPU failed: {e}")))?;
         Ok(())
     }
+}
+
+/// A hash of the frame's point filters and clip boxes as the GPU applies them.
+fn filters_key(u: &FrameUniforms) -> u64 {
+    use std::hash::{Hash, Hasher};
+    let mut h = std::hash::DefaultHasher::new();
+    (u.filters, u.return_lo, u.return_hi, u.clip_count).hash(&mut h);
+    u.class_mask.hash(&mut h);
+    for v in u.ranges.iter().chain(u.clip_boxes.iter().flatten()) {
+        v.to_bits().hash(&mut h);
+    }
+    h.finish()
 }
 
 /// Puts `filter` into the frame's uniforms; `anchor_z` is the elevation the GPU's z is relative to.

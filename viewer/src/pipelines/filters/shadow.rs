@@ -3,7 +3,8 @@
 //! the front layer counted lit, in a per-point stream beside the node arenas. Soft shadows
 //! average samples spread over an area light (Monte-Carlo). The counts are kept between frames
 //! and added to progressively (one sample a frame while the view moves, the rest once it
-//! stops); they start again when the light, the parameters or the drawn points change.
+//! stops); they start again when the light, the parameters, the point filters or the drawn
+//! points change.
 
 use super::DTILDE_SPACINGS;
 use super::passes::bind;
@@ -309,6 +310,8 @@ fn key_of(frame: &PipelineFrame, setup: &ShadowSetup) -> u64 {
         v.to_bits().hash(&mut h);
     }
     setup.normals.hash(&mut h);
+    // Points the filters hide cast no shadow.
+    frame.filters_key.hash(&mut h);
     for list in [frame.arenas, frame.casters] {
         for d in list {
             d.arena.hash(&mut h);
