@@ -317,30 +317,14 @@ fn shadow_shot(set: &[&str], ground: &[[f32; 2]]) -> (Vec<[u8; 3]>, Vec<usize>) 
         target: -anchor,
         fov_y: 45f32.to_radians(),
     };
-    let mut settings = Settings {
-        budget: 10_000_000,
-        ..Settings::default()
-    };
-    settings.set_pipeline("filters").expect("pipeline");
-    for a in ["light=1,0,1"].iter().chain(set) {
-        settings.set_param(a).expect("parameter");
-    }
+    let settings = lit_from_x(set);
     paths::frame_until_complete(&mut r, &camera, W, H, &settings);
     r.frame(&camera, W, H, &settings).expect("frame");
     r.wait_gpu().expect("GPU");
     let (_, _, rgba) = r.read_image().expect("image");
-    let view_proj =
-        glam::camera::rh::proj::directx::perspective(camera.fov_y, W as f32 / H as f32, 0.1, 100.0)
-            * camera.view();
     let pixels = ground
         .iter()
-        .map(|[x, y]| {
-            let clip = view_proj * (glam::Vec3::new(*x, *y, 0.0) - anchor).extend(1.0);
-            let ndc = clip.truncate() / clip.w;
-            let px = ((ndc.x * 0.5 + 0.5) * W as f32) as usize;
-            let py = ((0.5 - ndc.y * 0.5) * H as f32) as usize;
-            py * W as usize + px
-        })
+        .map(|p| pixel_of(&camera, anchor, *p))
         .collect();
     (
         rgba.chunks_exact(4).map(|p| [p[0], p[1], p[2]]).collect(),
@@ -350,6 +334,31 @@ fn shadow_shot(set: &[&str], ground: &[[f32; 2]]) -> (Vec<[u8; 3]>, Vec<usize>) 
 
 fn grey(p: [u8; 3]) -> f32 {
     p.iter().map(|&c| c as f32).sum::<f32>() / 3.0
+}
+
+/// `filters` lit from +x and above (the plate's shadow falls towards -x), with `set`.
+fn lit_from_x(set: &[&str]) -> Settings {
+    let mut settings = Settings {
+        budget: 10_000_000,
+        ..Settings::default()
+    };
+    settings.set_pipeline("filters").expect("pipeline");
+    for a in ["light=1,0,1"].iter().chain(set) {
+        settings.set_param(a).expect("parameter");
+    }
+    settings
+}
+
+/// The pixel (row-major index) a point of the floor at (x, y) lands on.
+fn pixel_of(camera: &Camera, anchor: glam::Vec3, [x, y]: [f32; 2]) -> usize {
+    let aspect = W as f32 / H as f32;
+    let view_proj = glam::camera::rh::proj::directx::perspective(camera.fov_y, aspect, 0.1, 100.0)
+        * camera.view();
+    let clip = view_proj * (glam::Vec3::new(x, y, 0.0) - anchor).extend(1.0);
+    let ndc = clip.truncate() / clip.w;
+    let px = ((ndc.x * 0.5 + 0.5) * W as f32) as usize;
+    let py = ((0.5 - ndc.y * 0.5) * H as f32) as usize;
+    py * W as usize + px
 }
 
 #[test]
@@ -409,14 +418,7 @@ fn shadow_casters_outside_the_view_are_loaded_for_the_light() {
     };
     let resident = |set: &[&str]| {
         let mut r = Renderer::new(ctx.clone(), ds.clone(), 1 << 30, 1).expect("renderer");
-        let mut settings = Settings {
-            budget: 10_000_000,
-            ..Settings::default()
-        };
-        settings.set_pipeline("filters").expect("pipeline");
-        for a in ["light=1,0,1"].iter().chain(set) {
-            settings.set_param(a).expect("parameter");
-        }
+        let settings = lit_from_x(set);
         paths::frame_until_complete(&mut r, &camera, W, H, &settings);
         let stats = r.frame(&camera, W, H, &settings).expect("frame");
         assert!(stats.complete);
@@ -443,21 +445,8 @@ fn hiding_the_caster_takes_its_shadow_away() {
         target: -anchor,
         fov_y: 45f32.to_radians(),
     };
-    let mut settings = Settings {
-        budget: 10_000_000,
-        ..Settings::default()
-    };
-    settings.set_pipeline("filters").expect("pipeline");
-    for a in ["light=1,0,1", "shadows=1"] {
-        settings.set_param(a).expect("parameter");
-    }
-    let view_proj =
-        glam::camera::rh::proj::directx::perspective(camera.fov_y, W as f32 / H as f32, 0.1, 100.0)
-            * camera.view();
-    let clip = view_proj * (glam::Vec3::new(-0.6, 0.0, 0.0) - anchor).extend(1.0);
-    let ndc = clip.truncate() / clip.w;
-    let at = ((0.5 - ndc.y * 0.5) * H as f32) as usize * W as usize
-        + ((ndc.x * 0.5 + 0.5) * W as f32) as usize;
+    let mut settings = lit_from_x(&["shadows=1"]);
+    let at = pixel_of(&camera, anchor, [-0.6, 0.0]);
     let mut grey_at = |settings: &Settings| {
         paths::frame_until_complete(&mut r, &camera, W, H, settings);
         r.frame(&camera, W, H, settings).expect("frame");
@@ -471,5 +460,43 @@ fn hiding_the_caster_takes_its_shadow_away() {
     assert!(
         uncovered > 2.0 * shadowed,
         "the hidden plate still casts: {shadowed} before, {uncovered} after"
+    );
+}
+
+#[test]
+fn shadows_are_kept_while_nothing_they_depend_on_changes() {
+    let ds = Arc::new(StreamDataset::open_path(plate_over_ground()).expect("dataset opens"));
+    let ctx = Arc::new(GpuContext::new(ProjectionPath::Auto).expect("GPU adapter"));
+    let mut r = Renderer::new(ctx, ds.clone(), 1 << 30, 1).expect("renderer");
+    let anchor = ds.anchor().as_vec3();
+    let camera = Camera {
+        eye: glam::Vec3::new(0.0, -0.5, 4.0) - anchor,
+        target: -anchor,
+        fov_y: 45f32.to_radians(),
+    };
+    let mut settings = lit_from_x(&["shadows=2", "shadow_samples=8"]);
+    settings.pass_clock = strata_viewer::gpu::timing::PassClock::Wall;
+    paths::frame_until_complete(&mut r, &camera, W, H, &settings);
+    let mut shadow_ms = |settings: &Settings, camera: &Camera| {
+        let stats = r.frame(camera, W, H, settings).expect("frame");
+        r.wait_gpu().expect("GPU");
+        stats.passes.get("shadows")
+    };
+    shadow_ms(&settings, &camera);
+    assert_eq!(
+        shadow_ms(&settings, &camera),
+        None,
+        "a still frame recomputed the shadows"
+    );
+    // A new light: computed again.
+    settings.set_param("light=1,0.5,1").expect("light");
+    assert!(
+        shadow_ms(&settings, &camera).is_some(),
+        "a new light kept the old shadows"
+    );
+    assert_eq!(
+        shadow_ms(&settings, &camera),
+        None,
+        "all samples in one still frame"
     );
 }

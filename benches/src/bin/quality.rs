@@ -10,6 +10,7 @@ use std::path::{Path, PathBuf};
 use std::sync::Arc;
 use std::time::{Duration, Instant};
 use strata_bench::convert_with_normals;
+use strata_bench::quality::configs::{Config, configs};
 use strata_bench::quality::mesh::y_up_to_z_up;
 use strata_bench::quality::metrics::{Frame, albedo_scores, compare};
 use strata_bench::quality::reference::{ReferenceImage, ReferenceRenderer, lit_as};
@@ -19,8 +20,8 @@ use strata_bench::quality::scenes::{CLAY, Points, Scene, View, scenes};
 use strata_bench::quality::shadows;
 use strata_viewer::gpu::{GpuContext, ProjectionPath};
 use strata_viewer::lod::clip_range;
+use strata_viewer::pipelines::edl;
 use strata_viewer::pipelines::params::ParamSpec;
-use strata_viewer::pipelines::{PipelineInfo, REGISTRY, edl};
 use strata_viewer::settings::SizeMode;
 use strata_viewer::{Camera, Renderer, Settings, StreamDataset};
 
@@ -82,147 +83,6 @@ fn parse_args() -> anyhow::Result<Args> {
         data,
         scenes: only,
     })
-}
-
-/// One pipeline configuration of the comparison.
-struct Config {
-    pipeline: &'static PipelineInfo,
-    setting: String,
-    point_size: f32,
-    /// An automatic parameter set to a multiple of its automatic value.
-    auto_factor: Option<(&'static str, f32)>,
-    /// Parameters set to values (`--set NAME=VALUE`); none at the defaults.
-    fixed: &'static [(&'static str, f32)],
-}
-
-impl Config {
-    fn fixed(&self, name: &str) -> Option<f32> {
-        self.fixed.iter().find(|(n, _)| *n == name).map(|(_, v)| *v)
-    }
-
-    /// Layers and opacity of a configuration that peels and blends layers: scored against
-    /// the mesh peeled and blended the same way, on the nested layers scene only.
-    fn peeled(&self) -> Option<(u32, f32)> {
-        Some((self.fixed("layers")? as u32, self.fixed("opacity")?))
-    }
-
-    fn shadowed(&self) -> bool {
-        self.fixed("shadows").is_some_and(|s| s > 0.0)
-    }
-
-    /// The direction towards the light a shadowed configuration sets.
-    fn light(&self) -> glam::Vec3 {
-        let axis = |name| self.fixed(name).unwrap_or(0.0);
-        glam::Vec3::new(axis("light.x"), axis("light.y"), axis("light.z"))
-    }
-
-    /// The scene a variant is made for; `None`: every scene.
-    fn scene(&self) -> Option<&'static str> {
-        if self.peeled().is_some() {
-            Some(LAYERS_SCENE)
-        } else if self.shadowed() {
-            Some(SHADOW_SCENE)
-        } else {
-            None
-        }
-    }
-}
-
-/// Variants compared beside each pipeline's defaults: the surfels' planar and all-curved
-/// modes against their hybrid default (paper 001's Table 2); the filters' transparency, six
-/// layers at half opacity (paper 004's Figure 17).
-const VARIANTS: &[(&str, &[(&str, f32)], f32, &str)] = &[
-    ("surfels", &[("mode", 0.0)], 1.0, "mode=planar"),
-    ("surfels", &[("mode", 1.0)], 1.0, "mode=curved"),
-    (
-        "filters",
-        &[("layers", 6.0), ("opacity", 0.5)],
-        2.0,
-        "layers=6 opacity=0.5 2px",
-    ),
-    (
-        "filters",
-        &[
-            ("shadows", 1.0),
-            ("light.x", SHADOW_LIGHT[0]),
-            ("light.y", SHADOW_LIGHT[1]),
-            ("light.z", SHADOW_LIGHT[2]),
-        ],
-        2.0,
-        "shadows=1 2px",
-    ),
-    // The stability sweep of the shadows: a light grazing the floor (about 10° above it).
-    (
-        "filters",
-        &[
-            ("shadows", 1.0),
-            ("light.x", GRAZING_LIGHT[0]),
-            ("light.y", GRAZING_LIGHT[1]),
-            ("light.z", GRAZING_LIGHT[2]),
-        ],
-        2.0,
-        "shadows=1 grazing 2px",
-    ),
-    // Soft shadows: 16 samples over a 10° light.
-    (
-        "filters",
-        &[
-            ("shadows", 2.0),
-            ("shadow_samples", 16.0),
-            ("light_size", 10.0),
-            ("light.x", SHADOW_LIGHT[0]),
-            ("light.y", SHADOW_LIGHT[1]),
-            ("light.z", SHADOW_LIGHT[2]),
-        ],
-        2.0,
-        "shadows=2 2px",
-    ),
-];
-/// The scene the peeled variants run on, and the one the shadowed ones run on.
-const LAYERS_SCENE: &str = "layers";
-const SHADOW_SCENE: &str = "shadow";
-/// The shadow scene's light: towards +x, -y and up; and one grazing the floor.
-const SHADOW_LIGHT: [f32; 3] = [0.5, -0.3, 1.0];
-const GRAZING_LIGHT: [f32; 3] = [0.98, -0.2, 0.18];
-
-/// Every registered pipeline at its defaults with one- and two-pixel points, and, in the full
-/// run, each automatic parameter at half and twice its automatic value: the sweeps come from
-/// the pipelines' parameter tables.
-fn configs(full: bool) -> Vec<Config> {
-    let mut v = Vec::new();
-    for &pipeline in REGISTRY {
-        for point_size in [1.0f32, 2.0] {
-            v.push(Config {
-                pipeline,
-                setting: format!("{point_size}px"),
-                point_size,
-                auto_factor: None,
-                fixed: &[],
-            });
-        }
-        for &(_, fixed, point_size, setting) in VARIANTS.iter().filter(|v| v.0 == pipeline.name) {
-            v.push(Config {
-                pipeline,
-                setting: setting.into(),
-                point_size,
-                auto_factor: None,
-                fixed,
-            });
-        }
-        let automatic = pipeline.params.iter().filter(|p| p.auto.is_some());
-        for spec in automatic.filter(|_| full) {
-            for f in [0.5f32, 2.0] {
-                v.push(Config {
-                    pipeline,
-                    setting: format!("{}=auto×{f}", spec.name),
-                    point_size: 1.0,
-                    auto_factor: Some((spec.name, f)),
-                    fixed: &[],
-                });
-            }
-        }
-    }
-    v
 }
 
 const BUDGET: u64 = 20_000_000;

@@ -22,6 +22,16 @@ pub struct Arena {
     free: Vec<(u32, u32)>,
 }
 
+impl Arena {
+    /// The per-point stream `want` beside this arena, where the active pipeline declared it.
+    pub fn stream(&self, want: PointStream) -> Option<&wgpu::Buffer> {
+        self.streams
+            .iter()
+            .find(|(s, _)| *s == want)
+            .map(|(_, b)| b)
+    }
+}
+
 /// Points `start..start + count` of arena `arena`.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct Piece {
@@ -106,6 +116,29 @@ impl NodeCache {
         for a in &mut self.arenas {
             a.free = vec![(0, 1 << self.arena_shift)];
         }
+    }
+
+    /// Arena `arena` and its streams `wanted`, for a pass that binds them; the error names
+    /// what is missing.
+    pub fn arena_streams<const N: usize>(
+        &self,
+        arena: u32,
+        wanted: [PointStream; N],
+    ) -> Result<(&Arena, [&wgpu::Buffer; N]), crate::ViewerError> {
+        let a = self
+            .arenas
+            .get(arena as usize)
+            .ok_or_else(|| crate::ViewerError::Gpu(format!("arena {arena} is not resident")))?;
+        let mut out = Vec::with_capacity(N);
+        for want in wanted {
+            out.push(a.stream(want).ok_or_else(|| {
+                crate::ViewerError::Gpu(format!("arena {arena} holds no {want:?} stream"))
+            })?);
+        }
+        let streams = out
+            .try_into()
+            .map_err(|_| crate::ViewerError::Gpu("stream lookup lost a stream".into()))?;
+        Ok((a, streams))
     }
 
     pub fn arena_points(&self) -> u32 {

@@ -185,6 +185,32 @@ pub struct ViewFrame {
     pub aspect: f32,
 }
 
+/// The eye and a pixel's ray in world space: the ray through normalised device coordinates
+/// (x, y) is forward + x * right + y * up, scaled so that the point at linear depth d on it is
+/// eye + d * ray (the projection's clip.w). As the `Surfels` and `Filters` uniforms hold it.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct PixelRays {
+    pub eye: [f32; 4],
+    pub forward: [f32; 4],
+    pub right: [f32; 4],
+    pub up: [f32; 4],
+}
+
+impl ViewFrame {
+    pub fn pixel_rays(&self) -> PixelRays {
+        let world = self.view.inverse();
+        let tan_y = (self.fov_y * 0.5).tan();
+        let tan_x = tan_y * self.aspect;
+        let v4 = |v: glam::Vec3| [v.x, v.y, v.z, 0.0];
+        PixelRays {
+            eye: world.w_axis.to_array(),
+            forward: v4(-world.z_axis.truncate()),
+            right: v4(world.x_axis.truncate() * tan_x),
+            up: v4(world.y_axis.truncate() * tan_y),
+        }
+    }
+}
+
 /// What a pipeline's passes read and write in one frame.
 pub struct PipelineFrame<'a> {
     pub ctx: &'a GpuContext,

@@ -7,6 +7,7 @@
 //! front to back with per-class opacities.
 
 mod passes;
+mod peel;
 mod shadow;
 mod targets;
 
@@ -203,13 +204,14 @@ pub static INFO: PipelineInfo = PipelineInfo {
 pub const NO_NORMALS: &str = "the dataset has no normals (convert with --normals): no back-face culling, normals estimated from the filled depth";
 pub const NOT_OUTWARD: &str = "the dataset's normals are not known to face out of every surface (computed with --orient up or none; kept or --orient scanner normals are): no back-face culling";
 
-/// The direction towards the light: the one fixed in the world, or with the headlight the eye's
-/// (whose shadows hide behind what casts them).
-fn shadow_light(u: &FiltersUniforms) -> glam::Vec3 {
-    match u.light {
-        [x, y, z, w] if w != 0.0 => glam::Vec3::new(x, y, z),
-        _ => -glam::Vec3::from_slice(&u.forward[..3]),
-    }
+/// The unit direction towards a light fixed in the world, `None` for the headlight.
+fn world_light(params: &ResolvedParams) -> Option<glam::Vec3> {
+    glam::Vec3::new(
+        value(params, "light.x"),
+        value(params, "light.y"),
+        value(params, "light.z"),
+    )
+    .try_normalize()
 }
 
 /// `shadows`: off, hard, soft.
@@ -258,21 +260,8 @@ fn value(params: &ResolvedParams, name: &str) -> f32 {
 
 /// The uniforms of one frame.
 pub fn uniforms(view: &ViewFrame, params: &ResolvedParams, has_normals: bool) -> FiltersUniforms {
-    let world = view.view.inverse();
-    let (right, up, forward) = (
-        world.x_axis.truncate(),
-        world.y_axis.truncate(),
-        -world.z_axis.truncate(),
-    );
-    let tan_y = (view.fov_y * 0.5).tan();
-    let tan_x = tan_y * view.aspect;
-    let v4 = |v: glam::Vec3| [v.x, v.y, v.z, 0.0];
-    let light = glam::Vec3::new(
-        value(params, "light.x"),
-        value(params, "light.y"),
-        value(params, "light.z"),
-    );
-    let light = match light.try_normalize() {
+    let rays = view.pixel_rays();
+    let light = match world_light(params) {
         Some(l) => [l.x, l.y, l.z, 1.0],
         None => [0.0; 4],
     };
@@ -281,10 +270,10 @@ pub fn uniforms(view: &ViewFrame, params: &ResolvedParams, has_normals: bool) ->
         class_opacity[c / 4][c % 4] = value(params, PARAMS[OWN + c].name);
     }
     FiltersUniforms {
-        eye: world.w_axis.to_array(),
-        forward: v4(forward),
-        right: v4(right * tan_x),
-        up: v4(up * tan_y),
+        eye: rays.eye,
+        forward: rays.forward,
+        right: rays.right,
+        up: rays.up,
         light,
         class_opacity,
         dtilde: value(params, "dtilde"),
@@ -322,22 +311,10 @@ impl Pipeline for Filters {
         if value(params, "shadows") as u32 == SHADOWS_OFF {
             return None;
         }
-        let u = uniforms(
-            &ViewFrame {
-                view: camera.view(),
-                view_proj: glam::Mat4::IDENTITY,
-                previous_view_proj: None,
-                fov_y: camera.fov_y,
-                near: 1.0,
-                far: 2.0,
-                focal_px: 1.0,
-                aspect: 1.0,
-            },
-            params,
-            false,
-        );
+        let forward = (camera.target - camera.eye).normalize_or(glam::Vec3::NEG_Z);
+        let light = world_light(params).unwrap_or(-forward);
         Some((
-            shadow::light_camera(shadow_light(&u), bounds),
+            shadow::light_camera(light, bounds),
             value(params, "shadow_budget") as u64,
         ))
     }
@@ -365,7 +342,9 @@ impl Pipeline for Filters {
         let mut u = uniforms(frame.view, frame.params, frame.has_normals);
         let mode = value(frame.params, "shadows") as u32;
         if mode != SHADOWS_OFF {
-            let light = shadow_light(&u);
+            // With the headlight the light comes from the eye: shadows hide behind their casters.
+            let light = world_light(frame.params)
+                .unwrap_or(-glam::Vec3::from_slice(&u.forward[..3]));
             let setup = shadow::ShadowSetup {
                 samples: if mode == SHADOWS_HARD {
                     1

@@ -3,26 +3,21 @@
 //! pixels (iterated, each iteration skipped by an indirect dispatch once one changed nothing),
 //! smooth, and shade with anti-aliasing and front-to-back blending.
 
+use super::peel::{PeelFrame, Peels};
 use super::targets::{FiltersTargets, STEP_STRIDE};
 use crate::ViewerError;
 use crate::gpu::GpuContext;
 use crate::gpu::timing::Timer;
 use crate::pipelines::projection::{
-    ArenaGroup, COLOUR_WGSL, CULL_WGSL, FILTERS_WGSL, GROUP_SIZE, NO_CULL_WGSL, OCT16_WGSL,
-    PROJECT_WGSL, RANGE_SEARCH_WGSL, pixel_groups, split_groups,
+    ArenaGroup, COLOUR_WGSL, GROUP_SIZE, OCT16_WGSL, pixel_groups,
 };
 use crate::pipelines::shader::ShaderSource;
 use super::shadow::LIT_STREAM;
 use crate::pipelines::{LIGHTING_WGSL, PipelineFrame, PointStream};
 use bytemuck::{Pod, Zeroable};
 
-const UNIFORMS_WGSL: &str = include_str!("uniforms.wgsl");
-const PEEL_DEPTH_WGSL: &str = include_str!("peel_depth.wgsl");
-const PEEL_INDEX_WGSL: &str = include_str!("peel_index.wgsl");
-const PEEL_INT64_WGSL: &str = include_str!("peel_int64.wgsl");
-const PEEL_UNPACK_WGSL: &str = include_str!("peel_unpack.wgsl");
-const REACH_NORMAL_WGSL: &str = include_str!("reach_normal.wgsl");
-const REACH_FLAT_WGSL: &str = include_str!("reach_flat.wgsl");
+/// The filters' uniforms and layer texels, first in every module.
+pub(super) const UNIFORMS_WGSL: &str = include_str!("uniforms.wgsl");
 const RESOLVE_WGSL: &str = include_str!("resolve.wgsl");
 const FILL_WGSL: &str = include_str!("fill.wgsl");
 /// The hole filling's 3x3 masks, shared with the light map's fill.
@@ -77,26 +72,10 @@ pub struct Step {
     pub complemented: u32,
 }
 
-/// Every module the filters compile; `int64`: the device has 64-bit atomics (one-pass peels).
+/// Every module the filters compile, the peels' first; `int64`: the device has 64-bit atomics.
 pub fn shaders(int64: bool) -> Vec<ShaderSource> {
-    let peel = |label, emit, cull: bool| {
-        let mut parts = vec![UNIFORMS_WGSL, emit, FILTERS_WGSL, RANGE_SEARCH_WGSL];
-        let reach = emit != PEEL_INDEX_WGSL;
-        if cull {
-            parts.extend([OCT16_WGSL, CULL_WGSL]);
-            parts.extend(reach.then_some(REACH_NORMAL_WGSL));
-        } else {
-            parts.push(NO_CULL_WGSL);
-            parts.extend(reach.then_some(REACH_FLAT_WGSL));
-        }
-        parts.push(PROJECT_WGSL);
-        ShaderSource::new(label, &parts)
-    };
-    let mut v = vec![
-        peel("peel depth", PEEL_DEPTH_WGSL, false),
-        peel("peel index", PEEL_INDEX_WGSL, false),
-        peel("peel depth culled", PEEL_DEPTH_WGSL, true),
-        peel("peel index culled", PEEL_INDEX_WGSL, true),
+    let mut v = super::peel::shaders(int64);
+    v.extend([
         ShaderSource::new(
             "filters resolve",
             &[UNIFORMS_WGSL, COLOUR_WGSL, OCT16_WGSL, RESOLVE_WGSL],
@@ -112,29 +91,12 @@ pub fn shaders(int64: bool) -> Vec<ShaderSource> {
         ),
         ShaderSource::new("filters args", &[UNIFORMS_WGSL, ARGS_WGSL]),
         ShaderSource::new("filters tiles", &[UNIFORMS_WGSL, TILES_WGSL]),
-    ];
-    if int64 {
-        v.push(peel("peel int64", PEEL_INT64_WGSL, false));
-        v.push(peel("peel int64 culled", PEEL_INT64_WGSL, true));
-        v.push(ShaderSource::new(
-            "peel unpack",
-            &[UNIFORMS_WGSL, PEEL_UNPACK_WGSL],
-        ));
-    }
+    ]);
     v
 }
 
-/// A peel pass's two modules: nearest depth, then lowest index at it; and the one pass of
-/// both where the device has 64-bit atomics.
-struct Peel {
-    depth: wgpu::ComputePipeline,
-    index: wgpu::ComputePipeline,
-    int64: Option<wgpu::ComputePipeline>,
-}
-
 pub struct FiltersPasses {
-    peel: Peel,
-    peel_culled: Peel,
+    peels: Peels,
     resolve: wgpu::ComputePipeline,
     background: wgpu::ComputePipeline,
     occluded: wgpu::ComputePipeline,
@@ -142,7 +104,6 @@ pub struct FiltersPasses {
     shade: wgpu::ComputePipeline,
     args: wgpu::ComputePipeline,
     tiles: wgpu::ComputePipeline,
-    unpack: Option<wgpu::ComputePipeline>,
 }
 
 /// What a frame's passes are told beyond the uniforms.
@@ -187,8 +148,7 @@ impl FiltersPasses {
                 .next()
                 .ok_or_else(|| ViewerError::Gpu("a filters shader is missing".into()))
         };
-        let (depth, index) = (next()?, next()?);
-        let (depth_culled, index_culled) = (next()?, next()?);
+        let peels = Peels::new(&mut next, ctx.int64_atomics)?;
         let (resolve, background, occluded, smooth, shade, args, tiles) = (
             next()?,
             next()?,
@@ -198,22 +158,8 @@ impl FiltersPasses {
             next()?,
             next()?,
         );
-        let (int64, int64_culled, unpack) = if ctx.int64_atomics {
-            (Some(next()?), Some(next()?), Some(next()?))
-        } else {
-            (None, None, None)
-        };
         Ok(FiltersPasses {
-            peel: Peel {
-                depth,
-                index,
-                int64,
-            },
-            peel_culled: Peel {
-                depth: depth_culled,
-                index: index_culled,
-                int64: int64_culled,
-            },
+            peels,
             resolve,
             background,
             occluded,
@@ -221,7 +167,6 @@ impl FiltersPasses {
             shade,
             args,
             tiles,
-            unpack,
         })
     }
 
@@ -246,24 +191,12 @@ impl FiltersPasses {
             .arenas
             .iter()
             .map(|d| {
-                let a = frame
+                let (a, [normals, lit]) = frame
                     .cache
-                    .arenas
-                    .get(d.arena as usize)
-                    .ok_or_else(|| ViewerError::Gpu(format!("arena {} is not resident", d.arena)))?;
-                let stream = |want: PointStream| {
-                    a.streams
-                        .iter()
-                        .find(|(s, _)| *s == want)
-                        .map(|(_, b)| b)
-                        .ok_or_else(|| {
-                            ViewerError::Gpu(format!("arena {} holds no {want:?} stream", d.arena))
-                        })
-                };
-                let normals = stream(PointStream::Normals)?;
+                    .arena_streams(d.arena, [PointStream::Normals, LIT_STREAM])?;
                 Ok((
                     ArenaGroup::new(device, d, GROUP_SIZE),
-                    [&a.points, &a.attributes, normals, stream(LIT_STREAM)?],
+                    [&a.points, &a.attributes, normals, lit],
                     normals,
                 ))
             })
@@ -291,105 +224,24 @@ impl FiltersPasses {
         let frame_entry = || (0, screen.uniforms.as_entire_binding());
         let fil_entry = || (1, targets.uniforms.as_entire_binding());
         let (gx, gy) = pixel_groups(screen.width, screen.height);
-        let peel = if setup.cull {
-            &self.peel_culled
-        } else {
-            &self.peel
-        };
         let output = screen.output.create_view(&Default::default());
 
         // The buffer holding the previous layer's final texels (the peel's reference).
         let mut reference: Option<usize> = None;
         for layer in 0..setup.layers.min(MAX_LAYERS) {
             if let Some(r) = reference {
-                // One 64-bit pass and an unpack where the device can, else two 32-bit passes.
-                let one_pass = match (&peel.int64, &self.unpack, &targets.peel_keys) {
-                    (Some(p), Some(u), Some(k)) => Some((p, u, k)),
-                    _ => None,
-                };
-                let mut passes: Vec<(&wgpu::ComputePipeline, wgpu::BindGroup)> = Vec::new();
-                if let Some((pipe, _, keys)) = one_pass {
-                    encoder.clear_buffer(keys, 0, None);
-                    let group = bind(
-                        device,
-                        pipe,
-                        0,
-                        &[
-                            frame_entry(),
-                            fil_entry(),
-                            (2, keys.as_entire_binding()),
-                            (3, targets.texels[r].as_entire_binding()),
-                        ],
-                    );
-                    passes.push((pipe, group));
-                } else {
-                    encoder.clear_buffer(&targets.peel_depths, 0, None);
-                    encoder.clear_buffer(&targets.peel_indices, 0, None);
-                    let depth_group = bind(
-                        device,
-                        &peel.depth,
-                        0,
-                        &[
-                            frame_entry(),
-                            fil_entry(),
-                            (2, targets.peel_depths.as_entire_binding()),
-                            (3, targets.texels[r].as_entire_binding()),
-                        ],
-                    );
-                    let index_group = bind(
-                        device,
-                        &peel.index,
-                        0,
-                        &[
-                            frame_entry(),
-                            (2, targets.peel_depths.as_entire_binding()),
-                            (3, targets.peel_indices.as_entire_binding()),
-                        ],
-                    );
-                    passes.push((&peel.depth, depth_group));
-                    passes.push((&peel.index, index_group));
-                }
-                let timestamp_writes = timer.pass(encoder, "peel");
-                let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
-                    label: Some("peel"),
-                    timestamp_writes,
+                self.peels.encode(PeelFrame {
+                    device,
+                    encoder,
+                    timer,
+                    frame_entry: frame_entry(),
+                    fil_entry: fil_entry(),
+                    reference: &targets.texels[r],
+                    targets,
+                    arenas: &arenas,
+                    cull: setup.cull,
+                    pixel_groups: (gx, gy),
                 });
-                for (pipe, group) in &passes {
-                    pass.set_pipeline(pipe);
-                    pass.set_bind_group(0, group, &[]);
-                    for (g, [points, attributes, _, _], normals) in &arenas {
-                        if g.groups == 0 {
-                            continue;
-                        }
-                        let mut entries = vec![
-                            (0, points.as_entire_binding()),
-                            (1, g.ranges.as_entire_binding()),
-                            (2, attributes.as_entire_binding()),
-                        ];
-                        if setup.cull {
-                            entries.push((3, normals.as_entire_binding()));
-                        }
-                        pass.set_bind_group(1, &bind(device, pipe, 1, &entries), &[]);
-                        let (x, y) = split_groups(g.groups);
-                        pass.dispatch_workgroups(x, y, 1);
-                    }
-                }
-                if let Some((_, unpack, keys)) = one_pass {
-                    let group = bind(
-                        device,
-                        unpack,
-                        0,
-                        &[
-                            frame_entry(),
-                            (2, keys.as_entire_binding()),
-                            (3, targets.peel_depths.as_entire_binding()),
-                            (4, targets.peel_indices.as_entire_binding()),
-                        ],
-                    );
-                    pass.set_pipeline(unpack);
-                    pass.set_bind_group(0, &group, &[]);
-                    pass.dispatch_workgroups(gx, gy, 1);
-                }
             }
 
             // Resolve into the buffer that is not the reference.

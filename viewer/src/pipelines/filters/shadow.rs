@@ -150,29 +150,12 @@ impl Shadows {
         let groups = |list: &[crate::pipelines::projection::ArenaDraw]| {
             list.iter()
                 .map(|d| {
-                    let a = frame.cache.arenas.get(d.arena as usize).ok_or_else(|| {
-                        ViewerError::Gpu(format!("arena {} is not resident", d.arena))
-                    })?;
-                    let stream = |want: PointStream| {
-                        a.streams
-                            .iter()
-                            .find(|(s, _)| *s == want)
-                            .map(|(_, b)| b)
-                            .ok_or_else(|| {
-                                ViewerError::Gpu(format!(
-                                    "arena {} holds no {want:?} stream",
-                                    d.arena
-                                ))
-                            })
-                    };
+                    let (a, [normals, lit]) = frame
+                        .cache
+                        .arena_streams(d.arena, [PointStream::Normals, LIT_STREAM])?;
                     Ok((
                         ArenaGroup::new(device, d, GROUP_SIZE),
-                        [
-                            &a.points,
-                            &a.attributes,
-                            stream(PointStream::Normals)?,
-                            stream(LIT_STREAM)?,
-                        ],
+                        [&a.points, &a.attributes, normals, lit],
                     ))
                 })
                 .collect::<Result<Vec<_>, ViewerError>>()

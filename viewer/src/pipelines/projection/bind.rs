@@ -84,12 +84,8 @@ pub fn arena_bind_with_normals(
     pipe: &wgpu::ComputePipeline,
     g: &ArenaGroup,
 ) -> Option<wgpu::BindGroup> {
-    let a = &cache.arenas[g.arena as usize];
-    let normals = a
-        .streams
-        .iter()
-        .find(|(s, _)| *s == PointStream::Normals)
-        .map(|(_, b)| b)?;
+    let a = cache.arenas.get(g.arena as usize)?;
+    let normals = a.stream(PointStream::Normals)?;
     let entries: Vec<wgpu::BindGroupEntry> = [&a.points, &g.ranges, &a.attributes, normals]
         .iter()
         .enumerate()

@@ -67,22 +67,12 @@ pub struct SurfelUniforms {
 
 impl SurfelUniforms {
     pub fn new(view: &ViewFrame, params: &ResolvedParams, normals: Normals) -> SurfelUniforms {
-        let world = view.view.inverse();
-        let eye = world.w_axis.truncate();
-        // look_at: the view's x, y and -z axes in world space.
-        let (right, up, forward) = (
-            world.x_axis.truncate(),
-            world.y_axis.truncate(),
-            -world.z_axis.truncate(),
-        );
-        let tan_y = (view.fov_y * 0.5).tan();
-        let tan_x = tan_y * view.aspect;
-        let v4 = |v: glam::Vec3| [v.x, v.y, v.z, 0.0];
+        let rays = view.pixel_rays();
         SurfelUniforms {
-            eye: v4(eye),
-            forward: v4(forward),
-            right: v4(right * tan_x),
-            up: v4(up * tan_y),
+            eye: rays.eye,
+            forward: rays.forward,
+            right: rays.right,
+            up: rays.up,
             sides: param(params, "sides") as u32,
             rings: param(params, "rings") as u32,
             mode: param(params, "mode") as u32,
@@ -242,27 +232,16 @@ impl SurfelPasses {
             .collect();
         let mut arena_groups = Vec::with_capacity(tables.len());
         for (arena, ranges, groups) in &tables {
-            let a = frame
+            let (a, [normals, radii]) = frame
                 .cache
-                .arenas
-                .get(*arena as usize)
-                .ok_or_else(|| ViewerError::Gpu(format!("arena {arena} is not resident")))?;
-            let stream = |want: PointStream| {
-                a.streams
-                    .iter()
-                    .find(|(s, _)| *s == want)
-                    .map(|(_, b)| b)
-                    .ok_or_else(|| {
-                        ViewerError::Gpu(format!("arena {arena} holds no {want:?} stream"))
-                    })
-            };
+                .arena_streams(*arena, [PointStream::Normals, PointStream::Radius])?;
             arena_groups.push((
                 [
                     &a.points,
                     ranges,
                     &a.attributes,
-                    stream(PointStream::Normals)?,
-                    stream(PointStream::Radius)?,
+                    normals,
+                    radii,
                 ],
                 *groups,
             ));
