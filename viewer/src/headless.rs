@@ -45,6 +45,9 @@ pub struct RenderReport {
     pub time_to_first_image_ms: Option<f64>,
     pub images: Vec<String>,
     pub frames: Vec<FrameStats>,
+    /// The frames of each still's view rendered before it, for pipelines that converge over
+    /// frames (`PipelineInfo::warmup_frames`), in order.
+    pub warmup: Vec<FrameStats>,
     pub errors: Vec<String>,
     /// The last fetch that found no server, when some did.
     pub fetch_error: Option<String>,
@@ -116,6 +119,7 @@ pub fn render_with(
         time_to_first_image_ms: None,
         images: Vec::new(),
         frames: Vec::new(),
+        warmup: Vec::new(),
         errors: Vec::new(),
         fetch_error: None,
     };
@@ -150,8 +154,20 @@ pub fn render_with(
             }
             renderer.wait_for_loads(Duration::from_millis(20));
         };
-        // One more frame after the last load so the timestamps describe the final picture.
+        // One more frame after the last load so the timestamps describe the final picture; a
+        // pipeline that builds on the previous frame converges over `warmup` more of the same
+        // view first (each one's measures are kept, so that convergence can be read).
         let stats = if opts.wait_complete || !fly_through {
+            let warmup = opts.settings.pipeline.warmup_frames(&opts.settings.params);
+            for _ in 0..warmup {
+                let s = renderer.frame(camera, opts.width, opts.height, &opts.settings)?;
+                renderer.wait_gpu()?;
+                report.warmup.push(FrameStats {
+                    measures: renderer.read_measures()?,
+                    passes: renderer.pass_times(),
+                    ..s
+                });
+            }
             let mut s = renderer.frame(camera, opts.width, opts.height, &opts.settings)?;
             renderer.wait_gpu()?;
             s.passes = renderer.pass_times();

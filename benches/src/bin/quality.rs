@@ -378,6 +378,11 @@ fn render_view(
         // A pipeline that needs other per-point streams (normals, radii) has the nodes loaded
         // again with them.
         load_all(renderer, camera, w, h, &settings)?;
+        // A pipeline that builds on the previous frame converges over frames of the view first.
+        for _ in 0..p.warmup_frames(&settings.params) {
+            renderer.frame(camera, w, h, &settings)?;
+            renderer.wait_gpu()?;
+        }
         // First with separate passes, which keep the resolved colour plane, for the albedo;
         // it also warms the pipeline up, so the timed frame is of a warm pipeline.
         let separate = Settings {

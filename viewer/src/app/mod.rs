@@ -39,6 +39,10 @@ struct ViewerApp {
     texture: Option<(egui::TextureId, wgpu::Texture)>,
     stats: FrameStats,
     frames: u32,
+    /// Frames still to draw of an unchanged view, for pipelines that converge over frames
+    /// (`PipelineInfo::warmup_frames`), and the camera, pipeline and parameters they are
+    /// counted for.
+    settling: (u32, Option<SettleKey>),
     last_frame: Instant,
     io_rate: f64,
     frame_ms_avg: f64,
@@ -91,6 +95,7 @@ pub fn run_window(location: &str, opts: WindowOptions) -> Result<(), ViewerError
         texture: None,
         stats: FrameStats::default(),
         frames: 0,
+        settling: (0, None),
         last_frame: Instant::now(),
         io_rate: 0.0,
         frame_ms_avg: 0.0,
@@ -126,6 +131,9 @@ pub fn run_window(location: &str, opts: WindowOptions) -> Result<(), ViewerError
     }
 }
 
+/// What a view's convergence over frames depends on.
+type SettleKey = (Camera, &'static str, crate::pipelines::params::ParamValues);
+
 impl eframe::App for ViewerApp {
     fn ui(&mut self, ui: &mut egui::Ui, frame: &mut eframe::Frame) {
         let ctx = ui.ctx().clone();
@@ -139,7 +147,7 @@ impl eframe::App for ViewerApp {
             .frame(egui::Frame::NONE)
             .show(ui, |ui| self.scene(ui, frame));
         self.take_screenshot(&ctx);
-        if !self.stats.complete || self.screenshot.is_some() {
+        if !self.stats.complete || self.screenshot.is_some() || self.settling.0 > 0 {
             ctx.request_repaint();
         }
     }
@@ -311,6 +319,13 @@ impl ViewerApp {
             Ok(stats) => {
                 self.frame_ms_avg = self.frame_ms_avg * 0.9 + dt * 1e3 * 0.1;
                 self.io_rate = self.io_rate * 0.9 + stats.bytes_loaded as f64 / dt * 0.1;
+                let info = self.settings.pipeline;
+                let key = (self.camera, info.name, self.settings.params.clone());
+                self.settling = if self.settling.1.as_ref() != Some(&key) || !stats.complete {
+                    (info.warmup_frames(&self.settings.params), Some(key))
+                } else {
+                    (self.settling.0.saturating_sub(1), self.settling.1.take())
+                };
                 self.stats = stats;
                 self.error = None;
             }

@@ -39,6 +39,7 @@ registry! {
     pyramid,
     surfels,
     filters,
+    triangulate,
 }
 
 /// The shared headlight Blinn-Phong (`headlight(albedo, n, v)`), so that two pipelines and the
@@ -120,6 +121,18 @@ pub struct PipelineInfo {
 }
 
 impl PipelineInfo {
+    /// Frames of one view a still image waits for: a pipeline that keeps the previous frame
+    /// converges over frames and declares how many in its parameter `warmup`.
+    pub fn warmup_frames(&self, values: &params::ParamValues) -> u32 {
+        match self.params.iter().find(|p| p.name == "warmup") {
+            Some(spec) if self.previous_frame => match values.get(self, spec) {
+                params::ParamValue::Value(v) => v as u32,
+                params::ParamValue::Auto => spec.default as u32,
+            },
+            _ => 0,
+        }
+    }
+
     /// The parameter `name`; the error lists the ones there are.
     pub fn param(&self, name: &str) -> Result<&'static ParamSpec, ViewerError> {
         self.params.iter().find(|p| p.name == name).ok_or_else(|| {
@@ -175,8 +188,6 @@ pub struct ViewFrame {
     /// World to view (x right, y up, looking down -z).
     pub view: glam::Mat4,
     pub view_proj: glam::Mat4,
-    /// The previous frame's, for pipelines that declare `previous_frame`.
-    pub previous_view_proj: Option<glam::Mat4>,
     pub fov_y: f32,
     pub near: f32,
     pub far: f32,
@@ -224,6 +235,9 @@ pub struct PipelineFrame<'a> {
     pub casters: &'a [projection::ArenaDraw],
     pub params: &'a ResolvedParams,
     pub view: &'a ViewFrame,
+    /// The view of the previous frame, whose depth `Screen::previous_depths` holds, for
+    /// pipelines that declare `previous_frame` (`None` on their first frame and after a resize).
+    pub previous: Option<ViewFrame>,
     /// The dataset stores normals (else the `Normals` stream holds none).
     pub has_normals: bool,
     /// Its normals face the outside of the surfaces (`StreamDataset::normals_face_outward`).
@@ -295,6 +309,12 @@ pub trait Pipeline {
         encoder: &mut wgpu::CommandEncoder,
         timer: &mut Timer,
     ) -> Result<(), ViewerError>;
+
+    /// The depth plane the next frame gets as `Screen::previous_depths` (pipelines that
+    /// declare `previous_frame` and reconstruct their own surface); `None`: the projection's.
+    fn kept_depth(&self) -> Option<&wgpu::Buffer> {
+        None
+    }
 
     /// What the pipeline has to say about the last frame (the panel and the stats show it):
     /// a fallback it took, a stream the dataset lacks.

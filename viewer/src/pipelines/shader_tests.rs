@@ -93,6 +93,7 @@ macro_rules! rust_layout {
         )
     };
 }
+pub(crate) use rust_layout;
 
 /// The module `label` as a pipeline composes it (with 64-bit atomics).
 pub(crate) fn module_named(label: &str) -> naga::Module {

@@ -37,7 +37,7 @@ impl Renderer {
             }
             self.measures.clear();
             self.timer.discard_pending();
-            self.previous_view_proj = None;
+            self.previous_view = None;
         }
         // The previous depth plane exists exactly while the pipeline keeps the previous frame.
         let previous_mismatch = self
@@ -168,7 +168,6 @@ impl Renderer {
         let view = ViewFrame {
             view: camera.view(),
             view_proj,
-            previous_view_proj: self.previous_view_proj,
             fov_y: camera.fov_y,
             near,
             far,
@@ -215,6 +214,7 @@ impl Renderer {
                     casters: casters.as_deref().unwrap_or(&draws),
                     params,
                     view: &view,
+                    previous: self.previous_view.filter(|_| info.previous_frame),
                     has_normals,
                     normals_outward,
                     back_faces_culled: cull,
@@ -224,7 +224,7 @@ impl Renderer {
                 pipeline.encode(&frame, &mut encoder, timer)?;
             }
             if info.previous_frame {
-                screen.keep_depths(&mut encoder);
+                screen.keep_depths(&mut encoder, pipeline.kept_depth());
             }
             timer.resolve(&mut encoder);
             ctx.queue.submit([encoder.finish()]);
@@ -235,7 +235,7 @@ impl Renderer {
         self.last_int64 = int64;
         self.last_fused = fused;
         if info.previous_frame {
-            self.previous_view_proj = Some(view_proj);
+            self.previous_view = Some(view);
         }
         if let Some(e) = self.timer.take_poll_error() {
             return Err(ViewerError::Gpu(format!("waiting for the GPU failed: {e}")));

@@ -55,8 +55,8 @@ pub struct Renderer {
     last_int64: bool,
     /// The last frame ended in the fused finish (its colour plane was not written).
     last_fused: bool,
-    /// The last frame's view-projection, for pipelines that keep the previous frame.
-    previous_view_proj: Option<glam::Mat4>,
+    /// The last frame's view, for pipelines that keep the previous frame.
+    previous_view: Option<crate::pipelines::ViewFrame>,
     frame: u64,
     bytes_total: u64,
 }
@@ -114,7 +114,7 @@ impl Renderer {
             last_drawn: HashSet::new(),
             last_int64: false,
             last_fused: false,
-            previous_view_proj: None,
+            previous_view: None,
             frame: 0,
             bytes_total: 0,
         })

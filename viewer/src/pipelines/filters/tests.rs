@@ -8,16 +8,8 @@ use super::{
 };
 use crate::pipelines::ViewFrame;
 use crate::pipelines::params::{ParamValues, ResolvedParams};
-use crate::pipelines::shader_tests::{module_named, wgsl_const, wgsl_layout};
+use crate::pipelines::shader_tests::{module_named, rust_layout, wgsl_const, wgsl_layout};
 
-macro_rules! layout {
-    ($ty:ident { $($f:ident),* }) => {
-        (
-            std::mem::size_of::<$ty>() as u32,
-            vec![$((stringify!($f).to_string(), std::mem::offset_of!($ty, $f) as u32)),*],
-        )
-    };
-}
 
 #[test]
 fn uniforms_steps_and_constants_match_their_wgsl() {
@@ -25,7 +17,7 @@ fn uniforms_steps_and_constants_match_their_wgsl() {
         let m = module_named(label);
         assert_eq!(
             wgsl_layout(&m, "Filters"),
-            layout!(FiltersUniforms {
+            rust_layout!(FiltersUniforms {
                 eye,
                 forward,
                 right,
@@ -45,7 +37,7 @@ fn uniforms_steps_and_constants_match_their_wgsl() {
         );
         assert_eq!(
             wgsl_layout(&m, "Step"),
-            layout!(Step {
+            rust_layout!(Step {
                 layer,
                 iteration,
                 kind,
@@ -99,7 +91,6 @@ fn view() -> ViewFrame {
     ViewFrame {
         view,
         view_proj: proj * view,
-        previous_view_proj: None,
         fov_y: 1.0,
         near: 0.1,
         far: 10.0,

@@ -99,10 +99,14 @@ impl Screen {
         }
     }
 
-    /// Keeps this frame's depth plane for the next frame (pipelines with `previous_frame`).
-    pub fn keep_depths(&self, encoder: &mut wgpu::CommandEncoder) {
+    /// Keeps this frame's depth plane for the next frame (pipelines with `previous_frame`):
+    /// `reconstructed`, where the pipeline made one of this screen's size, else the projection's.
+    pub fn keep_depths(&self, encoder: &mut wgpu::CommandEncoder, reconstructed: Option<&wgpu::Buffer>) {
         if let Some(prev) = &self.previous_depths {
-            encoder.copy_buffer_to_buffer(&self.depths, 0, prev, 0, self.depths.size());
+            let source = reconstructed
+                .filter(|b| b.size() == self.depths.size())
+                .unwrap_or(&self.depths);
+            encoder.copy_buffer_to_buffer(source, 0, prev, 0, self.depths.size());
         }
     }
 }
@@ -241,7 +245,7 @@ mod tests {
         ctx.queue
             .write_buffer(&screen.depths, 0, bytemuck::cast_slice(&depths));
         let mut encoder = ctx.device.create_command_encoder(&Default::default());
-        screen.keep_depths(&mut encoder);
+        screen.keep_depths(&mut encoder, None);
         ctx.queue.submit([encoder.finish()]);
         let kept = read_buffer(&ctx, prev, 35 * 4).expect("readback");
         assert_eq!(bytemuck::cast_slice::<u8, u32>(&kept), depths.as_slice());

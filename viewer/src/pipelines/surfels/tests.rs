@@ -3,16 +3,8 @@
 
 use super::passes::{MODE_PLANAR, SUM_WORDS, SurfelRange, SurfelUniforms, range_table};
 use crate::pipelines::projection::{GROUP_SIZE, GpuRange, RangeLod};
-use crate::pipelines::shader_tests::{module_named, wgsl_const, wgsl_layout};
+use crate::pipelines::shader_tests::{module_named, rust_layout, wgsl_const, wgsl_layout};
 
-macro_rules! layout {
-    ($ty:ident { $($f:ident),* }) => {
-        (
-            std::mem::size_of::<$ty>() as u32,
-            vec![$((stringify!($f).to_string(), std::mem::offset_of!($ty, $f) as u32)),*],
-        )
-    };
-}
 
 #[test]
 fn uniforms_and_ranges_match_their_wgsl() {
@@ -25,7 +17,7 @@ fn uniforms_and_ranges_match_their_wgsl() {
         let m = module_named(label);
         assert_eq!(
             wgsl_layout(&m, "Surfels"),
-            layout!(SurfelUniforms {
+            rust_layout!(SurfelUniforms {
                 eye,
                 forward,
                 right,
@@ -43,7 +35,7 @@ fn uniforms_and_ranges_match_their_wgsl() {
         );
         assert_eq!(
             wgsl_layout(&m, "SurfelRange"),
-            layout!(SurfelRange {
+            rust_layout!(SurfelRange {
                 start,
                 count,
                 first_group,

@@ -1,0 +1,44 @@
+// Normal estimation (section 3.4): the mean of the face normals of the point's fan, each turned
+// towards the viewer; and the search-radius feedback (section 3.6): each point tells each of
+// its neighbours how far away it is, so that a neighbour learns the largest distance at which
+// some point took it as its nearest (the paper's maximum blending).
+@group(0) @binding(0) var<uniform> frame: Frame;
+@group(0) @binding(1) var<uniform> tri: Triangulate;
+@group(0) @binding(2) var<storage, read> pts: array<vec4<f32>>;
+@group(0) @binding(3) var<storage, read> neighbours: array<u32>;
+// Per pixel: the unit normal in world space; w 0 where the fan has no triangle.
+@group(0) @binding(4) var<storage, read_write> normals: array<vec4<f32>>;
+@group(0) @binding(5) var<storage, read_write> feedback: array<atomic<u32>>;
+
+@compute @workgroup_size(16, 16)
+fn main(@builtin(global_invocation_id) id: vec3<u32>) {
+    if id.x >= frame.width || id.y >= frame.height {
+        return;
+    }
+    let p = id.y * frame.width + id.x;
+    let me = pts[p];
+    if me.w <= 0.0 {
+        return;
+    }
+    let f = fan_of(p);
+    let to_eye = tri.eye.xyz - me.xyz;
+    var sum = vec3<f32>(0.0);
+    for (var k = 0u; k < f.count; k++) {
+        let q = pts[f.ids[k]].xyz;
+        atomicMax(&feedback[f.ids[k]], bitcast<u32>(distance(me.xyz, q)));
+        if opens(p, f, k) {
+            let r = pts[f.ids[(k + 1u) % f.count]].xyz;
+            let n = cross(q - me.xyz, r - me.xyz);
+            let len = length(n);
+            if len > 0.0 {
+                sum += select(n, -n, dot(n, to_eye) < 0.0) / len;
+            }
+        }
+    }
+    let len = length(sum);
+    if len > 0.0 {
+        normals[p] = vec4<f32>(sum / len, 1.0);
+    } else {
+        normals[p] = vec4<f32>(normalize(to_eye), 0.0);
+    }
+}

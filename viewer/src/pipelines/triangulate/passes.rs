@@ -1,0 +1,300 @@
+//! The triangulation's GPU passes in the paper's order (its Figure 2 and Table 1): reproject
+//! the previous frame's depth, keep the projected points in front of it (per arena, with their
+//! search radii), search the sector neighbours in two passes, estimate normals (with the radius
+//! feedback), rasterize the fans, keep each point's next radius (per arena), shade, count holes.
+
+use super::targets::{COUNT_WORDS, TriangulateTargets};
+use crate::ViewerError;
+use crate::gpu::GpuContext;
+use crate::gpu::timing::Timer;
+use crate::pipelines::projection::pixel_groups;
+use crate::pipelines::shader::ShaderSource;
+use crate::pipelines::{LIGHTING_WGSL, PipelineFrame, PointStream};
+use bytemuck::{Pod, Zeroable};
+use wgpu::util::DeviceExt;
+
+const UNIFORMS_WGSL: &str = include_str!("uniforms.wgsl");
+const COUNTS_WGSL: &str = include_str!("counts.wgsl");
+const REPROJECT_WGSL: &str = include_str!("reproject.wgsl");
+const GATHER_WGSL: &str = include_str!("gather.wgsl");
+const SEARCH_WGSL: &str = include_str!("search.wgsl");
+const RAYS_WGSL: &str = include_str!("rays.wgsl");
+const SEARCH_DISTANCES_WGSL: &str = include_str!("search_distances.wgsl");
+const SEARCH_IDS_WGSL: &str = include_str!("search_ids.wgsl");
+const FAN_WGSL: &str = include_str!("fan.wgsl");
+const NORMALS_WGSL: &str = include_str!("normals.wgsl");
+const RASTER_WGSL: &str = include_str!("raster.wgsl");
+const RADII_WGSL: &str = include_str!("radii.wgsl");
+const SHADE_WGSL: &str = include_str!("shade.wgsl");
+const HOLES_WGSL: &str = include_str!("holes.wgsl");
+
+/// Each point's kept value: its search radius and the last feedback distance (two f32).
+pub const RADIUS_STREAM: PointStream = PointStream::Kept { bytes: 8 };
+
+/// Storage buffers the rasterization binds in one stage.
+const STORAGE_BUFFERS: u32 = 7;
+
+/// The triangulation's uniforms, laid out as `Triangulate` in uniforms.wgsl.
+#[repr(C)]
+#[derive(Debug, Clone, Copy, Pod, Zeroable)]
+pub struct TriangulateUniforms {
+    pub eye: [f32; 4],
+    pub forward: [f32; 4],
+    pub right: [f32; 4],
+    pub up: [f32; 4],
+    pub prev_eye: [f32; 4],
+    pub prev_forward: [f32; 4],
+    pub prev_right: [f32; 4],
+    pub prev_up: [f32; 4],
+    pub max_connection: f32,
+    pub pad0: f32,
+    pub previous: u32,
+    pub max_search_px: u32,
+}
+
+/// Every module the triangulation compiles, in the order `TriangulatePasses::new` takes them.
+pub fn shaders() -> Vec<ShaderSource> {
+    let own = |label, parts: &[&'static str]| {
+        let mut all = vec![UNIFORMS_WGSL, COUNTS_WGSL];
+        all.extend_from_slice(parts);
+        ShaderSource::new(label, &all)
+    };
+    vec![
+        own("reproject", &[REPROJECT_WGSL, RAYS_WGSL]),
+        own("triangulate gather", &[GATHER_WGSL, RAYS_WGSL]),
+        own("search distances", &[SEARCH_DISTANCES_WGSL, RAYS_WGSL, SEARCH_WGSL]),
+        own("search ids", &[SEARCH_IDS_WGSL, RAYS_WGSL, SEARCH_WGSL]),
+        own("normals", &[NORMALS_WGSL, FAN_WGSL]),
+        own("triangulate", &[RASTER_WGSL, FAN_WGSL]),
+        own("radii", &[RADII_WGSL, RAYS_WGSL]),
+        own("triangulate shade", &[LIGHTING_WGSL, SHADE_WGSL]),
+        own("holes", &[HOLES_WGSL]),
+    ]
+}
+
+pub struct TriangulatePasses {
+    reproject: wgpu::ComputePipeline,
+    gather: wgpu::ComputePipeline,
+    distances: wgpu::ComputePipeline,
+    ids: wgpu::ComputePipeline,
+    normals: wgpu::ComputePipeline,
+    raster: wgpu::ComputePipeline,
+    radii: wgpu::ComputePipeline,
+    shade: wgpu::ComputePipeline,
+    holes: wgpu::ComputePipeline,
+}
+
+impl TriangulatePasses {
+    pub fn new(ctx: &GpuContext) -> Result<TriangulatePasses, ViewerError> {
+        let have = ctx.device.limits().max_storage_buffers_per_shader_stage;
+        if have < STORAGE_BUFFERS {
+            return Err(ViewerError::Gpu(format!(
+                "the triangulate pipeline binds {STORAGE_BUFFERS} storage buffers in a pass; this adapter allows {have}"
+            )));
+        }
+        let mut compiled = shaders()
+            .into_iter()
+            .map(|s| s.compute(&ctx.device, None));
+        let mut next = || {
+            compiled
+                .next()
+                .ok_or_else(|| ViewerError::Gpu("a triangulation shader is missing".into()))
+        };
+        Ok(TriangulatePasses {
+            reproject: next()?,
+            gather: next()?,
+            distances: next()?,
+            ids: next()?,
+            normals: next()?,
+            raster: next()?,
+            radii: next()?,
+            shade: next()?,
+            holes: next()?,
+        })
+    }
+
+    pub fn encode(
+        &self,
+        frame: &PipelineFrame,
+        encoder: &mut wgpu::CommandEncoder,
+        t: &mut TriangulateTargets,
+        uniforms: &TriangulateUniforms,
+        timer: &mut Timer,
+    ) -> Result<(), ViewerError> {
+        let device = &frame.ctx.device;
+        let screen = frame.screen;
+        frame
+            .ctx
+            .queue
+            .write_buffer(&t.uniforms, 0, bytemuck::bytes_of(uniforms));
+        for b in [
+            &t.reprojected,
+            &t.points,
+            &t.distances,
+            &t.neighbours,
+            &t.feedback,
+            &t.sums,
+            &t.front,
+            &t.counts,
+        ] {
+            encoder.clear_buffer(b, 0, None);
+        }
+        let (gx, gy) = pixel_groups(screen.width, screen.height);
+        // The arenas drawn from, each with a header row naming it (`ranges[0].start`) and its
+        // kept radii.
+        let mut arenas = Vec::with_capacity(frame.arenas.len());
+        for d in frame.arenas {
+            let (a, [kept]) = frame.cache.arena_streams(d.arena, [RADIUS_STREAM])?;
+            let header = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                label: Some("triangulation arena"),
+                contents: bytemuck::cast_slice(&[d.arena, 0u32, 0, 0]),
+                usage: wgpu::BufferUsages::STORAGE,
+            });
+            arenas.push((a, header, kept));
+        }
+        let mut pass = |name: &str,
+                        pipe: &wgpu::ComputePipeline,
+                        own: &[&wgpu::Buffer],
+                        per_arena: Option<&dyn Fn(&wgpu::ComputePipeline) -> Vec<wgpu::BindGroup>>,
+                        output: Option<&wgpu::TextureView>| {
+            let mut entries: Vec<wgpu::BindGroupEntry> = [&screen.uniforms]
+                .into_iter()
+                .chain(own.iter().copied())
+                .enumerate()
+                .map(|(i, b)| wgpu::BindGroupEntry {
+                    binding: i as u32,
+                    resource: b.as_entire_binding(),
+                })
+                .collect();
+            if let Some(view) = output {
+                entries.push(wgpu::BindGroupEntry {
+                    binding: entries.len() as u32,
+                    resource: wgpu::BindingResource::TextureView(view),
+                });
+            }
+            let bg = device.create_bind_group(&wgpu::BindGroupDescriptor {
+                label: Some(name),
+                layout: &pipe.get_bind_group_layout(0),
+                entries: &entries,
+            });
+            let groups = per_arena.map(|f| f(pipe));
+            let timestamp_writes = timer.pass(encoder, name);
+            let mut p = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
+                label: Some(name),
+                timestamp_writes,
+            });
+            p.set_pipeline(pipe);
+            p.set_bind_group(0, &bg, &[]);
+            match groups {
+                Some(groups) => {
+                    for g in &groups {
+                        p.set_bind_group(1, g, &[]);
+                        p.dispatch_workgroups(gx, gy, 1);
+                    }
+                }
+                None => p.dispatch_workgroups(gx, gy, 1),
+            }
+        };
+        let arena_group = |pipe: &wgpu::ComputePipeline, buffers: &[&wgpu::Buffer]| {
+            let entries: Vec<wgpu::BindGroupEntry> = buffers
+                .iter()
+                .enumerate()
+                .map(|(i, b)| wgpu::BindGroupEntry {
+                    binding: i as u32,
+                    resource: b.as_entire_binding(),
+                })
+                .collect();
+            device.create_bind_group(&wgpu::BindGroupDescriptor {
+                label: Some("triangulation arena"),
+                layout: &pipe.get_bind_group_layout(1),
+                entries: &entries,
+            })
+        };
+
+        if let (Some(previous), 1) = (&screen.previous_depths, uniforms.previous) {
+            pass("reproject", &self.reproject, &[&t.uniforms, previous, &t.reprojected], None, None);
+        }
+        let gather_groups = |pipe: &wgpu::ComputePipeline| {
+            arenas
+                .iter()
+                .map(|(a, header, kept)| arena_group(pipe, &[&a.points, header, kept]))
+                .collect()
+        };
+        pass(
+            "triangulate gather",
+            &self.gather,
+            &[
+                &t.uniforms,
+                &screen.depths,
+                &screen.indices,
+                &t.reprojected,
+                &t.points,
+                &t.counts,
+            ],
+            Some(&gather_groups),
+            None,
+        );
+        pass(
+            "search distances",
+            &self.distances,
+            &[&t.uniforms, &t.points, &t.distances],
+            None,
+            None,
+        );
+        pass(
+            "search ids",
+            &self.ids,
+            &[&t.uniforms, &t.points, &t.distances, &t.neighbours],
+            None,
+            None,
+        );
+        pass(
+            "normals",
+            &self.normals,
+            &[&t.uniforms, &t.points, &t.neighbours, &t.normals, &t.feedback],
+            None,
+            None,
+        );
+        pass(
+            "triangulate",
+            &self.raster,
+            &[
+                &t.points,
+                &t.neighbours,
+                &t.normals,
+                &screen.colours,
+                &t.sums,
+                &t.front,
+                &t.counts,
+            ],
+            None,
+            None,
+        );
+        let radii_groups = |pipe: &wgpu::ComputePipeline| {
+            arenas
+                .iter()
+                .map(|(_, header, kept)| arena_group(pipe, &[header, kept]))
+                .collect()
+        };
+        pass(
+            "radii",
+            &self.radii,
+            &[&t.uniforms, &screen.indices, &t.points, &t.feedback],
+            Some(&radii_groups),
+            None,
+        );
+        let view = screen.output.create_view(&Default::default());
+        pass(
+            "triangulate shade",
+            &self.shade,
+            &[&t.uniforms, &t.sums, &t.front, &t.reconstructed, &t.surface, &t.albedo],
+            None,
+            Some(&view),
+        );
+        pass("holes", &self.holes, &[&t.reconstructed, &t.counts], None, None);
+        drop(arenas);
+        t.counts_readback
+            .record(encoder, &t.counts, 0, COUNT_WORDS * 4);
+        Ok(())
+    }
+}

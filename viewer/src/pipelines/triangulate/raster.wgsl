@@ -1,0 +1,113 @@
+// Triangulation (section 3.5): each point rasterizes the triangles of its fan, interpolating
+// colour, normal and linear depth over the pixels whose centres they cover; colour and normal
+// are summed (the paper's additive blending, normalised when shading) and the depth kept by
+// minimum. A compute rasterizer: fixed-point atomic sums make the picture independent of the
+// order triangles arrive in, and it runs on every adapter the projection runs on. Each point
+// also covers its own pixel, so that a point without neighbours is still drawn.
+@group(0) @binding(0) var<uniform> frame: Frame;
+@group(0) @binding(1) var<storage, read> pts: array<vec4<f32>>;
+@group(0) @binding(2) var<storage, read> neighbours: array<u32>;
+@group(0) @binding(3) var<storage, read> normals: array<vec4<f32>>;
+// The projection's resolved colour per pixel (RGBA8).
+@group(0) @binding(4) var<storage, read> colours: array<u32>;
+@group(0) @binding(5) var<storage, read_write> sums: array<atomic<u32>>;
+// Per pixel: the complement of the least depth's bits (0: nothing drawn).
+@group(0) @binding(6) var<storage, read_write> front: array<atomic<u32>>;
+@group(0) @binding(7) var<storage, read_write> counts: array<atomic<u32>>;
+
+struct Vertex {
+    // Screen position in pixels (y down) and 1 / linear depth.
+    xy: vec2<f32>,
+    inv_w: f32,
+    colour: vec3<f32>,
+    normal: vec3<f32>,
+}
+
+fn vertex(q: u32) -> Vertex {
+    var v: Vertex;
+    let clip = frame.view_proj * vec4<f32>(pts[q].xyz, 1.0);
+    let w = max(clip.w, 1e-6);
+    v.xy = vec2<f32>((clip.x / w * 0.5 + 0.5) * f32(frame.width), (0.5 - clip.y / w * 0.5) * f32(frame.height));
+    v.inv_w = 1.0 / w;
+    v.colour = unpack4x8unorm(colours[q]).rgb;
+    v.normal = normals[q].xyz;
+    return v;
+}
+
+fn add_fragment(pixel: u32, depth: f32, colour: vec3<f32>, normal: vec3<f32>) {
+    atomicMax(&front[pixel], ~bitcast<u32>(depth));
+    let i = pixel * SUM_WORDS;
+    let c = vec3<u32>(clamp(colour, vec3<f32>(0.0), vec3<f32>(1.0)) * f32(255u * FRAGMENT_WEIGHT) + 0.5);
+    let n = vec3<u32>(clamp(normal * 0.5 + 0.5, vec3<f32>(0.0), vec3<f32>(1.0)) * f32(1023u * FRAGMENT_WEIGHT) + 0.5);
+    atomicAdd(&sums[i], FRAGMENT_WEIGHT);
+    atomicAdd(&sums[i + 1u], c.x);
+    atomicAdd(&sums[i + 2u], c.y);
+    atomicAdd(&sums[i + 3u], c.z);
+    atomicAdd(&sums[i + 4u], n.x);
+    atomicAdd(&sums[i + 5u], n.y);
+    atomicAdd(&sums[i + 6u], n.z);
+}
+
+fn edge(a: vec2<f32>, b: vec2<f32>, c: vec2<f32>) -> f32 {
+    return (b.x - a.x) * (c.y - a.y) - (b.y - a.y) * (c.x - a.x);
+}
+
+fn rasterize(a: Vertex, b: Vertex, c: Vertex) {
+    let area = edge(a.xy, b.xy, c.xy);
+    if abs(area) < 1e-12 {
+        return;
+    }
+    let lo = floor(min(a.xy, min(b.xy, c.xy)));
+    let hi = ceil(max(a.xy, max(b.xy, c.xy)));
+    if any(hi - lo > vec2<f32>(MAX_TRIANGLE_PX)) {
+        return;
+    }
+    let x0 = u32(max(lo.x, 0.0));
+    let y0 = u32(max(lo.y, 0.0));
+    let x1 = u32(clamp(hi.x, 0.0, f32(frame.width)));
+    let y1 = u32(clamp(hi.y, 0.0, f32(frame.height)));
+    for (var y = y0; y < y1; y++) {
+        for (var x = x0; x < x1; x++) {
+            let centre = vec2<f32>(f32(x) + 0.5, f32(y) + 0.5);
+            // Barycentric weights, positive inside whichever way the triangle winds.
+            let wa = edge(b.xy, c.xy, centre) / area;
+            let wb = edge(c.xy, a.xy, centre) / area;
+            let wc = 1.0 - wa - wb;
+            if wa < 0.0 || wb < 0.0 || wc < 0.0 {
+                continue;
+            }
+            // Perspective-correct: the weights over depth, normalised.
+            let pa = wa * a.inv_w;
+            let pb = wb * b.inv_w;
+            let pc = wc * c.inv_w;
+            let inv = pa + pb + pc;
+            let colour = (pa * a.colour + pb * b.colour + pc * c.colour) / inv;
+            let normal = (pa * a.normal + pb * b.normal + pc * c.normal) / inv;
+            add_fragment(y * frame.width + x, 1.0 / inv, colour, normal);
+        }
+    }
+}
+
+@compute @workgroup_size(16, 16)
+fn main(@builtin(global_invocation_id) id: vec3<u32>) {
+    if id.x >= frame.width || id.y >= frame.height {
+        return;
+    }
+    let p = id.y * frame.width + id.x;
+    if pts[p].w <= 0.0 {
+        return;
+    }
+    let centre = vertex(p);
+    add_fragment(p, 1.0 / centre.inv_w, centre.colour, centre.normal);
+    let f = fan_of(p);
+    var drawn = 0u;
+    for (var k = 0u; k < f.count; k++) {
+        if opens(p, f, k) {
+            rasterize(centre, vertex(f.ids[k]), vertex(f.ids[(k + 1u) % f.count]));
+            drawn += 1u;
+        }
+    }
+    if drawn > 0u {
+        atomicAdd(&counts[COUNT_TRIANGLES], drawn);
+    }
+}

@@ -1,0 +1,39 @@
+// The triangulation's own uniforms, read by all its passes.
+
+struct Triangulate {
+    // This frame's eye and pixel rays: the point at linear depth d on the ray through
+    // normalised device coordinates (x, y) is eye + d * (forward + x * right + y * up).
+    eye: vec4<f32>,
+    forward: vec4<f32>,
+    right: vec4<f32>,
+    up: vec4<f32>,
+    // The previous frame's, for the reprojection of its reconstructed depth.
+    prev_eye: vec4<f32>,
+    prev_forward: vec4<f32>,
+    prev_right: vec4<f32>,
+    prev_up: vec4<f32>,
+    // The longest edge a triangle may have (dataset units): no search radius exceeds it.
+    max_connection: f32,
+    pad0: f32,
+    // 1: the previous frame's depth exists and the reprojection ran.
+    previous: u32,
+    // The largest search splat, in pixels either side of the point.
+    max_search_px: u32,
+}
+
+// Sectors around a point (Figure 3), in circular order.
+const SECTORS: u32 = 8u;
+// Words per pixel of the blend sums: weight, r, g, b, nx, ny, nz.
+const SUM_WORDS: u32 = 7u;
+// A fragment's weight in the blend sums (fixed point).
+const FRAGMENT_WEIGHT: u32 = 16u;
+// A triangle wider or taller than this many pixels is not drawn: no fan of neighbours within
+// the search radius spans more, except across a depth gap seen edge-on.
+const MAX_TRIANGLE_PX: f32 = 96.0;
+
+// The sector of screen offset (dx, dy) (pixels, y down), counter-clockwise on screen from +x.
+fn sector_of(dx: f32, dy: f32) -> u32 {
+    let a = atan2(-dy, dx);
+    let turn = (a + 6.283185307) % 6.283185307;
+    return min(u32(turn / 0.785398163), SECTORS - 1u);
+}
