@@ -1,6 +1,6 @@
 //! Headless rendering on the software adapter (lavapipe): coverage, the point budget, the two
 //! projection paths, corrupt nodes, fly-throughs, bad arguments, colouring by normal and by
-//! curvature, the surfels, the filters, and the window under Xvfb.
+//! curvature, the surfels, the filters, the triangulation, and the window under Xvfb.
 
 #[path = "render/colours.rs"]
 mod colours;
@@ -13,6 +13,8 @@ mod paths;
 mod pyramid;
 #[path = "render/surfels.rs"]
 mod surfels;
+#[path = "render/triangulate.rs"]
+mod triangulate;
 
 use common::{data, gpu_ok, gpu_run, read_png, s, strata};
 use std::path::{Path, PathBuf};

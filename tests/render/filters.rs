@@ -12,8 +12,8 @@ use strata_viewer::{Camera, Renderer, Settings};
 
 // The surfels' view of a unit sphere, and their measure of its outline.
 use super::surfels::{DISTANCE, FOV_DEG, H, W, holes_and_overshoot};
-const OUTER: [u8; 3] = [40, 80, 200];
-const INNER: [u8; 3] = [200, 60, 40];
+pub(super) const OUTER: [u8; 3] = [40, 80, 200];
+pub(super) const INNER: [u8; 3] = [200, 60, 40];
 
 /// Points evenly over a sphere of `radius` (a Fibonacci lattice, like a scan).
 fn lattice(n: usize, radius: f64) -> impl Iterator<Item = [f64; 3]> {
@@ -28,7 +28,7 @@ fn lattice(n: usize, radius: f64) -> impl Iterator<Item = [f64; 3]> {
 
 /// Two nested spheres (radius 1, blue, and 0.5, red), as a PLY with their outward normals
 /// (`normals`) or as a LAS without normals whose outer sphere is class 2 and inner class 6.
-fn nested(normals: bool) -> &'static Path {
+pub(super) fn nested(normals: bool) -> &'static Path {
     static CELLS: [OnceLock<PathBuf>; 2] = [OnceLock::new(), OnceLock::new()];
     CELLS[normals as usize].get_or_init(|| {
         let dir = Path::new(env!("CARGO_TARGET_TMPDIR")).join(format!("render-filters-{normals}"));

@@ -19,7 +19,7 @@ pub(super) const FOV_DEG: f32 = 50.0;
 
 /// The sphere's flavours: sparse with normals, sparse without, dense (several levels deep).
 #[derive(Clone, Copy, PartialEq)]
-enum Sphere {
+pub(super) enum Sphere {
     Sparse,
     SparseWithoutNormals,
     Dense,
@@ -27,7 +27,7 @@ enum Sphere {
 
 /// A unit sphere sampled evenly (a Fibonacci lattice, like a scan), with its outward normals
 /// unless without; converted once per flavour.
-fn sphere(flavour: Sphere) -> &'static Path {
+pub(super) fn sphere(flavour: Sphere) -> &'static Path {
     static CELLS: [OnceLock<PathBuf>; 3] = [OnceLock::new(), OnceLock::new(), OnceLock::new()];
     let (k, n, normals) = match flavour {
         Sphere::Sparse => (0, 40_000, true),

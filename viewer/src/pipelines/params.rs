@@ -177,6 +177,8 @@ impl ParamValues {
 #[derive(Debug, Clone, Default)]
 pub struct ResolvedParams {
     values: BTreeMap<&'static str, f32>,
+    /// The parameters left automatic.
+    automatic: std::collections::BTreeSet<&'static str>,
 }
 
 impl ResolvedParams {
@@ -190,7 +192,11 @@ impl ResolvedParams {
         let mut spacing = Some(spacing);
         let mut spacing_value = None;
         let mut out = BTreeMap::new();
+        let mut automatic = std::collections::BTreeSet::new();
         for spec in pipeline.params {
+            if values.get(pipeline, spec) == ParamValue::Auto {
+                automatic.insert(spec.name);
+            }
             let v = match values.get(pipeline, spec) {
                 ParamValue::Value(v) => Some(v),
                 ParamValue::Auto => match spec.auto {
@@ -211,12 +217,20 @@ impl ResolvedParams {
                 out.insert(spec.name, v);
             }
         }
-        ResolvedParams { values: out }
+        ResolvedParams {
+            values: out,
+            automatic,
+        }
     }
 
     /// The value of `name`, `None` where it is automatic and could not be resolved.
     pub fn get(&self, name: &str) -> Option<f32> {
         self.values.get(name).copied()
+    }
+
+    /// Whether `name` was left automatic (its value then comes from the drawn nodes).
+    pub fn is_auto(&self, name: &str) -> bool {
+        self.automatic.contains(name)
     }
 
     pub fn get_or(&self, name: &str, fallback: f32) -> f32 {

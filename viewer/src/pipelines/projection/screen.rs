@@ -101,7 +101,11 @@ impl Screen {
 
     /// Keeps this frame's depth plane for the next frame (pipelines with `previous_frame`):
     /// `reconstructed`, where the pipeline made one of this screen's size, else the projection's.
-    pub fn keep_depths(&self, encoder: &mut wgpu::CommandEncoder, reconstructed: Option<&wgpu::Buffer>) {
+    pub fn keep_depths(
+        &self,
+        encoder: &mut wgpu::CommandEncoder,
+        reconstructed: Option<&wgpu::Buffer>,
+    ) {
         if let Some(prev) = &self.previous_depths {
             let source = reconstructed
                 .filter(|b| b.size() == self.depths.size())

@@ -32,6 +32,11 @@ pub use passes::TriangulateUniforms;
 /// nodes of a view lie farther apart than the median.
 pub const CONNECTION_SPACINGS: u32 = 4;
 
+/// Node spacings a point's connections may span where `max_connection` is automatic and its
+/// node is coarser than the median (far away, or standing for children not drawn): within a
+/// node, points lie at least a spacing apart and a sector's nearest within two.
+pub const NODE_SPACINGS: f32 = 2.0;
+
 static PARAMS: [ParamSpec; 3] = [
     ParamSpec {
         name: "max_connection",
@@ -72,6 +77,8 @@ pub static INFO: PipelineInfo = PipelineInfo {
     passes: &[
         "reproject",
         "triangulate gather",
+        "search",
+        "search unpack",
         "search distances",
         "search ids",
         "normals",
@@ -84,7 +91,7 @@ pub static INFO: PipelineInfo = PipelineInfo {
     cull_back_faces: false,
     screen_buffers: TriangulateTargets::screen_buffers,
     create,
-    shaders: |_| passes::shaders(),
+    shaders: passes::shaders,
 };
 
 /// The measures it reports.
@@ -96,6 +103,8 @@ struct Triangulate {
     passes: TriangulatePasses,
     targets: Option<TriangulateTargets>,
     counts: Option<Counts>,
+    /// The device has 64-bit atomics: the sector search is one pass.
+    int64: bool,
 }
 
 fn create(ctx: &GpuContext) -> Result<Box<dyn Pipeline>, ViewerError> {
@@ -103,6 +112,7 @@ fn create(ctx: &GpuContext) -> Result<Box<dyn Pipeline>, ViewerError> {
         passes: TriangulatePasses::new(ctx)?,
         targets: None,
         counts: None,
+        int64: ctx.int64_atomics,
     }))
 }
 
@@ -142,7 +152,11 @@ pub fn uniforms(
         prev_right: prev.right,
         prev_up: prev.up,
         max_connection,
-        pad0: 0.0,
+        spacing_factor: if params.is_auto("max_connection") {
+            NODE_SPACINGS
+        } else {
+            0.0
+        },
         previous: previous.is_some() as u32,
         max_search_px: value(params, "max_search_px") as u32,
     }
@@ -160,7 +174,12 @@ impl Pipeline for Triangulate {
     }
 
     fn make_targets(&mut self, device: &wgpu::Device, screen: &super::projection::Screen) {
-        self.targets = Some(TriangulateTargets::new(device, screen.width, screen.height));
+        self.targets = Some(TriangulateTargets::new(
+            device,
+            screen.width,
+            screen.height,
+            self.int64,
+        ));
     }
 
     fn release_targets(&mut self) {
@@ -218,3 +237,6 @@ impl Pipeline for Triangulate {
         self.targets.as_ref().map(|t| t.read_surface(ctx))
     }
 }
+
+#[cfg(test)]
+mod tests;

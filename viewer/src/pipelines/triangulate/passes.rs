@@ -7,7 +7,7 @@ use super::targets::{COUNT_WORDS, TriangulateTargets};
 use crate::ViewerError;
 use crate::gpu::GpuContext;
 use crate::gpu::timing::Timer;
-use crate::pipelines::projection::pixel_groups;
+use crate::pipelines::projection::{GpuRange, pixel_groups};
 use crate::pipelines::shader::ShaderSource;
 use crate::pipelines::{LIGHTING_WGSL, PipelineFrame, PointStream};
 use bytemuck::{Pod, Zeroable};
@@ -19,8 +19,11 @@ const REPROJECT_WGSL: &str = include_str!("reproject.wgsl");
 const GATHER_WGSL: &str = include_str!("gather.wgsl");
 const SEARCH_WGSL: &str = include_str!("search.wgsl");
 const RAYS_WGSL: &str = include_str!("rays.wgsl");
+const SPANS_WGSL: &str = include_str!("spans.wgsl");
 const SEARCH_DISTANCES_WGSL: &str = include_str!("search_distances.wgsl");
 const SEARCH_IDS_WGSL: &str = include_str!("search_ids.wgsl");
+const SEARCH_INT64_WGSL: &str = include_str!("search_int64.wgsl");
+const SEARCH_UNPACK_WGSL: &str = include_str!("search_unpack.wgsl");
 const FAN_WGSL: &str = include_str!("fan.wgsl");
 const NORMALS_WGSL: &str = include_str!("normals.wgsl");
 const RASTER_WGSL: &str = include_str!("raster.wgsl");
@@ -47,30 +50,54 @@ pub struct TriangulateUniforms {
     pub prev_right: [f32; 4],
     pub prev_up: [f32; 4],
     pub max_connection: f32,
-    pub pad0: f32,
+    pub spacing_factor: f32,
     pub previous: u32,
     pub max_search_px: u32,
 }
 
-/// Every module the triangulation compiles, in the order `TriangulatePasses::new` takes them.
-pub fn shaders() -> Vec<ShaderSource> {
+/// Every module the triangulation compiles; `int64`: the device has 64-bit atomics, and the
+/// sector search takes one pass and an unpack instead of two.
+pub fn shaders(int64: bool) -> Vec<ShaderSource> {
     let own = |label, parts: &[&'static str]| {
         let mut all = vec![UNIFORMS_WGSL, COUNTS_WGSL];
         all.extend_from_slice(parts);
         ShaderSource::new(label, &all)
     };
-    vec![
-        own("reproject", &[REPROJECT_WGSL, RAYS_WGSL]),
-        own("triangulate gather", &[GATHER_WGSL, RAYS_WGSL]),
-        own("search distances", &[SEARCH_DISTANCES_WGSL, RAYS_WGSL, SEARCH_WGSL]),
-        own("search ids", &[SEARCH_IDS_WGSL, RAYS_WGSL, SEARCH_WGSL]),
-        own("normals", &[NORMALS_WGSL, FAN_WGSL]),
-        own("triangulate", &[RASTER_WGSL, FAN_WGSL]),
-        own("radii", &[RADII_WGSL, RAYS_WGSL]),
+    let mut v = vec![
+        own("triangulate reproject", &[REPROJECT_WGSL, RAYS_WGSL]),
+        own("triangulate gather", &[GATHER_WGSL, RAYS_WGSL, SPANS_WGSL]),
+        own("triangulate search distances", &[SEARCH_DISTANCES_WGSL, RAYS_WGSL, SEARCH_WGSL]),
+        own("triangulate search ids", &[SEARCH_IDS_WGSL, RAYS_WGSL, SEARCH_WGSL]),
+        own("triangulate normals", &[NORMALS_WGSL, FAN_WGSL]),
+        own("triangulate raster", &[RASTER_WGSL, FAN_WGSL]),
+        own("triangulate radii", &[RADII_WGSL, RAYS_WGSL, SPANS_WGSL]),
         own("triangulate shade", &[LIGHTING_WGSL, SHADE_WGSL]),
-        own("holes", &[HOLES_WGSL]),
-    ]
+        own("triangulate holes", &[HOLES_WGSL]),
+    ];
+    if int64 {
+        v.push(own("triangulate search", &[SEARCH_INT64_WGSL, RAYS_WGSL, SEARCH_WGSL]));
+        v.push(own("triangulate search unpack", &[SEARCH_UNPACK_WGSL]));
+    }
+    v
 }
+
+/// An arena's drawn ranges for spans.wgsl: a header row (start = arena, count = rows), then
+/// the ranges sorted by start.
+pub fn span_table(arena: u32, ranges: &[GpuRange]) -> Vec<GpuRange> {
+    let mut table = Vec::with_capacity(ranges.len() + 1);
+    table.push(GpuRange {
+        start: arena,
+        count: ranges.len() as u32,
+        first_group: 0,
+        spacing: 0.0,
+    });
+    table.extend_from_slice(ranges);
+    table[1..].sort_by_key(|r| r.start);
+    table
+}
+
+/// Makes a per-arena pass's group 1 for each arena drawn from, for its pipeline.
+type ArenaGroups<'a> = dyn Fn(&wgpu::ComputePipeline) -> Vec<wgpu::BindGroup> + 'a;
 
 pub struct TriangulatePasses {
     reproject: wgpu::ComputePipeline,
@@ -82,6 +109,8 @@ pub struct TriangulatePasses {
     radii: wgpu::ComputePipeline,
     shade: wgpu::ComputePipeline,
     holes: wgpu::ComputePipeline,
+    /// The one-pass 64-bit search and its unpack, where the device has 64-bit atomics.
+    search64: Option<(wgpu::ComputePipeline, wgpu::ComputePipeline)>,
 }
 
 impl TriangulatePasses {
@@ -92,24 +121,31 @@ impl TriangulatePasses {
                 "the triangulate pipeline binds {STORAGE_BUFFERS} storage buffers in a pass; this adapter allows {have}"
             )));
         }
-        let mut compiled = shaders()
+        let int64 = ctx.int64_atomics;
+        let mut compiled: std::collections::HashMap<&str, wgpu::ComputePipeline> = shaders(int64)
             .into_iter()
-            .map(|s| s.compute(&ctx.device, None));
-        let mut next = || {
+            .map(|s| (s.label, s.compute(&ctx.device, None)))
+            .collect();
+        let mut take = |label: &str| {
             compiled
-                .next()
-                .ok_or_else(|| ViewerError::Gpu("a triangulation shader is missing".into()))
+                .remove(label)
+                .ok_or_else(|| ViewerError::Gpu(format!("no triangulation shader {label}")))
         };
         Ok(TriangulatePasses {
-            reproject: next()?,
-            gather: next()?,
-            distances: next()?,
-            ids: next()?,
-            normals: next()?,
-            raster: next()?,
-            radii: next()?,
-            shade: next()?,
-            holes: next()?,
+            reproject: take("triangulate reproject")?,
+            gather: take("triangulate gather")?,
+            distances: take("triangulate search distances")?,
+            ids: take("triangulate search ids")?,
+            normals: take("triangulate normals")?,
+            raster: take("triangulate raster")?,
+            radii: take("triangulate radii")?,
+            shade: take("triangulate shade")?,
+            holes: take("triangulate holes")?,
+            search64: if int64 {
+                Some((take("triangulate search")?, take("triangulate search unpack")?))
+            } else {
+                None
+            },
         })
     }
 
@@ -136,18 +172,21 @@ impl TriangulatePasses {
             &t.sums,
             &t.front,
             &t.counts,
-        ] {
+        ]
+        .into_iter()
+        .chain(&t.keys)
+        {
             encoder.clear_buffer(b, 0, None);
         }
         let (gx, gy) = pixel_groups(screen.width, screen.height);
-        // The arenas drawn from, each with a header row naming it (`ranges[0].start`) and its
+        // The arenas drawn from, each with its drawn ranges sorted by start (spans.wgsl) and its
         // kept radii.
         let mut arenas = Vec::with_capacity(frame.arenas.len());
         for d in frame.arenas {
             let (a, [kept]) = frame.cache.arena_streams(d.arena, [RADIUS_STREAM])?;
             let header = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
-                label: Some("triangulation arena"),
-                contents: bytemuck::cast_slice(&[d.arena, 0u32, 0, 0]),
+                label: Some("triangulation spans"),
+                contents: bytemuck::cast_slice(&span_table(d.arena, &d.ranges)),
                 usage: wgpu::BufferUsages::STORAGE,
             });
             arenas.push((a, header, kept));
@@ -155,7 +194,7 @@ impl TriangulatePasses {
         let mut pass = |name: &str,
                         pipe: &wgpu::ComputePipeline,
                         own: &[&wgpu::Buffer],
-                        per_arena: Option<&dyn Fn(&wgpu::ComputePipeline) -> Vec<wgpu::BindGroup>>,
+                        per_arena: Option<&ArenaGroups>,
                         output: Option<&wgpu::TextureView>| {
             let mut entries: Vec<wgpu::BindGroupEntry> = [&screen.uniforms]
                 .into_iter()
@@ -234,20 +273,28 @@ impl TriangulatePasses {
             Some(&gather_groups),
             None,
         );
-        pass(
-            "search distances",
-            &self.distances,
-            &[&t.uniforms, &t.points, &t.distances],
-            None,
-            None,
-        );
-        pass(
-            "search ids",
-            &self.ids,
-            &[&t.uniforms, &t.points, &t.distances, &t.neighbours],
-            None,
-            None,
-        );
+        match (&self.search64, &t.keys) {
+            (Some((search, unpack)), Some(keys)) => {
+                pass("search", search, &[&t.uniforms, &t.points, keys], None, None);
+                pass("search unpack", unpack, &[keys, &t.neighbours], None, None);
+            }
+            _ => {
+                pass(
+                    "search distances",
+                    &self.distances,
+                    &[&t.uniforms, &t.points, &t.distances],
+                    None,
+                    None,
+                );
+                pass(
+                    "search ids",
+                    &self.ids,
+                    &[&t.uniforms, &t.points, &t.distances, &t.neighbours],
+                    None,
+                    None,
+                );
+            }
+        }
         pass(
             "normals",
             &self.normals,

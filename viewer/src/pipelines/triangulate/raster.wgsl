@@ -2,8 +2,11 @@
 // colour, normal and linear depth over the pixels whose centres they cover; colour and normal
 // are summed (the paper's additive blending, normalised when shading) and the depth kept by
 // minimum. A compute rasterizer: fixed-point atomic sums make the picture independent of the
-// order triangles arrive in, and it runs on every adapter the projection runs on. Each point
-// also covers its own pixel, so that a point without neighbours is still drawn.
+// order triangles arrive in, and it runs on every adapter the projection runs on. A triangle
+// in the fans of two or three of its corners is drawn each time, as in the paper: finding the
+// one fan to draw it from (reading the other corners' fans) took longer on lavapipe than the
+// repeated drawing. Each point also covers its own pixel, so that a point without neighbours
+// is still drawn.
 @group(0) @binding(0) var<uniform> frame: Frame;
 @group(0) @binding(1) var<storage, read> pts: array<vec4<f32>>;
 @group(0) @binding(2) var<storage, read> neighbours: array<u32>;
@@ -102,8 +105,10 @@ fn main(@builtin(global_invocation_id) id: vec3<u32>) {
     let f = fan_of(p);
     var drawn = 0u;
     for (var k = 0u; k < f.count; k++) {
+        let a = f.ids[k];
+        let b = f.ids[(k + 1u) % f.count];
         if opens(p, f, k) {
-            rasterize(centre, vertex(f.ids[k]), vertex(f.ids[(k + 1u) % f.count]));
+            rasterize(centre, vertex(a), vertex(b));
             drawn += 1u;
         }
     }

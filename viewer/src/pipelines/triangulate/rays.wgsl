@@ -17,8 +17,10 @@ fn linear_depth(p: vec3<f32>) -> f32 {
 // short `max_connection` is (a diagonal neighbour and the depth slope between them).
 const CONNECT_PX: f32 = 3.0;
 
-// The longest connection of a point at linear depth `depth`: `max_connection`, or CONNECT_PX
-// pixels there where that is longer.
-fn connection_limit(depth: f32) -> f32 {
-    return max(tri.max_connection, CONNECT_PX * depth / frame.focal_px);
+// The longest connection of a point at linear depth `depth` in a node of `spacing`:
+// `max_connection`; where it is automatic, `spacing_factor` node spacings where the point's
+// node is coarser than the median of the view (a view draws coarse nodes far away); and
+// CONNECT_PX pixels at its depth, where that is longer.
+fn connection_limit(depth: f32, spacing: f32) -> f32 {
+    return max(max(tri.max_connection, tri.spacing_factor * spacing), CONNECT_PX * depth / frame.focal_px);
 }

@@ -40,6 +40,9 @@ pub struct TriangulateTargets {
     pub points: wgpu::Buffer,
     /// Per pixel and sector: the complement of the least distance's bits.
     pub distances: wgpu::Buffer,
+    /// Per pixel and sector: the complement of (distance, pixel id) of the nearest, where the
+    /// device has 64-bit atomics (the search is then one pass).
+    pub keys: Option<wgpu::Buffer>,
     /// Per pixel and sector: the complement of the nearest neighbour's pixel id.
     pub neighbours: wgpu::Buffer,
     pub normals: wgpu::Buffer,
@@ -103,10 +106,14 @@ impl TriangulateTargets {
             label: "triangulation albedo",
             bytes: pixels * 4,
         });
+        b.push(ScreenBuffer {
+            label: "64-bit sector keys",
+            bytes: pixels * 8 * SECTORS,
+        });
         b
     }
 
-    pub fn new(device: &wgpu::Device, width: u32, height: u32) -> TriangulateTargets {
+    pub fn new(device: &wgpu::Device, width: u32, height: u32, int64: bool) -> TriangulateTargets {
         let pixels = width as u64 * height as u64;
         let plane = |k: usize| plane_buffer(device, PLANES[k].0, pixels * PLANES[k].1);
         TriangulateTargets {
@@ -120,7 +127,13 @@ impl TriangulateTargets {
             }),
             reprojected: plane(0),
             points: plane(1),
-            distances: plane(2),
+            // The 64-bit search needs no distance plane.
+            distances: if int64 {
+                plane_buffer(device, PLANES[2].0, 16)
+            } else {
+                plane(2)
+            },
+            keys: int64.then(|| plane_buffer(device, "64-bit sector keys", pixels * 8 * SECTORS)),
             neighbours: plane(3),
             normals: plane(4),
             feedback: plane(5),

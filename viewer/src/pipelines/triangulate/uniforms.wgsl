@@ -14,7 +14,8 @@ struct Triangulate {
     prev_up: vec4<f32>,
     // The longest edge a triangle may have (dataset units): no search radius exceeds it.
     max_connection: f32,
-    pad0: f32,
+    // Node spacings a connection may span where `max_connection` is automatic (else 0).
+    spacing_factor: f32,
     // 1: the previous frame's depth exists and the reprojection ran.
     previous: u32,
     // The largest search splat, in pixels either side of the point.

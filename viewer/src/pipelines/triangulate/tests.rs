@@ -1,0 +1,123 @@
+//! The triangulation's Rust structs and constants against its WGSL, its counters' reading, and
+//! the warm-up a still waits for.
+
+use super::passes::{RADIUS_STREAM, TriangulateUniforms};
+use super::targets::{COUNT_WORDS, Counts, SECTORS, SUM_WORDS, counts_from};
+use super::{INFO, uniforms};
+use crate::pipelines::params::{ParamValues, ResolvedParams};
+use crate::pipelines::shader_tests::{module_named, rust_layout, wgsl_const, wgsl_layout};
+use crate::pipelines::{PointStream, ViewFrame};
+
+#[test]
+fn uniforms_and_constants_match_their_wgsl() {
+    let expected = rust_layout!(TriangulateUniforms {
+        eye,
+        forward,
+        right,
+        up,
+        prev_eye,
+        prev_forward,
+        prev_right,
+        prev_up,
+        max_connection,
+        spacing_factor,
+        previous,
+        max_search_px
+    });
+    for label in [
+        "triangulate reproject",
+        "triangulate gather",
+        "triangulate search",
+        "triangulate search distances",
+        "triangulate search ids",
+        "triangulate normals",
+        "triangulate radii",
+        "triangulate shade",
+    ] {
+        assert_eq!(
+            wgsl_layout(&module_named(label), "Triangulate"),
+            expected,
+            "TriangulateUniforms against Triangulate (uniforms.wgsl) in {label}"
+        );
+    }
+    let raster = module_named("triangulate raster");
+    assert_eq!(wgsl_const(&raster, "SECTORS"), SECTORS);
+    assert_eq!(wgsl_const(&raster, "SUM_WORDS"), SUM_WORDS);
+    assert_eq!(wgsl_const(&raster, "COUNT_WORDS"), COUNT_WORDS);
+    // The kept value per point is the radius and the last feedback: two f32.
+    assert_eq!(RADIUS_STREAM, PointStream::Kept { bytes: 8 });
+}
+
+#[test]
+fn the_hole_rate_is_holes_over_the_pixels_inside() {
+    let words: Vec<u8> = [5u32, 70, 10, 90]
+        .iter()
+        .flat_map(|w| w.to_le_bytes())
+        .collect();
+    let c = counts_from(&words).expect("four words");
+    assert_eq!(
+        c,
+        Counts {
+            culled: 5,
+            triangles: 70,
+            holes: 10,
+            covered: 90
+        }
+    );
+    assert!((c.hole_rate() - 0.1).abs() < 1e-6);
+    assert!(counts_from(&words[..12]).is_none(), "a short readback");
+    let empty = Counts {
+        culled: 0,
+        triangles: 0,
+        holes: 0,
+        covered: 0,
+    };
+    assert_eq!(empty.hole_rate(), 0.0);
+}
+
+#[test]
+fn a_still_waits_the_warmup_and_the_first_frame_reprojects_nothing() {
+    let mut values = ParamValues::default();
+    assert_eq!(INFO.warmup_frames(&values), 8);
+    values.set_text(&INFO, "warmup", "3").expect("warmup");
+    assert_eq!(INFO.warmup_frames(&values), 3);
+    // A pipeline that keeps no previous frame waits for none.
+    assert_eq!(crate::pipelines::find("pyramid").expect("pyramid").warmup_frames(&values), 0);
+
+    let view = ViewFrame {
+        view: glam::Mat4::IDENTITY,
+        view_proj: glam::Mat4::IDENTITY,
+        fov_y: 1.0,
+        near: 0.1,
+        far: 10.0,
+        focal_px: 500.0,
+        aspect: 1.5,
+    };
+    let params = ResolvedParams::resolve(&ParamValues::default(), &INFO, || Some(0.25));
+    let first = uniforms(&view, None, &params);
+    assert_eq!(first.previous, 0);
+    // max_connection left automatic: four drawn spacings.
+    assert_eq!(first.max_connection, 1.0);
+    let mut moved = view;
+    moved.view = glam::Mat4::from_translation(glam::Vec3::X);
+    let next = uniforms(&view, Some(&moved), &params);
+    assert_eq!(next.previous, 1);
+    assert_eq!(next.prev_eye[0], -1.0, "the previous frame's eye");
+    assert_eq!(next.eye[0], 0.0);
+}
+
+#[test]
+fn span_tables_sort_the_ranges_by_start_after_the_header() {
+    use crate::pipelines::projection::GpuRange;
+    let range = |start, spacing| GpuRange {
+        start,
+        count: 10,
+        first_group: 0,
+        spacing,
+    };
+    let table = super::passes::span_table(2, &[range(500, 0.5), range(0, 2.0), range(20, 1.0)]);
+    assert_eq!((table[0].start, table[0].count), (2, 3), "header");
+    let starts: Vec<u32> = table[1..].iter().map(|r| r.start).collect();
+    assert_eq!(starts, vec![0, 20, 500]);
+    assert_eq!(table[3].spacing, 0.5, "each range keeps its spacing");
+}
