@@ -1,6 +1,7 @@
 //! The quality harness end to end in its quick mode on the software adapter: every output is
-//! written, every number is finite, on the bunny the pyramid, the surfels and the filters fill
-//! what one-pixel points leave open, and c-surfels pull the outline in.
+//! written, every number is finite, on the bunny the pyramid, the surfels, the filters and the
+//! triangulation fill what one-pixel points leave open, c-surfels pull the outline in, and the
+//! triangulation converges within 8 frames of a camera jump.
 
 use std::collections::HashMap;
 use std::process::Command;
@@ -205,6 +206,33 @@ fn quick_run_writes_the_table_the_charts_and_the_images() {
     assert!(number(&grazing[6]) >= 90.0, "grazing light: {grazing:?}");
     let soft = cells("shadow", "shadows=2");
     assert!(number(&soft[7]) < 1.0, "soft shadows' speckle: {soft:?}");
+    // Paper 002's triangulation after its warm-up: its targets met on every frame where
+    // points leave holes, and back within 8 frames of a camera jump on every view (at most 4
+    // on lavapipe).
+    let met = summary
+        .lines()
+        .find(|l| l.starts_with("triangulate: "))
+        .unwrap_or_else(|| panic!("no triangulate targets line:\n{summary}"));
+    let counts: Vec<u32> = met
+        .split_whitespace()
+        .filter_map(|w| w.parse().ok())
+        .take(2)
+        .collect();
+    assert!(
+        counts.len() == 2 && counts[0] == counts[1] && counts[1] > 0,
+        "{met}"
+    );
+    let jumps: Vec<f64> = summary
+        .lines()
+        .map(|l| l.split('|').map(str::trim).collect::<Vec<_>>())
+        .filter(|c| c.len() > 5 && c[3] == "triangulate")
+        .map(|c| number(c[4]))
+        .collect();
+    assert!(!jumps.is_empty(), "no frames-over-time rows:\n{summary}");
+    assert!(
+        jumps.iter().all(|&j| (1.0..=8.0).contains(&j)),
+        "frames after a jump: {jumps:?}"
+    );
     let images = std::fs::read_dir(out.path().join("images"))
         .expect("images")
         .count();

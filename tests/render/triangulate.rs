@@ -245,3 +245,25 @@ fn a_still_reports_the_hole_rate_of_every_warmup_frame() {
     let (w, h, _) = read_png(&png);
     assert_eq!((w, h), (320, 240));
 }
+
+#[test]
+fn a_resize_starts_the_depth_afresh_and_closes_again() {
+    let dataset = sphere(Sphere::SparseWithoutNormals);
+    let mut s = Session::new(ProjectionPath::Auto, dataset, "triangulate");
+    let camera = s.camera(FRONT);
+    s.load(&camera);
+    s.settled(&camera);
+    // Another size: new planes, no previous depth; the kept radii carry over.
+    let (w, h) = (W / 2 + 7, H / 2 + 3);
+    let mut last = None;
+    for _ in 0..9 {
+        s.r.frame(&camera, w, h, &s.settings)
+            .expect("frame at the new size");
+        s.r.wait_gpu().expect("GPU");
+        last = Some(s.r.read_measures().expect("measures"));
+    }
+    let measures = last.expect("frames");
+    assert!(measures[HOLE_RATE] < 0.02, "{measures:?}");
+    let (iw, ih, _) = s.r.read_image().expect("image");
+    assert_eq!((iw, ih), (w, h));
+}

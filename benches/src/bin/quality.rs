@@ -18,6 +18,7 @@ use strata_bench::quality::report::{Row, charts, init_fonts, side_by_side, summa
 use strata_bench::quality::sample::{PointSet, load_scan, sample_mesh, thin_along_x, write_ply};
 use strata_bench::quality::scenes::{CLAY, Points, Scene, View, scenes};
 use strata_bench::quality::shadows;
+use strata_bench::quality::temporal::{self, Temporal};
 use strata_viewer::gpu::{GpuContext, ProjectionPath};
 use strata_viewer::lod::clip_range;
 use strata_viewer::pipelines::edl;
@@ -118,6 +119,7 @@ fn main() -> anyhow::Result<()> {
     }
     let started = Instant::now();
     let mut rows = Vec::new();
+    let mut over_frames = Vec::new();
     for scene in &scenes {
         let focal = args.height as f32 * 0.5 / (scene.views[0].fov_deg.to_radians() * 0.5).tan();
         let (lo, hi) = scene.mesh.bounds();
@@ -175,6 +177,16 @@ fn main() -> anyhow::Result<()> {
                     &args,
                     scene.stability,
                 )?;
+                if noise == 0.0 {
+                    let at = (scene.name.as_str(), vi, density);
+                    let (renderer, ctx) = (&mut renderer, ctx.as_ref());
+                    // The stability sweeps measure the jump only: no orbit, and only the
+                    // pipelines that keep the previous frame.
+                    let orbit = !scene.stability;
+                    over_frames.extend(temporal_rows(
+                        renderer, &reference, ctx, &camera, &args, at, orbit,
+                    )?);
+                }
                 let mut images: Vec<Vec<u8>> = vec![frames.reference.rgba.clone()];
                 for r in frames.results {
                     // The side-by-side images show every pipeline at its defaults.
@@ -228,7 +240,22 @@ fn main() -> anyhow::Result<()> {
         if ctx.int64_atomics { "int64" } else { "int32" },
         started.elapsed().as_secs_f64()
     );
-    let (md, targets_met) = summary(&rows, &conditions);
+    let (mut md, mut targets_met) = summary(&rows, &conditions);
+    md.push_str(&temporal::markdown(&over_frames));
+    if let Some(slow) = over_frames.iter().find(|t| {
+        t.jump_frames
+            .is_some_and(|f| f > temporal::TARGET_JUMP_FRAMES)
+    }) {
+        md.push_str(&format!(
+            "\nMissed: {} needs {:?} frames after a jump on {} view {} (target {}).\n",
+            slow.pipeline,
+            slow.jump_frames,
+            slow.scene,
+            slow.view,
+            temporal::TARGET_JUMP_FRAMES
+        ));
+        targets_met = false;
+    }
     std::fs::write(args.out.join("summary.md"), &md)?;
     println!("{md}");
     println!(
@@ -489,4 +516,56 @@ fn render_view(
         reference: reference_image,
         results,
     })
+}
+
+/// Every pipeline's measures over frames at its defaults on one view: the frames after a jump
+/// (pipelines that keep the previous frame) and, with `orbit`, the flicker of a slow orbit.
+#[allow(clippy::too_many_arguments)]
+fn temporal_rows(
+    renderer: &mut Renderer,
+    reference: &ReferenceRenderer,
+    ctx: &GpuContext,
+    camera: &Camera,
+    args: &Args,
+    (scene, view, density): (&str, usize, f64),
+    orbit: bool,
+) -> anyhow::Result<Vec<Temporal>> {
+    let size = (args.width, args.height);
+    let mut out = Vec::new();
+    for &pipeline in strata_viewer::pipelines::REGISTRY {
+        if !orbit && !pipeline.previous_frame {
+            continue;
+        }
+        let settings = Settings {
+            pipeline,
+            budget: BUDGET,
+            min_spacing_px: 0.0,
+            upload_points_per_frame: None,
+            point_size: 1.0,
+            size_mode: SizeMode::Fixed,
+            ..Settings::default()
+        };
+        load_all(renderer, camera, size.0, size.1, &settings)?;
+        let jump_frames = if pipeline.previous_frame {
+            Some(temporal::jump_frames(renderer, &settings, camera, size)?)
+        } else {
+            None
+        };
+        let flicker = if orbit {
+            Some(temporal::orbit_flicker(
+                renderer, &settings, reference, ctx, camera, size,
+            )?)
+        } else {
+            None
+        };
+        out.push(Temporal {
+            scene: scene.to_string(),
+            view,
+            density,
+            pipeline: pipeline.name,
+            jump_frames,
+            flicker,
+        });
+    }
+    Ok(out)
 }

@@ -11,3 +11,5 @@ pub mod scenes;
 pub mod shadows;
 pub mod shapes;
 pub mod silhouette;
+pub mod temporal;
+pub mod triangulate_targets;

@@ -454,7 +454,9 @@ pub fn summary(rows: &[Row], conditions: &str) -> (String, bool) {
         md.push_str(&targets);
         ok &= met;
     }
-    (md, ok)
+    let (targets, met) = super::triangulate_targets::check(rows);
+    md.push_str(&targets);
+    (md, ok && met)
 }
 
 /// On the bunny scans and at every sampled density where `points 1px` leaves holes, `pyramid`
