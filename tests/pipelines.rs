@@ -29,7 +29,36 @@ fn registry() -> Vec<serde_json::Value> {
 fn pipelines_lists_every_pipeline_with_its_parameters() {
     let list = registry();
     let names: Vec<&str> = list.iter().filter_map(|p| p["name"].as_str()).collect();
-    assert_eq!(names, ["points", "edl", "pyramid", "surfels", "filters"]);
+    assert_eq!(
+        names,
+        [
+            "points",
+            "edl",
+            "pyramid",
+            "surfels",
+            "filters",
+            "triangulate"
+        ]
+    );
+    let triangulate = &list[5];
+    assert!(
+        triangulate["paper"]
+            .as_str()
+            .is_some_and(|p| p.starts_with("002"))
+    );
+    let names_of = |p: &serde_json::Value| -> Vec<String> {
+        p["params"]
+            .as_array()
+            .expect("params")
+            .iter()
+            .filter_map(|p| p["name"].as_str().map(str::to_string))
+            .collect()
+    };
+    assert_eq!(
+        names_of(triangulate),
+        ["max_connection", "max_search_px", "warmup"]
+    );
+    assert_eq!(triangulate["params"][0]["default"], "auto");
     let filters = &list[4];
     assert!(
         filters["paper"]
@@ -387,7 +416,9 @@ fn every_declared_pass_runs_and_the_stats_list_them_in_run_order() {
                 .as_array()
                 .is_some_and(|a| a.iter().any(|s| s["name"] == param))
         };
-        let mut runs: Vec<&[&str]> = vec![&[], &["--separate-passes"]];
+        // The 32-bit path too: passes that replace a 64-bit one there (the triangulation's
+        // two search passes) run only on it.
+        let mut runs: Vec<&[&str]> = vec![&[], &["--separate-passes"], &["--projection", "int32"]];
         if has("layers") {
             runs.push(&["--set", "layers=2"]);
         }

@@ -24,7 +24,7 @@ fn stream_name(s: &PointStream) -> String {
     match s {
         PointStream::Normals => "normals".into(),
         PointStream::Radius => "radius".into(),
-        PointStream::Kept { bytes } => format!("kept ({bytes} bytes)"),
+        PointStream::Kept { name, bytes } => format!("kept {name} ({bytes} bytes)"),
     }
 }
 

@@ -40,8 +40,8 @@ struct ViewerApp {
     stats: FrameStats,
     frames: u32,
     /// Frames still to draw of an unchanged view, for pipelines that converge over frames
-    /// (`PipelineInfo::warmup_frames`), and the camera, pipeline and parameters they are
-    /// counted for.
+    /// (`PipelineInfo::warmup_frames`), and the view they are counted for (camera, pipeline,
+    /// parameters, size, point filters).
     settling: (u32, Option<SettleKey>),
     last_frame: Instant,
     io_rate: f64,
@@ -132,7 +132,13 @@ pub fn run_window(location: &str, opts: WindowOptions) -> Result<(), ViewerError
 }
 
 /// What a view's convergence over frames depends on.
-type SettleKey = (Camera, &'static str, crate::pipelines::params::ParamValues);
+type SettleKey = (
+    Camera,
+    &'static str,
+    crate::pipelines::params::ParamValues,
+    (u32, u32),
+    crate::settings::PointFilter,
+);
 
 impl eframe::App for ViewerApp {
     fn ui(&mut self, ui: &mut egui::Ui, frame: &mut eframe::Frame) {
@@ -320,7 +326,13 @@ impl ViewerApp {
                 self.frame_ms_avg = self.frame_ms_avg * 0.9 + dt * 1e3 * 0.1;
                 self.io_rate = self.io_rate * 0.9 + stats.bytes_loaded as f64 / dt * 0.1;
                 let info = self.settings.pipeline;
-                let key = (self.camera, info.name, self.settings.params.clone());
+                let key = (
+                    self.camera,
+                    info.name,
+                    self.settings.params.clone(),
+                    (w, h),
+                    self.settings.filter.clone(),
+                );
                 self.settling = if self.settling.1.as_ref() != Some(&key) || !stats.complete {
                     (info.warmup_frames(&self.settings.params), Some(key))
                 } else {

@@ -444,7 +444,10 @@ mod stream_tests {
             .insert(d, q, &node(0, 1000), 1, &protect)
             .expect("insert");
         let plain = cache.gpu_bytes();
-        let kept = PointStream::Kept { bytes: 8 };
+        let kept = PointStream::Kept {
+            name: "test",
+            bytes: 8,
+        };
         cache.set_streams(d, &[kept]);
         // A kept value needs no reload: the node stays, with a zeroed stream beside it.
         assert_eq!(cache.resident_nodes(), 1);

@@ -77,8 +77,10 @@ impl Lighting {
 pub enum PointStream {
     Normals,
     Radius,
-    /// A value per point that the pipeline writes and reads again next frame.
+    /// A value per point that the pipeline writes and reads again next frame, named so that
+    /// two pipelines' values of one size are never taken for each other.
     Kept {
+        name: &'static str,
         bytes: u32,
     },
 }
@@ -89,7 +91,7 @@ impl PointStream {
     pub fn bytes_per_point(self) -> u64 {
         match self {
             PointStream::Normals | PointStream::Radius => 4,
-            PointStream::Kept { bytes } => bytes as u64,
+            PointStream::Kept { bytes, .. } => bytes as u64,
         }
     }
 }

@@ -34,7 +34,10 @@ const FILL_ITERATIONS: u32 = 4;
 const SAMPLES_PER_FRAME: u64 = 64;
 const SLOT: u64 = 256;
 /// The per-point stream of lit counts.
-pub const LIT_STREAM: PointStream = PointStream::Kept { bytes: 4 };
+pub const LIT_STREAM: PointStream = PointStream::Kept {
+    name: "filters lit",
+    bytes: 4,
+};
 
 /// One light sample's uniforms, laid out as `Shadow` in shadow_uniforms.wgsl.
 #[repr(C)]

@@ -32,7 +32,7 @@ fn main(@builtin(global_invocation_id) id: vec3<u32>) {
     let pos = bitcast<vec3<f32>>(points[local].xyz);
     let depth = bitcast<f32>(depths[p]);
     let limit = connection_limit(depth, spacing_of(local));
-    let front = reprojected[p];
+    let front = reprojected_at(id.xy);
     if front != 0u && depth > bitcast<f32>(~front) + limit {
         atomicAdd(&counts[COUNT_CULLED], 1u);
         return;
@@ -43,4 +43,37 @@ fn main(@builtin(global_invocation_id) id: vec3<u32>) {
         radius = 0.5 * limit;
     }
     pts[p] = vec4<f32>(pos, radius);
+}
+
+fn reprojected_or_empty(x: i32, y: i32) -> u32 {
+    if x < 0 || y < 0 || x >= i32(frame.width) || y >= i32(frame.height) {
+        return 0u;
+    }
+    return reprojected[u32(y) * frame.width + u32(x)];
+}
+
+// The reprojected depth at a pixel (complemented, 0: none). Moving each pixel of the last frame
+// to one pixel of this one leaves one-pixel cracks where the view turns or nears; a crack
+// between two reprojected pixels (left and right, or above and below) takes the farther of
+// them, so that the points behind the surface there are culled too, while the outline of the
+// surface does not grow (a pixel beside it has reprojected depth on one side only).
+fn reprojected_at(id: vec2<u32>) -> u32 {
+    let x = i32(id.x);
+    let y = i32(id.y);
+    let here = reprojected_or_empty(x, y);
+    if here != 0u {
+        return here;
+    }
+    var farthest = 0xffffffffu;
+    let l = reprojected_or_empty(x - 1, y);
+    let r = reprojected_or_empty(x + 1, y);
+    if l != 0u && r != 0u {
+        farthest = min(farthest, min(l, r));
+    }
+    let u = reprojected_or_empty(x, y - 1);
+    let d = reprojected_or_empty(x, y + 1);
+    if u != 0u && d != 0u {
+        farthest = min(farthest, min(u, d));
+    }
+    return select(farthest, 0u, farthest == 0xffffffffu);
 }

@@ -40,7 +40,7 @@ pub const NODE_SPACINGS: f32 = 2.0;
 static PARAMS: [ParamSpec; 3] = [
     ParamSpec {
         name: "max_connection",
-        help: "the longest triangle edge and search radius, in dataset units (auto: a few point spacings)",
+        help: "the largest search radius, in dataset units; never under three pixels at the point (auto: four median node spacings, and two of the point's own node)",
         default: 1.0,
         min: 1e-9,
         max: 1e9,
@@ -52,7 +52,8 @@ static PARAMS: [ParamSpec; 3] = [
         help: "the largest search splat, in pixels either side of a point",
         default: 24.0,
         min: 1.0,
-        max: 64.0,
+        // A triangle spans at most two splats: 2 x 47 + 2 = MAX_TRIANGLE_PX (uniforms.wgsl).
+        max: 47.0,
         scale: Scale::Integer,
         auto: None,
     },

@@ -32,7 +32,10 @@ const SHADE_WGSL: &str = include_str!("shade.wgsl");
 const HOLES_WGSL: &str = include_str!("holes.wgsl");
 
 /// Each point's kept value: its search radius and the last feedback distance (two f32).
-pub const RADIUS_STREAM: PointStream = PointStream::Kept { bytes: 8 };
+pub const RADIUS_STREAM: PointStream = PointStream::Kept {
+    name: "triangulate radius",
+    bytes: 8,
+};
 
 /// Storage buffers the rasterization binds in one stage.
 const STORAGE_BUFFERS: u32 = 7;

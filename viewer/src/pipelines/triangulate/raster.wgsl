@@ -1,7 +1,10 @@
 // Triangulation (section 3.5): each point rasterizes the triangles of its fan, interpolating
 // colour, normal and linear depth over the pixels whose centres they cover; colour and normal
 // are summed (the paper's additive blending, normalised when shading) and the depth kept by
-// minimum. A compute rasterizer: fixed-point atomic sums make the picture independent of the
+// minimum. As in the paper no fragment is depth tested: what lies behind the front surface is
+// kept out by culling its points against the previous frame's depth (gather.wgsl), so for the
+// frames after a jump or a disocclusion the colours behind show through until the depth is
+// there. A compute rasterizer: fixed-point atomic sums make the picture independent of the
 // order triangles arrive in, and it runs on every adapter the projection runs on. A triangle
 // in the fans of two or three of its corners is drawn each time, as in the paper: finding the
 // one fan to draw it from (reading the other corners' fans) took longer on lavapipe than the

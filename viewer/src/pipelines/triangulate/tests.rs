@@ -45,7 +45,7 @@ fn uniforms_and_constants_match_their_wgsl() {
     assert_eq!(wgsl_const(&raster, "SUM_WORDS"), SUM_WORDS);
     assert_eq!(wgsl_const(&raster, "COUNT_WORDS"), COUNT_WORDS);
     // The kept value per point is the radius and the last feedback: two f32.
-    assert_eq!(RADIUS_STREAM, PointStream::Kept { bytes: 8 });
+    assert!(matches!(RADIUS_STREAM, PointStream::Kept { bytes: 8, .. }));
 }
 
 #[test]
@@ -93,11 +93,16 @@ fn a_still_waits_the_warmup_and_the_first_frame_reprojects_nothing() {
         focal_px: 500.0,
         aspect: 1.5,
     };
-    let params = ResolvedParams::resolve(&ParamValues::default(), &INFO, || Some(0.25));
+    let params = ResolvedParams::resolve(&ParamValues::default(), &INFO, || Some(0.3));
     let first = uniforms(&view, None, &params);
     assert_eq!(first.previous, 0);
-    // max_connection left automatic: four drawn spacings.
-    assert_eq!(first.max_connection, 1.0);
+    // max_connection left automatic: four drawn spacings, and two of each point's own node.
+    assert!((first.max_connection - 1.2).abs() < 1e-6);
+    assert_eq!(first.spacing_factor, super::NODE_SPACINGS);
+    let mut set = ParamValues::default();
+    set.set_text(&INFO, "max_connection", "0.5").expect("max_connection");
+    let fixed = uniforms(&view, None, &ResolvedParams::resolve(&set, &INFO, || Some(0.3)));
+    assert_eq!((fixed.max_connection, fixed.spacing_factor), (0.5, 0.0));
     let mut moved = view;
     moved.view = glam::Mat4::from_translation(glam::Vec3::X);
     let next = uniforms(&view, Some(&moved), &params);

@@ -12,7 +12,7 @@ struct Triangulate {
     prev_forward: vec4<f32>,
     prev_right: vec4<f32>,
     prev_up: vec4<f32>,
-    // The longest edge a triangle may have (dataset units): no search radius exceeds it.
+    // The largest search radius (dataset units), but see `connection_limit` (rays.wgsl).
     max_connection: f32,
     // Node spacings a connection may span where `max_connection` is automatic (else 0).
     spacing_factor: f32,
@@ -28,8 +28,9 @@ const SECTORS: u32 = 8u;
 const SUM_WORDS: u32 = 7u;
 // A fragment's weight in the blend sums (fixed point).
 const FRAGMENT_WEIGHT: u32 = 16u;
-// A triangle wider or taller than this many pixels is not drawn: no fan of neighbours within
-// the search radius spans more, except across a depth gap seen edge-on.
+// A triangle wider or taller than this many pixels is not drawn: its corners are a point and
+// two of its neighbours, each within the point's search splat (at most 47 pixels either side),
+// so only a triangle seen edge-on across a depth gap, or behind the eye, exceeds it.
 const MAX_TRIANGLE_PX: f32 = 96.0;
 
 // The sector of screen offset (dx, dy) (pixels, y down), counter-clockwise on screen from +x.
