@@ -34,6 +34,9 @@ struct Args {
     data: PathBuf,
     /// Only the scenes of these names; all when empty.
     scenes: Vec<String>,
+    /// The noise levels of the sampled scenes (fractions of the bounding diagonal) in place of
+    /// the run's own, for a sweep of noise alone.
+    noises: Option<Vec<f64>>,
 }
 
 fn parse_args() -> anyhow::Result<Args> {
@@ -41,6 +44,7 @@ fn parse_args() -> anyhow::Result<Args> {
     let mut quick = false;
     let mut size = None;
     let mut only = Vec::new();
+    let mut noises = None;
     let mut data = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../shared/data");
     let mut it = std::env::args().skip(1);
     while let Some(a) = it.next() {
@@ -51,6 +55,15 @@ fn parse_args() -> anyhow::Result<Args> {
             "--scenes" => {
                 let list = it.next().context("--scenes needs a comma-separated list")?;
                 only = list.split(',').map(str::to_owned).collect();
+            }
+            "--noises" => {
+                let list = it.next().context("--noises needs a comma-separated list")?;
+                let levels: Result<Vec<f64>, _> = list.split(',').map(str::parse).collect();
+                let levels = levels.with_context(|| format!("--noises {list}: not numbers"))?;
+                if levels.iter().any(|n| !(0.0..=0.1).contains(n)) {
+                    bail!("--noises {list}: each level is a fraction of the diagonal, 0 to 0.1");
+                }
+                noises = Some(levels);
             }
             "--data" => {
                 data = it
@@ -83,6 +96,7 @@ fn parse_args() -> anyhow::Result<Args> {
         height,
         data,
         scenes: only,
+        noises,
     })
 }
 
@@ -90,7 +104,7 @@ const BUDGET: u64 = 20_000_000;
 const MAX_POINTS: usize = 4_000_000;
 
 const USAGE: &str = "cargo run --release -p strata-bench --bin quality -- --out DIR [--quick] [--size WxH]\n    \
-       [--scenes NAME,NAME] [--data DIR]";
+       [--scenes NAME,NAME] [--noises 0,0.002,0.005] [--data DIR]";
 
 fn main() -> anyhow::Result<()> {
     if strata_bench::answered_help(USAGE) {
@@ -129,6 +143,10 @@ fn main() -> anyhow::Result<()> {
             (false, true) => (&[1.0, 0.1], &[0.0]),
             (true, false) => (&[1.0, 0.1, 0.02], &[0.0, 0.005]),
             (true, true) => (&[0.25], &[0.0]),
+        };
+        let noises = match &args.noises {
+            Some(levels) if !scene.stability => levels.as_slice(),
+            _ => noises,
         };
         let sets: Vec<(f64, f64, PointSet)> = match &scene.points {
             Points::Scan(path) => {

@@ -14,28 +14,17 @@ fn main(@builtin(global_invocation_id) id: vec3<u32>) {
     if me.w <= 0.0 {
         return;
     }
-    // The screen box of the search sphere: the box of its bounding cube's projected corners,
-    // which holds the sphere's projection wherever it lies in the view (off the axis a sphere
-    // projects larger than r * focal / depth); a corner behind the eye takes the largest box.
-    let me_px = vec2<f32>(f32(id.x) + 0.5, f32(id.y) + 0.5);
-    var lo = me_px;
-    var hi = me_px;
-    var behind = false;
-    for (var c = 0u; c < 8u; c++) {
-        let corner = me.xyz + me.w * vec3<f32>(
-            select(-1.0, 1.0, (c & 1u) != 0u),
-            select(-1.0, 1.0, (c & 2u) != 0u),
-            select(-1.0, 1.0, (c & 4u) != 0u),
-        );
-        let clip = frame.view_proj * vec4<f32>(corner, 1.0);
-        if clip.w <= 0.0 {
-            behind = true;
-            break;
-        }
-        let px = vec2<f32>((clip.x / clip.w * 0.5 + 0.5) * f32(frame.width), (0.5 - clip.y / clip.w * 0.5) * f32(frame.height));
-        lo = min(lo, px);
-        hi = max(hi, px);
-    }
+    // The screen box of the search sphere, exact (its tangent planes through the eye): off the
+    // axis a sphere projects larger than r f / d; one reaching behind the eye takes the largest.
+    let rel = me.xyz - tri.eye.xyz;
+    let z = dot(rel, tri.forward.xyz);
+    let tan_x = length(tri.right.xyz);
+    let tan_y = length(tri.up.xyz);
+    let sx = tangent_slopes(dot(rel, tri.right.xyz) / tan_x, z, me.w);
+    let sy = tangent_slopes(dot(rel, tri.up.xyz) / tan_y, z, me.w);
+    let behind = z <= me.w || sx.x > sx.y || sy.x > sy.y;
+    let lo = vec2<f32>((sx.x / tan_x * 0.5 + 0.5) * f32(frame.width), (0.5 - sy.y / tan_y * 0.5) * f32(frame.height));
+    let hi = vec2<f32>((sx.y / tan_x * 0.5 + 0.5) * f32(frame.width), (0.5 - sy.x / tan_y * 0.5) * f32(frame.height));
     let most = i32(tri.max_search_px);
     var x0 = -most;
     var x1 = most;
@@ -70,4 +59,17 @@ fn main(@builtin(global_invocation_id) id: vec3<u32>) {
             visit(q * SECTORS + sector_of(f32(-dx), f32(-dy)), bitcast<u32>(dist), p);
         }
     }
+}
+
+// The tangents through the eye of a sphere of radius r whose centre lies `a` off the axis at
+// depth z, as slopes a / z (least, greatest); least > greatest where a tangent lies at or
+// beyond 90 degrees from the axis.
+fn tangent_slopes(a: f32, z: f32, r: f32) -> vec2<f32> {
+    let t = sqrt(max(a * a + z * z - r * r, 0.0));
+    let near = z * t + a * r;
+    let far = z * t - a * r;
+    if near <= 0.0 || far <= 0.0 {
+        return vec2<f32>(1.0, -1.0);
+    }
+    return vec2<f32>((a * t - z * r) / near, (a * t + z * r) / far);
 }
