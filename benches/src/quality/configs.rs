@@ -48,10 +48,18 @@ impl Config {
     }
 }
 
+/// A variant: the pipeline, its fixed parameters, the point size and the setting's label.
+type Variant = (
+    &'static str,
+    &'static [(&'static str, f32)],
+    f32,
+    &'static str,
+);
+
 /// Variants compared beside each pipeline's defaults: the surfels' planar and all-curved
 /// modes against their hybrid default (paper 001's Table 2); the filters' transparency, six
 /// layers at half opacity (paper 004's Figure 17).
-const VARIANTS: &[(&str, &[(&str, f32)], f32, &str)] = &[
+const VARIANTS: &[Variant] = &[
     ("surfels", &[("mode", 0.0)], 1.0, "mode=planar"),
     ("surfels", &[("mode", 1.0)], 1.0, "mode=curved"),
     (

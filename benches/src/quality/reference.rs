@@ -285,8 +285,8 @@ impl ReferenceRenderer {
                 match s {
                     Some((_, depth)) => {
                         let a = opacity * (1.0 - sum[i][3]);
-                        for c in 0..3 {
-                            sum[i][c] += a * layer.rgba[4 * i + c] as f32;
+                        for (c, total) in sum[i][..3].iter_mut().enumerate() {
+                            *total += a * layer.rgba[4 * i + c] as f32;
                         }
                         sum[i][3] += a;
                         before[i] = *depth;

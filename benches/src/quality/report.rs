@@ -459,12 +459,12 @@ pub fn summary(rows: &[Row], conditions: &str) -> (String, bool) {
     (md, ok && met)
 }
 
-/// On the bunny scans and at every sampled density where `points 1px` leaves holes, `pyramid`
-/// must have at most half its hole rate and an albedo PSNR and SSIM at least those of every `points`
-/// and `edl` setting (the albedo: the shaded images are each against their own lighting).
-/// Compared per frame (scene, view, density, noise).
-fn check_targets(rows: &[Row], name: &str) -> (String, bool) {
-    let mut frames: BTreeMap<(String, usize, i64, i64), Vec<&Row>> = BTreeMap::new();
+/// The rows of the comparison scenes (not the stability sweeps) per frame: scene, view, and
+/// density and noise in millionths.
+pub type Frames<'a> = BTreeMap<(String, usize, i64, i64), Vec<&'a Row>>;
+
+pub fn frames_of(rows: &[Row]) -> Frames<'_> {
+    let mut frames: Frames = BTreeMap::new();
     for r in rows.iter().filter(|r| !r.stability) {
         let key = (
             r.scene.clone(),
@@ -474,6 +474,15 @@ fn check_targets(rows: &[Row], name: &str) -> (String, bool) {
         );
         frames.entry(key).or_default().push(r);
     }
+    frames
+}
+
+/// On the bunny scans and at every sampled density where `points 1px` leaves holes, `pyramid`
+/// must have at most half its hole rate and an albedo PSNR and SSIM at least those of every `points`
+/// and `edl` setting (the albedo: the shaded images are each against their own lighting).
+/// Compared per frame (scene, view, density, noise).
+fn check_targets(rows: &[Row], name: &str) -> (String, bool) {
+    let frames = frames_of(rows);
     let mut out = String::new();
     let mut ok = true;
     let (mut checked, mut failed) = (0, 0);

@@ -3,22 +3,12 @@
 //! points', a shaded SSIM above every `edl` setting's, and on the textured spot an albedo PSNR
 //! above every `pyramid` setting's (the paper's claim: finer texture than splats).
 
-use super::report::Row;
-use std::collections::BTreeMap;
+use super::report::{Row, frames_of};
 use std::fmt::Write;
 
 /// The Markdown lines of the check, and whether every frame met the targets.
 pub fn check(rows: &[Row]) -> (String, bool) {
-    let mut frames: BTreeMap<(String, usize, i64, i64), Vec<&Row>> = BTreeMap::new();
-    for r in rows.iter().filter(|r| !r.stability) {
-        let key = (
-            r.scene.clone(),
-            r.view,
-            (r.density * 1e6) as i64,
-            (r.noise * 1e6) as i64,
-        );
-        frames.entry(key).or_default().push(r);
-    }
+    let frames = frames_of(rows);
     let mut out = String::new();
     let (mut checked, mut failed) = (0, 0);
     for ((scene, view, _, _), rs) in &frames {

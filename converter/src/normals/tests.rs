@@ -232,7 +232,9 @@ fn discs_of_the_radius_cover_a_randomly_sampled_plane() {
     );
     // Probe the inner part of the plane on a fine grid: each probe lies in some disc.
     let cell = 0.25;
-    let mut grid: HashMap<(i64, i64), Vec<(f64, f64, f64)>> = HashMap::new();
+    // Per grid cell: the discs (x, y, radius) whose centres lie in it.
+    type Discs = Vec<(f64, f64, f64)>;
+    let mut grid: HashMap<(i64, i64), Discs> = HashMap::new();
     for (_, p, _, r, _) in &got {
         let at = ((p[0] / cell) as i64, (p[1] / cell) as i64);
         grid.entry(at).or_default().push((p[0], p[1], *r));
