@@ -7,7 +7,7 @@ use super::targets::{COUNT_WORDS, TriangulateTargets};
 use crate::ViewerError;
 use crate::gpu::GpuContext;
 use crate::gpu::timing::Timer;
-use crate::pipelines::projection::{GpuRange, pixel_groups};
+use crate::pipelines::projection::{GpuRange, RANGE_SEARCH_WGSL, pixel_groups};
 use crate::pipelines::shader::ShaderSource;
 use crate::pipelines::{LIGHTING_WGSL, PipelineFrame, PointStream};
 use bytemuck::{Pod, Zeroable};
@@ -19,7 +19,6 @@ const REPROJECT_WGSL: &str = include_str!("reproject.wgsl");
 const GATHER_WGSL: &str = include_str!("gather.wgsl");
 const SEARCH_WGSL: &str = include_str!("search.wgsl");
 const RAYS_WGSL: &str = include_str!("rays.wgsl");
-const SPANS_WGSL: &str = include_str!("spans.wgsl");
 const SEARCH_DISTANCES_WGSL: &str = include_str!("search_distances.wgsl");
 const SEARCH_IDS_WGSL: &str = include_str!("search_ids.wgsl");
 const SEARCH_INT64_WGSL: &str = include_str!("search_int64.wgsl");
@@ -68,12 +67,12 @@ pub fn shaders(int64: bool) -> Vec<ShaderSource> {
     };
     let mut v = vec![
         own("triangulate reproject", &[REPROJECT_WGSL, RAYS_WGSL]),
-        own("triangulate gather", &[GATHER_WGSL, RAYS_WGSL, SPANS_WGSL]),
+        own("triangulate gather", &[GATHER_WGSL, RAYS_WGSL, RANGE_SEARCH_WGSL]),
         own("triangulate search distances", &[SEARCH_DISTANCES_WGSL, RAYS_WGSL, SEARCH_WGSL]),
         own("triangulate search ids", &[SEARCH_IDS_WGSL, RAYS_WGSL, SEARCH_WGSL]),
         own("triangulate normals", &[NORMALS_WGSL, FAN_WGSL]),
         own("triangulate raster", &[RASTER_WGSL, FAN_WGSL]),
-        own("triangulate radii", &[RADII_WGSL, RAYS_WGSL, SPANS_WGSL]),
+        own("triangulate radii", &[RADII_WGSL, RAYS_WGSL, RANGE_SEARCH_WGSL]),
         own("triangulate shade", &[LIGHTING_WGSL, SHADE_WGSL]),
         own("triangulate holes", &[HOLES_WGSL]),
     ];
@@ -84,8 +83,9 @@ pub fn shaders(int64: bool) -> Vec<ShaderSource> {
     v
 }
 
-/// An arena's drawn ranges for spans.wgsl: a header row (start = arena, count = rows), then
-/// the ranges sorted by start.
+/// An arena's drawn ranges for the projection's `range_of` (range_search.wgsl), searched by a
+/// point's index instead of its workgroup: a header row (start = arena, count = rows), then the
+/// ranges sorted by start, each with `first_group` set to its start.
 pub fn span_table(arena: u32, ranges: &[GpuRange]) -> Vec<GpuRange> {
     let mut table = Vec::with_capacity(ranges.len() + 1);
     table.push(GpuRange {
@@ -94,7 +94,10 @@ pub fn span_table(arena: u32, ranges: &[GpuRange]) -> Vec<GpuRange> {
         first_group: 0,
         spacing: 0.0,
     });
-    table.extend_from_slice(ranges);
+    table.extend(ranges.iter().map(|r| GpuRange {
+        first_group: r.start,
+        ..*r
+    }));
     table[1..].sort_by_key(|r| r.start);
     table
 }
@@ -182,7 +185,7 @@ impl TriangulatePasses {
             encoder.clear_buffer(b, 0, None);
         }
         let (gx, gy) = pixel_groups(screen.width, screen.height);
-        // The arenas drawn from, each with its drawn ranges sorted by start (spans.wgsl) and its
+        // The arenas drawn from, each with its drawn ranges sorted by start (for `range_of`) and its
         // kept radii.
         let mut arenas = Vec::with_capacity(frame.arenas.len());
         for d in frame.arenas {

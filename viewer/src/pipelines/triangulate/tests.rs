@@ -125,4 +125,6 @@ fn span_tables_sort_the_ranges_by_start_after_the_header() {
     let starts: Vec<u32> = table[1..].iter().map(|r| r.start).collect();
     assert_eq!(starts, vec![0, 20, 500]);
     assert_eq!(table[3].spacing, 0.5, "each range keeps its spacing");
+    // range_of searches first_group: each row's is its start.
+    assert!(table[1..].iter().all(|r| r.first_group == r.start));
 }
