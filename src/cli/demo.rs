@@ -98,6 +98,7 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
             stats: None,
             projection: ProjectionPath::Auto,
             gpu_cache_bytes: DEFAULT_GPU_CACHE,
+            measurements: Default::default(),
             loader_threads: 4,
             token: None,
         },

@@ -3,6 +3,7 @@ mod convert;
 mod demo;
 mod export;
 mod info;
+mod measure;
 mod pick;
 mod pipelines;
 mod render;
@@ -43,6 +44,8 @@ enum Command {
     Render(render::Args),
     /// Print the stored point under a pixel of a view, with every attribute.
     Pick(pick::Args),
+    /// Measure a distance, area, height or angle between the stored points under pixels.
+    Measure(measure::Args),
     /// List the render pipelines with their parameters.
     Pipelines(pipelines::Args),
     /// Synthesize a scene, convert it and show it.
@@ -68,6 +71,7 @@ pub fn run(cli: Cli) -> anyhow::Result<ExitCode> {
         Command::View(a) => view::run(a),
         Command::Render(a) => render::run(a),
         Command::Pick(a) => pick::run(a),
+        Command::Measure(a) => measure::run(a),
         Command::Pipelines(a) => pipelines::run(a),
         Command::Demo(a) => demo::run(a),
     }

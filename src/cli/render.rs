@@ -4,6 +4,7 @@ use std::path::PathBuf;
 use std::process::ExitCode;
 use std::time::Duration;
 use strata_viewer::headless::{RenderOptions, render};
+use strata_viewer::measure::Measurements;
 
 #[derive(Debug, clap::Args)]
 pub struct Args {
@@ -36,6 +37,10 @@ pub struct Args {
     /// Write per-frame statistics as JSON.
     #[arg(long)]
     stats: Option<PathBuf>,
+    /// Draw the measurements of a GeoJSON file over the image (the window saves
+    /// DATASET/measurements.geojson; `strata measure` writes them too).
+    #[arg(long, value_name = "FILE.geojson")]
+    measurements: Option<PathBuf>,
     #[command(flatten)]
     view: ViewArgs,
 }
@@ -71,6 +76,10 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
         gpu_cache_bytes: a.view.gpu_cache,
         loader_threads: a.view.loaders,
         token: a.view.token.clone(),
+        measurements: match &a.measurements {
+            Some(f) => Measurements::load_existing(f)?,
+            None => Measurements::default(),
+        },
     };
     let report = render(&a.dataset, &opts)?;
     let last = report.frames.last();

@@ -2,6 +2,8 @@
 
 use crate::camera::Camera;
 use crate::gpu::{GpuContext, ProjectionPath};
+use crate::measure::Measurements;
+use crate::overlay::{Canvas, ScreenProjector, draw_measurements};
 use crate::pick::PickedPoint;
 use crate::renderer::{FrameStats, Renderer};
 use crate::settings::Settings;
@@ -30,6 +32,8 @@ pub struct RenderOptions {
     pub gpu_cache_bytes: u64,
     pub loader_threads: usize,
     pub token: Option<String>,
+    /// Measurements drawn over each image.
+    pub measurements: Measurements,
 }
 
 #[derive(Debug, Serialize)]
@@ -185,7 +189,16 @@ pub fn render_with(
         } else {
             opts.output.clone()
         };
-        let (w, h, rgba) = renderer.read_image()?;
+        let (w, h, mut rgba) = renderer.read_image()?;
+        if !opts.measurements.items.is_empty() {
+            let proj = ScreenProjector::new(&ds, camera, w, h);
+            let mut canvas = Canvas {
+                rgba: &mut rgba,
+                width: w,
+                height: h,
+            };
+            draw_measurements(&mut canvas, &proj, &opts.measurements);
+        }
         write_png(&out, w, h, &rgba)?;
         report.images.push(out.display().to_string());
         report.frames.push(stats);
@@ -215,6 +228,16 @@ pub fn pick(
     pixel: (u32, u32),
     radius: u32,
 ) -> Result<Option<PickedPoint>, ViewerError> {
+    Ok(pick_all(location, opts, &[pixel], radius)?.pop().flatten())
+}
+
+/// As [`pick`], for several pixels of the same view; `None` where only background is near.
+pub fn pick_all(
+    location: &str,
+    opts: &RenderOptions,
+    pixels: &[(u32, u32)],
+    radius: u32,
+) -> Result<Vec<Option<PickedPoint>>, ViewerError> {
     let http = HttpOptions {
         token: opts.token.clone(),
         ..HttpOptions::default()
@@ -229,9 +252,12 @@ pub fn pick(
         )?,
         None => default_camera(&ds, opts.width, opts.height),
     };
-    if pixel.0 >= opts.width || pixel.1 >= opts.height {
+    if let Some(&(x, y)) = pixels
+        .iter()
+        .find(|(x, y)| *x >= opts.width || *y >= opts.height)
+    {
         return Err(ViewerError::argument(
-            format!("{},{}", pixel.0, pixel.1),
+            format!("{x},{y}"),
             format!(
                 "the pixel lies outside the {}x{} view",
                 opts.width, opts.height
@@ -249,7 +275,10 @@ pub fn pick(
         }
         renderer.wait_for_loads(Duration::from_millis(20));
     }
-    renderer.pick(pixel.0, pixel.1, radius)
+    pixels
+        .iter()
+        .map(|&(x, y)| renderer.pick(x, y, radius))
+        .collect()
 }
 
 fn cameras(ds: &StreamDataset, opts: &RenderOptions) -> Result<Vec<Camera>, ViewerError> {

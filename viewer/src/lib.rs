@@ -11,6 +11,8 @@ pub mod headless;
 mod http_source;
 pub mod loader;
 pub mod lod;
+pub mod measure;
+pub mod overlay;
 pub mod pick;
 pub mod pipelines;
 pub mod renderer;

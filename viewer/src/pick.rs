@@ -54,6 +54,19 @@ impl PickedPoint {
     }
 }
 
+/// `v` rounded to the decimals of a power-of-ten `scale` (0.01: two), so that a stored
+/// 849296.45 prints as that rather than as the nearest f64 sum, 849296.4500000001; any other
+/// scale leaves it as it is.
+fn to_decimals(v: f64, scale: f64) -> f64 {
+    let d = -scale.log10().round();
+    if !(0.0..=12.0).contains(&d) || (10f64.powf(-d) - scale).abs() > scale * 1e-9 {
+        return v;
+    }
+    let f = 10f64.powf(d);
+    let r = (v * f).round() / f;
+    if (r - v).abs() <= scale * 1e-6 { r } else { v }
+}
+
 /// Whole numbers without a fraction, others with all the digits they need.
 fn format_value(v: f64) -> String {
     if v.fract() == 0.0 && v.abs() < 1e15 {
@@ -109,7 +122,9 @@ impl StreamDataset {
         }
         let m = self.metadata();
         let int = columns.position(index);
-        let position = std::array::from_fn(|i| m.offset[i] + m.scale[i] * int[i] as f64);
+        let position = std::array::from_fn(|i| {
+            to_decimals(m.offset[i] + m.scale[i] * int[i] as f64, m.scale[i])
+        });
         let layout = m.row_layout();
         let attributes = layout
             .attributes
@@ -239,5 +254,10 @@ mod tests {
         assert_eq!(nearest_drawn(&px, w, h, (2, 2), 2), Some(([2, 3], 10, 9)));
         assert_eq!(nearest_drawn(&px, w, h, (0, 4), 1), None);
         assert_eq!(asprs_class_name(6), "building");
+        assert_eq!(
+            to_decimals(849_296.0 + 0.01 * 45.0, 0.01).to_string(),
+            "849296.45"
+        );
+        assert_eq!(to_decimals(1.0 + 0.3 * 2.0, 0.3), 1.0 + 0.3 * 2.0);
     }
 }

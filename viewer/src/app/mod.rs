@@ -15,6 +15,7 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::Instant;
 
 mod filters;
+mod measure;
 mod params;
 mod views;
 
@@ -54,6 +55,7 @@ struct ViewerApp {
     /// The frame failed (a GPU fault, a lost device): shown in the panel, nothing drawn.
     error: Option<String>,
     views: views::Views,
+    measuring: measure::Measuring,
     /// The point last clicked, as stored (or why none could be read).
     picked: Option<Result<crate::pick::PickedPoint, String>>,
     /// The size the scene is rendered at, where the adapter holds less than the window asks.
@@ -90,6 +92,7 @@ pub fn run_window(location: &str, opts: WindowOptions) -> Result<(), ViewerError
         auto_values: Default::default(),
         error: None,
         views: views::Views::open(location),
+        measuring: measure::Measuring::open(location),
         picked: None,
         reduced: None,
         texture: None,
@@ -193,6 +196,7 @@ impl ViewerApp {
         self.pipeline_controls(ui);
 
         self.filter_controls(ui);
+        self.measure_controls(ui);
         self.view_controls(ui);
 
         ui.label("Point size");
@@ -378,14 +382,16 @@ impl ViewerApp {
             );
             self.texture = Some((id, output.clone()));
         }
-        if let Some((id, _)) = &self.texture {
+        if let Some((id, shown)) = &self.texture {
             let id = *id;
+            let size = (shown.width(), shown.height());
             ui.painter().image(
                 id,
                 rect,
                 egui::Rect::from_min_max(egui::pos2(0.0, 0.0), egui::pos2(1.0, 1.0)),
                 egui::Color32::WHITE,
             );
+            self.paint_measurements(ui.painter(), rect, size);
         }
     }
 
@@ -460,7 +466,10 @@ impl ViewerApp {
             return;
         };
         self.picked = match self.renderer.pick(x, y, 8) {
-            Ok(Some(p)) => Some(Ok(p)),
+            Ok(Some(p)) => {
+                self.measuring.add(&p);
+                Some(Ok(p))
+            }
             Ok(None) => None,
             Err(e) => Some(Err(e.to_string())),
         };

@@ -1,0 +1,200 @@
+//! The panel's measuring tools: distance, area, height and angle between picked points, drawn
+//! over the scene, listed with their values, each removable, and kept as GeoJSON beside a local
+//! dataset (`measurements.geojson`) or in any file given.
+
+use super::ViewerApp;
+use crate::measure::{MeasureKind, Measurement, Measurements};
+use crate::overlay::{ScreenProjector, kind_colour, measurement_segments};
+use crate::pick::PickedPoint;
+use eframe::egui;
+use std::path::PathBuf;
+
+#[derive(Default)]
+pub struct Measuring {
+    pub all: Measurements,
+    /// The tool clicks feed, if any.
+    pub tool: Option<MeasureKind>,
+    /// The measurement being made.
+    pub current: Option<Measurement>,
+    /// The GeoJSON file saved to and loaded from.
+    pub file: String,
+    pub error: Option<String>,
+}
+
+impl Measuring {
+    pub fn open(location: &str) -> Measuring {
+        let file = crate::measure::beside(location);
+        let (all, error) = match file.as_deref().map(Measurements::load) {
+            Some(Ok(m)) => (m, None),
+            Some(Err(e)) => (Measurements::default(), Some(e.to_string())),
+            None => (Measurements::default(), None),
+        };
+        Measuring {
+            all,
+            file: file
+                .map(|f| f.display().to_string())
+                .unwrap_or_else(|| crate::measure::FILE_NAME.into()),
+            error,
+            ..Measuring::default()
+        }
+    }
+
+    /// Takes a picked point into the measurement being made; a kind with a fixed number of
+    /// points is finished by its last one.
+    pub fn add(&mut self, point: &PickedPoint) {
+        let Some(kind) = self.tool else { return };
+        let current = self.current.get_or_insert_with(|| Measurement {
+            kind,
+            name: self.all.next_name(kind),
+            points: Vec::new(),
+        });
+        current.points.push(point.position);
+        if !current.takes_more() {
+            self.finish();
+        }
+    }
+
+    /// Keeps the measurement being made if it has its points.
+    fn finish(&mut self) {
+        if let Some(m) = self.current.take().filter(Measurement::is_complete) {
+            self.all.items.push(m);
+        }
+    }
+}
+
+impl ViewerApp {
+    pub(super) fn measure_controls(&mut self, ui: &mut egui::Ui) {
+        egui::CollapsingHeader::new("Measure")
+            .default_open(false)
+            .show(ui, |ui| {
+                let m = &mut self.measuring;
+                ui.horizontal_wrapped(|ui| {
+                    let mut tool = m.tool;
+                    ui.radio_value(&mut tool, None, "off");
+                    for k in MeasureKind::ALL {
+                        ui.radio_value(&mut tool, Some(k), k.name());
+                    }
+                    if tool != m.tool {
+                        m.current = None;
+                        m.tool = tool;
+                    }
+                });
+                if let Some(k) = m.tool {
+                    ui.label(match k {
+                        MeasureKind::Distance | MeasureKind::Area => "click points, then Finish",
+                        MeasureKind::Height => "click the lower point, then the upper",
+                        MeasureKind::Angle => "click a point, the vertex, another point",
+                    });
+                }
+                if let Some(c) = &m.current {
+                    for line in c.lines() {
+                        ui.label(egui::RichText::new(line).monospace().small());
+                    }
+                    let done = c.is_complete() && c.takes_more();
+                    ui.horizontal(|ui| {
+                        if ui.add_enabled(done, egui::Button::new("Finish")).clicked() {
+                            m.finish();
+                        }
+                        if ui.button("Cancel").clicked() {
+                            m.current = None;
+                        }
+                    });
+                }
+                let mut remove = None;
+                for (i, item) in m.all.items.iter().enumerate() {
+                    ui.horizontal(|ui| {
+                        if ui.small_button("✕").clicked() {
+                            remove = Some(i);
+                        }
+                        ui.vertical(|ui| {
+                            for line in item.lines() {
+                                ui.label(egui::RichText::new(line).monospace().small());
+                            }
+                        });
+                    });
+                }
+                if let Some(i) = remove {
+                    m.all.items.remove(i);
+                }
+                ui.horizontal(|ui| {
+                    ui.add(egui::TextEdit::singleline(&mut m.file).desired_width(150.0));
+                    let path = PathBuf::from(&m.file);
+                    if ui.button("Save").clicked() {
+                        m.error = m.all.save(&path).err().map(|e| e.to_string());
+                    }
+                    if ui.button("Load").clicked() {
+                        match Measurements::load_existing(&path) {
+                            Ok(loaded) => {
+                                m.all = loaded;
+                                m.error = None;
+                            }
+                            Err(e) => m.error = Some(e.to_string()),
+                        }
+                    }
+                });
+                if let Some(e) = &m.error {
+                    ui.colored_label(egui::Color32::LIGHT_RED, e);
+                }
+            });
+    }
+
+    /// Paints the measurements over the scene's `rect`, which shows an image of `size`.
+    pub(super) fn paint_measurements(
+        &self,
+        painter: &egui::Painter,
+        rect: egui::Rect,
+        size: (u32, u32),
+    ) {
+        let proj = ScreenProjector::new(self.renderer.dataset(), &self.camera, size.0, size.1);
+        let to_screen = |[x, y]: [f32; 2]| {
+            egui::pos2(
+                rect.min.x + x / proj.width * rect.width(),
+                rect.min.y + y / proj.height * rect.height(),
+            )
+        };
+        let items = self
+            .measuring
+            .all
+            .items
+            .iter()
+            .chain(&self.measuring.current);
+        for m in items {
+            let [r, g, b] = kind_colour(m.kind);
+            let colour = egui::Color32::from_rgb(r, g, b);
+            for (a, b) in measurement_segments(m) {
+                if let Some((a, b)) = proj.segment(a, b) {
+                    let line = [to_screen(a), to_screen(b)];
+                    painter.line_segment(line, egui::Stroke::new(4.0, egui::Color32::BLACK));
+                    painter.line_segment(line, egui::Stroke::new(2.0, colour));
+                }
+            }
+            for p in m.points.iter().filter_map(|p| proj.to_pixel(*p)) {
+                painter.circle(
+                    to_screen(p),
+                    4.0,
+                    colour,
+                    egui::Stroke::new(1.0, egui::Color32::BLACK),
+                );
+            }
+            // The main value beside the last point.
+            let label = m.values().first().map(|(name, v)| match *name {
+                "angle_deg" => format!("{v:.1}°"),
+                "horizontal_area" => format!("{v:.2} m²"),
+                _ => format!("{v:.3}"),
+            });
+            if let (Some(label), Some(p)) = (label, m.points.last().and_then(|p| proj.to_pixel(*p)))
+            {
+                let at = to_screen(p) + egui::vec2(8.0, -8.0);
+                let font = egui::FontId::proportional(14.0);
+                painter.text(
+                    at + egui::vec2(1.0, 1.0),
+                    egui::Align2::LEFT_BOTTOM,
+                    &label,
+                    font.clone(),
+                    egui::Color32::BLACK,
+                );
+                painter.text(at, egui::Align2::LEFT_BOTTOM, label, font, colour);
+            }
+        }
+    }
+}

@@ -1,0 +1,537 @@
+//! Measurements in the dataset's coordinates: distance along a polyline, area of a polygon,
+//! height of one point above another, and the angle at a vertex. Computed in f64 from the
+//! stored points the user picked, kept as GeoJSON so that a GIS reads them and the viewer reads
+//! them back.
+
+use crate::ViewerError;
+use serde_json::{Value, json};
+use std::path::{Path, PathBuf};
+
+/// The file name of a dataset's own measurements, inside its directory.
+pub const FILE_NAME: &str = "measurements.geojson";
+
+/// What a measurement measures.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum MeasureKind {
+    /// A polyline: each segment's length, the total, and the height difference end to end.
+    Distance,
+    /// A polygon: its area projected on the horizontal plane and in 3D.
+    Area,
+    /// The height of the second point above the first, with the distances between them.
+    Height,
+    /// The angle at the second of three points.
+    Angle,
+}
+
+impl MeasureKind {
+    pub const ALL: [MeasureKind; 4] = [
+        MeasureKind::Distance,
+        MeasureKind::Area,
+        MeasureKind::Height,
+        MeasureKind::Angle,
+    ];
+
+    pub fn name(self) -> &'static str {
+        match self {
+            MeasureKind::Distance => "distance",
+            MeasureKind::Area => "area",
+            MeasureKind::Height => "height",
+            MeasureKind::Angle => "angle",
+        }
+    }
+
+    pub fn parse(s: &str) -> Result<MeasureKind, ViewerError> {
+        MeasureKind::ALL
+            .into_iter()
+            .find(|k| k.name() == s)
+            .ok_or_else(|| {
+                ViewerError::argument(
+                    s,
+                    "unknown measurement (expected distance, area, height or angle)",
+                )
+            })
+    }
+
+    /// Points the kind takes exactly, where it takes a fixed number.
+    pub fn fixed_points(self) -> Option<usize> {
+        match self {
+            MeasureKind::Height => Some(2),
+            MeasureKind::Angle => Some(3),
+            MeasureKind::Distance | MeasureKind::Area => None,
+        }
+    }
+
+    /// Points the kind needs at least.
+    pub fn min_points(self) -> usize {
+        match self {
+            MeasureKind::Distance | MeasureKind::Height => 2,
+            MeasureKind::Area | MeasureKind::Angle => 3,
+        }
+    }
+}
+
+/// One measurement: its kind and its points in the dataset's coordinates.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Measurement {
+    pub kind: MeasureKind,
+    pub name: String,
+    pub points: Vec<[f64; 3]>,
+}
+
+fn sub(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
+    [a[0] - b[0], a[1] - b[1], a[2] - b[2]]
+}
+
+fn length(v: [f64; 3]) -> f64 {
+    (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt()
+}
+
+fn cross(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
+    [
+        a[1] * b[2] - a[2] * b[1],
+        a[2] * b[0] - a[0] * b[2],
+        a[0] * b[1] - a[1] * b[0],
+    ]
+}
+
+impl Measurement {
+    /// Whether it has the points its kind needs.
+    pub fn is_complete(&self) -> bool {
+        let n = self.points.len();
+        n >= self.kind.min_points() && self.kind.fixed_points().is_none_or(|f| n == f)
+    }
+
+    /// Whether another point can be added.
+    pub fn takes_more(&self) -> bool {
+        self.kind
+            .fixed_points()
+            .is_none_or(|f| self.points.len() < f)
+    }
+
+    /// The 3D length of each segment, in order (for an area, the closing one last).
+    pub fn segment_lengths(&self) -> Vec<f64> {
+        let p = &self.points;
+        let mut out: Vec<f64> = p.windows(2).map(|w| length(sub(w[1], w[0]))).collect();
+        if self.kind == MeasureKind::Area && p.len() >= 3 {
+            out.push(length(sub(p[0], p[p.len() - 1])));
+        }
+        out
+    }
+
+    /// Area of the polygon projected on the horizontal plane (the shoelace formula).
+    pub fn horizontal_area(&self) -> f64 {
+        let Some(&o) = self.points.first() else {
+            return 0.0;
+        };
+        // Relative to the first point: real-world coordinates are large, their products larger.
+        let rel: Vec<[f64; 3]> = self.points.iter().map(|p| sub(*p, o)).collect();
+        let n = rel.len();
+        let twice: f64 = (0..n)
+            .map(|i| {
+                let (a, b) = (rel[i], rel[(i + 1) % n]);
+                a[0] * b[1] - b[0] * a[1]
+            })
+            .sum();
+        twice.abs() / 2.0
+    }
+
+    /// Area of the polygon in 3D: half the length of the sum of its edges' cross products
+    /// (Newell's vector area), exact for a planar polygon and the area of its best-fitting
+    /// projection otherwise.
+    pub fn area_3d(&self) -> f64 {
+        let Some(&o) = self.points.first() else {
+            return 0.0;
+        };
+        let rel: Vec<[f64; 3]> = self.points.iter().map(|p| sub(*p, o)).collect();
+        let n = rel.len();
+        let mut s = [0.0; 3];
+        for i in 0..n {
+            let c = cross(rel[i], rel[(i + 1) % n]);
+            for k in 0..3 {
+                s[k] += c[k];
+            }
+        }
+        length(s) / 2.0
+    }
+
+    /// The angle at the second point between the rays to the first and the third, in degrees.
+    pub fn angle_deg(&self) -> Option<f64> {
+        let [a, v, b] = self.points.get(..3)?.try_into().ok()?;
+        let (u, w) = (sub(a, v), sub(b, v));
+        let (lu, lw) = (length(u), length(w));
+        if lu == 0.0 || lw == 0.0 {
+            return None;
+        }
+        // atan2 of |u x w| and u . w: accurate at angles near 0 and 180 degrees too.
+        let dot = u[0] * w[0] + u[1] * w[1] + u[2] * w[2];
+        Some(length(cross(u, w)).atan2(dot).to_degrees())
+    }
+
+    /// What it measures, as (name, value) in dataset units (square units for areas, degrees
+    /// for angles), as the panel lists them and the GeoJSON properties keep them.
+    pub fn values(&self) -> Vec<(&'static str, f64)> {
+        let p = &self.points;
+        if !self.is_complete() {
+            return Vec::new();
+        }
+        let (first, last) = (p[0], p[p.len() - 1]);
+        match self.kind {
+            MeasureKind::Distance => vec![
+                ("total_length", self.segment_lengths().iter().sum()),
+                ("height_difference", last[2] - first[2]),
+                (
+                    "horizontal_distance",
+                    p.windows(2)
+                        .map(|w| length([w[1][0] - w[0][0], w[1][1] - w[0][1], 0.0]))
+                        .sum(),
+                ),
+            ],
+            MeasureKind::Area => vec![
+                ("horizontal_area", self.horizontal_area()),
+                ("area_3d", self.area_3d()),
+                ("perimeter", self.segment_lengths().iter().sum()),
+            ],
+            MeasureKind::Height => vec![
+                ("height", last[2] - first[2]),
+                (
+                    "horizontal_distance",
+                    length([last[0] - first[0], last[1] - first[1], 0.0]),
+                ),
+                ("distance", length(sub(last, first))),
+            ],
+            MeasureKind::Angle => self
+                .angle_deg()
+                .map(|a| vec![("angle_deg", a)])
+                .unwrap_or_default(),
+        }
+    }
+
+    /// One line a value, for the panel and `strata measure`.
+    pub fn lines(&self) -> Vec<String> {
+        let mut out = vec![format!("{} ({})", self.name, self.kind.name())];
+        if self.kind == MeasureKind::Distance && self.points.len() > 2 {
+            for (i, l) in self.segment_lengths().iter().enumerate() {
+                out.push(format!("  segment {} {l:.3}", i + 1));
+            }
+        }
+        for (name, v) in self.values() {
+            out.push(format!("  {} {v:.3}", name.replace('_', " ")));
+        }
+        if !self.is_complete() {
+            out.push(format!(
+                "  {} of at least {} points",
+                self.points.len(),
+                self.kind.min_points()
+            ));
+        }
+        out
+    }
+
+    fn to_feature(&self) -> Value {
+        let coords: Vec<Value> = self.points.iter().map(|p| json!(p)).collect();
+        let geometry = match self.kind {
+            MeasureKind::Area => {
+                let mut ring = coords.clone();
+                if let Some(first) = coords.first() {
+                    ring.push(first.clone());
+                }
+                json!({"type": "Polygon", "coordinates": [ring]})
+            }
+            _ => json!({"type": "LineString", "coordinates": coords}),
+        };
+        let mut props = serde_json::Map::new();
+        props.insert("name".into(), json!(self.name));
+        props.insert("measure".into(), json!(self.kind.name()));
+        for (k, v) in self.values() {
+            props.insert(k.into(), json!(v));
+        }
+        if self.kind == MeasureKind::Distance {
+            props.insert("segment_lengths".into(), json!(self.segment_lengths()));
+        }
+        json!({"type": "Feature", "geometry": geometry, "properties": props})
+    }
+}
+
+/// The measurements of a session, in the order they were made.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct Measurements {
+    pub items: Vec<Measurement>,
+}
+
+impl Measurements {
+    /// A GeoJSON FeatureCollection, coordinates in the dataset's own coordinate system.
+    pub fn to_geojson(&self) -> Value {
+        let features: Vec<Value> = self.items.iter().map(Measurement::to_feature).collect();
+        json!({"type": "FeatureCollection", "features": features})
+    }
+
+    /// Reads a FeatureCollection (or one Feature) written by [`Measurements::to_geojson`] or by
+    /// a GIS: LineStrings are distances and Polygons areas unless `properties.measure` says
+    /// otherwise. `place` names the file in errors.
+    pub fn from_geojson(text: &str, place: &str) -> Result<Measurements, ViewerError> {
+        let fail = |what: String| ViewerError::source(place, what);
+        let root: Value =
+            serde_json::from_str(text).map_err(|e| fail(format!("not JSON ({e})")))?;
+        let features = match root["type"].as_str() {
+            Some("FeatureCollection") => root["features"]
+                .as_array()
+                .ok_or_else(|| fail("the FeatureCollection has no features array".into()))?
+                .clone(),
+            Some("Feature") => vec![root.clone()],
+            _ => {
+                return Err(fail(
+                    "not GeoJSON: expected a FeatureCollection or a Feature".into(),
+                ));
+            }
+        };
+        let items = features
+            .iter()
+            .enumerate()
+            .map(|(i, f)| {
+                feature_measurement(f, i).map_err(|what| fail(format!("feature {i}: {what}")))
+            })
+            .collect::<Result<_, _>>()?;
+        Ok(Measurements { items })
+    }
+
+    /// Reads `path`; a file that does not exist holds none.
+    pub fn load(path: &Path) -> Result<Measurements, ViewerError> {
+        let text = match std::fs::read_to_string(path) {
+            Ok(t) => t,
+            Err(e) if e.kind() == std::io::ErrorKind::NotFound => {
+                return Ok(Measurements::default());
+            }
+            Err(e) => return Err(ViewerError::output(path, format!("cannot read ({e})"))),
+        };
+        Measurements::from_geojson(&text, &path.display().to_string())
+    }
+
+    /// Reads `path`, which must exist (a file named on the command line).
+    pub fn load_existing(path: &Path) -> Result<Measurements, ViewerError> {
+        let text = std::fs::read_to_string(path)
+            .map_err(|e| ViewerError::output(path, format!("cannot read ({e})")))?;
+        Measurements::from_geojson(&text, &path.display().to_string())
+    }
+
+    /// Writes through a temporary name, so a failed write leaves the old file.
+    pub fn save(&self, path: &Path) -> Result<(), ViewerError> {
+        let json = serde_json::to_string_pretty(&self.to_geojson())
+            .map_err(|e| ViewerError::output(path, format!("cannot encode ({e})")))?;
+        let mut part = path.as_os_str().to_owned();
+        part.push(".part");
+        let part = PathBuf::from(part);
+        std::fs::write(&part, json)
+            .and_then(|_| std::fs::rename(&part, path))
+            .map_err(|e| {
+                let _ = std::fs::remove_file(&part);
+                ViewerError::output(path, format!("cannot write ({e})"))
+            })
+    }
+
+    /// A name not yet taken, `KIND N`.
+    pub fn next_name(&self, kind: MeasureKind) -> String {
+        let n = self.items.iter().filter(|m| m.kind == kind).count();
+        format!("{} {}", kind.name(), n + 1)
+    }
+}
+
+fn feature_measurement(f: &Value, index: usize) -> Result<Measurement, String> {
+    let geometry = &f["geometry"];
+    let points_of = |v: &Value| -> Result<Vec<[f64; 3]>, String> {
+        v.as_array()
+            .ok_or("coordinates are not an array")?
+            .iter()
+            .map(|c| {
+                let c = c.as_array().ok_or("a position is not an array")?;
+                let n: Vec<f64> = c.iter().filter_map(Value::as_f64).collect();
+                match n.as_slice() {
+                    [x, y, z, ..] if n.len() == c.len() => Ok([*x, *y, *z]),
+                    [x, y] if c.len() == 2 => Ok([*x, *y, 0.0]),
+                    _ => Err("a position is not [x, y] or [x, y, z] in numbers".to_string()),
+                }
+            })
+            .collect()
+    };
+    let (mut points, default_kind) = match geometry["type"].as_str() {
+        Some("LineString") => (points_of(&geometry["coordinates"])?, MeasureKind::Distance),
+        Some("Polygon") => {
+            let ring = geometry["coordinates"]
+                .get(0)
+                .ok_or("the polygon has no ring")?;
+            let mut p = points_of(ring)?;
+            // GeoJSON closes rings; a measurement keeps each corner once.
+            if p.len() >= 2 && p.first() == p.last() {
+                p.pop();
+            }
+            (p, MeasureKind::Area)
+        }
+        Some(other) => return Err(format!("a {other} is not a measurement")),
+        None => return Err("no geometry type".into()),
+    };
+    let props = &f["properties"];
+    let kind = match props["measure"].as_str() {
+        Some(k) => MeasureKind::parse(k).map_err(|e| e.to_string())?,
+        None => default_kind,
+    };
+    if kind == MeasureKind::Area && geometry["type"] != "Polygon" && points.len() >= 2 {
+        // An area written as a closed LineString.
+        if points.first() == points.last() {
+            points.pop();
+        }
+    }
+    if points.iter().flatten().any(|c| !c.is_finite()) {
+        return Err("a coordinate is not a finite number".into());
+    }
+    let name = props["name"]
+        .as_str()
+        .map(str::to_string)
+        .unwrap_or_else(|| format!("{} {}", kind.name(), index + 1));
+    let m = Measurement { kind, name, points };
+    if !m.is_complete() {
+        return Err(format!(
+            "a {} needs {} points, it has {}",
+            kind.name(),
+            match kind.fixed_points() {
+                Some(n) => n.to_string(),
+                None => format!("at least {}", kind.min_points()),
+            },
+            m.points.len()
+        ));
+    }
+    Ok(m)
+}
+
+/// Where a dataset's own measurements live: inside a local dataset's directory.
+pub fn beside(location: &str) -> Option<PathBuf> {
+    let dir = Path::new(location);
+    dir.is_dir().then(|| dir.join(FILE_NAME))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn m(kind: MeasureKind, points: &[[f64; 3]]) -> Measurement {
+        Measurement {
+            kind,
+            name: kind.name().into(),
+            points: points.to_vec(),
+        }
+    }
+
+    const O: [f64; 3] = [500_000.0, 4_600_000.0, 100.0];
+
+    fn at(x: f64, y: f64, z: f64) -> [f64; 3] {
+        [O[0] + x, O[1] + y, O[2] + z]
+    }
+
+    #[test]
+    fn each_kind_measures_what_geometry_says() {
+        let d = m(
+            MeasureKind::Distance,
+            &[at(0.0, 0.0, 0.0), at(3.0, 4.0, 0.0), at(3.0, 4.0, 12.0)],
+        );
+        assert_eq!(d.segment_lengths(), vec![5.0, 12.0]);
+        let v: std::collections::HashMap<_, _> = d.values().into_iter().collect();
+        assert_eq!(v["total_length"], 17.0);
+        assert_eq!(v["height_difference"], 12.0);
+        assert_eq!(v["horizontal_distance"], 5.0);
+
+        // A 10 x 10 square tilted 60 degrees: 100 in 3D, 50 seen from above, even far from
+        // the origin.
+        let (c, s) = (0.5f64, 3f64.sqrt() / 2.0);
+        let a = m(
+            MeasureKind::Area,
+            &[
+                at(0.0, 0.0, 0.0),
+                at(10.0, 0.0, 0.0),
+                at(10.0, 10.0 * c, 10.0 * s),
+                at(0.0, 10.0 * c, 10.0 * s),
+            ],
+        );
+        assert!((a.area_3d() - 100.0).abs() < 1e-6, "{}", a.area_3d());
+        assert!((a.horizontal_area() - 50.0).abs() < 1e-6);
+        assert!((a.segment_lengths().iter().sum::<f64>() - 40.0).abs() < 1e-6);
+
+        let h = m(
+            MeasureKind::Height,
+            &[at(0.0, 0.0, 2.0), at(6.0, 8.0, -1.0)],
+        );
+        let v: std::collections::HashMap<_, _> = h.values().into_iter().collect();
+        assert_eq!(v["height"], -3.0);
+        assert_eq!(v["horizontal_distance"], 10.0);
+
+        let g = m(
+            MeasureKind::Angle,
+            &[at(1.0, 0.0, 0.0), at(0.0, 0.0, 0.0), at(1.0, 1.0, 0.0)],
+        );
+        assert!((g.angle_deg().unwrap() - 45.0).abs() < 1e-9);
+        let straight = m(
+            MeasureKind::Angle,
+            &[at(-1.0, 0.0, 0.0), at(0.0, 0.0, 0.0), at(1.0, 0.0, 0.0)],
+        );
+        assert!((straight.angle_deg().unwrap() - 180.0).abs() < 1e-9);
+        assert!(!m(MeasureKind::Height, &[at(0.0, 0.0, 0.0)]).is_complete());
+        assert!(!m(MeasureKind::Angle, &[O, O, O, O]).is_complete());
+    }
+
+    #[test]
+    fn measurements_survive_geojson_and_bad_files_are_named() {
+        let all = Measurements {
+            items: vec![
+                m(
+                    MeasureKind::Distance,
+                    &[at(0.0, 0.0, 0.0), at(1.5, 0.0, 0.0)],
+                ),
+                m(
+                    MeasureKind::Area,
+                    &[at(0.0, 0.0, 0.0), at(1.0, 0.0, 0.0), at(0.0, 1.0, 0.0)],
+                ),
+                m(MeasureKind::Height, &[at(0.0, 0.0, 0.0), at(0.0, 0.0, 3.0)]),
+                m(
+                    MeasureKind::Angle,
+                    &[at(1.0, 0.0, 0.0), O, at(0.0, 1.0, 0.0)],
+                ),
+            ],
+        };
+        let dir = tempfile::tempdir().expect("tempdir");
+        let path = dir.path().join(FILE_NAME);
+        all.save(&path).expect("saved");
+        let text = std::fs::read_to_string(&path).expect("read");
+        let json: Value = serde_json::from_str(&text).expect("json");
+        // The polygon's ring is closed, as GeoJSON wants; the properties carry the results.
+        assert_eq!(
+            json["features"][1]["geometry"]["coordinates"][0][3],
+            json!(at(0.0, 0.0, 0.0))
+        );
+        assert_eq!(
+            json["features"][0]["properties"]["total_length"],
+            json!(1.5)
+        );
+        assert_eq!(Measurements::load(&path).expect("loads"), all);
+        // A GIS's LineString without our properties is a distance.
+        let plain = r#"{"type":"Feature","geometry":{"type":"LineString","coordinates":[[0,0],[3,4]]},"properties":null}"#;
+        let p = Measurements::from_geojson(plain, "plain.geojson").expect("reads");
+        assert_eq!(p.items[0].values()[0], ("total_length", 5.0));
+        for (bad, says) in [
+            ("{", "not JSON"),
+            (r#"{"type":"Point"}"#, "FeatureCollection"),
+            (
+                r#"{"type":"FeatureCollection","features":[{"type":"Feature","geometry":{"type":"Point","coordinates":[0,0]}}]}"#,
+                "feature 0: a Point",
+            ),
+            (
+                r#"{"type":"Feature","geometry":{"type":"LineString","coordinates":[[0,0,0]]},"properties":{"measure":"height"}}"#,
+                "a height needs 2 points, it has 1",
+            ),
+            (
+                r#"{"type":"Feature","geometry":{"type":"LineString","coordinates":[[0,"a"],[1,1]]}}"#,
+                "numbers",
+            ),
+        ] {
+            let e = Measurements::from_geojson(bad, "m.geojson").expect_err(bad);
+            let e = e.to_string();
+            assert!(e.contains("m.geojson") && e.contains(says), "{bad}: {e}");
+        }
+    }
+}
