@@ -39,6 +39,30 @@ pub fn export(dataset: &Path, output: &Path, overwrite: bool) -> Result<u64> {
     Ok(written)
 }
 
+/// Writes `rows` of a dataset's `layout` (a selection of its points, such as a profile) to
+/// `output` as LAS, LAZ or PLY, every attribute kept as `export` keeps it.
+pub fn export_rows(
+    output: &Path,
+    layout: &RowLayout,
+    scale: [f64; 3],
+    offset: [f64; 3],
+    rows: &[u8],
+    overwrite: bool,
+) -> Result<u64> {
+    let wide = widened(layout);
+    let n = (rows.len() / layout.stride.max(1)) as u64;
+    let mut writer = open_writer(output, &wide.layout, scale, offset, n, overwrite)?;
+    if wide.is_identity() {
+        writer.write_rows(rows)?;
+    } else {
+        let mut out = Vec::new();
+        wide.convert(rows, &mut out);
+        writer.write_rows(&out)?;
+    }
+    writer.finish()?;
+    Ok(n)
+}
+
 /// A dataset's rows as the export formats can hold them: an `oct16` normal decoded to three
 /// f32 (`(0, 0)`, no normal, as `0 0 0`), f16 widened to f32 (neither LAS nor PLY has half
 /// floats); everything else as stored.

@@ -76,6 +76,9 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
                 screenshot: None,
                 size: (1400, 860),
                 token: None,
+                measurements: None,
+                profile: None,
+                points_writer: Some(super::view::write_profile_points),
             },
         )?;
         return Ok(ExitCode::SUCCESS);

@@ -6,6 +6,7 @@ mod info;
 mod measure;
 mod pick;
 mod pipelines;
+mod profile;
 mod render;
 mod serve;
 mod synth;
@@ -46,6 +47,8 @@ enum Command {
     Pick(pick::Args),
     /// Measure a distance, area, height or angle between the stored points under pixels.
     Measure(measure::Args),
+    /// Write the points within a corridor around a polyline as a height profile (CSV, LAS).
+    Profile(profile::Args),
     /// List the render pipelines with their parameters.
     Pipelines(pipelines::Args),
     /// Synthesize a scene, convert it and show it.
@@ -72,6 +75,7 @@ pub fn run(cli: Cli) -> anyhow::Result<ExitCode> {
         Command::Render(a) => render::run(a),
         Command::Pick(a) => pick::run(a),
         Command::Measure(a) => measure::run(a),
+        Command::Profile(a) => profile::run(a),
         Command::Pipelines(a) => pipelines::run(a),
         Command::Demo(a) => demo::run(a),
     }

@@ -15,6 +15,7 @@ pub mod measure;
 pub mod overlay;
 pub mod pick;
 pub mod pipelines;
+pub mod profile;
 pub mod renderer;
 pub mod settings;
 mod source;

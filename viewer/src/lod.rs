@@ -41,6 +41,12 @@ impl Tree {
         self.nodes.get(&key)
     }
 
+    /// The page rooted at `key` that is known but not loaded: in 1.1 the one holding a
+    /// proxy's children, in 1.0 the one holding the proxy `key` itself.
+    pub fn unloaded_page(&self, key: NodeKey) -> Option<PageRef> {
+        self.unloaded_pages.get(&key).copied()
+    }
+
     pub fn known_nodes(&self) -> usize {
         self.nodes.len()
     }

@@ -57,7 +57,7 @@ impl PickedPoint {
 /// `v` rounded to the decimals of a power-of-ten `scale` (0.01: two), so that a stored
 /// 849296.45 prints as that rather than as the nearest f64 sum, 849296.4500000001; any other
 /// scale leaves it as it is.
-fn to_decimals(v: f64, scale: f64) -> f64 {
+pub fn to_decimals(v: f64, scale: f64) -> f64 {
     let d = -scale.log10().round();
     if !(0.0..=12.0).contains(&d) || (10f64.powf(-d) - scale).abs() > scale * 1e-9 {
         return v;
@@ -131,19 +131,9 @@ impl StreamDataset {
             .iter()
             .enumerate()
             .map(|(k, a)| {
-                let size = a.ty.size();
                 let column = columns.attribute(&layout, k);
                 let raw = &column[index * a.size()..(index + 1) * a.size()];
-                let values: Vec<f64> = raw
-                    .chunks_exact(size)
-                    .enumerate()
-                    .map(|(c, b)| {
-                        let v = a.ty.read_f64(b);
-                        let scale = a.scale.as_ref().and_then(|s| s.get(c)).copied();
-                        let offset = a.offset.as_ref().and_then(|o| o.get(c)).copied();
-                        offset.unwrap_or(0.0) + scale.unwrap_or(1.0) * v
-                    })
-                    .collect();
+                let values = attribute_values(a, raw);
                 let meaning = (a.name == "classification")
                     .then(|| values.first().map(|c| asprs_class_name(*c as u8)))
                     .flatten();
@@ -163,6 +153,20 @@ impl StreamDataset {
             attributes,
         })
     }
+}
+
+/// The components of one stored value of attribute `a` (its `a.size()` bytes), scaled where
+/// the attribute stores scaled integers.
+pub fn attribute_values(a: &strata_format::Attribute, raw: &[u8]) -> Vec<f64> {
+    raw.chunks_exact(a.ty.size())
+        .enumerate()
+        .map(|(c, b)| {
+            let v = a.ty.read_f64(b);
+            let scale = a.scale.as_ref().and_then(|s| s.get(c)).copied();
+            let offset = a.offset.as_ref().and_then(|o| o.get(c)).copied();
+            offset.unwrap_or(0.0) + scale.unwrap_or(1.0) * v
+        })
+        .collect()
 }
 
 /// The drawn pixel nearest `(x, y)` within `radius`, with its depth bits and point index, from a

@@ -22,12 +22,14 @@ pub struct Measuring {
 }
 
 impl Measuring {
-    pub fn open(location: &str) -> Measuring {
+    /// The measurements given, else those saved beside a local dataset.
+    pub fn open(location: &str, given: Option<Measurements>) -> Measuring {
         let file = crate::measure::beside(location);
-        let (all, error) = match file.as_deref().map(Measurements::load) {
-            Some(Ok(m)) => (m, None),
-            Some(Err(e)) => (Measurements::default(), Some(e.to_string())),
-            None => (Measurements::default(), None),
+        let (all, error) = match (given, file.as_deref().map(Measurements::load)) {
+            (Some(m), _) => (m, None),
+            (None, Some(Ok(m))) => (m, None),
+            (None, Some(Err(e))) => (Measurements::default(), Some(e.to_string())),
+            (None, None) => (Measurements::default(), None),
         };
         Measuring {
             all,

@@ -17,7 +17,10 @@ use std::time::Instant;
 mod filters;
 mod measure;
 mod params;
+mod profile;
 mod views;
+
+pub use profile::PointsWriter;
 
 pub struct WindowOptions {
     pub settings: Settings,
@@ -29,6 +32,12 @@ pub struct WindowOptions {
     pub screenshot: Option<(PathBuf, u32)>,
     pub size: (u32, u32),
     pub token: Option<String>,
+    /// Measurements to show at start (else the dataset's own measurements.geojson).
+    pub measurements: Option<crate::measure::Measurements>,
+    /// A height profile to read and show at start.
+    pub profile: Option<crate::profile::Corridor>,
+    /// How the profile window writes LAS, LAZ and PLY (the viewer itself writes CSV only).
+    pub points_writer: Option<PointsWriter>,
 }
 
 struct ViewerApp {
@@ -56,6 +65,7 @@ struct ViewerApp {
     error: Option<String>,
     views: views::Views,
     measuring: measure::Measuring,
+    profiling: profile::Profiling,
     /// The point last clicked, as stored (or why none could be read).
     picked: Option<Result<crate::pick::PickedPoint, String>>,
     /// The size the scene is rendered at, where the adapter holds less than the window asks.
@@ -84,7 +94,7 @@ pub fn run_window(location: &str, opts: WindowOptions) -> Result<(), ViewerError
     let home = default_camera(&ds, opts.size.0.saturating_sub(280).max(1), opts.size.1);
     let (min, max) = ds.bounds();
     let screenshot_error = Arc::new(std::sync::Mutex::new(None));
-    let app = ViewerApp {
+    let mut app = ViewerApp {
         renderer,
         camera: home,
         home,
@@ -92,7 +102,8 @@ pub fn run_window(location: &str, opts: WindowOptions) -> Result<(), ViewerError
         auto_values: Default::default(),
         error: None,
         views: views::Views::open(location),
-        measuring: measure::Measuring::open(location),
+        measuring: measure::Measuring::open(location, opts.measurements),
+        profiling: profile::Profiling::new(opts.points_writer),
         picked: None,
         reduced: None,
         texture: None,
@@ -108,6 +119,13 @@ pub fn run_window(location: &str, opts: WindowOptions) -> Result<(), ViewerError
         screenshot_done: Arc::new(AtomicBool::new(false)),
         screenshot_error: screenshot_error.clone(),
     };
+    if let Some(corridor) = opts.profile {
+        // The line is drawn at the lowest height of the dataset: the ground, mostly.
+        let z = ds.metadata().bounds.min[2];
+        app.profiling.line = corridor.line.iter().map(|p| [p[0], p[1], z]).collect();
+        app.profiling.width = corridor.width;
+        app.profiling.start(ds.clone());
+    }
     let native = eframe::NativeOptions {
         viewport: egui::ViewportBuilder::default()
             .with_title(format!("Strata: {}", ds.location()))
@@ -155,6 +173,7 @@ impl eframe::App for ViewerApp {
         egui::CentralPanel::default()
             .frame(egui::Frame::NONE)
             .show(ui, |ui| self.scene(ui, frame));
+        self.profile_window(&ctx);
         self.take_screenshot(&ctx);
         if !self.stats.complete || self.screenshot.is_some() || self.settling.0 > 0 {
             ctx.request_repaint();
@@ -197,6 +216,7 @@ impl ViewerApp {
 
         self.filter_controls(ui);
         self.measure_controls(ui);
+        self.profile_controls(ui);
         self.view_controls(ui);
 
         ui.label("Point size");
@@ -392,6 +412,7 @@ impl ViewerApp {
                 egui::Color32::WHITE,
             );
             self.paint_measurements(ui.painter(), rect, size);
+            self.paint_profile(ui.painter(), rect, size);
         }
     }
 
@@ -467,7 +488,11 @@ impl ViewerApp {
         };
         self.picked = match self.renderer.pick(x, y, 8) {
             Ok(Some(p)) => {
-                self.measuring.add(&p);
+                if self.profiling.drawing {
+                    self.profiling.line.push(p.position);
+                } else {
+                    self.measuring.add(&p);
+                }
                 Some(Ok(p))
             }
             Ok(None) => None,

@@ -1,0 +1,107 @@
+//! `strata profile`: the points within a corridor around a polyline, as distance along the line
+//! against height, read from the dataset at the profile's own level of detail and written as
+//! CSV (distance, offset, x, y, z, every attribute) or as LAS, LAZ or PLY.
+
+use std::path::{Path, PathBuf};
+use std::process::ExitCode;
+use strata_viewer::profile::{Corridor, Profile, ProfileDetail, extract};
+use strata_viewer::{HttpOptions, StreamDataset};
+
+#[derive(Debug, clap::Args)]
+pub struct Args {
+    /// The dataset: a directory, or http://HOST:PORT/DATASET.
+    dataset: String,
+    /// The profile's polyline, "X,Y;X,Y[;...]" in the dataset's coordinates.
+    #[arg(long)]
+    line: String,
+    /// The corridor's width, in dataset units (half on each side of the line).
+    #[arg(long)]
+    width: f64,
+    /// Read levels until their point spacing is at most this (dataset units; 0: full detail).
+    #[arg(long, default_value_t = 0.0)]
+    spacing: f64,
+    /// Do not start a level that would take the points read past this.
+    #[arg(long, default_value = "20M", value_parser = super::synth::parse_count)]
+    max_read: u64,
+    /// The file to write: .csv, or .las, .laz, .ply with every attribute.
+    #[arg(short, long)]
+    output: PathBuf,
+    /// Replace the output if it exists.
+    #[arg(long)]
+    overwrite: bool,
+    /// Bearer token for a dataset served with `strata serve --token`.
+    #[arg(long)]
+    token: Option<String>,
+}
+
+pub fn run(a: Args) -> anyhow::Result<ExitCode> {
+    if !(a.spacing.is_finite() && a.spacing >= 0.0) {
+        anyhow::bail!("--spacing {} is not a distance of 0 or more", a.spacing);
+    }
+    let corridor = Corridor::parse(&a.line, a.width)?;
+    let ext = a
+        .output
+        .extension()
+        .map(|e| e.to_string_lossy().to_ascii_lowercase());
+    let csv = match ext.as_deref() {
+        Some("csv") => true,
+        Some("las" | "laz" | "ply") => false,
+        _ => anyhow::bail!(
+            "{}: the profile is written as .csv, .las, .laz or .ply",
+            a.output.display()
+        ),
+    };
+    if a.output.exists() && !a.overwrite {
+        anyhow::bail!("{}: exists (use --overwrite)", a.output.display());
+    }
+    let http = HttpOptions {
+        token: a.token.clone(),
+        ..HttpOptions::default()
+    };
+    let ds = StreamDataset::open(&a.dataset, http)?;
+    let detail = ProfileDetail {
+        spacing: a.spacing,
+        max_points_read: a.max_read,
+    };
+    let profile = extract(&ds, &corridor, detail, |_| {})?;
+    if csv {
+        profile.write_csv(&a.output)?;
+    } else {
+        write_points(&ds, &profile, &a.output, a.overwrite)?;
+    }
+    println!(
+        "{} points within {} of a {:.3} long line (levels 0 to {}, spacing {:.4}, {} points read){} -> {}",
+        profile.points.len(),
+        a.width,
+        corridor.length(),
+        profile.level,
+        profile.spacing,
+        profile.points_read,
+        if profile.complete {
+            ""
+        } else {
+            "; stopped by --max-read before the spacing asked"
+        },
+        a.output.display()
+    );
+    Ok(ExitCode::SUCCESS)
+}
+
+/// The profile's points with every attribute, as `strata export` writes a dataset's.
+pub fn write_points(
+    ds: &StreamDataset,
+    profile: &Profile,
+    output: &Path,
+    overwrite: bool,
+) -> anyhow::Result<()> {
+    let m = ds.metadata();
+    strata_converter::export::export_rows(
+        output,
+        &profile.layout,
+        m.scale,
+        m.offset,
+        &profile.rows,
+        overwrite,
+    )?;
+    Ok(())
+}

@@ -1,0 +1,184 @@
+//! `strata profile` and the window's tools: a profile holds exactly the stored points within its
+//! corridor (at full detail, all of them), with every attribute; coarser profiles read less.
+
+mod common;
+
+use common::{las_points, s};
+use std::path::Path;
+
+const LINE: &str = "636316,849296;636787,849140;636900,849300";
+const WIDTH: f64 = 6.0;
+const VERTICES: [[f64; 2]; 3] = [
+    [636316.0, 849296.0],
+    [636787.0, 849140.0],
+    [636900.0, 849300.0],
+];
+
+/// Within the corridor: across one segment (the foot on it) within half the width.
+fn inside(x: f64, y: f64) -> bool {
+    VERTICES.windows(2).any(|w| {
+        let (a, b) = (w[0], w[1]);
+        let (dx, dy) = (b[0] - a[0], b[1] - a[1]);
+        let len2 = dx * dx + dy * dy;
+        let t = ((x - a[0]) * dx + (y - a[1]) * dy) / len2;
+        let off = (dx * (y - a[1]) - dy * (x - a[0])).abs() / len2.sqrt();
+        (0.0..=1.0).contains(&t) && off <= WIDTH / 2.0
+    })
+}
+
+fn profile(dataset: &Path, out: &Path, extra: &[&str]) -> String {
+    let w = WIDTH.to_string();
+    let mut args = vec![
+        "profile",
+        s(dataset),
+        "--line",
+        LINE,
+        "--width",
+        &w,
+        "-o",
+        s(out),
+    ];
+    args.extend_from_slice(extra);
+    let o = common::run_ok(&args);
+    String::from_utf8_lossy(&o.stdout).to_string()
+}
+
+#[test]
+fn a_full_profile_is_every_stored_point_in_its_corridor_with_every_attribute() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let dataset = common::converted("profile-fixture", "autzen_trim.laz", "autzen");
+    let exported = dir.path().join("all.las");
+    common::run_ok(&["export", s(&dataset), "-o", s(&exported)]);
+    let (all, scale) = las_points(&exported);
+    let mut want: Vec<_> = all
+        .into_iter()
+        .filter(|(q, _)| inside(q[0] as f64 * scale[0], q[1] as f64 * scale[1]))
+        .collect();
+    want.sort_unstable();
+    assert!(
+        want.len() > 300,
+        "only {} points in the corridor",
+        want.len()
+    );
+
+    // As LAS: exactly those points, every field as exported.
+    let las = dir.path().join("p.las");
+    profile(&dataset, &las, &[]);
+    let (mut got, _) = las_points(&las);
+    got.sort_unstable();
+    assert_eq!(got.len(), want.len());
+    assert!(
+        got == want,
+        "the profile's points differ from the exported ones in the corridor"
+    );
+
+    // As CSV: each row within the corridor, its distance along the line where its foot is.
+    let csv = dir.path().join("p.csv");
+    let said = profile(&dataset, &csv, &[]);
+    assert!(said.contains(&format!("{} points", want.len())), "{said}");
+    let text = std::fs::read_to_string(&csv).expect("csv");
+    let mut lines = text.lines();
+    let header: Vec<&str> = lines.next().expect("header").split(',').collect();
+    assert_eq!(&header[..5], &["distance", "offset", "x", "y", "z"]);
+    assert!(
+        header.contains(&"classification") && header.contains(&"gps_time"),
+        "{header:?}"
+    );
+    let seg0 = (VERTICES[1][0] - VERTICES[0][0]).hypot(VERTICES[1][1] - VERTICES[0][1]);
+    let total = seg0 + (VERTICES[2][0] - VERTICES[1][0]).hypot(VERTICES[2][1] - VERTICES[1][1]);
+    let mut rows = 0;
+    for line in lines {
+        let v: Vec<f64> = line
+            .split(',')
+            .map(|c| c.parse().expect("number"))
+            .collect();
+        assert_eq!(v.len(), header.len());
+        let (along, offset, x, y) = (v[0], v[1], v[2], v[3]);
+        assert!(inside(x, y), "{x},{y} lies outside the corridor");
+        assert!(offset.abs() <= WIDTH / 2.0 + 1e-3 && (0.0..=total + 1e-3).contains(&along));
+        rows += 1;
+    }
+    assert_eq!(rows, want.len());
+
+    // A coarser profile reads fewer levels and fewer points, all of them still in the corridor.
+    let coarse = dir.path().join("coarse.csv");
+    let said = profile(&dataset, &coarse, &["--spacing", "5"]);
+    let n = std::fs::read_to_string(&coarse)
+        .expect("csv")
+        .lines()
+        .count()
+        - 1;
+    assert!(n > 0 && n < want.len(), "{n} of {}: {said}", want.len());
+
+    // Bad input: one sentence, no output.
+    for (args, says) in [
+        (
+            vec!["--line", "636316,849296", "--width", "5"],
+            "at least two",
+        ),
+        (vec!["--line", LINE, "--width", "-1"], "width"),
+    ] {
+        let out = dir.path().join("bad.csv");
+        let mut all_args = vec!["profile", s(&dataset), "-o", s(&out)];
+        all_args.extend(args);
+        let o = common::run(&all_args);
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert!(
+            !o.status.success() && err.contains(says) && !err.contains("panicked"),
+            "{err}"
+        );
+        assert!(!out.exists());
+    }
+}
+
+#[test]
+fn the_window_draws_the_measurements_and_the_profile_with_its_plot() {
+    if !Path::new("/usr/bin/xvfb-run").exists() {
+        assert!(
+            std::env::var_os("STRATA_REQUIRE_XVFB").is_none(),
+            "xvfb-run is missing but STRATA_REQUIRE_XVFB is set"
+        );
+        eprintln!("skipping: xvfb-run is not installed");
+        return;
+    }
+    let dir = tempfile::tempdir().expect("tempdir");
+    let dataset = common::converted("profile-fixture", "autzen_trim.laz", "autzen");
+    let m = dir.path().join("m.geojson");
+    std::fs::write(
+        &m,
+        r#"{"type":"FeatureCollection","features":[{"type":"Feature","properties":{"measure":"distance"},
+        "geometry":{"type":"LineString","coordinates":[[636100,849000,420],[636300,849400,430]]}}]}"#,
+    )
+    .expect("write");
+    let shot = dir.path().join("window.png");
+    let backend = std::env::var("WGPU_BACKEND").unwrap_or_else(|_| "vulkan".into());
+    let w = WIDTH.to_string();
+    let o = std::process::Command::new("xvfb-run")
+        .args(["-a", "-s", "-screen 0 1400x900x24"])
+        .arg(env!("CARGO_BIN_EXE_strata"))
+        .args([
+            "view",
+            s(&dataset),
+            "--size",
+            "1300x800",
+            "--screenshot",
+            s(&shot),
+        ])
+        .args(["--screenshot-after", "30", "--measurements", s(&m)])
+        .args(["--profile", LINE, "--profile-width", &w])
+        .env("WGPU_BACKEND", backend)
+        .output()
+        .expect("xvfb-run runs");
+    assert!(
+        o.status.success(),
+        "view failed: {}",
+        String::from_utf8_lossy(&o.stderr)
+    );
+    let (_, _, rgba) = common::read_png(&shot);
+    let count = |c: [u8; 3]| rgba.chunks_exact(4).filter(|p| p[..3] == c).count();
+    // The distance in its colour, the profile's line in green, and the profile's plot (its
+    // background) in a window of its own.
+    assert!(count([255, 214, 10]) > 100, "no measurement drawn");
+    assert!(count([120, 255, 120]) > 100, "no profile line drawn");
+    assert!(count([16, 18, 22]) > 560 * 200 / 2, "no profile plot shown");
+}

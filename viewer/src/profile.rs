@@ -1,0 +1,379 @@
+//! Height profiles: the stored points within a corridor around a horizontal polyline, as
+//! distance along the line against height. Read from the dataset level by level, coarse to
+//! fine, down to the profile's own level of detail (its spacing), not the view's, and only the
+//! nodes the corridor crosses.
+
+use crate::ViewerError;
+use crate::dataset::StreamDataset;
+use crate::lod::Tree;
+use crate::pick::{attribute_values, to_decimals};
+use std::io::Write;
+use std::path::Path;
+use strata_format::{NodeInfo, NodeKey, RowLayout};
+
+/// A polyline in the horizontal plane (dataset coordinates) and the width of the band around
+/// it: a point belongs to the profile where it lies across a segment (its foot on the segment)
+/// within half the width of it.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Corridor {
+    pub line: Vec<[f64; 2]>,
+    pub width: f64,
+}
+
+/// Where a point lies in a corridor.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Place {
+    /// Distance along the polyline to the point's foot.
+    pub along: f64,
+    /// Signed distance from the line, positive to the left of its direction.
+    pub offset: f64,
+}
+
+impl Corridor {
+    /// Parses `X,Y;X,Y[;...]` with a width; the error names what is wrong.
+    pub fn parse(line: &str, width: f64) -> Result<Corridor, ViewerError> {
+        let fail = |what: &str| ViewerError::argument(line, what);
+        let points = line
+            .split(';')
+            .map(str::trim)
+            .filter(|p| !p.is_empty())
+            .map(|p| {
+                let (x, y) = p.split_once(',')?;
+                let (x, y) = (x.trim().parse::<f64>().ok()?, y.trim().parse::<f64>().ok()?);
+                (x.is_finite() && y.is_finite()).then_some([x, y])
+            })
+            .collect::<Option<Vec<_>>>()
+            .ok_or_else(|| fail("a profile line is X,Y;X,Y;... in the dataset's coordinates"))?;
+        let c = Corridor {
+            line: points,
+            width,
+        };
+        c.check().map_err(|what| fail(&what))?;
+        Ok(c)
+    }
+
+    /// Why the corridor cannot be used, if it cannot.
+    pub fn check(&self) -> Result<(), String> {
+        if self.line.len() < 2 {
+            return Err("a profile line needs at least two points".into());
+        }
+        if !(self.width.is_finite() && self.width > 0.0) {
+            return Err(format!("the profile width {} is not above 0", self.width));
+        }
+        if self.length() == 0.0 {
+            return Err("the profile line has no length".into());
+        }
+        Ok(())
+    }
+
+    /// Length of the polyline.
+    pub fn length(&self) -> f64 {
+        self.line
+            .windows(2)
+            .map(|w| (w[1][0] - w[0][0]).hypot(w[1][1] - w[0][1]))
+            .sum()
+    }
+
+    /// Where `(x, y)` lies: across the segment nearest it, within half the width; `None`
+    /// outside the corridor.
+    pub fn place(&self, x: f64, y: f64) -> Option<Place> {
+        let half = self.width / 2.0;
+        let mut before = 0.0;
+        let mut best: Option<Place> = None;
+        for w in self.line.windows(2) {
+            let (a, b) = (w[0], w[1]);
+            let d = [b[0] - a[0], b[1] - a[1]];
+            let len = d[0].hypot(d[1]);
+            if len > 0.0 {
+                let (ux, uy) = (d[0] / len, d[1] / len);
+                let (px, py) = (x - a[0], y - a[1]);
+                let t = px * ux + py * uy;
+                let off = ux * py - uy * px;
+                if (0.0..=len).contains(&t)
+                    && off.abs() <= half
+                    && best.is_none_or(|b| off.abs() < b.offset.abs())
+                {
+                    best = Some(Place {
+                        along: before + t,
+                        offset: off,
+                    });
+                }
+            }
+            before += len;
+        }
+        best
+    }
+
+    /// Whether the rectangle `min`-`max` may hold a point of the corridor: it meets one
+    /// segment's band (separating axes of two rectangles).
+    pub fn meets(&self, min: [f64; 2], max: [f64; 2]) -> bool {
+        let half = self.width / 2.0;
+        let centre = [(min[0] + max[0]) / 2.0, (min[1] + max[1]) / 2.0];
+        let ext = [(max[0] - min[0]) / 2.0, (max[1] - min[1]) / 2.0];
+        self.line.windows(2).any(|w| {
+            let (a, b) = (w[0], w[1]);
+            let d = [b[0] - a[0], b[1] - a[1]];
+            let len = d[0].hypot(d[1]);
+            if len == 0.0 {
+                return false;
+            }
+            let u = [d[0] / len, d[1] / len];
+            let n = [-u[1], u[0]];
+            let mid = [(a[0] + b[0]) / 2.0, (a[1] + b[1]) / 2.0];
+            let c = [mid[0] - centre[0], mid[1] - centre[1]];
+            let (bu, bn) = (len / 2.0, half);
+            // The box's axes.
+            let on_x = c[0].abs() <= ext[0] + bu * u[0].abs() + bn * n[0].abs();
+            let on_y = c[1].abs() <= ext[1] + bu * u[1].abs() + bn * n[1].abs();
+            // The band's axes.
+            let r = |v: [f64; 2]| ext[0] * v[0].abs() + ext[1] * v[1].abs();
+            let on_u = (c[0] * u[0] + c[1] * u[1]).abs() <= bu + r(u);
+            let on_n = (c[0] * n[0] + c[1] * n[1]).abs() <= bn + r(n);
+            on_x && on_y && on_u && on_n
+        })
+    }
+}
+
+/// One point of a profile.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ProfilePoint {
+    pub place: Place,
+    /// Real-world coordinates.
+    pub position: [f64; 3],
+}
+
+/// The points of a corridor, with their stored rows (every attribute), in reading order.
+#[derive(Debug, Clone)]
+pub struct Profile {
+    pub corridor: Corridor,
+    pub points: Vec<ProfilePoint>,
+    /// The points' rows in the dataset's row layout, one per point in order.
+    pub rows: Vec<u8>,
+    pub layout: RowLayout,
+    /// The deepest level read, and its point spacing.
+    pub level: u32,
+    pub spacing: f64,
+    /// Points read from the dataset (of the nodes the corridor crosses).
+    pub points_read: u64,
+    /// Whether the levels down to the asked spacing were all read (else the cap on points
+    /// read stopped it).
+    pub complete: bool,
+}
+
+/// How detailed a profile is read.
+#[derive(Debug, Clone, Copy)]
+pub struct ProfileDetail {
+    /// Levels are read until their point spacing is at most this (0: every level).
+    pub spacing: f64,
+    /// A level is not started when it would take the points read past this.
+    pub max_points_read: u64,
+}
+
+/// Reads the profile of `corridor`, calling `on_level` with what there is after each level.
+pub fn extract(
+    ds: &StreamDataset,
+    corridor: &Corridor,
+    detail: ProfileDetail,
+    mut on_level: impl FnMut(&Profile),
+) -> Result<Profile, ViewerError> {
+    corridor
+        .check()
+        .map_err(|what| ViewerError::argument(format!("{:?}", corridor.line), what))?;
+    let m = ds.metadata();
+    let layout = m.row_layout();
+    let mut out = Profile {
+        corridor: corridor.clone(),
+        points: Vec::new(),
+        rows: Vec::new(),
+        layout: layout.clone(),
+        level: 0,
+        spacing: f64::INFINITY,
+        points_read: 0,
+        complete: true,
+    };
+    let mut tree = Tree::default();
+    tree.add_page(ds.root_hierarchy_page());
+    let mut level: Vec<NodeInfo> = tree.node(NodeKey::ROOT).copied().into_iter().collect();
+    let mut depth = 0u32;
+    while !level.is_empty() {
+        let cost: u64 = level.iter().map(|n| n.point_count as u64).sum();
+        if depth > 0 && out.points_read + cost > detail.max_points_read {
+            out.complete = false;
+            break;
+        }
+        for info in &level {
+            if info.point_count > 0 {
+                read_node(ds, info, corridor, &mut out)?;
+            }
+        }
+        out.level = depth;
+        out.spacing = ds.node_spacing(NodeKey::ROOT) as f64 / (1u64 << depth) as f64;
+        on_level(&out);
+        if out.spacing <= detail.spacing {
+            break;
+        }
+        level = children(ds, &mut tree, &level, corridor)?;
+        depth += 1;
+    }
+    Ok(out)
+}
+
+/// The real-world horizontal rectangle of node `key`'s cube.
+fn node_rect(ds: &StreamDataset, key: NodeKey) -> ([f64; 2], [f64; 2]) {
+    let m = ds.metadata();
+    let (min, edge) = key.int_bounds(m.cube.min, m.cube.bits);
+    let at = |i: usize, v: i64| m.offset[i] + m.scale[i] * v as f64;
+    (
+        [at(0, min[0]), at(1, min[1])],
+        [at(0, min[0] + edge), at(1, min[1] + edge)],
+    )
+}
+
+/// The children of `level` whose cubes the corridor crosses, loading hierarchy pages as needed.
+fn children(
+    ds: &StreamDataset,
+    tree: &mut Tree,
+    level: &[NodeInfo],
+    corridor: &Corridor,
+) -> Result<Vec<NodeInfo>, ViewerError> {
+    let mut next = Vec::new();
+    for info in level {
+        if info.child_mask == 0 {
+            continue;
+        }
+        // 1.1: the page below a proxy holds its children.
+        if let Some(page) = tree.unloaded_page(info.key) {
+            tree.add_page(&ds.load_page(&page)?);
+        }
+        for octant in 0..8u8 {
+            if info.child_mask & (1 << octant) == 0 {
+                continue;
+            }
+            let child = info.key.child(octant);
+            let (min, max) = node_rect(ds, child);
+            if !corridor.meets(min, max) {
+                continue;
+            }
+            // 1.0: a child proxy is known only from its own page.
+            if tree.node(child).is_none()
+                && let Some(page) = tree.unloaded_page(child)
+            {
+                tree.add_page(&ds.load_page(&page)?);
+            }
+            if let Some(c) = tree.node(child) {
+                next.push(*c);
+            }
+        }
+    }
+    Ok(next)
+}
+
+fn read_node(
+    ds: &StreamDataset,
+    info: &NodeInfo,
+    corridor: &Corridor,
+    out: &mut Profile,
+) -> Result<(), ViewerError> {
+    let m = ds.metadata();
+    let cols = ds.read_columns(info)?;
+    out.points_read += cols.count as u64;
+    let rows = cols.to_rows(&out.layout);
+    let stride = out.layout.stride;
+    for i in 0..cols.count {
+        let int = cols.position(i);
+        let p: [f64; 3] = std::array::from_fn(|k| {
+            to_decimals(m.offset[k] + m.scale[k] * int[k] as f64, m.scale[k])
+        });
+        if let Some(place) = corridor.place(p[0], p[1]) {
+            out.points.push(ProfilePoint { place, position: p });
+            out.rows
+                .extend_from_slice(&rows[i * stride..(i + 1) * stride]);
+        }
+    }
+    Ok(())
+}
+
+impl Profile {
+    /// The columns of [`Profile::write_csv`]: distance, offset, x, y, z, then each attribute
+    /// (`name` or `name_0`, `name_1`, ... for several components).
+    pub fn csv_header(&self) -> Vec<String> {
+        let mut h: Vec<String> = ["distance", "offset", "x", "y", "z"]
+            .map(String::from)
+            .to_vec();
+        for a in &self.layout.attributes {
+            if a.count == 1 {
+                h.push(a.name.clone());
+            } else {
+                h.extend((0..a.count).map(|c| format!("{}_{c}", a.name)));
+            }
+        }
+        h
+    }
+
+    /// Writes the profile as CSV, through a temporary name.
+    pub fn write_csv(&self, path: &Path) -> Result<(), ViewerError> {
+        let fail = |e: std::io::Error| ViewerError::output(path, format!("cannot write ({e})"));
+        let mut part = path.as_os_str().to_owned();
+        part.push(".part");
+        let part = std::path::PathBuf::from(part);
+        let write = || -> std::io::Result<()> {
+            let mut w = std::io::BufWriter::new(std::fs::File::create(&part)?);
+            writeln!(w, "{}", self.csv_header().join(","))?;
+            let stride = self.layout.stride;
+            for (i, p) in self.points.iter().enumerate() {
+                let [x, y, z] = p.position;
+                write!(w, "{:.4},{:.4},{x},{y},{z}", p.place.along, p.place.offset)?;
+                let row = &self.rows[i * stride..(i + 1) * stride];
+                for (k, a) in self.layout.attributes.iter().enumerate() {
+                    let at = self.layout.offsets[k];
+                    for v in attribute_values(a, &row[at..at + a.size()]) {
+                        write!(w, ",{v}")?;
+                    }
+                }
+                writeln!(w)?;
+            }
+            w.into_inner().map_err(|e| e.into_error())?.sync_all()
+        };
+        write()
+            .and_then(|_| std::fs::rename(&part, path))
+            .map_err(|e| {
+                let _ = std::fs::remove_file(&part);
+                fail(e)
+            })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_point_lies_across_the_nearest_segment_within_half_the_width() {
+        let c = Corridor::parse("0,0; 10,0; 10,10", 2.0).expect("parses");
+        assert_eq!(c.length(), 20.0);
+        let p = c.place(4.0, 0.5).expect("inside");
+        assert_eq!((p.along, p.offset), (4.0, 0.5));
+        let p = c.place(10.5, 6.0).expect("on the second segment");
+        assert_eq!((p.along, p.offset), (16.0, -0.5));
+        assert!(c.place(4.0, 1.5).is_none());
+        assert!(c.place(-0.5, 0.0).is_none(), "before the start");
+        // Boxes: one across the line, one beside it, one far off.
+        assert!(c.meets([3.0, -5.0], [4.0, 5.0]));
+        assert!(c.meets([10.9, 4.0], [12.0, 5.0]));
+        assert!(!c.meets([3.0, 1.5], [4.0, 5.0]));
+        assert!(!c.meets([20.0, 20.0], [30.0, 30.0]));
+        // A diagonal line: the box beside its end is not crossed, the one on it is.
+        let d = Corridor::parse("0,0;10,10", 1.0).expect("parses");
+        assert!(d.meets([4.0, 4.0], [5.0, 5.0]));
+        assert!(!d.meets([0.0, 8.0], [2.0, 10.0]));
+        for (bad, says) in [
+            ("0,0", "at least two"),
+            ("0,0;a,1", "X,Y;X,Y"),
+            ("1,1;1,1", "no length"),
+        ] {
+            let e = Corridor::parse(bad, 1.0).expect_err(bad).to_string();
+            assert!(e.contains(says), "{bad}: {e}");
+        }
+        assert!(Corridor::parse("0,0;1,1", 0.0).is_err());
+    }
+}
