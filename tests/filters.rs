@@ -128,8 +128,8 @@ fn a_wrong_filter_is_refused_in_one_sentence() {
     let ds = &dataset();
     for (args, names) in [
         (
-            &["--filter", "gps_time=1..2"][..],
-            &["gps_time", "intensity, elevation"][..],
+            &["--filter", "gps=1..2"][..],
+            &["\"gps\"", "elevation, intensity", "gps_time"][..],
         ),
         (&["--filter", "elevation=9..1"], &["elevation", "LOW..HIGH"]),
         (
@@ -256,4 +256,64 @@ fn the_conversion_records_the_points_of_every_class() {
     let info = common::run_ok(&["info", s(&dataset())]);
     let text = String::from_utf8_lossy(&info.stdout);
     assert!(text.contains("ground"), "{text}");
+}
+
+fn drawn(extra: &[&str], tag: &str) -> u64 {
+    render_stats(extra, tag)["frames"][0]["points_drawn"]
+        .as_u64()
+        .expect("points_drawn")
+}
+
+#[test]
+fn points_drawn_counts_what_the_filters_let_through_gps_time_included() {
+    let all = drawn(&[], "count-all");
+    let ground = drawn(&["--classes", "2"], "count-ground");
+    let rest = drawn(&["--hide-classes", "2"], "count-rest");
+    assert!(ground > 0 && rest > 0, "{ground} + {rest}");
+    assert_eq!(ground + rest, all, "ground and the rest are not all drawn");
+    assert_eq!(
+        drawn(
+            &["--hide-classes", "2", "--projection", "int32"],
+            "count-rest32"
+        ),
+        rest
+    );
+
+    // GPS time, which the GPU does not hold: two ranges that split the stored times between
+    // two of them draw all points between them, and picks inside a range are in it.
+    let dir = tempfile::tempdir().expect("tempdir");
+    let exported = dir.path().join("all.las");
+    common::run_ok(&["export", s(&dataset()), "-o", s(&exported)]);
+    let mut times: Vec<f64> = common::las_points(&exported)
+        .0
+        .iter()
+        .map(|(_, a)| f64::from_bits(a[12] as u64))
+        .collect();
+    times.sort_by(f64::total_cmp);
+    times.dedup();
+    let mid = times.len() / 2;
+    let (first, last) = (times[0], times[times.len() - 1]);
+    let early = format!("gps_time={first}..{}", times[mid]);
+    let late = format!("gps_time={}..{last}", times[mid + 1]);
+    let (a, b) = (
+        drawn(&["--filter", &early], "count-early"),
+        drawn(&["--filter", &late], "count-late"),
+    );
+    assert!(a > 0 && b > 0, "{a} + {b}");
+    assert_eq!(
+        a + b,
+        all,
+        "the two halves of the GPS times do not make all"
+    );
+    for pipeline in ["points", "pyramid"] {
+        let mut picked = 0;
+        for pixel in ["160,120", "120,110", "200,130", "100,130"] {
+            if let Some(p) = pick(pipeline, pixel, &["--filter", &late]) {
+                let t = attribute(&p, "gps_time");
+                assert!(t >= times[mid + 1] && t <= last, "{pipeline} {pixel}: {t}");
+                picked += 1;
+            }
+        }
+        assert!(picked >= 2, "{pipeline}: only {picked} picks");
+    }
 }

@@ -168,8 +168,12 @@ fn opening_over_http_takes_one_round_trip_before_the_root_node() {
     assert_eq!(log.len(), 4, "{log:?}");
     assert_eq!(log[3].0, 2);
     let root = ds.root_hierarchy_page().root_node().expect("root node");
-    ds.load_node(&root, strata_viewer::dataset::ColourWord::Stored)
-        .expect("root node");
+    ds.load_node(
+        &root,
+        strata_viewer::dataset::ColourWord::Stored,
+        &Default::default(),
+    )
+    .expect("root node");
     assert_eq!(server.log().len(), 4, "the root node is not fetched twice");
 }
 

@@ -339,11 +339,12 @@ fn a_frame_larger_than_the_adapter_holds_is_an_error_and_the_fitted_size_renders
 }
 
 /// The projection's passes, in the order they can run (`projection::PASSES`).
-const PROJECTION_PASSES: [&str; 6] = [
+const PROJECTION_PASSES: [&str; 7] = [
     "clear",
     "project",
     "project_depth",
     "project_index",
+    "count drawn",
     "unpack",
     "resolve",
 ];
@@ -418,7 +419,13 @@ fn every_declared_pass_runs_and_the_stats_list_them_in_run_order() {
         };
         // The 32-bit path too: passes that replace a 64-bit one there (the triangulation's
         // two search passes) run only on it.
-        let mut runs: Vec<&[&str]> = vec![&[], &["--separate-passes"], &["--projection", "int32"]];
+        // A filter adds the count of the points it lets through.
+        let mut runs: Vec<&[&str]> = vec![
+            &[],
+            &["--separate-passes"],
+            &["--projection", "int32"],
+            &["--hide-classes", "7"],
+        ];
         if has("layers") {
             runs.push(&["--set", "layers=2"]);
         }

@@ -221,10 +221,18 @@ fn a_1_0_dataset_still_opens_verifies_and_reads_the_same_points() {
         assert_eq!(cx.bytes, cy.bytes, "node {}", x.key);
         let (gx, gy) = (
             viewer_new
-                .load_node(x, strata_viewer::dataset::ColourWord::Stored)
+                .load_node(
+                    x,
+                    strata_viewer::dataset::ColourWord::Stored,
+                    &Default::default(),
+                )
                 .expect("viewer 1.1"),
             viewer_old
-                .load_node(y, strata_viewer::dataset::ColourWord::Stored)
+                .load_node(
+                    y,
+                    strata_viewer::dataset::ColourWord::Stored,
+                    &Default::default(),
+                )
                 .expect("viewer 1.0"),
         );
         assert_eq!(gx.points, gy.points, "node {}", x.key);

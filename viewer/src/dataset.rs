@@ -1,6 +1,7 @@
 //! An open dataset seen through a `Source`: metadata, hierarchy pages on demand, and nodes decoded
 //! into the GPU point format.
 
+use crate::marks::Marks;
 use crate::pipelines::PointStream;
 use crate::settings::ColourMode;
 use crate::streams::{NormalKind, StreamSource, normal_attribute};
@@ -21,6 +22,8 @@ pub struct GpuNode {
     pub key: NodeKey,
     /// What the colours' RGB bytes hold.
     pub colours: ColourWord,
+    /// The attribute ranges its points were marked by (`MARK_HIDDEN`).
+    pub marks: Marks,
     pub points: Vec<[u32; 4]>,
     pub attributes: Vec<u32>,
     /// Per-point streams beyond position and colour that the dataset stores (normals, radius),
@@ -280,7 +283,7 @@ impl StreamDataset {
         load_page(self.source.as_ref(), &self.metadata, page)
     }
 
-    pub(crate) fn read_columns(&self, info: &NodeInfo) -> Result<NodeColumns, ViewerError> {
+    pub fn read_columns(&self, info: &NodeInfo) -> Result<NodeColumns, ViewerError> {
         let payload = self
             .source
             .read(DatasetFile::Octree, info.offset, info.size as u64)?;
@@ -298,19 +301,25 @@ impl StreamDataset {
         })
     }
 
-    /// Reads, verifies, decompresses and converts one node, its colours' RGB holding `colours`.
-    pub fn load_node(&self, info: &NodeInfo, colours: ColourWord) -> Result<GpuNode, ViewerError> {
+    /// Reads, verifies, decompresses and converts one node, its colours' RGB holding `colours`
+    /// and its points outside `marks` marked.
+    pub fn load_node(
+        &self,
+        info: &NodeInfo,
+        colours: ColourWord,
+        marks: &Marks,
+    ) -> Result<GpuNode, ViewerError> {
         let mut kept = self
             .root_node
             .lock()
             .unwrap_or_else(PoisonError::into_inner);
         if let Some((root, columns)) = kept.take_if(|(root, _)| root == info) {
             drop(kept);
-            return Ok(self.to_gpu(&root, &columns, colours));
+            return Ok(self.to_gpu(&root, &columns, colours, marks));
         }
         drop(kept);
         let columns = self.read_columns(info)?;
-        Ok(self.to_gpu(info, &columns, colours))
+        Ok(self.to_gpu(info, &columns, colours, marks))
     }
 
     fn learn_colour(&self, root: &NodeColumns) -> ColourSource {
@@ -361,7 +370,20 @@ impl StreamDataset {
         c
     }
 
-    fn to_gpu(&self, info: &NodeInfo, cols: &NodeColumns, colours: ColourWord) -> GpuNode {
+    /// The ranges of `filter` on attributes the GPU does not hold, resolved against the
+    /// dataset; an unknown attribute is refused, naming the ones there are.
+    pub fn marks(&self, filter: &crate::settings::PointFilter) -> Result<Marks, ViewerError> {
+        Marks::resolve(&self.layout, &filter.attributes, &self.location())
+    }
+
+    fn to_gpu(
+        &self,
+        info: &NodeInfo,
+        cols: &NodeColumns,
+        colours: ColourWord,
+        marks: &Marks,
+    ) -> GpuNode {
+        let hidden = marks.words(&self.layout, cols);
         let n = cols.count;
         let m = &self.metadata;
         let base = DVec3::from_array(m.offset) - self.anchor;
@@ -435,11 +457,12 @@ impl StreamDataset {
                 (z as f32).to_bits(),
                 colour,
             ]);
-            attributes.push(inten | (cls << 16) | (ret << 24));
+            attributes.push(inten | (cls << 16) | (ret << 24) | hidden[p]);
         }
         GpuNode {
             key: info.key,
             colours,
+            marks: marks.clone(),
             points,
             attributes,
             streams: self.streams.streams(&self.layout, cols),

@@ -88,8 +88,10 @@ pub fn render(location: &str, opts: &RenderOptions) -> Result<RenderReport, View
         ..HttpOptions::default()
     };
     let ds = Arc::new(StreamDataset::open(location, http)?);
-    // Before the GPU is opened: a colouring the dataset cannot give is refused at once.
+    // Before the GPU is opened: a colouring or a filter the dataset cannot give is refused at
+    // once.
     ds.check_colour(opts.settings.colour)?;
+    ds.marks(&opts.settings.filter)?;
     let ctx = Arc::new(GpuContext::new(opts.projection)?);
     render_with(ds, ctx, opts, t0)
 }
@@ -136,6 +138,9 @@ pub fn render_with(
             let mut stats = renderer.frame(camera, opts.width, opts.height, &opts.settings)?;
             renderer.wait_gpu()?;
             stats.passes = renderer.pass_times();
+            stats.points_drawn = renderer
+                .counted_points_drawn()
+                .unwrap_or(stats.points_drawn);
             stats.frame_ms = frame_start.elapsed().as_secs_f64() * 1e3;
             if report.time_to_first_image_ms.is_none() && stats.points_drawn > 0 {
                 report.time_to_first_image_ms = Some(t0.elapsed().as_secs_f64() * 1e3);
@@ -166,7 +171,9 @@ pub fn render_with(
             for _ in 0..warmup {
                 let s = renderer.frame(camera, opts.width, opts.height, &opts.settings)?;
                 renderer.wait_gpu()?;
+                let points_drawn = renderer.counted_points_drawn().unwrap_or(s.points_drawn);
                 report.warmup.push(FrameStats {
+                    points_drawn,
                     measures: renderer.read_measures()?,
                     passes: renderer.pass_times(),
                     ..s
@@ -175,6 +182,7 @@ pub fn render_with(
             let mut s = renderer.frame(camera, opts.width, opts.height, &opts.settings)?;
             renderer.wait_gpu()?;
             s.passes = renderer.pass_times();
+            s.points_drawn = renderer.counted_points_drawn().unwrap_or(s.points_drawn);
             s.bytes_loaded += stats.bytes_loaded;
             s
         } else {

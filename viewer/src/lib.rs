@@ -11,6 +11,7 @@ pub mod headless;
 mod http_source;
 pub mod loader;
 pub mod lod;
+pub mod marks;
 pub mod measure;
 pub mod overlay;
 pub mod pick;

@@ -4,9 +4,9 @@
 
 use crate::ViewerError;
 use crate::dataset::{ColourWord, GpuNode, StreamDataset};
+use crate::marks::Marks;
 use crossbeam_channel::{Receiver, Sender, unbounded};
 use std::collections::HashSet;
-use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Arc, Condvar, Mutex, PoisonError};
 use std::thread::JoinHandle;
 use strata_format::{HierarchyPage, NodeInfo, NodeKey, PageRef};
@@ -51,8 +51,9 @@ struct Queue {
 struct Shared {
     queue: Mutex<Queue>,
     wake: Condvar,
-    /// Nodes are loaded with their normals as colours (`ColourWord::Normal`).
-    normal_colours: AtomicBool,
+    /// What nodes are loaded with: their colour word (normals as colours, or the stored
+    /// ones) and the attribute ranges their points are marked by.
+    form: Mutex<(ColourWord, Marks)>,
 }
 
 pub struct Loader {
@@ -66,7 +67,7 @@ impl Loader {
         let shared = Arc::new(Shared {
             queue: Mutex::new(Queue::default()),
             wake: Condvar::new(),
-            normal_colours: AtomicBool::new(false),
+            form: Mutex::new((ColourWord::Stored, Marks::default())),
         });
         let (tx, rx) = unbounded();
         let threads = (0..threads.max(1))
@@ -102,16 +103,18 @@ impl Loader {
         self.shared.wake.notify_all();
     }
 
-    /// What the colours of nodes loaded from now on hold; nodes already in flight keep what
-    /// they were started with (`GpuNode::colours` says).
-    pub fn set_colour_word(&self, colours: ColourWord) {
-        self.shared
-            .normal_colours
-            .store(colours == ColourWord::Normal, Ordering::Release);
+    /// What nodes loaded from now on hold: the colour word and the marked ranges; nodes
+    /// already in flight keep what they were started with (`GpuNode::colours`, `marks`).
+    pub fn set_form(&self, colours: ColourWord, marks: Marks) {
+        *self
+            .shared
+            .form
+            .lock()
+            .unwrap_or_else(PoisonError::into_inner) = (colours, marks);
     }
 
-    pub fn colour_word(&self) -> ColourWord {
-        colour_word(&self.shared)
+    pub fn form(&self) -> (ColourWord, Marks) {
+        form(&self.shared)
     }
 
     pub fn is_busy(&self, key: JobKey) -> bool {
@@ -175,7 +178,7 @@ fn worker(shared: &Shared, ds: &StreamDataset, tx: &Sender<Done>) {
             }
         };
         let done = match job {
-            Job::Node(info) => match ds.load_node(&info, colour_word(shared)) {
+            Job::Node(info) => match load(shared, ds, &info) {
                 Ok(node) => Done::Node(node),
                 Err(e) => Done::NodeFailed(info.key, e),
             },
@@ -197,10 +200,15 @@ fn worker(shared: &Shared, ds: &StreamDataset, tx: &Sender<Done>) {
     }
 }
 
-fn colour_word(shared: &Shared) -> ColourWord {
-    if shared.normal_colours.load(Ordering::Acquire) {
-        ColourWord::Normal
-    } else {
-        ColourWord::Stored
-    }
+fn load(shared: &Shared, ds: &StreamDataset, info: &NodeInfo) -> Result<GpuNode, ViewerError> {
+    let (colours, marks) = form(shared);
+    ds.load_node(info, colours, &marks)
+}
+
+fn form(shared: &Shared) -> (ColourWord, Marks) {
+    shared
+        .form
+        .lock()
+        .unwrap_or_else(PoisonError::into_inner)
+        .clone()
 }

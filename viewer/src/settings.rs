@@ -121,8 +121,18 @@ impl ClipBox {
     }
 }
 
-/// Which points are drawn: classes shown, and ranges of intensity, elevation and return
-/// number. Applied in the projection, so hidden points leave no hole in any pipeline.
+/// A range of any other numeric attribute (GPS time, point source, an extra attribute),
+/// inclusive, in its real (scaled) values.
+#[derive(Debug, Clone, PartialEq)]
+pub struct AttributeRange {
+    pub name: String,
+    pub lo: f64,
+    pub hi: f64,
+}
+
+/// Which points are drawn: classes shown, and ranges of intensity, elevation, return number
+/// and any other numeric attribute. Applied in the projection, so hidden points leave no hole
+/// in any pipeline.
 #[derive(Debug, Clone, Default, PartialEq)]
 pub struct PointFilter {
     /// The classes shown (bit c of word c / 32); `None`: every class.
@@ -132,13 +142,17 @@ pub struct PointFilter {
     /// Real-world elevation (z), inclusive.
     pub elevation: Option<(f64, f64)>,
     pub return_number: Option<(u32, u32)>,
+    /// Ranges of the attributes the GPU's attribute word does not hold: the loader marks the
+    /// points outside them (a change loads the nodes again), the projection hides the marked.
+    pub attributes: Vec<AttributeRange>,
     /// Clip boxes: kept inside any box that keeps its inside, hidden inside any that keeps
     /// its outside. They also bound which nodes are loaded.
     pub clips: Vec<ClipBox>,
 }
 
 impl PointFilter {
-    /// Attributes `--filter` takes.
+    /// Attributes `--filter` takes from the attribute word on the GPU; any other numeric
+    /// attribute of the dataset is taken too (`attributes`).
     pub const RANGES: [&'static str; 3] = ["intensity", "elevation", "return_number"];
 
     /// Shows only `classes` (`only`), or hides them.
@@ -204,11 +218,15 @@ impl PointFilter {
                 }
                 self.return_number = Some((lo as u32, hi as u32));
             }
+            "" => return Err(fail("expected NAME=LOW..HIGH".into())),
             other => {
-                return Err(fail(format!(
-                    "no filter on {other:?} (there are {})",
-                    Self::RANGES.join(", ")
-                )));
+                // Checked against the dataset's attributes when it is opened.
+                self.attributes.retain(|a| a.name != other);
+                self.attributes.push(AttributeRange {
+                    name: other.to_string(),
+                    lo,
+                    hi,
+                });
             }
         }
         Ok(())

@@ -67,7 +67,67 @@ impl ViewerApp {
                 range_control(ui, "return number", &mut returns, (0.0, 15.0));
                 self.settings.filter.return_number =
                     returns.map(|(a, b)| (a.round() as u32, b.round() as u32));
+                self.attribute_range_controls(ui);
             });
+    }
+
+    /// A range of any other one-valued attribute (GPS time, point source, extra attributes).
+    /// Points are marked when their node loads, so a range applies on a click, not while
+    /// its ends are dragged: each change loads the nodes again.
+    fn attribute_range_controls(&mut self, ui: &mut egui::Ui) {
+        let ranges = self
+            .attribute_ranges
+            .get_or_insert_with(|| {
+                crate::marks::attribute_ranges(self.renderer.dataset()).unwrap_or_default()
+            })
+            .clone();
+        if ranges.is_empty() {
+            return;
+        }
+        ui.label("other attribute (applied on a click)");
+        let edit = &mut self.attribute_edit;
+        let chosen = ranges.iter().find(|r| r.0 == edit.0).or(ranges.first());
+        let Some((name, lo, hi)) = chosen.cloned() else {
+            return;
+        };
+        if edit.0 != name {
+            *edit = (name.clone(), lo, hi);
+        }
+        egui::ComboBox::from_id_salt("attribute range")
+            .selected_text(&edit.0)
+            .show_ui(ui, |ui| {
+                for (n, l, h) in &ranges {
+                    if ui.selectable_label(*n == edit.0, n).clicked() {
+                        *edit = (n.clone(), *l, *h);
+                    }
+                }
+            });
+        let step = ((hi - lo) / 200.0).max(1e-6);
+        ui.horizontal(|ui| {
+            ui.add(egui::DragValue::new(&mut edit.1).speed(step));
+            ui.label("to");
+            ui.add(egui::DragValue::new(&mut edit.2).speed(step));
+        });
+        ui.horizontal(|ui| {
+            if ui.button("Apply").clicked() {
+                let assignment = format!("{}={}..{}", edit.0, edit.1, edit.2);
+                self.attribute_error = self
+                    .settings
+                    .filter
+                    .set_range(&assignment)
+                    .err()
+                    .map(|e| e.to_string());
+            }
+            if ui.button("Clear").clicked() {
+                self.settings.filter.attributes.clear();
+            }
+        });
+        for a in &self.settings.filter.attributes {
+            ui.label(egui::RichText::new(format!("{} {}..{}", a.name, a.lo, a.hi)).small());
+        }
+        if let Some(e) = &self.attribute_error {
+            ui.colored_label(egui::Color32::LIGHT_RED, e);
+        }
     }
 }
 

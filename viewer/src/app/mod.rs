@@ -16,6 +16,7 @@ use std::time::Instant;
 
 mod filters;
 mod measure;
+mod navigate;
 mod params;
 mod profile;
 mod views;
@@ -65,6 +66,11 @@ struct ViewerApp {
     error: Option<String>,
     views: views::Views,
     measuring: measure::Measuring,
+    /// The attributes a range may be set on, with their ranges in the root node (read once).
+    attribute_ranges: Option<Vec<(String, f64, f64)>>,
+    /// The attribute range being edited in the panel, and why the last one was refused.
+    attribute_edit: (String, f64, f64),
+    attribute_error: Option<String>,
     profiling: profile::Profiling,
     /// The point last clicked, as stored (or why none could be read).
     picked: Option<Result<crate::pick::PickedPoint, String>>,
@@ -83,6 +89,7 @@ pub fn run_window(location: &str, opts: WindowOptions) -> Result<(), ViewerError
     };
     let ds = Arc::new(StreamDataset::open(location, http)?);
     ds.check_colour(opts.settings.colour)?;
+    ds.marks(&opts.settings.filter)?;
     let ctx = Arc::new(GpuContext::new(opts.projection)?);
     let renderer = Renderer::new(
         ctx.clone(),
@@ -103,6 +110,9 @@ pub fn run_window(location: &str, opts: WindowOptions) -> Result<(), ViewerError
         error: None,
         views: views::Views::open(location),
         measuring: measure::Measuring::open(location, opts.measurements),
+        attribute_ranges: None,
+        attribute_edit: (String::new(), 0.0, 1.0),
+        attribute_error: None,
         profiling: profile::Profiling::new(opts.points_writer),
         picked: None,
         reduced: None,
@@ -414,134 +424,6 @@ impl ViewerApp {
             self.paint_measurements(ui.painter(), rect, size);
             self.paint_profile(ui.painter(), rect, size);
         }
-    }
-
-    fn navigate(&mut self, ui: &egui::Ui, response: &egui::Response, rect: egui::Rect) {
-        let size = rect.size();
-        if response.dragged_by(egui::PointerButton::Primary) && !ui.input(|i| i.modifiers.shift) {
-            let d = response.drag_delta();
-            self.camera.orbit(d.x / size.x * 4.0, d.y / size.y * 3.0);
-        } else if response.dragged_by(egui::PointerButton::Secondary)
-            || response.dragged_by(egui::PointerButton::Middle)
-            || response.dragged_by(egui::PointerButton::Primary)
-        {
-            let d = response.drag_delta();
-            self.camera.pan(d.x / size.y, d.y / size.y);
-        }
-        if response.hovered() {
-            let scroll = ui.input(|i| i.smooth_scroll_delta.y);
-            if scroll != 0.0 {
-                self.camera.zoom((-scroll * 0.002).exp());
-            }
-        }
-        if response.clicked()
-            && let Some(pos) = response.interact_pointer_pos()
-        {
-            self.pick(pos, rect);
-        }
-        if response.double_clicked()
-            && let Some(pos) = response.interact_pointer_pos()
-        {
-            self.focus(pos, rect);
-        }
-        let dt = ui.input(|i| i.stable_dt).min(0.1);
-        let fast = if ui.input(|i| i.modifiers.shift) {
-            4.0
-        } else {
-            1.0
-        };
-        let step = self.scene_size * 0.25 * dt * fast;
-        let keys = ui.input(|i| {
-            let k = |key| if i.key_down(key) { 1.0 } else { 0.0 };
-            (
-                k(egui::Key::W) - k(egui::Key::S),
-                k(egui::Key::D) - k(egui::Key::A),
-                k(egui::Key::E) - k(egui::Key::Q),
-                i.key_pressed(egui::Key::R),
-            )
-        });
-        if ui.ctx().egui_wants_keyboard_input() {
-            return;
-        }
-        if keys.0 != 0.0 || keys.1 != 0.0 || keys.2 != 0.0 {
-            self.camera.fly(keys.0 * step, keys.1 * step, keys.2 * step);
-            ui.ctx().request_repaint();
-        }
-        if keys.3 {
-            self.camera = self.home;
-        }
-    }
-
-    /// The image pixel under a window position (the image may be smaller than the window).
-    fn image_pixel(&self, pos: egui::Pos2, rect: egui::Rect) -> Option<(u32, u32)> {
-        let output = self.renderer.output()?;
-        let (w, h) = (output.width(), output.height());
-        let x = (pos.x - rect.min.x) / rect.width().max(1.0) * w as f32;
-        let y = (pos.y - rect.min.y) / rect.height().max(1.0) * h as f32;
-        (x >= 0.0 && y >= 0.0 && x < w as f32 && y < h as f32).then_some((x as u32, y as u32))
-    }
-
-    /// Reads the stored point under a click for the panel.
-    fn pick(&mut self, pos: egui::Pos2, rect: egui::Rect) {
-        let Some((x, y)) = self.image_pixel(pos, rect) else {
-            return;
-        };
-        self.picked = match self.renderer.pick(x, y, 8) {
-            Ok(Some(p)) => {
-                if self.profiling.drawing {
-                    self.profiling.line.push(p.position);
-                } else {
-                    self.measuring.add(&p);
-                }
-                Some(Ok(p))
-            }
-            Ok(None) => None,
-            Err(e) => Some(Err(e.to_string())),
-        };
-    }
-
-    /// Centres the view on the point under the cursor (the nearest drawn pixel within 8).
-    fn focus(&mut self, pos: egui::Pos2, rect: egui::Rect) {
-        let Ok(depths) = self.renderer.read_depths() else {
-            return;
-        };
-        let Some(output) = self.renderer.output() else {
-            return;
-        };
-        let (w, h) = (output.width(), output.height());
-        // The image may be smaller than the window (the adapter's limits): scale to it.
-        let px = ((pos.x - rect.min.x) / rect.width().max(1.0) * w as f32) as i32;
-        let py = ((pos.y - rect.min.y) / rect.height().max(1.0) * h as f32) as i32;
-        let mut best: Option<(i32, i32, f32)> = None;
-        for dy in -8..=8 {
-            for dx in -8..=8 {
-                let (x, y) = (px + dx, py + dy);
-                if x < 0 || y < 0 || x >= w as i32 || y >= h as i32 {
-                    continue;
-                }
-                if let Some(Some(d)) = depths.get((y as u32 * w + x as u32) as usize).copied()
-                    && best
-                        .is_none_or(|b| dx * dx + dy * dy < (b.0 - px).pow(2) + (b.1 - py).pow(2))
-                {
-                    best = Some((x, y, d));
-                }
-            }
-        }
-        let Some((x, y, depth)) = best else { return };
-        let view = self.camera.view();
-        let aspect = w as f32 / h as f32;
-        let inv = (self.camera.projection(aspect, 0.1, 10.0) * view).inverse();
-        let ndc = glam::Vec2::new(
-            (x as f32 + 0.5) / w as f32 * 2.0 - 1.0,
-            1.0 - (y as f32 + 0.5) / h as f32 * 2.0,
-        );
-        let far = inv.project_point3(ndc.extend(1.0));
-        let dir = (far - self.camera.eye).normalize_or_zero();
-        let forward = self.camera.forward();
-        let point = self.camera.eye + dir * (depth / dir.dot(forward).max(1e-3));
-        let offset = (self.camera.eye - point) * 0.5;
-        self.camera.target = point;
-        self.camera.eye = point + offset;
     }
 
     fn take_screenshot(&mut self, ctx: &egui::Context) {

@@ -427,6 +427,7 @@ mod stream_tests {
                 z: 0,
             },
             colours: Default::default(),
+            marks: Default::default(),
             points: vec![[0; 4]; points],
             attributes: vec![0; points],
             streams: Vec::new(),

@@ -169,9 +169,12 @@ fn shared_constants_agree() {
     assert_eq!(wgsl_const(&project, "GROUP_SIZE"), GROUP_SIZE as u64);
     assert_eq!(wgsl_const(&project, "EMPTY"), EMPTY as u64);
     use super::projection::{
-        FILTER_CLASSES, FILTER_CLIP, FILTER_ELEVATION, FILTER_INTENSITY, FILTER_RETURN,
+        FILTER_CLASSES, FILTER_CLIP, FILTER_ELEVATION, FILTER_INTENSITY, FILTER_MARKED,
+        FILTER_RETURN,
     };
     for (name, v) in [
+        ("FILTER_MARKED", FILTER_MARKED),
+        ("MARK_HIDDEN", crate::marks::MARK_HIDDEN),
         ("FILTER_CLIP", FILTER_CLIP),
         ("FILTER_CLASSES", FILTER_CLASSES),
         ("FILTER_INTENSITY", FILTER_INTENSITY),

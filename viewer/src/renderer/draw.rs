@@ -179,8 +179,13 @@ impl Renderer {
         let cull = info.cull_back_faces
             && self.ds.normals_mark_back_faces()
             && info.streams.contains(&PointStream::Normals);
-        let (ctx, projection, cache, timer) =
-            (&self.ctx, &self.projection, &self.cache, &mut self.timer);
+        let (ctx, projection, cache, timer, count) = (
+            &self.ctx,
+            &self.projection,
+            &self.cache,
+            &mut self.timer,
+            &mut self.drawn_count,
+        );
         let int64 = screen.keys.is_some() && !settings.force_int32;
         let fused = ctx.scoped(&format!("drawing with the {} pipeline", info.name), || {
             let mut encoder = ctx
@@ -203,6 +208,7 @@ impl Renderer {
                     fused: pipeline.fused(params),
                     cull_back_faces: cull,
                 },
+                count,
                 timer,
             );
             if !finished {
@@ -229,6 +235,7 @@ impl Renderer {
             timer.resolve(&mut encoder);
             ctx.queue.submit([encoder.finish()]);
             timer.after_submit();
+            count.after_submit();
             pipeline.after_submit();
             Ok::<bool, ViewerError>(finished)
         })??;
@@ -303,5 +310,8 @@ fn set_filter(u: &mut FrameUniforms, filter: &crate::settings::PointFilter, anch
         u.filters |= FILTER_RETURN;
         u.return_lo = lo;
         u.return_hi = hi;
+    }
+    if !filter.attributes.is_empty() {
+        u.filters |= crate::pipelines::projection::FILTER_MARKED;
     }
 }

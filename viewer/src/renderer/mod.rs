@@ -10,7 +10,9 @@ use crate::gpu::cache::{InsertError, NodeCache};
 use crate::gpu::timing::{PassClock, Timer};
 use crate::loader::{Done, Job, JobKey, Loader};
 use crate::lod::{ClipRegion, Selection, SelectionParams, Tree, drawn_spacing, select};
+use crate::marks::Marks;
 use crate::pipelines::params::ResolvedParams;
+use crate::pipelines::projection::DrawnCount;
 use crate::pipelines::projection::{Projection, Screen, check_screen, largest_fitting};
 use crate::pipelines::{self, Pipeline, PipelineInfo, ScreenBuffer};
 use crate::settings::Settings;
@@ -33,6 +35,10 @@ pub struct Renderer {
     loader: Loader,
     cache: NodeCache,
     projection: Projection,
+    /// The points that pass the filters, counted on the GPU while a filter is set.
+    drawn_count: crate::pipelines::projection::DrawnCount,
+    /// Whether the last frame had a filter (its points drawn are the counted ones).
+    filtered: bool,
     /// Pipelines compiled so far, by name; only the active one holds screen buffers.
     pipelines: HashMap<&'static str, Box<dyn Pipeline>>,
     /// The pipeline whose screen buffers exist.
@@ -82,7 +88,9 @@ impl Renderer {
         tree.add_page(ds.root_hierarchy_page());
         let loader = Loader::new(ds.clone(), loader_threads);
         let cache = NodeCache::new(ctx.max_binding(), gpu_cache_bytes);
-        let projection = ctx.scoped("compiling the projection", || Projection::new(&ctx))??;
+        let (projection, drawn_count) = ctx.scoped("compiling the projection", || {
+            Projection::new(&ctx).map(|p| (p, DrawnCount::new(&ctx.device)))
+        })??;
         let timer = Timer::new(
             &ctx.device,
             &ctx.queue,
@@ -98,6 +106,8 @@ impl Renderer {
             loader,
             cache,
             projection,
+            drawn_count,
+            filtered: false,
             pipelines: HashMap::new(),
             active: None,
             screen: None,
@@ -118,6 +128,15 @@ impl Renderer {
             frame: 0,
             bytes_total: 0,
         })
+    }
+
+    /// The points the last frame's filters let through, counted on the GPU, once read back;
+    /// `None` without a filter (every point of the drawn nodes is drawn) or before any count.
+    pub fn counted_points_drawn(&mut self) -> Option<u64> {
+        if !self.filtered {
+            return None;
+        }
+        self.drawn_count.latest()
     }
 
     pub fn dataset(&self) -> &Arc<StreamDataset> {
@@ -256,11 +275,15 @@ impl Renderer {
             self.accept(done, &mut bytes);
         }
         self.bytes_total += bytes;
-        // Colouring by normal puts the normals where the stored colours were: a change between
-        // that and the rest loads every node again.
-        let colours = self.ds.colour_word(settings.colour);
-        if colours != self.loader.colour_word() {
-            self.loader.set_colour_word(colours);
+        // Colouring by normal puts the normals where the stored colours were, and ranges of
+        // attributes the GPU does not hold are marked at load: a change of either loads every
+        // node again.
+        let form = (
+            self.ds.colour_word(settings.colour),
+            self.ds.marks(&settings.filter)?,
+        );
+        if form != self.loader.form() {
+            self.loader.set_form(form.0, form.1.clone());
             self.cache.clear();
         }
         // The cache holds a pipeline's per-point streams only while that pipeline is active.
@@ -268,7 +291,7 @@ impl Renderer {
         ctx.scoped("uploading nodes to the GPU", || {
             self.cache
                 .set_streams(&ctx.device, settings.pipeline.streams);
-            self.upload(settings);
+            self.upload(settings, &form);
         })?;
 
         let params = SelectionParams {
@@ -345,11 +368,18 @@ impl Renderer {
             &resolved,
         )?;
         self.collect_readbacks();
+        self.filtered = settings.filter != crate::PointFilter::default();
+        // While a filter is set, the count of the points it let through (in the window, of a
+        // frame or two before: it is read back without waiting).
+        let points_drawn = match self.counted_points_drawn() {
+            Some(n) => n,
+            None => sel.draw_points,
+        };
 
         let (queued, in_flight) = self.loader.counts();
         Ok(FrameStats {
             frame: self.frame,
-            points_drawn: sel.draw_points,
+            points_drawn,
             nodes_drawn: sel.draw.len(),
             frame_ms: start.elapsed().as_secs_f64() * 1e3,
             pipeline: info.name,
@@ -390,12 +420,12 @@ impl Renderer {
         })
     }
 
-    fn upload(&mut self, settings: &Settings) {
+    fn upload(&mut self, settings: &Settings, form: &(crate::dataset::ColourWord, Marks)) {
         let mut budget = settings.upload_points_per_frame.unwrap_or(u64::MAX);
         let mut first = true;
         while let Some(node) = self.uploads.front() {
-            // Loaded for the colouring before the last change: it is asked for again.
-            if node.colours != self.loader.colour_word() {
+            // Loaded for the colouring or marks before the last change: it is asked for again.
+            if node.colours != form.0 || node.marks != form.1 {
                 self.uploads.pop_front();
                 continue;
             }

@@ -1,4 +1,5 @@
-// The frame's point filters (classes, intensity, elevation, return number, clip boxes), shared by
+// The frame's point filters (classes, intensity, elevation, return number, the ranges the loader
+// marked, clip boxes), shared by
 // the projection and the pipelines that splat points themselves: a point hidden here is hidden
 // in every pipeline. Reads `frame` (frame.wgsl).
 
@@ -12,7 +13,8 @@ fn passes_filters(pos: vec3<f32>, a: u32) -> bool {
     let kept = ((f & FILTER_CLASSES) == 0u || (word & (1u << (cls % 32u))) != 0u)
         && ((f & FILTER_INTENSITY) == 0u || (intensity >= frame.ranges.x && intensity <= frame.ranges.y))
         && ((f & FILTER_ELEVATION) == 0u || (pos.z >= frame.ranges.z && pos.z <= frame.ranges.w))
-        && ((f & FILTER_RETURN) == 0u || (ret >= frame.return_lo && ret <= frame.return_hi));
+        && ((f & FILTER_RETURN) == 0u || (ret >= frame.return_lo && ret <= frame.return_hi))
+        && ((f & FILTER_MARKED) == 0u || (a & MARK_HIDDEN) == 0u);
     if !kept || (f & FILTER_CLIP) == 0u {
         return kept;
     }

@@ -43,8 +43,11 @@ const FILTER_INTENSITY: u32 = 2u;
 const FILTER_ELEVATION: u32 = 4u;
 const FILTER_RETURN: u32 = 8u;
 const FILTER_CLIP: u32 = 16u;
+const FILTER_MARKED: u32 = 32u;
 
-// The GPU attribute word: intensity (16 bits), classification (8), return number (4).
+// The GPU attribute word: intensity (16 bits), classification (8), return number (4), then
+// MARK_HIDDEN: outside a range of an attribute the word does not hold (marks.rs).
+const MARK_HIDDEN: u32 = 0x10000000u;
 fn attribute_class(a: u32) -> u32 {
     return (a >> 16u) & 0xffu;
 }

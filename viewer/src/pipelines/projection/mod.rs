@@ -4,8 +4,10 @@
 //! the pipeline's own passes read.
 
 mod bind;
+mod count;
 mod screen;
 
+pub use count::DrawnCount;
 pub use screen::{Screen, ScreenLimitError, check_screen, largest_fitting, plane_buffer};
 
 use super::ScreenBuffer;
@@ -43,11 +45,12 @@ const FINISH_WGSL: &str = include_str!("finish.wgsl");
 const SHADE_PLANES_WGSL: &str = include_str!("shade_planes.wgsl");
 
 /// The projection's timed passes, in the order they can run.
-pub const PASSES: [&str; 6] = [
+pub const PASSES: [&str; 7] = [
     "clear",
     "project",
     "project_depth",
     "project_index",
+    "count drawn",
     "unpack",
     "resolve",
 ];
@@ -96,6 +99,8 @@ pub const FILTER_INTENSITY: u32 = 2;
 pub const FILTER_ELEVATION: u32 = 4;
 pub const FILTER_RETURN: u32 = 8;
 pub const FILTER_CLIP: u32 = 16;
+/// Points whose attribute word carries `marks::MARK_HIDDEN` are hidden.
+pub const FILTER_MARKED: u32 = 32;
 
 /// One node's points inside an arena, as the projection shader reads it (`Range`).
 #[repr(C)]
@@ -189,6 +194,7 @@ pub fn shaders(int64: bool) -> Vec<ShaderSource> {
     if int64 {
         s.push(ShaderSource::new("unpack", &[UNPACK_WGSL]));
     }
+    s.push(count::count_source());
     s
 }
 
@@ -266,6 +272,7 @@ impl Projection {
         Screen::new(device, queue, self.int64, width, height, previous)
     }
 
+    #[allow(clippy::too_many_arguments)]
     /// Encodes clear and projection, then the fused finish where `fused` is given and the
     /// frame allows it (returns true: the output image is written), else unpack and resolve
     /// into the depth and colour planes (returns false: the pipeline shades).
@@ -276,6 +283,7 @@ impl Projection {
         screen: &Screen,
         cache: &NodeCache,
         frame: &FrameDraw,
+        count: &mut DrawnCount,
         timer: &mut Timer,
     ) -> bool {
         let draws = frame.arenas;
@@ -373,6 +381,10 @@ impl Projection {
                     &[&screen.depths, &screen.indices],
                 );
             }
+        }
+        // Without a filter every point of the drawn nodes is drawn: nothing to count.
+        if uniforms.filters != 0 {
+            count.encode(device, encoder, screen, cache, &arena_groups, timer);
         }
         if let Some((finish, name)) = fused {
             bind::encode_fused(
