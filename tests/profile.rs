@@ -1,5 +1,6 @@
-//! `strata profile` and the window's tools: a profile holds exactly the stored points within its
-//! corridor (at full detail, all of them), with every attribute; coarser profiles read less.
+//! `strata profile` and the window's survey tools: a profile holds exactly the stored points
+//! within its corridor (at full detail, all of them), with every attribute; coarser profiles
+//! read less; the window draws measurements, the profile and clip boxes.
 
 mod common;
 
@@ -166,6 +167,7 @@ fn the_window_draws_the_measurements_and_the_profile_with_its_plot() {
         ])
         .args(["--screenshot-after", "30", "--measurements", s(&m)])
         .args(["--profile", LINE, "--profile-width", &w])
+        .args(["--clip", "min=636300,849050,400;max=636700,849300,500"])
         .env("WGPU_BACKEND", backend)
         .output()
         .expect("xvfb-run runs");
@@ -176,9 +178,10 @@ fn the_window_draws_the_measurements_and_the_profile_with_its_plot() {
     );
     let (_, _, rgba) = common::read_png(&shot);
     let count = |c: [u8; 3]| rgba.chunks_exact(4).filter(|p| p[..3] == c).count();
-    // The distance in its colour, the profile's line in green, and the profile's plot (its
-    // background) in a window of its own.
+    // The distance in its colour, the profile's line in green, the clip box's handles, and the
+    // profile's plot (its background) in a window of its own.
     assert!(count([255, 214, 10]) > 100, "no measurement drawn");
     assert!(count([120, 255, 120]) > 100, "no profile line drawn");
     assert!(count([16, 18, 22]) > 560 * 200 / 2, "no profile plot shown");
+    assert!(count([255, 120, 60]) > 100, "no clip box handles drawn");
 }

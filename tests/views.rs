@@ -79,3 +79,90 @@ fn a_bookmark_renders_what_its_camera_renders_and_the_file_is_a_path() {
     );
     assert_eq!(t.trim().lines().count(), 1, "{t}");
 }
+
+#[test]
+fn a_fly_through_reaches_each_view_at_its_seconds() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let dataset = common::converted("views-fixture", "autzen_trim.laz", "autzen");
+    let views = [
+        (
+            "overview",
+            [636590.0, 848700.0, 900.0],
+            [636590.0, 849216.0, 440.0],
+        ),
+        (
+            "close",
+            [636480.0, 849100.0, 520.0],
+            [636600.0, 849230.0, 440.0],
+        ),
+        (
+            "side",
+            [637300.0, 849216.0, 600.0],
+            [636590.0, 849216.0, 440.0],
+        ),
+    ];
+    // The second view 1 s after the first, the third 3 s after that.
+    let keyframes: Vec<serde_json::Value> = views
+        .iter()
+        .zip([None, Some(1.0), Some(3.0)])
+        .map(|((name, eye, target), seconds)| {
+            let mut k =
+                serde_json::json!({"name": name, "eye": eye, "target": target, "fov": 50.0});
+            if let Some(s) = seconds {
+                k["seconds"] = serde_json::json!(s);
+            }
+            k
+        })
+        .collect();
+    let file = dir.path().join("path.json");
+    std::fs::write(
+        &file,
+        serde_json::json!({ "keyframes": keyframes }).to_string(),
+    )
+    .expect("path");
+    // Without --frames: one frame each half second of the 4 s, both ends included.
+    let o = gpu_ok(&[
+        "render",
+        s(&dataset),
+        "-o",
+        s(&dir.path().join("fly.png")),
+        "--size",
+        "96x72",
+        "--path",
+        s(&file),
+        "--fps",
+        "2",
+        "--wait-complete",
+        "--loaders",
+        "1",
+    ]);
+    assert!(
+        String::from_utf8_lossy(&o.stdout).starts_with("9 image(s)"),
+        "{}",
+        String::from_utf8_lossy(&o.stdout)
+    );
+    // Frame 2 (1 s) is the second view, frame 8 (4 s) the third.
+    for (frame, (name, ..)) in [(2, views[1]), (8, views[2])] {
+        let at = dir.path().join(format!("{name}.png"));
+        gpu_ok(&[
+            "render",
+            s(&dataset),
+            "-o",
+            s(&at),
+            "--size",
+            "96x72",
+            "--camera-file",
+            s(&file),
+            "--bookmark",
+            name,
+            "--wait-complete",
+            "--loaders",
+            "1",
+        ]);
+        let flown = read_png(&dir.path().join(format!("fly_{frame:04}.png"))).2;
+        assert!(
+            read_png(&at).2 == flown,
+            "frame {frame} is not the view {name}"
+        );
+    }
+}

@@ -25,10 +25,12 @@ pub struct Args {
     /// progress (a server gone away) before the image is written with what there is.
     #[arg(long, default_value_t = 30.0)]
     timeout: f64,
-    /// A fly-through: {"keyframes": [{"eye": [x,y,z], "target": [x,y,z], "fov": deg}, ...]}.
-    #[arg(long, requires = "frames")]
+    /// A fly-through: {"keyframes": [{"eye": [x,y,z], "target": [x,y,z], "fov": deg,
+    /// "seconds": from the keyframe before (default 3)}, ...]}; the window's bookmarks.json is one.
+    #[arg(long)]
     path: Option<PathBuf>,
-    /// Frames of the fly-through.
+    /// Frames of the fly-through, spread over the keyframes' times (default: the times at
+    /// --fps).
     #[arg(long, requires = "path")]
     frames: Option<u32>,
     /// Pace of a fly-through that does not wait for completeness (frames per second).
@@ -60,6 +62,11 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
     if !(a.timeout.is_finite() && a.timeout >= 0.0) {
         anyhow::bail!("--timeout {} is not a number of seconds", a.timeout);
     }
+    // 0: from the path's times at --fps.
+    let frames = match (a.path.is_some(), a.frames) {
+        (true, None) => 0,
+        (_, f) => f.unwrap_or(1),
+    };
     let opts = RenderOptions {
         output: a.output,
         camera: a.camera.spec(&a.dataset)?,
@@ -69,7 +76,7 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
         wait_complete: a.wait_complete,
         timeout: Duration::from_secs_f64(a.timeout),
         path: a.path,
-        frames: a.frames.unwrap_or(1),
+        frames,
         fps: a.fps,
         stats: a.stats,
         projection: a.view.projection()?,

@@ -27,6 +27,45 @@ pub struct Bookmark {
     /// Vertical field of view in degrees.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub fov: Option<f32>,
+    /// Seconds a fly-through takes to reach this view from the one before
+    /// (`DEFAULT_SECONDS` where not given).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub seconds: Option<f32>,
+}
+
+/// Seconds between two views of a fly-through that does not say.
+pub const DEFAULT_SECONDS: f32 = 3.0;
+
+/// The time of each view of a fly-through from its start: 0 for the first, then each view's
+/// `seconds` after the one before (`DEFAULT_SECONDS` where missing, not a positive number).
+pub fn keyframe_times(seconds: impl IntoIterator<Item = Option<f32>>) -> Vec<f32> {
+    let mut t = 0.0f32;
+    seconds
+        .into_iter()
+        .enumerate()
+        .map(|(i, s)| {
+            if i > 0 {
+                t += s
+                    .filter(|s| s.is_finite() && *s > 0.0)
+                    .unwrap_or(DEFAULT_SECONDS);
+            }
+            t
+        })
+        .collect()
+}
+
+/// Where time `t` falls among `times` (at least two, increasing): the segment from view k to
+/// view k + 1 and how far along it (0 to 1), clamped to the ends.
+pub fn segment_at(times: &[f32], t: f32) -> (usize, f32) {
+    let last = times.len().saturating_sub(2);
+    let k = times[1..]
+        .iter()
+        .position(|&end| t < end)
+        .unwrap_or(last)
+        .min(last);
+    let (a, b) = (times[k], times[k + 1]);
+    let f = if b > a { (t - a) / (b - a) } else { 1.0 };
+    (k, f.clamp(0.0, 1.0))
 }
 
 impl Bookmark {
@@ -37,6 +76,7 @@ impl Bookmark {
             eye: (camera.eye.as_dvec3() + anchor).to_array(),
             target: (camera.target.as_dvec3() + anchor).to_array(),
             fov: Some(camera.fov_y.to_degrees()),
+            seconds: None,
         }
     }
 
@@ -145,5 +185,16 @@ mod tests {
         assert!((again.eye - cam.eye).length() < 1e-3 && (again.fov_y - cam.fov_y).abs() < 1e-5);
         let e = back.find(Some("bridge"), &path).expect_err("unknown");
         assert!(e.to_string().contains("tower"), "{e}");
+    }
+
+    #[test]
+    fn a_fly_through_keeps_each_views_seconds() {
+        let times = keyframe_times([None, Some(1.0), None, Some(-2.0), Some(0.5)]);
+        assert_eq!(times, vec![0.0, 1.0, 4.0, 7.0, 7.5]);
+        assert_eq!(segment_at(&times, 0.5), (0, 0.5));
+        assert_eq!(segment_at(&times, 2.5), (1, 0.5));
+        assert_eq!(segment_at(&times, 7.25), (3, 0.5));
+        assert_eq!(segment_at(&times, 99.0), (3, 1.0));
+        assert_eq!(segment_at(&times, -1.0), (0, 0.0));
     }
 }

@@ -24,6 +24,7 @@ pub struct RenderOptions {
     /// A single image without `wait_complete` waits at most this long for detail.
     pub timeout: Duration,
     pub path: Option<PathBuf>,
+    /// Frames of a fly-through; 0: one each 1 / `fps` of the keyframes' seconds.
     pub frames: u32,
     /// Frame pacing of a fly-through that does not wait for completeness.
     pub fps: f32,
@@ -68,6 +69,9 @@ struct Keyframe {
     target: [f64; 3],
     #[serde(default)]
     fov: Option<f32>,
+    /// Seconds from the keyframe before (`bookmarks::DEFAULT_SECONDS` where not given).
+    #[serde(default)]
+    seconds: Option<f32>,
 }
 
 pub const DEFAULT_FOV_DEG: f32 = 50.0;
@@ -307,7 +311,7 @@ fn cameras(ds: &StreamDataset, opts: &RenderOptions) -> Result<Vec<Camera>, View
     let file: PathFile = serde_json::from_str(&text).map_err(|e| {
         ViewerError::argument(
             path.display().to_string(),
-            format!("not a camera path ({e}); expected {{\"keyframes\": [{{\"eye\": [x,y,z], \"target\": [x,y,z], \"fov\": deg}}, ...]}}"),
+            format!("not a camera path ({e}); expected {{\"keyframes\": [{{\"eye\": [x,y,z], \"target\": [x,y,z], \"fov\": deg, \"seconds\": s}}, ...]}}"),
         )
     })?;
     let keys: Vec<Camera> = file
@@ -328,18 +332,24 @@ fn cameras(ds: &StreamDataset, opts: &RenderOptions) -> Result<Vec<Camera>, View
                 .map_err(|e| ViewerError::argument(path.display().to_string(), e.to_string()))
         })
         .collect::<Result<_, _>>()?;
-    if keys.len() < 2 || opts.frames < 2 {
+    let times = crate::bookmarks::keyframe_times(file.keyframes.iter().map(|k| k.seconds));
+    let total = times.last().copied().unwrap_or(0.0);
+    // Without --frames (0), one frame each 1/fps of the keyframes' times, both ends included.
+    let n = match opts.frames {
+        0 if opts.fps.is_finite() && opts.fps > 0.0 => (total * opts.fps).round() as usize + 1,
+        n => n as usize,
+    };
+    if keys.len() < 2 || n < 2 {
         return Err(ViewerError::argument(
             path.display().to_string(),
-            "a fly-through needs at least two keyframes and --frames 2 or more",
+            "a fly-through needs at least two keyframes and two frames or more (--frames, or the keyframes' seconds at --fps)",
         ));
     }
-    let n = opts.frames as usize;
     Ok((0..n)
         .map(|i| {
-            let t = i as f32 / (n - 1) as f32 * (keys.len() - 1) as f32;
-            let seg = (t.floor() as usize).min(keys.len() - 2);
-            keys[seg].lerp(&keys[seg + 1], t - seg as f32)
+            let t = i as f32 / (n - 1) as f32 * total;
+            let (seg, f) = crate::bookmarks::segment_at(&times, t);
+            keys[seg].lerp(&keys[seg + 1], f)
         })
         .collect())
 }

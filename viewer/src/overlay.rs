@@ -23,10 +23,23 @@ const NEAR_W: f32 = 1e-4;
 impl ScreenProjector {
     pub fn new(ds: &StreamDataset, camera: &Camera, width: u32, height: u32) -> ScreenProjector {
         let (near, far) = clip_range(ds, camera);
+        ScreenProjector::from_view(camera, ds.anchor(), width, height, near, far)
+    }
+
+    /// The projection of `camera`, whose positions are relative to `anchor`, with the given
+    /// near and far planes.
+    pub fn from_view(
+        camera: &Camera,
+        anchor: DVec3,
+        width: u32,
+        height: u32,
+        near: f32,
+        far: f32,
+    ) -> ScreenProjector {
         let aspect = width as f32 / height.max(1) as f32;
         ScreenProjector {
             view_proj: camera.projection(aspect, near, far) * camera.view(),
-            anchor: ds.anchor(),
+            anchor,
             width: width as f32,
             height: height as f32,
         }
@@ -48,6 +61,18 @@ impl ScreenProjector {
     pub fn to_pixel(&self, p: [f64; 3]) -> Option<[f32; 2]> {
         let c = self.clip(p);
         (c.w > NEAR_W).then(|| self.pixel_of(c))
+    }
+
+    /// The ray through pixel `(x, y)` (image pixels, fractional): a point on it and its
+    /// direction, in real-world coordinates.
+    pub fn ray(&self, [x, y]: [f32; 2]) -> Option<(DVec3, DVec3)> {
+        let inv = self.view_proj.as_dmat4().inverse();
+        let ndc_x = x as f64 / self.width as f64 * 2.0 - 1.0;
+        let ndc_y = 1.0 - y as f64 / self.height as f64 * 2.0;
+        let near = inv.project_point3(DVec3::new(ndc_x, ndc_y, 0.0));
+        let far = inv.project_point3(DVec3::new(ndc_x, ndc_y, 1.0));
+        let dir = (far - near).normalize_or_zero();
+        (dir != DVec3::ZERO && near.is_finite()).then(|| (near + self.anchor, dir))
     }
 
     /// The part of segment `a`-`b` in front of the eye, in pixels.

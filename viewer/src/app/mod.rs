@@ -14,6 +14,7 @@ use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::Instant;
 
+mod clip;
 mod filters;
 mod measure;
 mod navigate;
@@ -66,6 +67,8 @@ struct ViewerApp {
     error: Option<String>,
     views: views::Views,
     measuring: measure::Measuring,
+    /// The clip box handle being dragged.
+    clip_drag: Option<clip::Handle>,
     /// The attributes a range may be set on, with their ranges in the root node (read once).
     attribute_ranges: Option<Vec<(String, f64, f64)>>,
     /// The attribute range being edited in the panel, and why the last one was refused.
@@ -110,6 +113,7 @@ pub fn run_window(location: &str, opts: WindowOptions) -> Result<(), ViewerError
         error: None,
         views: views::Views::open(location),
         measuring: measure::Measuring::open(location, opts.measurements),
+        clip_drag: None,
         attribute_ranges: None,
         attribute_edit: (String::new(), 0.0, 1.0),
         attribute_error: None,
@@ -225,6 +229,7 @@ impl ViewerApp {
         self.pipeline_controls(ui);
 
         self.filter_controls(ui);
+        self.clip_controls(ui);
         self.measure_controls(ui);
         self.profile_controls(ui);
         self.view_controls(ui);
@@ -423,6 +428,7 @@ impl ViewerApp {
             );
             self.paint_measurements(ui.painter(), rect, size);
             self.paint_profile(ui.painter(), rect, size);
+            self.paint_clips(ui.painter(), rect, size);
         }
     }
 

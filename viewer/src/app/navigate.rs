@@ -8,7 +8,12 @@ use eframe::egui;
 impl ViewerApp {
     pub(super) fn navigate(&mut self, ui: &egui::Ui, response: &egui::Response, rect: egui::Rect) {
         let size = rect.size();
-        if response.dragged_by(egui::PointerButton::Primary) && !ui.input(|i| i.modifiers.shift) {
+        // A drag that starts on a clip box handle moves the handle, not the camera.
+        let on_handle = self.drag_clip(response, rect);
+        if on_handle {
+        } else if response.dragged_by(egui::PointerButton::Primary)
+            && !ui.input(|i| i.modifiers.shift)
+        {
             let d = response.drag_delta();
             self.camera.orbit(d.x / size.x * 4.0, d.y / size.y * 3.0);
         } else if response.dragged_by(egui::PointerButton::Secondary)

@@ -1,14 +1,12 @@
 //! The panel's views: camera bookmarks saved beside a local dataset (`bookmarks.json`),
-//! recalled with a click, removed, and flown through in order.
+//! recalled with a click, removed, and flown through in order, each reached the seconds set
+//! beside it after the one before (the same file is the `--path` of `strata render`).
 
 use super::ViewerApp;
-use crate::bookmarks::{Bookmark, Bookmarks};
+use crate::bookmarks::{Bookmark, Bookmarks, DEFAULT_SECONDS, keyframe_times, segment_at};
 use crate::camera::Camera;
 use eframe::egui;
 use std::time::Instant;
-
-/// Seconds the fly-through spends between two views.
-const SECONDS_PER_VIEW: f32 = 3.0;
 
 /// The views of the session: loaded from, and saved to, the dataset's bookmarks file.
 #[derive(Default)]
@@ -55,23 +53,19 @@ impl ViewerApp {
         let Some(start) = self.views.flying else {
             return;
         };
-        let cams: Vec<Camera> = self
-            .views
-            .marks
-            .keyframes
-            .iter()
-            .filter_map(|m| self.camera_of(m))
-            .collect();
-        let t = start.elapsed().as_secs_f32() / SECONDS_PER_VIEW;
-        if cams.len() < 2 || t >= (cams.len() - 1) as f32 {
+        let marks = &self.views.marks.keyframes;
+        let cams: Vec<Camera> = marks.iter().filter_map(|m| self.camera_of(m)).collect();
+        let times = keyframe_times(marks.iter().map(|m| m.seconds));
+        let t = start.elapsed().as_secs_f32();
+        if cams.len() < 2 || cams.len() != times.len() || t >= times[times.len() - 1] {
             self.views.flying = None;
             if let Some(last) = cams.last() {
                 self.camera = *last;
             }
             return;
         }
-        let seg = (t.floor() as usize).min(cams.len() - 2);
-        self.camera = cams[seg].lerp(&cams[seg + 1], t - seg as f32);
+        let (seg, f) = segment_at(&times, t);
+        self.camera = cams[seg].lerp(&cams[seg + 1], f);
         ctx.request_repaint();
     }
 
@@ -97,16 +91,33 @@ impl ViewerApp {
                 });
                 let mut go = None;
                 let mut remove = None;
-                for (i, m) in self.views.marks.keyframes.iter().enumerate() {
+                let mut retimed = false;
+                for (i, m) in self.views.marks.keyframes.iter_mut().enumerate() {
                     ui.horizontal(|ui| {
                         let name = m.name.clone().unwrap_or_else(|| format!("view {}", i + 1));
                         if ui.button(name).clicked() {
                             go = Some(i);
                         }
+                        if i > 0 {
+                            // Seconds from the view before, as the fly-through takes them.
+                            let mut s = m.seconds.unwrap_or(DEFAULT_SECONDS);
+                            let drag = egui::DragValue::new(&mut s)
+                                .speed(0.1)
+                                .range(0.1..=600.0)
+                                .suffix(" s");
+                            let r = ui.add(drag);
+                            if r.changed() {
+                                m.seconds = Some(s);
+                            }
+                            retimed |= r.drag_stopped() || r.lost_focus();
+                        }
                         if ui.small_button("✕").clicked() {
                             remove = Some(i);
                         }
                     });
+                }
+                if retimed {
+                    self.views.save();
                 }
                 if let Some(cam) = go.and_then(|i| self.camera_of(&self.views.marks.keyframes[i])) {
                     self.views.flying = None;
