@@ -109,15 +109,7 @@ impl Bookmarks {
     pub fn save(&self, path: &Path) -> Result<(), ViewerError> {
         let json = serde_json::to_string_pretty(self)
             .map_err(|e| ViewerError::output(path, format!("cannot encode ({e})")))?;
-        let mut part = path.as_os_str().to_owned();
-        part.push(".part");
-        let part = PathBuf::from(part);
-        std::fs::write(&part, json)
-            .and_then(|_| std::fs::rename(&part, path))
-            .map_err(|e| {
-                let _ = std::fs::remove_file(&part);
-                ViewerError::output(path, format!("cannot write ({e})"))
-            })
+        crate::headless::write_atomic(path, json.as_bytes())
     }
 
     /// The bookmark named `name`, or the first one without a name asked for.
@@ -150,8 +142,14 @@ impl Bookmarks {
 /// Where a dataset's own bookmarks live: inside a local dataset's directory; `None` for a
 /// dataset read over HTTP.
 pub fn beside(location: &str) -> Option<PathBuf> {
+    file_beside(location, FILE_NAME)
+}
+
+/// A file named `name` inside a local dataset's directory (bookmarks, measurements); `None`
+/// for a dataset read over HTTP.
+pub fn file_beside(location: &str, name: &str) -> Option<PathBuf> {
     let dir = Path::new(location);
-    dir.is_dir().then(|| dir.join(FILE_NAME))
+    dir.is_dir().then(|| dir.join(name))
 }
 
 #[cfg(test)]

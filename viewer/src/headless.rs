@@ -378,7 +378,8 @@ pub fn write_png(path: &Path, width: u32, height: u32, rgba: &[u8]) -> Result<()
     write_atomic(path, &bytes)
 }
 
-fn write_atomic(path: &Path, bytes: &[u8]) -> Result<(), ViewerError> {
+/// Writes `bytes` through a temporary name, so a failed write leaves the old file (or none).
+pub(crate) fn write_atomic(path: &Path, bytes: &[u8]) -> Result<(), ViewerError> {
     let mut tmp = path.as_os_str().to_owned();
     tmp.push(".part");
     let tmp = PathBuf::from(tmp);

@@ -317,15 +317,7 @@ impl Measurements {
     pub fn save(&self, path: &Path) -> Result<(), ViewerError> {
         let json = serde_json::to_string_pretty(&self.to_geojson())
             .map_err(|e| ViewerError::output(path, format!("cannot encode ({e})")))?;
-        let mut part = path.as_os_str().to_owned();
-        part.push(".part");
-        let part = PathBuf::from(part);
-        std::fs::write(&part, json)
-            .and_then(|_| std::fs::rename(&part, path))
-            .map_err(|e| {
-                let _ = std::fs::remove_file(&part);
-                ViewerError::output(path, format!("cannot write ({e})"))
-            })
+        crate::headless::write_atomic(path, json.as_bytes())
     }
 
     /// A name not yet taken, `KIND N`.
@@ -403,8 +395,7 @@ fn feature_measurement(f: &Value, index: usize) -> Result<Measurement, String> {
 
 /// Where a dataset's own measurements live: inside a local dataset's directory.
 pub fn beside(location: &str) -> Option<PathBuf> {
-    let dir = Path::new(location);
-    dir.is_dir().then(|| dir.join(FILE_NAME))
+    crate::bookmarks::file_beside(location, FILE_NAME)
 }
 
 #[cfg(test)]
