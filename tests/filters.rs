@@ -317,3 +317,55 @@ fn points_drawn_counts_what_the_filters_let_through_gps_time_included() {
         assert!(picked >= 2, "{pipeline}: only {picked} picks");
     }
 }
+
+#[test]
+fn changing_an_attribute_range_mid_session_draws_and_counts_the_new_one() {
+    use std::sync::Arc;
+    use std::time::Duration;
+    use strata_viewer::gpu::{GpuContext, ProjectionPath};
+    use strata_viewer::headless::default_camera;
+    use strata_viewer::{Renderer, Settings, StreamDataset};
+    let ds = Arc::new(StreamDataset::open_path(&dataset()).expect("dataset opens"));
+    let ctx = Arc::new(GpuContext::new(ProjectionPath::Auto).expect("GPU adapter"));
+    let mut r = Renderer::new(ctx, ds.clone(), 1 << 28, 2).expect("renderer");
+    let camera = default_camera(&ds, 320, 240);
+    let settings = |range: &str| {
+        let mut s = Settings {
+            budget: 100_000,
+            ..Settings::default()
+        };
+        s.filter.set_range(range).expect("a range");
+        s
+    };
+    // The points drawn once every node is resident again and the count has come back.
+    let settle = |r: &mut Renderer, s: &Settings| -> u64 {
+        let mut last = None;
+        for _ in 0..400 {
+            let stats = r.frame(&camera, 320, 240, s).expect("frame");
+            r.wait_gpu().expect("GPU");
+            let counted = r.counted_points_drawn();
+            if let Some(n) = counted
+                && stats.complete
+                && counted == last
+            {
+                return n;
+            }
+            last = counted;
+            r.wait_for_loads(Duration::from_millis(10));
+        }
+        panic!("the frame did not settle");
+    };
+    let early = "gps_time=0..245383";
+    let late = "gps_time=245383.000001..1e12";
+    // One frame with the first range sends its nodes loading; switched while they are in
+    // flight, they must not be drawn: the second range's nodes load and are counted.
+    r.frame(&camera, 320, 240, &settings(early)).expect("frame");
+    let b = settle(&mut r, &settings(late));
+    // Switched with every node resident: they load again.
+    let a = settle(&mut r, &settings(early));
+    let back = settle(&mut r, &settings(late));
+    assert_eq!(back, b, "the second range again counts differently");
+    assert!(a > 0 && b > 0, "{a} and {b}");
+    assert_eq!(a, drawn(&["--filter", early], "count-mid-early"));
+    assert_eq!(b, drawn(&["--filter", late], "count-mid-late"));
+}

@@ -17,13 +17,17 @@ const VERTICES: [[f64; 2]; 3] = [
 
 /// Within the corridor: across one segment (the foot on it) within half the width.
 fn inside(x: f64, y: f64) -> bool {
-    VERTICES.windows(2).any(|w| {
+    inside_of(&VERTICES, WIDTH, x, y)
+}
+
+fn inside_of(vertices: &[[f64; 2]], width: f64, x: f64, y: f64) -> bool {
+    vertices.windows(2).any(|w| {
         let (a, b) = (w[0], w[1]);
         let (dx, dy) = (b[0] - a[0], b[1] - a[1]);
         let len2 = dx * dx + dy * dy;
         let t = ((x - a[0]) * dx + (y - a[1]) * dy) / len2;
         let off = (dx * (y - a[1]) - dy * (x - a[0])).abs() / len2.sqrt();
-        (0.0..=1.0).contains(&t) && off <= WIDTH / 2.0
+        (0.0..=1.0).contains(&t) && off <= width / 2.0
     })
 }
 
@@ -129,6 +133,62 @@ fn a_full_profile_is_every_stored_point_in_its_corridor_with_every_attribute() {
             "{err}"
         );
         assert!(!out.exists());
+    }
+}
+
+#[test]
+fn a_profile_through_a_deep_tree_reads_every_page_in_format_1_1_and_1_0() {
+    // Through the 20-level cluster of the deep fixture, whose nodes lie on many hierarchy
+    // pages (1.1: below proxies; 1.0: proxies on their own pages).
+    let dir = tempfile::tempdir().expect("tempdir");
+    let deep = common::deep_dataset("profile-deep");
+    let old = dir.path().join("deep10.strata");
+    strata_format::v1_0::rewrite_as_1_0(&deep, &old).expect("rewrites");
+    let [cx, cy, _] = common::DEEP_CENTRE;
+    let vertices = [[cx - 300.0, cy], [cx + 300.0, cy + 0.001]];
+    let line = format!(
+        "{},{};{},{}",
+        vertices[0][0], vertices[0][1], vertices[1][0], vertices[1][1]
+    );
+    let width = 0.01;
+    let exported = dir.path().join("all.las");
+    common::run_ok(&["export", s(&deep), "-o", s(&exported)]);
+    let (all, scale) = las_points(&exported);
+    let mut want: Vec<_> = all
+        .into_iter()
+        .filter(|(q, _)| {
+            inside_of(
+                &vertices,
+                width,
+                q[0] as f64 * scale[0],
+                q[1] as f64 * scale[1],
+            )
+        })
+        .collect();
+    want.sort_unstable();
+    assert!(
+        want.len() > 100_000,
+        "only {} points in the corridor",
+        want.len()
+    );
+    for ds in [&deep, &old] {
+        let out = dir.path().join("p.las");
+        let w = width.to_string();
+        common::run_ok(&[
+            "profile",
+            s(ds),
+            "--line",
+            &line,
+            "--width",
+            &w,
+            "-o",
+            s(&out),
+            "--overwrite",
+        ]);
+        let (mut got, _) = las_points(&out);
+        got.sort_unstable();
+        assert_eq!(got.len(), want.len(), "{}", ds.display());
+        assert!(got == want, "{}: the profile's points differ", ds.display());
     }
 }
 

@@ -63,7 +63,7 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
         spacing: a.spacing,
         max_points_read: a.max_read,
     };
-    let profile = extract(&ds, &corridor, detail, |_| {})?;
+    let profile = extract(&ds, &corridor, detail, |_| true)?;
     if csv {
         profile.write_csv(&a.output)?;
     } else {

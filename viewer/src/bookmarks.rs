@@ -57,6 +57,9 @@ pub fn keyframe_times(seconds: impl IntoIterator<Item = Option<f32>>) -> Vec<f32
 /// Where time `t` falls among `times` (at least two, increasing): the segment from view k to
 /// view k + 1 and how far along it (0 to 1), clamped to the ends.
 pub fn segment_at(times: &[f32], t: f32) -> (usize, f32) {
+    if times.len() < 2 {
+        return (0, 0.0);
+    }
     let last = times.len().saturating_sub(2);
     let k = times[1..]
         .iter()
@@ -194,5 +197,6 @@ mod tests {
         assert_eq!(segment_at(&times, 7.25), (3, 0.5));
         assert_eq!(segment_at(&times, 99.0), (3, 1.0));
         assert_eq!(segment_at(&times, -1.0), (0, 0.0));
+        assert_eq!(segment_at(&[0.0], 1.0), (0, 0.0));
     }
 }

@@ -76,6 +76,9 @@ struct Keyframe {
 
 pub const DEFAULT_FOV_DEG: f32 = 50.0;
 
+/// Frames a fly-through takes at most from its keyframes' seconds.
+const MAX_PATH_FRAMES: u32 = 100_000;
+
 /// The whole dataset in view, for a view of `width` x `height`.
 pub fn default_camera(ds: &StreamDataset, width: u32, height: u32) -> Camera {
     let (min, max) = ds.bounds();
@@ -336,7 +339,20 @@ fn cameras(ds: &StreamDataset, opts: &RenderOptions) -> Result<Vec<Camera>, View
     let total = times.last().copied().unwrap_or(0.0);
     // Without --frames (0), one frame each 1/fps of the keyframes' times, both ends included.
     let n = match opts.frames {
-        0 if opts.fps.is_finite() && opts.fps > 0.0 => (total * opts.fps).round() as usize + 1,
+        0 if opts.fps.is_finite() && opts.fps > 0.0 => {
+            let n = (total as f64 * opts.fps as f64).round() + 1.0;
+            // Too many, or no number at all (an infinite total).
+            if n.is_nan() || n > MAX_PATH_FRAMES as f64 {
+                return Err(ViewerError::argument(
+                    path.display().to_string(),
+                    format!(
+                        "{total} s at {} frames per second is more than {MAX_PATH_FRAMES} frames",
+                        opts.fps
+                    ),
+                ));
+            }
+            n as usize
+        }
         n => n as usize,
     };
     if keys.len() < 2 || n < 2 {

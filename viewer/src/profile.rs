@@ -169,12 +169,13 @@ pub struct ProfileDetail {
     pub max_points_read: u64,
 }
 
-/// Reads the profile of `corridor`, calling `on_level` with what there is after each level.
+/// Reads the profile of `corridor`, calling `on_level` with what there is after each level;
+/// it stops after a level where `on_level` returns false (no one wants more).
 pub fn extract(
     ds: &StreamDataset,
     corridor: &Corridor,
     detail: ProfileDetail,
-    mut on_level: impl FnMut(&Profile),
+    mut on_level: impl FnMut(&Profile) -> bool,
 ) -> Result<Profile, ViewerError> {
     corridor
         .check()
@@ -208,8 +209,7 @@ pub fn extract(
         }
         out.level = depth;
         out.spacing = ds.node_spacing(NodeKey::ROOT) as f64 / (1u64 << depth) as f64;
-        on_level(&out);
-        if out.spacing <= detail.spacing {
+        if !on_level(&out) || out.spacing <= detail.spacing {
             break;
         }
         level = children(ds, &mut tree, &level, corridor)?;

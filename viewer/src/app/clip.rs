@@ -212,7 +212,12 @@ impl ViewerApp {
                 .into_iter()
                 .map(|(p, h)| ((p[0] - at[0]).hypot(p[1] - at[1]), h))
                 .filter(|(d, _)| *d <= GRAB_PX * scale[0])
-                .min_by(|a, b| a.0.total_cmp(&b.0))
+                // On a tie (a face seen end on lies on the centre) the face wins: the centre
+                // stays reachable from the other views, the face from none.
+                .min_by(|a, b| {
+                    let centre = |h: &Handle| matches!(h, Handle::Centre { .. });
+                    a.0.total_cmp(&b.0).then(centre(&a.1).cmp(&centre(&b.1)))
+                })
                 .map(|(_, h)| h);
         }
         let Some(handle) = self.clip_drag else {

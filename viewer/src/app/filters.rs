@@ -75,13 +75,18 @@ impl ViewerApp {
     /// Points are marked when their node loads, so a range applies on a click, not while
     /// its ends are dragged: each change loads the nodes again.
     fn attribute_range_controls(&mut self, ui: &mut egui::Ui) {
-        let ranges = self
-            .attribute_ranges
-            .get_or_insert_with(|| {
-                crate::marks::attribute_ranges(self.renderer.dataset()).unwrap_or_default()
-            })
-            .clone();
+        // Read once; a failed read (a server away) is tried again on the next frame.
+        if self.attribute_ranges.is_none() {
+            match crate::marks::attribute_ranges(self.renderer.dataset()) {
+                Ok(r) => self.attribute_ranges = Some(r),
+                Err(e) => self.attribute_error = Some(e.to_string()),
+            }
+        }
+        let ranges = self.attribute_ranges.clone().unwrap_or_default();
         if ranges.is_empty() {
+            if let Some(e) = &self.attribute_error {
+                ui.colored_label(egui::Color32::LIGHT_RED, e);
+            }
             return;
         }
         ui.label("other attribute (applied on a click)");

@@ -18,6 +18,8 @@ pub struct Measuring {
     pub current: Option<Measurement>,
     /// The GeoJSON file saved to and loaded from.
     pub file: String,
+    /// Saved on every change: the file beside a local dataset.
+    autosave: bool,
     pub error: Option<String>,
 }
 
@@ -33,6 +35,7 @@ impl Measuring {
         };
         Measuring {
             all,
+            autosave: file.is_some(),
             file: file
                 .map(|f| f.display().to_string())
                 .unwrap_or_else(|| crate::measure::FILE_NAME.into()),
@@ -60,14 +63,28 @@ impl Measuring {
     fn finish(&mut self) {
         if let Some(m) = self.current.take().filter(Measurement::is_complete) {
             self.all.items.push(m);
+            self.changed();
+        }
+    }
+
+    /// Saves beside the dataset after a change, so that closing the window loses nothing.
+    fn changed(&mut self) {
+        if self.autosave {
+            self.error = self
+                .all
+                .save(std::path::Path::new(&self.file))
+                .err()
+                .map(|e| e.to_string());
         }
     }
 }
 
 impl ViewerApp {
     pub(super) fn measure_controls(&mut self, ui: &mut egui::Ui) {
+        // Open where there are measurements to list.
+        let open = !self.measuring.all.items.is_empty();
         egui::CollapsingHeader::new("Measure")
-            .default_open(false)
+            .default_open(open)
             .show(ui, |ui| {
                 let m = &mut self.measuring;
                 ui.horizontal_wrapped(|ui| {
@@ -117,6 +134,7 @@ impl ViewerApp {
                 }
                 if let Some(i) = remove {
                     m.all.items.remove(i);
+                    m.changed();
                 }
                 ui.horizontal(|ui| {
                     ui.add(egui::TextEdit::singleline(&mut m.file).desired_width(150.0));
@@ -181,7 +199,8 @@ impl ViewerApp {
             // The main value beside the last point.
             let label = m.values().first().map(|(name, v)| match *name {
                 "angle_deg" => format!("{v:.1}°"),
-                "horizontal_area" => format!("{v:.2} m²"),
+                // In the dataset's units, whatever they are.
+                "horizontal_area" => format!("{v:.2} sq"),
                 _ => format!("{v:.3}"),
             });
             if let (Some(label), Some(p)) = (label, m.points.last().and_then(|p| proj.to_pixel(*p)))

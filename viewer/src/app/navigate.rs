@@ -9,8 +9,8 @@ impl ViewerApp {
     pub(super) fn navigate(&mut self, ui: &egui::Ui, response: &egui::Response, rect: egui::Rect) {
         let size = rect.size();
         // A drag that starts on a clip box handle moves the handle, not the camera.
-        let on_handle = self.drag_clip(response, rect);
-        if on_handle {
+        if self.drag_clip(response, rect) {
+            // The handle took the drag.
         } else if response.dragged_by(egui::PointerButton::Primary)
             && !ui.input(|i| i.modifiers.shift)
         {
@@ -29,7 +29,9 @@ impl ViewerApp {
                 self.camera.zoom((-scroll * 0.002).exp());
             }
         }
+        // The second click of a double click focuses; it adds no second vertex.
         if response.clicked()
+            && !response.double_clicked()
             && let Some(pos) = response.interact_pointer_pos()
         {
             self.pick(pos, rect);

@@ -34,8 +34,10 @@ pub struct Profiling {
     pub file: String,
     pub error: Option<String>,
     pub writer: Option<PointsWriter>,
-    /// The plot as an image, and the profile it shows (points and level).
-    plot: Option<(egui::TextureHandle, (usize, u32))>,
+    /// The plot as an image, and the profile it shows (generation, points and level).
+    plot: Option<(egui::TextureHandle, (u64, usize, u32))>,
+    /// Counts the profiles started, so that a plot is never taken for another's.
+    generation: u64,
 }
 
 impl Profiling {
@@ -50,6 +52,7 @@ impl Profiling {
             error: None,
             writer,
             plot: None,
+            generation: 0,
         }
     }
 
@@ -72,15 +75,17 @@ impl Profiling {
             spacing: corridor.length() / DETAIL_PX,
             max_points_read: MAX_READ,
         };
+        // A profile nobody waits for any more (cleared, or started again) stops after the
+        // level it is reading: its receiver is gone.
         std::thread::spawn(move || {
-            let last = extract(&ds, &corridor, detail, |p| {
-                let _ = tx.send(Ok(p.clone()));
-            });
+            let last = extract(&ds, &corridor, detail, |p| tx.send(Ok(p.clone())).is_ok());
             if let Err(e) = last {
                 let _ = tx.send(Err(e.to_string()));
             }
         });
         self.pending = Some(rx);
+        self.result = None;
+        self.generation += 1;
         self.error = None;
     }
 
@@ -168,7 +173,7 @@ impl ViewerApp {
                     ui.label("reading...");
                     return;
                 };
-                let key = (profile.points.len(), profile.level);
+                let key = (p.generation, profile.points.len(), profile.level);
                 if p.plot.as_ref().is_none_or(|(_, k)| *k != key) {
                     let image = plot_image(profile);
                     p.plot = Some((ctx.load_texture("profile", image, Default::default()), key));

@@ -53,9 +53,15 @@ impl ViewerApp {
         let Some(start) = self.views.flying else {
             return;
         };
-        let marks = &self.views.marks.keyframes;
-        let cams: Vec<Camera> = marks.iter().filter_map(|m| self.camera_of(m)).collect();
-        let times = keyframe_times(marks.iter().map(|m| m.seconds));
+        // A view that no longer parses is left out with its time.
+        let (cams, seconds): (Vec<Camera>, Vec<Option<f32>>) = self
+            .views
+            .marks
+            .keyframes
+            .iter()
+            .filter_map(|m| Some((self.camera_of(m)?, m.seconds)))
+            .unzip();
+        let times = keyframe_times(seconds);
         let t = start.elapsed().as_secs_f32();
         if cams.len() < 2 || cams.len() != times.len() || t >= times[times.len() - 1] {
             self.views.flying = None;

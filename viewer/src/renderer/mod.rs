@@ -39,6 +39,8 @@ pub struct Renderer {
     drawn_count: crate::pipelines::projection::DrawnCount,
     /// Whether the last frame had a filter (its points drawn are the counted ones).
     filtered: bool,
+    /// The filters the drawn count was last made for.
+    counted_filter: crate::PointFilter,
     /// Pipelines compiled so far, by name; only the active one holds screen buffers.
     pipelines: HashMap<&'static str, Box<dyn Pipeline>>,
     /// The pipeline whose screen buffers exist.
@@ -108,6 +110,7 @@ impl Renderer {
             projection,
             drawn_count,
             filtered: false,
+            counted_filter: crate::PointFilter::default(),
             pipelines: HashMap::new(),
             active: None,
             screen: None,
@@ -359,6 +362,10 @@ impl Renderer {
             self.cache.touch(&e.draw, self.frame);
         }
         self.last_drawn = sel.draw.iter().copied().collect();
+        if settings.filter != self.counted_filter {
+            self.counted_filter = settings.filter.clone();
+            self.drawn_count.filters_changed();
+        }
         self.draw(
             camera,
             width,

@@ -22,8 +22,12 @@ pub struct DrawnCount {
     pipe: wgpu::ComputePipeline,
     counter: wgpu::Buffer,
     readback: AsyncReadback,
-    /// The latest count read back.
-    last: Option<u64>,
+    /// The filters' generation of the count in flight.
+    in_flight: u64,
+    /// The latest count read back, with the generation of the filters it counted for.
+    last: Option<(u64, u64)>,
+    /// The generation of the filters of the frames encoded now.
+    generation: u64,
 }
 
 impl DrawnCount {
@@ -38,8 +42,15 @@ impl DrawnCount {
                 mapped_at_creation: false,
             }),
             readback: AsyncReadback::new(device, "drawn count readback", 4),
+            in_flight: 0,
             last: None,
+            generation: 0,
         }
+    }
+
+    /// The filters changed: counts made for the earlier ones are not reported any more.
+    pub fn filters_changed(&mut self) {
+        self.generation += 1;
     }
 
     /// Counts the filtered points of `groups` and records the count's copy, unless the
@@ -72,7 +83,9 @@ impl DrawnCount {
                 pass.dispatch_workgroups(x, y, 1);
             }
         }
-        self.readback.record(encoder, &self.counter, 0, 4);
+        if self.readback.record(encoder, &self.counter, 0, 4) {
+            self.in_flight = self.generation;
+        }
     }
 
     /// After the frame's submit: starts reading the count it recorded.
@@ -80,13 +93,16 @@ impl DrawnCount {
         self.readback.after_submit();
     }
 
-    /// The latest count read back (taking in one that has arrived), `None` before any.
+    /// The latest count read back for the current filters (taking in one that has arrived),
+    /// `None` before any.
     pub fn latest(&mut self) -> Option<u64> {
         if let Some(bytes) = self.readback.take()
             && let Some(word) = bytes.get(..4).and_then(|b| <[u8; 4]>::try_from(b).ok())
         {
-            self.last = Some(u32::from_le_bytes(word) as u64);
+            self.last = Some((self.in_flight, u32::from_le_bytes(word) as u64));
         }
         self.last
+            .filter(|(generation, _)| *generation == self.generation)
+            .map(|(_, n)| n)
     }
 }
