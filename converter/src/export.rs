@@ -5,8 +5,20 @@ use crate::writers::open_writer;
 use std::path::Path;
 use strata_format::{AttrType, Attribute, LocalDataset, RowLayout, oct16_decode};
 
-/// Writes all points of `dataset` to `output`; returns the number written.
+/// Whether `output` names a COPC file (`.copc.laz`).
+pub fn is_copc(output: &Path) -> bool {
+    output
+        .file_name()
+        .and_then(|n| n.to_str())
+        .is_some_and(|n| n.to_ascii_lowercase().ends_with(".copc.laz"))
+}
+
+/// Writes all points of `dataset` to `output` (LAS, LAZ, PLY, or COPC for `.copc.laz`);
+/// returns the number written.
 pub fn export(dataset: &Path, output: &Path, overwrite: bool) -> Result<u64> {
+    if is_copc(output) {
+        return crate::copc::export_copc(dataset, output, overwrite);
+    }
     let ds = LocalDataset::open(dataset)?;
     let meta = ds.metadata();
     let layout = ds.layout().clone();

@@ -2,6 +2,7 @@
 
 pub mod build;
 pub mod chunk_step;
+pub mod copc;
 pub mod disk;
 #[cfg(test)]
 mod disk_tests;
@@ -13,6 +14,7 @@ pub mod halo;
 pub mod index;
 pub mod input;
 pub mod journal;
+pub mod las_records;
 pub mod merge;
 pub mod morton;
 pub mod normals;

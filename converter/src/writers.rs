@@ -2,15 +2,12 @@
 //! Files are written under a temporary name and renamed when complete.
 
 use crate::error::{ConvertError, Result};
-use crate::input::las_layout::{
-    ExtraBytesField, FieldOp, eb_code, las_fields, las_fields_ungrouped, row_to_record,
-};
-use crate::input::las_normals::{EXPORT_NORMAL_NAMES, is_normal_component};
+use crate::las_records::{LasRecords, refuse_encoded};
 use las::{PointDataBuilder, Transform, Vector, Vlr, Writer};
 use std::fs::File;
 use std::io::{BufWriter, Write};
 use std::path::{Path, PathBuf};
-use strata_format::{AttrType, Attribute, RowLayout, row_position};
+use strata_format::{AttrType, RowLayout, row_position};
 
 /// A sink for rows of one layout.
 pub trait RowWriter {
@@ -89,55 +86,14 @@ struct LasRowWriter {
     path: PathBuf,
     part: PathBuf,
     writer: Writer<BufWriter<File>>,
-    layout: RowLayout,
-    /// For each LAS-order attribute: (dataset row offset, LAS row offset, len, widen u8->u16).
-    gather: Vec<(Option<usize>, usize, usize, bool)>,
-    ops: Vec<FieldOp>,
-    las_row_len: usize,
-    record_len: usize,
+    records: LasRecords,
     buf: Vec<u8>,
 }
 
 impl LasRowWriter {
     fn create(path: &Path, layout: &RowLayout, scale: [f64; 3], offset: [f64; 3]) -> Result<Self> {
-        refuse_encoded(path, layout)?;
-        if let Some(a) = layout.attributes.iter().find(|a| a.ty == AttrType::F16) {
-            return Err(ConvertError::output(
-                path,
-                format!(
-                    "attribute \"{}\" is f16, which LAS cannot hold; widen it to f32 first",
-                    a.name
-                ),
-            ));
-        }
         let format_number = las_format_for(layout);
-        let (standard, _, _) = las_fields(format_number, &[]);
-        // A normal is split into three fields only where no attribute already has one of their
-        // names: the file then reads back as it was written.
-        let split = !layout
-            .attributes
-            .iter()
-            .any(|a| is_normal_component(&a.name));
-        let extra: Vec<ExtraBytesField> = layout
-            .attributes
-            .iter()
-            .filter(|a| !standard.iter().any(|s| s.name == a.name))
-            .flat_map(|a| extra_fields(a, split))
-            .collect();
-        let (las_attrs, ops, record_len) = if split {
-            las_fields(format_number, &extra)
-        } else {
-            las_fields_ungrouped(format_number, &extra)
-        };
-        let mut gather = Vec::new();
-        let mut at = 0;
-        for a in &las_attrs {
-            let src = layout.index_of(&a.name);
-            let widen = src
-                .is_some_and(|i| layout.attributes[i].ty == AttrType::U8 && a.ty == AttrType::U16);
-            gather.push((src.map(|i| layout.offsets[i]), at, a.size(), widen));
-            at += a.size();
-        }
+        let records = LasRecords::new(path, layout, format_number)?;
         let mut builder = las::Builder::from((1, 4));
         builder.point_format = las::point::Format::new(format_number).map_err(|e| {
             ConvertError::output(
@@ -145,7 +101,7 @@ impl LasRowWriter {
                 format!("cannot use point format {format_number} ({e})"),
             )
         })?;
-        builder.point_format.extra_bytes = extra.iter().map(|e| e.len as u16).sum();
+        builder.point_format.extra_bytes = records.extra_bytes() as u16;
         builder.transforms = Vector {
             x: Transform {
                 scale: scale[0],
@@ -161,15 +117,12 @@ impl LasRowWriter {
             },
         };
         builder.generating_software = format!("strata {}", env!("CARGO_PKG_VERSION"));
-        if !extra.is_empty() {
+        if let Some(data) = records.extra_bytes_vlr() {
             builder.vlrs.push(Vlr {
                 user_id: "LASF_Spec".into(),
                 record_id: 4,
                 description: "Extra Bytes Record".into(),
-                data: extra
-                    .iter()
-                    .flat_map(|e| eb_descriptor(&e.attribute))
-                    .collect(),
+                data,
             });
         }
         // Compression follows the final name; the file is written under a ".part" name.
@@ -187,114 +140,15 @@ impl LasRowWriter {
             path: path.to_path_buf(),
             part,
             writer,
-            layout: layout.clone(),
-            gather,
-            ops,
-            las_row_len: at,
-            record_len,
+            records,
             buf: Vec::new(),
         })
     }
 }
 
-/// Refuses attributes whose raw values are an encoding (`oct16`): written as they are, a reader
-/// of the file could not know what they mean. Export decodes them first (`export::widened`).
-fn refuse_encoded(path: &Path, layout: &RowLayout) -> Result<()> {
-    match layout.attributes.iter().find(|a| a.encoding.is_some()) {
-        Some(a) => Err(ConvertError::output(
-            path,
-            format!(
-                "attribute \"{}\" is stored in the {} encoding, which the file cannot say; decode it first",
-                a.name,
-                a.encoding.as_deref().unwrap_or_default()
-            ),
-        )),
-        None => Ok(()),
-    }
-}
-
-/// The extra-bytes fields one attribute is written as. A normal of three floats becomes three
-/// scalar fields named `NormalX NormalY NormalZ`: PDAL reads those names as its own normal
-/// dimensions (a three-component field would reach it as `normal0 normal1 normal2`, and the
-/// later revisions of LAS 1.4 deprecate such fields), laspy users find them by name, and
-/// `las_fields` reads them back as one `normal`.
-fn extra_fields(a: &Attribute, split_normal: bool) -> Vec<ExtraBytesField> {
-    if split_normal
-        && a.name == "normal"
-        && a.count == 3
-        && a.ty.is_float()
-        && a.scale.is_none()
-        && a.offset.is_none()
-    {
-        return EXPORT_NORMAL_NAMES
-            .iter()
-            .map(|n| ExtraBytesField {
-                attribute: Attribute::new(n, a.ty, 1),
-                len: a.ty.size(),
-            })
-            .collect();
-    }
-    vec![ExtraBytesField {
-        attribute: a.clone(),
-        len: a.size(),
-    }]
-}
-
-/// One 192-byte Extra Bytes descriptor.
-fn eb_descriptor(a: &Attribute) -> Vec<u8> {
-    let mut d = vec![0u8; 192];
-    let (code, options) = match a.count {
-        1 => (eb_code(a.ty), 0u8),
-        2 => (eb_code(a.ty) + 10, 0),
-        3 => (eb_code(a.ty) + 20, 0),
-        _ => (0, a.size() as u8),
-    };
-    d[2] = code;
-    d[3] = options;
-    let mut put = |off: usize, vals: &Option<Vec<f64>>, bit: u8| {
-        if let Some(v) = vals {
-            for (i, x) in v.iter().take(3).enumerate() {
-                d[off + i * 8..off + i * 8 + 8].copy_from_slice(&x.to_le_bytes());
-            }
-            d[3] |= bit;
-        }
-    };
-    put(112, &a.scale, 0x08);
-    put(136, &a.offset, 0x10);
-    let name = a.name.as_bytes();
-    d[4..4 + name.len().min(32)].copy_from_slice(&name[..name.len().min(32)]);
-    let desc = a.description.as_bytes();
-    d[160..160 + desc.len().min(32)].copy_from_slice(&desc[..desc.len().min(32)]);
-    d
-}
-
 impl RowWriter for LasRowWriter {
     fn write_rows(&mut self, rows: &[u8]) -> Result<()> {
-        let stride = self.layout.stride;
-        let n = rows.len() / stride;
-        self.buf.clear();
-        self.buf.resize(n * self.record_len, 0);
-        let mut las_row = vec![0u8; self.las_row_len];
-        for (row, rec) in rows
-            .chunks_exact(stride)
-            .zip(self.buf.chunks_exact_mut(self.record_len))
-        {
-            rec[..12].copy_from_slice(&row[..12]);
-            las_row.fill(0);
-            for &(src, dst, len, widen) in &self.gather {
-                match (src, widen) {
-                    (Some(s), false) => las_row[dst..dst + len].copy_from_slice(&row[s..s + len]),
-                    (Some(s), true) => {
-                        for c in 0..len / 2 {
-                            las_row[dst + 2 * c..dst + 2 * c + 2]
-                                .copy_from_slice(&(row[s + c] as u16).to_le_bytes());
-                        }
-                    }
-                    (None, _) => {}
-                }
-            }
-            row_to_record(&self.ops, &las_row, rec);
-        }
+        self.records.fill(rows, &mut self.buf);
         let data = PointDataBuilder::new()
             .for_header(self.writer.header())
             .build_from_bytes(std::mem::take(&mut self.buf))

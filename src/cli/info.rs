@@ -5,7 +5,7 @@ use strata_format::LocalDataset;
 
 #[derive(Debug, clap::Args)]
 pub struct Args {
-    /// The dataset directory.
+    /// The dataset directory, or a LAS/LAZ file (a COPC file says so, with its octree).
     dataset: PathBuf,
     /// Print JSON instead of text.
     #[arg(long)]
@@ -13,6 +13,9 @@ pub struct Args {
 }
 
 pub fn run(a: Args) -> anyhow::Result<ExitCode> {
+    if a.dataset.is_file() {
+        return point_file(&a);
+    }
     let ds = LocalDataset::open(&a.dataset)?;
     let m = ds.metadata();
     let bytes = m.files.hierarchy.size + m.files.octree.size;
@@ -120,6 +123,52 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
                 .map_or("", strata_viewer::pick::asprs_class_name);
             println!("  {code:>3} {name:<28} {n}");
         }
+    }
+    Ok(ExitCode::SUCCESS)
+}
+
+/// A LAS or LAZ file: its header, and for a COPC file its octree and hierarchy.
+fn point_file(a: &Args) -> anyhow::Result<ExitCode> {
+    let path = &a.dataset;
+    let f = strata_converter::copc::describe(path)?;
+    if a.json {
+        println!("{}", serde_json::to_string_pretty(&f)?);
+        return Ok(ExitCode::SUCCESS);
+    }
+    let kind = match f.kind {
+        "copc" => "COPC 1.0 (LAZ with an octree: one chunk per node)",
+        "laz" => "LAZ",
+        _ => "LAS",
+    };
+    println!("file      {}", path.display());
+    println!(
+        "kind      {kind}, LAS {}, point format {}",
+        f.version, f.point_format
+    );
+    println!("points    {}", f.points);
+    println!(
+        "bounds    min {:.3} {:.3} {:.3}",
+        f.min[0], f.min[1], f.min[2]
+    );
+    println!(
+        "          max {:.3} {:.3} {:.3}",
+        f.max[0], f.max[1], f.max[2]
+    );
+    println!("scale     {:?}", f.scale);
+    println!("offset    {:?}", f.offset);
+    if let Some(c) = &f.copc {
+        println!(
+            "octree    centre {:.3} {:.3} {:.3}, half size {:.3}, spacing {:.4}",
+            c.centre[0], c.centre[1], c.centre[2], c.halfsize, c.spacing
+        );
+        println!(
+            "hierarchy {} nodes with {} points, depth {}",
+            c.nodes, c.points, c.depth
+        );
+        println!(
+            "          `strata convert {}` makes a dataset of it",
+            path.display()
+        );
     }
     Ok(ExitCode::SUCCESS)
 }

@@ -1,0 +1,478 @@
+//! `strata export DATASET -o OUT.copc.laz`: the dataset as a COPC 1.0 file (Cloud Optimized
+//! Point Cloud: LAS 1.4, point format 6, 7 or 8, one LAZ chunk per octree node, the EPT-style
+//! hierarchy in an EVLR). Strata's octree is COPC's, node for node (the same cube halved per
+//! level, the same keys), so the export re-encodes each node's points as one chunk, a node at a
+//! time in bounded memory, and writes the hierarchy after them.
+
+use crate::error::{ConvertError, Result};
+use crate::export::widened;
+use crate::las_records::LasRecords;
+use laz::{LasZipCompressor, LazVlrBuilder};
+use std::fs::File;
+use std::io::{BufWriter, Read, Seek, SeekFrom, Write};
+use std::path::{Path, PathBuf};
+use strata_format::{LocalDataset, RowLayout};
+
+/// The LAS 1.4 header's size.
+const HEADER_SIZE: u64 = 375;
+/// A VLR's header, and an EVLR's.
+const VLR_HEADER: u64 = 54;
+const EVLR_HEADER: u64 = 60;
+/// The COPC info VLR's payload.
+const INFO_SIZE: u64 = 160;
+/// One hierarchy entry: key (4 x i32), offset (u64), byte size (i32), point count (i32).
+const ENTRY_SIZE: usize = 32;
+
+/// One node's chunk, as the hierarchy lists it.
+struct Entry {
+    key: [i32; 4],
+    offset: u64,
+    size: u64,
+    points: u64,
+}
+
+/// What the header sums up, gathered while the points are written.
+#[derive(Default)]
+struct Totals {
+    points: u64,
+    by_return: [u64; 15],
+    min: [i32; 3],
+    max: [i32; 3],
+    gps: Option<(f64, f64)>,
+}
+
+/// The LAS point format COPC allows that holds the layout's attributes: 6, 7 with colour, 8
+/// with colour and near infrared.
+fn copc_format(layout: &RowLayout) -> u8 {
+    let rgb = layout
+        .index_of("rgb")
+        .is_some_and(|i| layout.attributes[i].count == 3 && layout.attributes[i].ty.size() <= 2);
+    match (rgb, layout.index_of("nir").is_some()) {
+        (_, true) => 8,
+        (true, false) => 7,
+        (false, false) => 6,
+    }
+}
+
+fn part_path(path: &Path) -> PathBuf {
+    let mut name = path.file_name().unwrap_or_default().to_os_string();
+    name.push(".part");
+    path.with_file_name(name)
+}
+
+/// Writes `dataset` to `output` as COPC; returns the number of points written.
+pub fn export_copc(dataset: &Path, output: &Path, overwrite: bool) -> Result<u64> {
+    if output.exists() && !overwrite {
+        return Err(ConvertError::output(
+            output,
+            "output already exists (pass --overwrite to replace it)",
+        ));
+    }
+    let ds = LocalDataset::open(dataset)?;
+    let meta = ds.metadata().clone();
+    let s = meta.scale;
+    // COPC's octree is a cube in real coordinates; Strata's is one in stored integers.
+    if s[0] != s[1] || s[1] != s[2] {
+        return Err(ConvertError::output(
+            output,
+            format!(
+                "COPC needs one scale for x, y and z (its octree is a cube in real units); this dataset has {s:?}"
+            ),
+        ));
+    }
+    let layout = ds.layout().clone();
+    let wide = widened(&layout);
+    let format = copc_format(&wide.layout);
+    let records = LasRecords::new(output, &wide.layout, format)?;
+    let fail = |what: String| ConvertError::output(output, what);
+    let laz_vlr = LazVlrBuilder::default()
+        .with_point_format(format, records.extra_bytes() as u16)
+        .map_err(|e| fail(format!("cannot compress point format {format} ({e})")))?
+        .with_variable_chunk_size()
+        .build();
+    let mut laz_payload = Vec::new();
+    laz_vlr
+        .write_to(&mut laz_payload)
+        .map_err(|e| fail(format!("cannot encode the laszip VLR ({e})")))?;
+    let extra_payload = records.extra_bytes_vlr();
+    let vlrs: Vec<(&str, u16, &str, Vec<u8>)> = [
+        Some(("copc", 1, "COPC info", vec![0u8; INFO_SIZE as usize])),
+        Some(("laszip encoded", 22204, "laz variable chunks", laz_payload)),
+        extra_payload.map(|d| ("LASF_Spec", 4, "Extra Bytes Record", d)),
+    ]
+    .into_iter()
+    .flatten()
+    .collect();
+    let point_data = HEADER_SIZE
+        + vlrs
+            .iter()
+            .map(|v| VLR_HEADER + v.3.len() as u64)
+            .sum::<u64>();
+
+    let part = part_path(output);
+    let written = write_points(&ds, &part, &wide, &records, laz_vlr, point_data, &vlrs);
+    let (file, entries, totals) = match written {
+        Ok(w) => w,
+        Err(e) => {
+            let _ = std::fs::remove_file(&part);
+            return Err(e);
+        }
+    };
+    let finished = finish(
+        file, &part, &meta, format, &records, point_data, &vlrs, &entries, &totals,
+    );
+    if let Err(e) = finished.and_then(|_| {
+        std::fs::rename(&part, output)
+            .map_err(|e| ConvertError::io(output, "cannot move into place", e))
+    }) {
+        let _ = std::fs::remove_file(&part);
+        return Err(e);
+    }
+    Ok(totals.points)
+}
+
+/// Writes the header space, the VLRs and every node's chunk; returns the file, the chunks and
+/// the totals.
+fn write_points(
+    ds: &LocalDataset,
+    part: &Path,
+    wide: &crate::export::Widened,
+    records: &LasRecords,
+    laz_vlr: laz::LazVlr,
+    point_data: u64,
+    vlrs: &[(&str, u16, &str, Vec<u8>)],
+) -> Result<(File, Vec<Entry>, Totals)> {
+    let io = |e: std::io::Error| ConvertError::io(part, "cannot write", e);
+    // Read too: the chunk table's offset is read back at the end.
+    let file = std::fs::OpenOptions::new()
+        .read(true)
+        .write(true)
+        .create(true)
+        .truncate(true)
+        .open(part)
+        .map_err(|e| ConvertError::io(part, "cannot create", e))?;
+    let mut out = BufWriter::with_capacity(1 << 20, file);
+    out.write_all(&[0u8; HEADER_SIZE as usize]).map_err(io)?;
+    for (user, id, description, data) in vlrs {
+        out.write_all(&vlr_header(
+            user,
+            *id,
+            description,
+            data.len() as u64,
+            false,
+        ))
+        .map_err(io)?;
+        out.write_all(data).map_err(io)?;
+    }
+    let mut compressor = LasZipCompressor::new(out, laz_vlr)
+        .map_err(|e| ConvertError::output(part, format!("cannot start compressing ({e})")))?;
+    compressor.reserve_offset_to_chunk_table().map_err(io)?;
+    let layout = ds.layout();
+    let mut entries: Vec<Entry> = Vec::new();
+    let mut totals = Totals {
+        min: [i32::MAX; 3],
+        max: [i32::MIN; 3],
+        ..Totals::default()
+    };
+    let (mut rows_wide, mut recs) = (Vec::new(), Vec::new());
+    let nodes: Vec<_> = ds
+        .all_nodes()?
+        .into_iter()
+        .filter(|n| n.point_count > 0)
+        .collect();
+    for (i, node) in nodes.iter().enumerate() {
+        let cols = ds.read_node(node)?;
+        let rows = cols.to_rows(layout);
+        let rows = if wide.is_identity() {
+            &rows
+        } else {
+            wide.convert(&rows, &mut rows_wide);
+            &rows_wide
+        };
+        records.fill(rows, &mut recs);
+        for rec in recs.chunks_exact(records.record_len) {
+            totals.add(rec);
+        }
+        let start = compressor.get_mut().stream_position().map_err(io)?;
+        compressor.compress_many(&recs).map_err(io)?;
+        // The last chunk is closed by `done`, which would otherwise add an empty one.
+        if i + 1 < nodes.len() {
+            compressor.finish_current_chunk().map_err(io)?;
+        }
+        let k = node.key;
+        entries.push(Entry {
+            key: [k.level as i32, k.x as i32, k.y as i32, k.z as i32],
+            offset: start,
+            size: 0,
+            points: node.point_count as u64,
+        });
+        if let Some(e) = entries
+            .len()
+            .checked_sub(2)
+            .and_then(|p| entries.get_mut(p))
+        {
+            e.size = start - e.offset;
+        }
+    }
+    let chunks_start = point_data + 8;
+    compressor.done().map_err(io)?;
+    let out = compressor.into_inner();
+    let mut file = out
+        .into_inner()
+        .map_err(|e| ConvertError::io(part, "cannot write", e.into_error()))?;
+    // The last chunk ends where the chunk table begins, whose offset LAZ keeps in front of the
+    // points.
+    file.seek(SeekFrom::Start(point_data)).map_err(io)?;
+    let mut at = [0u8; 8];
+    file.read_exact(&mut at).map_err(io)?;
+    let table = i64::from_le_bytes(at) as u64;
+    if let Some(last) = entries.last_mut() {
+        last.size = table.saturating_sub(last.offset);
+    }
+    debug_assert!(entries.first().is_none_or(|e| e.offset == chunks_start));
+    Ok((file, entries, totals))
+}
+
+impl Totals {
+    /// Takes in one point format 6+ record.
+    fn add(&mut self, rec: &[u8]) {
+        self.points += 1;
+        for k in 0..3 {
+            let v =
+                i32::from_le_bytes([rec[4 * k], rec[4 * k + 1], rec[4 * k + 2], rec[4 * k + 3]]);
+            self.min[k] = self.min[k].min(v);
+            self.max[k] = self.max[k].max(v);
+        }
+        let ret = (rec[14] & 0x0f) as usize;
+        if (1..=15).contains(&ret) {
+            self.by_return[ret - 1] += 1;
+        }
+        let mut t = [0u8; 8];
+        t.copy_from_slice(&rec[22..30]);
+        let t = f64::from_le_bytes(t);
+        if t.is_finite() {
+            self.gps = Some(self.gps.map_or((t, t), |(lo, hi)| (lo.min(t), hi.max(t))));
+        }
+    }
+}
+
+/// A VLR's (or, `extended`, an EVLR's) header.
+fn vlr_header(user: &str, id: u16, description: &str, len: u64, extended: bool) -> Vec<u8> {
+    let mut h = Vec::with_capacity(EVLR_HEADER as usize);
+    h.extend_from_slice(&0u16.to_le_bytes());
+    let mut name = [0u8; 16];
+    name[..user.len().min(16)].copy_from_slice(&user.as_bytes()[..user.len().min(16)]);
+    h.extend_from_slice(&name);
+    h.extend_from_slice(&id.to_le_bytes());
+    if extended {
+        h.extend_from_slice(&len.to_le_bytes());
+    } else {
+        h.extend_from_slice(&(len as u16).to_le_bytes());
+    }
+    let mut desc = [0u8; 32];
+    desc[..description.len().min(32)]
+        .copy_from_slice(&description.as_bytes()[..description.len().min(32)]);
+    h.extend_from_slice(&desc);
+    h
+}
+
+/// Appends the hierarchy EVLR, then writes the header and the COPC info in place.
+#[allow(clippy::too_many_arguments)]
+fn finish(
+    mut file: File,
+    part: &Path,
+    meta: &strata_format::Metadata,
+    format: u8,
+    records: &LasRecords,
+    point_data: u64,
+    vlrs: &[(&str, u16, &str, Vec<u8>)],
+    entries: &[Entry],
+    totals: &Totals,
+) -> Result<()> {
+    let io = |e: std::io::Error| ConvertError::io(part, "cannot write", e);
+    let evlr_at = file.seek(SeekFrom::End(0)).map_err(io)?;
+    let mut page = Vec::with_capacity(entries.len() * ENTRY_SIZE);
+    for e in entries {
+        for k in e.key {
+            page.extend_from_slice(&k.to_le_bytes());
+        }
+        page.extend_from_slice(&e.offset.to_le_bytes());
+        page.extend_from_slice(&(e.size as i32).to_le_bytes());
+        page.extend_from_slice(&(e.points as i32).to_le_bytes());
+    }
+    file.write_all(&vlr_header(
+        "copc",
+        1000,
+        "EPT hierarchy",
+        page.len() as u64,
+        true,
+    ))
+    .map_err(io)?;
+    file.write_all(&page).map_err(io)?;
+
+    // The octree's cube in real coordinates, and the points' bounds.
+    let s = meta.scale;
+    let edge = s[0] * (1u64 << meta.cube.bits) as f64;
+    let centre: [f64; 3] =
+        std::array::from_fn(|k| meta.offset[k] + s[k] * meta.cube.min[k] as f64 + edge / 2.0);
+    let real = |k: usize, v: i32| meta.offset[k] + s[k] * v as f64;
+    let (min, max) = if totals.points > 0 {
+        (
+            std::array::from_fn::<f64, 3, _>(|k| real(k, totals.min[k])),
+            std::array::from_fn::<f64, 3, _>(|k| real(k, totals.max[k])),
+        )
+    } else {
+        ([0.0; 3], [0.0; 3])
+    };
+    let mut info = Vec::with_capacity(INFO_SIZE as usize);
+    for v in [centre[0], centre[1], centre[2], edge / 2.0, meta.spacing] {
+        info.extend_from_slice(&v.to_le_bytes());
+    }
+    info.extend_from_slice(&(evlr_at + EVLR_HEADER).to_le_bytes());
+    info.extend_from_slice(&(page.len() as u64).to_le_bytes());
+    let (gps_lo, gps_hi) = totals.gps.unwrap_or((0.0, 0.0));
+    info.extend_from_slice(&gps_lo.to_le_bytes());
+    info.extend_from_slice(&gps_hi.to_le_bytes());
+    info.resize(INFO_SIZE as usize, 0);
+
+    let mut h = Vec::with_capacity(HEADER_SIZE as usize);
+    h.extend_from_slice(b"LASF");
+    h.extend_from_slice(&0u16.to_le_bytes()); // file source id
+    h.extend_from_slice(&16u16.to_le_bytes()); // global encoding: WKT, as formats 6+ require
+    h.extend_from_slice(&[0u8; 16]); // project id
+    h.extend_from_slice(&[1, 4]);
+    let text = |t: &str| {
+        let mut f = [0u8; 32];
+        f[..t.len().min(32)].copy_from_slice(&t.as_bytes()[..t.len().min(32)]);
+        f
+    };
+    h.extend_from_slice(&text("strata export"));
+    h.extend_from_slice(&text(&format!("strata {}", env!("CARGO_PKG_VERSION"))));
+    h.extend_from_slice(&1u16.to_le_bytes()); // creation day
+    h.extend_from_slice(&2026u16.to_le_bytes()); // creation year
+    h.extend_from_slice(&(HEADER_SIZE as u16).to_le_bytes());
+    h.extend_from_slice(&(point_data as u32).to_le_bytes());
+    h.extend_from_slice(&(vlrs.len() as u32).to_le_bytes());
+    // Bit 7 marks the points compressed, as LASzip writes it (readers take bit 6 as well for
+    // something else).
+    h.push(format | 0x80);
+    h.extend_from_slice(&(records.record_len as u16).to_le_bytes());
+    h.extend_from_slice(&[0u8; 4 + 20]); // legacy counts: 0 for formats 6+
+    for v in s.iter().chain(&meta.offset) {
+        h.extend_from_slice(&v.to_le_bytes());
+    }
+    for k in 0..3 {
+        h.extend_from_slice(&max[k].to_le_bytes());
+        h.extend_from_slice(&min[k].to_le_bytes());
+    }
+    h.extend_from_slice(&0u64.to_le_bytes()); // waveform data
+    h.extend_from_slice(&evlr_at.to_le_bytes());
+    h.extend_from_slice(&1u32.to_le_bytes());
+    h.extend_from_slice(&totals.points.to_le_bytes());
+    for n in totals.by_return {
+        h.extend_from_slice(&n.to_le_bytes());
+    }
+    debug_assert_eq!(h.len() as u64, HEADER_SIZE);
+    file.seek(SeekFrom::Start(0)).map_err(io)?;
+    file.write_all(&h).map_err(io)?;
+    file.seek(SeekFrom::Start(HEADER_SIZE + VLR_HEADER))
+        .map_err(io)?;
+    file.write_all(&info).map_err(io)?;
+    file.sync_all().map_err(io)
+}
+
+/// What `strata info` says of a COPC file: its octree and its hierarchy.
+#[derive(Debug, Clone, serde::Serialize)]
+pub struct CopcSummary {
+    pub centre: [f64; 3],
+    pub halfsize: f64,
+    pub spacing: f64,
+    pub gps_time: [f64; 2],
+    /// Hierarchy entries with points, and the deepest level.
+    pub nodes: u64,
+    pub depth: i32,
+    /// Points the hierarchy lists.
+    pub points: u64,
+}
+
+/// What `strata info` says of a LAS, LAZ or COPC file.
+#[derive(Debug, Clone, serde::Serialize)]
+pub struct FileSummary {
+    /// "las", "laz" or "copc".
+    pub kind: &'static str,
+    pub version: String,
+    pub point_format: u8,
+    pub points: u64,
+    pub min: [f64; 3],
+    pub max: [f64; 3],
+    pub scale: [f64; 3],
+    pub offset: [f64; 3],
+    pub copc: Option<CopcSummary>,
+}
+
+/// Reads the header (and, for COPC, the hierarchy) of the LAS/LAZ file `path`.
+pub fn describe(path: &Path) -> Result<FileSummary> {
+    let reader = las::Reader::from_path(path)
+        .map_err(|e| ConvertError::output(path, format!("not a LAS or LAZ file ({e})")))?;
+    let h = reader.header();
+    let copc = read_summary(h, path)?;
+    let (b, t, v, format) = (h.bounds(), h.transforms(), h.version(), h.point_format());
+    Ok(FileSummary {
+        kind: match (&copc, format.is_compressed) {
+            (Some(_), _) => "copc",
+            (None, true) => "laz",
+            (None, false) => "las",
+        },
+        version: format!("{}.{}", v.major, v.minor),
+        point_format: format.to_u8().unwrap_or(0),
+        points: h.number_of_points(),
+        min: [b.min.x, b.min.y, b.min.z],
+        max: [b.max.x, b.max.y, b.max.z],
+        scale: [t.x.scale, t.y.scale, t.z.scale],
+        offset: [t.x.offset, t.y.offset, t.z.offset],
+        copc,
+    })
+}
+
+/// The COPC info of a LAS/LAZ file whose first VLR is COPC's, with its hierarchy summed up;
+/// `None` for a file that is not COPC.
+fn read_summary(header: &las::Header, path: &Path) -> Result<Option<CopcSummary>> {
+    let Some(info) = header
+        .vlrs()
+        .first()
+        .filter(|v| v.user_id == "copc" && v.record_id == 1)
+    else {
+        return Ok(None);
+    };
+    let bad = |what: &str| ConvertError::output(path, format!("COPC {what}"));
+    let d = &info.data;
+    if d.len() < INFO_SIZE as usize {
+        return Err(bad("info VLR is shorter than 160 bytes"));
+    }
+    let f = |i: usize| f64::from_le_bytes(d[i * 8..i * 8 + 8].try_into().unwrap_or([0; 8]));
+    let hierarchy = header
+        .evlrs()
+        .iter()
+        .find(|v| v.user_id == "copc" && v.record_id == 1000)
+        .ok_or_else(|| bad("hierarchy EVLR is missing"))?;
+    let (mut nodes, mut depth, mut points) = (0u64, 0i32, 0u64);
+    // The first page; pages below it (entries of -1 points) are counted as nodes to be read.
+    for e in hierarchy.data.chunks_exact(ENTRY_SIZE) {
+        let int = |i: usize| i32::from_le_bytes(e[i..i + 4].try_into().unwrap_or([0; 4]));
+        let count = int(28);
+        if count > 0 {
+            nodes += 1;
+            points += count as u64;
+            depth = depth.max(int(0));
+        }
+    }
+    Ok(Some(CopcSummary {
+        centre: [f(0), f(1), f(2)],
+        halfsize: f(3),
+        spacing: f(4),
+        gps_time: [f(7), f(8)],
+        nodes,
+        depth,
+        points,
+    }))
+}

@@ -1,0 +1,223 @@
+//! A dataset's rows as the records of a LAS point format: which LAS field each attribute
+//! fills, the attributes that become extra bytes, and the conversions between point format
+//! families (a legacy `scan_angle_rank` in degrees becomes the `scan_angle` of formats 6 to 10
+//! in steps of 0.006°). Shared by the LAS/LAZ writer and the COPC export.
+
+use crate::error::{ConvertError, Result};
+use crate::input::las_layout::{
+    ExtraBytesField, FieldOp, eb_code, las_fields, las_fields_ungrouped, row_to_record,
+};
+use crate::input::las_normals::{EXPORT_NORMAL_NAMES, is_normal_component};
+use std::path::Path;
+use strata_format::{AttrType, Attribute, RowLayout};
+
+/// How one LAS field is filled from a dataset row.
+#[derive(Debug, Clone, Copy)]
+enum Source {
+    /// Copied (the row's offset).
+    Copy(usize),
+    /// A u8 widened to u16, per component.
+    Widen(usize),
+    /// A legacy scan angle rank (i8 degrees) as a scan angle (i16, 0.006°).
+    RankToAngle(usize),
+    /// Not in the dataset: zero.
+    Zero,
+}
+
+pub struct LasRecords {
+    stride: usize,
+    /// Per LAS-order attribute: where it comes from, its offset and size in the LAS row.
+    gather: Vec<(Source, usize, usize)>,
+    ops: Vec<FieldOp>,
+    las_row_len: usize,
+    pub record_len: usize,
+    extra: Vec<ExtraBytesField>,
+}
+
+impl LasRecords {
+    /// The records of point format `format_number` for rows of `layout`; `path` names the
+    /// output in errors.
+    pub fn new(path: &Path, layout: &RowLayout, format_number: u8) -> Result<LasRecords> {
+        refuse_encoded(path, layout)?;
+        if let Some(a) = layout.attributes.iter().find(|a| a.ty == AttrType::F16) {
+            return Err(ConvertError::output(
+                path,
+                format!(
+                    "attribute \"{}\" is f16, which LAS cannot hold; widen it to f32 first",
+                    a.name
+                ),
+            ));
+        }
+        let (standard, _, _) = las_fields(format_number, &[]);
+        let has = |n: &str| standard.iter().any(|s| s.name == n);
+        // The legacy rank fills the extended angle where the format has only that.
+        let rank_as_angle = has("scan_angle")
+            && layout.index_of("scan_angle").is_none()
+            && layout.index_of("scan_angle_rank").is_some();
+        // A normal is split into three fields only where no attribute already has one of their
+        // names: the file then reads back as it was written.
+        let split = !layout
+            .attributes
+            .iter()
+            .any(|a| is_normal_component(&a.name));
+        let extra: Vec<ExtraBytesField> = layout
+            .attributes
+            .iter()
+            .filter(|a| {
+                let converted = rank_as_angle && a.name == "scan_angle_rank";
+                !has(&a.name) && !converted
+            })
+            .flat_map(|a| extra_fields(a, split))
+            .collect();
+        let (las_attrs, ops, record_len) = if split {
+            las_fields(format_number, &extra)
+        } else {
+            las_fields_ungrouped(format_number, &extra)
+        };
+        let mut gather = Vec::new();
+        let mut at = 0;
+        for a in &las_attrs {
+            let src = layout.index_of(&a.name);
+            let source = match src {
+                Some(i) if layout.attributes[i].ty == AttrType::U8 && a.ty == AttrType::U16 => {
+                    Source::Widen(layout.offsets[i])
+                }
+                Some(i) => Source::Copy(layout.offsets[i]),
+                None if rank_as_angle && a.name == "scan_angle" => layout
+                    .index_of("scan_angle_rank")
+                    .map_or(Source::Zero, |i| Source::RankToAngle(layout.offsets[i])),
+                None => Source::Zero,
+            };
+            gather.push((source, at, a.size()));
+            at += a.size();
+        }
+        Ok(LasRecords {
+            stride: layout.stride,
+            gather,
+            ops,
+            las_row_len: at,
+            record_len,
+            extra,
+        })
+    }
+
+    /// Bytes of extra fields at the end of each record.
+    pub fn extra_bytes(&self) -> usize {
+        self.extra.iter().map(|e| e.len).sum()
+    }
+
+    /// The Extra Bytes VLR's payload (LASF_Spec 4), where there are extra fields.
+    pub fn extra_bytes_vlr(&self) -> Option<Vec<u8>> {
+        (!self.extra.is_empty()).then(|| {
+            self.extra
+                .iter()
+                .flat_map(|e| eb_descriptor(&e.attribute))
+                .collect()
+        })
+    }
+
+    /// The records of `rows`, into `out` (replacing its contents).
+    pub fn fill(&self, rows: &[u8], out: &mut Vec<u8>) {
+        let n = rows.len() / self.stride;
+        out.clear();
+        out.resize(n * self.record_len, 0);
+        let mut las_row = vec![0u8; self.las_row_len];
+        for (row, rec) in rows
+            .chunks_exact(self.stride)
+            .zip(out.chunks_exact_mut(self.record_len))
+        {
+            rec[..12].copy_from_slice(&row[..12]);
+            las_row.fill(0);
+            for &(source, dst, len) in &self.gather {
+                let to = &mut las_row[dst..dst + len];
+                match source {
+                    Source::Copy(s) => to.copy_from_slice(&row[s..s + len]),
+                    Source::Widen(s) => {
+                        for c in 0..len / 2 {
+                            to[2 * c..2 * c + 2]
+                                .copy_from_slice(&(row[s + c] as u16).to_le_bytes());
+                        }
+                    }
+                    Source::RankToAngle(s) => {
+                        let degrees = row[s] as i8 as f64;
+                        let steps = (degrees / 0.006).round() as i16;
+                        to.copy_from_slice(&steps.to_le_bytes());
+                    }
+                    Source::Zero => {}
+                }
+            }
+            row_to_record(&self.ops, &las_row, rec);
+        }
+    }
+}
+
+/// Refuses attributes whose raw values are an encoding (`oct16`): written as they are, a reader
+/// of the file could not know what they mean. Export decodes them first (`export::widened`).
+pub fn refuse_encoded(path: &Path, layout: &RowLayout) -> Result<()> {
+    match layout.attributes.iter().find(|a| a.encoding.is_some()) {
+        Some(a) => Err(ConvertError::output(
+            path,
+            format!(
+                "attribute \"{}\" is stored in the {} encoding, which the file cannot say; decode it first",
+                a.name,
+                a.encoding.as_deref().unwrap_or_default()
+            ),
+        )),
+        None => Ok(()),
+    }
+}
+
+/// The extra-bytes fields one attribute is written as. A normal of three floats becomes three
+/// scalar fields named `NormalX NormalY NormalZ`: PDAL reads those names as its own normal
+/// dimensions (a three-component field would reach it as `normal0 normal1 normal2`, and the
+/// later revisions of LAS 1.4 deprecate such fields), laspy users find them by name, and
+/// `las_fields` reads them back as one `normal`.
+fn extra_fields(a: &Attribute, split_normal: bool) -> Vec<ExtraBytesField> {
+    if split_normal
+        && a.name == "normal"
+        && a.count == 3
+        && a.ty.is_float()
+        && a.scale.is_none()
+        && a.offset.is_none()
+    {
+        return EXPORT_NORMAL_NAMES
+            .iter()
+            .map(|n| ExtraBytesField {
+                attribute: Attribute::new(n, a.ty, 1),
+                len: a.ty.size(),
+            })
+            .collect();
+    }
+    vec![ExtraBytesField {
+        attribute: a.clone(),
+        len: a.size(),
+    }]
+}
+
+/// One 192-byte Extra Bytes descriptor.
+fn eb_descriptor(a: &Attribute) -> Vec<u8> {
+    let mut d = vec![0u8; 192];
+    let (code, options) = match a.count {
+        1 => (eb_code(a.ty), 0u8),
+        2 => (eb_code(a.ty) + 10, 0),
+        3 => (eb_code(a.ty) + 20, 0),
+        _ => (0, a.size() as u8),
+    };
+    d[2] = code;
+    d[3] = options;
+    let mut put = |off: usize, vals: &Option<Vec<f64>>, bit: u8| {
+        if let Some(v) = vals {
+            for (i, x) in v.iter().take(3).enumerate() {
+                d[off + i * 8..off + i * 8 + 8].copy_from_slice(&x.to_le_bytes());
+            }
+            d[3] |= bit;
+        }
+    };
+    put(112, &a.scale, 0x08);
+    put(136, &a.offset, 0x10);
+    let name = a.name.as_bytes();
+    d[4..4 + name.len().min(32)].copy_from_slice(&name[..name.len().min(32)]);
+    let desc = a.description.as_bytes();
+    d[160..160 + desc.len().min(32)].copy_from_slice(&desc[..desc.len().min(32)]);
+    d
+}

@@ -1,0 +1,159 @@
+//! `strata export DATASET -o OUT.copc.laz`: a COPC 1.0 file that third-party readers take: the
+//! `las` crate reads every point back as `strata export` writes it to LAS, and laspy's
+//! CopcReader (where Python has laspy and lazrs) answers bounds and level queries with exactly
+//! the points Strata holds there.
+
+mod common;
+
+use common::{las_points, s};
+
+#[test]
+fn the_las_crate_reads_every_point_of_the_copc_file_back() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let dataset = common::converted("copc-fixture", "autzen_trim.laz", "autzen");
+    let las = dir.path().join("all.las");
+    let copc = dir.path().join("all.copc.laz");
+    common::run_ok(&["export", s(&dataset), "-o", s(&las)]);
+    common::run_ok(&["export", s(&dataset), "-o", s(&copc)]);
+    // The legacy scan angle rank (whole degrees) becomes the scan angle of formats 6 to 8, in
+    // steps of 0.006°: compared apart, within a step.
+    let apart = |path: &std::path::Path| {
+        let mut v: Vec<_> = las_points(path)
+            .0
+            .into_iter()
+            .map(|(xyz, mut a)| {
+                let angle = std::mem::take(&mut a[9]);
+                ((xyz, a), angle)
+            })
+            .collect();
+        v.sort_unstable();
+        v
+    };
+    let (want, got) = (apart(&las), apart(&copc));
+    assert_eq!(got.len(), want.len());
+    for (g, w) in got.iter().zip(&want) {
+        assert_eq!(
+            g.0, w.0,
+            "the COPC file's points differ from the LAS export's"
+        );
+        assert!((g.1 - w.1).abs() <= 3, "scan angle {} vs {}", g.1, w.1);
+    }
+
+    // `strata info` says what it is; `strata convert` reads it back into the same points.
+    let o = common::run_ok(&["info", s(&copc), "--json"]);
+    let info: serde_json::Value = serde_json::from_slice(&o.stdout).expect("info JSON");
+    let meta = strata_format::LocalDataset::open(&dataset)
+        .expect("opens")
+        .metadata()
+        .clone();
+    assert_eq!(info["kind"], "copc");
+    assert_eq!(info["points"].as_u64(), Some(meta.points));
+    assert_eq!(info["copc"]["points"].as_u64(), Some(meta.points));
+    assert_eq!(info["copc"]["spacing"].as_f64(), Some(meta.spacing));
+    let back = dir.path().join("back.strata");
+    common::run_ok(&["convert", s(&copc), "-o", s(&back), "--quiet"]);
+    let again = dir.path().join("again.copc.laz");
+    common::run_ok(&["export", s(&back), "-o", s(&again)]);
+    assert!(
+        apart(&again) == got,
+        "a COPC file converted and exported again differs"
+    );
+    // An existing output is kept unless --overwrite says otherwise.
+    let o = common::run(&["export", s(&dataset), "-o", s(&copc)]);
+    assert!(!o.status.success());
+    assert!(String::from_utf8_lossy(&o.stderr).contains("--overwrite"));
+}
+
+/// Whether Python has laspy and lazrs; CI installs them and sets STRATA_REQUIRE_LASPY.
+fn have_laspy() -> bool {
+    let ok = std::process::Command::new("python3")
+        .args(["-c", "import laspy, lazrs; from laspy import CopcReader"])
+        .output()
+        .is_ok_and(|o| o.status.success());
+    if !ok {
+        assert!(
+            std::env::var_os("STRATA_REQUIRE_LASPY").is_none(),
+            "python3 with laspy and lazrs is missing but STRATA_REQUIRE_LASPY is set"
+        );
+        eprintln!("skipping: python3 with laspy and lazrs is not installed");
+    }
+    ok
+}
+
+#[test]
+fn laspy_answers_level_and_bounds_queries_with_the_points_strata_holds_there() {
+    if !have_laspy() {
+        return;
+    }
+    let dir = tempfile::tempdir().expect("tempdir");
+    let dataset = common::converted("copc-fixture", "autzen_trim.laz", "autzen");
+    let copc = dir.path().join("q.copc.laz");
+    common::run_ok(&["export", s(&dataset), "-o", s(&copc)]);
+    // What Strata holds: each node's stored integers, by level.
+    let ds = strata_format::LocalDataset::open(&dataset).expect("opens");
+    let meta = ds.metadata().clone();
+    let mut held: Vec<(u8, [i64; 3])> = Vec::new();
+    for node in ds.all_nodes().expect("nodes") {
+        let cols = ds.read_node(&node).expect("node");
+        for i in 0..cols.count {
+            let p = cols.position(i);
+            held.push((node.key.level, p.map(i64::from)));
+        }
+    }
+    let real = |k: usize, v: i64| meta.offset[k] + meta.scale[k] * v as f64;
+    let boxes = [
+        [636300.0, 849050.0, 400.0, 636700.0, 849300.0, 500.0],
+        [636001.0, 848935.0, 430.0, 636500.0, 849200.0, 460.0],
+    ];
+    let mut queries: Vec<serde_json::Value> = (0..=meta.depth)
+        .map(|l| serde_json::json!({ "level": l }))
+        .collect();
+    queries.extend(boxes.iter().map(|b| serde_json::json!({ "bounds": b })));
+    let qpath = dir.path().join("queries.json");
+    let apath = dir.path().join("answers.json");
+    std::fs::write(&qpath, serde_json::Value::from(queries.clone()).to_string()).expect("write");
+    let script = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/copc/queries.py");
+    let o = std::process::Command::new("python3")
+        .args([s(&script), s(&copc), s(&qpath), s(&apath)])
+        .output()
+        .expect("python3 runs");
+    assert!(
+        o.status.success(),
+        "laspy: {}",
+        String::from_utf8_lossy(&o.stderr)
+    );
+    let answers: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(&apath).expect("answers")).expect("JSON");
+    assert!([6, 7, 8].contains(&answers["point_format"].as_u64().expect("format")));
+    assert_eq!(answers["spacing"].as_f64(), Some(meta.spacing));
+    let got = |i: usize| -> Vec<[i64; 3]> {
+        answers["answers"][i]
+            .as_array()
+            .expect("answer")
+            .iter()
+            .map(|p| std::array::from_fn(|k| p[k].as_i64().expect("integer")))
+            .collect()
+    };
+    let mut total = 0;
+    for level in 0..=meta.depth {
+        let mut want: Vec<[i64; 3]> = held
+            .iter()
+            .filter(|(l, _)| *l as u32 == level)
+            .map(|(_, p)| *p)
+            .collect();
+        want.sort_unstable();
+        total += want.len();
+        assert_eq!(got(level as usize), want, "level {level}");
+    }
+    assert_eq!(total, meta.points as usize);
+    for (i, b) in boxes.iter().enumerate() {
+        let mut want: Vec<[i64; 3]> = held
+            .iter()
+            .map(|(_, p)| *p)
+            .filter(|p| (0..3).all(|k| (b[k]..=b[k + 3]).contains(&real(k, p[k]))))
+            .collect();
+        want.sort_unstable();
+        assert!(want.len() > 1000, "box {i} holds {} points", want.len());
+        assert_eq!(got(meta.depth as usize + 1 + i), want, "box {i}");
+    }
+}
