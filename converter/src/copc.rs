@@ -4,6 +4,7 @@
 //! level, the same keys), so the export re-encodes each node's points as one chunk, a node at a
 //! time in bounded memory, and writes the hierarchy after them.
 
+use crate::copc_nodes::{Grid, plan};
 use crate::error::{ConvertError, Result};
 use crate::export::widened;
 use crate::las_records::LasRecords;
@@ -70,16 +71,6 @@ pub fn export_copc(dataset: &Path, output: &Path, overwrite: bool) -> Result<u64
     }
     let ds = LocalDataset::open(dataset)?;
     let meta = ds.metadata().clone();
-    let s = meta.scale;
-    // COPC's octree is a cube in real coordinates; Strata's is one in stored integers.
-    if s[0] != s[1] || s[1] != s[2] {
-        return Err(ConvertError::output(
-            output,
-            format!(
-                "COPC needs one scale for x, y and z (its octree is a cube in real units); this dataset has {s:?}"
-            ),
-        ));
-    }
     let layout = ds.layout().clone();
     let wide = widened(&layout);
     let format = copc_format(&wide.layout);
@@ -175,44 +166,59 @@ fn write_points(
         ..Totals::default()
     };
     let (mut rows_wide, mut recs) = (Vec::new(), Vec::new());
-    let nodes: Vec<_> = ds
+    let with_points = ds
         .all_nodes()?
         .into_iter()
         .filter(|n| n.point_count > 0)
         .collect();
-    for (i, node) in nodes.iter().enumerate() {
-        let cols = ds.read_node(node)?;
-        let rows = cols.to_rows(layout);
+    let meta = ds.metadata();
+    let grid = Grid::of(meta);
+    let mut picked = Vec::new();
+    for node in plan(meta, with_points) {
+        picked.clear();
+        for source in &node.sources {
+            let cols = ds.read_node(source)?;
+            let rows = cols.to_rows(layout);
+            if !node.pick {
+                picked.extend_from_slice(&rows);
+                continue;
+            }
+            let level = node.key[0] as u8;
+            for (i, row) in rows.chunks_exact(layout.stride).enumerate() {
+                if grid.key_of(level, cols.position(i)) == node.key {
+                    picked.extend_from_slice(row);
+                }
+            }
+        }
+        if picked.is_empty() {
+            continue;
+        }
         let rows = if wide.is_identity() {
-            &rows
+            &picked
         } else {
-            wide.convert(&rows, &mut rows_wide);
+            wide.convert(&picked, &mut rows_wide);
             &rows_wide
         };
         records.fill(rows, &mut recs);
         for rec in recs.chunks_exact(records.record_len) {
             totals.add(rec);
         }
-        let start = compressor.get_mut().stream_position().map_err(io)?;
-        compressor.compress_many(&recs).map_err(io)?;
-        // The last chunk is closed by `done`, which would otherwise add an empty one.
-        if i + 1 < nodes.len() {
+        // The chunk before is closed here, the last by `done` (closing each one after it was
+        // written would leave an empty chunk at the end).
+        if !entries.is_empty() {
             compressor.finish_current_chunk().map_err(io)?;
         }
-        let k = node.key;
-        entries.push(Entry {
-            key: [k.level as i32, k.x as i32, k.y as i32, k.z as i32],
-            offset: start,
-            size: 0,
-            points: node.point_count as u64,
-        });
-        if let Some(e) = entries
-            .len()
-            .checked_sub(2)
-            .and_then(|p| entries.get_mut(p))
-        {
+        let start = compressor.get_mut().stream_position().map_err(io)?;
+        if let Some(e) = entries.last_mut() {
             e.size = start - e.offset;
         }
+        compressor.compress_many(&recs).map_err(io)?;
+        entries.push(Entry {
+            key: node.key,
+            offset: start,
+            size: 0,
+            points: (recs.len() / records.record_len) as u64,
+        });
     }
     let chunks_start = point_data + 8;
     compressor.done().map_err(io)?;
@@ -312,9 +318,9 @@ fn finish(
 
     // The octree's cube in real coordinates, and the points' bounds.
     let s = meta.scale;
-    let edge = s[0] * (1u64 << meta.cube.bits) as f64;
-    let centre: [f64; 3] =
-        std::array::from_fn(|k| meta.offset[k] + s[k] * meta.cube.min[k] as f64 + edge / 2.0);
+    let grid = Grid::of(meta);
+    let edge = grid.edge;
+    let centre: [f64; 3] = std::array::from_fn(|k| grid.min[k] + edge / 2.0);
     let real = |k: usize, v: i32| meta.offset[k] + s[k] * v as f64;
     let (min, max) = if totals.points > 0 {
         (

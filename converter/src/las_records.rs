@@ -20,6 +20,14 @@ enum Source {
     Widen(usize),
     /// A legacy scan angle rank (i8 degrees) as a scan angle (i16, 0.006°).
     RankToAngle(usize),
+    /// Another type than the field's (an f32 intensity from a PLY): each component converted,
+    /// rounded and held within the field's range.
+    Cast {
+        at: usize,
+        from: AttrType,
+        to: AttrType,
+        count: usize,
+    },
     /// Not in the dataset: zero.
     Zero,
 }
@@ -82,6 +90,12 @@ impl LasRecords {
                 Some(i) if layout.attributes[i].ty == AttrType::U8 && a.ty == AttrType::U16 => {
                     Source::Widen(layout.offsets[i])
                 }
+                Some(i) if layout.attributes[i].ty != a.ty => Source::Cast {
+                    at: layout.offsets[i],
+                    from: layout.attributes[i].ty,
+                    to: a.ty,
+                    count: (a.count as usize).min(layout.attributes[i].count as usize),
+                },
                 Some(i) => Source::Copy(layout.offsets[i]),
                 None if rank_as_angle && a.name == "scan_angle" => layout
                     .index_of("scan_angle_rank")
@@ -142,6 +156,17 @@ impl LasRecords {
                         let degrees = row[s] as i8 as f64;
                         let steps = (degrees / 0.006).round() as i16;
                         to.copy_from_slice(&steps.to_le_bytes());
+                    }
+                    Source::Cast {
+                        at,
+                        from,
+                        to: ty,
+                        count,
+                    } => {
+                        for c in 0..count {
+                            let v = from.read_f64(&row[at + c * from.size()..]);
+                            store(ty, v, &mut to[c * ty.size()..(c + 1) * ty.size()]);
+                        }
                     }
                     Source::Zero => {}
                 }
@@ -215,9 +240,87 @@ fn eb_descriptor(a: &Attribute) -> Vec<u8> {
     };
     put(112, &a.scale, 0x08);
     put(136, &a.offset, 0x10);
-    let name = a.name.as_bytes();
-    d[4..4 + name.len().min(32)].copy_from_slice(&name[..name.len().min(32)]);
-    let desc = a.description.as_bytes();
-    d[160..160 + desc.len().min(32)].copy_from_slice(&desc[..desc.len().min(32)]);
+    let name = text_prefix(&a.name, 32);
+    d[4..4 + name.len()].copy_from_slice(name);
+    let desc = text_prefix(&a.description, 32);
+    d[160..160 + desc.len()].copy_from_slice(desc);
     d
+}
+
+/// `v` in the bytes of `ty`: integers rounded and held within their range (NaN as 0).
+fn store(ty: AttrType, v: f64, out: &mut [u8]) {
+    let v = if v.is_nan() { 0.0 } else { v };
+    let int = |lo: f64, hi: f64| v.round().clamp(lo, hi);
+    match ty {
+        AttrType::U8 => out.copy_from_slice(&[int(0.0, u8::MAX as f64) as u8]),
+        AttrType::I8 => {
+            out.copy_from_slice(&(int(i8::MIN as f64, i8::MAX as f64) as i8).to_le_bytes())
+        }
+        AttrType::U16 => out.copy_from_slice(&(int(0.0, u16::MAX as f64) as u16).to_le_bytes()),
+        AttrType::I16 => {
+            out.copy_from_slice(&(int(i16::MIN as f64, i16::MAX as f64) as i16).to_le_bytes())
+        }
+        AttrType::U32 => out.copy_from_slice(&(int(0.0, u32::MAX as f64) as u32).to_le_bytes()),
+        AttrType::I32 => {
+            out.copy_from_slice(&(int(i32::MIN as f64, i32::MAX as f64) as i32).to_le_bytes())
+        }
+        AttrType::U64 => out.copy_from_slice(&(int(0.0, u64::MAX as f64) as u64).to_le_bytes()),
+        AttrType::I64 => {
+            out.copy_from_slice(&(int(i64::MIN as f64, i64::MAX as f64) as i64).to_le_bytes())
+        }
+        // No LAS field is a half float; the plan refuses them before this.
+        AttrType::F32 | AttrType::F16 => {
+            let n = out.len().min(4);
+            out[..n].copy_from_slice(&(v as f32).to_le_bytes()[..n]);
+        }
+        AttrType::F64 => out.copy_from_slice(&v.to_le_bytes()),
+    }
+}
+
+/// The longest start of `text` of at most `max` bytes that ends between characters: a field
+/// cut inside a UTF-8 sequence is text no reader can decode (laspy refuses the whole file).
+fn text_prefix(text: &str, max: usize) -> &[u8] {
+    let mut end = text.len().min(max);
+    while !text.is_char_boundary(end) {
+        end -= 1;
+    }
+    &text.as_bytes()[..end]
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn descriptions_are_cut_between_characters() {
+        let long = "surface variation λ0 / (λ0 + λ1 + λ2)";
+        let cut = text_prefix(long, 32);
+        assert!(
+            cut.len() <= 32 && std::str::from_utf8(cut).is_ok(),
+            "{cut:?}"
+        );
+        assert_eq!(text_prefix("intensity", 32), b"intensity");
+    }
+
+    #[test]
+    fn a_field_of_another_type_is_converted_within_its_range() {
+        // A PLY's f32 intensity into LAS's u16 field; a u16 classification into the u8 one.
+        let layout = RowLayout::new(vec![
+            Attribute::new("intensity", AttrType::F32, 1),
+            Attribute::new("classification", AttrType::U16, 1),
+        ]);
+        let plan = LasRecords::new(Path::new("x.las"), &layout, 6).expect("plan");
+        let mut rows = Vec::new();
+        for (i, c) in [(1234.6f32, 6u16), (-5.0, 300), (1e9, 2)] {
+            rows.extend([0u8; 12]);
+            rows.extend(i.to_le_bytes());
+            rows.extend(c.to_le_bytes());
+        }
+        let mut recs = Vec::new();
+        plan.fill(&rows, &mut recs);
+        let rec = |p: usize| &recs[p * plan.record_len..(p + 1) * plan.record_len];
+        let intensity = |p: usize| u16::from_le_bytes([rec(p)[12], rec(p)[13]]);
+        assert_eq!([intensity(0), intensity(1), intensity(2)], [1235, 0, 65535]);
+        assert_eq!([rec(0)[16], rec(1)[16], rec(2)[16]], [6, 255, 2]);
+    }
 }

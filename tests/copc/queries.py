@@ -31,5 +31,6 @@ with CopcReader.open(path) as reader:
         "halfsize": info.halfsize,
         "spacing": info.spacing,
         "point_format": reader.header.point_format.id,
+        "extra": list(reader.header.point_format.extra_dimension_names),
     }
 json.dump(out, open(out_path, "w"))
