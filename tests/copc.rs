@@ -85,8 +85,10 @@ fn laspy_answers_level_and_bounds_queries_with_the_points_strata_holds_there() {
     if !have_laspy() {
         return;
     }
-    // One scale for x, y and z (autzen), and one per axis with extra attributes (the bunny
-    // with normals: its nodes are keyed again in COPC's larger cube).
+    // One scale for x, y and z (autzen); one per axis with extra attributes and no returns
+    // (the bunny with normals: its nodes are keyed again in COPC's larger cube); 20 levels
+    // with inner nodes left empty (the deep fixture: listed empty so that readers walking
+    // the hierarchy from the root reach what lies below).
     let autzen = common::converted("copc-fixture", "autzen_trim.laz", "autzen");
     let dir = tempfile::tempdir().expect("tempdir");
     let bunny = dir.path().join("bunny.strata");
@@ -98,7 +100,8 @@ fn laspy_answers_level_and_bounds_queries_with_the_points_strata_holds_there() {
         "--normals",
         "--quiet",
     ]);
-    for dataset in [&autzen, &bunny] {
+    let deep = common::deep_dataset("copc-deep");
+    for dataset in [&autzen, &bunny, &deep] {
         queries_match(dataset, dir.path());
     }
 }
@@ -159,7 +162,22 @@ fn queries_match(dataset: &std::path::Path, dir: &std::path::Path) {
     let answers: serde_json::Value =
         serde_json::from_slice(&std::fs::read(&apath).expect("answers")).expect("JSON");
     assert!([6, 7, 8].contains(&answers["point_format"].as_u64().expect("format")));
-    assert_eq!(answers["spacing"].as_f64(), Some(meta.spacing));
+    // The root's spacing in COPC's cube, whose edge is the largest axis's.
+    let largest = meta.scale.iter().fold(0.0f64, |m, v| m.max(*v));
+    let spacing = answers["spacing"].as_f64().expect("spacing");
+    assert!((spacing / (meta.spacing * largest / meta.scale[0]) - 1.0).abs() < 1e-12);
+    for k in 0..3 {
+        let (lo, hi) = (answers["mins"][k].as_f64(), answers["maxs"][k].as_f64());
+        let close = |a: Option<f64>, b: f64| a.is_some_and(|a| (a - b).abs() <= meta.scale[k]);
+        assert!(
+            close(lo, meta.bounds.min[k]) && close(hi, meta.bounds.max[k]),
+            "axis {k}"
+        );
+    }
+    // Without return numbers, every point is a single return (0 is invalid in formats 6+).
+    if !meta.attributes.iter().any(|a| a.name == "return_number") {
+        assert_eq!(answers["returns"], serde_json::json!([1]));
+    }
     // Attributes beyond the point format's, as extra bytes under their names (a normal as
     // PDAL's NormalX, NormalY, NormalZ).
     let extra: Vec<&str> = answers["extra"]

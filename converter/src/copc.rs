@@ -74,7 +74,7 @@ pub fn export_copc(dataset: &Path, output: &Path, overwrite: bool) -> Result<u64
     let layout = ds.layout().clone();
     let wide = widened(&layout);
     let format = copc_format(&wide.layout);
-    let records = LasRecords::new(output, &wide.layout, format)?;
+    let records = LasRecords::new(output, &wide.layout, format)?.single_returns_where_missing();
     let fail = |what: String| ConvertError::output(output, what);
     let laz_vlr = LazVlrBuilder::default()
         .with_point_format(format, records.extra_bytes() as u16)
@@ -86,6 +86,16 @@ pub fn export_copc(dataset: &Path, output: &Path, overwrite: bool) -> Result<u64
         .write_to(&mut laz_payload)
         .map_err(|e| fail(format!("cannot encode the laszip VLR ({e})")))?;
     let extra_payload = records.extra_bytes_vlr();
+    if let Some(d) = extra_payload
+        .as_ref()
+        .filter(|d| d.len() > u16::MAX as usize)
+    {
+        return Err(fail(format!(
+            "{} extra attributes take an Extra Bytes VLR of {} bytes, more than a VLR holds",
+            d.len() / 192,
+            d.len()
+        )));
+    }
     let vlrs: Vec<(&str, u16, &str, Vec<u8>)> = [
         Some(("copc", 1, "COPC info", vec![0u8; INFO_SIZE as usize])),
         Some(("laszip encoded", 22204, "laz variable chunks", laz_payload)),
@@ -173,52 +183,79 @@ fn write_points(
         .collect();
     let meta = ds.metadata();
     let grid = Grid::of(meta);
-    let mut picked = Vec::new();
+    let too_big = |what: &str, n: u64| {
+        ConvertError::output(
+            part,
+            format!("a COPC node's {what} ({n}) is more than its hierarchy entry can hold"),
+        )
+    };
     for node in plan(meta, with_points) {
-        picked.clear();
+        let level = node.key[0] as u8;
+        let mut started = false;
+        let mut count = 0u64;
+        // A source at a time, each appended to the node's open chunk: memory stays that of
+        // one Strata node, however many meet a COPC node.
         for source in &node.sources {
             let cols = ds.read_node(source)?;
-            let rows = cols.to_rows(layout);
-            if !node.pick {
-                picked.extend_from_slice(&rows);
-                continue;
-            }
-            let level = node.key[0] as u8;
-            for (i, row) in rows.chunks_exact(layout.stride).enumerate() {
+            let mut rows = cols.to_rows(layout);
+            let mut kept = 0;
+            for i in 0..cols.count {
                 if grid.key_of(level, cols.position(i)) == node.key {
-                    picked.extend_from_slice(row);
+                    rows.copy_within(
+                        i * layout.stride..(i + 1) * layout.stride,
+                        kept * layout.stride,
+                    );
+                    kept += 1;
                 }
             }
+            rows.truncate(kept * layout.stride);
+            if kept == 0 {
+                continue;
+            }
+            let rows = if wide.is_identity() {
+                &rows
+            } else {
+                wide.convert(&rows, &mut rows_wide);
+                &rows_wide
+            };
+            records.fill(rows, &mut recs);
+            for rec in recs.chunks_exact(records.record_len) {
+                totals.add(rec);
+            }
+            if !started {
+                started = true;
+                // The chunk before is closed here, the last by `done` (closing each one after
+                // it was written would leave an empty chunk at the end).
+                if entries.iter().any(|e: &Entry| e.points > 0) {
+                    compressor.finish_current_chunk().map_err(io)?;
+                }
+                let start = compressor.get_mut().stream_position().map_err(io)?;
+                if let Some(e) = entries.iter_mut().rev().find(|e| e.points > 0) {
+                    e.size = start - e.offset;
+                }
+                entries.push(Entry {
+                    key: node.key,
+                    offset: start,
+                    size: 0,
+                    points: 0,
+                });
+            }
+            compressor.compress_many(&recs).map_err(io)?;
+            count += kept as u64;
         }
-        if picked.is_empty() {
-            continue;
+        match entries.last_mut() {
+            Some(e) if started => e.points = count,
+            // Above others, without points of its own: listed empty.
+            _ => entries.push(Entry {
+                key: node.key,
+                offset: 0,
+                size: 0,
+                points: 0,
+            }),
         }
-        let rows = if wide.is_identity() {
-            &picked
-        } else {
-            wide.convert(&picked, &mut rows_wide);
-            &rows_wide
-        };
-        records.fill(rows, &mut recs);
-        for rec in recs.chunks_exact(records.record_len) {
-            totals.add(rec);
+        if count > i32::MAX as u64 {
+            return Err(too_big("point count", count));
         }
-        // The chunk before is closed here, the last by `done` (closing each one after it was
-        // written would leave an empty chunk at the end).
-        if !entries.is_empty() {
-            compressor.finish_current_chunk().map_err(io)?;
-        }
-        let start = compressor.get_mut().stream_position().map_err(io)?;
-        if let Some(e) = entries.last_mut() {
-            e.size = start - e.offset;
-        }
-        compressor.compress_many(&recs).map_err(io)?;
-        entries.push(Entry {
-            key: node.key,
-            offset: start,
-            size: 0,
-            points: (recs.len() / records.record_len) as u64,
-        });
     }
     let chunks_start = point_data + 8;
     compressor.done().map_err(io)?;
@@ -232,10 +269,18 @@ fn write_points(
     let mut at = [0u8; 8];
     file.read_exact(&mut at).map_err(io)?;
     let table = i64::from_le_bytes(at) as u64;
-    if let Some(last) = entries.last_mut() {
+    if let Some(last) = entries.iter_mut().rev().find(|e| e.points > 0) {
         last.size = table.saturating_sub(last.offset);
     }
-    debug_assert!(entries.first().is_none_or(|e| e.offset == chunks_start));
+    if let Some(e) = entries.iter().find(|e| e.size > i32::MAX as u64) {
+        return Err(too_big("compressed size", e.size));
+    }
+    debug_assert!(
+        entries
+            .iter()
+            .find(|e| e.points > 0)
+            .is_none_or(|e| e.offset == chunks_start)
+    );
     Ok((file, entries, totals))
 }
 
@@ -319,8 +364,6 @@ fn finish(
     // The octree's cube in real coordinates, and the points' bounds.
     let s = meta.scale;
     let grid = Grid::of(meta);
-    let edge = grid.edge;
-    let centre: [f64; 3] = std::array::from_fn(|k| grid.min[k] + edge / 2.0);
     let real = |k: usize, v: i32| meta.offset[k] + s[k] * v as f64;
     let (min, max) = if totals.points > 0 {
         (
@@ -331,7 +374,8 @@ fn finish(
         ([0.0; 3], [0.0; 3])
     };
     let mut info = Vec::with_capacity(INFO_SIZE as usize);
-    for v in [centre[0], centre[1], centre[2], edge / 2.0, meta.spacing] {
+    let c = grid.centre;
+    for v in [c[0], c[1], c[2], grid.half, grid.spacing()] {
         info.extend_from_slice(&v.to_le_bytes());
     }
     info.extend_from_slice(&(evlr_at + EVLR_HEADER).to_le_bytes());
@@ -462,7 +506,8 @@ fn read_summary(header: &las::Header, path: &Path) -> Result<Option<CopcSummary>
         .find(|v| v.user_id == "copc" && v.record_id == 1000)
         .ok_or_else(|| bad("hierarchy EVLR is missing"))?;
     let (mut nodes, mut depth, mut points) = (0u64, 0i32, 0u64);
-    // The first page; pages below it (entries of -1 points) are counted as nodes to be read.
+    // Every entry of the EVLR (the pages a writer puts there one after the other; entries
+    // of -1 points, pointing at pages elsewhere, are not counted).
     for e in hierarchy.data.chunks_exact(ENTRY_SIZE) {
         let int = |i: usize| i32::from_le_bytes(e[i..i + 4].try_into().unwrap_or([0; 4]));
         let count = int(28);

@@ -30,6 +30,8 @@ enum Source {
     },
     /// Not in the dataset: zero.
     Zero,
+    /// Not in the dataset: one (a single return).
+    One,
 }
 
 pub struct LasRecords {
@@ -40,6 +42,8 @@ pub struct LasRecords {
     las_row_len: usize,
     pub record_len: usize,
     extra: Vec<ExtraBytesField>,
+    /// The name of each LAS-order attribute, beside `gather`.
+    names: Vec<String>,
 }
 
 impl LasRecords {
@@ -87,15 +91,23 @@ impl LasRecords {
         for a in &las_attrs {
             let src = layout.index_of(&a.name);
             let source = match src {
-                Some(i) if layout.attributes[i].ty == AttrType::U8 && a.ty == AttrType::U16 => {
+                Some(i)
+                    if layout.attributes[i].ty == AttrType::U8
+                        && a.ty == AttrType::U16
+                        && layout.attributes[i].count == a.count =>
+                {
                     Source::Widen(layout.offsets[i])
                 }
-                Some(i) if layout.attributes[i].ty != a.ty => Source::Cast {
-                    at: layout.offsets[i],
-                    from: layout.attributes[i].ty,
-                    to: a.ty,
-                    count: (a.count as usize).min(layout.attributes[i].count as usize),
-                },
+                Some(i)
+                    if layout.attributes[i].ty != a.ty || layout.attributes[i].count != a.count =>
+                {
+                    Source::Cast {
+                        at: layout.offsets[i],
+                        from: layout.attributes[i].ty,
+                        to: a.ty,
+                        count: (a.count as usize).min(layout.attributes[i].count as usize),
+                    }
+                }
                 Some(i) => Source::Copy(layout.offsets[i]),
                 None if rank_as_angle && a.name == "scan_angle" => layout
                     .index_of("scan_angle_rank")
@@ -105,6 +117,15 @@ impl LasRecords {
             gather.push((source, at, a.size()));
             at += a.size();
         }
+        if record_len > u16::MAX as usize {
+            return Err(ConvertError::output(
+                path,
+                format!(
+                    "a point's record would take {record_len} bytes, more than LAS's 65,535: too many extra attributes"
+                ),
+            ));
+        }
+        let names = las_attrs.iter().map(|a| a.name.clone()).collect();
         Ok(LasRecords {
             stride: layout.stride,
             gather,
@@ -112,7 +133,21 @@ impl LasRecords {
             las_row_len: at,
             record_len,
             extra,
+            names,
         })
+    }
+
+    /// Points without return numbers are written as single returns (1 of 1), which formats 6
+    /// and up require (a return number of 0 is invalid there), as PDAL writes them.
+    pub fn single_returns_where_missing(mut self) -> LasRecords {
+        for (g, name) in self.gather.iter_mut().zip(&self.names) {
+            if matches!(g.0, Source::Zero)
+                && (name == "return_number" || name == "number_of_returns")
+            {
+                g.0 = Source::One;
+            }
+        }
+        self
     }
 
     /// Bytes of extra fields at the end of each record.
@@ -168,6 +203,7 @@ impl LasRecords {
                             store(ty, v, &mut to[c * ty.size()..(c + 1) * ty.size()]);
                         }
                     }
+                    Source::One => to[0] = 1,
                     Source::Zero => {}
                 }
             }

@@ -32,5 +32,8 @@ with CopcReader.open(path) as reader:
         "spacing": info.spacing,
         "point_format": reader.header.point_format.id,
         "extra": list(reader.header.point_format.extra_dimension_names),
+        "returns": sorted(set(int(r) for r in reader.query().return_number)),
+        "mins": list(reader.header.mins),
+        "maxs": list(reader.header.maxs),
     }
 json.dump(out, open(out_path, "w"))
