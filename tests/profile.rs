@@ -194,12 +194,7 @@ fn a_profile_through_a_deep_tree_reads_every_page_in_format_1_1_and_1_0() {
 
 #[test]
 fn the_window_draws_the_measurements_and_the_profile_with_its_plot() {
-    if !Path::new("/usr/bin/xvfb-run").exists() {
-        assert!(
-            std::env::var_os("STRATA_REQUIRE_XVFB").is_none(),
-            "xvfb-run is missing but STRATA_REQUIRE_XVFB is set"
-        );
-        eprintln!("skipping: xvfb-run is not installed");
+    if !common::have_xvfb() {
         return;
     }
     let dir = tempfile::tempdir().expect("tempdir");

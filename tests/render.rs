@@ -401,13 +401,7 @@ fn bad_arguments_get_one_clear_sentence() {
 
 #[test]
 fn window_opens_under_xvfb_and_shows_the_panel() {
-    let have_xvfb = Path::new("/usr/bin/xvfb-run").exists();
-    if !have_xvfb {
-        assert!(
-            std::env::var_os("STRATA_REQUIRE_XVFB").is_none(),
-            "xvfb-run is missing but STRATA_REQUIRE_XVFB is set"
-        );
-        eprintln!("skipping: xvfb-run is not installed");
+    if !common::have_xvfb() {
         return;
     }
     let dataset = fixtures().join("autzen.strata");

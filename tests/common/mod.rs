@@ -239,3 +239,17 @@ pub fn deep_dataset(tag: &str) -> PathBuf {
     }
     out
 }
+
+/// Whether xvfb-run is there for a window test; without it the test is skipped, unless CI
+/// (`STRATA_REQUIRE_XVFB`) says it must run.
+pub fn have_xvfb() -> bool {
+    if Path::new("/usr/bin/xvfb-run").exists() {
+        return true;
+    }
+    assert!(
+        std::env::var_os("STRATA_REQUIRE_XVFB").is_none(),
+        "xvfb-run is missing but STRATA_REQUIRE_XVFB is set"
+    );
+    eprintln!("skipping: xvfb-run is not installed");
+    false
+}
