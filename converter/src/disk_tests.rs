@@ -74,6 +74,44 @@ fn work_files_are_compressed_and_removed_once_consumed() {
     );
 }
 
+/// The pre-flight estimate is what lets a conversion start: it must hold the measured peak
+/// (else a run could start that cannot finish) without asking for the worst case of every
+/// stage at once (which refused a billion points that fit).
+#[test]
+fn the_disk_estimate_holds_the_measured_peak_of_las_and_laz() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let las = city(dir.path(), "from_las");
+    let laz_input = dir.path().join("city.laz");
+    crate::synth::synth(
+        &laz_input,
+        300_000,
+        crate::synth::Scene::City,
+        7,
+        0.0,
+        false,
+    )
+    .expect("synth laz");
+    let laz = ConvertOptions {
+        inputs: vec![laz_input],
+        output: dir.path().join("from_laz"),
+        ..las.clone()
+    };
+    for opts in [las, laz] {
+        let summary = convert(&opts).expect("convert");
+        let stride = crate::synth::synth_layout().stride;
+        let (work, output) = crate::disk::disk_estimate(summary.points, stride);
+        let needed = work.max(output);
+        assert!(
+            summary.peak_disk_bytes <= needed,
+            "{}: peak {} bytes, estimated {needed}",
+            opts.inputs[0].display(),
+            summary.peak_disk_bytes
+        );
+        // Not the worst case of every stage at once: under 1.2x the uncompressed rows.
+        assert!(needed * 10 < summary.points * stride as u64 * 12);
+    }
+}
+
 #[test]
 fn temp_dir_holds_the_work_and_changes_nothing() {
     let dir = tempfile::tempdir().expect("tempdir");

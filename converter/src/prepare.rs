@@ -163,7 +163,7 @@ pub fn count_and_plan(
     let added = step.attributes(&attributes)?;
     attributes.extend(added);
     let layout = RowLayout::new(attributes.clone());
-    check_conversion(&opts.inputs, wd.work(), wd.root(), declared, layout.stride)?;
+    check_conversion(wd.work(), wd.root(), declared, layout.stride)?;
     let staged = match stage_from_headers(opts, &layout, wd, threads, phases, cells_dir) {
         Ok(Some(staged)) if !needlessly_large(&staged) => staged,
         Ok(Some(staged)) => {
