@@ -17,7 +17,7 @@ mod soak;
 mod versions;
 
 use common::{data, s};
-use std::io::{BufRead, BufReader, Read, Write};
+use std::io::{BufRead, Read, Write};
 use std::path::{Path, PathBuf};
 use std::process::{Child, Command, Stdio};
 use std::sync::OnceLock;
@@ -56,50 +56,7 @@ fn root() -> PathBuf {
     fixtures().join("root")
 }
 
-struct Server {
-    child: Child,
-    addr: String,
-    log: Option<BufReader<std::process::ChildStderr>>,
-}
-
-impl Server {
-    fn start(extra: &[&str]) -> Server {
-        Server::start_in(&root(), extra)
-    }
-
-    fn start_in(dir: &Path, extra: &[&str]) -> Server {
-        let mut child = common::strata()
-            .args(["serve", s(dir), "--bind", "127.0.0.1:0"])
-            .args(extra)
-            .stdout(Stdio::piped())
-            .stderr(Stdio::piped())
-            .spawn()
-            .expect("server starts");
-        let mut first = String::new();
-        BufReader::new(child.stdout.take().expect("stdout"))
-            .read_line(&mut first)
-            .expect("banner");
-        let addr = first
-            .split("http://")
-            .nth(1)
-            .and_then(|r| r.split('/').next())
-            .unwrap_or_else(|| panic!("no address in {first:?}"))
-            .to_string();
-        let log = Some(BufReader::new(child.stderr.take().expect("stderr")));
-        Server { child, addr, log }
-    }
-
-    fn url(&self, dataset: &str) -> String {
-        format!("http://{}/{dataset}", self.addr)
-    }
-}
-
-impl Drop for Server {
-    fn drop(&mut self) {
-        let _ = self.child.kill();
-        let _ = self.child.wait();
-    }
-}
+use common::servers::{KillOnDrop, Server};
 
 fn gpu(args: &[&str]) -> std::process::Output {
     let backend = std::env::var("WGPU_BACKEND").unwrap_or_else(|_| "vulkan".into());
@@ -123,7 +80,7 @@ fn pixels(path: &Path) -> Vec<u8> {
 
 #[test]
 fn random_ranges_equal_the_bytes_on_disk() {
-    let server = Server::start(&["--quiet"]);
+    let server = Server::start_in(&root(), &["--quiet"]);
     let file = root().join("city.strata/octree.bin");
     let disk = std::fs::read(&file).expect("read");
     let len = disk.len() as u64;
@@ -169,7 +126,7 @@ fn random_ranges_equal_the_bytes_on_disk() {
 
 #[test]
 fn head_validators_multirange_and_listing() {
-    let server = Server::start(&["--quiet", "--cors", "*"]);
+    let server = Server::start_in(&root(), &["--quiet", "--cors", "*"]);
     let head = http::request(&server.addr, "HEAD", "/autzen.strata/metadata.json", &[]);
     let meta_len = std::fs::metadata(root().join("autzen.strata/metadata.json"))
         .expect("meta")
@@ -231,7 +188,7 @@ fn head_validators_multirange_and_listing() {
 
 #[test]
 fn traversal_and_missing_tokens_are_refused() {
-    let server = Server::start(&["--quiet", "--token", "s3cret"]);
+    let server = Server::start_in(&root(), &["--quiet", "--token", "s3cret"]);
     let auth = [("Authorization", "Bearer s3cret")];
     assert_eq!(
         http::request(&server.addr, "GET", "/autzen.strata/metadata.json", &auth).status,
@@ -321,7 +278,7 @@ fn render_pair(url: &str, local: &Path, tag: &str, extra: &[&str]) {
 
 #[test]
 fn render_over_http_equals_render_from_disk() {
-    let server = Server::start(&["--quiet", "--token", "t0k"]);
+    let server = Server::start_in(&root(), &["--quiet", "--token", "t0k"]);
     render_pair(
         &server.url("city.strata"),
         &root().join("city.strata"),
@@ -340,74 +297,15 @@ fn render_over_http_equals_render_from_disk() {
 
 #[test]
 fn render_from_nginx_equals_render_from_disk() {
-    let Some(nginx) = ["/usr/sbin/nginx", "/usr/bin/nginx"]
-        .into_iter()
-        .find(|p| Path::new(p).exists())
-    else {
-        assert!(
-            std::env::var_os("STRATA_REQUIRE_NGINX").is_none(),
-            "nginx is missing but STRATA_REQUIRE_NGINX is set"
-        );
-        eprintln!("skipping: nginx is not installed");
+    let Some((_nginx, addr)) = common::servers::nginx(&root(), &fixtures().join("nginx")) else {
         return;
     };
-    let port = std::net::TcpListener::bind("127.0.0.1:0")
-        .expect("port")
-        .local_addr()
-        .expect("addr")
-        .port();
-    let prefix = fixtures().join("nginx");
-    std::fs::create_dir_all(prefix.join("logs")).expect("nginx dir");
-    let conf = prefix.join("nginx.conf");
-    std::fs::write(
-        &conf,
-        format!(
-            "master_process off;\nworker_processes 1;\nerror_log {p}/logs/error.log;\npid {p}/nginx.pid;\n\
-             events {{ worker_connections 64; }}\n\
-             http {{\n  access_log off;\n  client_body_temp_path {p}/tmp;\n  proxy_temp_path {p}/tmp;\n  fastcgi_temp_path {p}/tmp;\n  uwsgi_temp_path {p}/tmp;\n  scgi_temp_path {p}/tmp;\n\
-               server {{ listen 127.0.0.1:{port}; root {root}; }}\n}}\n",
-            p = prefix.display(),
-            root = root().display()
-        ),
-    )
-    .expect("nginx.conf");
-    let child = Command::new(nginx)
-        .args([
-            "-p",
-            s(&prefix),
-            "-c",
-            s(&conf),
-            "-g",
-            "daemon off; user root;",
-        ])
-        .stdin(Stdio::null())
-        .stdout(Stdio::null())
-        .stderr(Stdio::null())
-        .spawn()
-        .expect("nginx starts");
-    // One process (master_process off), stopped even when an assertion fails.
-    let _nginx = KillOnDrop(child);
-    let addr = format!("127.0.0.1:{port}");
-    let deadline = Instant::now() + Duration::from_secs(10);
-    while std::net::TcpStream::connect(&addr).is_err() {
-        assert!(Instant::now() < deadline, "nginx did not start");
-        std::thread::sleep(Duration::from_millis(50));
-    }
     render_pair(
         &format!("http://{addr}/autzen.strata"),
         &root().join("autzen.strata"),
         "nginx",
         &[],
     );
-}
-
-struct KillOnDrop(Child);
-
-impl Drop for KillOnDrop {
-    fn drop(&mut self) {
-        let _ = self.0.kill();
-        let _ = self.0.wait();
-    }
 }
 
 /// Starts a `--wait-complete` render of the city through `server` with `timeout` seconds of
@@ -450,7 +348,7 @@ fn frame_stats(tag: &str) -> serde_json::Value {
 
 #[test]
 fn a_server_killed_mid_stream_leaves_a_render_of_what_arrived() {
-    let mut server = Server::start(&[]);
+    let mut server = Server::start_in(&root(), &[]);
     let render = render_then_kill_server(&mut server, "killed", "3");
     let o = render.wait_with_output().expect("render ends");
     let err = String::from_utf8_lossy(&o.stderr);
@@ -472,7 +370,10 @@ fn a_server_killed_mid_stream_leaves_a_render_of_what_arrived() {
 
 #[test]
 fn slow_clients_are_cut_off_and_sigterm_stops_gracefully() {
-    let mut server = Server::start(&["--quiet", "--header-timeout", "1", "--idle-timeout", "2"]);
+    let mut server = Server::start_in(
+        &root(),
+        &["--quiet", "--header-timeout", "1", "--idle-timeout", "2"],
+    );
     let mut slow = std::net::TcpStream::connect(&server.addr).expect("connect");
     slow.write_all(b"GET / HTTP/1.1\r\nHost: x\r\n")
         .expect("partial request");
@@ -498,7 +399,7 @@ fn slow_clients_are_cut_off_and_sigterm_stops_gracefully() {
 
 #[test]
 fn a_render_picks_up_again_when_the_server_returns() {
-    let mut server = Server::start(&[]);
+    let mut server = Server::start_in(&root(), &[]);
     let addr = server.addr.clone();
     let render = render_then_kill_server(&mut server, "returned", "30");
     std::thread::sleep(Duration::from_millis(1500));

@@ -20,6 +20,8 @@ pub mod merge;
 pub mod morton;
 pub mod normals;
 pub mod plan;
+pub mod potree2;
+pub mod potree2_hierarchy;
 pub mod prepare;
 pub mod progress;
 pub mod quantize;

@@ -70,6 +70,45 @@ fn plain_name(name: &str) -> bool {
         && name != DatasetFile::Metadata.name()
 }
 
+/// The files of a Potree 2.0 dataset besides `metadata.json`.
+const POTREE2_FILES: [&str; 2] = ["hierarchy.bin", "octree.bin"];
+
+/// A Potree 2.0 dataset's entry, from its `metadata.json`: version "2.0" and the fields a
+/// Potree loader starts from; its two files are those beside it.
+fn potree2(name: &str, json: &[u8], dir: &Path, version: Version) -> Option<Known> {
+    let v: serde_json::Value = serde_json::from_slice(json).ok()?;
+    if v.get("version")?.as_str()? != "2.0" || v.get("hierarchy")?.get("firstChunkSize").is_none() {
+        return None;
+    }
+    let corner = |which: &str| -> Option<[f64; 3]> {
+        let a = v.get("boundingBox")?.get(which)?.as_array()?;
+        let c = |k: usize| a.get(k)?.as_f64();
+        Some([c(0)?, c(1)?, c(2)?])
+    };
+    let files_bytes: u64 = POTREE2_FILES
+        .iter()
+        .filter_map(|f| std::fs::metadata(dir.join(f)).ok())
+        .map(|m| m.len())
+        .sum();
+    Some(Known {
+        version,
+        entry: DatasetEntry {
+            name: name.to_string(),
+            version: "potree 2.0".into(),
+            id: None,
+            points: v.get("points")?.as_u64()?,
+            nodes: 0,
+            depth: v.get("hierarchy")?.get("depth")?.as_u64()? as u32,
+            bounds: strata_format::Bounds {
+                min: corner("min")?,
+                max: corner("max")?,
+            },
+            bytes: json.len() as u64 + files_bytes,
+        },
+        files: POTREE2_FILES.iter().map(|f| f.to_string()).collect(),
+    })
+}
+
 impl Catalog {
     /// `root` must be canonical.
     pub fn new(root: PathBuf) -> Catalog {
@@ -103,26 +142,29 @@ impl Catalog {
             return None;
         }
         let bytes = crate::files::read_range(&file, 0, stat.len() as usize).ok()?;
-        // Any minor version: the server hands out the files without reading them.
-        let m = Metadata::from_json_any_minor(&bytes, &meta_path).ok()?;
-        let files = [&m.files.hierarchy.name, &m.files.octree.name]
-            .into_iter()
-            .filter(|n| plain_name(n))
-            .cloned()
-            .collect();
-        let known = Known {
-            version: Version::of(&stat),
-            entry: DatasetEntry {
-                name: name.to_string(),
-                version: format!("{}.{}", m.version[0], m.version[1]),
-                id: m.id,
-                points: m.points,
-                nodes: m.nodes,
-                depth: m.depth,
-                bounds: m.bounds,
-                bytes: bytes.len() as u64 + m.files.hierarchy.size + m.files.octree.size,
+        let version = Version::of(&stat);
+        // Any minor version: the server hands out the files without reading them. A Potree
+        // 2.0 dataset (`strata export --format potree2`, PotreeConverter 2) is served too.
+        let known = match Metadata::from_json_any_minor(&bytes, &meta_path) {
+            Ok(m) => Known {
+                version,
+                entry: DatasetEntry {
+                    name: name.to_string(),
+                    version: format!("{}.{}", m.version[0], m.version[1]),
+                    id: m.id,
+                    points: m.points,
+                    nodes: m.nodes,
+                    depth: m.depth,
+                    bounds: m.bounds,
+                    bytes: bytes.len() as u64 + m.files.hierarchy.size + m.files.octree.size,
+                },
+                files: [&m.files.hierarchy.name, &m.files.octree.name]
+                    .into_iter()
+                    .filter(|n| plain_name(n))
+                    .cloned()
+                    .collect(),
             },
-            files,
+            Err(_) => potree2(name, &bytes, dir, version)?,
         };
         if let Ok(mut cache) = self.known.lock() {
             cache.insert(name.to_string(), known.clone());

@@ -123,7 +123,7 @@ async fn respond<B>(req: &Request<B>, shared: &Shared) -> Response<ResponseBody>
         );
         h.insert(
             header::ACCESS_CONTROL_ALLOW_HEADERS,
-            HeaderValue::from_static("Range, Authorization, If-None-Match"),
+            HeaderValue::from_static("Range, Authorization, If-None-Match, Content-Type"),
         );
         h.insert(
             header::ACCESS_CONTROL_MAX_AGE,

@@ -66,6 +66,12 @@ pub struct Args {
     /// Also write the summary as JSON to this file.
     #[arg(long)]
     stats: Option<PathBuf>,
+    /// What -o becomes: a Strata dataset (the default), or `potree2`, a Potree 2.0 dataset for
+    /// Potree and potree-core (the Strata dataset is built beside it as
+    /// `.NAME.strata-for-potree2`, exported node by node and removed).
+    #[arg(long, value_enum, default_value = "strata",
+          conflicts_with_all = ["plan_only", "plan"])]
+    format: OutputFormat,
     /// Estimate per-point normals, disc radii and surface variation from the k nearest
     /// neighbours. `keep` (the default) keeps the inputs' normals where they have them;
     /// `compute` replaces them.
@@ -120,6 +126,18 @@ enum SamplingArg {
     Random,
 }
 
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+pub enum OutputFormat {
+    Strata,
+    Potree2,
+}
+
+/// Where `--format potree2` builds the Strata dataset it exports from.
+fn potree2_source(output: &Path) -> PathBuf {
+    let name = output.file_name().unwrap_or_default().to_string_lossy();
+    output.with_file_name(format!(".{name}.strata-for-potree2"))
+}
+
 pub fn run(a: Args) -> anyhow::Result<ExitCode> {
     if let Some(plan) = &a.plan {
         return run_plan(plan, &a);
@@ -167,8 +185,51 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
         return write_stats(&a.stats, serde_json::to_string_pretty(&summary));
     }
     let step = step_for(&normals)?;
+    if a.format == OutputFormat::Potree2 {
+        return convert_to_potree2(opts, step.as_ref(), &a.stats);
+    }
     let summary = convert_with(&opts, step.as_ref())?;
     report(&summary, a.quiet, &a.stats)
+}
+
+/// `--format potree2`: the conversion into a Strata dataset beside the output, then its
+/// export, then its removal. `--resume` continues the conversion where it stopped.
+fn convert_to_potree2(
+    mut opts: ConvertOptions,
+    step: &dyn strata_converter::ChunkStep,
+    stats: &Option<PathBuf>,
+) -> anyhow::Result<ExitCode> {
+    let output = opts.output.clone();
+    if output.exists() && !opts.overwrite {
+        anyhow::bail!(
+            "{}: output already exists (pass --overwrite to replace it)",
+            output.display()
+        );
+    }
+    let source = potree2_source(&output);
+    let replace = opts.overwrite;
+    opts.output = source.clone();
+    // A source left whole by an interrupted export is built again.
+    opts.overwrite = !opts.resume;
+    let summary = convert_with(&opts, step)?;
+    let exported = strata_converter::potree2::export_potree2(&source, &output, replace);
+    std::fs::remove_dir_all(&source)
+        .with_context(|| format!("cannot remove {}", source.display()))?;
+    let exported = exported?;
+    if !opts.quiet {
+        print_summary(&summary);
+        println!(
+            "written as Potree 2.0: {} points in {} nodes, {} -> {}",
+            exported.points,
+            exported.nodes,
+            format_bytes(exported.bytes),
+            output.display()
+        );
+    }
+    for w in &summary.warnings {
+        eprintln!("warning: {w}");
+    }
+    write_stats(stats, serde_json::to_string_pretty(&summary))
 }
 
 /// `--plan PLAN --task K` or `--plan PLAN --finish -o DATASET`.

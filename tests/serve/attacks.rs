@@ -134,7 +134,7 @@ fn a_token_file_guards_like_a_token() {
     let dir = scratch("token-file");
     let file = dir.path().join("token");
     std::fs::write(&file, "s3cret\n").expect("write");
-    let server = Server::start(&["--quiet", "--token-file", s(&file)]);
+    let server = Server::start_in(&super::root(), &["--quiet", "--token-file", s(&file)]);
     let path = "/autzen.strata/metadata.json";
     assert_eq!(get(&server.addr, path, &[]).expect("reply").status, 401);
     for scheme in ["Bearer", "bearer", "BEARER"] {
@@ -276,7 +276,7 @@ fn the_listing_and_the_files_stay_inside_the_directory() {
 
 /// A server that logs, with a thread that forwards its log lines.
 fn logging_server(extra: &[&str]) -> (Server, std::sync::mpsc::Receiver<String>) {
-    let mut server = Server::start(extra);
+    let mut server = Server::start_in(&super::root(), extra);
     let mut log = server.log.take().expect("the server's stderr");
     let (tx, rx) = std::sync::mpsc::channel();
     std::thread::spawn(move || {

@@ -10,7 +10,7 @@ use std::time::Duration;
 
 #[test]
 fn an_h2c_client_gets_ranges_over_one_connection() {
-    let server = Server::start(&["--quiet"]);
+    let server = Server::start_in(&super::root(), &["--quiet"]);
     let disk = std::fs::read(root().join("city.strata/octree.bin")).expect("read");
     let url = format!("http://{}/city.strata/octree.bin", server.addr);
     let runtime = tokio::runtime::Builder::new_multi_thread()

@@ -110,7 +110,7 @@ fn settled(pid: u32, fds_at_most: usize) -> (u64, usize, u64) {
 
 #[test]
 fn soak_256_connections_of_random_ranges_for_20_s() {
-    let server = Server::start(&["--quiet", "--max-connections", "1024"]);
+    let server = Server::start_in(&super::root(), &["--quiet", "--max-connections", "1024"]);
     let pid = server.child.id();
     let disk = Arc::new(std::fs::read(root().join("city.strata/octree.bin")).expect("read"));
     let (idle_threads, idle_fds, _) = process_counts(pid);

@@ -1,0 +1,302 @@
+//! `strata export DATASET -o DIR --format potree2`: the dataset as a Potree 2.0 dataset
+//! (`metadata.json`, `hierarchy.bin`, `octree.bin`, "DEFAULT" encoding), the layout
+//! PotreeConverter 2 writes and Potree 1.8+ and potree-core read. Strata's octree is Potree's,
+//! node for node: the same integer cube halved per level, so each Strata node becomes the
+//! Potree node of the same box and the export re-encodes nodes one at a time, in the memory of
+//! one node. A DEFAULT record is the position as three i32 (Strata's own integers, with its
+//! scale and offset) followed by each attribute's raw bytes: the export row layout already.
+
+use crate::error::{ConvertError, Result};
+use crate::export::widened;
+use crate::potree2_hierarchy::{NodeData, STEP, encode};
+use serde_json::{Value, json};
+use std::collections::BTreeMap;
+use std::fs::{self, File};
+use std::io::{BufWriter, Write};
+use std::path::{Path, PathBuf};
+use strata_format::{AttrType, LocalDataset, RowLayout};
+
+/// What the export wrote.
+#[derive(Debug, Clone, Copy)]
+pub struct Potree2Summary {
+    pub points: u64,
+    pub nodes: u64,
+    pub bytes: u64,
+}
+
+/// Potree's name for a Strata attribute: the LAS ones as PotreeConverter spells them (which
+/// Potree's colouring by classification, intensity or return looks for), others as they are.
+fn potree_name(name: &str) -> String {
+    match name {
+        "gps_time" => "gps-time".into(),
+        "return_number"
+        | "number_of_returns"
+        | "scan_direction_flag"
+        | "edge_of_flight_line"
+        | "classification_flags"
+        | "scan_angle_rank"
+        | "scan_angle"
+        | "user_data"
+        | "point_source_id"
+        | "scanner_channel" => name.replace('_', " "),
+        other => other.into(),
+    }
+}
+
+/// Potree's type name; 64-bit integers go out as doubles (Potree's decoder reads no 64-bit
+/// integer type), exact up to 2^53.
+fn potree_type(ty: AttrType) -> &'static str {
+    match ty {
+        AttrType::U8 => "uint8",
+        AttrType::I8 => "int8",
+        AttrType::U16 => "uint16",
+        AttrType::I16 => "int16",
+        AttrType::U32 => "uint32",
+        AttrType::I32 => "int32",
+        AttrType::F32 | AttrType::F16 => "float",
+        AttrType::U64 | AttrType::I64 | AttrType::F64 => "double",
+    }
+}
+
+/// One attribute of the export rows as Potree lists it, with the range of its values.
+struct Column {
+    name: String,
+    ty: AttrType,
+    count: usize,
+    at: usize,
+    description: String,
+    scale: Option<Vec<f64>>,
+    offset: Option<Vec<f64>>,
+    min: Vec<f64>,
+    max: Vec<f64>,
+}
+
+impl Column {
+    fn json(&self) -> Value {
+        let size = self.count * self.ty.size();
+        let mut v = json!({
+            "name": self.name,
+            "description": self.description,
+            "size": size,
+            "numElements": self.count,
+            "elementSize": self.ty.size(),
+            "type": potree_type(self.ty),
+            "min": self.min,
+            "max": self.max,
+        });
+        if let (Some(s), Value::Object(m)) = (&self.scale, &mut v) {
+            m.insert("scale".into(), json!(s));
+        }
+        if let (Some(o), Value::Object(m)) = (&self.offset, &mut v) {
+            m.insert("offset".into(), json!(o));
+        }
+        v
+    }
+
+    fn take(&mut self, row: &[u8]) {
+        let w = self.ty.size();
+        for c in 0..self.count {
+            let v = self.ty.read_f64(&row[self.at + c * w..]);
+            self.min[c] = self.min[c].min(v);
+            self.max[c] = self.max[c].max(v);
+        }
+    }
+}
+
+/// The columns of `layout` (export rows): a three-component f32 `normal` split into
+/// NormalX, NormalY and NormalZ, the names Potree combines into its normal.
+fn columns(layout: &RowLayout) -> Vec<Column> {
+    let mut cols = Vec::new();
+    for (a, &at) in layout.attributes.iter().zip(&layout.offsets) {
+        let col = |name: String, count: usize, at: usize| Column {
+            name,
+            ty: a.ty,
+            count,
+            at,
+            description: a.description.clone(),
+            scale: a.scale.clone(),
+            offset: a.offset.clone(),
+            min: vec![f64::INFINITY; count],
+            max: vec![f64::NEG_INFINITY; count],
+        };
+        if a.name == "normal" && a.count == 3 && a.ty == AttrType::F32 {
+            for (c, axis) in ["NormalX", "NormalY", "NormalZ"].into_iter().enumerate() {
+                cols.push(col(axis.into(), 1, at + 4 * c));
+            }
+        } else {
+            cols.push(col(potree_name(&a.name), a.count as usize, at));
+        }
+    }
+    cols
+}
+
+/// Rewrites 64-bit integers of `rows` as the doubles `potree_type` declares, in place.
+fn integers_as_doubles(layout: &RowLayout, rows: &mut [u8]) {
+    let wide: Vec<(usize, usize, AttrType)> = layout
+        .attributes
+        .iter()
+        .zip(&layout.offsets)
+        .filter(|(a, _)| matches!(a.ty, AttrType::U64 | AttrType::I64))
+        .map(|(a, &at)| (at, a.count as usize, a.ty))
+        .collect();
+    if wide.is_empty() {
+        return;
+    }
+    for row in rows.chunks_exact_mut(layout.stride) {
+        for &(at, count, ty) in &wide {
+            for c in 0..count {
+                let b = &mut row[at + 8 * c..at + 8 * c + 8];
+                let v = ty.read_f64(b);
+                b.copy_from_slice(&v.to_le_bytes());
+            }
+        }
+    }
+}
+
+fn part_dir(output: &Path) -> PathBuf {
+    let mut name = output.file_name().unwrap_or_default().to_os_string();
+    name.push(".part");
+    output.with_file_name(name)
+}
+
+/// Writes `dataset` to the folder `output` as a Potree 2.0 dataset. The folder appears
+/// whole or not at all: it is written as `OUTPUT.part` and renamed at the end.
+pub fn export_potree2(dataset: &Path, output: &Path, overwrite: bool) -> Result<Potree2Summary> {
+    if output.exists() && !overwrite {
+        return Err(ConvertError::output(
+            output,
+            "output already exists (pass --overwrite to replace it)",
+        ));
+    }
+    let ds = LocalDataset::open(dataset)?;
+    let part = part_dir(output);
+    let _ = fs::remove_dir_all(&part);
+    fs::create_dir_all(&part).map_err(|e| ConvertError::io(&part, "cannot create", e))?;
+    let written = write_dataset(&ds, dataset, &part).and_then(|summary| {
+        if output.exists() {
+            fs::remove_dir_all(output)
+                .map_err(|e| ConvertError::io(output, "cannot replace", e))?;
+        }
+        fs::rename(&part, output)
+            .map_err(|e| ConvertError::io(output, "cannot move into place", e))?;
+        Ok(summary)
+    });
+    if written.is_err() {
+        let _ = fs::remove_dir_all(&part);
+    }
+    written
+}
+
+fn write_dataset(ds: &LocalDataset, dataset: &Path, dir: &Path) -> Result<Potree2Summary> {
+    let meta = ds.metadata();
+    let layout = ds.layout();
+    let wide = widened(layout);
+    let mut cols = columns(&wide.layout);
+    let octree_path = dir.join("octree.bin");
+    let io = |p: &Path| {
+        let p = p.to_path_buf();
+        move |e: std::io::Error| ConvertError::io(&p, "cannot write", e)
+    };
+    let file = File::create(&octree_path).map_err(io(&octree_path))?;
+    let mut out = BufWriter::with_capacity(1 << 20, file);
+    let (mut nodes, mut offset, mut points) = (BTreeMap::new(), 0u64, 0u64);
+    let (mut pmin, mut pmax) = ([i32::MAX; 3], [i32::MIN; 3]);
+    let mut rows_wide = Vec::new();
+    for node in ds.all_nodes()? {
+        if node.point_count == 0 {
+            nodes.insert(node.key, NodeData::default());
+            continue;
+        }
+        let cols_in = ds.read_node(&node)?;
+        for i in 0..cols_in.count {
+            let p = cols_in.position(i);
+            for k in 0..3 {
+                pmin[k] = pmin[k].min(p[k]);
+                pmax[k] = pmax[k].max(p[k]);
+            }
+        }
+        let mut rows = cols_in.to_rows(layout);
+        let rows = if wide.is_identity() {
+            &mut rows
+        } else {
+            wide.convert(&rows, &mut rows_wide);
+            &mut rows_wide
+        };
+        for row in rows.chunks_exact(wide.layout.stride) {
+            for c in cols.iter_mut() {
+                c.take(row);
+            }
+        }
+        integers_as_doubles(&wide.layout, rows);
+        out.write_all(rows).map_err(io(&octree_path))?;
+        let size = rows.len() as u64;
+        nodes.insert(
+            node.key,
+            NodeData {
+                points: node.point_count,
+                offset,
+                size,
+            },
+        );
+        offset += size;
+        points += node.point_count as u64;
+    }
+    let file = out
+        .into_inner()
+        .map_err(|e| ConvertError::io(&octree_path, "cannot write", e.into_error()))?;
+    file.sync_all().map_err(io(&octree_path))?;
+
+    let hierarchy = encode(&nodes);
+    let hierarchy_path = dir.join("hierarchy.bin");
+    fs::write(&hierarchy_path, &hierarchy.bytes).map_err(io(&hierarchy_path))?;
+
+    let real = |k: usize, v: i64| meta.offset[k] + meta.scale[k] * v as f64;
+    let side = 1i64 << meta.cube.bits;
+    let cube_min: Vec<f64> = (0..3).map(|k| real(k, meta.cube.min[k])).collect();
+    let cube_max: Vec<f64> = (0..3).map(|k| real(k, meta.cube.min[k] + side)).collect();
+    let position = json!({
+        "name": "position", "description": "", "size": 12, "numElements": 3, "elementSize": 4,
+        "type": "int32",
+        "min": (0..3).map(|k| if points > 0 { real(k, pmin[k] as i64) } else { 0.0 }).collect::<Vec<_>>(),
+        "max": (0..3).map(|k| if points > 0 { real(k, pmax[k] as i64) } else { 0.0 }).collect::<Vec<_>>(),
+    });
+    for c in cols.iter_mut().filter(|c| c.min[0] > c.max[0]) {
+        c.min.fill(0.0);
+        c.max.fill(0.0);
+    }
+    let attributes: Vec<Value> = std::iter::once(position)
+        .chain(cols.iter().map(Column::json))
+        .collect();
+    let name = dataset
+        .file_name()
+        .map(|n| n.to_string_lossy().into_owned())
+        .unwrap_or_default();
+    let metadata = json!({
+        "version": "2.0",
+        "name": name,
+        "description": format!("exported by Strata from {}", dataset.display()),
+        "points": points,
+        "projection": "",
+        "hierarchy": {
+            "firstChunkSize": hierarchy.first_chunk_size,
+            "stepSize": STEP,
+            "depth": hierarchy.depth,
+        },
+        "offset": meta.offset,
+        "scale": meta.scale,
+        "spacing": meta.spacing,
+        "boundingBox": { "min": cube_min, "max": cube_max },
+        "encoding": "DEFAULT",
+        "attributes": attributes,
+    });
+    let text = serde_json::to_string_pretty(&metadata)
+        .map_err(|e| ConvertError::output(dir, format!("cannot encode metadata.json ({e})")))?;
+    // Last, so that a folder with metadata.json has the files it names.
+    let metadata_path = dir.join("metadata.json");
+    fs::write(&metadata_path, text).map_err(io(&metadata_path))?;
+    Ok(Potree2Summary {
+        points,
+        nodes: nodes.len() as u64,
+        bytes: offset + hierarchy.bytes.len() as u64,
+    })
+}
