@@ -7,14 +7,15 @@
 //! scale and offset) followed by each attribute's raw bytes: the export row layout already.
 
 use crate::error::{ConvertError, Result};
-use crate::export::widened;
+use crate::export::{Widened, widened};
 use crate::potree2_hierarchy::{NodeData, STEP, encode};
+use rayon::prelude::*;
 use serde_json::{Value, json};
 use std::collections::BTreeMap;
 use std::fs::{self, File};
 use std::io::{BufWriter, Write};
 use std::path::{Path, PathBuf};
-use strata_format::{AttrType, LocalDataset, RowLayout};
+use strata_format::{AttrType, LocalDataset, NodeInfo, RowLayout};
 
 /// What the export wrote.
 #[derive(Debug, Clone, Copy)]
@@ -93,12 +94,58 @@ impl Column {
         v
     }
 
-    fn take(&mut self, row: &[u8]) {
+    /// The range of this column's values in `rows` (export rows of `stride` bytes): per
+    /// element, a typed loop, so that a node costs one dispatch per column.
+    fn range_in(&self, rows: &[u8], stride: usize) -> (Vec<f64>, Vec<f64>) {
+        let (mut min, mut max) = (
+            vec![f64::INFINITY; self.count],
+            vec![f64::NEG_INFINITY; self.count],
+        );
         let w = self.ty.size();
         for c in 0..self.count {
-            let v = self.ty.read_f64(&row[self.at + c * w..]);
-            self.min[c] = self.min[c].min(v);
-            self.max[c] = self.max[c].max(v);
+            let at = self.at + c * w;
+            macro_rules! scan {
+                ($t:ty, $n:literal) => {{
+                    let (mut lo, mut hi) = (<$t>::MAX, <$t>::MIN);
+                    for row in rows.chunks_exact(stride) {
+                        let mut b = [0u8; $n];
+                        b.copy_from_slice(&row[at..at + $n]);
+                        let v = <$t>::from_le_bytes(b);
+                        lo = if v < lo { v } else { lo };
+                        hi = if v > hi { v } else { hi };
+                    }
+                    if !rows.is_empty() {
+                        min[c] = lo as f64;
+                        max[c] = hi as f64;
+                    }
+                }};
+            }
+            match self.ty {
+                AttrType::U8 => scan!(u8, 1),
+                AttrType::I8 => scan!(i8, 1),
+                AttrType::U16 => scan!(u16, 2),
+                AttrType::I16 => scan!(i16, 2),
+                AttrType::U32 => scan!(u32, 4),
+                AttrType::I32 => scan!(i32, 4),
+                AttrType::U64 => scan!(u64, 8),
+                AttrType::I64 => scan!(i64, 8),
+                // Floats: NaN is no value; f16 never reaches export rows (widened to f32).
+                AttrType::F16 | AttrType::F32 | AttrType::F64 => {
+                    for row in rows.chunks_exact(stride) {
+                        let v = self.ty.read_f64(&row[at..]);
+                        min[c] = min[c].min(v);
+                        max[c] = max[c].max(v);
+                    }
+                }
+            }
+        }
+        (min, max)
+    }
+
+    fn widen_to(&mut self, (min, max): &(Vec<f64>, Vec<f64>)) {
+        for c in 0..self.count {
+            self.min[c] = self.min[c].min(min[c]);
+            self.max[c] = self.max[c].max(max[c]);
         }
     }
 }
@@ -106,7 +153,17 @@ impl Column {
 /// The columns of `layout` (export rows): a three-component f32 `normal` split into
 /// NormalX, NormalY and NormalZ, the names Potree combines into its normal.
 fn columns(layout: &RowLayout) -> Vec<Column> {
-    let mut cols = Vec::new();
+    let mut cols = vec![Column {
+        name: "position".into(),
+        ty: AttrType::I32,
+        count: 3,
+        at: 0,
+        description: String::new(),
+        scale: None,
+        offset: None,
+        min: vec![f64::INFINITY; 3],
+        max: vec![f64::NEG_INFINITY; 3],
+    }];
     for (a, &at) in layout.attributes.iter().zip(&layout.offsets) {
         let col = |name: String, count: usize, at: usize| Column {
             name,
@@ -153,6 +210,43 @@ fn integers_as_doubles(layout: &RowLayout, rows: &mut [u8]) {
     }
 }
 
+/// Nodes decoded at once: enough to keep both cores busy, few enough that memory stays small.
+const BATCH_NODES: usize = 32;
+
+/// One node as Potree records, with the range of each column.
+struct NodeRecords {
+    rows: Vec<u8>,
+    ranges: Vec<(Vec<f64>, Vec<f64>)>,
+}
+
+fn node_records(
+    ds: &LocalDataset,
+    node: &NodeInfo,
+    wide: &Widened,
+    cols: &[Column],
+) -> Result<NodeRecords> {
+    if node.point_count == 0 {
+        return Ok(NodeRecords {
+            rows: Vec::new(),
+            ranges: cols.iter().map(|c| c.range_in(&[], 1)).collect(),
+        });
+    }
+    let stored = ds.read_node(node)?.to_rows(ds.layout());
+    let mut rows = if wide.is_identity() {
+        stored
+    } else {
+        let mut out = Vec::new();
+        wide.convert(&stored, &mut out);
+        out
+    };
+    let ranges = cols
+        .iter()
+        .map(|c| c.range_in(&rows, wide.layout.stride))
+        .collect();
+    integers_as_doubles(&wide.layout, &mut rows);
+    Ok(NodeRecords { rows, ranges })
+}
+
 fn part_dir(output: &Path) -> PathBuf {
     let mut name = output.file_name().unwrap_or_default().to_os_string();
     name.push(".part");
@@ -172,7 +266,7 @@ pub fn export_potree2(dataset: &Path, output: &Path, overwrite: bool) -> Result<
     let part = part_dir(output);
     let _ = fs::remove_dir_all(&part);
     fs::create_dir_all(&part).map_err(|e| ConvertError::io(&part, "cannot create", e))?;
-    let written = write_dataset(&ds, dataset, &part).and_then(|summary| {
+    let written = write_dataset(&ds, &part).and_then(|summary| {
         if output.exists() {
             fs::remove_dir_all(output)
                 .map_err(|e| ConvertError::io(output, "cannot replace", e))?;
@@ -187,7 +281,7 @@ pub fn export_potree2(dataset: &Path, output: &Path, overwrite: bool) -> Result<
     written
 }
 
-fn write_dataset(ds: &LocalDataset, dataset: &Path, dir: &Path) -> Result<Potree2Summary> {
+fn write_dataset(ds: &LocalDataset, dir: &Path) -> Result<Potree2Summary> {
     let meta = ds.metadata();
     let layout = ds.layout();
     let wide = widened(layout);
@@ -200,46 +294,32 @@ fn write_dataset(ds: &LocalDataset, dataset: &Path, dir: &Path) -> Result<Potree
     let file = File::create(&octree_path).map_err(io(&octree_path))?;
     let mut out = BufWriter::with_capacity(1 << 20, file);
     let (mut nodes, mut offset, mut points) = (BTreeMap::new(), 0u64, 0u64);
-    let (mut pmin, mut pmax) = ([i32::MAX; 3], [i32::MIN; 3]);
-    let mut rows_wide = Vec::new();
-    for node in ds.all_nodes()? {
-        if node.point_count == 0 {
-            nodes.insert(node.key, NodeData::default());
-            continue;
-        }
-        let cols_in = ds.read_node(&node)?;
-        for i in 0..cols_in.count {
-            let p = cols_in.position(i);
-            for k in 0..3 {
-                pmin[k] = pmin[k].min(p[k]);
-                pmax[k] = pmax[k].max(p[k]);
+    let all = ds.all_nodes()?;
+    // Nodes are decoded, turned into records and measured in parallel, a batch at a time, and
+    // written in order: memory stays that of one batch.
+    for batch in all.chunks(BATCH_NODES) {
+        let done: Vec<Result<NodeRecords>> = batch
+            .par_iter()
+            .map(|node| node_records(ds, node, &wide, &cols))
+            .collect();
+        for (node, records) in batch.iter().zip(done) {
+            let records = records?;
+            for (c, range) in cols.iter_mut().zip(&records.ranges) {
+                c.widen_to(range);
             }
+            out.write_all(&records.rows).map_err(io(&octree_path))?;
+            let size = records.rows.len() as u64;
+            nodes.insert(
+                node.key,
+                NodeData {
+                    points: node.point_count,
+                    offset: if size > 0 { offset } else { 0 },
+                    size,
+                },
+            );
+            offset += size;
+            points += node.point_count as u64;
         }
-        let mut rows = cols_in.to_rows(layout);
-        let rows = if wide.is_identity() {
-            &mut rows
-        } else {
-            wide.convert(&rows, &mut rows_wide);
-            &mut rows_wide
-        };
-        for row in rows.chunks_exact(wide.layout.stride) {
-            for c in cols.iter_mut() {
-                c.take(row);
-            }
-        }
-        integers_as_doubles(&wide.layout, rows);
-        out.write_all(rows).map_err(io(&octree_path))?;
-        let size = rows.len() as u64;
-        nodes.insert(
-            node.key,
-            NodeData {
-                points: node.point_count,
-                offset,
-                size,
-            },
-        );
-        offset += size;
-        points += node.point_count as u64;
     }
     let file = out
         .into_inner()
@@ -254,27 +334,25 @@ fn write_dataset(ds: &LocalDataset, dataset: &Path, dir: &Path) -> Result<Potree
     let side = 1i64 << meta.cube.bits;
     let cube_min: Vec<f64> = (0..3).map(|k| real(k, meta.cube.min[k])).collect();
     let cube_max: Vec<f64> = (0..3).map(|k| real(k, meta.cube.min[k] + side)).collect();
-    let position = json!({
-        "name": "position", "description": "", "size": 12, "numElements": 3, "elementSize": 4,
-        "type": "int32",
-        "min": (0..3).map(|k| if points > 0 { real(k, pmin[k] as i64) } else { 0.0 }).collect::<Vec<_>>(),
-        "max": (0..3).map(|k| if points > 0 { real(k, pmax[k] as i64) } else { 0.0 }).collect::<Vec<_>>(),
-    });
     for c in cols.iter_mut().filter(|c| c.min[0] > c.max[0]) {
         c.min.fill(0.0);
         c.max.fill(0.0);
     }
-    let attributes: Vec<Value> = std::iter::once(position)
-        .chain(cols.iter().map(Column::json))
-        .collect();
-    let name = dataset
+    // The position's range in the dataset's coordinates, as PotreeConverter states it.
+    for k in 0..3 {
+        cols[0].min[k] = real(k, cols[0].min[k] as i64);
+        cols[0].max[k] = real(k, cols[0].max[k] as i64);
+    }
+    let attributes: Vec<Value> = cols.iter().map(Column::json).collect();
+    // The dataset's name is the folder's, as PotreeConverter names it after its output.
+    let name = dir
         .file_name()
-        .map(|n| n.to_string_lossy().into_owned())
+        .map(|n| n.to_string_lossy().trim_end_matches(".part").to_string())
         .unwrap_or_default();
     let metadata = json!({
         "version": "2.0",
         "name": name,
-        "description": format!("exported by Strata from {}", dataset.display()),
+        "description": format!("written by Strata {}", env!("CARGO_PKG_VERSION")),
         "points": points,
         "projection": "",
         "hierarchy": {

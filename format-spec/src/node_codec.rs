@@ -79,11 +79,31 @@ impl NodeColumns {
                 .zip(&layout.attributes)
                 .map(|(o, a)| (*o, a.size())),
         );
+        let stride = layout.stride;
         for (field_offset, size) in fields {
             let col = &self.bytes[field_offset * n..field_offset * n + size * n];
-            for (i, v) in col.chunks_exact(size).enumerate() {
-                let at = i * layout.stride + field_offset;
-                rows[at..at + size].copy_from_slice(v);
+            let dst = &mut rows[field_offset..];
+            // A loop per field width the compiler can unroll: a copy of unknown length per
+            // point and field costs a call each.
+            macro_rules! copy {
+                ($w:literal) => {
+                    for (v, row) in col.chunks_exact($w).zip(dst.chunks_mut(stride)) {
+                        row[..$w].copy_from_slice(v);
+                    }
+                };
+            }
+            match size {
+                1 => copy!(1),
+                2 => copy!(2),
+                4 => copy!(4),
+                6 => copy!(6),
+                8 => copy!(8),
+                12 => copy!(12),
+                _ => {
+                    for (v, row) in col.chunks_exact(size).zip(dst.chunks_mut(stride)) {
+                        row[..size].copy_from_slice(v);
+                    }
+                }
             }
         }
         rows

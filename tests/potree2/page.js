@@ -51,25 +51,7 @@ async function main() {
     last = update.numVisiblePoints;
     frames++;
   }
-  // What the canvas shows: lit pixels and a few of their colours.
-  const copy = document.createElement("canvas");
-  copy.width = copy.height = size;
-  const ctx = copy.getContext("2d");
-  ctx.drawImage(canvas, 0, 0);
-  const px = ctx.getImageData(0, 0, size, size).data;
-  let lit = 0;
-  const colours = new Map();
-  for (let i = 0; i < px.length; i += 4) {
-    if (px[i] + px[i + 1] + px[i + 2] > 0) {
-      lit++;
-      const c = `${px[i]},${px[i + 1]},${px[i + 2]}`;
-      colours.set(c, (colours.get(c) || 0) + 1);
-    }
-  }
   window.result = {
-    lit,
-    colours: colours.size,
-    common: [...colours.entries()].sort((a, b) => b[1] - a[1]).slice(0, 5),
     points: update.numVisiblePoints,
     nodes: update.visibleNodes.length,
     names: update.visibleNodes.map((n) => n.geometryNode.name),
@@ -78,23 +60,5 @@ async function main() {
   };
 }
 main().catch((e) => {
-  // What the canvas shows: lit pixels and a few of their colours.
-  const copy = document.createElement("canvas");
-  copy.width = copy.height = size;
-  const ctx = copy.getContext("2d");
-  ctx.drawImage(canvas, 0, 0);
-  const px = ctx.getImageData(0, 0, size, size).data;
-  let lit = 0;
-  const colours = new Map();
-  for (let i = 0; i < px.length; i += 4) {
-    if (px[i] + px[i + 1] + px[i + 2] > 0) {
-      lit++;
-      const c = `${px[i]},${px[i + 1]},${px[i + 2]}`;
-      colours.set(c, (colours.get(c) || 0) + 1);
-    }
-  }
-  window.result = {
-    lit,
-    colours: colours.size,
-    common: [...colours.entries()].sort((a, b) => b[1] - a[1]).slice(0, 5), error: String(e && e.stack ? e.stack : e) };
+  window.result = { error: String(e && e.stack ? e.stack : e) };
 });
