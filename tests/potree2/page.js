@@ -10,8 +10,8 @@ const size = 512;
 const canvas = document.createElement("canvas");
 document.body.style.margin = "0";
 document.body.appendChild(canvas);
-// Opaque: potree-core leaves the alpha of Potree 2 colours at 0, which a page composites as
-// its background.
+// Opaque and kept, so the screenshot shows what was drawn. (potree-core 2.0.15 draws these
+// points white on SwiftShader, cause not found; the test asserts coverage, not colour.)
 const renderer = new THREE.WebGLRenderer({ canvas, alpha: false, preserveDrawingBuffer: true });
 renderer.setSize(size, size);
 renderer.setClearColor(0x000000, 1);
