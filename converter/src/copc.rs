@@ -8,10 +8,11 @@ use crate::copc_nodes::{Grid, plan};
 use crate::error::{ConvertError, Result};
 use crate::export::widened;
 use crate::las_records::LasRecords;
+use crate::writers::part_path;
 use laz::{LasZipCompressor, LazVlrBuilder};
 use std::fs::File;
 use std::io::{BufWriter, Read, Seek, SeekFrom, Write};
-use std::path::{Path, PathBuf};
+use std::path::Path;
 use strata_format::{LocalDataset, RowLayout};
 
 /// The LAS 1.4 header's size.
@@ -53,12 +54,6 @@ fn copc_format(layout: &RowLayout) -> u8 {
         (true, false) => 7,
         (false, false) => 6,
     }
-}
-
-fn part_path(path: &Path) -> PathBuf {
-    let mut name = path.file_name().unwrap_or_default().to_os_string();
-    name.push(".part");
-    path.with_file_name(name)
 }
 
 /// Writes `dataset` to `output` as COPC; returns the number of points written.

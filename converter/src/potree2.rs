@@ -9,12 +9,13 @@
 use crate::error::{ConvertError, Result};
 use crate::export::{Widened, widened};
 use crate::potree2_hierarchy::{NodeData, STEP, encode};
+use crate::writers::part_path;
 use rayon::prelude::*;
 use serde_json::{Value, json};
 use std::collections::BTreeMap;
 use std::fs::{self, File};
 use std::io::{BufWriter, Write};
-use std::path::{Path, PathBuf};
+use std::path::Path;
 use strata_format::{AttrType, LocalDataset, NodeInfo, RowLayout};
 
 /// What the export wrote.
@@ -247,12 +248,6 @@ fn node_records(
     Ok(NodeRecords { rows, ranges })
 }
 
-fn part_dir(output: &Path) -> PathBuf {
-    let mut name = output.file_name().unwrap_or_default().to_os_string();
-    name.push(".part");
-    output.with_file_name(name)
-}
-
 /// Writes `dataset` to the folder `output` as a Potree 2.0 dataset. The folder appears
 /// whole or not at all: it is written as `OUTPUT.part` and renamed at the end.
 pub fn export_potree2(dataset: &Path, output: &Path, overwrite: bool) -> Result<Potree2Summary> {
@@ -263,7 +258,7 @@ pub fn export_potree2(dataset: &Path, output: &Path, overwrite: bool) -> Result<
         ));
     }
     let ds = LocalDataset::open(dataset)?;
-    let part = part_dir(output);
+    let part = part_path(output);
     let _ = fs::remove_dir_all(&part);
     fs::create_dir_all(&part).map_err(|e| ConvertError::io(&part, "cannot create", e))?;
     let written = write_dataset(&ds, &part).and_then(|summary| {

@@ -16,7 +16,8 @@ pub trait RowWriter {
     fn finish(self: Box<Self>) -> Result<()>;
 }
 
-fn part_path(path: &Path) -> PathBuf {
+/// Where an output is written before it is renamed into place: `NAME.part` beside it.
+pub(crate) fn part_path(path: &Path) -> PathBuf {
     let mut name = path.file_name().unwrap_or_default().to_os_string();
     name.push(".part");
     path.with_file_name(name)

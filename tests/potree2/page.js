@@ -11,7 +11,8 @@ const canvas = document.createElement("canvas");
 document.body.style.margin = "0";
 document.body.appendChild(canvas);
 // Opaque and kept, so the screenshot shows what was drawn. (potree-core 2.0.15 draws these
-// points white on SwiftShader, cause not found; the test asserts coverage, not colour.)
+// points white on SwiftShader, as it does PotreeConverter 2's output of the same file; the
+// test asserts coverage, not colour.)
 const renderer = new THREE.WebGLRenderer({ canvas, alpha: false, preserveDrawingBuffer: true });
 renderer.setSize(size, size);
 renderer.setClearColor(0x000000, 1);
