@@ -70,7 +70,7 @@ pub const OVERLAP_PER_ROW_BYTE: f64 = 0.2;
 /// The stages hand the disk over rather than adding up: staging rows are freed block by block
 /// as they are distributed into chunk files, and each chunk file is deleted once its chunk is
 /// built, so on one file system the peak is the larger of work and output plus the overlap
-/// (measured 0.58x to 0.63x the rows from 5 M to 500 M points, against 0.9x asked here).
+/// (measured 0.58x to 0.63x the rows from 5 M to 10^9 points, against 0.9x asked here).
 /// With the work on another file system (`--temp-dir`), each side needs its own share.
 pub fn check_conversion(work: &Path, root: &Path, points: u64, stride: usize) -> Result<()> {
     let (work_bytes, output) = disk_estimate(points, stride);

@@ -258,10 +258,19 @@ pub fn export_potree2(dataset: &Path, output: &Path, overwrite: bool) -> Result<
         ));
     }
     let ds = LocalDataset::open(dataset)?;
+    // octree.bin holds every export row uncompressed (the hierarchy is 22 bytes a node): refused
+    // now rather than when the disk fills.
+    let records = ds.metadata().points * widened(ds.layout()).layout.stride as u64;
+    crate::disk::check_space(&[(output, records + 22 * ds.metadata().nodes)])?;
+    // Potree names a dataset after its folder.
+    let name = output
+        .file_name()
+        .map(|n| n.to_string_lossy().into_owned())
+        .unwrap_or_default();
     let part = part_path(output);
     let _ = fs::remove_dir_all(&part);
     fs::create_dir_all(&part).map_err(|e| ConvertError::io(&part, "cannot create", e))?;
-    let written = write_dataset(&ds, &part).and_then(|summary| {
+    let written = write_dataset(&ds, &part, &name).and_then(|summary| {
         if output.exists() {
             fs::remove_dir_all(output)
                 .map_err(|e| ConvertError::io(output, "cannot replace", e))?;
@@ -276,7 +285,7 @@ pub fn export_potree2(dataset: &Path, output: &Path, overwrite: bool) -> Result<
     written
 }
 
-fn write_dataset(ds: &LocalDataset, dir: &Path) -> Result<Potree2Summary> {
+fn write_dataset(ds: &LocalDataset, dir: &Path, name: &str) -> Result<Potree2Summary> {
     let meta = ds.metadata();
     let layout = ds.layout();
     let wide = widened(layout);
@@ -339,11 +348,6 @@ fn write_dataset(ds: &LocalDataset, dir: &Path) -> Result<Potree2Summary> {
         cols[0].max[k] = real(k, cols[0].max[k] as i64);
     }
     let attributes: Vec<Value> = cols.iter().map(Column::json).collect();
-    // The dataset's name is the folder's, as PotreeConverter names it after its output.
-    let name = dir
-        .file_name()
-        .map(|n| n.to_string_lossy().trim_end_matches(".part").to_string())
-        .unwrap_or_default();
     let metadata = json!({
         "version": "2.0",
         "name": name,
@@ -372,4 +376,46 @@ fn write_dataset(ds: &LocalDataset, dir: &Path) -> Result<Potree2Summary> {
         nodes: nodes.len() as u64,
         bytes: offset + hierarchy.bytes.len() as u64,
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use strata_format::Attribute;
+
+    #[test]
+    fn ranges_are_typed_and_64_bit_integers_go_out_as_doubles() {
+        let layout = RowLayout::new(vec![
+            Attribute::new("intensity", AttrType::U16, 1),
+            Attribute::new("ticks", AttrType::I64, 1),
+            Attribute::new("gps_time", AttrType::F64, 1),
+        ]);
+        let mut rows = Vec::new();
+        for (x, i, t, g) in [(-5i32, 700u16, -3i64, 2.5f64), (9, 65535, 1 << 40, -1.0)] {
+            for _ in 0..3 {
+                rows.extend_from_slice(&x.to_le_bytes());
+            }
+            rows.extend_from_slice(&i.to_le_bytes());
+            rows.extend_from_slice(&t.to_le_bytes());
+            rows.extend_from_slice(&g.to_le_bytes());
+        }
+        let cols = columns(&layout);
+        let names: Vec<&str> = cols.iter().map(|c| c.name.as_str()).collect();
+        assert_eq!(names, ["position", "intensity", "ticks", "gps-time"]);
+        let ranges: Vec<_> = cols
+            .iter()
+            .map(|c| c.range_in(&rows, layout.stride))
+            .collect();
+        assert_eq!(ranges[0], (vec![-5.0; 3], vec![9.0; 3]));
+        assert_eq!(ranges[1], (vec![700.0], vec![65535.0]));
+        assert_eq!(ranges[2], (vec![-3.0], vec![(1u64 << 40) as f64]));
+        assert_eq!(ranges[3], (vec![-1.0], vec![2.5]));
+        assert_eq!(cols[2].json()["type"], "double");
+        integers_as_doubles(&layout, &mut rows);
+        let at = layout.offsets[1];
+        let tick = |r: usize| AttrType::F64.read_f64(&rows[r * layout.stride + at..]);
+        assert_eq!((tick(0), tick(1)), (-3.0, (1u64 << 40) as f64));
+        // The other bytes are untouched.
+        assert_eq!(AttrType::F64.read_f64(&rows[layout.offsets[2]..]), 2.5);
+    }
 }
