@@ -226,6 +226,14 @@ fn convert_to_potree2_in_one_step_equals_convert_then_export_and_keeps_normals()
     let p = read_potree2(&exported);
     assert_holds_the_dataset(&p, &dataset);
     let attrs = p.meta["attributes"].as_array().expect("attributes");
+    // Attributes beyond LAS's go out under their own names (f16 widened to float).
+    for extra in ["radius", "surface_variation"] {
+        let a = attrs
+            .iter()
+            .find(|a| a["name"] == extra)
+            .unwrap_or_else(|| panic!("{extra} missing"));
+        assert_eq!(a["type"], "float");
+    }
     for axis in ["NormalX", "NormalY", "NormalZ"] {
         let a = attrs
             .iter()
