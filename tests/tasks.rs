@@ -201,6 +201,58 @@ fn a_killed_task_resumes_to_the_same_bytes() {
     assert_same_dataset(&single, &out);
 }
 
+/// A task stopped while distributing its share of the points leaves no share behind that a
+/// later task would take for whole: the next task to come distributes it again, from the
+/// start, and the tasks run one after another give the single run's bytes.
+#[test]
+fn a_share_cut_short_is_distributed_again() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let inputs = [
+        synth(dir.path(), "a.las", "2000000", "5"),
+        synth(dir.path(), "b.laz", "1000000", "6"),
+    ];
+    let single = dir.path().join("single");
+    run_ok(&args(&["convert"], &inputs, &["-o", s(&single)]));
+    let plan = dir.path().join("plan");
+    run_ok(&args(
+        &["convert", "--plan-only", s(&plan), "--tasks", "3"],
+        &inputs,
+        &[],
+    ));
+    let (cut, whole) = (plan.join("shares/1.strata-tmp"), plan.join("shares/1"));
+    let mut child = spawn_task(&plan, 1);
+    let start = Instant::now();
+    // Killed once its share has written chunk files.
+    while std::fs::read_dir(&cut).map_or(0, |d| d.count()) == 0
+        && start.elapsed() < Duration::from_secs(60)
+    {
+        std::thread::sleep(Duration::from_millis(1));
+    }
+    child.kill().expect("kill -9");
+    assert!(!child.wait().expect("wait").success(), "killed before done");
+    assert!(cut.is_dir() && !whole.exists(), "the share was cut short");
+    // The next task distributes the three shares, the cut one again; the others find them done.
+    let o = run_ok(&["convert", "--plan", s(&plan), "--task", "2"]);
+    let text = String::from_utf8_lossy(&o.stdout);
+    assert!(text.contains("3 of 3 shares distributed here"), "{text}");
+    for k in [0, 1] {
+        let o = run_ok(&["convert", "--plan", s(&plan), "--task", &k.to_string()]);
+        let text = String::from_utf8_lossy(&o.stdout);
+        assert!(text.contains("0 of 3 shares distributed here"), "{text}");
+    }
+    let out = dir.path().join("split");
+    run_ok(&[
+        "convert",
+        "--plan",
+        s(&plan),
+        "--finish",
+        "-o",
+        s(&out),
+        "-q",
+    ]);
+    assert_same_dataset(&single, &out);
+}
+
 #[test]
 fn contradictory_options_are_refused_in_one_sentence() {
     let dir = tempfile::tempdir().expect("tempdir");

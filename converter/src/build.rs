@@ -137,6 +137,7 @@ fn run(
             layout: &layout,
             sampling: opts.sampling,
             threads,
+            parts: threads,
             step,
             halos: &halos,
             wd,

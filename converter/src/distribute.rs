@@ -1,12 +1,15 @@
 //! Phase 3: stream every input's rows into chunk files. Each of the `threads` workers takes
 //! the same part of every input and writes its own file per chunk, so a chunk's rows are its
-//! part files read in order: the input order, whatever the timing.
+//! part files read in order: the input order, whatever the timing. A plan's tasks distribute
+//! in shares (`Share`): share s of n takes the s-th n-th of each worker's part and writes part
+//! files numbered so that, read in order, they are the same rows in the same order.
 
 use crate::error::{ConvertError, Result, panic_message};
 use crate::plan::{grid_cell, grid_shape};
 use crate::rowfile::{Scratch, append_block};
 use crate::rows::RowInput;
 use indicatif::ProgressBar;
+use std::ops::Range;
 use std::path::{Path, PathBuf};
 use strata_format::{Cube, row_position};
 
@@ -38,6 +41,48 @@ pub struct Distribution<'a> {
     /// Byte of the classification in a row, where the rows have one: its points per code are
     /// counted on the way.
     pub class_at: Option<usize>,
+    pub share: Share,
+}
+
+/// Which share of the rows a distribution takes: all of them (a conversion), or share `index`
+/// of `count` (a plan's tasks, each distributing one).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Share {
+    pub index: usize,
+    pub count: usize,
+}
+
+impl Share {
+    pub const WHOLE: Share = Share { index: 0, count: 1 };
+
+    /// The share's runs of a worker's `ranges` of records, one per input: the worker reads
+    /// the inputs one after the other, so the share is a slice of that sequence (of one
+    /// input's range a share may hold all, some or nothing).
+    pub fn of(&self, ranges: &[Range<u64>]) -> Vec<Range<u64>> {
+        let total: u64 = ranges.iter().map(|r| r.end - r.start).sum();
+        let at = |k: usize| (total as u128 * k as u128 / self.count.max(1) as u128) as u64;
+        let (lo, hi) = (at(self.index), at(self.index + 1));
+        let mut seen = 0;
+        ranges
+            .iter()
+            .map(|r| {
+                let (len, from) = (r.end - r.start, seen);
+                let cut = |v: u64| r.start + v.clamp(from, from + len) - from;
+                seen += len;
+                cut(lo)..cut(hi)
+            })
+            .collect()
+    }
+
+    /// The part file worker `part` writes: a worker's shares in order, then the next worker's.
+    pub fn file_part(&self, part: usize) -> usize {
+        part * self.count + self.index
+    }
+
+    /// Part files of a chunk, all shares together, for `threads` workers.
+    pub fn parts(count: usize, threads: usize) -> usize {
+        count.max(1) * threads
+    }
 }
 
 /// Points per classification code.
@@ -81,12 +126,19 @@ pub(crate) fn in_parts(
 fn distribute_part(d: &Distribution, part: usize, bar: &ProgressBar) -> Result<ClassCounts> {
     let mut classes = [0u64; 256];
     let (level, shift) = grid_shape(d.cube);
-    let per_chunk = (d.buffer_budget / (d.chunk_count.max(1) * d.threads.max(1)) as u64)
-        .clamp(16 << 10, 4 << 20) as usize;
+    // A share sees 1/count of the rows: buffers as large as the whole run's would be filled
+    // barely more than once, so that each task's process would touch as much memory as the
+    // whole run for an n-th of the work.
+    let buffers_of = d.chunk_count.max(1) * d.threads.max(1) * d.share.count.max(1);
+    let per_chunk = (d.buffer_budget / buffers_of as u64).clamp(16 << 10, 4 << 20) as usize;
     let mut buffers: Vec<Vec<u8>> = vec![Vec::new(); d.chunk_count];
     let mut scratch = Scratch::default();
-    for input in d.inputs {
-        input.consume_rows(input.part(part, d.threads), d.stride, |rows| {
+    let file_part = d.share.file_part(part);
+    // A share may be distributed again (its task was stopped): its staging rows must stay.
+    let release = d.share == Share::WHOLE;
+    let ranges: Vec<Range<u64>> = d.inputs.iter().map(|i| i.part(part, d.threads)).collect();
+    for (input, range) in d.inputs.iter().zip(d.share.of(&ranges)) {
+        input.read_rows(range, d.stride, release, |rows| {
             for row in rows.chunks_exact(d.stride) {
                 let chunk = d.lut[grid_cell(row_position(row), d.cube, level, shift)] as usize;
                 if let Some(&c) = d.class_at.and_then(|at| row.get(at)) {
@@ -96,7 +148,7 @@ fn distribute_part(d: &Distribution, part: usize, bar: &ProgressBar) -> Result<C
                 buf.extend_from_slice(row);
                 if buf.len() >= per_chunk {
                     flush(
-                        &chunk_path(d.chunk_dir, chunk, part),
+                        &chunk_path(d.chunk_dir, chunk, file_part),
                         buf,
                         d.stride,
                         &mut scratch,
@@ -109,11 +161,40 @@ fn distribute_part(d: &Distribution, part: usize, bar: &ProgressBar) -> Result<C
     }
     for (i, buf) in buffers.iter_mut().enumerate() {
         flush(
-            &chunk_path(d.chunk_dir, i, part),
+            &chunk_path(d.chunk_dir, i, file_part),
             buf,
             d.stride,
             &mut scratch,
         )?;
     }
     Ok(classes)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::Share;
+
+    /// A worker's records of every input, its shares in order: each record once, in order.
+    #[test]
+    fn shares_cut_a_workers_inputs_in_reading_order() {
+        let ranges = [10..15, 100..100, 40..47, 0..1];
+        let sequence = |rs: &[std::ops::Range<u64>]| -> Vec<(usize, u64)> {
+            rs.iter()
+                .enumerate()
+                .flat_map(|(i, r)| r.clone().map(move |v| (i, v)))
+                .collect()
+        };
+        let whole = sequence(&ranges);
+        for count in [1, 2, 3, 5, 13, 20] {
+            let mut joined = Vec::new();
+            for index in 0..count {
+                let runs = Share { index, count }.of(&ranges);
+                assert_eq!(runs.len(), ranges.len());
+                joined.extend(sequence(&runs));
+            }
+            assert_eq!(joined, whole, "{count} shares");
+        }
+        assert_eq!(Share::WHOLE.of(&ranges), ranges.to_vec());
+        assert_eq!(Share { index: 2, count: 3 }.file_part(4), 14);
+    }
 }

@@ -7,7 +7,7 @@ use crate::journal::{Committer, JournalEntry, record_of};
 use crate::merge::TopMerge;
 use crate::plan::root_spacing;
 use crate::prepare::Plan;
-use crate::rowfile::read_rows;
+use crate::rowfile::{Scratch, read_rows};
 use crate::sampling::Sampling;
 use crate::tree::FinishedNode;
 use crate::workdir::WorkDir;
@@ -58,7 +58,7 @@ pub fn merge_top(
     let load = |i: usize| {
         let p = root_of(journal[i].chunk);
         let mut rows = Vec::new();
-        read_rows(&p, layout.stride, &mut rows).map(|()| rows)
+        read_rows(&p, layout.stride, &mut rows, &mut Scratch::default()).map(|()| rows)
     };
     let emit = |n: FinishedNode| {
         octree

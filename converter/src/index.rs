@@ -7,7 +7,7 @@ use crate::error::{ConvertError, Result, panic_message};
 use crate::halo::Halos;
 use crate::journal::{BuiltChunk, Committer, JournalEntry};
 use crate::prepare::Plan;
-use crate::rowfile::read_rows;
+use crate::rowfile::{Scratch, read_rows};
 use crate::sampling::Sampling;
 use crate::tree::{ChunkMemory, TreeBuilder};
 use crate::workdir::WorkDir;
@@ -26,6 +26,8 @@ pub struct Indexing<'a> {
     pub layout: &'a RowLayout,
     pub sampling: Sampling,
     pub threads: usize,
+    /// Part files per chunk (`Share::parts`).
+    pub parts: usize,
     pub step: &'a dyn ChunkStep,
     pub halos: &'a Halos,
     pub wd: &'a WorkDir,
@@ -131,7 +133,7 @@ fn build_chunk(
     mut mem: ChunkMemory,
     halo: &mut Halo,
 ) -> Result<(BuiltChunk, ChunkMemory)> {
-    read_chunk(ix.wd, i, ix.threads, ix.layout.stride, &mut mem.rows)?;
+    read_chunk(ix, i, &mut mem.rows)?;
     ix.halos.gather(ix.wd, i, halo)?;
     let chunk = &ix.plan.chunks[i];
     let step = ix.step.process(
@@ -173,7 +175,8 @@ fn commit_ready(ix: &Indexing, s: &mut CommitState, abort: &AtomicBool, bar: &Pr
             Ok(entry) => {
                 s.entries.push(entry);
                 // Consumed: its files go now, so the work files shrink as the dataset grows.
-                for part in 0..ix.threads {
+                // Shared ones stay: other tasks read their bands.
+                for part in (0..ix.parts).filter(|_| ix.wd.owns_chunks()) {
                     let _ = fs::remove_file(ix.wd.chunk_part(idx, part));
                 }
                 if let Err(e) = ix.halos.release(ix.wd, idx) {
@@ -207,16 +210,15 @@ fn chunk_fault(plan: &Plan, i: usize, message: String) -> ConvertError {
 }
 
 /// A chunk's rows: its part files in order (a part with no rows has no file).
-fn read_chunk(
-    wd: &WorkDir,
-    chunk: usize,
-    parts: usize,
-    stride: usize,
-    rows: &mut Vec<u8>,
-) -> Result<()> {
+fn read_chunk(ix: &Indexing, chunk: usize, rows: &mut Vec<u8>) -> Result<()> {
+    let stride = ix.layout.stride;
     rows.clear();
-    for part in 0..parts {
-        read_rows(&wd.chunk_part(chunk, part), stride, rows)?;
+    // Its size is known: reserved at once rather than grown (and copied) part by part.
+    let points = ix.plan.chunks.get(chunk).map_or(0, |c| c.points);
+    rows.reserve(usize::try_from(points).unwrap_or(0).saturating_mul(stride));
+    let mut scratch = Scratch::default();
+    for part in 0..ix.parts {
+        read_rows(&ix.wd.chunk_part(chunk, part), stride, rows, &mut scratch)?;
     }
     Ok(())
 }

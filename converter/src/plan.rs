@@ -1,13 +1,10 @@
 //! Phase 2: count points on a coarse grid and cut the cube into chunks that fit in memory.
 
-use crate::error::{ConvertError, Result, io_err, panic_message};
+use crate::error::{ConvertError, Result, panic_message};
 use crate::quantize::Quantization;
 use crate::rows::RowInput;
 use indicatif::ProgressBar;
 use serde::{Deserialize, Serialize};
-use std::fs::OpenOptions;
-use std::os::unix::fs::FileExt;
-use std::path::PathBuf;
 use strata_format::{Cube, GRID_CELLS_LOG2, NodeKey, row_position};
 
 /// The counting grid has 2^7 = 128 cells per axis (8 MiB of counters).
@@ -109,53 +106,27 @@ impl Counts {
 }
 
 /// Counts the rows of `inputs` per grid cell into `total`, `threads` parts of each input at
-/// once. Where `cells` names a file for an input, each record's grid cell is written there
-/// too (a little-endian u32 per record, in record order): a task of a plan reads it to find
-/// its records without looking at the others.
+/// once.
 pub fn count(
     inputs: &[&RowInput],
     total: &mut Counts,
     threads: usize,
     bar: &ProgressBar,
-    cells: &[Option<PathBuf>],
 ) -> Result<()> {
     let cube = total.cube;
-    let (level, shift) = (total.level, total.shift);
     let parts: Vec<Result<Counts>> = std::thread::scope(|scope| {
         let workers: Vec<_> = (0..threads)
             .map(|t| {
                 scope.spawn(move || {
                     let mut c = Counts::new(&cube);
-                    let mut out = Vec::new();
-                    for (j, input) in inputs.iter().enumerate() {
-                        let sink = match cells.get(j) {
-                            Some(Some(path)) => Some((
-                                path,
-                                OpenOptions::new()
-                                    .write(true)
-                                    .create(true)
-                                    .truncate(false)
-                                    .open(path)
-                                    .map_err(io_err(path, "cannot create"))?,
-                            )),
-                            _ => None,
-                        };
+                    for input in inputs {
                         input.for_each_raw(input.part(t, threads), |raw, first| {
-                            out.clear();
                             for (i, rec) in raw.chunks_exact(input.record_len).enumerate() {
                                 let p = match &input.convert {
                                     Some(conv) => conv.position(rec, first + i as u64)?,
                                     None => row_position(rec),
                                 };
                                 c.add(p);
-                                if sink.is_some() {
-                                    let cell = grid_cell(p, &cube, level, shift) as u32;
-                                    out.extend_from_slice(&cell.to_le_bytes());
-                                }
-                            }
-                            if let Some((path, f)) = &sink {
-                                f.write_all_at(&out, first * 4)
-                                    .map_err(io_err(path, "cannot write"))?;
                             }
                             bar.inc((raw.len() / input.record_len) as u64);
                             Ok(())

@@ -5,7 +5,7 @@
 use crate::build::ConvertOptions;
 use crate::chunk_step::ChunkStep;
 use crate::disk::check_conversion;
-use crate::distribute::{ClassCounts, Distribution, distribute};
+use crate::distribute::{ClassCounts, Distribution, Share, distribute};
 use crate::error::{ConvertError, Result, io_err};
 use crate::input::las::LasSource;
 use crate::input::{PointSource, Precision};
@@ -94,7 +94,7 @@ pub fn prepare(
         inputs,
         lut,
         class_at,
-    } = count_and_plan(opts, wd, threads, phases, fingerprint, step, None)?;
+    } = count_and_plan(opts, wd, threads, phases, fingerprint, step)?;
     let layout = RowLayout::new(plan.attributes.clone());
     let class_counts = phases.timed("distribute", Some((plan.points, "points")), |bar| {
         distribute(
@@ -108,6 +108,7 @@ pub fn prepare(
                 buffer_budget: distribute_budget(opts.memory_limit),
                 threads,
                 class_at,
+                share: Share::WHOLE,
             },
             bar,
         )
@@ -146,8 +147,6 @@ pub struct Counted {
 }
 
 /// Read and count the inputs and cut the cube into chunks: what `--plan-only` stops after.
-/// With `cells_dir`, each LAS input read in place leaves its records' grid cells there
-/// (`count`), as `cells{input}.bin`.
 pub fn count_and_plan(
     opts: &ConvertOptions,
     wd: &WorkDir,
@@ -155,7 +154,6 @@ pub fn count_and_plan(
     phases: &mut Phases,
     fingerprint: String,
     step: &dyn ChunkStep,
-    cells_dir: Option<&Path>,
 ) -> Result<Counted> {
     let mut warnings = Vec::new();
     let summary = union_attributes(&opts.inputs, &mut warnings)?;
@@ -164,7 +162,7 @@ pub fn count_and_plan(
     attributes.extend(added);
     let layout = RowLayout::new(attributes.clone());
     check_conversion(wd.work(), wd.root(), declared, layout.stride)?;
-    let staged = match stage_from_headers(opts, &layout, wd, threads, phases, cells_dir) {
+    let staged = match stage_from_headers(opts, &layout, wd, threads, phases) {
         Ok(Some(staged)) if !needlessly_large(&staged) => staged,
         Ok(Some(staged)) => {
             // The header's bounds hold the points but are far larger than they are: its cube
@@ -309,7 +307,6 @@ fn stage_from_headers(
     wd: &WorkDir,
     threads: usize,
     phases: &mut Phases,
-    cells_dir: Option<&Path>,
 ) -> Result<Option<Staged>> {
     let is_las = |p: &PathBuf| {
         p.extension()
@@ -389,17 +386,9 @@ fn stage_from_headers(
     };
     // Decoded inputs were counted as they were decoded; those read in place are counted here.
     let rest: Vec<&RowInput> = inputs.iter().filter(|i| !wd.holds(&i.path)).collect();
-    // A plan keeps each in-place input's grid cells for its tasks (`count`).
-    let cells: Vec<Option<PathBuf>> = match cells_dir {
-        Some(dir) => (0..inputs.len())
-            .filter(|&i| !wd.holds(&inputs[i].path))
-            .map(|i| Some(dir.join(format!("cells{i}.bin"))))
-            .collect(),
-        None => Vec::new(),
-    };
     let total = rest.iter().map(|i| i.records).sum();
     phases.timed("count", Some((total, "points")), |bar| {
-        count(&rest, &mut counts, threads, bar, &cells)
+        count(&rest, &mut counts, threads, bar)
     })?;
     Ok(Some(Staged {
         inputs,
@@ -445,7 +434,7 @@ fn stage_measured(
     })?;
     let mut counts = Counts::new(&cube);
     phases.timed("count", Some((declared, "points")), |bar| {
-        count(&[&input], &mut counts, threads, bar, &[])
+        count(&[&input], &mut counts, threads, bar)
     })?;
     Ok(Staged {
         inputs: vec![input],

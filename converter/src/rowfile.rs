@@ -31,11 +31,12 @@ fn shuffle(rows: &[u8], stride: usize, out: &mut Vec<u8>) {
     }
 }
 
+/// Appends to `out` the rows whose bytes `grouped` holds grouped by place in the row.
 fn unshuffle(grouped: &[u8], stride: usize, out: &mut Vec<u8>) {
     let n = grouped.len() / stride;
-    out.clear();
-    out.resize(grouped.len(), 0);
-    for (i, row) in out.chunks_exact_mut(stride).enumerate() {
+    let start = out.len();
+    out.resize(start + grouped.len(), 0);
+    for (i, row) in out[start..].chunks_exact_mut(stride).enumerate() {
         for (j, b) in row.iter_mut().enumerate() {
             *b = grouped[j * n + i];
         }
@@ -86,7 +87,7 @@ pub fn append_block(path: &Path, rows: &[u8], stride: usize, scratch: &mut Scrat
     write_block(&mut f, rows, stride, scratch, path)
 }
 
-/// Reads the next block's rows into `rows`; false at the end of the file.
+/// Appends the next block's rows to `rows`; false at the end of the file.
 fn read_block(
     r: &mut impl Read,
     stride: usize,
@@ -132,18 +133,30 @@ pub fn for_each_block(
     let mut r = BufReader::with_capacity(1 << 20, file);
     let mut scratch = Scratch::default();
     let mut rows = Vec::new();
-    while read_block(&mut r, stride, path, &mut scratch, &mut rows)? {
+    while {
+        rows.clear();
+        read_block(&mut r, stride, path, &mut scratch, &mut rows)?
+    } {
         each(&rows)?;
     }
     Ok(())
 }
 
-/// Appends every row of the file at `path` to `out`.
-pub fn read_rows(path: &Path, stride: usize, out: &mut Vec<u8>) -> Result<()> {
-    for_each_block(path, stride, |rows| {
-        out.extend_from_slice(rows);
-        Ok(())
-    })
+/// Appends every row of the file at `path` to `out`, decoding with `scratch`'s buffers.
+pub fn read_rows(
+    path: &Path,
+    stride: usize,
+    out: &mut Vec<u8>,
+    scratch: &mut Scratch,
+) -> Result<()> {
+    let file = match File::open(path) {
+        Ok(f) => f,
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => return Ok(()),
+        Err(e) => return Err(ConvertError::io(path, "cannot open", e)),
+    };
+    let mut r = BufReader::with_capacity(1 << 20, file);
+    while read_block(&mut r, stride, path, scratch, out)? {}
+    Ok(())
 }
 
 /// Writes rows to a new file in blocks of `block_rows(stride)` rows.
@@ -273,6 +286,7 @@ pub fn for_each_in(
     let mut rows = Vec::new();
     let mut at = block * per;
     while at < range.end {
+        rows.clear();
         if !read_block(&mut r, stride, path, &mut scratch, &mut rows)? {
             return Err(ConvertError::internal(
                 format!("reading {}", path.display()),
@@ -324,7 +338,7 @@ mod tests {
         let size = std::fs::metadata(&path).expect("meta").len();
         assert!(size * 3 < rows.len() as u64, "{size} bytes");
         let mut back = Vec::new();
-        read_rows(&path, stride, &mut back).expect("read");
+        read_rows(&path, stride, &mut back, &mut Scratch::default()).expect("read");
         assert!(back == rows);
         // Any range, across blocks.
         for range in [0..1, 5..70_000, 65_535..65_537, 99_999..100_000, 7..7] {

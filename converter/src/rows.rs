@@ -221,17 +221,18 @@ impl RowInput {
         Ok(())
     }
 
-    /// Calls `each(rows)` on the rows of `range`, in batches, for the last time: the blocks
-    /// of a staging file are freed as they are read (so distributing moves the rows from the
-    /// staging file into the chunk files rather than copying them).
-    pub fn consume_rows(
+    /// Calls `each(rows)` on the rows of `range`, in batches. With `release`, for the last
+    /// time: the blocks of a staging file are freed as they are read (so distributing moves
+    /// the rows from the staging file into the chunk files rather than copying them).
+    pub fn read_rows(
         &self,
         range: Range<u64>,
         stride: usize,
+        release: bool,
         mut each: impl FnMut(&[u8]) -> Result<()>,
     ) -> Result<()> {
         let mut rows = Vec::new();
-        self.read_raw(range, true, |raw, first| match &self.convert {
+        self.read_raw(range, release, |raw, first| match &self.convert {
             Some(c) => {
                 c.convert(raw, self.record_len, first, &mut rows, stride)?;
                 each(&rows)

@@ -13,6 +13,17 @@ use strata_format::DatasetFile;
 pub struct WorkDir {
     root: PathBuf,
     work: PathBuf,
+    /// Where the chunk files are when a plan's shares wrote them, not this conversion.
+    shared: Option<SharedChunks>,
+}
+
+/// The chunk files a plan's distribution shares wrote, each share into its own folder, read
+/// by every task: a task reads them but never removes them.
+#[derive(Debug, Clone)]
+pub struct SharedChunks {
+    /// Share s's files are in `dir/s`.
+    pub dir: PathBuf,
+    pub shares: usize,
 }
 
 impl WorkDir {
@@ -36,12 +47,33 @@ impl WorkDir {
             }
             None => root.join("work"),
         };
-        WorkDir { root, work }
+        WorkDir {
+            root,
+            work,
+            shared: None,
+        }
     }
 
     /// A conversion's files in `root`, its work files in `work`: a plan's folder, a task's.
     pub fn at(root: PathBuf, work: PathBuf) -> Self {
-        WorkDir { root, work }
+        WorkDir {
+            root,
+            work,
+            shared: None,
+        }
+    }
+
+    /// As `at`, reading the chunk files a plan's shares wrote.
+    pub fn with_shared_chunks(self, shared: SharedChunks) -> Self {
+        WorkDir {
+            shared: Some(shared),
+            ..self
+        }
+    }
+
+    /// Whether the chunk files are this conversion's own, to remove once consumed.
+    pub fn owns_chunks(&self) -> bool {
+        self.shared.is_none()
     }
 
     /// Whether the work folder lies outside the folder that becomes the dataset.
@@ -76,9 +108,17 @@ impl WorkDir {
         self.work.join("chunks")
     }
 
-    /// Part `part` of chunk `chunk`, as the distribute phase wrote it.
+    /// Part `part` of chunk `chunk`, as the distribute phase (or a plan's share) wrote it.
     pub fn chunk_part(&self, chunk: usize, part: usize) -> PathBuf {
-        chunk_path(&self.chunks(), chunk, part)
+        match &self.shared {
+            // `Share::file_part`: part = worker x shares + share.
+            Some(s) => chunk_path(
+                &s.dir.join((part % s.shares.max(1)).to_string()),
+                chunk,
+                part,
+            ),
+            None => chunk_path(&self.chunks(), chunk, part),
+        }
     }
 
     /// Where each committed chunk keeps its root node's rows for the top-level merge.

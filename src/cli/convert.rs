@@ -238,12 +238,14 @@ fn run_plan(plan: &Path, a: &Args) -> anyhow::Result<ExitCode> {
         let summary = run_task(plan, k, a.quiet)?;
         if !a.quiet {
             println!(
-                "task {} of {}: chunks {}..{}, {} points, {}{:.2} s",
+                "task {} of {}: chunks {}..{}, {} points, {} of {} shares distributed here, {}{:.2} s",
                 summary.task,
                 summary.tasks,
                 summary.chunks.start,
                 summary.chunks.end,
                 summary.points,
+                summary.shares_distributed,
+                summary.tasks,
                 if summary.already_done {
                     "finished before, nothing to do, ".to_string()
                 } else if summary.resumed_chunks > 0 {

@@ -2,7 +2,7 @@
 //! file in plan order (as the single run commits them), then the top levels merged from the
 //! chunk roots and the dataset written and renamed into place, as `convert` finishes.
 
-use super::run::{TaskCounts, counts_file};
+use super::share::{remove_chunk_files, share_classes};
 use super::{TaskPlan, task_dirs, task_workdir};
 use crate::build::ConvertSummary;
 use crate::chunk_step::add_totals;
@@ -48,6 +48,7 @@ pub fn finish_tasks(
     }
     let opts = tp.options(output.to_path_buf(), overwrite, quiet);
     let step = tp.checked_step(plan_dir)?;
+    remove_chunk_files(&tp, plan_dir)?;
     let wd = WorkDir::new(output, None);
     wd.create_fresh()?;
     let mut phases = Phases::new(Progress::new(quiet));
@@ -113,7 +114,7 @@ pub fn finish_tasks(
 
 /// Copies every task's nodes into the work directory's octree file, in task (so plan)
 /// order; returns the journal of every chunk, its offsets moved to where the nodes are now,
-/// and the class counts of all tasks together.
+/// and the class counts of all shares together.
 fn gather(tp: &TaskPlan, plan_dir: &Path, wd: &WorkDir) -> Result<(Vec<JournalEntry>, [u64; 256])> {
     let octree_path = wd.dataset_file(DatasetFile::Octree);
     let mut octree = File::create(&octree_path).map_err(io_err(&octree_path, "cannot create"))?;
@@ -122,7 +123,7 @@ fn gather(tp: &TaskPlan, plan_dir: &Path, wd: &WorkDir) -> Result<(Vec<JournalEn
         .map_err(io_err(&octree_path, "cannot write"))?;
     let mut end = OCTREE_HEAD_SIZE;
     let mut journal = Vec::new();
-    let mut classes = [0u64; 256];
+    let classes = share_classes(tp, plan_dir)?;
     for (k, range) in tp.tasks.iter().enumerate() {
         let twd = task_workdir(plan_dir, k, true);
         let entries = read_journal_of(&twd, range.clone());
@@ -136,18 +137,6 @@ fn gather(tp: &TaskPlan, plan_dir: &Path, wd: &WorkDir) -> Result<(Vec<JournalEn
                     twd.root().display()
                 ),
             ));
-        }
-        let counts_path = counts_file(&twd);
-        let bytes = fs::read(&counts_path)
-            .map_err(io_err(&counts_path, "cannot read the task's counts"))?;
-        let counts: TaskCounts = serde_json::from_slice(&bytes).map_err(|e| {
-            ConvertError::input(
-                &counts_path,
-                format!("the task's counts do not parse ({e})"),
-            )
-        })?;
-        for (t, c) in classes.iter_mut().zip(&counts.classes) {
-            *t += c;
         }
         let task_end = entries.last().map_or(OCTREE_HEAD_SIZE, |e| e.end);
         let part = twd.dataset_file(DatasetFile::Octree);

@@ -1,20 +1,23 @@
 //! Conversion as independent tasks, for a batch engine (Slurm, Kubernetes) over machines that
-//! share storage: `plan_tasks` counts the inputs and writes a plan folder; `run_task` builds
-//! one task's chunks there (distribution of its points, the per-chunk step, indexing), in any
-//! order and any number at once; `finish_tasks` merges the top levels into the dataset. The
-//! dataset is byte for byte the one `convert` makes of the same inputs with the same options.
+//! share storage: `plan_tasks` counts the inputs and writes a plan folder; `run_task`
+//! distributes a share of the points into chunk files (`share`: each input is read once in
+//! all, whatever the number of tasks) and builds one task's chunks from them (the per-chunk
+//! step, indexing), in any order and any number at once; `finish_tasks` merges the top levels
+//! into the dataset. The dataset is byte for byte the one `convert` makes of the same inputs
+//! with the same options.
 //!
 //! The plan folder:
 //! ```text
 //! PLAN/plan.json                  the plan (written last, renamed into place)
-//! PLAN/staging/                   rows decoded from LAZ, PLY, E57: what the tasks read
+//! PLAN/staging/                   rows decoded from LAZ, PLY, E57: what the shares read
+//! PLAN/shares/S/                  share S distributed: its chunk part files, its class counts
 //! PLAN/tasks/K.strata-tmp/        task K under way (its work files, journal, octree part)
 //! PLAN/tasks/K/                   task K done: its nodes, journal and chunk roots
 //! ```
 
-mod distribute;
 mod finish;
 mod run;
+mod share;
 
 pub use finish::finish_tasks;
 pub use run::{TaskSummary, run_task};
@@ -38,7 +41,7 @@ use std::path::{Path, PathBuf};
 use strata_format::RowLayout;
 
 /// Changes whenever a plan written by one build means something else to another.
-const PLAN_VERSION: u32 = 1;
+const PLAN_VERSION: u32 = 2;
 
 /// Everything the tasks and the finish need, and the options they must all use.
 #[derive(Debug, Clone, Serialize, Deserialize)]
@@ -60,15 +63,18 @@ pub struct TaskPlan {
     pub tasks: Vec<Range<usize>>,
 }
 
+impl TaskPlan {
+    /// Shares of the distribution: one per task.
+    pub fn shares(&self) -> usize {
+        self.tasks.len().max(1)
+    }
+}
+
 /// One input of the distribution.
 #[derive(Debug, Clone, Serialize, Deserialize)]
 pub enum RowSource {
-    /// A LAS input read in place: `inputs[input]`, with the file of its records' grid cells
-    /// in the plan folder (`plan::count`).
-    Las {
-        input: usize,
-        cells: Option<PathBuf>,
-    },
+    /// A LAS input read in place: `inputs[input]`.
+    Las { input: usize },
     /// A staging file of rows in the plan folder (`rowfile`), `blocks` where its blocks start.
     Rows {
         file: PathBuf,
@@ -228,17 +234,6 @@ impl TaskPlan {
         Ok(step)
     }
 
-    /// For each of `row_inputs`, its file of grid cells, where it has one.
-    pub(crate) fn cell_files(&self, plan_dir: &Path) -> Vec<Option<PathBuf>> {
-        self.sources
-            .iter()
-            .map(|s| match s {
-                RowSource::Las { cells: Some(c), .. } => Some(plan_dir.join(c)),
-                _ => None,
-            })
-            .collect()
-    }
-
     /// The distribution's inputs, as `count_and_plan` gave them.
     pub(crate) fn row_inputs(&self, plan_dir: &Path) -> Result<Vec<RowInput>> {
         let layout = RowLayout::new(self.plan.attributes.clone());
@@ -246,7 +241,7 @@ impl TaskPlan {
         let mut out = Vec::new();
         for s in &self.sources {
             out.push(match s {
-                RowSource::Las { input, .. } => {
+                RowSource::Las { input } => {
                     let path = self.inputs.get(*input).ok_or_else(|| {
                         ConvertError::input(plan_file(plan_dir), "the plan names an input it lacks")
                     })?;
@@ -382,23 +377,11 @@ fn write_plan(
     }
     let mut phases = Phases::new(Progress::new(opts.quiet));
     let fp = run_fingerprint(opts, step.as_ref());
-    let counted = count_and_plan(
-        opts,
-        &wd,
-        threads,
-        &mut phases,
-        fp,
-        step.as_ref(),
-        Some(wd.work()),
-    )?;
+    let counted = count_and_plan(opts, &wd, threads, &mut phases, fp, step.as_ref())?;
     let mut sources = Vec::new();
     for (i, input) in counted.inputs.iter().enumerate() {
         sources.push(match &input.blocks {
-            None => RowSource::Las {
-                input: i,
-                cells: Some(Path::new("staging").join(format!("cells{i}.bin")))
-                    .filter(|c| plan_dir.join(c).is_file()),
-            },
+            None => RowSource::Las { input: i },
             Some(blocks) => RowSource::Rows {
                 file: input
                     .path
