@@ -247,3 +247,29 @@ fn a_disk_full_run_leaves_no_dataset_and_resumes_once_space_is_freed() {
     .expect("plain convert");
     assert_same_dataset(&plain.output, &resumed.output);
 }
+
+/// A plan's folder holds the chunk files until every task is done, beside the tasks' nodes:
+/// the estimate for a plan adds work and output up, and must hold what they measure.
+#[test]
+fn the_plans_disk_estimate_holds_its_tasks_files() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let opts = ConvertOptions {
+        output: dir.path().join("plan"),
+        ..city(dir.path(), "unused")
+    };
+    let plan = crate::tasks::plan_tasks(&opts, None, 3).expect("plan");
+    for k in 0..3 {
+        crate::tasks::run_task(&plan.plan, k, true).expect("task");
+    }
+    let held = crate::disk::tree_bytes(&plan.plan);
+    let stride = crate::synth::synth_layout().stride;
+    let (work, output) = crate::disk::disk_estimate(plan.points, stride);
+    assert!(
+        held > work.max(output) / 2 && held <= work + output,
+        "the plan holds {held} bytes; estimated {work} of work and {output} of output"
+    );
+    let done = crate::tasks::finish_tasks(&plan.plan, &dir.path().join("ds"), false, true)
+        .expect("finish");
+    assert!(!plan.plan.exists());
+    assert!(done.dataset_bytes <= output);
+}

@@ -4,7 +4,7 @@
 
 use crate::build::ConvertOptions;
 use crate::chunk_step::ChunkStep;
-use crate::disk::check_conversion;
+use crate::disk::{DiskUse, check_conversion};
 use crate::distribute::{ClassCounts, Distribution, Share, distribute};
 use crate::error::{ConvertError, Result, io_err};
 use crate::input::las::LasSource;
@@ -94,7 +94,15 @@ pub fn prepare(
         inputs,
         lut,
         class_at,
-    } = count_and_plan(opts, wd, threads, phases, fingerprint, step)?;
+    } = count_and_plan(
+        opts,
+        wd,
+        threads,
+        phases,
+        fingerprint,
+        step,
+        DiskUse::HandOver,
+    )?;
     let layout = RowLayout::new(plan.attributes.clone());
     let class_counts = phases.timed("distribute", Some((plan.points, "points")), |bar| {
         distribute(
@@ -154,6 +162,7 @@ pub fn count_and_plan(
     phases: &mut Phases,
     fingerprint: String,
     step: &dyn ChunkStep,
+    disk: DiskUse,
 ) -> Result<Counted> {
     let mut warnings = Vec::new();
     let summary = union_attributes(&opts.inputs, &mut warnings)?;
@@ -161,7 +170,7 @@ pub fn count_and_plan(
     let added = step.attributes(&attributes)?;
     attributes.extend(added);
     let layout = RowLayout::new(attributes.clone());
-    check_conversion(wd.work(), wd.root(), declared, layout.stride)?;
+    check_conversion(wd.work(), wd.root(), declared, layout.stride, disk)?;
     let staged = match stage_from_headers(opts, &layout, wd, threads, phases) {
         Ok(Some(staged)) if !needlessly_large(&staged) => staged,
         Ok(Some(staged)) => {

@@ -6,7 +6,7 @@ use super::share::{remove_chunk_files, share_classes};
 use super::{TaskPlan, task_dirs, task_workdir};
 use crate::build::ConvertSummary;
 use crate::chunk_step::add_totals;
-use crate::disk::tree_bytes;
+use crate::disk::{check_space, tree_bytes};
 use crate::error::{ConvertError, Result, io_err};
 use crate::finish::{finish, merge_top};
 use crate::journal::{Committer, JournalEntry, read_journal_of};
@@ -49,6 +49,15 @@ pub fn finish_tasks(
     let opts = tp.options(output.to_path_buf(), overwrite, quiet);
     let step = tp.checked_step(plan_dir)?;
     remove_chunk_files(&tp, plan_dir)?;
+    // The dataset takes about what the tasks' nodes take, copied before they go: refuse now,
+    // not once the disk is full.
+    let nodes: u64 = (0..tp.tasks.len())
+        .filter_map(|k| {
+            let part = task_workdir(plan_dir, k, true).dataset_file(DatasetFile::Octree);
+            fs::metadata(part).ok().map(|m| m.len())
+        })
+        .sum();
+    check_space(&[(output, nodes)])?;
     let wd = WorkDir::new(output, None);
     wd.create_fresh()?;
     let mut phases = Phases::new(Progress::new(quiet));

@@ -24,6 +24,7 @@ pub use run::{TaskSummary, run_task};
 
 use crate::build::ConvertOptions;
 use crate::chunk_step::{ChunkStep, NoStep};
+use crate::disk::DiskUse;
 use crate::error::{ConvertError, Result, io_err};
 use crate::input::PointSource;
 use crate::input::las::LasSource;
@@ -377,7 +378,15 @@ fn write_plan(
     }
     let mut phases = Phases::new(Progress::new(opts.quiet));
     let fp = run_fingerprint(opts, step.as_ref());
-    let counted = count_and_plan(opts, &wd, threads, &mut phases, fp, step.as_ref())?;
+    let counted = count_and_plan(
+        opts,
+        &wd,
+        threads,
+        &mut phases,
+        fp,
+        step.as_ref(),
+        DiskUse::Together,
+    )?;
     let mut sources = Vec::new();
     for (i, input) in counted.inputs.iter().enumerate() {
         sources.push(match &input.blocks {
