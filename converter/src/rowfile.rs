@@ -125,12 +125,9 @@ pub fn for_each_block(
     stride: usize,
     mut each: impl FnMut(&[u8]) -> Result<()>,
 ) -> Result<()> {
-    let file = match File::open(path) {
-        Ok(f) => f,
-        Err(e) if e.kind() == std::io::ErrorKind::NotFound => return Ok(()),
-        Err(e) => return Err(ConvertError::io(path, "cannot open", e)),
+    let Some(mut r) = open_blocks(path)? else {
+        return Ok(());
     };
-    let mut r = BufReader::with_capacity(1 << 20, file);
     let mut scratch = Scratch::default();
     let mut rows = Vec::new();
     while {
@@ -149,14 +146,19 @@ pub fn read_rows(
     out: &mut Vec<u8>,
     scratch: &mut Scratch,
 ) -> Result<()> {
-    let file = match File::open(path) {
-        Ok(f) => f,
-        Err(e) if e.kind() == std::io::ErrorKind::NotFound => return Ok(()),
-        Err(e) => return Err(ConvertError::io(path, "cannot open", e)),
-    };
-    let mut r = BufReader::with_capacity(1 << 20, file);
-    while read_block(&mut r, stride, path, scratch, out)? {}
+    if let Some(mut r) = open_blocks(path)? {
+        while read_block(&mut r, stride, path, scratch, out)? {}
+    }
     Ok(())
+}
+
+/// The file of blocks at `path`, buffered; `None` where there is none (no rows).
+fn open_blocks(path: &Path) -> Result<Option<BufReader<File>>> {
+    match File::open(path) {
+        Ok(f) => Ok(Some(BufReader::with_capacity(1 << 20, f))),
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => Ok(None),
+        Err(e) => Err(ConvertError::io(path, "cannot open", e)),
+    }
 }
 
 /// Writes rows to a new file in blocks of `block_rows(stride)` rows.
