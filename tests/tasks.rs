@@ -219,18 +219,25 @@ fn a_share_cut_short_is_distributed_again() {
         &inputs,
         &[],
     ));
-    let (cut, whole) = (plan.join("shares/1.strata-tmp"), plan.join("shares/1"));
+    let (shares, whole) = (plan.join("shares"), plan.join("shares/1"));
+    // Share 1's folder under way (named for the process writing it), once it holds files.
+    let cut = || -> Option<PathBuf> {
+        std::fs::read_dir(&shares).ok()?.flatten().find_map(|e| {
+            let name = e.file_name().to_string_lossy().into_owned();
+            let busy = name.starts_with("1.") && name.ends_with(".strata-tmp");
+            let written = std::fs::read_dir(e.path()).map_or(0, |d| d.count()) > 0;
+            (busy && written).then(|| e.path())
+        })
+    };
     let mut child = spawn_task(&plan, 1);
     let start = Instant::now();
-    // Killed once its share has written chunk files.
-    while std::fs::read_dir(&cut).map_or(0, |d| d.count()) == 0
-        && start.elapsed() < Duration::from_secs(60)
-    {
+    while cut().is_none() && start.elapsed() < Duration::from_secs(60) {
         std::thread::sleep(Duration::from_millis(1));
     }
     child.kill().expect("kill -9");
     assert!(!child.wait().expect("wait").success(), "killed before done");
-    assert!(cut.is_dir() && !whole.exists(), "the share was cut short");
+    let left = cut().expect("a share cut short");
+    assert!(!whole.exists(), "the share was cut short");
     // The next task distributes the three shares, the cut one again; the others find them done.
     let o = run_ok(&["convert", "--plan", s(&plan), "--task", "2"]);
     let text = String::from_utf8_lossy(&o.stdout);
@@ -240,7 +247,79 @@ fn a_share_cut_short_is_distributed_again() {
         let text = String::from_utf8_lossy(&o.stdout);
         assert!(text.contains("0 of 3 shares distributed here"), "{text}");
     }
+    assert!(!left.exists(), "the copy cut short was cleared");
     let out = dir.path().join("split");
+    run_ok(&[
+        "convert",
+        "--plan",
+        s(&plan),
+        "--finish",
+        "-o",
+        s(&out),
+        "-q",
+    ]);
+    assert_same_dataset(&single, &out);
+}
+
+/// A finish that finds a task's result damaged refuses before it removes anything the tasks
+/// need, so that running the task again, as it says, mends the plan; and a task whose chunk
+/// files lost rows refuses rather than building chunks without them.
+#[test]
+fn damaged_work_is_refused_and_mended_as_the_message_says() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let inputs = [synth(dir.path(), "a.las", "300000", "8")];
+    let single = dir.path().join("single");
+    run_ok(&args(&["convert"], &inputs, &["-o", s(&single)]));
+    let plan = dir.path().join("plan");
+    run_ok(&args(
+        &["convert", "--plan-only", s(&plan), "--tasks", "3"],
+        &inputs,
+        &[],
+    ));
+    for k in [0, 1] {
+        assert!(spawn_task(&plan, k).wait().expect("wait").success());
+    }
+    // One of task 2's chunk files, gone.
+    let tp: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(plan.join("plan.json")).expect("plan"))
+            .expect("json");
+    let first = tp["tasks"][2]["start"].as_u64().expect("start");
+    let victim = std::fs::read_dir(plan.join("shares/0"))
+        .expect("share 0")
+        .flatten()
+        .map(|e| e.path())
+        .find(|p| {
+            let name = p
+                .file_name()
+                .map(|n| n.to_string_lossy().into_owned())
+                .unwrap_or_default();
+            name.strip_prefix('c')
+                .and_then(|r| r.split('_').next())
+                .and_then(|c| c.parse::<u64>().ok())
+                .is_some_and(|c| c >= first)
+        })
+        .expect("a chunk file of task 2");
+    let kept = std::fs::read(&victim).expect("read");
+    std::fs::remove_file(&victim).expect("remove");
+    let o = run(&["convert", "--plan", s(&plan), "--task", "2"]);
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(
+        !o.status.success() && err.contains("where the plan counted"),
+        "{err}"
+    );
+    std::fs::write(&victim, kept).expect("restore");
+    assert!(spawn_task(&plan, 2).wait().expect("wait").success());
+    // Task 1's journal, emptied: the finish names the fix, and the fix works.
+    std::fs::write(plan.join("tasks/1/work/journal.jsonl"), b"").expect("empty journal");
+    let out = dir.path().join("split");
+    let o = run(&["convert", "--plan", s(&plan), "--finish", "-o", s(&out)]);
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(
+        !o.status.success() && err.contains("run the task again after removing"),
+        "{err}"
+    );
+    std::fs::remove_dir_all(plan.join("tasks/1")).expect("remove task 1");
+    assert!(spawn_task(&plan, 1).wait().expect("wait").success());
     run_ok(&[
         "convert",
         "--plan",

@@ -11,6 +11,7 @@ use crate::rows::RowInput;
 use indicatif::ProgressBar;
 use std::ops::Range;
 use std::path::{Path, PathBuf};
+use std::sync::Mutex;
 use strata_format::{Cube, row_position};
 
 /// The file holding part `part` of chunk `index`.
@@ -89,10 +90,26 @@ impl Share {
 pub type ClassCounts = [u64; 256];
 
 /// Distributes every row into its chunk's files; returns the points per classification code.
-pub fn distribute(d: &Distribution, bar: &ProgressBar) -> Result<ClassCounts> {
+pub fn distribute(d: &Distribution, bar: &ProgressBar, memory: &RowBuffers) -> Result<ClassCounts> {
     in_parts(d.threads, "distributing points", |part| {
-        distribute_part(d, part, bar)
+        let Some(Ok(mut buffers)) = memory.0.get(part).map(|m| m.lock()) else {
+            return Err(ConvertError::internal(
+                "distributing points",
+                format!("no row buffers for worker {part}"),
+            ));
+        };
+        distribute_part(d, part, bar, &mut buffers)
     })
+}
+
+/// The workers' row buffers, one per chunk, kept from one distribution to the next: a task
+/// that distributes several shares fills the same memory again rather than touching new.
+pub struct RowBuffers(Vec<Mutex<Vec<Vec<u8>>>>);
+
+impl RowBuffers {
+    pub fn new(workers: usize) -> Self {
+        RowBuffers((0..workers).map(|_| Mutex::new(Vec::new())).collect())
+    }
 }
 
 /// Runs `part(0..parts)` on threads of their own and adds up their class counts; a panicking
@@ -123,15 +140,19 @@ pub(crate) fn in_parts(
     Ok(total)
 }
 
-fn distribute_part(d: &Distribution, part: usize, bar: &ProgressBar) -> Result<ClassCounts> {
+fn distribute_part(
+    d: &Distribution,
+    part: usize,
+    bar: &ProgressBar,
+    buffers: &mut Vec<Vec<u8>>,
+) -> Result<ClassCounts> {
     let mut classes = [0u64; 256];
     let (level, shift) = grid_shape(d.cube);
-    // A share sees 1/count of the rows: buffers as large as the whole run's would be filled
-    // barely more than once, so that each task's process would touch as much memory as the
-    // whole run for an n-th of the work.
-    let buffers_of = d.chunk_count.max(1) * d.threads.max(1) * d.share.count.max(1);
-    let per_chunk = (d.buffer_budget / buffers_of as u64).clamp(16 << 10, 4 << 20) as usize;
-    let mut buffers: Vec<Vec<u8>> = vec![Vec::new(); d.chunk_count];
+    let per_chunk = (d.buffer_budget / (d.chunk_count.max(1) * d.threads.max(1)) as u64)
+        .clamp(16 << 10, 4 << 20) as usize;
+    // Emptied (one that failed may have left rows), keeping their memory.
+    buffers.resize_with(d.chunk_count, Vec::new);
+    buffers.iter_mut().for_each(Vec::clear);
     let mut scratch = Scratch::default();
     let file_part = d.share.file_part(part);
     // A share may be distributed again (its task was stopped): its staging rows must stay.

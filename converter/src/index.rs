@@ -220,5 +220,15 @@ fn read_chunk(ix: &Indexing, chunk: usize, rows: &mut Vec<u8>) -> Result<()> {
     for part in 0..ix.parts {
         read_rows(&ix.wd.chunk_part(chunk, part), stride, rows, &mut scratch)?;
     }
+    // A part file that is missing reads as no rows: what the plan counted says whether one is.
+    let read = rows.len() / stride.max(1);
+    if read as u64 != points {
+        return Err(ConvertError::input(
+            ix.wd.chunk_part(chunk, 0),
+            format!(
+                "chunk {chunk}'s work files hold {read} points where the plan counted {points}; they were removed or cut short since they were written: convert again from the start (or, for a plan's task, make the plan again)"
+            ),
+        ));
+    }
     Ok(())
 }

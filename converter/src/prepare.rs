@@ -5,7 +5,7 @@
 use crate::build::ConvertOptions;
 use crate::chunk_step::ChunkStep;
 use crate::disk::{DiskUse, check_conversion};
-use crate::distribute::{ClassCounts, Distribution, Share, distribute};
+use crate::distribute::{ClassCounts, Distribution, RowBuffers, Share, distribute};
 use crate::error::{ConvertError, Result, io_err};
 use crate::input::las::LasSource;
 use crate::input::{PointSource, Precision};
@@ -119,6 +119,7 @@ pub fn prepare(
                 share: Share::WHOLE,
             },
             bar,
+            &RowBuffers::new(threads),
         )
     })?;
     remove_staging(&inputs, wd)?;

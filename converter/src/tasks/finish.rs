@@ -16,6 +16,7 @@ use crate::sys::peak_rss_bytes;
 use crate::workdir::WorkDir;
 use std::fs::{self, File, OpenOptions};
 use std::io::{Read, Seek, SeekFrom, Write};
+use std::ops::Range;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 use strata_format::{DatasetFile, DatasetId, OCTREE_HEAD_SIZE, RowLayout, octree_head};
@@ -48,6 +49,11 @@ pub fn finish_tasks(
     }
     let opts = tp.options(output.to_path_buf(), overwrite, quiet);
     let step = tp.checked_step(plan_dir)?;
+    // Every task's journal is whole before the chunk files go: until then a damaged task can
+    // still be run again.
+    for (k, range) in tp.tasks.iter().enumerate() {
+        task_journal(plan_dir, k, range)?;
+    }
     remove_chunk_files(&tp, plan_dir)?;
     // The dataset takes about what the tasks' nodes take, copied before they go: refuse now,
     // not once the disk is full.
@@ -121,6 +127,24 @@ pub fn finish_tasks(
     })
 }
 
+/// Task `k`'s journal, refused unless it lists every chunk of the task.
+fn task_journal(plan_dir: &Path, k: usize, range: &Range<usize>) -> Result<Vec<JournalEntry>> {
+    let twd = task_workdir(plan_dir, k, true);
+    let entries = read_journal_of(&twd, range.clone());
+    if entries.len() != range.len() {
+        return Err(ConvertError::input(
+            twd.journal(),
+            format!(
+                "task {k}'s journal holds {} of its {} chunks; run the task again after removing {}",
+                entries.len(),
+                range.len(),
+                twd.root().display()
+            ),
+        ));
+    }
+    Ok(entries)
+}
+
 /// Copies every task's nodes into the work directory's octree file, in task (so plan)
 /// order; returns the journal of every chunk, its offsets moved to where the nodes are now,
 /// and the class counts of all shares together.
@@ -134,19 +158,8 @@ fn gather(tp: &TaskPlan, plan_dir: &Path, wd: &WorkDir) -> Result<(Vec<JournalEn
     let mut journal = Vec::new();
     let classes = share_classes(tp, plan_dir)?;
     for (k, range) in tp.tasks.iter().enumerate() {
+        let entries = task_journal(plan_dir, k, range)?;
         let twd = task_workdir(plan_dir, k, true);
-        let entries = read_journal_of(&twd, range.clone());
-        if entries.len() != range.len() {
-            return Err(ConvertError::input(
-                twd.journal(),
-                format!(
-                    "task {k}'s journal holds {} of its {} chunks; run the task again after removing {}",
-                    entries.len(),
-                    range.len(),
-                    twd.root().display()
-                ),
-            ));
-        }
         let task_end = entries.last().map_or(OCTREE_HEAD_SIZE, |e| e.end);
         let part = twd.dataset_file(DatasetFile::Octree);
         let mut src = OpenOptions::new()

@@ -15,7 +15,7 @@ use crate::journal::{Committer, read_journal_of, save_plan};
 use crate::progress::{PhaseTime, Phases, Progress};
 use crate::workdir::WorkDir;
 use serde::Serialize;
-use std::fs::{self, File};
+use std::fs::{self, File, TryLockError};
 use std::ops::Range;
 use std::path::Path;
 use std::time::Instant;
@@ -70,11 +70,15 @@ pub fn run_task(plan_dir: &Path, k: usize, quiet: bool) -> Result<TaskSummary> {
     // Two runs of one task would write the same files: the second refuses.
     let lock_path = tmp.with_extension("lock");
     let lock = File::create(&lock_path).map_err(io_err(&lock_path, "cannot create"))?;
-    if lock.try_lock().is_err() {
-        return Err(ConvertError::output(
-            &tmp,
-            format!("task {k} is already running (another process holds its lock)"),
-        ));
+    match lock.try_lock() {
+        Ok(()) => {}
+        Err(TryLockError::WouldBlock) => {
+            return Err(ConvertError::output(
+                &tmp,
+                format!("task {k} is already running (another process holds its lock)"),
+            ));
+        }
+        Err(TryLockError::Error(e)) => return Err(ConvertError::io(&lock_path, "cannot lock", e)),
     }
     // Another run may have finished it between the first look and the lock.
     if done.is_dir() {
