@@ -68,6 +68,36 @@ fn spawn_task(plan: &Path, k: usize) -> Child {
         .expect("spawn task")
 }
 
+/// The single run of `inputs` (with `extra`) into `dir/single`.
+fn single_run(dir: &Path, inputs: &[PathBuf], extra: &[&str]) -> PathBuf {
+    let single = dir.join("single");
+    let mut tail = vec!["-o", s(&single)];
+    tail.extend(extra);
+    run_ok(&args(&["convert"], inputs, &tail));
+    single
+}
+
+/// `--plan-only` of `inputs` (with `extra`) into `plan`, as `tasks` tasks.
+fn plan_only(inputs: &[PathBuf], extra: &[&str], plan: &Path, tasks: usize) {
+    let n = tasks.to_string();
+    run_ok(&args(
+        &["convert", "--plan-only", s(plan), "--tasks", &n],
+        inputs,
+        extra,
+    ));
+}
+
+/// `--finish` of `plan` into `out`, which must succeed.
+fn finish(plan: &Path, out: &Path) {
+    run_ok(&["convert", "--plan", s(plan), "--finish", "-o", s(out), "-q"]);
+}
+
+/// Task `k` of `plan` run to success; what it printed.
+fn task_says(plan: &Path, k: usize) -> String {
+    let o = run_ok(&["convert", "--plan", s(plan), "--task", &k.to_string()]);
+    String::from_utf8_lossy(&o.stdout).into_owned()
+}
+
 /// Plans `tasks` tasks, runs them all at once in shuffled order except `skip`, and finishes
 /// into `out`.
 fn split_run(
@@ -78,12 +108,7 @@ fn split_run(
     tasks: usize,
     skip: &[usize],
 ) {
-    let n = tasks.to_string();
-    run_ok(&args(
-        &["convert", "--plan-only", s(plan), "--tasks", &n],
-        inputs,
-        extra,
-    ));
+    plan_only(inputs, extra, plan, tasks);
     let children: Vec<(usize, Child)> = shuffled(tasks)
         .into_iter()
         .filter(|k| !skip.contains(k))
@@ -93,7 +118,7 @@ fn split_run(
         assert!(c.wait().expect("wait").success(), "task {k} failed");
     }
     if skip.is_empty() {
-        run_ok(&["convert", "--plan", s(plan), "--finish", "-o", s(out), "-q"]);
+        finish(plan, out);
     }
 }
 
@@ -105,8 +130,7 @@ fn tasks_in_any_order_give_the_single_runs_bytes() {
         synth(dir.path(), "a.las", "250000", "3"),
         synth(dir.path(), "b.laz", "150000", "4"),
     ];
-    let single = dir.path().join("single");
-    run_ok(&args(&["convert"], &inputs, &["-o", s(&single)]));
+    let single = single_run(dir.path(), &inputs, &[]);
     let (plan, out) = (dir.path().join("plan"), dir.path().join("split"));
     // Two tasks left out: the finish names them and leaves nothing behind.
     split_run(&inputs, &[], &plan, &out, 6, &[1, 4]);
@@ -122,15 +146,7 @@ fn tasks_in_any_order_give_the_single_runs_bytes() {
     }
     // A finished task run again does nothing.
     assert!(spawn_task(&plan, 0).wait().expect("wait").success());
-    run_ok(&[
-        "convert",
-        "--plan",
-        s(&plan),
-        "--finish",
-        "-o",
-        s(&out),
-        "-q",
-    ]);
+    finish(&plan, &out);
     run_ok(&["verify", s(&out)]);
     assert_same_dataset(&single, &out);
     assert!(!plan.exists(), "the finish removes the plan");
@@ -141,12 +157,7 @@ fn tasks_in_any_order_give_the_single_runs_bytes() {
 fn tasks_with_normals_give_the_single_runs_bytes() {
     let dir = tempfile::tempdir().expect("tempdir");
     let inputs = [synth(dir.path(), "city.las", "300000", "7")];
-    let single = dir.path().join("single");
-    run_ok(&args(
-        &["convert"],
-        &inputs,
-        &["-o", s(&single), "--normals"],
-    ));
+    let single = single_run(dir.path(), &inputs, &["--normals"]);
     let (plan, out) = (dir.path().join("plan"), dir.path().join("split"));
     split_run(&inputs, &["--normals"], &plan, &out, 3, &[]);
     assert_same_dataset(&single, &out);
@@ -184,20 +195,11 @@ fn a_killed_task_resumes_to_the_same_bytes() {
     child.kill().expect("kill -9");
     assert!(!child.wait().expect("wait").success(), "killed before done");
     assert!(!plan.join("tasks/0").exists());
-    let o = run_ok(&["convert", "--plan", s(&plan), "--task", "0"]);
-    let text = String::from_utf8_lossy(&o.stdout);
+    let text = task_says(&plan, 0);
     assert!(text.contains("resumed"), "{text}");
     run_ok(&["convert", "--plan", s(&plan), "--task", "1", "-q"]);
     let out = dir.path().join("split");
-    run_ok(&[
-        "convert",
-        "--plan",
-        s(&plan),
-        "--finish",
-        "-o",
-        s(&out),
-        "-q",
-    ]);
+    finish(&plan, &out);
     assert_same_dataset(&single, &out);
 }
 
@@ -211,14 +213,9 @@ fn a_share_cut_short_is_distributed_again() {
         synth(dir.path(), "a.las", "2000000", "5"),
         synth(dir.path(), "b.laz", "1000000", "6"),
     ];
-    let single = dir.path().join("single");
-    run_ok(&args(&["convert"], &inputs, &["-o", s(&single)]));
+    let single = single_run(dir.path(), &inputs, &[]);
     let plan = dir.path().join("plan");
-    run_ok(&args(
-        &["convert", "--plan-only", s(&plan), "--tasks", "3"],
-        &inputs,
-        &[],
-    ));
+    plan_only(&inputs, &[], &plan, 3);
     let (shares, whole) = (plan.join("shares"), plan.join("shares/1"));
     // Share 1's folder under way (named for the process writing it), once it holds files.
     let cut = || -> Option<PathBuf> {
@@ -239,25 +236,15 @@ fn a_share_cut_short_is_distributed_again() {
     let left = cut().expect("a share cut short");
     assert!(!whole.exists(), "the share was cut short");
     // The next task distributes the three shares, the cut one again; the others find them done.
-    let o = run_ok(&["convert", "--plan", s(&plan), "--task", "2"]);
-    let text = String::from_utf8_lossy(&o.stdout);
+    let text = task_says(&plan, 2);
     assert!(text.contains("3 of 3 shares distributed here"), "{text}");
     for k in [0, 1] {
-        let o = run_ok(&["convert", "--plan", s(&plan), "--task", &k.to_string()]);
-        let text = String::from_utf8_lossy(&o.stdout);
+        let text = task_says(&plan, k);
         assert!(text.contains("0 of 3 shares distributed here"), "{text}");
     }
     assert!(!left.exists(), "the copy cut short was cleared");
     let out = dir.path().join("split");
-    run_ok(&[
-        "convert",
-        "--plan",
-        s(&plan),
-        "--finish",
-        "-o",
-        s(&out),
-        "-q",
-    ]);
+    finish(&plan, &out);
     assert_same_dataset(&single, &out);
 }
 
@@ -268,14 +255,9 @@ fn a_share_cut_short_is_distributed_again() {
 fn damaged_work_is_refused_and_mended_as_the_message_says() {
     let dir = tempfile::tempdir().expect("tempdir");
     let inputs = [synth(dir.path(), "a.las", "300000", "8")];
-    let single = dir.path().join("single");
-    run_ok(&args(&["convert"], &inputs, &["-o", s(&single)]));
+    let single = single_run(dir.path(), &inputs, &[]);
     let plan = dir.path().join("plan");
-    run_ok(&args(
-        &["convert", "--plan-only", s(&plan), "--tasks", "3"],
-        &inputs,
-        &[],
-    ));
+    plan_only(&inputs, &[], &plan, 3);
     for k in [0, 1] {
         assert!(spawn_task(&plan, k).wait().expect("wait").success());
     }
@@ -320,15 +302,7 @@ fn damaged_work_is_refused_and_mended_as_the_message_says() {
     );
     std::fs::remove_dir_all(plan.join("tasks/1")).expect("remove task 1");
     assert!(spawn_task(&plan, 1).wait().expect("wait").success());
-    run_ok(&[
-        "convert",
-        "--plan",
-        s(&plan),
-        "--finish",
-        "-o",
-        s(&out),
-        "-q",
-    ]);
+    finish(&plan, &out);
     assert_same_dataset(&single, &out);
 }
 

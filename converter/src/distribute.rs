@@ -159,7 +159,7 @@ fn distribute_part(
     let release = d.share == Share::WHOLE;
     let ranges: Vec<Range<u64>> = d.inputs.iter().map(|i| i.part(part, d.threads)).collect();
     for (input, range) in d.inputs.iter().zip(d.share.of(&ranges)) {
-        input.read_rows(range, d.stride, release, |rows| {
+        input.for_each_rows(range, d.stride, release, |rows| {
             for row in rows.chunks_exact(d.stride) {
                 let chunk = d.lut[grid_cell(row_position(row), d.cube, level, shift)] as usize;
                 if let Some(&c) = d.class_at.and_then(|at| row.get(at)) {

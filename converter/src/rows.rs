@@ -224,7 +224,7 @@ impl RowInput {
     /// Calls `each(rows)` on the rows of `range`, in batches. With `release`, for the last
     /// time: the blocks of a staging file are freed as they are read (so distributing moves
     /// the rows from the staging file into the chunk files rather than copying them).
-    pub fn read_rows(
+    pub fn for_each_rows(
         &self,
         range: Range<u64>,
         stride: usize,

@@ -51,9 +51,12 @@ pub fn finish_tasks(
     let step = tp.checked_step(plan_dir)?;
     // Every task's journal is whole before the chunk files go: until then a damaged task can
     // still be run again.
-    for (k, range) in tp.tasks.iter().enumerate() {
-        task_journal(plan_dir, k, range)?;
-    }
+    let journals = tp
+        .tasks
+        .iter()
+        .enumerate()
+        .map(|(k, range)| task_journal(plan_dir, k, range))
+        .collect::<Result<Vec<_>>>()?;
     remove_chunk_files(&tp, plan_dir)?;
     // The dataset takes about what the tasks' nodes take, copied before they go: refuse now,
     // not once the disk is full.
@@ -68,7 +71,8 @@ pub fn finish_tasks(
     wd.create_fresh()?;
     let mut phases = Phases::new(Progress::new(quiet));
     let result = (|| {
-        let (journal, classes) = phases.timed("gather", None, |_| gather(&tp, plan_dir, &wd))?;
+        let (journal, classes) =
+            phases.timed("gather", None, |_| gather(&tp, plan_dir, &wd, journals))?;
         let mut plan = tp.plan.clone();
         plan.classes = class_list(tp.class_at, &classes);
         let layout = RowLayout::new(plan.attributes.clone());
@@ -146,9 +150,14 @@ fn task_journal(plan_dir: &Path, k: usize, range: &Range<usize>) -> Result<Vec<J
 }
 
 /// Copies every task's nodes into the work directory's octree file, in task (so plan)
-/// order; returns the journal of every chunk, its offsets moved to where the nodes are now,
-/// and the class counts of all shares together.
-fn gather(tp: &TaskPlan, plan_dir: &Path, wd: &WorkDir) -> Result<(Vec<JournalEntry>, [u64; 256])> {
+/// order; returns the journal of every chunk (`journals`, one per task, checked whole), its
+/// offsets moved to where the nodes are now, and the class counts of all shares together.
+fn gather(
+    tp: &TaskPlan,
+    plan_dir: &Path,
+    wd: &WorkDir,
+    journals: Vec<Vec<JournalEntry>>,
+) -> Result<(Vec<JournalEntry>, [u64; 256])> {
     let octree_path = wd.dataset_file(DatasetFile::Octree);
     let mut octree = File::create(&octree_path).map_err(io_err(&octree_path, "cannot create"))?;
     octree
@@ -157,8 +166,7 @@ fn gather(tp: &TaskPlan, plan_dir: &Path, wd: &WorkDir) -> Result<(Vec<JournalEn
     let mut end = OCTREE_HEAD_SIZE;
     let mut journal = Vec::new();
     let classes = share_classes(tp, plan_dir)?;
-    for (k, range) in tp.tasks.iter().enumerate() {
-        let entries = task_journal(plan_dir, k, range)?;
+    for (k, entries) in journals.into_iter().enumerate() {
         let twd = task_workdir(plan_dir, k, true);
         let task_end = entries.last().map_or(OCTREE_HEAD_SIZE, |e| e.end);
         let part = twd.dataset_file(DatasetFile::Octree);

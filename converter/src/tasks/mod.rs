@@ -64,13 +64,6 @@ pub struct TaskPlan {
     pub tasks: Vec<Range<usize>>,
 }
 
-impl TaskPlan {
-    /// Shares of the distribution: one per task.
-    pub fn shares(&self) -> usize {
-        self.tasks.len().max(1)
-    }
-}
-
 /// One input of the distribution.
 #[derive(Debug, Clone, Serialize, Deserialize)]
 pub enum RowSource {
@@ -127,6 +120,11 @@ pub fn step_for(normals: &Option<NormalOptions>) -> Result<Box<dyn ChunkStep>> {
 }
 
 impl TaskPlan {
+    /// Shares of the distribution: one per task.
+    pub fn shares(&self) -> usize {
+        self.tasks.len().max(1)
+    }
+
     /// Reads the plan in `plan_dir`; an error in one sentence when there is none or it is
     /// not one this build understands.
     pub fn load(plan_dir: &Path) -> Result<TaskPlan> {
