@@ -7,11 +7,13 @@
 //! same cloud cut into other chunks finds the same neighbours, bit for bit.
 
 /// Points per leaf: about twice k, so that the query's own leaf gives a tight first bound.
-const LEAF: usize = 32;
+pub(super) const LEAF: usize = 32;
 
 pub struct KdTree {
     /// Positions in quantization steps from the chunk's corner (whole numbers), in tree order.
     pub points: Vec<[f64; 3]>,
+    /// The same positions axis by axis, for distance loops that vectorise.
+    axes: [Vec<f64>; 3],
     /// Each point's index in the input order.
     pub order: Vec<u32>,
     /// Real units per step, per axis.
@@ -19,9 +21,6 @@ pub struct KdTree {
     /// Per inner node (implicit heap numbering from 1): split axis and value.
     splits: Vec<(u8, f64)>,
 }
-
-/// A neighbour found: squared distance in real units and tree index.
-pub type Neighbour = (f64, u32);
 
 impl KdTree {
     /// Builds the tree over `points` (whole steps of `scale`).
@@ -37,12 +36,16 @@ impl KdTree {
         let mut tree = KdTree {
             points: Vec::with_capacity(n),
             order: Vec::with_capacity(n),
+            axes: std::array::from_fn(|_| Vec::with_capacity(n)),
             scale,
             splits,
         };
         for (p, i) in items {
             tree.points.push(p);
             tree.order.push(i);
+            for (axis, v) in tree.axes.iter_mut().zip(p) {
+                axis.push(v);
+            }
         }
         tree
     }
@@ -66,18 +69,49 @@ impl KdTree {
     }
 
     /// The `k` points nearest to tree point `at` (itself included) within distance `within`,
-    /// in no order, into `out`: fewer where fewer are that near.
+    /// into `out`: fewer where fewer are that near.
     pub fn nearest(
         &self,
         at: usize,
         k: usize,
         within: f64,
-        out: &mut Vec<Neighbour>,
+        out: &mut Found,
         stack: &mut Vec<Pending>,
     ) {
-        out.clear();
-        stack.clear();
         let q = self.points[at];
+        let mut best = Best::new(self, k, out, within * within);
+        self.search(q, at, &mut best, stack);
+    }
+
+    /// Inner node `node`'s split: axis and value.
+    pub(super) fn split(&self, node: usize) -> (usize, f64) {
+        let (axis, value) = self.splits[node];
+        (axis as usize, value)
+    }
+
+    /// The squared real distance from `q` to tree point `j`.
+    #[inline]
+    pub(super) fn distance2(&self, q: [f64; 3], j: usize) -> f64 {
+        let (p, s) = (self.points[j], self.scale);
+        let d = [
+            (p[0] - q[0]) * s[0],
+            (p[1] - q[1]) * s[1],
+            (p[2] - q[2]) * s[2],
+        ];
+        d[0] * d[0] + d[1] * d[1] + d[2] * d[2]
+    }
+
+    /// Whether tree point `a` comes before `b` in position order (for ties of distance, so
+    /// that they do not depend on the order points came in).
+    #[inline]
+    fn position_before(&self, a: u32, b: u32) -> bool {
+        self.points[a as usize] < self.points[b as usize]
+    }
+
+    /// Offers `sink` every leaf that may hold a point within its bound of `q` (tree point
+    /// `at`), its own leaf first.
+    fn search(&self, q: [f64; 3], at: usize, sink: &mut impl Sink, stack: &mut Vec<Pending>) {
+        stack.clear();
         let s = self.scale;
         // Down to the leaf holding `at` by index, leaving the other sides for later with a
         // lower bound of their distance: the per-axis distances to the planes that bound them
@@ -109,16 +143,15 @@ impl KdTree {
                 (2 * node + 1, mid, hi)
             };
         }
-        let mut best = Best::new(self, k, out, within * within);
-        best.scan(q, lo, hi);
+        sink.scan(q, lo, hi);
         while let Some(p) = stack.pop() {
             // Equal distances still enter (ties are broken by position), so a point on the
             // boundary counts.
-            if p.plane > best.bound() {
+            if p.plane > sink.bound() {
                 continue;
             }
             if p.hi - p.lo <= LEAF {
-                best.scan(q, p.lo, p.hi);
+                sink.scan(q, p.lo, p.hi);
                 continue;
             }
             let (axis, split) = self.splits[p.node];
@@ -154,10 +187,31 @@ impl KdTree {
     }
 }
 
-/// Position order, for ties.
-pub fn ranks_before(tree: &KdTree, a: u32, b: u32) -> bool {
-    let (p, q) = (tree.points[a as usize], tree.points[b as usize]);
-    p.partial_cmp(&q) == Some(std::cmp::Ordering::Less)
+/// What a search offers leaves to.
+pub(super) trait Sink {
+    /// The squared distance within which a point may still enter.
+    fn bound(&self) -> f64;
+    /// Offers the points of leaf `lo..hi` (at most `LEAF`).
+    fn scan(&mut self, q: [f64; 3], lo: usize, hi: usize);
+}
+
+/// The squared distances from `q` to the points of leaf `lo..hi`, in a loop without branches
+/// the compiler can vectorise.
+#[inline]
+pub(super) fn leaf_distances(tree: &KdTree, q: [f64; 3], lo: usize, hi: usize) -> [f64; LEAF] {
+    let s = tree.scale;
+    let [x, y, z] = &tree.axes;
+    let (x, y, z) = (&x[lo..hi], &y[lo..hi], &z[lo..hi]);
+    let mut d2 = [f64::INFINITY; LEAF];
+    for i in 0..x.len().min(y.len()).min(z.len()).min(LEAF) {
+        let d = [
+            (x[i] - q[0]) * s[0],
+            (y[i] - q[1]) * s[1],
+            (z[i] - q[2]) * s[2],
+        ];
+        d2[i] = d[0] * d[0] + d[1] * d[1] + d[2] * d[2];
+    }
+    d2
 }
 
 /// A subtree still to search and a lower bound on its squared distance from the query: the
@@ -208,18 +262,65 @@ fn build_node(
     build_node(right, 2 * node + 1, splits, scale);
 }
 
-/// The k best so far as a binary max-heap: the worst, which a better candidate replaces, on
-/// top.
-struct Best<'a> {
+/// The neighbours a search found, nearest first (ties by position): squared real distances
+/// and tree indices, side by side so that ranking a candidate against them vectorises.
+#[derive(Debug, Default)]
+pub struct Found {
+    pub dist: Vec<f64>,
+    pub index: Vec<u32>,
+}
+
+impl Found {
+    pub fn with_capacity(k: usize) -> Self {
+        Found {
+            dist: Vec::with_capacity(k),
+            index: Vec::with_capacity(k),
+        }
+    }
+
+    pub fn len(&self) -> usize {
+        self.dist.len()
+    }
+
+    /// The squared distance of the farthest found.
+    pub fn farthest(&self) -> f64 {
+        self.dist.iter().fold(0.0, |m, &d| m.max(d))
+    }
+
+    fn clear(&mut self) {
+        self.dist.clear();
+        self.index.clear();
+    }
+}
+
+/// The k best so far.
+pub(super) struct Best<'a> {
     tree: &'a KdTree,
     k: usize,
-    out: &'a mut Vec<Neighbour>,
+    out: &'a mut Found,
     /// The squared distance within which a point may still enter.
     bound: f64,
 }
 
+impl Sink for Best<'_> {
+    fn bound(&self) -> f64 {
+        self.bound
+    }
+
+    fn scan(&mut self, q: [f64; 3], lo: usize, hi: usize) {
+        let d2 = leaf_distances(self.tree, q, lo, hi);
+        for (i, d) in d2[..hi - lo].iter().enumerate() {
+            if *d <= self.bound {
+                self.offer(*d, (lo + i) as u32);
+            }
+        }
+    }
+}
+
 impl<'a> Best<'a> {
-    fn new(tree: &'a KdTree, k: usize, out: &'a mut Vec<Neighbour>, bound: f64) -> Self {
+    /// The k best of the points offered within squared distance `bound`, into `out`.
+    pub(super) fn new(tree: &'a KdTree, k: usize, out: &'a mut Found, bound: f64) -> Self {
+        out.clear();
         Best {
             tree,
             k,
@@ -228,73 +329,39 @@ impl<'a> Best<'a> {
         }
     }
 
-    fn bound(&self) -> f64 {
-        self.bound
-    }
-
-    /// Whether neighbour `a` ranks before `b`: nearer, or as near and first in position
-    /// order (so that ties do not depend on the order points came in).
-    fn before(&self, a: Neighbour, b: Neighbour) -> bool {
-        a.0 < b.0 || (a.0 == b.0 && ranks_before(self.tree, a.1, b.1))
-    }
-
-    /// Offers the points of leaf `lo..hi` (at most `LEAF`).
-    fn scan(&mut self, q: [f64; 3], lo: usize, hi: usize) {
-        // Distances first, in a loop without branches the compiler can vectorise; the
-        // branchy offers after.
-        let s = self.tree.scale;
-        let mut d2 = [f64::INFINITY; LEAF];
-        for (out, p) in d2.iter_mut().zip(&self.tree.points[lo..hi]) {
-            let d = [
-                (p[0] - q[0]) * s[0],
-                (p[1] - q[1]) * s[1],
-                (p[2] - q[2]) * s[2],
-            ];
-            *out = d[0] * d[0] + d[1] * d[1] + d[2] * d[2];
-        }
-        for (i, d) in d2[..hi - lo].iter().enumerate() {
-            if *d <= self.bound {
-                self.offer((*d, (lo + i) as u32));
+    /// Inserts point `j` at squared distance `d` in order, when it ranks among the k best.
+    /// Its place is found by counting, without a branch per entry: where the candidate goes
+    /// is a branch the processor cannot predict.
+    #[inline]
+    fn offer(&mut self, d: f64, j: u32) {
+        let (k, tree) = (self.k, self.tree);
+        let out = &mut *self.out;
+        let n = out.dist.len();
+        if n == k {
+            let last = out.dist[k - 1];
+            if d > last || (d == last && !tree.position_before(j, out.index[k - 1])) {
+                return;
             }
         }
-    }
-
-    fn offer(&mut self, cand: Neighbour) {
-        if self.out.len() < self.k {
-            self.out.push(cand);
-            let mut at = self.out.len() - 1;
-            while at > 0 {
-                let up = (at - 1) / 2;
-                if !self.before(self.out[up], self.out[at]) {
-                    break;
-                }
-                self.out.swap(up, at);
-                at = up;
-            }
-        } else if self.before(cand, self.out[0]) {
-            self.out[0] = cand;
-            let n = self.out.len();
-            let mut at = 0;
-            loop {
-                let (l, r) = (2 * at + 1, 2 * at + 2);
-                let mut top = at;
-                if l < n && self.before(self.out[top], self.out[l]) {
-                    top = l;
-                }
-                if r < n && self.before(self.out[top], self.out[r]) {
-                    top = r;
-                }
-                if top == at {
-                    break;
-                }
-                self.out.swap(top, at);
-                at = top;
-            }
-        } else {
-            return;
+        let mut at = out.dist.iter().map(|&x| usize::from(x < d)).sum::<usize>();
+        // Equal distances sit together from `at` on; the candidate goes after those placed
+        // first by position.
+        while at < n && out.dist[at] == d && tree.position_before(out.index[at], j) {
+            at += 1;
         }
-        if self.out.len() == self.k {
-            self.bound = self.out[0].0;
+        if n < k {
+            out.dist.push(d);
+            out.index.push(j);
+        }
+        let (dist, index) = (&mut out.dist[..], &mut out.index[..]);
+        for i in (at + 1..dist.len()).rev() {
+            dist[i] = dist[i - 1];
+            index[i] = index[i - 1];
+        }
+        dist[at] = d;
+        index[at] = j;
+        if dist.len() == k {
+            self.bound = dist[k - 1];
         }
     }
 }
@@ -303,8 +370,8 @@ impl<'a> Best<'a> {
 mod tests {
     use super::*;
 
-    #[test]
-    fn finds_the_same_neighbours_as_brute_force() {
+    /// A cloud on a coarse grid (many equal distances) with one axis scaled differently.
+    fn cloud() -> KdTree {
         let mut seed = 7u64;
         let mut next = || {
             seed = seed
@@ -315,27 +382,86 @@ mod tests {
         let points: Vec<[f64; 3]> = (0..3000)
             .map(|_| [next(), next(), next() / 8].map(f64::from))
             .collect();
-        let tree = KdTree::build(points, [0.5, 0.5, 2.0]);
-        let (mut out, mut stack) = (Vec::new(), Vec::new());
-        for at in (0..tree.len()).step_by(37) {
-            tree.nearest(at, 16, f64::INFINITY, &mut out, &mut stack);
-            let mut all: Vec<(f64, [f64; 3])> = (0..tree.len())
-                .map(|i| {
-                    let d = tree.offset(at, i);
-                    (d[0] * d[0] + d[1] * d[1] + d[2] * d[2], tree.points[i])
-                })
-                .collect();
-            let order = |a: &(f64, [f64; 3]), b: &(f64, [f64; 3])| {
-                a.0.total_cmp(&b.0)
-                    .then(a.1.partial_cmp(&b.1).unwrap_or(std::cmp::Ordering::Equal))
-            };
-            all.sort_by(order);
-            let mut got: Vec<(f64, [f64; 3])> = out
-                .iter()
-                .map(|&(d, i)| (d, tree.points[i as usize]))
-                .collect();
-            got.sort_by(order);
-            assert_eq!(got, all[..16].to_vec(), "query {at}");
+        KdTree::build(points, [0.5, 0.5, 2.0])
+    }
+
+    /// The `k` nearest of `at` within `within` by comparing with every point: (squared
+    /// distance, position), nearest first, ties by position.
+    fn brute_force(tree: &KdTree, at: usize, k: usize, within: f64) -> Vec<(f64, [f64; 3])> {
+        let mut all: Vec<(f64, [f64; 3])> = (0..tree.len())
+            .map(|i| {
+                let d = tree.offset(at, i);
+                (d[0] * d[0] + d[1] * d[1] + d[2] * d[2], tree.points[i])
+            })
+            .filter(|(d, _)| *d <= within * within)
+            .collect();
+        all.sort_by(|a, b| {
+            a.0.total_cmp(&b.0)
+                .then(a.1.partial_cmp(&b.1).unwrap_or(std::cmp::Ordering::Equal))
+        });
+        all.truncate(k);
+        all
+    }
+
+    /// What `found` holds, nearest first, ties by position.
+    fn listed(tree: &KdTree, found: &Found) -> Vec<(f64, [f64; 3])> {
+        let mut all: Vec<(f64, [f64; 3])> = found
+            .dist
+            .iter()
+            .zip(&found.index)
+            .map(|(&d, &i)| (d, tree.points[i as usize]))
+            .collect();
+        all.sort_by(|a, b| {
+            a.0.total_cmp(&b.0)
+                .then(a.1.partial_cmp(&b.1).unwrap_or(std::cmp::Ordering::Equal))
+        });
+        all
+    }
+
+    #[test]
+    fn finds_the_same_neighbours_as_brute_force() {
+        let tree = cloud();
+        let (mut out, mut stack) = (Found::default(), Vec::new());
+        // Without bound, and within one that cuts some neighbourhoods short.
+        for within in [f64::INFINITY, 9.0] {
+            for at in (0..tree.len()).step_by(37) {
+                tree.nearest(at, 16, within, &mut out, &mut stack);
+                assert_eq!(
+                    listed(&tree, &out),
+                    brute_force(&tree, at, 16, within),
+                    "query {at} within {within}"
+                );
+            }
+        }
+    }
+
+    #[test]
+    fn all_nearest_finds_the_same_neighbours_as_brute_force() {
+        let tree = cloud();
+        // k below and above the leaves' sizes, with and without bound.
+        for (k, within) in [
+            (16, f64::INFINITY),
+            (16, 9.0),
+            (12, 30.0),
+            (40, 9.0),
+            (40, f64::INFINITY),
+        ] {
+            let mut seen = 0;
+            tree.all_nearest(
+                k,
+                within,
+                |t| t % 7 == 0,
+                |at, found| {
+                    assert_eq!(at % 7, 0, "only the points asked for");
+                    seen += 1;
+                    assert_eq!(
+                        listed(&tree, found),
+                        brute_force(&tree, at, k, within),
+                        "query {at} k {k} within {within}"
+                    );
+                },
+            );
+            assert_eq!(seen, tree.len().div_ceil(7));
         }
     }
 }

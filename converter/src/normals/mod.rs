@@ -3,6 +3,7 @@
 //! σ = λ0 / (λ0 + λ1 + λ2) and a disc radius; and paper 001's global surfel size. Runs as the
 //! per-chunk step of the conversion, so it works out of core like the rest of it.
 
+mod all_nearest;
 mod attrs;
 mod kdtree;
 mod pca;
@@ -182,8 +183,8 @@ impl ChunkStep for NormalStep {
             .chain(halo.rows().map(|r| steps(row_position(r))))
             .collect();
         let tree = KdTree::build(points, scale);
-        let k = self.opts.k.min(tree.len());
         let search = halo.margin();
+        let k = self.opts.k.min(tree.len());
         let at = Placement {
             offset: chunk.offset,
             scanners: chunk.scanners,
@@ -197,40 +198,40 @@ impl ChunkStep for NormalStep {
         }
         *chunk.rows = in_tree_order;
         let mut next_row = 0;
-        let mut near = Vec::with_capacity(k + 1);
-        let mut stack = Vec::with_capacity(64);
-        for t in 0..tree.len() {
-            if tree.order[t] as usize >= own {
-                continue;
-            }
-            let i = next_row;
-            next_row += 1;
-            tree.nearest(t, k, search, &mut near, &mut stack);
-            // Fewer than k within the search radius: the k-th is beyond it.
-            let rk = if near.len() < k {
-                totals[total::PARTIAL] += 1.0;
-                search
-            } else {
-                near.iter().fold(0.0f64, |m, n| m.max(n.0)).sqrt()
-            };
-            let steps = near.iter().map(|&(_, j)| tree.steps(t, j as usize));
-            let pc = principal(covariance_of_steps(steps, scale));
-            let p = tree.points[t];
-            let q = [0, 1, 2].map(|a| (p[a] + origin[a] as f64) * scale[a]);
-            let row = &mut chunk.rows[i * stride..(i + 1) * stride];
-            let radius = rk * COVER / (k as f64).sqrt();
-            totals[total::RADIUS_SUM] += radius;
-            targets.put_radius(row, radius);
-            targets.put_variation(row, pc.surface_variation());
-            let kept = self.opts.mode == NormalMode::Keep && targets.has_normal(row);
-            if kept {
-                totals[total::KEPT] += 1.0;
-                continue;
-            }
-            totals[total::COMPUTED] += 1.0;
-            let normal = self.orient(pc.normal, q, targets.scanner(row), &at);
-            targets.put_normal(row, normal);
-        }
+        let rows = &mut *chunk.rows;
+        let opts = &self.opts;
+        tree.all_nearest(
+            k,
+            search,
+            |t| (tree.order[t] as usize) < own,
+            |t, near| {
+                let i = next_row;
+                next_row += 1;
+                // Fewer than k within the search radius: the k-th is beyond it.
+                let rk = if near.len() < k {
+                    totals[total::PARTIAL] += 1.0;
+                    search
+                } else {
+                    near.farthest().sqrt()
+                };
+                let steps = near.index.iter().map(|&j| tree.steps(t, j as usize));
+                let pc = principal(covariance_of_steps(steps, scale));
+                let p = tree.points[t];
+                let q = [0, 1, 2].map(|a| (p[a] + origin[a] as f64) * scale[a]);
+                let row = &mut rows[i * stride..(i + 1) * stride];
+                let radius = rk * COVER / (k as f64).sqrt();
+                totals[total::RADIUS_SUM] += radius;
+                targets.put_radius(row, radius);
+                targets.put_variation(row, pc.surface_variation());
+                if opts.mode == NormalMode::Keep && targets.has_normal(row) {
+                    totals[total::KEPT] += 1.0;
+                    return;
+                }
+                totals[total::COMPUTED] += 1.0;
+                let normal = self.orient(pc.normal, q, targets.scanner(row), &at);
+                targets.put_normal(row, normal);
+            },
+        );
         let mut sizes = TriangleSizes::default();
         let mut region = Vec::with_capacity(REGION);
         for (r, range) in (0..tree.len()).step_by(REGION).enumerate() {

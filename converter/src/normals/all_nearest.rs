@@ -1,0 +1,292 @@
+//! The k nearest neighbours of every point, a leaf of the k-d tree at a time. The leaves that
+//! may hold a neighbour of any point of a leaf are found once, by one walk down the tree, and
+//! each of the leaf's points then checks those alone against the tight boxes around their
+//! points: no walk from the root per point, and tighter boxes than the splitting planes give.
+//! The neighbours found are the same as `KdTree::nearest`'s, ties included.
+
+use super::kdtree::{Best, Found, KdTree, LEAF, Sink, leaf_distances};
+
+/// A leaf: its range of tree points and the tight box around them, in steps.
+#[derive(Debug, Clone, Copy)]
+struct Leaf {
+    lo: usize,
+    hi: usize,
+    min: [f64; 3],
+    max: [f64; 3],
+}
+
+/// The leaves a leaf's points search.
+struct Scope<'a> {
+    /// The points' own leaf.
+    leaf: usize,
+    candidates: &'a [Candidate],
+    leaves: &'a [Leaf],
+}
+
+/// A leaf that may hold neighbours, and its squared gap to the queries' leaf.
+type Candidate = (f64, usize);
+
+impl KdTree {
+    /// Calls `each(t, found)` for every tree point `t` that `wanted` picks, in tree order, with
+    /// its `k` nearest points within distance `within` (as `nearest` finds them).
+    pub fn all_nearest(
+        &self,
+        k: usize,
+        within: f64,
+        wanted: impl Fn(usize) -> bool,
+        mut each: impl FnMut(usize, &Found),
+    ) {
+        let leaves = self.leaves();
+        let within2 = within * within;
+        let mut found = Found::with_capacity(k);
+        let mut candidates: Vec<Candidate> = Vec::new();
+        let mut stack = Vec::new();
+        // The leaf's points done so far whose k neighbours were found, and those neighbours
+        // (k per point).
+        let mut done: Vec<usize> = Vec::new();
+        let mut done_found: Vec<u32> = Vec::new();
+        let mut taken = Vec::new();
+        for (li, leaf) in leaves.iter().enumerate() {
+            if !(leaf.lo..leaf.hi).any(&wanted) {
+                continue;
+            }
+            // Every point of the leaf has k points within the leaf's diagonal: the leaf's.
+            let reach2 = if leaf.hi - leaf.lo >= k {
+                gap2(&leaf.min, &leaf.max, &leaf.min, &leaf.max, self.scale, true).min(within2)
+            } else {
+                within2
+            };
+            if !reach2.is_finite() {
+                // No bound on the search (a cloud without a density estimate): one point at a
+                // time.
+                for t in (leaf.lo..leaf.hi).filter(|&t| wanted(t)) {
+                    self.nearest(t, k, within, &mut found, &mut stack);
+                    each(t, &found);
+                }
+                continue;
+            }
+            candidates.clear();
+            self.gather(
+                1,
+                0,
+                self.len(),
+                Region::all(),
+                leaf,
+                reach2,
+                &leaves,
+                &mut candidates,
+            );
+            candidates.sort_by(|a, b| a.0.total_cmp(&b.0));
+            done.clear();
+            done_found.clear();
+            for t in (leaf.lo..leaf.hi).filter(|&t| wanted(t)) {
+                let q = self.points[t];
+                // The leaf's point nearest to q whose k neighbours are known: they are k
+                // points, so q's k-th nearest is no farther than the farthest of them.
+                let nearest_done = done
+                    .iter()
+                    .enumerate()
+                    .map(|(slot, &u)| (self.distance2(q, u), slot))
+                    .min_by(|a, b| a.0.total_cmp(&b.0));
+                if let Some((_, slot)) = nearest_done {
+                    let bound = done_found[slot * k..(slot + 1) * k]
+                        .iter()
+                        .fold(0.0f64, |m, &j| m.max(self.distance2(q, j as usize)))
+                        .min(within2);
+                    let scope = Scope {
+                        leaf: li,
+                        candidates: &candidates,
+                        leaves: &leaves,
+                    };
+                    self.within_bound(q, k, bound, &scope, &mut taken, &mut found);
+                } else {
+                    let mut best = Best::new(self, k, &mut found, within2);
+                    best.scan(q, leaf.lo, leaf.hi);
+                    for &(_, c) in &candidates {
+                        let other = &leaves[c];
+                        // Equal distances still enter (ties are broken by position), so a
+                        // leaf at the bound is searched.
+                        if c != li && self.box_gap2(q, other) <= best.bound() {
+                            best.scan(q, other.lo, other.hi);
+                        }
+                    }
+                }
+                each(t, &found);
+                if found.len() == k {
+                    done.push(t);
+                    done_found.extend_from_slice(&found.index);
+                }
+            }
+        }
+    }
+
+    /// The squared real distance from `q` to the nearest point of `leaf`'s box.
+    #[inline]
+    fn box_gap2(&self, q: [f64; 3], leaf: &Leaf) -> f64 {
+        gap2(&q, &q, &leaf.min, &leaf.max, self.scale, false)
+    }
+
+    /// Into `found`, the k nearest of `q` among the points of the leaves in `scope`, given
+    /// that they are all within squared distance `bound`: every point within it is taken,
+    /// without a branch per point, then the k best of those selected (nearest, then by
+    /// position). `found` is in no order.
+    fn within_bound(
+        &self,
+        q: [f64; 3],
+        k: usize,
+        bound: f64,
+        scope: &Scope,
+        taken: &mut Vec<(f64, u32)>,
+        found: &mut Found,
+    ) {
+        let mut m = 0;
+        let mut take = |lo: usize, hi: usize| {
+            if taken.len() < m + LEAF {
+                taken.resize(m + LEAF, (0.0, 0));
+            }
+            let d2 = leaf_distances(self, q, lo, hi);
+            for (i, &d) in d2[..hi - lo].iter().enumerate() {
+                taken[m] = (d, (lo + i) as u32);
+                m += usize::from(d <= bound);
+            }
+        };
+        let own = &scope.leaves[scope.leaf];
+        take(own.lo, own.hi);
+        for &(_, c) in scope.candidates {
+            let other = &scope.leaves[c];
+            if c != scope.leaf && self.box_gap2(q, other) <= bound {
+                take(other.lo, other.hi);
+            }
+        }
+        let taken = &mut taken[..m];
+        if m > k {
+            taken.select_nth_unstable_by(k - 1, |a, b| {
+                a.0.total_cmp(&b.0).then_with(|| {
+                    let (p, r) = (self.points[a.1 as usize], self.points[b.1 as usize]);
+                    p.partial_cmp(&r).unwrap_or(std::cmp::Ordering::Equal)
+                })
+            });
+        }
+        found.dist.clear();
+        found.index.clear();
+        for &(d, j) in &taken[..m.min(k)] {
+            found.dist.push(d);
+            found.index.push(j);
+        }
+    }
+
+    /// The leaves in tree order with their tight boxes.
+    fn leaves(&self) -> Vec<Leaf> {
+        let mut out = Vec::with_capacity(self.len() / (LEAF / 2) + 1);
+        let mut ranges = vec![(0usize, self.len())];
+        while let Some((lo, hi)) = ranges.pop() {
+            if hi - lo > LEAF {
+                let mid = lo + (hi - lo) / 2;
+                // Right first, so that the left comes off the stack first: tree order.
+                ranges.push((mid, hi));
+                ranges.push((lo, mid));
+                continue;
+            }
+            let mut min = [f64::INFINITY; 3];
+            let mut max = [f64::NEG_INFINITY; 3];
+            for p in &self.points[lo..hi] {
+                for a in 0..3 {
+                    min[a] = min[a].min(p[a]);
+                    max[a] = max[a].max(p[a]);
+                }
+            }
+            out.push(Leaf { lo, hi, min, max });
+        }
+        out
+    }
+
+    /// Adds to `out` the leaves under `node` (points `lo..hi`, inside `region`) whose points
+    /// may lie within squared distance `reach2` of some point of `leaf`.
+    #[allow(clippy::too_many_arguments)]
+    fn gather(
+        &self,
+        node: usize,
+        lo: usize,
+        hi: usize,
+        region: Region,
+        leaf: &Leaf,
+        reach2: f64,
+        leaves: &[Leaf],
+        out: &mut Vec<Candidate>,
+    ) {
+        if gap2(
+            &region.min,
+            &region.max,
+            &leaf.min,
+            &leaf.max,
+            self.scale,
+            false,
+        ) > reach2
+        {
+            return;
+        }
+        if hi - lo <= LEAF {
+            let i = leaves.partition_point(|l| l.lo < lo);
+            if let Some(other) = leaves.get(i) {
+                let g = gap2(
+                    &other.min, &other.max, &leaf.min, &leaf.max, self.scale, false,
+                );
+                if g <= reach2 {
+                    out.push((g, i));
+                }
+            }
+            return;
+        }
+        let (axis, split) = self.split(node);
+        let mid = lo + (hi - lo) / 2;
+        // A point equal to the split value may lie on either side.
+        let mut left = region;
+        left.max[axis] = split;
+        let mut right = region;
+        right.min[axis] = split;
+        self.gather(2 * node, lo, mid, left, leaf, reach2, leaves, out);
+        self.gather(2 * node + 1, mid, hi, right, leaf, reach2, leaves, out);
+    }
+}
+
+/// The closed box a subtree's points lie in, from the splitting planes above it.
+#[derive(Debug, Clone, Copy)]
+struct Region {
+    min: [f64; 3],
+    max: [f64; 3],
+}
+
+impl Region {
+    fn all() -> Self {
+        Region {
+            min: [f64::NEG_INFINITY; 3],
+            max: [f64::INFINITY; 3],
+        }
+    }
+}
+
+/// The squared real distance between boxes `a` and `b` (in steps), or with `span` the squared
+/// diagonal of `a`. No larger than the squared distance of any point of `a` to any of `b` as
+/// `KdTree` computes it, rounding included, as each term is rounded the same way from a
+/// smaller or equal difference.
+#[inline]
+fn gap2(
+    a_min: &[f64; 3],
+    a_max: &[f64; 3],
+    b_min: &[f64; 3],
+    b_max: &[f64; 3],
+    scale: [f64; 3],
+    span: bool,
+) -> f64 {
+    let mut sum = 0.0;
+    for i in 0..3 {
+        let d = if span {
+            a_max[i] - a_min[i]
+        } else {
+            (b_min[i] - a_max[i]).max(a_min[i] - b_max[i]).max(0.0)
+        };
+        let d = d * scale[i];
+        sum += d * d;
+    }
+    sum
+}
