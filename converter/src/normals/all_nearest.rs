@@ -17,8 +17,9 @@ struct Leaf {
 
 /// The leaves a leaf's points search.
 struct Scope<'a> {
-    /// The points' own leaf.
+    /// The points' own leaf, and the query's squared distances to its points.
     leaf: usize,
+    own: &'a [f64; LEAF],
     candidates: &'a [Candidate],
     leaves: &'a [Leaf],
 }
@@ -41,9 +42,7 @@ impl KdTree {
         let mut found = Found::with_capacity(k);
         let mut candidates: Vec<Candidate> = Vec::new();
         let mut stack = Vec::new();
-        // The leaf's points done so far whose k neighbours were found, and those neighbours
-        // (k per point).
-        let mut done: Vec<usize> = Vec::new();
+        // The neighbours found of the leaf's points done so far.
         let mut done_found: Vec<u32> = Vec::new();
         let mut taken = Vec::new();
         for (li, leaf) in leaves.iter().enumerate() {
@@ -77,24 +76,33 @@ impl KdTree {
                 &mut candidates,
             );
             candidates.sort_by(|a, b| a.0.total_cmp(&b.0));
-            done.clear();
+            // For each point of the leaf whose k neighbours are known, where they are in
+            // `done_found` (k each).
+            let mut slot = [usize::MAX; LEAF];
             done_found.clear();
             for t in (leaf.lo..leaf.hi).filter(|&t| wanted(t)) {
                 let q = self.points[t];
+                let own = leaf_distances(self, q, leaf.lo, leaf.hi);
                 // The leaf's point nearest to q whose k neighbours are known: they are k
                 // points, so q's k-th nearest is no farther than the farthest of them.
-                let nearest_done = done
-                    .iter()
-                    .enumerate()
-                    .map(|(slot, &u)| (self.distance2(q, u), slot))
-                    .min_by(|a, b| a.0.total_cmp(&b.0));
-                if let Some((_, slot)) = nearest_done {
-                    let bound = done_found[slot * k..(slot + 1) * k]
+                let mut nearest_done = (f64::INFINITY, usize::MAX);
+                for (&d, &s) in own.iter().zip(&slot) {
+                    let d = if s == usize::MAX { f64::INFINITY } else { d };
+                    nearest_done = if d < nearest_done.0 {
+                        (d, s)
+                    } else {
+                        nearest_done
+                    };
+                }
+                if nearest_done.1 != usize::MAX {
+                    let s = nearest_done.1;
+                    let bound = done_found[s * k..(s + 1) * k]
                         .iter()
                         .fold(0.0f64, |m, &j| m.max(self.distance2(q, j as usize)))
                         .min(within2);
                     let scope = Scope {
                         leaf: li,
+                        own: &own,
                         candidates: &candidates,
                         leaves: &leaves,
                     };
@@ -113,7 +121,7 @@ impl KdTree {
                 }
                 each(t, &found);
                 if found.len() == k {
-                    done.push(t);
+                    slot[t - leaf.lo] = done_found.len() / k;
                     done_found.extend_from_slice(&found.index);
                 }
             }
@@ -140,32 +148,41 @@ impl KdTree {
         found: &mut Found,
     ) {
         let mut m = 0;
-        let mut take = |lo: usize, hi: usize| {
+        let mut take = |d2: &[f64; LEAF], lo: usize, hi: usize| {
             if taken.len() < m + LEAF {
                 taken.resize(m + LEAF, (0.0, 0));
             }
-            let d2 = leaf_distances(self, q, lo, hi);
             for (i, &d) in d2[..hi - lo].iter().enumerate() {
                 taken[m] = (d, (lo + i) as u32);
                 m += usize::from(d <= bound);
             }
         };
         let own = &scope.leaves[scope.leaf];
-        take(own.lo, own.hi);
+        take(scope.own, own.lo, own.hi);
         for &(_, c) in scope.candidates {
             let other = &scope.leaves[c];
             if c != scope.leaf && self.box_gap2(q, other) <= bound {
-                take(other.lo, other.hi);
+                take(
+                    &leaf_distances(self, q, other.lo, other.hi),
+                    other.lo,
+                    other.hi,
+                );
             }
         }
         let taken = &mut taken[..m];
         if m > k {
-            taken.select_nth_unstable_by(k - 1, |a, b| {
-                a.0.total_cmp(&b.0).then_with(|| {
-                    let (p, r) = (self.points[a.1 as usize], self.points[b.1 as usize]);
-                    p.partial_cmp(&r).unwrap_or(std::cmp::Ordering::Equal)
-                })
-            });
+            // The k nearest by distance alone, then, where the k-th distance is shared with
+            // points left out, those ties settled by position.
+            taken.select_nth_unstable_by(k - 1, |a, b| a.0.total_cmp(&b.0));
+            let kth = taken[k - 1].0;
+            if taken[k..].iter().any(|t| t.0 == kth) {
+                taken.sort_unstable_by(|a, b| {
+                    a.0.total_cmp(&b.0).then_with(|| {
+                        let (p, r) = (self.points[a.1 as usize], self.points[b.1 as usize]);
+                        p.partial_cmp(&r).unwrap_or(std::cmp::Ordering::Equal)
+                    })
+                });
+            }
         }
         found.dist.clear();
         found.index.clear();
@@ -280,10 +297,14 @@ fn gap2(
 ) -> f64 {
     let mut sum = 0.0;
     for i in 0..3 {
+        // Comparisons rather than `f64::max`, whose NaN rules cost instructions: no
+        // coordinate here is NaN.
         let d = if span {
             a_max[i] - a_min[i]
         } else {
-            (b_min[i] - a_max[i]).max(a_min[i] - b_max[i]).max(0.0)
+            let (below, above) = (b_min[i] - a_max[i], a_min[i] - b_max[i]);
+            let d = if below > above { below } else { above };
+            if d > 0.0 { d } else { 0.0 }
         };
         let d = d * scale[i];
         sum += d * d;

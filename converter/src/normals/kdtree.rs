@@ -50,11 +50,12 @@ impl KdTree {
         tree
     }
 
-    /// The offset from point `from` to point `to` in whole steps.
+    /// The offset from point `from` to point `to` in whole steps (exact: both are whole
+    /// numbers).
     #[inline]
-    pub fn steps(&self, from: usize, to: usize) -> [i64; 3] {
+    pub fn steps(&self, from: usize, to: usize) -> [f64; 3] {
         let (a, b) = (self.points[from], self.points[to]);
-        [0, 1, 2].map(|i| (b[i] - a[i]) as i64)
+        [b[0] - a[0], b[1] - a[1], b[2] - a[2]]
     }
 
     /// The real offset from point `from` to point `to`, exact for the two points alone.
@@ -432,6 +433,33 @@ mod tests {
                     "query {at} within {within}"
                 );
             }
+        }
+    }
+
+    /// A regular lattice: nearly every neighbourhood ends in a tie of distances.
+    fn lattice() -> KdTree {
+        let points: Vec<[f64; 3]> = (0..24 * 24 * 3)
+            .map(|i| [i % 24, i / 24 % 24, i / 576].map(|c| f64::from(c as u32)))
+            .collect();
+        KdTree::build(points, [0.25, 0.25, 0.25])
+    }
+
+    #[test]
+    fn all_nearest_breaks_ties_by_position() {
+        let tree = lattice();
+        for k in [7, 16, 30] {
+            tree.all_nearest(
+                k,
+                f64::INFINITY,
+                |_| true,
+                |at, found| {
+                    assert_eq!(
+                        listed(&tree, found),
+                        brute_force(&tree, at, k, f64::INFINITY),
+                        "query {at} k {k}"
+                    );
+                },
+            );
         }
     }
 

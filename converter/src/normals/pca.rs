@@ -9,11 +9,18 @@ pub struct Principal {
     pub normal: [f64; 3],
     /// λ0 ≤ λ1 ≤ λ2.
     pub eigenvalues: [f64; 3],
-    /// Unit eigenvector of the largest eigenvalue (the BSP clustering splits across it).
-    pub major: [f64; 3],
+    /// The covariance scaled to unit size, and its λ2 at that size, for `major`.
+    unit: [f64; 6],
+    unit_l2: f64,
 }
 
 impl Principal {
+    /// Unit eigenvector of the largest eigenvalue (the BSP clustering splits across it); found
+    /// when asked, as most neighbourhoods need only their normal.
+    pub fn major(&self) -> [f64; 3] {
+        eigenvector(self.unit, self.unit_l2).unwrap_or_else(|| any_perpendicular(self.normal))
+    }
+
     pub fn surface_variation(&self) -> f64 {
         let sum: f64 = self.eigenvalues.iter().sum();
         if sum > 0.0 {
@@ -53,10 +60,47 @@ pub fn covariance(points: impl Iterator<Item = [f64; 3]> + Clone) -> ([f64; 6], 
     (m.map(|v| v / n), c)
 }
 
-/// The covariance of points given as whole-step offsets from one of them, `scale` real units a
-/// step, as (xx, xy, xz, yy, yz, zz). The sums are exact integers, so the result does not
-/// depend on the order the points come in (nor on which chunk found them).
-pub fn covariance_of_steps(steps: impl Iterator<Item = [i64; 3]>, scale: [f64; 3]) -> [f64; 6] {
+/// The covariance of points given as whole-step offsets from one of them (whole numbers held
+/// as f64), `scale` real units a step, as (xx, xy, xz, yy, yz, zz). The sums are exact
+/// integers, so the result does not depend on the order the points come in (nor on which
+/// chunk found them).
+pub fn covariance_of_steps(
+    steps: impl Iterator<Item = [f64; 3]> + Clone,
+    scale: [f64; 3],
+) -> [f64; 6] {
+    // Summed in f64, exactly, where offsets are under 2^20 steps and there are at most 256
+    // points (the sums stay under 2^48 < 2^53), which is every neighbourhood of a real scan;
+    // else again in 128-bit integers. Either gives the same exact integers.
+    const SMALL: f64 = (1u64 << 20) as f64;
+    let (mut n, mut s1, mut s2) = (0i64, [0.0f64; 3], [0.0f64; 6]);
+    let mut small = true;
+    for d in steps.clone() {
+        small &= d.iter().all(|v| v.abs() < SMALL);
+        n += 1;
+        for a in 0..3 {
+            s1[a] += d[a];
+        }
+        s2[0] += d[0] * d[0];
+        s2[1] += d[0] * d[1];
+        s2[2] += d[0] * d[2];
+        s2[3] += d[1] * d[1];
+        s2[4] += d[1] * d[2];
+        s2[5] += d[2] * d[2];
+    }
+    if !(small && n <= 256) {
+        return wide_covariance(steps.map(|d| d.map(|v| v as i64)), scale);
+    }
+    // n Σ d_a d_b and Σ d_a Σ d_b reach 2^56: in i64, from the exact sums.
+    let (s1, s2) = (s1.map(|v| v as i64), s2.map(|v| v as i64));
+    from_sums(
+        n as f64,
+        |i, (a, b)| (n * s2[i] - s1[a] * s1[b]) as f64,
+        scale,
+    )
+}
+
+/// `covariance_of_steps` in 128-bit sums.
+fn wide_covariance(steps: impl Iterator<Item = [i64; 3]>, scale: [f64; 3]) -> [f64; 6] {
     let (mut n, mut s1, mut s2) = (0i128, [0i128; 3], [0i128; 6]);
     for d in steps {
         let d = d.map(i128::from);
@@ -71,15 +115,24 @@ pub fn covariance_of_steps(steps: impl Iterator<Item = [i64; 3]>, scale: [f64; 3
         s2[4] += d[1] * d[2];
         s2[5] += d[2] * d[2];
     }
-    if n == 0 {
+    from_sums(
+        n as f64,
+        |i, (a, b)| (n * s2[i] - s1[a] * s1[b]) as f64,
+        scale,
+    )
+}
+
+/// The covariance from `n` points and `centred(i, (a, b))`, the exact n Σ d_a d_b − Σ d_a Σ d_b
+/// of entry i (= n² cov) rounded once to f64.
+fn from_sums(n: f64, centred: impl Fn(usize, (usize, usize)) -> f64, scale: [f64; 3]) -> [f64; 6] {
+    if n == 0.0 {
         return [0.0; 6];
     }
-    // n² cov = n Σ d_a d_b − Σ d_a Σ d_b, exactly.
     let pairs = [(0, 0), (0, 1), (0, 2), (1, 1), (1, 2), (2, 2)];
-    let nn = (n * n) as f64;
+    let nn = n * n;
     let mut cov = [0.0; 6];
     for (i, &(a, b)) in pairs.iter().enumerate() {
-        cov[i] = (n * s2[i] - s1[a] * s1[b]) as f64 / nn * scale[a] * scale[b];
+        cov[i] = centred(i, (a, b)) / nn * scale[a] * scale[b];
     }
     cov
 }
@@ -94,7 +147,8 @@ pub fn principal(cov: [f64; 6]) -> Principal {
         return Principal {
             normal: [0.0, 0.0, 1.0],
             eigenvalues: [0.0; 3],
-            major: [1.0, 0.0, 0.0],
+            unit: [1.0, 0.0, 0.0, 0.0, 0.0, 0.0],
+            unit_l2: 1.0,
         };
     }
     let [a, b, c, d, e, f] = cov.map(|v| v / s);
@@ -121,11 +175,11 @@ pub fn principal(cov: [f64; 6]) -> Principal {
         let major = eigenvector(m, l2).unwrap_or([1.0, 0.0, 0.0]);
         any_perpendicular(major)
     });
-    let major = eigenvector(m, l2).unwrap_or_else(|| any_perpendicular(normal));
     Principal {
         normal,
         eigenvalues: [l0.max(0.0) * s, l1.max(0.0) * s, l2.max(0.0) * s],
-        major,
+        unit: m,
+        unit_l2: l2,
     }
 }
 
@@ -222,22 +276,40 @@ mod tests {
             assert!((got - want).abs() < 1e-9, "{:?}", pc.eigenvalues);
         }
         assert!(angle(pc.normal, [0.0, 1.0, 0.0]) < 1e-6);
-        assert!(angle(pc.major, [1.0, 0.0, 0.0]) < 1e-6);
+        assert!(angle(pc.major(), [1.0, 0.0, 0.0]) < 1e-6);
         assert!((pc.surface_variation() - 0.25 / 13.25).abs() < 1e-12);
     }
 
     #[test]
-    fn covariance_of_steps_matches_the_float_one_in_any_order() {
+    fn covariance_of_steps_is_the_same_in_either_width() {
         let steps: Vec<[i64; 3]> = (0..17).map(|i| [i * 3 % 7, i * i % 11, -i]).collect();
+        let scale = [0.01, 0.02, 0.005];
+        let as_f64 =
+            |s: &[[i64; 3]]| -> Vec<[f64; 3]> { s.iter().map(|d| d.map(|v| v as f64)).collect() };
+        assert_eq!(
+            covariance_of_steps(as_f64(&steps).into_iter(), scale),
+            wide_covariance(steps.iter().copied(), scale)
+        );
+        // Offsets too far for exact f64 sums take the wide path and are still exact.
+        let far = as_f64(&steps.iter().map(|d| d.map(|v| v << 30)).collect::<Vec<_>>());
+        let steps = as_f64(&steps);
+        let wide = covariance_of_steps(far.iter().copied(), [1.0; 3]);
+        let near = covariance_of_steps(steps.iter().copied(), [1.0; 3]);
+        for (w, n) in wide.iter().zip(near) {
+            assert_eq!(*w, n * (1u64 << 60) as f64);
+        }
+    }
+
+    #[test]
+    fn covariance_of_steps_matches_the_float_one_in_any_order() {
+        let steps: Vec<[f64; 3]> = (0..17)
+            .map(|i| [i * 3 % 7, i * i % 11, -i].map(f64::from))
+            .collect();
         let scale = [0.01, 0.02, 0.005];
         let exact = covariance_of_steps(steps.iter().copied(), scale);
         let reversed = covariance_of_steps(steps.iter().rev().copied(), scale);
         assert_eq!(exact, reversed);
-        let (float, _) = covariance(
-            steps
-                .iter()
-                .map(|d| [0, 1, 2].map(|a| d[a] as f64 * scale[a])),
-        );
+        let (float, _) = covariance(steps.iter().map(|d| [0, 1, 2].map(|a| d[a] * scale[a])));
         for (e, f) in exact.iter().zip(float) {
             assert!((e - f).abs() < 1e-12, "{exact:?} vs {float:?}");
         }

@@ -35,7 +35,7 @@ pub fn cluster(points: &mut [[f64; 3]], into: &mut TriangleSizes) {
     let origin = points[0];
     let rel = |p: &[f64; 3]| [p[0] - origin[0], p[1] - origin[1], p[2] - origin[2]];
     let (cov, centre) = covariance(points.iter().map(rel));
-    let axis = principal(cov).major;
+    let axis = principal(cov).major();
     // Split into parts whose sizes are multiples of three where possible, so that clusters of
     // exactly three remain at the bottom.
     let left = (points.len() / 6).max(1) * 3;
