@@ -6,6 +6,9 @@
 
 use super::kdtree::{Best, Found, KdTree, LEAF, Sink, leaf_distances};
 
+/// Consecutive leaves (neighbours in space) whose candidates are gathered together.
+const GROUP: usize = 8;
+
 /// A leaf: its range of tree points and the tight box around them, in steps.
 #[derive(Debug, Clone, Copy)]
 struct Leaf {
@@ -45,6 +48,7 @@ impl KdTree {
         // The neighbours found of the leaf's points done so far.
         let mut done_found: Vec<u32> = Vec::new();
         let mut taken = Vec::new();
+        let mut group: (usize, Vec<Candidate>) = (usize::MAX, Vec::new());
         for (li, leaf) in leaves.iter().enumerate() {
             if !(leaf.lo..leaf.hi).any(&wanted) {
                 continue;
@@ -64,17 +68,20 @@ impl KdTree {
                 }
                 continue;
             }
+            // The leaves near the leaf's group, found once for the group, then those near
+            // the leaf.
+            let g = li / GROUP;
+            if group.0 != g {
+                group = (g, self.group_candidates(&leaves, g, k, within2));
+            }
             candidates.clear();
-            self.gather(
-                1,
-                0,
-                self.len(),
-                Region::all(),
-                leaf,
-                reach2,
-                &leaves,
-                &mut candidates,
-            );
+            candidates.extend(group.1.iter().filter_map(|&(_, c)| {
+                let other = &leaves[c];
+                let gap = gap2(
+                    &other.min, &other.max, &leaf.min, &leaf.max, self.scale, false,
+                );
+                (gap <= reach2).then_some((gap, c))
+            }));
             candidates.sort_by(|a, b| a.0.total_cmp(&b.0));
             // For each point of the leaf whose k neighbours are known, where they are in
             // `done_found` (k each).
@@ -126,6 +133,46 @@ impl KdTree {
                 }
             }
         }
+    }
+
+    /// The leaves within reach of some point of group `g` (leaves `g × GROUP` on): the reach
+    /// of each is its diagonal where it holds k points, else `within2`.
+    fn group_candidates(
+        &self,
+        leaves: &[Leaf],
+        g: usize,
+        k: usize,
+        within2: f64,
+    ) -> Vec<Candidate> {
+        let members = &leaves[g * GROUP..((g + 1) * GROUP).min(leaves.len())];
+        let mut union = members[0];
+        let mut reach2 = 0.0f64;
+        for m in members {
+            for a in 0..3 {
+                union.min[a] = union.min[a].min(m.min[a]);
+                union.max[a] = union.max[a].max(m.max[a]);
+            }
+            let r = if m.hi - m.lo >= k {
+                gap2(&m.min, &m.max, &m.min, &m.max, self.scale, true).min(within2)
+            } else {
+                within2
+            };
+            reach2 = reach2.max(r);
+        }
+        let mut out = Vec::new();
+        if reach2.is_finite() {
+            self.gather(
+                1,
+                0,
+                self.len(),
+                Region::all(),
+                &union,
+                reach2,
+                leaves,
+                &mut out,
+            );
+        }
+        out
     }
 
     /// The squared real distance from `q` to the nearest point of `leaf`'s box.
