@@ -33,21 +33,16 @@ impl KdTree {
             .collect();
         let mut splits = vec![(0u8, 0.0); inner_nodes(n)];
         build_node(&mut items, 1, &mut splits, scale);
-        let mut tree = KdTree {
-            points: Vec::with_capacity(n),
-            order: Vec::with_capacity(n),
-            axes: std::array::from_fn(|_| Vec::with_capacity(n)),
+        let (points, order): (Vec<[f64; 3]>, Vec<u32>) = items.into_iter().unzip();
+        // Axis by axis once the items are gone, so that the peak holds two copies, not three.
+        let axes = std::array::from_fn(|a| points.iter().map(|p| p[a]).collect());
+        KdTree {
+            points,
+            order,
+            axes,
             scale,
             splits,
-        };
-        for (p, i) in items {
-            tree.points.push(p);
-            tree.order.push(i);
-            for (axis, v) in tree.axes.iter_mut().zip(p) {
-                axis.push(v);
-            }
         }
-        tree
     }
 
     /// The offset from point `from` to point `to` in whole steps (exact: both are whole

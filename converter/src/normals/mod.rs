@@ -150,9 +150,11 @@ impl ChunkStep for NormalStep {
     }
 
     fn bytes_per_point(&self, stride: usize) -> usize {
-        // Building the k-d tree: (position, index) items, then the tree's positions and order;
-        // and a copy of the rows while they are put in its order.
-        32 + 24 + 4 + stride
+        // Building the k-d tree: (position, index) items, then the tree's positions and order
+        // (then the positions again, axis by axis, once the items are gone); its leaves' boxes
+        // (64 bytes a leaf of 16 or more points); and a copy of the rows while they are put in
+        // its order.
+        32 + 24 + 4 + 4 + stride
     }
 
     fn halo_margin(&self, plan: &Plan) -> f64 {
