@@ -117,7 +117,10 @@ impl KdTree {
                 } else {
                     let mut best = Best::new(self, k, &mut found, within2);
                     best.scan(q, leaf.lo, leaf.hi);
-                    for &(_, c) in &candidates {
+                    for &(gap, c) in &candidates {
+                        if gap > best.bound() {
+                            break;
+                        }
                         let other = &leaves[c];
                         // Equal distances still enter (ties are broken by position), so a
                         // leaf at the bound is searched.
@@ -206,7 +209,12 @@ impl KdTree {
         };
         let own = &scope.leaves[scope.leaf];
         take(scope.own, own.lo, own.hi);
-        for &(_, c) in scope.candidates {
+        for &(gap, c) in scope.candidates {
+            // The candidates come nearest the query's leaf first, and no point of it is nearer
+            // to one than the leaf is: the rest are all beyond the bound.
+            if gap > bound {
+                break;
+            }
             let other = &scope.leaves[c];
             if c != scope.leaf && self.box_gap2(q, other) <= bound {
                 take(
