@@ -47,6 +47,7 @@ impl KdTree {
         let mut stack = Vec::new();
         // The neighbours found of the leaf's points done so far.
         let mut done_found: Vec<u32> = Vec::new();
+        let mut last_done: Vec<u32> = Vec::new();
         let mut taken = Vec::new();
         let mut group: (usize, Vec<Candidate>) = (usize::MAX, Vec::new());
         for (li, leaf) in leaves.iter().enumerate() {
@@ -101,9 +102,15 @@ impl KdTree {
                         nearest_done
                     };
                 }
-                if nearest_done.1 != usize::MAX {
-                    let s = nearest_done.1;
-                    let bound = done_found[s * k..(s + 1) * k]
+                // With none done yet in this leaf, the last point done before it (in the leaf
+                // before, a neighbour in space) gives the bound.
+                let hint = match nearest_done.1 {
+                    usize::MAX if last_done.len() == k => Some(&last_done[..]),
+                    usize::MAX => None,
+                    s => Some(&done_found[s * k..(s + 1) * k]),
+                };
+                if let Some(hint) = hint {
+                    let bound = hint
                         .iter()
                         .fold(0.0f64, |m, &j| m.max(self.distance2(q, j as usize)))
                         .min(within2);
@@ -134,6 +141,10 @@ impl KdTree {
                     slot[t - leaf.lo] = done_found.len() / k;
                     done_found.extend_from_slice(&found.index);
                 }
+            }
+            if let Some(last) = done_found.len().checked_sub(k) {
+                last_done.clear();
+                last_done.extend_from_slice(&done_found[last..]);
             }
         }
     }
