@@ -72,62 +72,68 @@ pub fn covariance_of_steps(
     // points (the sums stay under 2^48 < 2^53), which is every neighbourhood of a real scan;
     // else again in 128-bit integers. Either gives the same exact integers.
     const SMALL: f64 = (1u64 << 20) as f64;
-    let (mut n, mut s1, mut s2) = (0i64, [0.0f64; 3], [0.0f64; 6]);
     let mut small = true;
-    for d in steps.clone() {
-        small &= d.iter().all(|v| v.abs() < SMALL);
-        n += 1;
-        for a in 0..3 {
-            s1[a] += d[a];
-        }
-        s2[0] += d[0] * d[0];
-        s2[1] += d[0] * d[1];
-        s2[2] += d[0] * d[2];
-        s2[3] += d[1] * d[1];
-        s2[4] += d[1] * d[2];
-        s2[5] += d[2] * d[2];
-    }
+    let (n, s1, s2) = moment_sums(
+        steps
+            .clone()
+            .inspect(|d| small &= d.iter().all(|v| v.abs() < SMALL)),
+    );
     if !(small && n <= 256) {
-        return wide_covariance(steps.map(|d| d.map(|v| v as i64)), scale);
+        let (n, s1, s2) = moment_sums(steps.map(|d| d.map(|v| i128::from(v as i64))));
+        return from_sums(
+            n,
+            |i, (a, b)| (n as i128 * s2[i] - s1[a] * s1[b]) as f64,
+            scale,
+        );
     }
     // n Σ d_a d_b and Σ d_a Σ d_b reach 2^56: in i64, from the exact sums.
     let (s1, s2) = (s1.map(|v| v as i64), s2.map(|v| v as i64));
     from_sums(
-        n as f64,
-        |i, (a, b)| (n * s2[i] - s1[a] * s1[b]) as f64,
+        n,
+        |i, (a, b)| (n as i64 * s2[i] - s1[a] * s1[b]) as f64,
         scale,
     )
 }
 
-/// `covariance_of_steps` in 128-bit sums.
-fn wide_covariance(steps: impl Iterator<Item = [i64; 3]>, scale: [f64; 3]) -> [f64; 6] {
-    let (mut n, mut s1, mut s2) = (0i128, [0i128; 3], [0i128; 6]);
+/// How many offsets, their sum per axis and the sums of their products (xx, xy, xz, yy, yz,
+/// zz), in the number type of the offsets.
+fn moment_sums<T>(steps: impl Iterator<Item = [T; 3]>) -> (usize, [T; 3], [T; 6])
+where
+    T: Copy + Default + std::ops::Add<Output = T> + std::ops::Mul<Output = T>,
+{
+    let zero = T::default();
+    let (mut n, mut s1, mut s2) = (0, [zero; 3], [zero; 6]);
     for d in steps {
-        let d = d.map(i128::from);
         n += 1;
         for a in 0..3 {
-            s1[a] += d[a];
+            s1[a] = s1[a] + d[a];
         }
-        s2[0] += d[0] * d[0];
-        s2[1] += d[0] * d[1];
-        s2[2] += d[0] * d[2];
-        s2[3] += d[1] * d[1];
-        s2[4] += d[1] * d[2];
-        s2[5] += d[2] * d[2];
+        let products = [
+            d[0] * d[0],
+            d[0] * d[1],
+            d[0] * d[2],
+            d[1] * d[1],
+            d[1] * d[2],
+            d[2] * d[2],
+        ];
+        for (s, p) in s2.iter_mut().zip(products) {
+            *s = *s + p;
+        }
     }
-    from_sums(
-        n as f64,
-        |i, (a, b)| (n * s2[i] - s1[a] * s1[b]) as f64,
-        scale,
-    )
+    (n, s1, s2)
 }
 
 /// The covariance from `n` points and `centred(i, (a, b))`, the exact n Σ d_a d_b − Σ d_a Σ d_b
 /// of entry i (= n² cov) rounded once to f64.
-fn from_sums(n: f64, centred: impl Fn(usize, (usize, usize)) -> f64, scale: [f64; 3]) -> [f64; 6] {
-    if n == 0.0 {
+fn from_sums(
+    n: usize,
+    centred: impl Fn(usize, (usize, usize)) -> f64,
+    scale: [f64; 3],
+) -> [f64; 6] {
+    if n == 0 {
         return [0.0; 6];
     }
+    let n = n as f64;
     let pairs = [(0, 0), (0, 1), (0, 2), (1, 1), (1, 2), (2, 2)];
     let nn = n * n;
     let mut cov = [0.0; 6];
@@ -283,13 +289,17 @@ mod tests {
     #[test]
     fn covariance_of_steps_is_the_same_in_either_width() {
         let steps: Vec<[i64; 3]> = (0..17).map(|i| [i * 3 % 7, i * i % 11, -i]).collect();
-        let scale = [0.01, 0.02, 0.005];
         let as_f64 =
             |s: &[[i64; 3]]| -> Vec<[f64; 3]> { s.iter().map(|d| d.map(|v| v as f64)).collect() };
-        assert_eq!(
-            covariance_of_steps(as_f64(&steps).into_iter(), scale),
-            wide_covariance(steps.iter().copied(), scale)
-        );
+        // More points than the f64 sums take: the wide path, and the float estimate agrees.
+        let many: Vec<[f64; 3]> = (0..300)
+            .map(|i| [i % 7, i % 11, i % 5].map(f64::from))
+            .collect();
+        let exact = covariance_of_steps(many.iter().copied(), [1.0; 3]);
+        let (float, _) = covariance(many.iter().copied());
+        for (e, f) in exact.iter().zip(float) {
+            assert!((e - f).abs() < 1e-9, "{exact:?} vs {float:?}");
+        }
         // Offsets too far for exact f64 sums take the wide path and are still exact.
         let far = as_f64(&steps.iter().map(|d| d.map(|v| v << 30)).collect::<Vec<_>>());
         let steps = as_f64(&steps);
