@@ -54,12 +54,7 @@ impl KdTree {
             if !(leaf.lo..leaf.hi).any(&wanted) {
                 continue;
             }
-            // Every point of the leaf has k points within the leaf's diagonal: the leaf's.
-            let reach2 = if leaf.hi - leaf.lo >= k {
-                gap2(&leaf.min, &leaf.max, &leaf.min, &leaf.max, self.scale, true).min(within2)
-            } else {
-                within2
-            };
+            let reach2 = self.reach2(leaf, k, within2);
             if !reach2.is_finite() {
                 // No bound on the search (a cloud without a density estimate): one point at a
                 // time.
@@ -149,8 +144,7 @@ impl KdTree {
         }
     }
 
-    /// The leaves within reach of some point of group `g` (leaves `g × GROUP` on): the reach
-    /// of each is its diagonal where it holds k points, else `within2`.
+    /// The leaves within reach (`reach2`) of some point of group `g` (leaves `g × GROUP` on).
     fn group_candidates(
         &self,
         leaves: &[Leaf],
@@ -166,12 +160,11 @@ impl KdTree {
                 union.min[a] = union.min[a].min(m.min[a]);
                 union.max[a] = union.max[a].max(m.max[a]);
             }
-            let r = if m.hi - m.lo >= k {
-                gap2(&m.min, &m.max, &m.min, &m.max, self.scale, true).min(within2)
-            } else {
-                within2
-            };
-            reach2 = reach2.max(r);
+            // A leaf without a bound searches a point at a time and needs no candidates.
+            let r = self.reach2(m, k, within2);
+            if r.is_finite() {
+                reach2 = reach2.max(r);
+            }
         }
         let mut out = Vec::new();
         if reach2.is_finite() {
@@ -187,6 +180,16 @@ impl KdTree {
             );
         }
         out
+    }
+
+    /// How far, squared, the k nearest of any point of `leaf` can be: within the leaf's
+    /// diagonal where it holds k points (those), and within `within2` in any case.
+    fn reach2(&self, leaf: &Leaf, k: usize, within2: f64) -> f64 {
+        if leaf.hi - leaf.lo >= k {
+            gap2(&leaf.min, &leaf.max, &leaf.min, &leaf.max, self.scale, true).min(within2)
+        } else {
+            within2
+        }
     }
 
     /// The squared real distance from `q` to the nearest point of `leaf`'s box.

@@ -461,11 +461,14 @@ mod tests {
     #[test]
     fn all_nearest_finds_the_same_neighbours_as_brute_force() {
         let tree = cloud();
-        // k below and above the leaves' sizes, with and without bound.
+        // k below and above the leaves' sizes (23 and 24 points here), and 24, where some
+        // leaves hold k points and some fewer; with and without bound.
         for (k, within) in [
             (16, f64::INFINITY),
             (16, 9.0),
             (12, 30.0),
+            (24, f64::INFINITY),
+            (24, 9.0),
             (40, 9.0),
             (40, f64::INFINITY),
         ] {
