@@ -341,7 +341,7 @@ mod tests {
     #[test]
     fn unshuffle_undoes_shuffle() {
         // Row counts around the tile size and a stride that is not a power of two.
-        for n in [0, 1, 63, 64, 65, 200] {
+        for n in [0, 1, 200, 255, 256, 257, 600] {
             let stride = 37;
             let rows: Vec<u8> = (0..n * stride).map(|i| (i * 7 + i / 13) as u8).collect();
             let mut grouped = Vec::new();

@@ -2,7 +2,7 @@
 //! may hold a neighbour of any point of a leaf are found once, by one walk down the tree, and
 //! each of the leaf's points then checks those alone against the tight boxes around their
 //! points: no walk from the root per point, and tighter boxes than the splitting planes give.
-//! The neighbours found are the same as `KdTree::nearest`'s, ties included.
+//! The neighbours found are the same set as `KdTree::nearest`'s, ties included, in no order.
 
 use super::kdtree::{Best, Found, KdTree, LEAF, Sink, leaf_distances};
 
@@ -32,7 +32,7 @@ type Candidate = (f64, usize);
 
 impl KdTree {
     /// Calls `each(t, found)` for every tree point `t` that `wanted` picks, in tree order, with
-    /// its `k` nearest points within distance `within` (as `nearest` finds them).
+    /// its `k` nearest points within distance `within` (the set `nearest` finds, in no order).
     pub fn all_nearest(
         &self,
         k: usize,
@@ -224,8 +224,9 @@ impl KdTree {
         let own = &scope.leaves[scope.leaf];
         take(scope.own, own.lo, own.hi);
         for &(gap, c) in scope.candidates {
-            // The candidates come nearest the query's leaf first, and no point of it is nearer
-            // to one than the leaf is: the rest are all beyond the bound.
+            // The candidates come in order of their boxes' gap to the query's leaf, and no point
+            // of a candidate is nearer the query than its box is to that leaf: once a gap
+            // exceeds the bound, so does every point of the rest.
             if gap > bound {
                 break;
             }
@@ -353,8 +354,8 @@ impl Region {
 
 /// The squared real distance between boxes `a` and `b` (in steps), or with `span` the squared
 /// diagonal of `a`. No larger than the squared distance of any point of `a` to any of `b` as
-/// `KdTree` computes it, rounding included, as each term is rounded the same way from a
-/// smaller or equal difference.
+/// `KdTree` computes it, rounding included: each term is rounded the same way from a smaller or
+/// equal difference, and summed in the same order (x, then y, then z, no fused multiply-add).
 #[inline]
 fn gap2(
     a_min: &[f64; 3],

@@ -131,7 +131,7 @@ impl KdTree {
                 lo: far.1,
                 hi: far.2,
                 off: far_off,
-                plane: far_off.iter().map(|v| v * v).sum(),
+                plane: plane_distance2(far_off),
             });
             (node, lo, hi) = if at < mid {
                 (2 * node, lo, mid)
@@ -164,7 +164,7 @@ impl KdTree {
             // The far side: the distance along this axis grows to the plane's, at least.
             let mut far_off = p.off;
             far_off[a] = far_off[a].max(d.abs());
-            let far_plane = p.plane - p.off[a] * p.off[a] + far_off[a] * far_off[a];
+            let far_plane = plane_distance2(far_off);
             stack.push(Pending {
                 node: far.0,
                 lo: far.1,
@@ -210,8 +210,17 @@ pub(super) fn leaf_distances(tree: &KdTree, q: [f64; 3], lo: usize, hi: usize) -
     d2
 }
 
-/// A subtree still to search and a lower bound on its squared distance from the query: the
-/// sum of `off`, the distances along each axis to the planes that bound it.
+/// The squared distance bound from per-axis offsets, summed as `KdTree::distance2` sums (x,
+/// then y, then z, no fused multiply-add): each term is no larger than the point's, so neither
+/// is the sum, rounding included. (Updated one axis at a time instead, a bound could exceed by
+/// a unit in the last place the distance of a point on the region's corner and prune a tie.)
+#[inline]
+fn plane_distance2(off: [f64; 3]) -> f64 {
+    off[0] * off[0] + off[1] * off[1] + off[2] * off[2]
+}
+
+/// A subtree still to search and a lower bound on its squared distance from the query: from
+/// `off`, the distances along each axis to the planes that bound it.
 #[derive(Debug, Clone, Copy)]
 pub struct Pending {
     node: usize,
@@ -258,8 +267,9 @@ fn build_node(
     build_node(right, 2 * node + 1, splits, scale);
 }
 
-/// The neighbours a search found, nearest first (ties by position): squared real distances
-/// and tree indices, side by side so that ranking a candidate against them vectorises.
+/// The neighbours a search found: squared real distances and tree indices, side by side so
+/// that ranking a candidate against them vectorises. `KdTree::nearest` leaves them nearest
+/// first (ties by position); `all_nearest` in no order.
 #[derive(Debug, Default)]
 pub struct Found {
     pub dist: Vec<f64>,
@@ -432,29 +442,33 @@ mod tests {
     }
 
     /// A regular lattice: nearly every neighbourhood ends in a tie of distances.
-    fn lattice() -> KdTree {
+    fn lattice(scale: f64) -> KdTree {
         let points: Vec<[f64; 3]> = (0..24 * 24 * 3)
             .map(|i| [i % 24, i / 24 % 24, i / 576].map(|c| f64::from(c as u32)))
             .collect();
-        KdTree::build(points, [0.25, 0.25, 0.25])
+        KdTree::build(points, [scale; 3])
     }
 
     #[test]
     fn all_nearest_breaks_ties_by_position() {
-        let tree = lattice();
-        for k in [7, 16, 30] {
-            tree.all_nearest(
-                k,
-                f64::INFINITY,
-                |_| true,
-                |at, found| {
-                    assert_eq!(
-                        listed(&tree, found),
-                        brute_force(&tree, at, k, f64::INFINITY),
-                        "query {at} k {k}"
-                    );
-                },
-            );
+        // 0.25 a step squares exactly; 0.001 does not, so bounds and distances round.
+        for scale in [0.25, 0.001] {
+            let tree = lattice(scale);
+            // k = 40 is more than a leaf holds: each point searched from the root.
+            for k in [7, 16, 30, 40] {
+                tree.all_nearest(
+                    k,
+                    f64::INFINITY,
+                    |_| true,
+                    |at, found| {
+                        assert_eq!(
+                            listed(&tree, found),
+                            brute_force(&tree, at, k, f64::INFINITY),
+                            "query {at} k {k} scale {scale}"
+                        );
+                    },
+                );
+            }
         }
     }
 
