@@ -68,6 +68,18 @@ fn spawn_task(plan: &Path, k: usize) -> Child {
         .expect("spawn task")
 }
 
+/// Runs task `k` and kills it (SIGKILL) as soon as `ready` holds (a minute at most), checking
+/// that it was still running.
+fn kill_task_when(plan: &Path, k: usize, ready: impl Fn() -> bool) {
+    let mut child = spawn_task(plan, k);
+    let start = Instant::now();
+    while !ready() && start.elapsed() < Duration::from_secs(60) {
+        std::thread::sleep(Duration::from_millis(1));
+    }
+    child.kill().expect("kill -9");
+    assert!(!child.wait().expect("wait").success(), "killed before done");
+}
+
 /// The single run of `inputs` (with `extra`) into `dir/single`.
 fn single_run(dir: &Path, inputs: &[PathBuf], extra: &[&str]) -> PathBuf {
     let single = dir.join("single");
@@ -184,16 +196,10 @@ fn a_killed_task_resumes_to_the_same_bytes() {
     a.extend(one);
     run_ok(&a);
     let journal = plan.join("tasks/0.strata-tmp/work/journal.jsonl");
-    let mut child = spawn_task(&plan, 0);
-    let start = Instant::now();
     // Killed once at least one chunk has been committed.
-    while std::fs::read_to_string(&journal).map_or(0, |t| t.lines().count()) < 1
-        && start.elapsed() < Duration::from_secs(60)
-    {
-        std::thread::sleep(Duration::from_millis(2));
-    }
-    child.kill().expect("kill -9");
-    assert!(!child.wait().expect("wait").success(), "killed before done");
+    kill_task_when(&plan, 0, || {
+        std::fs::read_to_string(&journal).map_or(0, |t| t.lines().count()) >= 1
+    });
     assert!(!plan.join("tasks/0").exists());
     let text = task_says(&plan, 0);
     assert!(text.contains("resumed"), "{text}");
@@ -226,13 +232,7 @@ fn a_share_cut_short_is_distributed_again() {
             (busy && written).then(|| e.path())
         })
     };
-    let mut child = spawn_task(&plan, 1);
-    let start = Instant::now();
-    while cut().is_none() && start.elapsed() < Duration::from_secs(60) {
-        std::thread::sleep(Duration::from_millis(1));
-    }
-    child.kill().expect("kill -9");
-    assert!(!child.wait().expect("wait").success(), "killed before done");
+    kill_task_when(&plan, 1, || cut().is_some());
     let left = cut().expect("a share cut short");
     assert!(!whole.exists(), "the share was cut short");
     // The next task distributes the three shares, the cut one again; the others find them done.

@@ -4,7 +4,7 @@
 //! points: no walk from the root per point, and tighter boxes than the splitting planes give.
 //! The neighbours found are the same set as `KdTree::nearest`'s, ties included, in no order.
 
-use super::kdtree::{Best, Found, KdTree, LEAF, Sink, leaf_distances};
+use super::kdtree::{Best, Found, KdTree, LEAF, leaf_distances, squared_length};
 
 /// Consecutive leaves (neighbours in space) whose candidates are gathered together.
 const GROUP: usize = 8;
@@ -355,7 +355,7 @@ impl Region {
 /// The squared real distance between boxes `a` and `b` (in steps), or with `span` the squared
 /// diagonal of `a`. No larger than the squared distance of any point of `a` to any of `b` as
 /// `KdTree` computes it, rounding included: each term is rounded the same way from a smaller or
-/// equal difference, and summed in the same order (x, then y, then z, no fused multiply-add).
+/// equal difference, and summed by the same `squared_length`.
 #[inline]
 fn gap2(
     a_min: &[f64; 3],
@@ -365,8 +365,7 @@ fn gap2(
     scale: [f64; 3],
     span: bool,
 ) -> f64 {
-    let mut sum = 0.0;
-    for i in 0..3 {
+    squared_length(std::array::from_fn(|i| {
         // Comparisons rather than `f64::max`, whose NaN rules cost instructions: no
         // coordinate here is NaN.
         let d = if span {
@@ -376,8 +375,6 @@ fn gap2(
             let d = if below > above { below } else { above };
             if d > 0.0 { d } else { 0.0 }
         };
-        let d = d * scale[i];
-        sum += d * d;
-    }
-    sum
+        d * scale[i]
+    }))
 }

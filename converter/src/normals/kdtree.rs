@@ -94,7 +94,7 @@ impl KdTree {
             (p[1] - q[1]) * s[1],
             (p[2] - q[2]) * s[2],
         ];
-        d[0] * d[0] + d[1] * d[1] + d[2] * d[2]
+        squared_length(d)
     }
 
     /// Whether tree point `a` comes before `b` in position order (for ties of distance, so
@@ -104,9 +104,9 @@ impl KdTree {
         self.points[a as usize] < self.points[b as usize]
     }
 
-    /// Offers `sink` every leaf that may hold a point within its bound of `q` (tree point
+    /// Offers `best` every leaf that may hold a point within its bound of `q` (tree point
     /// `at`), its own leaf first.
-    fn search(&self, q: [f64; 3], at: usize, sink: &mut impl Sink, stack: &mut Vec<Pending>) {
+    fn search(&self, q: [f64; 3], at: usize, best: &mut Best, stack: &mut Vec<Pending>) {
         stack.clear();
         let s = self.scale;
         // Down to the leaf holding `at` by index, leaving the other sides for later with a
@@ -139,15 +139,15 @@ impl KdTree {
                 (2 * node + 1, mid, hi)
             };
         }
-        sink.scan(q, lo, hi);
+        best.scan(q, lo, hi);
         while let Some(p) = stack.pop() {
             // Equal distances still enter (ties are broken by position), so a point on the
             // boundary counts.
-            if p.plane > sink.bound() {
+            if p.plane > best.bound() {
                 continue;
             }
             if p.hi - p.lo <= LEAF {
-                sink.scan(q, p.lo, p.hi);
+                best.scan(q, p.lo, p.hi);
                 continue;
             }
             let (axis, split) = self.splits[p.node];
@@ -183,14 +183,6 @@ impl KdTree {
     }
 }
 
-/// What a search offers leaves to.
-pub(super) trait Sink {
-    /// The squared distance within which a point may still enter.
-    fn bound(&self) -> f64;
-    /// Offers the points of leaf `lo..hi` (at most `LEAF`).
-    fn scan(&mut self, q: [f64; 3], lo: usize, hi: usize);
-}
-
 /// The squared distances from `q` to the points of leaf `lo..hi`, in a loop without branches
 /// the compiler can vectorise.
 #[inline]
@@ -205,7 +197,7 @@ pub(super) fn leaf_distances(tree: &KdTree, q: [f64; 3], lo: usize, hi: usize) -
             (y[i] - q[1]) * s[1],
             (z[i] - q[2]) * s[2],
         ];
-        d2[i] = d[0] * d[0] + d[1] * d[1] + d[2] * d[2];
+        d2[i] = squared_length(d);
     }
     d2
 }
@@ -216,7 +208,14 @@ pub(super) fn leaf_distances(tree: &KdTree, q: [f64; 3], lo: usize, hi: usize) -
 /// a unit in the last place the distance of a point on the region's corner and prune a tie.)
 #[inline]
 fn plane_distance2(off: [f64; 3]) -> f64 {
-    off[0] * off[0] + off[1] * off[1] + off[2] * off[2]
+    squared_length(off)
+}
+
+/// x² + y² + z², summed in that order: the one formula every distance and bound here uses, so
+/// that they round alike.
+#[inline]
+pub(super) fn squared_length(d: [f64; 3]) -> f64 {
+    d[0] * d[0] + d[1] * d[1] + d[2] * d[2]
 }
 
 /// A subtree still to search and a lower bound on its squared distance from the query: from
@@ -308,12 +307,14 @@ pub(super) struct Best<'a> {
     bound: f64,
 }
 
-impl Sink for Best<'_> {
-    fn bound(&self) -> f64 {
+impl<'a> Best<'a> {
+    /// The squared distance within which a point may still enter.
+    pub(super) fn bound(&self) -> f64 {
         self.bound
     }
 
-    fn scan(&mut self, q: [f64; 3], lo: usize, hi: usize) {
+    /// Offers the points of leaf `lo..hi` (at most `LEAF`).
+    pub(super) fn scan(&mut self, q: [f64; 3], lo: usize, hi: usize) {
         let d2 = leaf_distances(self.tree, q, lo, hi);
         for (i, d) in d2[..hi - lo].iter().enumerate() {
             if *d <= self.bound {
@@ -321,9 +322,7 @@ impl Sink for Best<'_> {
             }
         }
     }
-}
 
-impl<'a> Best<'a> {
     /// The k best of the points offered within squared distance `bound`, into `out`.
     pub(super) fn new(tree: &'a KdTree, k: usize, out: &'a mut Found, bound: f64) -> Self {
         out.clear();
@@ -335,9 +334,9 @@ impl<'a> Best<'a> {
         }
     }
 
-    /// Inserts point `j` at squared distance `d` in order, when it ranks among the k best.
-    /// Its place is found by counting, without a branch per entry: where the candidate goes
-    /// is a branch the processor cannot predict.
+    /// Inserts point `j` at squared distance `d` in order, when it ranks among the k best
+    /// (its place counted, the rest shifted; this measured as fast as a heap, and the array
+    /// stays sorted for `nearest`'s callers).
     #[inline]
     fn offer(&mut self, d: f64, j: u32) {
         let (k, tree) = (self.k, self.tree);
