@@ -5,6 +5,7 @@
 //! The neighbours found are the same set as `KdTree::nearest`'s, ties included, in no order.
 
 use super::kdtree::{Best, Found, KdTree, LEAF, leaf_distances, squared_length};
+use super::select::Taken;
 
 /// Consecutive leaves (neighbours in space) whose candidates are gathered together.
 const GROUP: usize = 8;
@@ -48,7 +49,8 @@ impl KdTree {
         // The neighbours found of the leaf's points done so far.
         let mut done_found: Vec<u32> = Vec::new();
         let mut last_done: Vec<u32> = Vec::new();
-        let mut taken = Vec::new();
+        let mut taken = Taken::default();
+        let mut picked = Vec::new();
         let mut group: (usize, Vec<Candidate>) = (usize::MAX, Vec::new());
         for (li, leaf) in leaves.iter().enumerate() {
             if !(leaf.lo..leaf.hi).any(&wanted) {
@@ -115,7 +117,7 @@ impl KdTree {
                         candidates: &candidates,
                         leaves: &leaves,
                     };
-                    self.within_bound(q, k, bound, &scope, &mut taken, &mut found);
+                    self.within_bound(q, k, bound, &scope, (&mut taken, &mut picked), &mut found);
                 } else {
                     let mut best = Best::new(self, k, &mut found, within2);
                     best.scan(q, leaf.lo, leaf.hi);
@@ -208,16 +210,17 @@ impl KdTree {
         k: usize,
         bound: f64,
         scope: &Scope,
-        taken: &mut Vec<(f64, u32)>,
+        (taken, picked): (&mut Taken, &mut Vec<(f64, u32)>),
         found: &mut Found,
     ) {
         let mut m = 0;
         let mut take = |d2: &[f64; LEAF], lo: usize, hi: usize| {
-            if taken.len() < m + LEAF {
-                taken.resize(m + LEAF, (0.0, 0));
+            let points = &mut taken.points;
+            if points.len() < m + LEAF {
+                points.resize(m + LEAF, (0.0, 0));
             }
             for (i, &d) in d2[..hi - lo].iter().enumerate() {
-                taken[m] = (d, (lo + i) as u32);
+                points[m] = (d, (lo + i) as u32);
                 m += usize::from(d <= bound);
             }
         };
@@ -239,24 +242,24 @@ impl KdTree {
                 );
             }
         }
-        let taken = &mut taken[..m];
-        if m > k {
-            // The k nearest by distance alone, then, where the k-th distance is shared with
-            // points left out, those ties settled by position.
-            taken.select_nth_unstable_by(k - 1, |a, b| a.0.total_cmp(&b.0));
-            let kth = taken[k - 1].0;
-            if taken[k..].iter().any(|t| t.0 == kth) {
-                taken.sort_unstable_by(|a, b| {
-                    a.0.total_cmp(&b.0).then_with(|| {
-                        let (p, r) = (self.points[a.1 as usize], self.points[b.1 as usize]);
-                        p.partial_cmp(&r).unwrap_or(std::cmp::Ordering::Equal)
-                    })
-                });
-            }
+        // The k nearest by distance alone, then, where the k-th distance is shared with
+        // points left out, those ties settled by position.
+        picked.clear();
+        taken.select_nearest(m, k, bound, picked);
+        if picked.len() > k {
+            let taken = &mut taken.points[..m];
+            taken.sort_unstable_by(|a, b| {
+                a.0.total_cmp(&b.0).then_with(|| {
+                    let (p, r) = (self.points[a.1 as usize], self.points[b.1 as usize]);
+                    p.partial_cmp(&r).unwrap_or(std::cmp::Ordering::Equal)
+                })
+            });
+            picked.clear();
+            picked.extend_from_slice(&taken[..k]);
         }
         found.dist.clear();
         found.index.clear();
-        for &(d, j) in &taken[..m.min(k)] {
+        for &(d, j) in picked.iter() {
             found.dist.push(d);
             found.index.push(j);
         }

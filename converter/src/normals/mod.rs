@@ -7,6 +7,7 @@ mod all_nearest;
 mod attrs;
 mod kdtree;
 mod pca;
+mod select;
 mod surfel_size;
 
 use crate::chunk_step::{ChunkRows, ChunkStep, Halo, StepTotals};

@@ -144,7 +144,8 @@ fn from_sums(
 }
 
 /// Eigen-decomposition of a symmetric 3x3 matrix given as (xx, xy, xz, yy, yz, zz): the
-/// closed form of the characteristic cubic, then eigenvectors from cross products of the rows
+/// smallest eigenvalue by Newton's method on the characteristic cubic, the other two from the
+/// quadratic left once it is divided out, then eigenvectors from cross products of the rows
 /// of (A − λI).
 pub fn principal(cov: [f64; 6]) -> Principal {
     // Scale to unit size so that the cubic's terms neither overflow nor vanish.
@@ -157,25 +158,19 @@ pub fn principal(cov: [f64; 6]) -> Principal {
             unit_l2: 1.0,
         };
     }
-    let [a, b, c, d, e, f] = cov.map(|v| v / s);
-    let p1 = b * b + c * c + e * e;
-    let q = (a + d + f) / 3.0;
-    let (l0, l1, l2) = if p1 <= 1e-30 {
-        let mut l = [a, d, f];
-        l.sort_by(f64::total_cmp);
-        (l[0], l[1], l[2])
-    } else {
-        let p2 = (a - q).powi(2) + (d - q).powi(2) + (f - q).powi(2) + 2.0 * p1;
-        let p = (p2 / 6.0).sqrt();
-        let (ba, bd, bf) = ((a - q) / p, (d - q) / p, (f - q) / p);
-        let (bb, bc, be) = (b / p, c / p, e / p);
-        let det = ba * (bd * bf - be * be) - bb * (bb * bf - be * bc) + bc * (bb * be - bd * bc);
-        let phi = (det / 2.0).clamp(-1.0, 1.0).acos() / 3.0;
-        let hi = q + 2.0 * p * phi.cos();
-        let lo = q + 2.0 * p * (phi + 2.0 * std::f64::consts::FRAC_PI_3).cos();
-        (lo, 3.0 * q - hi - lo, hi)
-    };
-    let m = [a, b, c, d, e, f];
+    let inv = 1.0 / s;
+    let m = cov.map(|v| v * inv);
+    let [a, b, c, d, e, f] = m;
+    // det(λI − A) = λ³ − tr λ² + c1 λ − det.
+    let tr = a + d + f;
+    let c1 = (a * d - b * b) + (a * f - c * c) + (d * f - e * e);
+    let det = a * (d * f - e * e) - b * (b * f - e * c) + c * (b * e - d * c);
+    let l0 = smallest_root(tr, c1, det, m);
+    // The other two: their sum is tr − λ0 and their product c1 − λ0 (tr − λ0).
+    let sum = tr - l0;
+    let product = c1 - l0 * sum;
+    let half_gap = (sum * sum - 4.0 * product).max(0.0).sqrt() * 0.5;
+    let (l1, l2) = (sum * 0.5 - half_gap, sum * 0.5 + half_gap);
     let normal = eigenvector(m, l0).unwrap_or_else(|| {
         // λ0 = λ1: any direction across the major axis will do.
         let major = eigenvector(m, l2).unwrap_or([1.0, 0.0, 0.0]);
@@ -187,6 +182,43 @@ pub fn principal(cov: [f64; 6]) -> Principal {
         unit: m,
         unit_l2: l2,
     }
+}
+
+/// The smallest root of λ³ − tr λ² + c1 λ − det, the characteristic polynomial of the unit
+/// size symmetric matrix `m`. Left of that root the cubic rises and bends down, so Newton's
+/// steps from any point there climb to it without passing it: no trigonometry, and a few
+/// steps for the neighbourhoods of a surface, whose λ0 is far below λ1.
+fn smallest_root(tr: f64, c1: f64, det: f64, m: [f64; 6]) -> f64 {
+    let [a, b, c, d, e, f] = m;
+    // Zero is left of the root where the cubic is negative and rising there, below tr / 3
+    // (a covariance); else Gershgorin's bound is, for any symmetric matrix.
+    let mut x = if det >= 0.0 && c1 > 0.0 && tr > 0.0 {
+        0.0
+    } else {
+        (a - b.abs() - c.abs())
+            .min(d - b.abs() - e.abs())
+            .min(f - c.abs() - e.abs())
+    };
+    // The smallest eigenvalue is no larger than their mean.
+    let mean = tr / 3.0;
+    let cubic = |x: f64| ((x - tr) * x + c1) * x - det;
+    let slope = |x: f64| (3.0 * x - 2.0 * tr) * x + c1;
+    let mut rise = slope(x);
+    for _ in 0..64 {
+        let next = x - cubic(x) / rise;
+        // Rounding ends the climb: a step that does not rise, or one that lands beyond the
+        // cubic's first peak (where it falls) or beyond the mean, as only a slope rounded to
+        // nearly nothing near a double root gives.
+        if !(next > x && next <= mean) {
+            break;
+        }
+        let next_rise = slope(next);
+        if !(next_rise > 0.0 && next_rise.is_finite()) {
+            break;
+        }
+        (x, rise) = (next, next_rise);
+    }
+    x
 }
 
 /// A unit vector spanning the null space of (M − λI), when that space is one direction.
@@ -203,8 +235,8 @@ fn eigenvector(m: [f64; 6], l: f64) -> Option<[f64; 3]> {
     if n2 <= 1e-24 {
         return None;
     }
-    let l = n2.sqrt();
-    Some(best.map(|v| v / l))
+    let inv = 1.0 / n2.sqrt();
+    Some(best.map(|v| v * inv))
 }
 
 pub fn cross(u: [f64; 3], v: [f64; 3]) -> [f64; 3] {
@@ -322,6 +354,90 @@ mod tests {
         let (float, _) = covariance(steps.iter().map(|d| [0, 1, 2].map(|a| d[a] * scale[a])));
         for (e, f) in exact.iter().zip(float) {
             assert!((e - f).abs() < 1e-12, "{exact:?} vs {float:?}");
+        }
+    }
+
+    /// The eigenvalues by the trigonometric closed form (Smith 1961), for reference.
+    fn closed_form(m: [f64; 6]) -> [f64; 3] {
+        let [a, b, c, d, e, f] = m;
+        let p1 = b * b + c * c + e * e;
+        let q = (a + d + f) / 3.0;
+        if p1 == 0.0 {
+            let mut l = [a, d, f];
+            l.sort_by(f64::total_cmp);
+            return l;
+        }
+        let p2 = (a - q).powi(2) + (d - q).powi(2) + (f - q).powi(2) + 2.0 * p1;
+        let p = (p2 / 6.0).sqrt();
+        let (ba, bd, bf) = ((a - q) / p, (d - q) / p, (f - q) / p);
+        let (bb, bc, be) = (b / p, c / p, e / p);
+        let det = ba * (bd * bf - be * be) - bb * (bb * bf - be * bc) + bc * (bb * be - bd * bc);
+        let phi = (det / 2.0).clamp(-1.0, 1.0).acos() / 3.0;
+        let hi = q + 2.0 * p * phi.cos();
+        let lo = q + 2.0 * p * (phi + 2.0 * std::f64::consts::FRAC_PI_3).cos();
+        [lo, 3.0 * q - hi - lo, hi]
+    }
+
+    #[test]
+    fn newton_finds_the_eigenvalues_of_the_closed_form() {
+        let mut rng = crate::synth::Rng::new(3, 4, 5);
+        // Random spreads along three random axes, from flat to round, some exactly
+        // degenerate: a plane (λ0 = 0), a line (λ0 = λ1 = 0), a disc (λ1 = λ2), a ball.
+        let spreads = |i: usize, r: &mut crate::synth::Rng| match i % 6 {
+            0 => [0.0, 1.0, 2.0],
+            1 => [0.0, 0.0, 1.0],
+            2 => [0.1, 1.0, 1.0],
+            3 => [0.5, 0.5, 0.5],
+            _ => [r.unit() * 0.05, r.unit(), r.unit() * 3.0],
+        };
+        for i in 0..600 {
+            let sd = spreads(i, &mut rng);
+            let u = {
+                let v = [rng.gaussian(), rng.gaussian(), rng.gaussian()];
+                let l = norm2(v).sqrt();
+                v.map(|c| c / l)
+            };
+            let v = any_perpendicular(u);
+            let w = cross(u, v);
+            let axes = [u, v, w];
+            // Σ sd_i² axis_i axis_iᵀ, scaled by a power of ten to test the unit scaling.
+            let scale = 10f64.powi(i as i32 % 9 - 4);
+            let mut m = [0.0; 6];
+            let pairs = [(0, 0), (0, 1), (0, 2), (1, 1), (1, 2), (2, 2)];
+            for (slot, &(r, c)) in pairs.iter().enumerate() {
+                m[slot] = (0..3)
+                    .map(|j| sd[j] * sd[j] * axes[j][r] * axes[j][c])
+                    .sum::<f64>()
+                    * scale;
+            }
+            let pc = principal(m);
+            let want = closed_form(m);
+            // Repeated roots are where rounding shows, in any method (the closed form's
+            // included): Newton's steps near one lose their way at about the cube root of the
+            // rounding for a triple root, and the other two come from a square root of
+            // nearly nothing.
+            let single =
+                |i: usize| (0..3).all(|j| j == i || (want[i] - want[j]).abs() > 1e-3 * scale);
+            let tolerance = [0, 1, 2].map(|i| if single(i) { 1e-9 } else { 1e-5 });
+            for ((got, want), tolerance) in pc.eigenvalues.iter().zip(want).zip(tolerance) {
+                assert!(
+                    (got - want.max(0.0)).abs() <= tolerance * scale,
+                    "{i}: {:?} vs {want:?}",
+                    pc.eigenvalues
+                );
+            }
+            assert!((norm2(pc.normal) - 1.0).abs() < 1e-9);
+            // The normal is the axis of least spread, where it is alone.
+            let mut by_spread = [0, 1, 2];
+            by_spread.sort_by(|&x, &y| sd[x].total_cmp(&sd[y]));
+            if sd[by_spread[1]] - sd[by_spread[0]] > 0.01 {
+                let axis = axes[by_spread[0]];
+                assert!(
+                    angle(pc.normal, axis) < 1e-5,
+                    "{i}: {:?} vs {axis:?}",
+                    pc.normal
+                );
+            }
         }
     }
 
