@@ -50,7 +50,6 @@ impl KdTree {
         let mut done_found: Vec<u32> = Vec::new();
         let mut last_done: Vec<u32> = Vec::new();
         let mut taken = Taken::default();
-        let mut picked = Vec::new();
         let mut group: (usize, Vec<Candidate>) = (usize::MAX, Vec::new());
         for (li, leaf) in leaves.iter().enumerate() {
             if !(leaf.lo..leaf.hi).any(&wanted) {
@@ -91,7 +90,9 @@ impl KdTree {
                 // The leaf's point nearest to q whose k neighbours are known: they are k
                 // points, so q's k-th nearest is no farther than the farthest of them.
                 let mut nearest_done = (f64::INFINITY, usize::MAX);
-                for (&d, &s) in own.iter().zip(&slot) {
+                // Points are done in tree order: those done lie before q in its leaf.
+                let before = t - leaf.lo;
+                for (&d, &s) in own[..before].iter().zip(&slot[..before]) {
                     let d = if s == usize::MAX { f64::INFINITY } else { d };
                     nearest_done = if d < nearest_done.0 {
                         (d, s)
@@ -117,7 +118,7 @@ impl KdTree {
                         candidates: &candidates,
                         leaves: &leaves,
                     };
-                    self.within_bound(q, k, bound, &scope, (&mut taken, &mut picked), &mut found);
+                    self.within_bound(q, k, bound, &scope, &mut taken, &mut found);
                 } else {
                     let mut best = Best::new(self, k, &mut found, within2);
                     best.scan(q, leaf.lo, leaf.hi);
@@ -210,7 +211,7 @@ impl KdTree {
         k: usize,
         bound: f64,
         scope: &Scope,
-        (taken, picked): (&mut Taken, &mut Vec<(f64, u32)>),
+        taken: &mut Taken,
         found: &mut Found,
     ) {
         let mut m = 0;
@@ -244,9 +245,8 @@ impl KdTree {
         }
         // The k nearest by distance alone, then, where the k-th distance is shared with
         // points left out, those ties settled by position.
-        picked.clear();
-        taken.select_nearest(m, k, bound, picked);
-        if picked.len() > k {
+        let n = taken.select_nearest(m, k, bound);
+        let nearest = if n > k {
             let taken = &mut taken.points[..m];
             taken.sort_unstable_by(|a, b| {
                 a.0.total_cmp(&b.0).then_with(|| {
@@ -254,15 +254,14 @@ impl KdTree {
                     p.partial_cmp(&r).unwrap_or(std::cmp::Ordering::Equal)
                 })
             });
-            picked.clear();
-            picked.extend_from_slice(&taken[..k]);
-        }
+            &taken[..k]
+        } else {
+            &taken.picked[..n]
+        };
         found.dist.clear();
         found.index.clear();
-        for &(d, j) in picked.iter() {
-            found.dist.push(d);
-            found.index.push(j);
-        }
+        found.dist.extend(nearest.iter().map(|p| p.0));
+        found.index.extend(nearest.iter().map(|p| p.1));
     }
 
     /// The leaves in tree order with their tight boxes.

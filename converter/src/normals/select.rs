@@ -7,36 +7,41 @@
 /// Rounds of guessing before the remaining distances are selected by comparison.
 const ROUNDS: usize = 4;
 
-/// The points a search took (squared distance, tree index) and room to partition them.
+/// The points a search took (squared distance, tree index), room to partition their
+/// distances, and those picked.
 #[derive(Debug, Default)]
 pub(super) struct Taken {
     pub points: Vec<(f64, u32)>,
     spare: [Vec<f64>; 2],
+    /// Longer than what it holds, so that picking writes without growing it.
+    pub picked: Vec<(f64, u32)>,
 }
 
 impl Taken {
-    /// Into `out`, the points of `self.points[..m]` (squared distances, all within `bound`)
-    /// no farther than the k-th nearest, in no order: `k` of them, or more where several
-    /// share the k-th distance (the caller settles those ties). Leaves `self.points` as it
-    /// was.
-    pub fn select_nearest(&mut self, m: usize, k: usize, bound: f64, out: &mut Vec<(f64, u32)>) {
+    /// Into `self.picked`, the points of `self.points[..m]` (squared distances, all within
+    /// `bound`) no farther than the k-th nearest, in no order: `k` of them, or more where
+    /// several share the k-th distance (the caller settles those ties). Returns how many.
+    /// Leaves `self.points` as it was.
+    pub fn select_nearest(&mut self, m: usize, k: usize, bound: f64) -> usize {
+        if self.picked.len() < m {
+            self.picked.resize(m, (0.0, 0));
+        }
         if m <= k {
-            out.extend_from_slice(&self.points[..m]);
-            return;
+            self.picked[..m].copy_from_slice(&self.points[..m]);
+            return m;
         }
         let kth = self.kth_distance(m, k, bound);
-        out.resize(m, (0.0, 0));
         let mut n = 0;
         for &p in &self.points[..m] {
-            out[n] = p;
+            self.picked[n] = p;
             n += usize::from(p.0 <= kth);
         }
-        out.truncate(n);
+        n
     }
 
     /// The k-th smallest squared distance of `self.points[..m]` (m > k ≥ 1).
     fn kth_distance(&mut self, m: usize, k: usize, bound: f64) -> f64 {
-        let Taken { points, spare } = self;
+        let Taken { points, spare, .. } = self;
         let [one, two] = spare;
         for s in [&mut *one, &mut *two] {
             if s.len() < m {
@@ -102,8 +107,8 @@ mod tests {
             ..Taken::default()
         };
         let before = taken.points.clone();
-        let mut out = Vec::new();
-        taken.select_nearest(distances.len(), k, bound, &mut out);
+        let n = taken.select_nearest(distances.len(), k, bound);
+        let out = &taken.picked[..n];
         assert_eq!(
             taken.points, before,
             "the points taken are left as they were"
@@ -118,7 +123,7 @@ mod tests {
         let mut got: Vec<u32> = out.iter().map(|p| p.1).collect();
         got.sort_unstable();
         assert_eq!(got, want, "k = {k} of {distances:?}");
-        for &(d, i) in &out {
+        for &(d, i) in out {
             assert_eq!(distances[i as usize], d);
         }
     }
