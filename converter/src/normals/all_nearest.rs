@@ -247,14 +247,15 @@ impl KdTree {
         // points left out, those ties settled by position.
         let n = taken.select_nearest(m, k, bound);
         let nearest = if n > k {
-            let taken = &mut taken.points[..m];
-            taken.sort_unstable_by(|a, b| {
+            // The k nearest, ties by position, are among those picked.
+            let picked = &mut taken.picked[..n];
+            picked.sort_unstable_by(|a, b| {
                 a.0.total_cmp(&b.0).then_with(|| {
                     let (p, r) = (self.points[a.1 as usize], self.points[b.1 as usize]);
                     p.partial_cmp(&r).unwrap_or(std::cmp::Ordering::Equal)
                 })
             });
-            &taken[..k]
+            &picked[..k]
         } else {
             &taken.picked[..n]
         };
