@@ -10,6 +10,10 @@ use super::select::Taken;
 /// Consecutive leaves (neighbours in space) whose candidates are gathered together.
 const GROUP: usize = 8;
 
+/// Candidate leaves a query tests at a time before scanning those it needs (a leaf has about
+/// 24 candidates).
+const LISTED: usize = 32;
+
 /// A leaf: its range of tree points and the tight box around them, in steps.
 #[derive(Debug, Clone, Copy)]
 struct Leaf {
@@ -227,15 +231,22 @@ impl KdTree {
         };
         let own = &scope.leaves[scope.leaf];
         take(scope.own, own.lo, own.hi);
-        for &(gap, c) in scope.candidates {
-            // The candidates come in order of their boxes' gap to the query's leaf, and no point
-            // of a candidate is nearer the query than its box is to that leaf: once a gap
-            // exceeds the bound, so does every point of the rest.
-            if gap > bound {
-                break;
+        // The candidates come in order of their boxes' gap to the query's leaf, and no point
+        // of a candidate is nearer the query than its box is to that leaf: once a gap exceeds
+        // the bound, so does every point of the rest. Of those before, the leaves whose box
+        // is within the bound of the query itself are listed without a branch per leaf (a
+        // branch there, taken by about a third of them in no pattern, is mispredicted often),
+        // then scanned.
+        let within = scope.candidates.partition_point(|&(gap, _)| gap <= bound);
+        for some in scope.candidates[..within].chunks(LISTED) {
+            let mut listed = [0u32; LISTED];
+            let mut n = 0;
+            for &(_, c) in some {
+                listed[n] = c as u32;
+                n += usize::from(c != scope.leaf && self.box_gap2(q, &scope.leaves[c]) <= bound);
             }
-            let other = &scope.leaves[c];
-            if c != scope.leaf && self.box_gap2(q, other) <= bound {
+            for &c in &listed[..n] {
+                let other = &scope.leaves[c as usize];
                 take(
                     &leaf_distances(self, q, other.lo, other.hi),
                     other.lo,
