@@ -500,7 +500,8 @@ mod tests {
     fn all_nearest_finds_the_same_neighbours_as_brute_force() {
         let tree = cloud();
         // k below and above the leaves' sizes (23 and 24 points here), and 24, where some
-        // leaves hold k points and some fewer; with and without bound.
+        // leaves hold k points and some fewer; with and without bound; and k = 250, where a
+        // query's bound reaches more candidate leaves than it tests at a time.
         for (k, within) in [
             (16, f64::INFINITY),
             (16, 9.0),
@@ -509,6 +510,7 @@ mod tests {
             (24, 9.0),
             (40, 9.0),
             (40, f64::INFINITY),
+            (250, 40.0),
         ] {
             let mut seen = 0;
             tree.all_nearest(

@@ -9,7 +9,8 @@ pub struct Principal {
     pub normal: [f64; 3],
     /// λ0 ≤ λ1 ≤ λ2.
     pub eigenvalues: [f64; 3],
-    /// The covariance scaled to unit size, and its λ2 at that size, for `major`.
+    /// The covariance scaled to unit size and shifted by its mean eigenvalue, and its largest
+    /// eigenvalue so shifted, for `major`.
     unit: [f64; 6],
     unit_l2: f64,
 }
