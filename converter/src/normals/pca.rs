@@ -159,7 +159,8 @@ pub fn principal(cov: [f64; 6]) -> Principal {
             unit_l2: 1.0,
         };
     }
-    let [a, b, c, d, e, f] = cov.map(|v| v / s);
+    let inv = 1.0 / s;
+    let [a, b, c, d, e, f] = cov.map(|v| v * inv);
     // B = A − qI, q the mean eigenvalue, has the eigenvalues μ = λ − q and the characteristic
     // polynomial μ³ + c1 μ − det, whose coefficients carry no rounding of q's size: eigenvalues
     // close together stay apart.
@@ -223,10 +224,16 @@ fn eigenvector(m: [f64; 6], l: f64) -> Option<[f64; 3]> {
     let r0 = [a - l, b, c];
     let r1 = [b, d - l, e];
     let r2 = [c, e, f - l];
-    let best = [cross(r0, r1), cross(r0, r2), cross(r1, r2)]
-        .into_iter()
-        .max_by(|x, y| norm2(*x).total_cmp(&norm2(*y)))?;
-    let n2 = norm2(best);
+    let (c01, c02, c12) = (cross(r0, r1), cross(r0, r2), cross(r1, r2));
+    let (n01, n02, n12) = (norm2(c01), norm2(c02), norm2(c12));
+    // The longest of the three, by comparisons a compiler can turn into selects.
+    let (best, n2) = if n01 > n02 && n01 > n12 {
+        (c01, n01)
+    } else if n02 > n12 {
+        (c02, n02)
+    } else {
+        (c12, n12)
+    };
     // Below this the rows are (nearly) parallel: a double eigenvalue, no single direction.
     if n2 <= 1e-24 {
         return None;
