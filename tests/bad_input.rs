@@ -125,16 +125,79 @@ fn existing_output_needs_overwrite() {
         out.join("keep.txt").exists(),
         "nothing replaced without --overwrite"
     );
-    run_ok(&[
+    // --overwrite replaces a dataset, never a folder holding anything else, nor a file (the
+    // input itself, say), in either output format.
+    for format in ["strata", "potree2"] {
+        let o = run(&[
+            "convert",
+            s(&data("autzen_trim.las")),
+            "-o",
+            s(&out),
+            "--overwrite",
+            "--format",
+            format,
+        ]);
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert!(
+            !o.status.success(),
+            "{format}: a folder of the user's replaced"
+        );
+        assert!(err.contains("holds \"keep.txt\""), "{err}");
+        assert!(
+            out.join("keep.txt").exists(),
+            "{format}: the user's file was removed"
+        );
+    }
+    let input = dir.path().join("in.las");
+    std::fs::copy(data("autzen_trim.las"), &input).expect("copy");
+    let o = run(&["convert", s(&input), "-o", s(&input), "--overwrite"]);
+    assert!(!o.status.success());
+    assert!(String::from_utf8_lossy(&o.stderr).contains("is a file, not a folder"));
+    assert_eq!(
+        std::fs::metadata(&input).expect("input").len(),
+        std::fs::metadata(data("autzen_trim.las"))
+            .expect("autzen")
+            .len()
+    );
+    std::fs::remove_file(out.join("keep.txt")).expect("rm");
+    for _ in 0..2 {
+        run_ok(&[
+            "convert",
+            s(&data("autzen_trim.las")),
+            "-o",
+            s(&out),
+            "--overwrite",
+            "-q",
+        ]);
+        run_ok(&["verify", s(&out)]);
+    }
+    let o = run(&[
+        "export",
+        s(&out),
+        "-o",
+        s(dir.path()),
+        "--format",
+        "potree2",
+        "--overwrite",
+    ]);
+    assert!(
+        !o.status.success(),
+        "export replaced a folder of the user's"
+    );
+    assert!(input.exists() && out.join("metadata.json").exists());
+    // A --stats file that cannot be written is refused before the conversion, not after.
+    let fresh = dir.path().join("fresh");
+    let o = run(&[
         "convert",
         s(&data("autzen_trim.las")),
         "-o",
-        s(&out),
-        "--overwrite",
-        "-q",
+        s(&fresh),
+        "--stats",
+        s(&dir.path().join("no/such/folder/s.json")),
     ]);
-    run_ok(&["verify", s(&out)]);
-    assert!(!out.join("keep.txt").exists());
+    assert!(!o.status.success());
+    assert!(String::from_utf8_lossy(&o.stderr).contains("cannot write the --stats file"));
+    assert!(!fresh.exists());
 }
 
 #[test]

@@ -90,6 +90,26 @@ fn truncated_or_missing_files_are_reported() {
     verify_fails_naming(&ds, "octree.bin");
     std::fs::remove_file(ds.join("metadata.json")).expect("remove");
     verify_fails_naming(&ds, "metadata.json");
+    // A device or a pipe in its place is refused, not read until memory runs out or a writer
+    // comes.
+    std::os::unix::fs::symlink("/dev/zero", ds.join("metadata.json")).expect("link");
+    verify_fails_naming(&ds, "not a regular file");
+    for cmd in ["info", "export"] {
+        let out = dir.path().join("out.las");
+        let o = run(&[cmd, s(&ds), "-o", s(&out)][..if cmd == "info" { 2 } else { 4 }]);
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert!(
+            !o.status.success() && err.contains("metadata.json: is not a regular file"),
+            "{cmd}: {err}"
+        );
+    }
+    std::fs::remove_file(ds.join("metadata.json")).expect("remove");
+    let fifo = std::process::Command::new("mkfifo")
+        .arg(ds.join("metadata.json"))
+        .status()
+        .expect("mkfifo");
+    assert!(fifo.success());
+    verify_fails_naming(&ds, "not a regular file");
 }
 
 #[test]

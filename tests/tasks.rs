@@ -319,6 +319,30 @@ fn contradictory_options_are_refused_in_one_sentence() {
         assert!(!err.contains("panicked"), "{err}");
     };
     fails(&["convert", s(&las), "--plan-only", s(&plan)], "--tasks");
+    // Without --plan-only, -o is not silently made a plan; absurd counts are refused before
+    // anything is allocated or written.
+    let out = dir.path().join("x.strata");
+    fails(
+        &["convert", s(&las), "--tasks", "2", "-o", s(&out)],
+        "--plan-only",
+    );
+    assert!(!out.exists());
+    fails(
+        &[
+            "convert",
+            s(&las),
+            "--plan-only",
+            s(&plan),
+            "--tasks",
+            "100000000000",
+        ],
+        "--tasks",
+    );
+    fails(
+        &["convert", s(&las), "-o", s(&out), "--threads", "100000"],
+        "--threads",
+    );
+    assert!(!out.exists() && !plan.exists());
     fails(
         &["convert", "--plan", s(&plan), "--task", "0"],
         "no conversion plan here",

@@ -11,6 +11,7 @@ use crate::index::{Indexing, index_chunks};
 use crate::journal::{Committer, read_journal, resumable_plan, run_fingerprint, save_plan};
 use crate::prepare::prepare;
 use crate::progress::{Phases, Progress};
+use crate::replace::{Folder, check_output};
 use crate::sampling::Sampling;
 use crate::sys::peak_rss_bytes;
 use crate::workdir::WorkDir;
@@ -63,12 +64,7 @@ pub fn convert_with(opts: &ConvertOptions, step: &dyn ChunkStep) -> Result<Conve
     if opts.inputs.is_empty() {
         return Err(ConvertError::Usage("no input files given".into()));
     }
-    if opts.output.exists() && !opts.overwrite {
-        return Err(ConvertError::output(
-            &opts.output,
-            "output already exists (pass --overwrite to replace it)",
-        ));
-    }
+    check_output(&opts.output, opts.overwrite, Folder::Dataset)?;
     for input in &opts.inputs {
         if !input.is_file() {
             let what = if input.exists() {
@@ -120,7 +116,7 @@ fn run(
     // A resumed run says again what the first run said.
     let warnings = plan.warnings.clone();
     let layout = RowLayout::new(plan.attributes.clone());
-    let mut journal = read_journal(wd, plan.chunks.len());
+    let mut journal = read_journal(wd, plan.chunks.len())?;
     let resumed = journal.len();
     let halos = Halos::new(&plan, layout.stride, step.halo_margin(&plan));
     if halos.needed() {
@@ -349,6 +345,47 @@ pub(crate) mod tests {
             ..opts.clone()
         })
         .expect("resume");
+        let plain = convert(&city(dir.path(), "plain")).expect("plain convert");
+        assert_same_dataset(&plain.output, &resumed.output);
+    }
+
+    #[test]
+    fn a_resume_refuses_an_octree_file_damaged_since() {
+        let dir = tempfile::tempdir().expect("tempdir");
+        let opts = city(dir.path(), "ds");
+        convert_with(&opts, &PanicsOn(1)).expect_err("the step panics");
+        let wd = WorkDir::new(&opts.output, None);
+        let octree = wd.dataset_file(strata_format::DatasetFile::Octree);
+        let good = std::fs::read(&octree).expect("octree");
+        let head = strata_format::OCTREE_HEAD_SIZE as usize;
+        assert!(good.len() > head + 1, "chunk 0 committed nodes");
+        let resume = || {
+            convert(&ConvertOptions {
+                resume: true,
+                ..opts.clone()
+            })
+        };
+        // A byte changed in chunk 0's nodes, then the file cut inside them.
+        let mut flipped = good.clone();
+        flipped[head + 1] ^= 0x40;
+        std::fs::write(&octree, &flipped).expect("write");
+        let e = resume().expect_err("damaged").to_string();
+        assert!(
+            e.contains("octree.bin")
+                && e.contains("chunk 0's nodes")
+                && e.contains("cannot resume"),
+            "{e}"
+        );
+        std::fs::write(&octree, &good[..head + 1]).expect("write");
+        let e = resume().expect_err("cut").to_string();
+        assert!(e.contains(&format!("is {} bytes long", head + 1)), "{e}");
+        assert!(
+            !opts.output.exists(),
+            "no dataset from a damaged work directory"
+        );
+        // Whole again, it resumes to the dataset a single run makes.
+        std::fs::write(&octree, &good).expect("write");
+        let resumed = resume().expect("resume");
         let plain = convert(&city(dir.path(), "plain")).expect("plain convert");
         assert_same_dataset(&plain.output, &resumed.output);
     }

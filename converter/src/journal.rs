@@ -11,7 +11,7 @@ use crate::tree::FinishedNode;
 use crate::workdir::WorkDir;
 use serde::{Deserialize, Serialize};
 use std::fs::{self, File, OpenOptions};
-use std::io::{BufRead, BufReader, Seek, SeekFrom, Write};
+use std::io::{BufRead, BufReader, Read, Seek, SeekFrom, Write};
 use std::ops::Range;
 use std::path::PathBuf;
 use strata_format::{DatasetId, NodeKey, NodeRecord, OCTREE_HEAD_SIZE, octree_head};
@@ -158,13 +158,75 @@ pub fn save_plan(wd: &WorkDir, plan: &Plan) -> Result<()> {
     Ok(())
 }
 
-/// The valid prefix of the journal: whole lines for chunks 0, 1, 2... in order.
-pub fn read_journal(wd: &WorkDir, chunks: usize) -> Vec<JournalEntry> {
-    read_journal_of(wd, 0..chunks)
+/// The journal a resumed run continues from: whole lines for chunks 0, 1, 2... in order,
+/// checked against the octree file (`read_resumable_journal_of`).
+pub fn read_journal(wd: &WorkDir, chunks: usize) -> Result<Vec<JournalEntry>> {
+    read_resumable_journal_of(wd, 0..chunks)
 }
 
-/// The valid prefix of a journal of the chunks `chunks` (a task's): whole lines for its
-/// chunks in order.
+/// The journal of the chunks `chunks` (a task's) that a run resumes from, refused unless the
+/// octree file still holds every node of it whole, checksums matching. The line is written
+/// after the nodes, but a crash may leave the line on disk and not the bytes, and a file may
+/// be cut or damaged since; the committed chunks' own files are gone, so they cannot be built
+/// again: the run must start over.
+pub fn read_resumable_journal_of(wd: &WorkDir, chunks: Range<usize>) -> Result<Vec<JournalEntry>> {
+    let entries = read_journal_of(wd, chunks);
+    let Some(last) = entries.last() else {
+        return Ok(entries);
+    };
+    let path = wd.dataset_file(strata_format::DatasetFile::Octree);
+    let mut octree = File::open(&path).map_err(io_err(&path, "cannot open to resume"))?;
+    let len = octree
+        .metadata()
+        .map_err(io_err(&path, "cannot read to resume"))?
+        .len();
+    let mut buf = Vec::new();
+    if let Some(bad) = entries
+        .iter()
+        .find(|e| !holds(&mut octree, len, e, &mut buf))
+    {
+        let fault = if bad.end > len {
+            format!(
+                "is {len} bytes long where the journal says {} by chunk {}",
+                last.end, bad.chunk
+            )
+        } else {
+            format!(
+                "does not hold chunk {}'s nodes as the journal records them",
+                bad.chunk
+            )
+        };
+        return Err(ConvertError::input(
+            &path,
+            format!(
+                "{fault} (cut or damaged since it was written), so the conversion cannot \
+                 resume: remove {} and convert again",
+                wd.root().display()
+            ),
+        ));
+    }
+    Ok(entries)
+}
+
+/// Whether `octree` (`len` bytes long) holds every node of `entry` whole.
+fn holds(octree: &mut File, len: u64, entry: &JournalEntry, buf: &mut Vec<u8>) -> bool {
+    entry.end <= len
+        && entry.nodes.iter().all(|&(.., offset, size, checksum, _)| {
+            if size == 0 {
+                return checksum == 0;
+            }
+            buf.resize(size as usize, 0);
+            offset
+                .checked_add(u64::from(size))
+                .is_some_and(|end| end <= entry.end)
+                && octree.seek(SeekFrom::Start(offset)).is_ok()
+                && octree.read_exact(buf).is_ok()
+                && strata_format::payload_checksum(buf) == checksum
+        })
+}
+
+/// The journal of the chunks `chunks` (a task's) as written: whole lines for its chunks in
+/// order, not checked against the octree file.
 pub fn read_journal_of(wd: &WorkDir, chunks: Range<usize>) -> Vec<JournalEntry> {
     let Ok(f) = File::open(wd.journal()) else {
         return Vec::new();

@@ -25,6 +25,7 @@ pub mod potree2_hierarchy;
 pub mod prepare;
 pub mod progress;
 pub mod quantize;
+pub mod replace;
 pub mod rowfile;
 pub mod rows;
 pub mod sampling;

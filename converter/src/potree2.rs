@@ -9,6 +9,7 @@
 use crate::error::{ConvertError, Result};
 use crate::export::{Widened, widened};
 use crate::potree2_hierarchy::{NodeData, STEP, encode};
+use crate::replace::{Folder, check_output};
 use crate::writers::part_path;
 use rayon::prelude::*;
 use serde_json::{Value, json};
@@ -251,12 +252,7 @@ fn node_records(
 /// Writes `dataset` to the folder `output` as a Potree 2.0 dataset. The folder appears
 /// whole or not at all: it is written as `OUTPUT.part` and renamed at the end.
 pub fn export_potree2(dataset: &Path, output: &Path, overwrite: bool) -> Result<Potree2Summary> {
-    if output.exists() && !overwrite {
-        return Err(ConvertError::output(
-            output,
-            "output already exists (pass --overwrite to replace it)",
-        ));
-    }
+    check_output(output, overwrite, Folder::Dataset)?;
     let ds = LocalDataset::open(dataset)?;
     // octree.bin holds every export row uncompressed (the hierarchy is 22 bytes a node): refused
     // now rather than when the disk fills.

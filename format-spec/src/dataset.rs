@@ -47,7 +47,7 @@ impl LocalDataset {
             ));
         }
         let meta_path = dir.join(DatasetFile::Metadata.name());
-        let bytes = std::fs::read(&meta_path).map_err(|e| FormatError::io(&meta_path, e))?;
+        let bytes = read_metadata_file(&meta_path)?;
         let metadata = Metadata::from_json(&bytes, &meta_path)?;
         let hierarchy = open_checked(
             &dir.join(&metadata.files.hierarchy.name),
@@ -168,6 +168,37 @@ impl LocalDataset {
         }
         read_range(f, &path, offset, len)
     }
+}
+
+/// No `metadata.json` is larger: a few kilobytes, plus a line per input and scanner.
+pub const METADATA_MAX_BYTES: u64 = 16 << 20;
+
+/// The bytes of a `metadata.json`, refused where it is not a regular file (a pipe or a
+/// device would block or never end) or is larger than any real one.
+pub fn read_metadata_file(path: &Path) -> Result<Vec<u8>, FormatError> {
+    const MAX: u64 = METADATA_MAX_BYTES;
+    // Looked at before it is opened: opening a pipe waits for a writer.
+    if !std::fs::metadata(path)
+        .map_err(|e| FormatError::io(path, e))?
+        .is_file()
+    {
+        return Err(FormatError::corrupt(path, "is not a regular file"));
+    }
+    let file = File::open(path).map_err(|e| FormatError::io(path, e))?;
+    let stat = file.metadata().map_err(|e| FormatError::io(path, e))?;
+    if !stat.is_file() {
+        return Err(FormatError::corrupt(path, "is not a regular file"));
+    }
+    if stat.len() > MAX {
+        return Err(FormatError::corrupt(
+            path,
+            format!(
+                "is {} bytes long, more than any metadata ({MAX} at most)",
+                stat.len()
+            ),
+        ));
+    }
+    read_range(&file, path, 0, stat.len())
 }
 
 fn open_checked(path: &Path, file: DatasetFile, meta: &Metadata) -> Result<File, FormatError> {

@@ -21,7 +21,7 @@ mod verify;
 pub use attribute::{
     AttrType, Attribute, OCT16, RowLayout, oct16_decode, oct16_encode, row_position,
 };
-pub use dataset::{DatasetFile, LocalDataset};
+pub use dataset::{DatasetFile, LocalDataset, METADATA_MAX_BYTES, read_metadata_file};
 pub use error::FormatError;
 pub use head::{
     DatasetId, HIERARCHY_HEAD_SIZE, HIERARCHY_MAGIC, HIERARCHY_MAGIC_1_0, HierarchyHead, Layout,
@@ -36,7 +36,9 @@ pub use metadata::{
     Bounds, Cube, FORMAT_NAME, FileInfo, Files, HierarchyInfo, MAX_PAGE_LEVELS, Metadata,
     NormalsInfo, Scanner, VERSION_MAJOR, VERSION_MINOR,
 };
-pub use node_codec::{NodeColumns, NodeDecodeError, decode_node, encode_node, encode_node_rows};
+pub use node_codec::{
+    NodeColumns, NodeDecodeError, decode_node, encode_node, encode_node_rows, payload_checksum,
+};
 pub use node_key::NodeKey;
 pub use page_build::{BuiltHierarchy, NodeRecord, build_hierarchy};
 pub use verify::{Fault, VerifyReport, verify_dataset};

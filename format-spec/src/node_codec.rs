@@ -16,8 +16,13 @@ pub fn encode_node_rows(rows: &[u8], which: &[u32], layout: &RowLayout) -> (Vec<
     }
     let columns = rows_to_columns(rows, which, layout);
     let payload = lz4_flex::block::compress(&columns);
-    let crc = crc32fast::hash(&payload);
+    let crc = payload_checksum(&payload);
     (payload, crc)
+}
+
+/// The checksum a node record stores for its payload (CRC-32; 0 for an empty payload).
+pub fn payload_checksum(payload: &[u8]) -> u32 {
+    crc32fast::hash(payload)
 }
 
 /// Why a stored payload could not be decoded.
@@ -124,7 +129,7 @@ pub fn decode_node(
             bytes: Vec::new(),
         });
     }
-    let computed = crc32fast::hash(payload);
+    let computed = payload_checksum(payload);
     if computed != expected_crc {
         return Err(NodeDecodeError::Checksum {
             stored: expected_crc,

@@ -11,7 +11,7 @@ use std::sync::Mutex;
 use strata_format::{DatasetFile, Metadata};
 
 /// `metadata.json` larger than this is not a dataset's (a real one is a few KiB).
-const METADATA_MAX: u64 = 16 << 20;
+const METADATA_MAX: u64 = strata_format::METADATA_MAX_BYTES;
 
 #[derive(Debug, Clone, Serialize)]
 pub struct DatasetEntry {

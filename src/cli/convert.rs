@@ -1,11 +1,18 @@
 use anyhow::Context;
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
+use strata_converter::replace::{Folder, check_output};
 use strata_converter::sys::{format_bytes, parse_size};
 use strata_converter::tasks::{finish_tasks, plan_tasks, run_task, step_for};
 use strata_converter::{
     ConvertOptions, ConvertSummary, NormalMode, NormalOptions, Orient, Sampling, convert_with,
 };
+
+/// More would only cost memory and switching: no machine has that many cores.
+const MAX_THREADS: u64 = 1024;
+/// A batch engine's job array is far smaller (Slurm's default limit is 1001); every task has
+/// its share files in the plan.
+const MAX_TASKS: u64 = 100_000;
 
 #[derive(Debug, clap::Args)]
 pub struct Args {
@@ -21,8 +28,9 @@ pub struct Args {
     #[arg(long, value_name = "PLAN", requires = "tasks",
           conflicts_with_all = ["output", "plan", "resume", "temp_dir"])]
     plan_only: Option<PathBuf>,
-    /// How many tasks --plan-only groups the chunks into.
-    #[arg(long, value_name = "N", requires = "plan_only")]
+    /// How many tasks --plan-only groups the chunks into (at most 100000).
+    #[arg(long, value_name = "N", requires = "plan_only",
+          value_parser = clap::builder::RangedU64ValueParser::<usize>::new().range(1..=MAX_TASKS))]
     tasks: Option<usize>,
     /// A plan --plan-only wrote, to run one of its tasks (--task K) or to finish it into the
     /// dataset (--finish -o DATASET). The plan fixes the inputs and every option that shapes
@@ -43,8 +51,8 @@ pub struct Args {
     /// Peak memory to stay within, e.g. 512MiB or 4GiB.
     #[arg(long, default_value = "2GiB", value_parser = parse_size)]
     memory_limit: u64,
-    /// Worker threads (default: all cores).
-    #[arg(long)]
+    /// Worker threads (default: all cores; at most 1024).
+    #[arg(long, value_parser = clap::builder::RangedU64ValueParser::<usize>::new().range(1..=MAX_THREADS))]
     threads: Option<usize>,
     /// How inner nodes choose their points.
     #[arg(long, value_enum, default_value = "poisson")]
@@ -139,8 +147,16 @@ fn potree2_source(output: &Path) -> PathBuf {
 }
 
 pub fn run(a: Args) -> anyhow::Result<ExitCode> {
+    check_stats_path(&a.stats)?;
     if let Some(plan) = &a.plan {
         return run_plan(plan, &a);
+    }
+    // Clap does not enforce `requires` between these two: without this, -o would silently
+    // become a plan folder.
+    if a.tasks.is_some() && a.plan_only.is_none() {
+        anyhow::bail!(
+            "--tasks N needs --plan-only PLAN (a conversion as tasks starts with a plan)"
+        );
     }
     let threads = a
         .threads
@@ -200,12 +216,7 @@ fn convert_to_potree2(
     stats: &Option<PathBuf>,
 ) -> anyhow::Result<ExitCode> {
     let output = opts.output.clone();
-    if output.exists() && !opts.overwrite {
-        anyhow::bail!(
-            "{}: output already exists (pass --overwrite to replace it)",
-            output.display()
-        );
-    }
+    check_output(&output, opts.overwrite, Folder::Dataset)?;
     let source = potree2_source(&output);
     let replace = opts.overwrite;
     opts.output = source.clone();
@@ -301,6 +312,24 @@ fn report(
 }
 
 /// Writes `json` (a summary) to `--stats`, if given.
+/// Refuses a `--stats` file that cannot be written before the conversion rather than after
+/// it, by opening it to append (and removing it again if it was not there).
+fn check_stats_path(stats: &Option<PathBuf>) -> anyhow::Result<()> {
+    let Some(path) = stats else {
+        return Ok(());
+    };
+    let existed = std::fs::symlink_metadata(path).is_ok();
+    std::fs::OpenOptions::new()
+        .append(true)
+        .create(true)
+        .open(path)
+        .with_context(|| format!("{}: cannot write the --stats file", path.display()))?;
+    if !existed {
+        let _ = std::fs::remove_file(path);
+    }
+    Ok(())
+}
+
 fn write_stats(
     stats: &Option<PathBuf>,
     json: serde_json::Result<String>,

@@ -34,7 +34,7 @@ impl MmapSource {
             .into());
         }
         let meta_path = dir.join(DatasetFile::Metadata.name());
-        let bytes = std::fs::read(&meta_path).map_err(|e| FormatError::io(&meta_path, e))?;
+        let bytes = strata_format::read_metadata_file(&meta_path)?;
         let metadata = Metadata::from_json(&bytes, &meta_path)?;
         let hierarchy = map_checked(
             &dir.join(&metadata.files.hierarchy.name),

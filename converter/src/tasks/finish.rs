@@ -12,6 +12,7 @@ use crate::finish::{finish, merge_top};
 use crate::journal::{Committer, JournalEntry, read_journal_of};
 use crate::prepare::class_list;
 use crate::progress::{Phases, Progress};
+use crate::replace::{Folder, check_output};
 use crate::sys::peak_rss_bytes;
 use crate::workdir::WorkDir;
 use std::fs::{self, File, OpenOptions};
@@ -41,12 +42,7 @@ pub fn finish_tasks(
             total: tp.tasks.len(),
         });
     }
-    if output.exists() && !overwrite {
-        return Err(ConvertError::output(
-            output,
-            "output already exists (pass --overwrite to replace it)",
-        ));
-    }
+    check_output(output, overwrite, Folder::Dataset)?;
     let opts = tp.options(output.to_path_buf(), overwrite, quiet);
     let step = tp.checked_step(plan_dir)?;
     // Every task's journal is whole before the chunk files go: until then a damaged task can

@@ -32,6 +32,7 @@ use crate::journal::run_fingerprint;
 use crate::normals::{NormalOptions, NormalStep};
 use crate::prepare::{Plan, count_and_plan};
 use crate::progress::{Phases, Progress};
+use crate::replace::{Folder, check_output};
 use crate::rows::{RecordToRow, RowInput};
 use crate::sampling::Sampling;
 use crate::workdir::WorkDir;
@@ -319,13 +320,8 @@ pub fn plan_tasks(
     }
     let plan_dir = std::path::absolute(&opts.output)
         .map_err(io_err(&opts.output, "cannot resolve the plan folder"))?;
+    check_output(&plan_dir, opts.overwrite, Folder::Plan)?;
     if plan_dir.exists() {
-        if !opts.overwrite {
-            return Err(ConvertError::output(
-                &plan_dir,
-                "the plan folder already exists (pass --overwrite to replace it)",
-            ));
-        }
         fs::remove_dir_all(&plan_dir).map_err(io_err(&plan_dir, "cannot remove the old plan"))?;
     }
     let mut inputs = Vec::new();

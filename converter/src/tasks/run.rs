@@ -11,7 +11,7 @@ use crate::distribute::Share;
 use crate::error::{ConvertError, Result, io_err};
 use crate::halo::Halos;
 use crate::index::{Indexing, index_chunks};
-use crate::journal::{Committer, read_journal_of, save_plan};
+use crate::journal::{Committer, read_resumable_journal_of, save_plan};
 use crate::progress::{PhaseTime, Phases, Progress};
 use crate::workdir::WorkDir;
 use serde::Serialize;
@@ -125,7 +125,7 @@ fn build(
         wd.create_fresh()?;
         save_plan(wd, plan)?;
     }
-    let journal = read_journal_of(wd, range.clone());
+    let journal = read_resumable_journal_of(wd, range.clone())?;
     let resumed = journal.len();
     let first = range.start + resumed;
     let parts = Share::parts(tp.shares(), threads);

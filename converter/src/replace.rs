@@ -1,0 +1,136 @@
+//! What `--overwrite` may replace: a folder holding only what Strata itself writes there (a
+//! dataset, a Potree 2.0 dataset, a plan), or nothing. A file, an input, or a folder with
+//! anything else in it is refused before any work starts: a mistyped `-o` must never cost a
+//! user their files.
+
+use crate::error::{ConvertError, Result};
+use std::fs;
+use std::path::Path;
+
+/// The kind of folder an output is.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Folder {
+    /// A Strata or Potree 2.0 dataset (PotreeConverter adds its log).
+    Dataset,
+    /// A plan of a conversion as tasks.
+    Plan,
+}
+
+impl Folder {
+    fn holds(self) -> &'static [&'static str] {
+        match self {
+            Folder::Dataset => &["metadata.json", "hierarchy.bin", "octree.bin", "log.txt"],
+            Folder::Plan => &["plan.json", "shares", "staging", "tasks"],
+        }
+    }
+
+    fn name(self) -> &'static str {
+        match self {
+            Folder::Dataset => "dataset",
+            Folder::Plan => "plan",
+        }
+    }
+}
+
+/// Refuses `output` where it exists, unless `overwrite` is given and it is an empty folder or
+/// one that holds only what a `kind` folder holds.
+pub fn check_output(output: &Path, overwrite: bool, kind: Folder) -> Result<()> {
+    let meta = match fs::symlink_metadata(output) {
+        Ok(meta) => meta,
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => return Ok(()),
+        Err(e) => return Err(ConvertError::io(output, "cannot read the output", e)),
+    };
+    if !overwrite {
+        return Err(ConvertError::output(
+            output,
+            "output already exists (pass --overwrite to replace it)",
+        ));
+    }
+    let refuse = |what: String| {
+        ConvertError::output(
+            output,
+            format!(
+                "{what}; --overwrite replaces only a {} folder, so remove it yourself or choose \
+                 another output",
+                kind.name()
+            ),
+        )
+    };
+    if !meta.is_dir() {
+        return Err(refuse(if meta.is_symlink() {
+            "is a symbolic link, not a folder".into()
+        } else {
+            "is a file, not a folder".into()
+        }));
+    }
+    let entries =
+        fs::read_dir(output).map_err(|e| ConvertError::io(output, "cannot list the output", e))?;
+    for entry in entries {
+        let entry = entry.map_err(|e| ConvertError::io(output, "cannot list the output", e))?;
+        let name = entry.file_name();
+        if !kind.holds().iter().any(|&n| name == n) {
+            return Err(refuse(format!(
+                "holds {:?}, which a {} folder does not",
+                name,
+                kind.name()
+            )));
+        }
+    }
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn refused(output: &Path, kind: Folder) -> String {
+        match check_output(output, true, kind) {
+            Err(e) => e.to_string(),
+            Ok(()) => panic!("{} was accepted", output.display()),
+        }
+    }
+
+    #[test]
+    fn replaces_only_what_strata_writes() {
+        let dir = tempfile::tempdir().unwrap();
+        let root = dir.path();
+        // Absent: nothing to replace, with or without --overwrite.
+        assert!(check_output(&root.join("none"), false, Folder::Dataset).is_ok());
+        // An empty folder and a dataset may be replaced, only with --overwrite.
+        let ds = root.join("ds");
+        fs::create_dir(&ds).unwrap();
+        assert!(check_output(&ds, true, Folder::Dataset).is_ok());
+        for f in ["metadata.json", "hierarchy.bin", "octree.bin"] {
+            fs::write(ds.join(f), b"x").unwrap();
+        }
+        assert!(check_output(&ds, true, Folder::Dataset).is_ok());
+        let e = check_output(&ds, false, Folder::Dataset).unwrap_err();
+        assert!(e.to_string().contains("--overwrite"), "{e}");
+        // Anything else in it, a file, an input: refused, naming what is in the way.
+        fs::create_dir(ds.join("photos")).unwrap();
+        let e = refused(&ds, Folder::Dataset);
+        assert!(e.contains("\"photos\"") && e.contains("ds"), "{e}");
+        let file = root.join("in.las");
+        fs::write(&file, b"LASF").unwrap();
+        assert!(refused(&file, Folder::Dataset).contains("is a file"));
+        // A plan folder is not a dataset, nor a dataset a plan.
+        let plan = root.join("plan");
+        fs::create_dir_all(plan.join("tasks")).unwrap();
+        fs::write(plan.join("plan.json"), b"{}").unwrap();
+        assert!(check_output(&plan, true, Folder::Plan).is_ok());
+        assert!(refused(&plan, Folder::Dataset).contains("\"plan.json\""));
+        fs::remove_dir_all(ds.join("photos")).unwrap();
+        assert!(refused(&ds, Folder::Plan).contains("a plan folder"));
+    }
+
+    #[cfg(unix)]
+    #[test]
+    fn a_link_is_not_followed() {
+        let dir = tempfile::tempdir().unwrap();
+        let target = dir.path().join("target");
+        fs::create_dir(&target).unwrap();
+        let link = dir.path().join("link");
+        std::os::unix::fs::symlink(&target, &link).unwrap();
+        assert!(refused(&link, Folder::Dataset).contains("symbolic link"));
+    }
+}
