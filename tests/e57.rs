@@ -315,6 +315,15 @@ fn e57_without_point_clouds_or_points_is_refused() {
     spec.invalid_every = Some(1);
     write_e57(&invalid, &[spec]);
     convert_fails(&invalid, "valid position");
+    // A scale of zero would put every point at the offset.
+    let zero = dir.path().join("zero.e57");
+    let mut spec = ScanSpec::new(Storage::Scaled, 10);
+    spec.scale = 0.0;
+    write_e57(&zero, &[spec]);
+    convert_fails(
+        &zero,
+        "scan 0 of 1: its CartesianX field is a scaled integer with a scale of zero",
+    );
 }
 
 #[test]

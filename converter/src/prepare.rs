@@ -62,6 +62,8 @@ impl Plan {
             scale: self.scale,
             offset: self.offset,
             coarsened: self.coarsened,
+            // Said once, when the plan was made.
+            coarse_floats: None,
         }
     }
 
@@ -188,6 +190,7 @@ pub fn count_and_plan(
         }
         Err(e) => return Err(e),
     };
+    warnings.extend(staged.q.coarse_floats.clone());
     if staged.q.coarsened {
         warnings.push(format!(
             "the inputs span too far for 32-bit positions at their own resolution; scale coarsened to {:?}, so positions are rounded to that step",

@@ -17,6 +17,10 @@ pub struct Quantization {
     pub offset: [f64; 3],
     /// Set when no scale that loses no precision fits 32-bit positions.
     pub coarsened: bool,
+    /// Said where floating-point inputs are stored in steps over one unit: their magnitude
+    /// set the step, and points nearer each other than it become one position (one far
+    /// outlier does that to all the rest).
+    pub coarse_floats: Option<String>,
 }
 
 fn pow10_floor(v: f64) -> f64 {
@@ -121,10 +125,33 @@ pub fn choose(
             return Err(too_far());
         }
     }
+    let floats = sources
+        .iter()
+        .any(|s| matches!(s.precision, Precision::Float32 | Precision::Float64));
+    let coarse: Vec<String> = (0..3)
+        .filter(|&a| floats && scale[a] > 1.0)
+        .map(|a| {
+            format!(
+                "{} in steps of {:e} (the points span {:e} to {:e})",
+                ["x", "y", "z"][a],
+                scale[a],
+                min[a],
+                max[a]
+            )
+        })
+        .collect();
+    let coarse_floats = (!coarse.is_empty()).then(|| {
+        format!(
+            "floating-point coordinates stored {}: points nearer each other than a step become \
+             one position; a point far from all others (an outlier) makes the step that large",
+            coarse.join(", ")
+        )
+    });
     Ok(Quantization {
         scale,
         offset,
         coarsened,
+        coarse_floats,
     })
 }
 
@@ -179,6 +206,27 @@ mod tests {
         .expect("fits");
         assert_eq!(q.scale, [0.001; 3]);
         assert!(!q.coarsened);
+    }
+
+    #[test]
+    fn a_far_float_outlier_is_said() {
+        let cloud = |max: f64| SourceExtent {
+            precision: Precision::Float32,
+            min: [0.0; 3],
+            max: [max, 100.0, 100.0],
+        };
+        let q = choose(&[cloud(100.0)], [0.0; 3], [100.0; 3]).expect("fits");
+        assert_eq!(q.coarse_floats, None);
+        let q = choose(&[cloud(1e30)], [0.0; 3], [1e30, 100.0, 100.0]).expect("fits");
+        let note = q.coarse_floats.expect("said");
+        assert!(
+            note.starts_with("floating-point coordinates stored x in steps of 1e"),
+            "{note}"
+        );
+        assert!(note.contains("outlier") && !note.contains(" y "), "{note}");
+        // A scaled input chose its own step: nothing to say.
+        let q = choose(&[las(10.0, 0.0, 0.0, 1e6)], [0.0; 3], [1e6; 3]).expect("fits");
+        assert_eq!(q.coarse_floats, None);
     }
 
     #[test]

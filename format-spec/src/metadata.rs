@@ -254,6 +254,16 @@ impl Metadata {
         if self.offset.iter().any(|o| !o.is_finite()) {
             return bad("offset must be finite");
         }
+        // A reader sizes splats and picks levels by the spacing.
+        if !(self.spacing.is_finite() && self.spacing > 0.0) {
+            return bad("spacing must be finite and positive");
+        }
+        let (lo, hi) = (self.bounds.min, self.bounds.max);
+        if self.points > 0
+            && (0..3).any(|a| !(lo[a].is_finite() && hi[a].is_finite() && lo[a] <= hi[a]))
+        {
+            return bad("bounds must be finite, with min no greater than max on every axis");
+        }
         if self.cube.bits > 32 {
             return bad("cube.bits must be at most 32");
         }
@@ -336,6 +346,31 @@ mod tests {
         assert!(
             Metadata::from_json_any_minor(newer.to_string().as_bytes(), Path::new("m")).is_ok()
         );
+    }
+
+    #[test]
+    fn spacing_and_bounds_are_checked() {
+        for spacing in [0.0, -4.0] {
+            let mut m = meta_1_1();
+            m["spacing"] = spacing.into();
+            assert!(
+                parse(&m)
+                    .err()
+                    .unwrap_or_default()
+                    .contains("spacing must be")
+            );
+        }
+        let mut inverted = meta_1_1();
+        inverted["bounds"]["min"] = serde_json::json!([1.0, 0.0, 0.0]);
+        assert!(
+            parse(&inverted)
+                .err()
+                .unwrap_or_default()
+                .contains("bounds must be")
+        );
+        // With no points there are no bounds to speak of.
+        inverted["points"] = 0.into();
+        assert!(parse(&inverted).is_ok());
     }
 
     #[test]

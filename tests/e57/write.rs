@@ -31,6 +31,9 @@ pub struct ScanSpec {
     /// Rotation quaternion (w, x, y, z; normalised here) and translation.
     pub rotation: [f64; 4],
     pub translation: [f64; 3],
+    /// The scale the prototype declares for `Storage::Scaled` (the values written are 0.1 mm
+    /// steps whatever it says).
+    pub scale: f64,
 }
 
 impl ScanSpec {
@@ -43,6 +46,7 @@ impl ScanSpec {
             invalid_every: None,
             rotation: [1.0, 0.0, 0.0, 0.0],
             translation: [0.0; 3],
+            scale: 1e-4,
         }
     }
 
@@ -82,7 +86,7 @@ fn prototype(spec: &ScanSpec) -> Vec<Record> {
     let scaled = RecordDataType::ScaledInteger {
         min: -1_000_000,
         max: 1_000_000,
-        scale: 1e-4,
+        scale: spec.scale,
         offset: 0.0,
     };
     let mut p = match spec.storage {

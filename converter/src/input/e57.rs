@@ -81,6 +81,17 @@ impl E57Source {
                 )));
             }
             poses.push(Pose::of(pc).map_err(|w| bad(format!("scan {i} of {n}: {w}")))?);
+            // A scale of zero stores every value as its offset: all points in one place.
+            if let Some(r) = pc.prototype.iter().find(|r| {
+                matches!(r.data_type, RecordDataType::ScaledInteger { scale, .. }
+                    if !(scale.is_normal()))
+            }) {
+                return Err(bad(format!(
+                    "scan {i} of {n}: its {:?} field is a scaled integer with a scale of zero or \
+                     not a number, which cannot store values",
+                    r.name
+                )));
+            }
         }
         let rgb = clouds.iter().any(PointCloud::has_color);
         let intensity = clouds.iter().any(PointCloud::has_intensity);
