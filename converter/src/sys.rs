@@ -30,7 +30,30 @@ pub fn parse_size(s: &str) -> Result<u64, String> {
             ));
         }
     };
-    Ok((value * mult as f64) as u64)
+    let bytes = value * mult as f64;
+    // The cast would saturate silently.
+    if bytes >= u64::MAX as f64 {
+        return Err(format!("\"{s}\" is too large a size"));
+    }
+    Ok(bytes as u64)
+}
+
+/// The least `--memory-limit` the converter can keep to: what it reserves for itself and one
+/// small chunk.
+pub const MIN_MEMORY_LIMIT: u64 = 64 << 20;
+
+/// `parse_size` of a conversion's memory limit, refused below `MIN_MEMORY_LIMIT` rather than
+/// silently raised.
+pub fn parse_memory_limit(s: &str) -> Result<u64, String> {
+    let bytes = parse_size(s)?;
+    if bytes < MIN_MEMORY_LIMIT {
+        return Err(format!(
+            "{} is less than the {} a conversion needs at least",
+            format_bytes(bytes),
+            format_bytes(MIN_MEMORY_LIMIT)
+        ));
+    }
+    Ok(bytes)
 }
 
 /// Human-readable byte count.
@@ -61,5 +84,11 @@ mod tests {
         assert_eq!(parse_size("4096"), Ok(4096));
         assert!(parse_size("lots").is_err());
         assert!(parse_size("5 parsecs").is_err());
+        assert!(parse_size("18446744073709551615GiB").is_err());
+        assert_eq!(parse_memory_limit("64MiB"), Ok(64 << 20));
+        for small in ["0", "1KiB", "63MiB"] {
+            let e = parse_memory_limit(small).expect_err(small);
+            assert!(e.contains("less than the 64.0 MiB"), "{e}");
+        }
     }
 }

@@ -2,7 +2,7 @@ use anyhow::Context;
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 use strata_converter::replace::{Folder, check_output};
-use strata_converter::sys::{format_bytes, parse_size};
+use strata_converter::sys::{format_bytes, parse_memory_limit};
 use strata_converter::tasks::{finish_tasks, plan_tasks, run_task, step_for};
 use strata_converter::{
     ConvertOptions, ConvertSummary, NormalMode, NormalOptions, Orient, Sampling, convert_with,
@@ -49,7 +49,7 @@ pub struct Args {
     #[arg(long, requires_all = ["plan", "output"])]
     finish: bool,
     /// Peak memory to stay within, e.g. 512MiB or 4GiB.
-    #[arg(long, default_value = "2GiB", value_parser = parse_size)]
+    #[arg(long, default_value = "2GiB", value_parser = parse_memory_limit)]
     memory_limit: u64,
     /// Worker threads (default: all cores; at most 1024).
     #[arg(long, value_parser = clap::builder::RangedU64ValueParser::<usize>::new().range(1..=MAX_THREADS))]
