@@ -198,6 +198,22 @@ fn existing_output_needs_overwrite() {
     assert!(!o.status.success());
     assert!(String::from_utf8_lossy(&o.stderr).contains("cannot write the --stats file"));
     assert!(!fresh.exists());
+    // Inside the output, which exists only at the end, it is written then.
+    let stats = fresh.join("stats.json");
+    run_ok(&[
+        "convert",
+        s(&data("autzen_trim.las")),
+        "-o",
+        s(&fresh),
+        "--stats",
+        s(&stats),
+        "-q",
+    ]);
+    assert!(
+        std::fs::read_to_string(&stats)
+            .expect("stats")
+            .contains("\"points\"")
+    );
 }
 
 #[test]

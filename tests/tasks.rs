@@ -374,6 +374,10 @@ fn contradictory_options_are_refused_in_one_sentence() {
     );
     fails(&["convert", "--plan", s(&plan)], "--task K");
     fails(
+        &["convert", "--plan", s(&plan), "--task", "0", "--tasks", "5"],
+        "--plan-only",
+    );
+    fails(
         &["convert", "--plan", s(&plan), "--task", "2"],
         "task 2 is not in the plan",
     );

@@ -159,21 +159,30 @@ pub fn save_plan(wd: &WorkDir, plan: &Plan) -> Result<()> {
 }
 
 /// The journal a resumed run continues from: whole lines for chunks 0, 1, 2... in order,
-/// checked against the octree file (`read_resumable_journal_of`).
+/// checked against the octree file (`read_resumable_journal_of`). A run owns its chunk files
+/// and deletes each as it commits, so a committed chunk damaged since cannot be built again:
+/// refused.
 pub fn read_journal(wd: &WorkDir, chunks: usize) -> Result<Vec<JournalEntry>> {
-    read_resumable_journal_of(wd, 0..chunks)
+    match read_resumable_journal_of(wd, 0..chunks)? {
+        (entries, None) => Ok(entries),
+        (_, Some(fault)) => Err(ConvertError::Usage(format!(
+            "{fault}, so the conversion cannot resume: run it again without --resume"
+        ))),
+    }
 }
 
-/// The journal of the chunks `chunks` (a task's) that a run resumes from, refused unless the
-/// octree file still holds every node of it whole, checksums matching. The line is written
-/// after the nodes, but a crash may leave the line on disk and not the bytes, and a file may
-/// be cut or damaged since; the committed chunks' own files are gone, so they cannot be built
-/// again: the run must start over.
-pub fn read_resumable_journal_of(wd: &WorkDir, chunks: Range<usize>) -> Result<Vec<JournalEntry>> {
-    let entries = read_journal_of(wd, chunks);
-    let Some(last) = entries.last() else {
-        return Ok(entries);
-    };
+/// The journal of the chunks `chunks` (a task's) that a run may resume from: the entries
+/// whose nodes the octree file still holds whole, checksums matching, up to the first that it
+/// does not, and what is wrong with that one. The line is written after the nodes, but a crash
+/// may leave the line on disk and not the bytes, and a file may be cut or damaged since.
+pub fn read_resumable_journal_of(
+    wd: &WorkDir,
+    chunks: Range<usize>,
+) -> Result<(Vec<JournalEntry>, Option<String>)> {
+    let mut entries = read_journal_of(wd, chunks);
+    if entries.is_empty() {
+        return Ok((entries, None));
+    }
     let path = wd.dataset_file(strata_format::DatasetFile::Octree);
     let mut octree = File::open(&path).map_err(io_err(&path, "cannot open to resume"))?;
     let len = octree
@@ -181,14 +190,15 @@ pub fn read_resumable_journal_of(wd: &WorkDir, chunks: Range<usize>) -> Result<V
         .map_err(io_err(&path, "cannot read to resume"))?
         .len();
     let mut buf = Vec::new();
-    if let Some(bad) = entries
+    let whole = entries
         .iter()
-        .find(|e| !holds(&mut octree, len, e, &mut buf))
-    {
-        let fault = if bad.end > len {
+        .take_while(|e| holds(&mut octree, len, e, &mut buf))
+        .count();
+    let fault = entries.get(whole).map(|bad| {
+        let what = if bad.end > len {
             format!(
-                "is {len} bytes long where the journal says {} by chunk {}",
-                last.end, bad.chunk
+                "is {len} bytes long where the journal says chunk {} ends at byte {}",
+                bad.chunk, bad.end
             )
         } else {
             format!(
@@ -196,16 +206,13 @@ pub fn read_resumable_journal_of(wd: &WorkDir, chunks: Range<usize>) -> Result<V
                 bad.chunk
             )
         };
-        return Err(ConvertError::input(
-            &path,
-            format!(
-                "{fault} (cut or damaged since it was written), so the conversion cannot \
-                 resume: remove {} and convert again",
-                wd.root().display()
-            ),
-        ));
-    }
-    Ok(entries)
+        format!(
+            "{}: {what} (cut or damaged since it was written)",
+            path.display()
+        )
+    });
+    entries.truncate(whole);
+    Ok((entries, fault))
 }
 
 /// Whether `octree` (`len` bytes long) holds every node of `entry` whole.
@@ -348,5 +355,69 @@ impl Committer {
     /// The octree file, for the merge to append the top levels to.
     pub fn into_octree(self) -> (File, PathBuf, u64) {
         (self.octree, self.octree_path, self.end)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn chunk(payloads: &[&[u8]]) -> BuiltChunk {
+        BuiltChunk {
+            finished: payloads
+                .iter()
+                .enumerate()
+                .map(|(i, p)| FinishedNode {
+                    key: NodeKey::ROOT.child(i as u8),
+                    point_count: p.len() as u32,
+                    child_mask: 0,
+                    payload: p.to_vec(),
+                    crc: strata_format::payload_checksum(p),
+                })
+                .collect(),
+            root_rows: vec![0; 4],
+            stride: 4,
+            root_mask: 0,
+            step: Vec::new(),
+        }
+    }
+
+    #[test]
+    fn a_resume_takes_the_chunks_the_octree_file_still_holds() {
+        let dir = tempfile::tempdir().expect("tempdir");
+        let wd = WorkDir::new(&dir.path().join("ds"), None);
+        wd.create_fresh().expect("work dir");
+        let octree = wd.dataset_file(strata_format::DatasetFile::Octree);
+        fs::write(&octree, octree_head(DatasetId::default())).expect("head");
+        fs::write(wd.journal(), b"").expect("journal");
+        let mut c = Committer::open(&wd, &[]).expect("open");
+        c.commit(&wd, 0, chunk(&[b"first", b"", b"second"]))
+            .expect("0");
+        c.commit(&wd, 1, chunk(&[b"third"])).expect("1");
+        drop(c);
+        let whole = fs::read(&octree).expect("read");
+        let (entries, fault) = read_resumable_journal_of(&wd, 0..2).expect("read");
+        assert_eq!((entries.len(), fault), (2, None));
+        // A byte of chunk 1's node changed: chunk 0 still stands.
+        let mut bytes = whole.clone();
+        let last = bytes.len() - 1;
+        bytes[last] ^= 1;
+        fs::write(&octree, &bytes).expect("write");
+        let (entries, fault) = read_resumable_journal_of(&wd, 0..2).expect("read");
+        assert_eq!(entries.len(), 1);
+        assert!(fault.expect("fault").contains("chunk 1's nodes"));
+        let e = read_journal(&wd, 2)
+            .expect_err("a run cannot rebuild it")
+            .to_string();
+        assert!(e.contains("run it again without --resume"), "{e}");
+        // Cut inside chunk 0's first node: nothing stands.
+        fs::write(&octree, &whole[..OCTREE_HEAD_SIZE as usize + 2]).expect("write");
+        let (entries, fault) = read_resumable_journal_of(&wd, 0..2).expect("read");
+        assert!(entries.is_empty());
+        assert!(
+            fault
+                .expect("fault")
+                .contains("where the journal says chunk 0 ends")
+        );
     }
 }

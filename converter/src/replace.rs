@@ -1,7 +1,7 @@
 //! What `--overwrite` may replace: a folder holding only what Strata itself writes there (a
-//! dataset, a Potree 2.0 dataset, a plan), or nothing. A file, an input, or a folder with
-//! anything else in it is refused before any work starts: a mistyped `-o` must never cost a
-//! user their files.
+//! dataset, a Potree 2.0 dataset, a plan), its marker file among them, or nothing. A file, an
+//! input, or a folder with anything else in it is refused before any work starts: a mistyped
+//! `-o` must never cost a user their files.
 
 use crate::error::{ConvertError, Result};
 use std::fs;
@@ -17,10 +17,37 @@ pub enum Folder {
 }
 
 impl Folder {
-    fn holds(self) -> &'static [&'static str] {
+    /// The entries such a folder may hold: a dataset's files (with what the viewer saves
+    /// beside them, its atomic writes' leftovers, and what file browsers leave), all plain
+    /// files; a plan's file and folders.
+    fn holds(self, name: &str, is_file: bool) -> bool {
         match self {
-            Folder::Dataset => &["metadata.json", "hierarchy.bin", "octree.bin", "log.txt"],
-            Folder::Plan => &["plan.json", "shares", "staging", "tasks"],
+            Folder::Dataset => {
+                const FILES: [&str; 6] = [
+                    "metadata.json",
+                    "hierarchy.bin",
+                    "octree.bin",
+                    "log.txt",
+                    "measurements.geojson",
+                    "bookmarks.json",
+                ];
+                const CLUTTER: [&str; 3] = [".DS_Store", "Thumbs.db", "desktop.ini"];
+                let base = name.strip_suffix(".part").unwrap_or(name);
+                is_file && (FILES.contains(&base) || CLUTTER.contains(&name))
+            }
+            Folder::Plan => match name {
+                "plan.json" => is_file,
+                "shares" | "staging" | "tasks" => !is_file,
+                _ => false,
+            },
+        }
+    }
+
+    /// The file every non-empty folder of the kind holds.
+    fn marker(self) -> &'static str {
+        match self {
+            Folder::Dataset => "metadata.json",
+            Folder::Plan => "plan.json",
         }
     }
 
@@ -63,18 +90,34 @@ pub fn check_output(output: &Path, overwrite: bool, kind: Folder) -> Result<()> 
             "is a file, not a folder".into()
         }));
     }
-    let entries =
-        fs::read_dir(output).map_err(|e| ConvertError::io(output, "cannot list the output", e))?;
-    for entry in entries {
-        let entry = entry.map_err(|e| ConvertError::io(output, "cannot list the output", e))?;
+    let list = |e| ConvertError::io(output, "cannot list the output", e);
+    let mut marked = false;
+    let mut empty = true;
+    for entry in fs::read_dir(output).map_err(list)? {
+        let entry = entry.map_err(list)?;
         let name = entry.file_name();
-        if !kind.holds().iter().any(|&n| name == n) {
+        // Not followed: a link is neither a file nor a folder of ours.
+        let file_type = entry.file_type().map_err(list)?;
+        let is_file = file_type.is_file();
+        let ours = name
+            .to_str()
+            .is_some_and(|n| (is_file || file_type.is_dir()) && kind.holds(n, is_file));
+        if !ours {
             return Err(refuse(format!(
                 "holds {:?}, which a {} folder does not",
                 name,
                 kind.name()
             )));
         }
+        marked |= name == kind.marker();
+        empty = false;
+    }
+    if !empty && !marked {
+        return Err(refuse(format!(
+            "has no {}, so it is no {} of Strata's",
+            kind.marker(),
+            kind.name()
+        )));
     }
     Ok(())
 }
@@ -113,13 +156,29 @@ mod tests {
         let file = root.join("in.las");
         fs::write(&file, b"LASF").unwrap();
         assert!(refused(&file, Folder::Dataset).contains("is a file"));
+        fs::remove_dir(ds.join("photos")).unwrap();
+        // What the viewer saves in a dataset, and a file browser's leftovers, go with it.
+        for f in ["measurements.geojson", "bookmarks.json.part", ".DS_Store"] {
+            fs::write(ds.join(f), b"x").unwrap();
+        }
+        assert!(check_output(&ds, true, Folder::Dataset).is_ok());
+        // Without its marker, a folder of the right names is not taken for one of ours.
+        let bare = root.join("bare");
+        fs::create_dir_all(bare.join("tasks/mine")).unwrap();
+        assert!(refused(&bare, Folder::Plan).contains("has no plan.json"));
+        fs::write(bare.join("octree.bin"), b"x").unwrap();
+        fs::remove_dir_all(bare.join("tasks")).unwrap();
+        assert!(refused(&bare, Folder::Dataset).contains("has no metadata.json"));
+        // A dataset's names must be files.
+        fs::create_dir(ds.join("hierarchy.bin.part")).unwrap();
+        assert!(refused(&ds, Folder::Dataset).contains("\"hierarchy.bin.part\""));
+        fs::remove_dir(ds.join("hierarchy.bin.part")).unwrap();
         // A plan folder is not a dataset, nor a dataset a plan.
         let plan = root.join("plan");
         fs::create_dir_all(plan.join("tasks")).unwrap();
         fs::write(plan.join("plan.json"), b"{}").unwrap();
         assert!(check_output(&plan, true, Folder::Plan).is_ok());
         assert!(refused(&plan, Folder::Dataset).contains("\"plan.json\""));
-        fs::remove_dir_all(ds.join("photos")).unwrap();
         assert!(refused(&ds, Folder::Plan).contains("a plan folder"));
     }
 

@@ -147,16 +147,16 @@ fn potree2_source(output: &Path) -> PathBuf {
 }
 
 pub fn run(a: Args) -> anyhow::Result<ExitCode> {
-    check_stats_path(&a.stats)?;
-    if let Some(plan) = &a.plan {
-        return run_plan(plan, &a);
-    }
     // Clap does not enforce `requires` between these two: without this, -o would silently
-    // become a plan folder.
+    // become a plan folder, and --plan would ignore it.
     if a.tasks.is_some() && a.plan_only.is_none() {
         anyhow::bail!(
             "--tasks N needs --plan-only PLAN (a conversion as tasks starts with a plan)"
         );
+    }
+    check_stats_path(&a.stats, a.output.as_deref())?;
+    if let Some(plan) = &a.plan {
+        return run_plan(plan, &a);
     }
     let threads = a
         .threads
@@ -311,13 +311,20 @@ fn report(
     write_stats(stats, serde_json::to_string_pretty(summary))
 }
 
-/// Writes `json` (a summary) to `--stats`, if given.
 /// Refuses a `--stats` file that cannot be written before the conversion rather than after
-/// it, by opening it to append (and removing it again if it was not there).
-fn check_stats_path(stats: &Option<PathBuf>) -> anyhow::Result<()> {
+/// it, by opening it to append (and removing it again if it was not there). A file inside the
+/// output, which exists only once the conversion is done, is left to then.
+fn check_stats_path(stats: &Option<PathBuf>, output: Option<&Path>) -> anyhow::Result<()> {
     let Some(path) = stats else {
         return Ok(());
     };
+    let inside = |out: &Path| match (std::path::absolute(path), std::path::absolute(out)) {
+        (Ok(p), Ok(o)) => p.starts_with(o),
+        _ => false,
+    };
+    if output.is_some_and(inside) {
+        return Ok(());
+    }
     let existed = std::fs::symlink_metadata(path).is_ok();
     std::fs::OpenOptions::new()
         .append(true)
@@ -330,6 +337,7 @@ fn check_stats_path(stats: &Option<PathBuf>) -> anyhow::Result<()> {
     Ok(())
 }
 
+/// Writes `json` (a summary) to `--stats`, if given.
 fn write_stats(
     stats: &Option<PathBuf>,
     json: serde_json::Result<String>,

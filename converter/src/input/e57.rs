@@ -28,6 +28,20 @@ pub struct E57Source {
     finished: bool,
 }
 
+/// The fields of a scan's records that Strata reads.
+const READ: [RecordName; 10] = [
+    RecordName::CartesianX,
+    RecordName::CartesianY,
+    RecordName::CartesianZ,
+    RecordName::SphericalRange,
+    RecordName::SphericalAzimuth,
+    RecordName::SphericalElevation,
+    RecordName::ColorRed,
+    RecordName::ColorGreen,
+    RecordName::ColorBlue,
+    RecordName::Intensity,
+];
+
 impl E57Source {
     pub fn open(path: &Path) -> Result<E57Source> {
         let file = File::open(path).map_err(|e| ConvertError::io(path, "cannot open input", e))?;
@@ -81,10 +95,12 @@ impl E57Source {
                 )));
             }
             poses.push(Pose::of(pc).map_err(|w| bad(format!("scan {i} of {n}: {w}")))?);
-            // A scale of zero stores every value as its offset: all points in one place.
+            // A scale of zero stores every value of a field that varies as its offset: all
+            // points in one place. Only the fields read here count.
             if let Some(r) = pc.prototype.iter().find(|r| {
-                matches!(r.data_type, RecordDataType::ScaledInteger { scale, .. }
-                    if !(scale.is_normal()))
+                READ.contains(&r.name)
+                    && matches!(r.data_type, RecordDataType::ScaledInteger { scale, min, max, .. }
+                        if min != max && !scale.is_normal())
             }) {
                 return Err(bad(format!(
                     "scan {i} of {n}: its {:?} field is a scaled integer with a scale of zero or \

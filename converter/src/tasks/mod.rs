@@ -321,15 +321,16 @@ pub fn plan_tasks(
     let plan_dir = std::path::absolute(&opts.output)
         .map_err(io_err(&opts.output, "cannot resolve the plan folder"))?;
     check_output(&plan_dir, opts.overwrite, Folder::Plan)?;
-    if plan_dir.exists() {
-        fs::remove_dir_all(&plan_dir).map_err(io_err(&plan_dir, "cannot remove the old plan"))?;
-    }
     let mut inputs = Vec::new();
     for input in &opts.inputs {
         if !input.is_file() {
             return Err(ConvertError::input(input, "input file does not exist"));
         }
         inputs.push(std::path::absolute(input).map_err(io_err(input, "cannot resolve"))?);
+    }
+    // Only once the inputs are there: a plan whose tasks ran is not lost to a typo.
+    if plan_dir.exists() {
+        fs::remove_dir_all(&plan_dir).map_err(io_err(&plan_dir, "cannot remove the old plan"))?;
     }
     // The plan's fingerprint and every task use the thread count actually run (0 means 1).
     let opts = ConvertOptions {

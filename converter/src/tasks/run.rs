@@ -125,7 +125,9 @@ fn build(
         wd.create_fresh()?;
         save_plan(wd, plan)?;
     }
-    let journal = read_resumable_journal_of(wd, range.clone())?;
+    // The task's chunk files stay until the finish: a chunk whose nodes were lost since its
+    // commit (a crash before they reached the disk) is built again, with those after it.
+    let (journal, _damaged) = read_resumable_journal_of(wd, range.clone())?;
     let resumed = journal.len();
     let first = range.start + resumed;
     let parts = Share::parts(tp.shares(), threads);
