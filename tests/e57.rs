@@ -346,3 +346,62 @@ fn an_empty_scan_among_others_keeps_its_scanner() {
         local[2].len()
     );
 }
+
+/// `b` with its XML section's `from` replaced by `to`, of the same length, and the checksums
+/// of the pages it touched repaired (every 1024-byte page ends in a CRC-32C of the rest).
+fn xml_replaced(mut b: Vec<u8>, from: &str, to: &str) -> Vec<u8> {
+    const PAGE: usize = 1024;
+    assert_eq!(from.len(), to.len());
+    let u64_at = |o: usize| u64::from_le_bytes(b[o..o + 8].try_into().expect("8 bytes")) as usize;
+    let (at, len) = (u64_at(24), u64_at(32));
+    // Physical places of the XML's bytes, skipping each page's checksum.
+    let places: Vec<usize> = (at..b.len())
+        .filter(|p| p % PAGE < PAGE - 4)
+        .take(len)
+        .collect();
+    let xml: Vec<u8> = places.iter().map(|&p| b[p]).collect();
+    let start = xml
+        .windows(from.len())
+        .position(|w| w == from.as_bytes())
+        .expect("the text to replace");
+    for (i, &c) in to.as_bytes().iter().enumerate() {
+        b[places[start + i]] = c;
+    }
+    let crc32c = |bytes: &[u8]| {
+        let mut crc = !0u32;
+        for &x in bytes {
+            crc ^= x as u32;
+            for _ in 0..8 {
+                crc = if crc & 1 == 1 {
+                    (crc >> 1) ^ 0x82F6_3B78
+                } else {
+                    crc >> 1
+                };
+            }
+        }
+        !crc
+    };
+    for page in (places[start] / PAGE)..=(places[start + to.len() - 1] / PAGE) {
+        let p = page * PAGE;
+        let crc = crc32c(&b[p..p + PAGE - 4]);
+        b[p + PAGE - 4..p + PAGE].copy_from_slice(&crc.to_be_bytes());
+    }
+    b
+}
+
+#[test]
+fn an_e57_point_count_beyond_its_file_is_refused_naming_it() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let b = std::fs::read(data("e57_tinyCartesianFloatRgb.e57")).expect("seed");
+    // The indentation before the element gives the count its extra digits.
+    let b = xml_replaced(
+        b,
+        "\n      <points type=\"CompressedVector\" fileOffset=\"48\" recordCount=\"2090\"",
+        "\n<points type=\"CompressedVector\" fileOffset=\"48\" recordCount=\"2090000000\"",
+    );
+    // Repaired, the file still opens: only the count is wrong.
+    convert_fails(
+        &written(dir.path(), "many.e57", &b),
+        "scan 0 of 1 says it holds 2090000000 points, more than a file of 34816 bytes can",
+    );
+}

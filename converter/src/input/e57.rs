@@ -73,6 +73,19 @@ impl E57Source {
                 "the E57 file holds {n} scans, more than the {NO_SCANNER} a dataset can number"
             )));
         }
+        // A record takes at least a bit of the file (a scan whose fields never vary is no
+        // scan): a count beyond that is a damaged header, refused here, naming it, rather
+        // than by the disk check asking for terabytes.
+        if let Some((i, c)) = clouds
+            .iter()
+            .enumerate()
+            .find(|(_, c)| c.records > len.saturating_mul(8))
+        {
+            return Err(bad(format!(
+                "scan {i} of {n} says it holds {} points, more than a file of {len} bytes can",
+                c.records
+            )));
+        }
         let points = clouds
             .iter()
             .try_fold(0u64, |sum, c| sum.checked_add(c.records))
