@@ -125,3 +125,35 @@ fn newer_major_versions_are_refused_clearly() {
     assert!(!o.status.success());
     assert!(String::from_utf8_lossy(&o.stderr).contains("version 2.0 is not supported"));
 }
+
+#[test]
+fn an_export_of_a_dataset_whose_count_is_wrong_leaves_nothing() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let ds = dataset(dir.path());
+    let meta_path = ds.join("metadata.json");
+    let mut meta: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(&meta_path).expect("read")).expect("json");
+    let points = meta["points"].as_u64().expect("points");
+    meta["points"] = (points + 1).into();
+    std::fs::write(&meta_path, meta.to_string()).expect("write");
+    for name in ["out.ply", "out.las"] {
+        let out = dir.path().join(name);
+        let o = run(&["export", s(&ds), "-o", s(&out)]);
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert!(!o.status.success(), "{name}: exported");
+        assert!(
+            err.contains(&format!(
+                "metadata.json: says the dataset holds {} points, but its nodes hold {points}",
+                points + 1
+            )),
+            "{err}"
+        );
+        let leftovers: Vec<_> = std::fs::read_dir(dir.path())
+            .expect("list")
+            .flatten()
+            .map(|e| e.file_name().to_string_lossy().into_owned())
+            .filter(|n| n.starts_with("out"))
+            .collect();
+        assert!(leftovers.is_empty(), "{leftovers:?}");
+    }
+}

@@ -1,9 +1,9 @@
 //! `strata export`: every point of a dataset back out as LAS, LAZ or PLY.
 
-use crate::error::Result;
-use crate::writers::open_writer;
+use crate::error::{ConvertError, Result};
+use crate::writers::{open_writer, part_path};
 use std::path::Path;
-use strata_format::{AttrType, Attribute, LocalDataset, RowLayout, oct16_decode};
+use strata_format::{AttrType, Attribute, DatasetFile, LocalDataset, RowLayout, oct16_decode};
 
 /// Whether `output` names a COPC file (`.copc.laz`).
 pub fn is_copc(output: &Path) -> bool {
@@ -31,24 +31,47 @@ pub fn export(dataset: &Path, output: &Path, overwrite: bool) -> Result<u64> {
         meta.points,
         overwrite,
     )?;
-    let mut written = 0u64;
-    let mut out = Vec::new();
-    for node in ds.all_nodes()? {
-        if node.point_count == 0 {
-            continue;
+    let mut write_all = || -> Result<u64> {
+        let mut written = 0u64;
+        let mut out = Vec::new();
+        for node in ds.all_nodes()? {
+            if node.point_count == 0 {
+                continue;
+            }
+            let cols = ds.read_node(&node)?;
+            let rows = cols.to_rows(&layout);
+            if wide.is_identity() {
+                writer.write_rows(&rows)?;
+            } else {
+                wide.convert(&rows, &mut out);
+                writer.write_rows(&out)?;
+            }
+            written += node.point_count as u64;
         }
-        let cols = ds.read_node(&node)?;
-        let rows = cols.to_rows(&layout);
-        if wide.is_identity() {
-            writer.write_rows(&rows)?;
-        } else {
-            wide.convert(&rows, &mut out);
-            writer.write_rows(&out)?;
+        // The header (PLY's above all) was written for the metadata's count.
+        if written != meta.points {
+            return Err(ConvertError::input(
+                dataset.join(DatasetFile::Metadata.name()),
+                format!(
+                    "says the dataset holds {} points, but its nodes hold {written}",
+                    meta.points
+                ),
+            ));
         }
-        written += node.point_count as u64;
+        Ok(written)
+    };
+    match write_all() {
+        Ok(written) => {
+            writer.finish()?;
+            Ok(written)
+        }
+        Err(e) => {
+            // The writer works under a temporary name: nothing that looks like an export stays.
+            drop(writer);
+            let _ = std::fs::remove_file(part_path(output));
+            Err(e)
+        }
     }
-    writer.finish()?;
-    Ok(written)
 }
 
 /// Writes `rows` of a dataset's `layout` (a selection of its points, such as a profile) to
