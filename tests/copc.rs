@@ -62,6 +62,40 @@ fn the_las_crate_reads_every_point_of_the_copc_file_back() {
     let o = common::run(&["export", s(&dataset), "-o", s(&copc)]);
     assert!(!o.status.success());
     assert!(String::from_utf8_lossy(&o.stderr).contains("--overwrite"));
+
+    // What a COPC reader takes on trust in the info VLR is checked, not just printed: a cube
+    // of no size, a root page outside the hierarchy.
+    let bytes = std::fs::read(&copc).expect("read");
+    let vlr = bytes
+        .windows(4)
+        .position(|w| w == b"copc")
+        .expect("the info VLR")
+        - 2;
+    let data = vlr + 54;
+    for (at, value, expect) in [
+        (
+            data + 24,
+            f64::NAN.to_le_bytes(),
+            "half size is not a finite positive number",
+        ),
+        (
+            data + 40,
+            0u64.to_le_bytes(),
+            "root hierarchy page at byte 0",
+        ),
+        (data + 48, 0u64.to_le_bytes(), ", 0 bytes long"),
+    ] {
+        let mut b = bytes.clone();
+        b[at..at + 8].copy_from_slice(&value);
+        let bad = dir.path().join("bad.copc.laz");
+        std::fs::write(&bad, b).expect("write");
+        let o = common::run(&["info", s(&bad)]);
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert!(
+            !o.status.success() && err.contains(expect),
+            "{expect}: {err}"
+        );
+    }
 }
 
 /// Whether Python has laspy and lazrs; CI installs them and sets STRATA_REQUIRE_LASPY.

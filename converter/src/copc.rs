@@ -500,6 +500,43 @@ fn read_summary(header: &las::Header, path: &Path) -> Result<Option<CopcSummary>
         .iter()
         .find(|v| v.user_id == "copc" && v.record_id == 1000)
         .ok_or_else(|| bad("hierarchy EVLR is missing"))?;
+    // What a COPC reader takes on trust: the cube, and where the root hierarchy page is.
+    let u = |i: usize| u64::from_le_bytes(d[i * 8..i * 8 + 8].try_into().unwrap_or([0; 8]));
+    if let Some(name) = [("centre", f(0)), ("centre", f(1)), ("centre", f(2))]
+        .into_iter()
+        .chain([("half size", f(3)), ("spacing", f(4))])
+        .find(|&(name, v)| !v.is_finite() || (name != "centre" && v <= 0.0))
+        .map(|(name, _)| name)
+    {
+        return Err(bad(&format!(
+            "info VLR's {name} is not a finite{} number",
+            if name == "centre" { "" } else { " positive" }
+        )));
+    }
+    let (root_at, root_size) = (u(5), u(6));
+    let file_len = std::fs::metadata(path)
+        .map_err(|e| ConvertError::io(path, "cannot read the file's size", e))?
+        .len();
+    // The page is in an EVLR's data: after the first EVLR's 60-byte header (LAS 1.4 keeps
+    // where that is at byte 235 of the file header).
+    let mut first_evlr = [0u8; 8];
+    std::fs::File::open(path)
+        .and_then(|f| std::os::unix::fs::FileExt::read_exact_at(&f, &mut first_evlr, 235))
+        .map_err(|e| ConvertError::io(path, "cannot read the header", e))?;
+    let evlr_data = u64::from_le_bytes(first_evlr).saturating_add(60);
+    if root_size == 0
+        || root_size % ENTRY_SIZE as u64 != 0
+        || root_size > hierarchy.data.len() as u64
+        || root_at < evlr_data
+        || root_at
+            .checked_add(root_size)
+            .is_none_or(|end| end > file_len)
+    {
+        return Err(bad(&format!(
+            "info VLR puts the root hierarchy page at byte {root_at}, {root_size} bytes long, \
+             which is not a page of whole entries inside the hierarchy EVLR and the file"
+        )));
+    }
     let (mut nodes, mut depth, mut points) = (0u64, 0i32, 0u64);
     // Every entry of the EVLR (the pages a writer puts there one after the other; entries
     // of -1 points, pointing at pages elsewhere, are not counted).
