@@ -345,3 +345,62 @@ fn a_header_box_far_larger_than_the_points_moves_none_of_them() {
         assert!(las_multiset(&back) == las_multiset(&p), "points moved");
     }
 }
+
+#[test]
+fn absurd_counts_are_refused_in_one_sentence() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let ds = dir.path().join("ds");
+    run_ok(&["convert", s(&data("autzen_trim.las")), "-o", s(&ds), "-q"]);
+    let path = dir.path().join("path.json");
+    std::fs::write(
+        &path,
+        r#"{"keyframes": [{"eye": [0, 0, 100], "target": [0, 0, 0]},
+                          {"eye": [10, 0, 100], "target": [0, 0, 0]}]}"#,
+    )
+    .expect("write");
+    let out = dir.path().join("x.las");
+    let png = dir.path().join("f.png");
+    let fails = |args: &[&str], expect: &str| {
+        let o = run(args);
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert!(!o.status.success(), "{args:?} ran");
+        assert!(
+            err.contains(expect) && !err.contains("panicked"),
+            "{args:?}: {err}"
+        );
+    };
+    // Counts that saturated or allocated without bound, and timeouts that overflowed the
+    // clock at each request.
+    fails(
+        &["synth", "--points", "1e30", "-o", s(&out)],
+        "is more than",
+    );
+    fails(
+        &["synth", "--points", "1.5", "-o", s(&out)],
+        "not a whole count",
+    );
+    assert!(!out.exists());
+    for flag in ["--max-connections", "--idle-timeout", "--header-timeout"] {
+        fails(
+            &["serve", s(dir.path()), flag, "18446744073709551615"],
+            flag,
+        );
+    }
+    fails(
+        &["render", s(&ds), "-o", s(&png), "--loaders", "100000"],
+        "--loaders",
+    );
+    fails(
+        &[
+            "render",
+            s(&ds),
+            "-o",
+            s(&png),
+            "--path",
+            s(&path),
+            "--frames",
+            "4294967295",
+        ],
+        "4294967295 is more than the 100000 frames a fly-through may take: \"--frames\"",
+    );
+}

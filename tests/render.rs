@@ -550,3 +550,48 @@ fn demo_synthesizes_converts_and_renders_without_a_display() {
     );
     assert!(String::from_utf8_lossy(&o.stdout).contains("points drawn"));
 }
+
+#[test]
+fn render_replaces_only_what_it_wrote() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let ds = fixtures().join("autzen.strata");
+    // An input, and a dataset's metadata, aimed at by mistake: refused before any work.
+    let las = dir.path().join("in.las");
+    std::fs::write(&las, b"LASF, not an image").expect("write");
+    let meta = dir.path().join("metadata.json");
+    std::fs::copy(ds.join("metadata.json"), &meta).expect("copy");
+    let png = dir.path().join("a.png");
+    let st = dir.path().join("a.json");
+    for (args, expect) in [
+        (vec!["-o", s(&las)], "in.las: exists and is not a PNG image"),
+        (
+            vec!["-o", s(&png), "--stats", s(&meta)],
+            "metadata.json: exists and is not render statistics",
+        ),
+    ] {
+        let mut all = vec!["render", s(&ds), "--size", "64x64"];
+        all.extend(args);
+        let o = common::run(&all);
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert!(!o.status.success() && err.contains(expect), "{err}");
+    }
+    assert_eq!(std::fs::read(&las).expect("read"), b"LASF, not an image");
+    assert_eq!(
+        std::fs::read(&meta).expect("read"),
+        std::fs::read(ds.join("metadata.json")).expect("read")
+    );
+    assert!(!png.exists());
+    // Its own image and statistics it replaces.
+    for _ in 0..2 {
+        gpu_ok(&[
+            "render",
+            s(&ds),
+            "-o",
+            s(&png),
+            "--stats",
+            s(&st),
+            "--size",
+            "64x64",
+        ]);
+    }
+}

@@ -1,6 +1,7 @@
 use super::camera_args::CameraArgs;
 use super::view_args::ViewArgs;
-use std::path::PathBuf;
+use std::io::Read;
+use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 use std::time::Duration;
 use strata_viewer::headless::{RenderOptions, render};
@@ -57,7 +58,38 @@ pub fn parse_size_wh(s: &str) -> anyhow::Result<(u32, u32)> {
     }
 }
 
+/// Refuses to write over an existing `path` unless it holds what this command writes there
+/// (`ours` of its first bytes): `-o` or `--stats` aimed by mistake at a dataset's file or an
+/// input must not destroy it.
+fn check_replaceable(path: &Path, what: &str, ours: impl Fn(&[u8]) -> bool) -> anyhow::Result<()> {
+    let Ok(meta) = std::fs::symlink_metadata(path) else {
+        return Ok(());
+    };
+    let mut head = Vec::new();
+    if meta.is_file() {
+        std::fs::File::open(path)
+            .and_then(|f| f.take(4096).read_to_end(&mut head))
+            .map_err(|e| anyhow::anyhow!("{}: cannot read ({e})", path.display()))?;
+    }
+    if !(meta.is_file() && ours(&head)) {
+        anyhow::bail!(
+            "{}: exists and is not {what}; render replaces only what it wrote itself, so remove \
+             it yourself or choose another name",
+            path.display()
+        );
+    }
+    Ok(())
+}
+
 pub fn run(a: Args) -> anyhow::Result<ExitCode> {
+    check_replaceable(&a.output, "a PNG image", |b| {
+        b.starts_with(b"\x89PNG\r\n\x1a\n")
+    })?;
+    if let Some(stats) = &a.stats {
+        check_replaceable(stats, "render statistics", |b| {
+            b.starts_with(b"{") && b.windows(9).any(|w| w == b"\"adapter\"")
+        })?;
+    }
     let (width, height) = parse_size_wh(&a.size)?;
     if !(a.timeout.is_finite() && a.timeout >= 0.0) {
         anyhow::bail!("--timeout {} is not a number of seconds", a.timeout);

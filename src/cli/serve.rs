@@ -5,6 +5,9 @@ use std::process::ExitCode;
 use std::time::Duration;
 use strata_server::{LogFormat, ServerConfig, bind, check_token, run, shutdown_signal};
 
+/// A timeout longer than a year is a mistake, and one near 2^64 seconds overflows the clock.
+const MAX_SECONDS: u64 = 366 * 24 * 3600;
+
 #[derive(Debug, clap::Args)]
 pub struct Args {
     /// Directory holding datasets (each a subdirectory with metadata.json).
@@ -22,17 +25,18 @@ pub struct Args {
     /// Send CORS headers allowing this origin (`*` for any) so browsers may fetch.
     #[arg(long)]
     cors: Option<String>,
-    /// Open connections at most; more wait in the listen backlog.
-    #[arg(long, default_value_t = 512)]
+    /// Open connections at most (up to 1048576); more wait in the listen backlog.
+    #[arg(long, default_value_t = 512,
+          value_parser = clap::builder::RangedU64ValueParser::<usize>::new().range(1..=1 << 20))]
     max_connections: usize,
-    /// Seconds to answer a request once its headers arrived.
-    #[arg(long, default_value_t = 30)]
+    /// Seconds to answer a request once its headers arrived (up to a year).
+    #[arg(long, default_value_t = 30, value_parser = clap::value_parser!(u64).range(1..=MAX_SECONDS))]
     request_timeout: u64,
-    /// Seconds a connection may make no progress before it is closed.
-    #[arg(long, default_value_t = 60)]
+    /// Seconds a connection may make no progress before it is closed (up to a year).
+    #[arg(long, default_value_t = 60, value_parser = clap::value_parser!(u64).range(1..=MAX_SECONDS))]
     idle_timeout: u64,
-    /// Seconds a client has to send its request headers.
-    #[arg(long, default_value_t = 10)]
+    /// Seconds a client has to send its request headers (up to a year).
+    #[arg(long, default_value_t = 10, value_parser = clap::value_parser!(u64).range(1..=MAX_SECONDS))]
     header_timeout: u64,
     /// Threads for file-system calls (open, stat, read) at most. A few per core serve the
     /// queue; a call stuck on a file that never answers keeps its thread and another takes its

@@ -26,6 +26,9 @@ pub struct Args {
 }
 
 /// Parses `1000000`, `1e9`, `10M`, `2.5k`.
+/// The largest count accepted: 2^53, the last whole number every f64 holds.
+const MAX_COUNT: u64 = 1 << 53;
+
 pub fn parse_count(s: &str) -> Result<u64, String> {
     let t = s.trim();
     let (num, mult) = match t.chars().last() {
@@ -40,7 +43,15 @@ pub fn parse_count(s: &str) -> Result<u64, String> {
     if !(v >= 0.0 && v.is_finite()) {
         return Err(format!("\"{s}\" is not a count"));
     }
-    Ok((v * mult).round() as u64)
+    let n = v * mult;
+    if n.fract() != 0.0 {
+        return Err(format!("\"{s}\" is not a whole count"));
+    }
+    // Beyond 2^53 a count is no longer exact in the f64 it was parsed as; no run is that big.
+    if n > MAX_COUNT as f64 {
+        return Err(format!("\"{s}\" is more than {MAX_COUNT}"));
+    }
+    Ok(n as u64)
 }
 
 pub fn run(a: Args) -> anyhow::Result<ExitCode> {

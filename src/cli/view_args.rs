@@ -65,8 +65,9 @@ pub struct ViewArgs {
     /// Bearer token for a dataset served with `strata serve --token`.
     #[arg(long)]
     pub token: Option<String>,
-    /// Loader threads fetching and decompressing nodes.
-    #[arg(long, default_value_t = 4)]
+    /// Loader threads fetching and decompressing nodes (1 to 256).
+    #[arg(long, default_value_t = 4,
+          value_parser = clap::builder::RangedU64ValueParser::<usize>::new().range(1..=256))]
     pub loaders: usize,
 }
 

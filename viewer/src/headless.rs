@@ -353,6 +353,13 @@ fn cameras(ds: &StreamDataset, opts: &RenderOptions) -> Result<Vec<Camera>, View
             }
             n as usize
         }
+        // Every camera is made up front: a count no run needs is refused, not allocated.
+        n if n > MAX_PATH_FRAMES => {
+            return Err(ViewerError::argument(
+                "--frames",
+                format!("{n} is more than the {MAX_PATH_FRAMES} frames a fly-through may take"),
+            ));
+        }
         n => n as usize,
     };
     if keys.len() < 2 || n < 2 {

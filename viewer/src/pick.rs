@@ -178,10 +178,14 @@ pub fn nearest_drawn(
     (x, y): (u32, u32),
     radius: u32,
 ) -> Option<([u32; 2], u32, u32)> {
-    let r = radius as i64;
+    // No pixel of the view is farther than its width and height together (and r² stays far
+    // from overflowing).
+    let r = (radius as i64).min(width as i64 + height as i64);
     let mut best: Option<(i64, u32, [u32; 2], u32)> = None;
-    for dy in -r..=r {
-        for dx in -r..=r {
+    // Only the offsets that land in the view: a radius far beyond it costs nothing more.
+    let (x0, y0) = (x as i64, y as i64);
+    for dy in (-r).max(-y0)..=r.min(height as i64 - 1 - y0) {
+        for dx in (-r).max(-x0)..=r.min(width as i64 - 1 - x0) {
             let (px, py) = (x as i64 + dx, y as i64 + dy);
             if px < 0 || py < 0 || px >= width as i64 || py >= height as i64 {
                 continue;
@@ -257,6 +261,11 @@ mod tests {
         px[3 * 5 + 2] = Some((10, 9)); // (2, 3): one away, nearer the eye
         assert_eq!(nearest_drawn(&px, w, h, (2, 2), 2), Some(([2, 3], 10, 9)));
         assert_eq!(nearest_drawn(&px, w, h, (0, 4), 1), None);
+        // A radius far beyond the view looks at the view's pixels only (it hung before).
+        assert_eq!(
+            nearest_drawn(&px, w, h, (0, 4), u32::MAX),
+            Some(([2, 3], 10, 9))
+        );
         assert_eq!(asprs_class_name(6), "building");
         assert_eq!(
             to_decimals(849_296.0 + 0.01 * 45.0, 0.01).to_string(),
