@@ -379,6 +379,10 @@ fn absurd_counts_are_refused_in_one_sentence() {
         &["synth", "--points", "1.5", "-o", s(&out)],
         "not a whole count",
     );
+    fails(
+        &["synth", "--points", "10", "--noise", "1e300", "-o", s(&out)],
+        "is more than the 1000 m",
+    );
     assert!(!out.exists());
     for flag in ["--max-connections", "--idle-timeout", "--header-timeout"] {
         fails(

@@ -173,4 +173,28 @@ fn a_distance_between_picked_points_is_their_distance_in_the_exported_points() {
         !o.status.success() && text.contains("angle needs 3"),
         "{text}"
     );
+    // Three picks of one point measure no angle: refused, and nothing saved.
+    let saved = dir.path().join("angle.geojson");
+    let o = gpu_run(&[
+        "measure",
+        s(&dataset),
+        "--size",
+        "320x240",
+        "--kind",
+        "angle",
+        "--pixel",
+        A,
+        "--pixel",
+        A,
+        "--pixel",
+        A,
+        "-o",
+        s(&saved),
+    ]);
+    let text = String::from_utf8_lossy(&o.stderr);
+    assert!(
+        !o.status.success() && text.contains("measure no angle"),
+        "{text}"
+    );
+    assert!(!saved.exists());
 }

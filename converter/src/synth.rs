@@ -258,6 +258,14 @@ pub fn synth(
             "--noise {noise} is not a deviation in metres (0 or more)"
         )));
     }
+    // No scanner is that noisy, and far larger deviations would leave the 32-bit positions
+    // (their tails were clamped to the grid's edge).
+    const MAX_NOISE: f64 = 1000.0;
+    if noise > MAX_NOISE {
+        return Err(ConvertError::Usage(format!(
+            "--noise {noise} is more than the {MAX_NOISE} m a synthetic scan may take"
+        )));
+    }
     let layout = synth_layout();
     let world = World {
         scene,

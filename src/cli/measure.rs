@@ -72,6 +72,18 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
         name: a.name.unwrap_or_else(|| all.next_name(kind)),
         points,
     };
+    // Points that coincide measure no angle: said, not saved as a measurement without a value.
+    if m.values().is_empty() {
+        anyhow::bail!(
+            "the picked points {} measure no {}: they coincide where the measure needs them apart",
+            pixels
+                .iter()
+                .map(|(x, y)| format!("{x},{y}"))
+                .collect::<Vec<_>>()
+                .join(" "),
+            kind.name()
+        );
+    }
     if a.json {
         let one = Measurements {
             items: vec![m.clone()],

@@ -27,15 +27,23 @@ impl Measuring {
     /// The measurements given, else those saved beside a local dataset.
     pub fn open(location: &str, given: Option<Measurements>) -> Measuring {
         let file = crate::measure::beside(location);
-        let (all, error) = match (given, file.as_deref().map(Measurements::load)) {
-            (Some(m), _) => (m, None),
-            (None, Some(Ok(m))) => (m, None),
-            (None, Some(Err(e))) => (Measurements::default(), Some(e.to_string())),
-            (None, None) => (Measurements::default(), None),
+        // Saved on every change only into the dataset's own file, and only when that file was
+        // read (or is not there yet): other measurements given, or a file that would not load,
+        // are never written over it unasked.
+        let given_any = given.is_some();
+        let (all, error, read) = match (given, file.as_deref().map(Measurements::load)) {
+            (Some(m), _) => (m, None, false),
+            (None, Some(Ok(m))) => (m, None, true),
+            (None, Some(Err(e))) => (
+                Measurements::default(),
+                Some(format!("{e}; not saved over until you save them yourself")),
+                false,
+            ),
+            (None, None) => (Measurements::default(), None, false),
         };
         Measuring {
             all,
-            autosave: file.is_some(),
+            autosave: file.is_some() && read && !given_any,
             file: file
                 .map(|f| f.display().to_string())
                 .unwrap_or_else(|| crate::measure::FILE_NAME.into()),
@@ -217,5 +225,29 @@ impl ViewerApp {
                 painter.text(at, egui::Align2::LEFT_BOTTOM, label, font, colour);
             }
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn measurements_are_saved_on_change_only_over_the_file_they_came_from() {
+        let dir = tempfile::tempdir().expect("tempdir");
+        let location = dir.path().display().to_string();
+        let file = dir.path().join(crate::measure::FILE_NAME);
+        // Read back, the dataset's own file is saved on every change.
+        let mut m = Measuring::open(&location, None);
+        m.changed();
+        assert!(file.exists());
+        // One that would not load, or other measurements given, are not saved over it.
+        std::fs::write(&file, b"{ not geojson").expect("write");
+        let mut m = Measuring::open(&location, None);
+        assert!(m.error.is_some());
+        m.changed();
+        let mut given = Measuring::open(&location, Some(Measurements::default()));
+        given.changed();
+        assert_eq!(std::fs::read(&file).expect("read"), b"{ not geojson");
     }
 }

@@ -17,28 +17,43 @@ pub struct Views {
     pub error: Option<String>,
     /// A fly-through in progress: when it began.
     pub flying: Option<Instant>,
+    /// The file is there but would not load: moved aside before the first save.
+    unreadable: bool,
 }
 
 impl Views {
     pub fn open(location: &str) -> Views {
         let file = crate::bookmarks::beside(location);
-        let (marks, error) = match file.as_deref().map(Bookmarks::load) {
-            Some(Ok(m)) => (m, None),
-            Some(Err(e)) => (Bookmarks::default(), Some(e.to_string())),
-            None => (Bookmarks::default(), None),
+        let (marks, error, unreadable) = match file.as_deref().map(Bookmarks::load) {
+            Some(Ok(m)) => (m, None, false),
+            Some(Err(e)) => (Bookmarks::default(), Some(e.to_string()), true),
+            None => (Bookmarks::default(), None, false),
         };
         Views {
             marks,
             file,
             error,
             flying: None,
+            unreadable,
         }
     }
 
     fn save(&mut self) {
-        if let Some(file) = &self.file {
-            self.error = self.marks.save(file).err().map(|e| e.to_string());
+        let Some(file) = &self.file else { return };
+        // A file that would not load is kept beside, not written over.
+        if self.unreadable {
+            let mut aside = file.clone().into_os_string();
+            aside.push(".unreadable");
+            if let Err(e) = std::fs::rename(file, &aside) {
+                self.error = Some(format!(
+                    "{}: cannot move the unreadable bookmarks aside ({e}); not saved",
+                    file.display()
+                ));
+                return;
+            }
+            self.unreadable = false;
         }
+        self.error = self.marks.save(file).err().map(|e| e.to_string());
     }
 }
 
@@ -141,5 +156,26 @@ impl ViewerApp {
                     ui.colored_label(egui::Color32::LIGHT_RED, e);
                 }
             });
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn bookmarks_that_would_not_load_are_moved_aside_not_written_over() {
+        let dir = tempfile::tempdir().expect("tempdir");
+        let file = dir.path().join(crate::bookmarks::FILE_NAME);
+        std::fs::write(&file, b"{ not json").expect("write");
+        let mut views = Views::open(&dir.path().display().to_string());
+        assert!(views.error.is_some());
+        views.save();
+        assert_eq!(views.error, None);
+        let aside = dir
+            .path()
+            .join(format!("{}.unreadable", crate::bookmarks::FILE_NAME));
+        assert_eq!(std::fs::read(aside).expect("kept"), b"{ not json");
+        assert!(Bookmarks::load(&file).is_ok(), "saved anew");
     }
 }
