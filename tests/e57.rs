@@ -367,23 +367,9 @@ fn xml_replaced(mut b: Vec<u8>, from: &str, to: &str) -> Vec<u8> {
     for (i, &c) in to.as_bytes().iter().enumerate() {
         b[places[start + i]] = c;
     }
-    let crc32c = |bytes: &[u8]| {
-        let mut crc = !0u32;
-        for &x in bytes {
-            crc ^= x as u32;
-            for _ in 0..8 {
-                crc = if crc & 1 == 1 {
-                    (crc >> 1) ^ 0x82F6_3B78
-                } else {
-                    crc >> 1
-                };
-            }
-        }
-        !crc
-    };
     for page in (places[start] / PAGE)..=(places[start + to.len() - 1] / PAGE) {
         let p = page * PAGE;
-        let crc = crc32c(&b[p..p + PAGE - 4]);
+        let crc = e57_crc32c(&b[p..p + PAGE - 4]);
         b[p + PAGE - 4..p + PAGE].copy_from_slice(&crc.to_be_bytes());
     }
     b

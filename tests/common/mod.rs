@@ -255,3 +255,20 @@ pub fn have_xvfb() -> bool {
     eprintln!("skipping: xvfb-run is not installed");
     false
 }
+
+/// CRC-32C (Castagnoli), the checksum that ends every 1024-byte E57 page: tests that edit an
+/// E57 file repair it with this.
+pub fn e57_crc32c(bytes: &[u8]) -> u32 {
+    let mut crc = !0u32;
+    for &b in bytes {
+        crc ^= b as u32;
+        for _ in 0..8 {
+            crc = if crc & 1 == 1 {
+                (crc >> 1) ^ 0x82F6_3B78
+            } else {
+                crc >> 1
+            };
+        }
+    }
+    !crc
+}

@@ -22,21 +22,7 @@ impl E57Seeds {
     }
 }
 
-/// CRC-32C (Castagnoli), as E57 pages carry it.
-fn crc32c(bytes: &[u8]) -> u32 {
-    let mut crc = !0u32;
-    for &b in bytes {
-        crc ^= b as u32;
-        for _ in 0..8 {
-            crc = if crc & 1 == 1 {
-                (crc >> 1) ^ 0x82F6_3B78
-            } else {
-                crc >> 1
-            };
-        }
-    }
-    !crc
-}
+use crate::common::e57_crc32c as crc32c;
 
 /// Rewrites the checksum of the page holding byte `at`.
 fn fix_page(b: &mut [u8], at: usize) {
