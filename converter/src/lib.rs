@@ -35,6 +35,7 @@ pub mod synth;
 pub mod sys;
 pub mod tasks;
 pub mod tree;
+pub mod uncached;
 pub mod workdir;
 pub mod writers;
 

@@ -14,9 +14,10 @@ use crate::prepare::class_list;
 use crate::progress::{Phases, Progress};
 use crate::replace::{Folder, check_output};
 use crate::sys::peak_rss_bytes;
+use crate::uncached::UncachedWriter;
 use crate::workdir::WorkDir;
-use std::fs::{self, File, OpenOptions};
-use std::io::{Read, Seek, SeekFrom, Write};
+use std::fs::{self, File};
+use std::io::{Seek, SeekFrom};
 use std::ops::Range;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
@@ -146,7 +147,7 @@ fn task_journal(plan_dir: &Path, k: usize, range: &Range<usize>) -> Result<Vec<J
 }
 
 /// Copies every task's nodes into the work directory's octree file, in task (so plan)
-/// order; returns the journal of every chunk (`journals`, one per task, checked whole), its
+/// order, past the page cache (`UncachedWriter`); returns the journal of every chunk (`journals`, one per task, checked whole), its
 /// offsets moved to where the nodes are now, and the class counts of all shares together.
 fn gather(
     tp: &TaskPlan,
@@ -155,10 +156,8 @@ fn gather(
     journals: Vec<Vec<JournalEntry>>,
 ) -> Result<(Vec<JournalEntry>, [u64; 256])> {
     let octree_path = wd.dataset_file(DatasetFile::Octree);
-    let mut octree = File::create(&octree_path).map_err(io_err(&octree_path, "cannot create"))?;
-    octree
-        .write_all(&octree_head(DatasetId::default()))
-        .map_err(io_err(&octree_path, "cannot write"))?;
+    let mut octree = UncachedWriter::create(&octree_path)?;
+    octree.write_all(&octree_head(DatasetId::default()))?;
     let mut end = OCTREE_HEAD_SIZE;
     let mut journal = Vec::new();
     let classes = share_classes(tp, plan_dir)?;
@@ -166,10 +165,7 @@ fn gather(
         let twd = task_workdir(plan_dir, k, true);
         let task_end = entries.last().map_or(OCTREE_HEAD_SIZE, |e| e.end);
         let part = twd.dataset_file(DatasetFile::Octree);
-        let mut src = OpenOptions::new()
-            .read(true)
-            .open(&part)
-            .map_err(io_err(&part, "cannot open"))?;
+        let mut src = File::open(&part).map_err(io_err(&part, "cannot open"))?;
         src.seek(SeekFrom::Start(OCTREE_HEAD_SIZE))
             .map_err(io_err(&part, "cannot read"))?;
         let len = task_end.checked_sub(OCTREE_HEAD_SIZE).ok_or_else(|| {
@@ -178,9 +174,7 @@ fn gather(
                 format!("its journal ends its nodes at byte {task_end}, inside the file head"),
             )
         })?;
-        // std copies a `Take<File>` into a file in the kernel (copy_file_range) where it can.
-        let copied = std::io::copy(&mut src.take(len), &mut octree)
-            .map_err(io_err(&part, "cannot copy the task's nodes"))?;
+        let copied = octree.copy_from(&mut src, &part, len)?;
         if copied != len {
             return Err(ConvertError::input(
                 &part,
@@ -191,8 +185,6 @@ fn gather(
         journal.extend(entries.into_iter().map(|e| e.moved(by)));
         end += len;
     }
-    octree
-        .sync_all()
-        .map_err(io_err(&octree_path, "cannot sync"))?;
+    octree.finish()?;
     Ok((journal, classes))
 }
