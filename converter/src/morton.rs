@@ -29,6 +29,8 @@ pub fn key(c: [u64; 3]) -> u64 {
 #[derive(Debug, Default)]
 pub struct SortScratch {
     keys: Vec<u64>,
+    /// The bits of a key that hold the position's index.
+    index_mask: u64,
     spare: Vec<u64>,
     pos: Vec<[i32; 3]>,
     order: Vec<u32>,
@@ -78,6 +80,38 @@ pub fn sort_positions(
     node_bits: u32,
     scratch: &mut SortScratch,
 ) -> u32 {
+    let shift = sort_keys(pos, node_min, node_bits, scratch);
+    if scratch.is_identity() {
+        return shift;
+    }
+    let SortScratch {
+        keys,
+        index_mask,
+        pos: old_pos,
+        order: old_order,
+        ..
+    } = scratch;
+    old_pos.clear();
+    old_pos.extend_from_slice(pos);
+    old_order.clear();
+    old_order.extend_from_slice(order);
+    for (j, k) in keys.iter().enumerate() {
+        let i = (k & *index_mask) as usize;
+        pos[j] = old_pos[i];
+        order[j] = old_order[i];
+    }
+    shift
+}
+
+/// Sorts the Morton keys of `pos` (as `sort_positions` orders them) into `scratch`, leaving
+/// `pos` as it is: `scratch.sorted_indices()` then gives the order. Returns the resolution, as
+/// `sort_positions` does.
+pub fn sort_keys(
+    pos: &[[i32; 3]],
+    node_min: [i64; 3],
+    node_bits: u32,
+    scratch: &mut SortScratch,
+) -> u32 {
     let n = pos.len();
     // Key and local index share one u64: the key above, the index below.
     let index_bits = (usize::BITS - n.leading_zeros()).max(1);
@@ -90,25 +124,20 @@ pub fn sort_positions(
         (key([c(0), c(1), c(2)]) << index_bits) | i as u64
     }));
     radix_sort(keys, &mut scratch.spare, index_bits, index_bits + 3 * kbits);
-    let mask = (1u64 << index_bits) - 1;
-    if keys
-        .iter()
-        .enumerate()
-        .all(|(i, k)| (k & mask) as usize == i)
-    {
-        return shift;
-    }
-    let (old_pos, old_order) = (&mut scratch.pos, &mut scratch.order);
-    old_pos.clear();
-    old_pos.extend_from_slice(pos);
-    old_order.clear();
-    old_order.extend_from_slice(order);
-    for (j, k) in keys.iter().enumerate() {
-        let i = (k & mask) as usize;
-        pos[j] = old_pos[i];
-        order[j] = old_order[i];
-    }
+    scratch.index_mask = (1u64 << index_bits) - 1;
     shift
+}
+
+impl SortScratch {
+    /// After `sort_keys`: the index in `pos` of each position, in Morton order.
+    pub fn sorted_indices(&self) -> impl ExactSizeIterator<Item = usize> + '_ {
+        self.keys.iter().map(|k| (k & self.index_mask) as usize)
+    }
+
+    /// After `sort_keys`: whether the positions were in Morton order already.
+    fn is_identity(&self) -> bool {
+        self.sorted_indices().enumerate().all(|(j, i)| i == j)
+    }
 }
 
 #[cfg(test)]

@@ -1,7 +1,7 @@
 //! Building a layered octree over rows held in memory: leaves keep all their points, and each
 //! inner node takes its subsample from its children, so every point is stored exactly once.
 
-use crate::morton::{SortScratch, sort_positions};
+use crate::morton::{SortScratch, sort_keys, sort_positions};
 use crate::sampling::{Sampling, select_ordered};
 use strata_format::{Cube, GRID_CELLS_LOG2, NodeKey, RowLayout, encode_node_rows, row_position};
 
@@ -92,16 +92,22 @@ impl<'a> TreeBuilder<'a> {
         let n = self.pos.len();
         let (min, _) = key.int_bounds(self.cube.min, self.cube.bits);
         let bits = self.cube.bits - key.level as u32;
-        let shift = sort_positions(&mut self.pos, &mut self.order, min, bits, &mut self.sort);
-        // Rows in the same order make every later gather (sampling, encoding) a forward scan.
+        let shift = sort_keys(&self.pos, min, bits, &mut self.sort);
+        // The rows themselves go into Morton order, so that every later gather (sampling,
+        // encoding) is a forward scan; the positions are then read from them again rather than
+        // permuted through a copy, which would double the memory a chunk touches.
         let stride = self.layout.stride;
         let sorted = &mut self.spare_rows;
         sorted.clear();
-        for &i in &self.order {
-            let at = i as usize * stride;
+        sorted.reserve(n * stride);
+        for i in self.sort.sorted_indices() {
+            let at = i * stride;
             sorted.extend_from_slice(&self.rows[at..at + stride]);
         }
         std::mem::swap(&mut self.rows, sorted);
+        self.pos.clear();
+        self.pos
+            .extend(self.rows.chunks_exact(stride).map(row_position));
         self.order
             .iter_mut()
             .enumerate()
