@@ -12,7 +12,7 @@
 use crate::error::{ConvertError, Result, io_err};
 use std::fs::{File, OpenOptions};
 use std::io::{ErrorKind, Read, Seek, SeekFrom, Write};
-use std::os::unix::fs::OpenOptionsExt;
+use std::os::unix::fs::{FileExt, OpenOptionsExt};
 use std::path::{Path, PathBuf};
 
 /// Alignment of buffer, offsets and lengths: 64 KiB serves logical blocks and pages up to that
@@ -80,6 +80,58 @@ impl UncachedWriter {
             self.flush_full()?;
         }
         Ok(())
+    }
+
+    /// Appends bytes `offset..offset + len` of the file at `src`, read past the page cache too
+    /// where its file system allows (in aligned blocks, the bytes wanted copied out of them);
+    /// returns how many there were (fewer where the file ends first).
+    pub fn copy_file(&mut self, src: &Path, offset: u64, len: u64) -> Result<u64> {
+        let direct = OpenOptions::new()
+            .read(true)
+            .custom_flags(libc::O_DIRECT)
+            .open(src);
+        let file = match direct {
+            Ok(f) => f,
+            Err(e) if matches!(e.raw_os_error(), Some(libc::EINVAL | libc::EOPNOTSUPP)) => {
+                return self.copy_buffered(src, offset, len);
+            }
+            Err(e) => return Err(ConvertError::io(src, "cannot open", e)),
+        };
+        let mut block = vec![0u8; BLOCK + ALIGN];
+        let start = block.as_ptr().align_offset(ALIGN);
+        let block = &mut block[start..start + BLOCK];
+        let mut at = offset - offset % ALIGN as u64;
+        let mut skip = (offset - at) as usize;
+        let mut left = len;
+        while left > 0 {
+            let got = match file.read_at(block, at) {
+                Ok(got) => got,
+                Err(e) if e.kind() == ErrorKind::Interrupted => continue,
+                // Refused at this offset or alignment: the rest through the page cache.
+                Err(e) if e.raw_os_error() == Some(libc::EINVAL) => {
+                    let done = len - left;
+                    return Ok(done + self.copy_buffered(src, offset + done, left)?);
+                }
+                Err(e) => return Err(ConvertError::io(src, "cannot read", e)),
+            };
+            if got <= skip {
+                break;
+            }
+            let take = ((got - skip) as u64).min(left) as usize;
+            self.write_all(&block[skip..skip + take])?;
+            left -= take as u64;
+            at += got as u64;
+            skip = 0;
+        }
+        Ok(len - left)
+    }
+
+    /// `copy_file` through the page cache.
+    fn copy_buffered(&mut self, src: &Path, offset: u64, len: u64) -> Result<u64> {
+        let mut file = File::open(src).map_err(io_err(src, "cannot open"))?;
+        file.seek(SeekFrom::Start(offset))
+            .map_err(io_err(src, "cannot read"))?;
+        self.copy_from(&mut file, src, len)
     }
 
     /// Appends the next `len` bytes of `src` (named `src_path` in errors), read straight into
@@ -214,6 +266,43 @@ mod tests {
             assert_eq!(w.finish().unwrap(), len as u64);
             let read = std::fs::read(&path).unwrap();
             assert!(read == source[..len], "{len} bytes, flags {flags:#x}");
+        }
+    }
+
+    /// Ranges of a file at offsets and lengths around the alignment and the block, and past
+    /// its end: exactly those bytes, after what was written before.
+    #[test]
+    fn copies_ranges_of_a_file() {
+        let dir = tempfile::tempdir().unwrap();
+        let src = dir.path().join("src");
+        let bytes: Vec<u8> = (0..BLOCK + 5 * ALIGN + 77)
+            .map(|i| (i * 13 + i / 4099) as u8)
+            .collect();
+        std::fs::write(&src, &bytes).unwrap();
+        let n = bytes.len();
+        for (offset, len) in [
+            (24, n - 24),
+            (0, n),
+            (24, 0),
+            (ALIGN - 1, 2),
+            (ALIGN, BLOCK),
+            (3, BLOCK + ALIGN),
+            (n - 5, 5),
+            (n - 5, 100),
+            (n, 10),
+        ] {
+            let out = dir.path().join("out");
+            let mut w = UncachedWriter::create(&out).unwrap();
+            w.write_all(b"head").unwrap();
+            let copied = w.copy_file(&src, offset as u64, len as u64).unwrap();
+            let want = &bytes[offset.min(n)..(offset + len).min(n)];
+            assert_eq!(copied, want.len() as u64, "{offset}+{len}");
+            w.finish().unwrap();
+            let read = std::fs::read(&out).unwrap();
+            assert!(
+                read[..4] == *b"head" && read[4..] == *want,
+                "{offset}+{len}"
+            );
         }
     }
 

@@ -16,8 +16,7 @@ use crate::replace::{Folder, check_output};
 use crate::sys::peak_rss_bytes;
 use crate::uncached::UncachedWriter;
 use crate::workdir::WorkDir;
-use std::fs::{self, File};
-use std::io::{Seek, SeekFrom};
+use std::fs;
 use std::ops::Range;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
@@ -165,16 +164,13 @@ fn gather(
         let twd = task_workdir(plan_dir, k, true);
         let task_end = entries.last().map_or(OCTREE_HEAD_SIZE, |e| e.end);
         let part = twd.dataset_file(DatasetFile::Octree);
-        let mut src = File::open(&part).map_err(io_err(&part, "cannot open"))?;
-        src.seek(SeekFrom::Start(OCTREE_HEAD_SIZE))
-            .map_err(io_err(&part, "cannot read"))?;
         let len = task_end.checked_sub(OCTREE_HEAD_SIZE).ok_or_else(|| {
             ConvertError::input(
                 &part,
                 format!("its journal ends its nodes at byte {task_end}, inside the file head"),
             )
         })?;
-        let copied = octree.copy_from(&mut src, &part, len)?;
+        let copied = octree.copy_file(&part, OCTREE_HEAD_SIZE, len)?;
         if copied != len {
             return Err(ConvertError::input(
                 &part,
