@@ -346,6 +346,33 @@ fn fly_through_writes_numbered_frames_with_stats() {
         images[0], images[3],
         "the camera moved but the image did not change"
     );
+    // A frame's name taken by something that is not an image: refused before any frame is
+    // drawn, and the file left as it was.
+    let taken = dir.join("fly_0002.png");
+    std::fs::write(&taken, b"field notes").expect("write");
+    let o = gpu_run(&[
+        "render",
+        s(&dataset),
+        "-o",
+        s(&dir.join("fly.png")),
+        "--path",
+        s(&path),
+        "--frames",
+        "4",
+        "--size",
+        "160x120",
+    ]);
+    assert!(
+        !o.status.success(),
+        "a frame replaced a file that is not a PNG"
+    );
+    assert!(
+        String::from_utf8_lossy(&o.stderr).contains("not a PNG image"),
+        "{}",
+        String::from_utf8_lossy(&o.stderr)
+    );
+    assert_eq!(std::fs::read(&taken).expect("read"), b"field notes");
+    std::fs::remove_file(&taken).expect("remove");
 }
 
 #[test]

@@ -108,3 +108,34 @@ fn noise_moves_every_point_by_about_its_deviation_and_nothing_else() {
     assert!(stderr.contains("--noise"), "{stderr}");
     assert!(!stderr.contains("panicked"), "{stderr}");
 }
+
+/// A `.copc.laz` name asks for COPC, which only `export` of a dataset makes: refused, with the
+/// way to make one, rather than a plain LAZ file under a COPC name.
+#[test]
+fn a_copc_name_is_refused_with_the_way_to_make_one() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let out = dir.path().join("scan.copc.laz");
+    let o = run(&["synth", "--points", "1000", "-o", s(&out)]);
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(!o.status.success(), "synth wrote {}", out.display());
+    assert!(
+        err.contains("not COPC") && err.contains("strata export"),
+        "{err}"
+    );
+    assert!(!out.exists(), "nothing is left under the COPC name");
+}
+
+/// `demo --points 0` is refused before it makes its folder.
+#[test]
+fn an_empty_demo_is_refused_before_its_folder_is_made() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let demo = dir.path().join("demo");
+    let o = run(&["demo", "--points", "0", "--dir", s(&demo), "--png"]);
+    assert!(!o.status.success());
+    assert!(
+        String::from_utf8_lossy(&o.stderr).contains("--points must be at least 1"),
+        "{}",
+        String::from_utf8_lossy(&o.stderr)
+    );
+    assert!(!demo.exists(), "the refused demo left {}", demo.display());
+}

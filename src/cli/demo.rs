@@ -1,4 +1,5 @@
 use super::convert::print_summary;
+use anyhow::Context;
 use std::path::PathBuf;
 use std::process::ExitCode;
 use std::time::Duration;
@@ -29,7 +30,10 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
     let dir = a
         .dir
         .unwrap_or_else(|| std::env::temp_dir().join("strata-demo"));
-    std::fs::create_dir_all(&dir)?;
+    // Before anything is made, so that a refused run leaves no folder behind.
+    anyhow::ensure!(a.points >= 1, "--points must be at least 1");
+    std::fs::create_dir_all(&dir)
+        .with_context(|| format!("{}: cannot create the demo's folder", dir.display()))?;
     let las = dir.join("city.laz");
     let dataset = dir.join("city.strata");
     println!("1/4 synthesizing {} points -> {}", a.points, las.display());

@@ -23,7 +23,7 @@ pub struct Args {
     #[arg(long, value_name = "FILE")]
     token_file: Option<PathBuf>,
     /// Send CORS headers allowing this origin (`*` for any) so browsers may fetch.
-    #[arg(long)]
+    #[arg(long, value_parser = parse_origin)]
     cors: Option<String>,
     /// Open connections at most (up to 1048576); more wait in the listen backlog.
     #[arg(long, default_value_t = 512,
@@ -55,6 +55,32 @@ pub struct Args {
 enum LogFormatArg {
     Text,
     Json,
+}
+
+/// An origin for `Access-Control-Allow-Origin`: `*`, `null`, or `scheme://host[:port]`. Refused
+/// here rather than left out of every response, where a browser would only say CORS failed.
+fn parse_origin(s: &str) -> Result<String, String> {
+    let scheme_host = s.split_once("://");
+    let well_formed = s == "*"
+        || s == "null"
+        || scheme_host.is_some_and(|(scheme, host)| {
+            !scheme.is_empty()
+                && scheme
+                    .chars()
+                    .all(|c| c.is_ascii_alphanumeric() || "+-.".contains(c))
+                && !host.is_empty()
+                && !host.contains('/')
+                && host.chars().all(|c| c.is_ascii_graphic())
+        });
+    if well_formed {
+        Ok(s.to_string())
+    } else {
+        Err(format!(
+            "\"{}\" is not an origin: give `*` or scheme://host[:port], such as \
+             https://viewer.example.org",
+            s.escape_debug()
+        ))
+    }
 }
 
 /// The token from --token or --token-file, checked.

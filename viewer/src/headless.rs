@@ -111,6 +111,13 @@ pub fn render_with(
 ) -> Result<RenderReport, ViewerError> {
     ds.check_colour(opts.settings.colour)?;
     let cameras = cameras(&ds, opts)?;
+    if cameras.len() > 1 {
+        // A fly-through's frames go beside the named image: none may replace a file that is
+        // not an image (the command line checks the named one itself).
+        for i in 0..cameras.len() {
+            check_frame_replaceable(&numbered(&opts.output, i))?;
+        }
+    }
     let mut renderer = Renderer::new(
         ctx.clone(),
         ds.clone(),
@@ -375,6 +382,28 @@ fn cameras(ds: &StreamDataset, opts: &RenderOptions) -> Result<Vec<Camera>, View
             keys[seg].lerp(&keys[seg + 1], f)
         })
         .collect())
+}
+
+/// Refuses a frame's path where something other than a PNG image is there already.
+fn check_frame_replaceable(path: &Path) -> Result<(), ViewerError> {
+    let Ok(meta) = std::fs::symlink_metadata(path) else {
+        return Ok(());
+    };
+    let mut magic = [0u8; 8];
+    let is_png = meta.is_file()
+        && std::fs::File::open(path)
+            .and_then(|mut f| std::io::Read::read_exact(&mut f, &mut magic))
+            .is_ok()
+        && magic == *b"\x89PNG\r\n\x1a\n";
+    if is_png {
+        Ok(())
+    } else {
+        Err(ViewerError::output(
+            path,
+            "a frame of the fly-through would replace it, and it is not a PNG image; remove it \
+             yourself or choose another name",
+        ))
+    }
 }
 
 fn numbered(path: &Path, i: usize) -> PathBuf {

@@ -60,8 +60,13 @@ impl Corridor {
         if !(self.width.is_finite() && self.width > 0.0) {
             return Err(format!("the profile width {} is not above 0", self.width));
         }
-        if self.length() == 0.0 {
+        let length = self.length();
+        if length == 0.0 {
             return Err("the profile line has no length".into());
+        }
+        // Coordinates near f64's limit make every distance along the line infinite.
+        if !length.is_finite() {
+            return Err("the profile line is too long to measure along".into());
         }
         Ok(())
     }
@@ -370,6 +375,7 @@ mod tests {
             ("0,0", "at least two"),
             ("0,0;a,1", "X,Y;X,Y"),
             ("1,1;1,1", "no length"),
+            ("-1e308,0;1e308,0", "too long"),
         ] {
             let e = Corridor::parse(bad, 1.0).expect_err(bad).to_string();
             assert!(e.contains(says), "{bad}: {e}");
