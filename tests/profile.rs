@@ -240,3 +240,25 @@ fn the_window_draws_the_measurements_and_the_profile_with_its_plot() {
     assert!(count([16, 18, 22]) > 560 * 200 / 2, "no profile plot shown");
     assert!(count([255, 120, 60]) > 100, "no clip box handles drawn");
 }
+
+/// A `.copc.laz` name is refused before the dataset is read: a profile is plain LAS or LAZ.
+#[test]
+fn a_copc_name_is_refused_before_anything_is_read() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let out = dir.path().join("cut.copc.laz");
+    let w = WIDTH.to_string();
+    let o = common::run(&[
+        "profile",
+        "/nonexistent/set.strata",
+        "--line",
+        LINE,
+        "--width",
+        &w,
+        "-o",
+        s(&out),
+    ]);
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(!o.status.success());
+    assert!(err.contains("not COPC"), "{err}");
+    assert!(!out.exists());
+}

@@ -165,6 +165,45 @@ mod tests {
         assert_eq!(keys, expect);
     }
 
+    /// `sort_keys` gives the order `sort_positions` puts positions in, so a chunk gathered by
+    /// it is the same rows in the same order: at a node wider than the key (ties below its
+    /// resolution), narrower, and already in order.
+    #[test]
+    fn sorted_keys_give_the_order_sort_positions_makes() {
+        let mut rng = crate::synth::Rng::new(5, 0, 0);
+        for (bits, n) in [(20u32, 5000usize), (8, 3000), (20, 1)] {
+            let side = (1u64 << bits) as f64;
+            let pos: Vec<[i32; 3]> = (0..n)
+                .map(|_| [0, 1, 2].map(|_| (rng.unit() * side) as i32 - 7))
+                .collect();
+            let min = [-7i64; 3];
+            for input in [pos.clone(), {
+                let mut p = pos.clone();
+                let mut o: Vec<u32> = (0..n as u32).collect();
+                sort_positions(&mut p, &mut o, min, bits, &mut SortScratch::default());
+                p
+            }] {
+                let (mut sorted, mut order) = (input.clone(), (0..n as u32).collect::<Vec<_>>());
+                let shift = sort_positions(
+                    &mut sorted,
+                    &mut order,
+                    min,
+                    bits,
+                    &mut SortScratch::default(),
+                );
+                let mut scratch = SortScratch::default();
+                assert_eq!(sort_keys(&input, min, bits, &mut scratch), shift);
+                let indices: Vec<usize> = scratch.sorted_indices().collect();
+                assert_eq!(
+                    indices,
+                    order.iter().map(|&o| o as usize).collect::<Vec<_>>()
+                );
+                let gathered: Vec<[i32; 3]> = indices.iter().map(|&i| input[i]).collect();
+                assert_eq!(gathered, sorted, "{bits} bits, {n} positions");
+            }
+        }
+    }
+
     #[test]
     fn sorted_positions_put_each_octant_together() {
         let pts: Vec<[i32; 3]> = (0..1000)

@@ -32,6 +32,8 @@ pub struct UncachedWriter {
     filled: usize,
     /// Bytes written to the file so far (a multiple of `ALIGN` while `direct`).
     written: u64,
+    /// `copy_file`'s buffer for reading past the page cache, allocated on first use.
+    read_buf: Vec<u8>,
 }
 
 impl UncachedWriter {
@@ -66,6 +68,7 @@ impl UncachedWriter {
             start,
             filled: 0,
             written: 0,
+            read_buf: Vec::new(),
         })
     }
 
@@ -97,9 +100,26 @@ impl UncachedWriter {
             }
             Err(e) => return Err(ConvertError::io(src, "cannot open", e)),
         };
-        let mut block = vec![0u8; BLOCK + ALIGN];
-        let start = block.as_ptr().align_offset(ALIGN);
-        let block = &mut block[start..start + BLOCK];
+        // Kept for the next file: a finish copies one per task.
+        let mut read_buf = std::mem::take(&mut self.read_buf);
+        if read_buf.len() < BLOCK + ALIGN {
+            read_buf = vec![0u8; BLOCK + ALIGN];
+        }
+        let start = read_buf.as_ptr().align_offset(ALIGN);
+        let copied = self.copy_direct(&file, &mut read_buf[start..start + BLOCK], src, offset, len);
+        self.read_buf = read_buf;
+        copied
+    }
+
+    /// `copy_file`'s reads of `file`, opened with O_DIRECT, through the aligned `block`.
+    fn copy_direct(
+        &mut self,
+        file: &File,
+        block: &mut [u8],
+        src: &Path,
+        offset: u64,
+        len: u64,
+    ) -> Result<u64> {
         let mut at = offset - offset % ALIGN as u64;
         let mut skip = (offset - at) as usize;
         let mut left = len;

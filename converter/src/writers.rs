@@ -33,6 +33,14 @@ pub fn open_writer(
     points: u64,
     overwrite: bool,
 ) -> Result<Box<dyn RowWriter>> {
+    // A COPC file is a LAZ file with an octree inside: only `export` of a dataset makes one.
+    if crate::export::is_copc(path) {
+        return Err(ConvertError::output(
+            path,
+            "this writes plain LAS or LAZ, not COPC (a COPC file is made from a converted \
+             dataset by `strata export DATASET -o NAME.copc.laz`)",
+        ));
+    }
     if path.exists() && !overwrite {
         return Err(ConvertError::output(
             path,
@@ -44,14 +52,6 @@ pub fn open_writer(
         .and_then(|e| e.to_str())
         .map(|e| e.to_ascii_lowercase())
         .unwrap_or_default();
-    // A COPC file is a LAZ file with an octree inside: only `export` of a dataset makes one.
-    if crate::export::is_copc(path) {
-        return Err(ConvertError::output(
-            path,
-            "this writes plain LAS or LAZ, not COPC; convert the points, then make the COPC file \
-             with `strata export DATASET -o NAME.copc.laz`",
-        ));
-    }
     match ext.as_str() {
         "las" | "laz" => Ok(Box::new(LasRowWriter::create(path, layout, scale, offset)?)),
         "ply" => Ok(Box::new(PlyRowWriter::create(

@@ -43,6 +43,12 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
         .output
         .extension()
         .map(|e| e.to_string_lossy().to_ascii_lowercase());
+    if strata_converter::export::is_copc(&a.output) {
+        anyhow::bail!(
+            "{}: a profile is written as plain .las or .laz, not COPC; name it .laz",
+            a.output.display()
+        );
+    }
     let csv = match ext.as_deref() {
         Some("csv") => true,
         Some("las" | "laz" | "ply") => false,

@@ -60,24 +60,26 @@ enum LogFormatArg {
 /// An origin for `Access-Control-Allow-Origin`: `*`, `null`, or `scheme://host[:port]`. Refused
 /// here rather than left out of every response, where a browser would only say CORS failed.
 fn parse_origin(s: &str) -> Result<String, String> {
-    let scheme_host = s.split_once("://");
+    // Browsers send the scheme and host in lower case, with no user, path, query or fragment:
+    // anything else never matches their `Origin`.
     let well_formed = s == "*"
         || s == "null"
-        || scheme_host.is_some_and(|(scheme, host)| {
-            !scheme.is_empty()
+        || s.split_once("://").is_some_and(|(scheme, host)| {
+            scheme.starts_with(|c: char| c.is_ascii_lowercase())
                 && scheme
                     .chars()
-                    .all(|c| c.is_ascii_alphanumeric() || "+-.".contains(c))
+                    .all(|c| c.is_ascii_lowercase() || c.is_ascii_digit() || "+-.".contains(c))
                 && !host.is_empty()
-                && !host.contains('/')
-                && host.chars().all(|c| c.is_ascii_graphic())
+                && host
+                    .chars()
+                    .all(|c| c.is_ascii_graphic() && !c.is_ascii_uppercase() && !"/@?#".contains(c))
         });
     if well_formed {
         Ok(s.to_string())
     } else {
         Err(format!(
-            "\"{}\" is not an origin: give `*` or scheme://host[:port], such as \
-             https://viewer.example.org",
+            "\"{}\" is not an origin: give `*`, `null` or scheme://host[:port] in lower case, \
+             such as https://viewer.example.org",
             s.escape_debug()
         ))
     }
@@ -140,4 +142,39 @@ pub fn run_serve(a: Args) -> anyhow::Result<ExitCode> {
         anyhow::Ok(())
     })?;
     Ok(ExitCode::SUCCESS)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::parse_origin;
+
+    #[test]
+    fn origins_are_what_a_browser_sends() {
+        for good in [
+            "*",
+            "null",
+            "https://viewer.example.org",
+            "http://localhost:8080",
+            "https://[::1]:3000",
+            "app+x://a-b.c",
+        ] {
+            assert_eq!(parse_origin(good).as_deref(), Ok(good));
+        }
+        for bad in [
+            "",
+            "viewer",
+            "https://",
+            "://a.org",
+            "https://a.org/viewer",
+            "https://a.org\r\nX-Evil: 1",
+            "HTTPS://A.ORG",
+            "https://user@a.org",
+            "https://a.org?x",
+            "https://a.org#x",
+            "https://a .org",
+        ] {
+            let e = parse_origin(bad).expect_err(bad);
+            assert!(e.contains("is not an origin"), "{bad}: {e}");
+        }
+    }
 }

@@ -390,19 +390,20 @@ fn check_frame_replaceable(path: &Path) -> Result<(), ViewerError> {
         return Ok(());
     };
     let mut magic = [0u8; 8];
-    let is_png = meta.is_file()
-        && std::fs::File::open(path)
-            .and_then(|mut f| std::io::Read::read_exact(&mut f, &mut magic))
-            .is_ok()
-        && magic == *b"\x89PNG\r\n\x1a\n";
-    if is_png {
-        Ok(())
-    } else {
-        Err(ViewerError::output(
+    let read = meta.is_file().then(|| {
+        std::fs::File::open(path).and_then(|mut f| std::io::Read::read_exact(&mut f, &mut magic))
+    });
+    match read {
+        Some(Ok(())) if magic == *b"\x89PNG\r\n\x1a\n" => Ok(()),
+        Some(Err(e)) if e.kind() != std::io::ErrorKind::UnexpectedEof => Err(ViewerError::output(
+            path,
+            format!("a frame of the fly-through would replace it, and it cannot be read ({e})"),
+        )),
+        _ => Err(ViewerError::output(
             path,
             "a frame of the fly-through would replace it, and it is not a PNG image; remove it \
              yourself or choose another name",
-        ))
+        )),
     }
 }
 
