@@ -4,7 +4,7 @@ use std::io::Read;
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 use std::time::Duration;
-use strata_viewer::headless::{RenderOptions, render};
+use strata_viewer::headless::{RenderOptions, check_png_replaceable, render};
 use strata_viewer::measure::Measurements;
 
 #[derive(Debug, clap::Args)]
@@ -59,8 +59,8 @@ pub fn parse_size_wh(s: &str) -> anyhow::Result<(u32, u32)> {
 }
 
 /// Refuses to write over an existing `path` unless it holds what this command writes there
-/// (`ours` of its first bytes): `-o` or `--stats` aimed by mistake at a dataset's file or an
-/// input must not destroy it.
+/// (`ours` of its first bytes): `--stats` aimed by mistake at a dataset's file or an input
+/// must not destroy it.
 fn check_replaceable(path: &Path, what: &str, ours: impl Fn(&[u8]) -> bool) -> anyhow::Result<()> {
     let Ok(meta) = std::fs::symlink_metadata(path) else {
         return Ok(());
@@ -82,9 +82,8 @@ fn check_replaceable(path: &Path, what: &str, ours: impl Fn(&[u8]) -> bool) -> a
 }
 
 pub fn run(a: Args) -> anyhow::Result<ExitCode> {
-    check_replaceable(&a.output, "a PNG image", |b| {
-        b.starts_with(b"\x89PNG\r\n\x1a\n")
-    })?;
+    // Checked again by the renderer with the frames' names; here before the dataset opens.
+    check_png_replaceable(&a.output)?;
     if let Some(stats) = &a.stats {
         check_replaceable(stats, "render statistics", |b| {
             b.starts_with(b"{") && b.windows(9).any(|w| w == b"\"adapter\"")

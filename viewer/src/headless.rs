@@ -111,12 +111,13 @@ pub fn render_with(
 ) -> Result<RenderReport, ViewerError> {
     ds.check_colour(opts.settings.colour)?;
     let cameras = cameras(&ds, opts)?;
+    // Before anything is drawn: the named image, or a fly-through's frames beside it.
     if cameras.len() > 1 {
-        // A fly-through's frames go beside the named image: none may replace a file that is
-        // not an image (the command line checks the named one itself).
         for i in 0..cameras.len() {
-            check_frame_replaceable(&numbered(&opts.output, i))?;
+            check_png_replaceable(&numbered(&opts.output, i))?;
         }
+    } else {
+        check_png_replaceable(&opts.output)?;
     }
     let mut renderer = Renderer::new(
         ctx.clone(),
@@ -384,8 +385,10 @@ fn cameras(ds: &StreamDataset, opts: &RenderOptions) -> Result<Vec<Camera>, View
         .collect())
 }
 
-/// Refuses a frame's path where something other than a PNG image is there already.
-fn check_frame_replaceable(path: &Path) -> Result<(), ViewerError> {
+/// Refuses `path` where something other than a PNG image is there already: an image this
+/// renders (`-o`, or a fly-through's frame beside it) replaces only an image, never a
+/// dataset's file or an input named by mistake.
+pub fn check_png_replaceable(path: &Path) -> Result<(), ViewerError> {
     let Ok(meta) = std::fs::symlink_metadata(path) else {
         return Ok(());
     };
@@ -397,12 +400,12 @@ fn check_frame_replaceable(path: &Path) -> Result<(), ViewerError> {
         Some(Ok(())) if magic == *b"\x89PNG\r\n\x1a\n" => Ok(()),
         Some(Err(e)) if e.kind() != std::io::ErrorKind::UnexpectedEof => Err(ViewerError::output(
             path,
-            format!("a frame of the fly-through would replace it, and it cannot be read ({e})"),
+            format!("exists and cannot be read ({e}); render replaces only PNG images"),
         )),
         _ => Err(ViewerError::output(
             path,
-            "a frame of the fly-through would replace it, and it is not a PNG image; remove it \
-             yourself or choose another name",
+            "exists and is not a PNG image; render replaces only what it wrote itself, so \
+             remove it yourself or choose another name",
         )),
     }
 }
