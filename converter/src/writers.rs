@@ -71,7 +71,11 @@ fn las_format_for(layout: &RowLayout) -> u8 {
         .index_of("rgb")
         .is_some_and(|i| layout.attributes[i].count == 3 && layout.attributes[i].ty.size() <= 2);
     let wave = has("wave_packet_offset");
-    if has("scan_angle") || has("scanner_channel") {
+    // Formats 0 to 5 hold classes up to 31 and return numbers up to 7. Rows read from those
+    // formats (the ones with a scan angle rank) fit them; a class or return number from
+    // anywhere else (a PLY's uchar) may not, and goes to formats 6 to 10.
+    let legacy_fits = has("scan_angle_rank") || !LEGACY_LIMITS.iter().any(|(n, _)| has(n));
+    if has("scan_angle") || has("scanner_channel") || !legacy_fits {
         match (wave, has("nir"), rgb) {
             (true, true, _) => 10,
             (true, false, _) => 9,
@@ -91,18 +95,50 @@ fn las_format_for(layout: &RowLayout) -> u8 {
     }
 }
 
+/// The attributes that formats 0 to 5 hold in fewer bits, and the largest value each holds.
+const LEGACY_LIMITS: [(&str, u8); 3] = [
+    ("classification", 31),
+    ("return_number", 7),
+    ("number_of_returns", 7),
+];
+
 struct LasRowWriter {
     path: PathBuf,
     part: PathBuf,
     writer: Writer<BufWriter<File>>,
     records: LasRecords,
     buf: Vec<u8>,
+    format_number: u8,
+    stride: usize,
+    /// Where formats 0 to 5 are written: each narrower attribute's row offset, name and
+    /// largest value, so that a value they cannot hold is refused rather than cut.
+    limits: Vec<(usize, &'static str, u8)>,
+    /// The integer bounds of the positions written, for the header (see `finish`).
+    min: [i32; 3],
+    max: [i32; 3],
+    scale: [f64; 3],
+    offset: [f64; 3],
 }
 
 impl LasRowWriter {
     fn create(path: &Path, layout: &RowLayout, scale: [f64; 3], offset: [f64; 3]) -> Result<Self> {
         let format_number = las_format_for(layout);
-        let records = LasRecords::new(path, layout, format_number)?;
+        let mut records = LasRecords::new(path, layout, format_number)?;
+        if format_number >= 6 {
+            records = records.single_returns_where_missing();
+        }
+        let limits = if format_number < 6 {
+            LEGACY_LIMITS
+                .iter()
+                .filter_map(|&(name, max)| {
+                    let i = layout.index_of(name)?;
+                    let a = &layout.attributes[i];
+                    (a.ty == AttrType::U8 && a.count == 1).then_some((layout.offsets[i], name, max))
+                })
+                .collect()
+        } else {
+            Vec::new()
+        };
         let mut builder = las::Builder::from((1, 4));
         builder.point_format = las::point::Format::new(format_number).map_err(|e| {
             ConvertError::output(
@@ -151,12 +187,37 @@ impl LasRowWriter {
             writer,
             records,
             buf: Vec::new(),
+            format_number,
+            stride: layout.stride,
+            limits,
+            min: [i32::MAX; 3],
+            max: [i32::MIN; 3],
+            scale,
+            offset,
         })
     }
 }
 
 impl RowWriter for LasRowWriter {
     fn write_rows(&mut self, rows: &[u8]) -> Result<()> {
+        for row in rows.chunks_exact(self.stride) {
+            for &(at, name, max) in &self.limits {
+                if row[at] > max {
+                    return Err(ConvertError::output(
+                        &self.path,
+                        format!(
+                            "a point's {name} is {}, more than point format {} holds ({max}); \
+                             export to .copc.laz or .ply to keep it",
+                            row[at], self.format_number
+                        ),
+                    ));
+                }
+            }
+            for (a, v) in row_position(row).into_iter().enumerate() {
+                self.min[a] = self.min[a].min(v);
+                self.max[a] = self.max[a].max(v);
+            }
+        }
         self.records.fill(rows, &mut self.buf);
         let data = PointDataBuilder::new()
             .for_header(self.writer.header())
@@ -172,8 +233,34 @@ impl RowWriter for LasRowWriter {
         self.writer
             .close()
             .map_err(|e| ConvertError::output(&self.part, format!("cannot finish ({e})")))?;
+        if self.min[0] <= self.max[0] {
+            self.write_exact_bounds()?;
+        }
         std::fs::rename(&self.part, &self.path)
             .map_err(|e| ConvertError::io(&self.path, "cannot move into place", e))
+    }
+}
+
+impl LasRowWriter {
+    /// Writes the header's bounds from the integer bounds of the points. The `las` crate
+    /// widens its own to the grid with a floor and a ceiling of values that carry rounding
+    /// (98.99999999999994 steps becomes 98), a step beyond the points.
+    fn write_exact_bounds(&self) -> Result<()> {
+        use std::io::{Seek, SeekFrom};
+        let real = |a: usize, v: i32| self.offset[a] + self.scale[a] * f64::from(v);
+        // Max X, min X, max Y, min Y, max Z, min Z from byte 179 of every LAS header version.
+        let mut bytes = Vec::with_capacity(48);
+        for a in 0..3 {
+            bytes.extend_from_slice(&real(a, self.max[a]).to_le_bytes());
+            bytes.extend_from_slice(&real(a, self.min[a]).to_le_bytes());
+        }
+        let mut file = std::fs::OpenOptions::new()
+            .write(true)
+            .open(&self.part)
+            .map_err(|e| ConvertError::io(&self.part, "cannot reopen", e))?;
+        file.seek(SeekFrom::Start(179))
+            .and_then(|_| file.write_all(&bytes))
+            .map_err(|e| ConvertError::io(&self.part, "cannot write the header's bounds in", e))
     }
 }
 
@@ -218,13 +305,7 @@ impl PlyRowWriter {
             "ply\nformat binary_little_endian 1.0\ncomment written by strata {}\nelement vertex {points}\nproperty double x\nproperty double y\nproperty double z\n",
             env!("CARGO_PKG_VERSION")
         );
-        for a in &layout.attributes {
-            let names: Vec<String> = match (a.name.as_str(), a.count) {
-                ("rgb", 3) => vec!["red".into(), "green".into(), "blue".into()],
-                ("normal", 3) => vec!["nx".into(), "ny".into(), "nz".into()],
-                (n, 1) => vec![n.to_string()],
-                (n, c) => (0..c).map(|i| format!("{n}_{i}")).collect(),
-            };
+        for (a, names) in layout.attributes.iter().zip(ply_property_names(layout)) {
             for n in names {
                 h.push_str(&format!("property {} {n}\n", ply_type(a.ty)));
             }
@@ -246,6 +327,58 @@ impl PlyRowWriter {
             offset,
         })
     }
+}
+
+/// Each attribute's PLY property names: a colour as `red green blue`, a normal as `nx ny nz`,
+/// other vectors as `NAME_0`, `NAME_1`, …. A name already taken (a scalar `red` beside a
+/// colour, a LAS extra attribute named `green`) gets a number, as a PLY reader refuses a
+/// property declared twice; white space, which would end the name in the header, becomes `_`.
+fn ply_property_names(layout: &RowLayout) -> Vec<Vec<String>> {
+    let mut taken: std::collections::HashSet<String> =
+        ["x", "y", "z"].iter().map(|n| n.to_string()).collect();
+    let mut unique = |n: String| {
+        let n: String = n
+            .chars()
+            .map(|c| if c.is_whitespace() { '_' } else { c })
+            .collect();
+        let n = if n.is_empty() {
+            "attribute".to_string()
+        } else {
+            n
+        };
+        let mut name = n.clone();
+        let mut i = 1;
+        while taken.contains(&name) {
+            name = format!("{n}_{i}");
+            i += 1;
+        }
+        taken.insert(name.clone());
+        name
+    };
+    let group = |a: &strata_format::Attribute| -> Option<[&str; 3]> {
+        match (a.name.as_str(), a.count) {
+            ("rgb", 3) => Some(["red", "green", "blue"]),
+            ("normal", 3) => Some(["nx", "ny", "nz"]),
+            _ => None,
+        }
+    };
+    // A colour and a normal keep the names readers group them by.
+    let grouped: Vec<Option<Vec<String>>> = layout
+        .attributes
+        .iter()
+        .map(|a| group(a).map(|g| g.iter().map(|n| unique(n.to_string())).collect()))
+        .collect();
+    layout
+        .attributes
+        .iter()
+        .zip(grouped)
+        .map(|(a, grouped)| {
+            grouped.unwrap_or_else(|| match a.count {
+                1 => vec![unique(a.name.clone())],
+                c => (0..c).map(|i| unique(format!("{}_{i}", a.name))).collect(),
+            })
+        })
+        .collect()
 }
 
 impl RowWriter for PlyRowWriter {

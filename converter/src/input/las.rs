@@ -62,9 +62,11 @@ impl LasSource {
             )));
         }
         let (scale, offset) = (raw.scale, raw.offset);
+        // Writers may place the record among the extended VLRs after the points (LAS 1.4).
         let eb_vlr = header
             .vlrs()
             .iter()
+            .chain(header.evlrs())
             .find(|v| v.user_id == "LASF_Spec" && v.record_id == 4)
             .map(|v| v.data.as_slice());
         let mut extra = parse_extra_bytes(eb_vlr, format.extra_bytes as usize)

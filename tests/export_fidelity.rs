@@ -1,0 +1,223 @@
+//! What `export` writes holds what the dataset holds: classes and return numbers beyond the
+//! legacy LAS formats' bits, header bounds on the points themselves, PLY property names that a
+//! reader accepts, and extra attributes described in an extended VLR.
+
+mod common;
+use common::*;
+use std::path::Path;
+
+/// A binary PLY of points (x, classification, return number) on the x axis.
+fn classed_ply(path: &Path, points: &[(f32, u8, u8)]) {
+    let mut bytes = format!(
+        "ply\nformat binary_little_endian 1.0\nelement vertex {}\nproperty float x\nproperty float y\nproperty float z\nproperty uchar classification\nproperty uchar return_number\nproperty uchar number_of_returns\nend_header\n",
+        points.len()
+    )
+    .into_bytes();
+    for &(x, class, ret) in points {
+        for v in [x, 0.0, 0.0] {
+            bytes.extend_from_slice(&v.to_le_bytes());
+        }
+        bytes.extend_from_slice(&[class, ret, ret]);
+    }
+    std::fs::write(path, bytes).expect("write ply");
+}
+
+#[test]
+fn classes_and_returns_beyond_the_legacy_bits_export_whole() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let (ply, ds, las) = (
+        dir.path().join("c.ply"),
+        dir.path().join("ds"),
+        dir.path().join("c.las"),
+    );
+    let points = [(0.0, 200, 9), (1.0, 37, 12), (2.0, 2, 1), (3.0, 255, 15)];
+    classed_ply(&ply, &points);
+    run_ok(&["convert", s(&ply), "-o", s(&ds), "-q"]);
+    run_ok(&["export", s(&ds), "-o", s(&las)]);
+    let mut reader = las::Reader::from_path(&las).expect("read export");
+    assert!(
+        reader.header().point_format().is_extended,
+        "formats 0 to 5 cannot hold class 200"
+    );
+    let mut got: Vec<(i64, u8, u8, u8)> = reader
+        .read_all()
+        .expect("all points")
+        .points()
+        .map(|p| {
+            let p = p.expect("point");
+            (
+                p.x.round() as i64,
+                u8::from(p.classification),
+                p.return_number,
+                p.number_of_returns,
+            )
+        })
+        .collect();
+    got.sort_unstable();
+    let want: Vec<(i64, u8, u8, u8)> = points
+        .iter()
+        .map(|&(x, c, r)| (x as i64, c, r, r))
+        .collect();
+    assert_eq!(got, want);
+}
+
+#[test]
+fn a_class_the_legacy_format_cannot_hold_is_refused_not_cut() {
+    // A legacy LAS beside a PLY: the union carries the legacy scan angle rank, so the export
+    // picks a legacy format, and the PLY's class 200 does not fit it.
+    let dir = tempfile::tempdir().expect("tempdir");
+    let (ply, ds, las) = (
+        dir.path().join("c.ply"),
+        dir.path().join("ds"),
+        dir.path().join("c.las"),
+    );
+    classed_ply(&ply, &[(637000.0, 200, 1), (637001.0, 2, 1)]);
+    let autzen = data("autzen_trim.las");
+    let reader = las::Reader::from_path(&autzen).expect("autzen");
+    if reader.header().point_format().is_extended {
+        return;
+    }
+    run_ok(&["convert", s(&autzen), s(&ply), "-o", s(&ds), "-q"]);
+    let out = run(&["export", s(&ds), "-o", s(&las)]);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success(), "export must fail: {err}");
+    assert!(
+        err.contains("classification is 200"),
+        "the error names the value: {err}"
+    );
+    assert!(!las.exists(), "no output that looks complete");
+    assert!(!dir.path().join("c.las.part").exists(), "no leftover");
+}
+
+#[test]
+fn exported_las_header_bounds_are_the_points_own() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let (input, ds, out) = (
+        dir.path().join("one.las"),
+        dir.path().join("ds"),
+        dir.path().join("out.las"),
+    );
+    let (scale, offset) = (0.01, [700000.0, 4e6, 100.0]);
+    let ints = [17, -3, 99];
+    let mut builder = las::Builder::from((1, 4));
+    builder.transforms = las::Vector {
+        x: las::Transform {
+            scale,
+            offset: offset[0],
+        },
+        y: las::Transform {
+            scale,
+            offset: offset[1],
+        },
+        z: las::Transform {
+            scale,
+            offset: offset[2],
+        },
+    };
+    let header = builder.into_header().expect("header");
+    let mut writer = las::Writer::from_path(&input, header).expect("writer");
+    let real = |a: usize| offset[a] + scale * f64::from(ints[a]);
+    writer
+        .write_point(las::Point {
+            x: real(0),
+            y: real(1),
+            z: real(2),
+            ..Default::default()
+        })
+        .expect("write");
+    writer.close().expect("close");
+    run_ok(&["convert", s(&input), "-o", s(&ds), "-q"]);
+    run_ok(&["export", s(&ds), "-o", s(&out)]);
+    let bytes = std::fs::read(&out).expect("export");
+    let at = |i: usize| f64::from_le_bytes(bytes[179 + 8 * i..187 + 8 * i].try_into().unwrap());
+    for a in 0..3 {
+        assert_eq!(at(2 * a), real(a), "max on axis {a}");
+        assert_eq!(at(2 * a + 1), real(a), "min on axis {a}");
+    }
+}
+
+#[test]
+fn ply_export_declares_every_property_once() {
+    // A colour under the diffuse names beside a scalar called red.
+    let dir = tempfile::tempdir().expect("tempdir");
+    let (input, ds, out, again) = (
+        dir.path().join("in.ply"),
+        dir.path().join("ds"),
+        dir.path().join("out.ply"),
+        dir.path().join("again"),
+    );
+    let mut bytes = b"ply\nformat binary_little_endian 1.0\nelement vertex 2\nproperty float x\nproperty float y\nproperty float z\nproperty uchar diffuse_red\nproperty uchar diffuse_green\nproperty uchar diffuse_blue\nproperty float red\nend_header\n".to_vec();
+    for (x, red) in [(0.0f32, 0.25f32), (1.0, 0.75)] {
+        for v in [x, 0.0, 0.0] {
+            bytes.extend_from_slice(&v.to_le_bytes());
+        }
+        bytes.extend_from_slice(&[10, 20, 30]);
+        bytes.extend_from_slice(&red.to_le_bytes());
+    }
+    std::fs::write(&input, bytes).expect("write");
+    run_ok(&["convert", s(&input), "-o", s(&ds), "-q"]);
+    run_ok(&["export", s(&ds), "-o", s(&out)]);
+    let text = std::fs::read(&out).expect("export");
+    let end = text
+        .windows(10)
+        .position(|w| w == b"end_header")
+        .expect("header");
+    let header = String::from_utf8_lossy(&text[..end]);
+    let names: Vec<&str> = header
+        .lines()
+        .filter_map(|l| l.strip_prefix("property "))
+        .filter_map(|l| l.split_whitespace().nth(1))
+        .collect();
+    let mut unique = names.clone();
+    unique.sort_unstable();
+    unique.dedup();
+    assert_eq!(unique.len(), names.len(), "a name twice: {names:?}");
+    assert!(
+        names.contains(&"red") && names.contains(&"red_1"),
+        "{names:?}"
+    );
+    // And it reads back, the colour still a colour.
+    run_ok(&["convert", s(&out), "-o", s(&again), "-q"]);
+    let meta = std::fs::read_to_string(again.join("metadata.json")).expect("metadata");
+    assert!(
+        meta.contains("\"rgb\"") && meta.contains("\"red_1\""),
+        "{meta}"
+    );
+}
+
+#[test]
+fn extra_bytes_described_in_an_extended_vlr_keep_their_names() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let (input, ds) = (dir.path().join("evlr.las"), dir.path().join("ds"));
+    // One i32 field "height" at 0.01 a unit (LAS 1.4 R15, table 24: 192 bytes a field).
+    let mut eb = vec![0u8; 192];
+    eb[2] = 6; // data type: i32
+    eb[3] = 1 << 3; // options: scale present
+    eb[4..10].copy_from_slice(b"height");
+    eb[112..120].copy_from_slice(&0.01f64.to_le_bytes());
+    let mut builder = las::Builder::from((1, 4));
+    builder.point_format = las::point::Format::new(1).expect("format");
+    builder.point_format.extra_bytes = 4;
+    builder.evlrs.push(las::Vlr {
+        user_id: "LASF_Spec".into(),
+        record_id: 4,
+        description: "Extra Bytes Record".into(),
+        data: eb,
+    });
+    let header = builder.into_header().expect("header");
+    let mut writer = las::Writer::from_path(&input, header).expect("writer");
+    for i in 0..3 {
+        writer
+            .write_point(las::Point {
+                x: f64::from(i),
+                gps_time: Some(0.0),
+                extra_bytes: 1234i32.to_le_bytes().to_vec(),
+                ..Default::default()
+            })
+            .expect("write");
+    }
+    writer.close().expect("close");
+    run_ok(&["convert", s(&input), "-o", s(&ds), "-q"]);
+    let meta = std::fs::read_to_string(ds.join("metadata.json")).expect("metadata");
+    assert!(meta.contains("\"height\""), "{meta}");
+}
