@@ -281,7 +281,7 @@ fn info_shows_encodings_and_how_normals_were_made() {
     };
     assert!(line("normal ").ends_with("2 x u16 (oct16)"), "{text}");
     assert!(line("rgb").ends_with("3 x u16"), "{text}");
-    assert!(line("radius").ends_with("f16"), "{text}");
+    assert!(line("radius").ends_with("f32"), "{text}");
     let normals = line("normals");
     assert!(
         normals.contains("k 12")

@@ -137,10 +137,37 @@ pub fn oct16_encode(n: [f64; 3]) -> [u16; 2] {
         u = (1.0 - pv.abs()) * if pu >= 0.0 { 1.0 } else { -1.0 };
         v = (1.0 - pu.abs()) * if pv >= 0.0 { 1.0 } else { -1.0 };
     }
-    let q = |t: f64| ((t.clamp(-1.0, 1.0) + 1.0) * 0.5 * 65535.0).round() as u16;
-    let raw = [q(u), q(v)];
+    let grid = |t: f64| (t.clamp(-1.0, 1.0) + 1.0) * 0.5 * 65535.0;
+    let (gu, gv) = (grid(u), grid(v));
+    // Of the grid points around (u, v), the nearest whose decoded z has the sign of n.z:
+    // rounded alone, a horizontal normal may land past the octahedron's edge and decode facing
+    // down by 1.5e-5, and an upward normal must never face down (`--orient up`). The grid has
+    // no point on the edge where an axis meets it, (±1, 0), so the ring one step out is tried
+    // too.
+    let upward = n[2] >= 0.0;
+    let side = |cu: f64, cv: f64| {
+        let z = 1.0 - (cu / 65535.0 * 2.0 - 1.0).abs() - (cv / 65535.0 * 2.0 - 1.0).abs();
+        (z >= 0.0) == upward
+    };
+    let mut best = ([gu.round() as u16, gv.round() as u16], f64::INFINITY);
+    if side(gu.round(), gv.round()) {
+        best.1 = 0.0;
+    }
+    let around = |g: f64| [g.floor() - 1.0, g.floor(), g.ceil(), g.ceil() + 1.0];
+    for cu in around(gu).map(|c| c.clamp(0.0, 65535.0)) {
+        for cv in around(gv).map(|c| c.clamp(0.0, 65535.0)) {
+            let gap = (cu - gu).powi(2) + (cv - gv).powi(2);
+            if best.1 > 0.0 && gap < best.1 && side(cu, cv) {
+                best = ([cu as u16, cv as u16], gap);
+            }
+        }
+    }
     // The corner (-1, -1) is the -z pole, as are the other three corners: use another.
-    if raw == [0, 0] { [65535, 65535] } else { raw }
+    if best.0 == [0, 0] {
+        [65535, 65535]
+    } else {
+        best.0
+    }
 }
 
 /// Decodes octahedral 2 x u16 to a unit vector; `None` for `[0, 0]` (no normal).
@@ -254,6 +281,20 @@ mod tests {
             worst = worst.max(angle(n, back));
         }
         assert!(worst < 0.01, "worst round trip {worst} degrees");
+        // Near and on the equator, a normal keeps the side of it that it is on.
+        for i in 0..20000 {
+            let a = i as f64 * 0.000_314_159;
+            for z in [0.0f64, 1e-7, 1e-5, -1e-7, -1e-5] {
+                let l = (1.0 + z * z).sqrt();
+                let n = [a.cos() / l, a.sin() / l, z / l];
+                let back = oct16_decode(oct16_encode(n)).expect("a normal");
+                assert!(
+                    (back[2] >= 0.0) == (z >= 0.0),
+                    "{n:?} decodes as {back:?}, on the other side"
+                );
+                assert!(angle(n, back) < 0.01, "{n:?} decodes as {back:?}");
+            }
+        }
         assert_eq!(oct16_encode([0.0; 3]), [0, 0]);
         assert_eq!(oct16_encode([f64::NAN, 0.0, 1.0]), [0, 0]);
         assert_eq!(oct16_decode([0, 0]), None);

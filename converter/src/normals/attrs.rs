@@ -1,6 +1,7 @@
 //! The attributes the normal step reads and writes, wherever the layout holds them: `normal`
-//! (octahedral 2 x u16, or the inputs' three floats), `radius` and `surface_variation` (f16
-//! unless the inputs already have them as floats), and `scanner` (which scan took the point).
+//! (octahedral 2 x u16, or the inputs' three floats), `radius` (f32) and `surface_variation`
+//! (f16) unless the inputs already have them as floats, and `scanner` (which scan took the
+//! point).
 
 use crate::error::{ConvertError, Result};
 use strata_format::{AttrType, Attribute, RowLayout, oct16_decode, oct16_encode};
@@ -18,17 +19,24 @@ pub fn added(inputs: &[Attribute]) -> Result<Vec<Attribute>> {
         Some(a) if a.is_oct16() || (a.count == 3 && a.ty.is_float()) => {}
         Some(a) => return Err(unusable(a, "three floats or octahedral 2 x u16")),
     }
-    for (name, description) in [
+    // The radius is in real units, which may be degrees (1e-7) or kilometres: beyond f16's
+    // range (6e-5 to 65504), so f32. The variation lies in 0 to 1/3.
+    for (name, ty, description) in [
         (
             RADIUS,
+            AttrType::F32,
             "disc radius covering the surface at the local density",
         ),
-        (VARIATION, "surface variation λ0 / (λ0 + λ1 + λ2)"),
+        (
+            VARIATION,
+            AttrType::F16,
+            "surface variation λ0 / (λ0 + λ1 + λ2)",
+        ),
     ] {
         match inputs.iter().find(|a| a.name == name) {
             None => out.push(Attribute {
                 description: description.into(),
-                ..Attribute::new(name, AttrType::F16, 1)
+                ..Attribute::new(name, ty, 1)
             }),
             Some(a) if a.count == 1 && a.ty.is_float() => {}
             Some(a) => return Err(unusable(a, "one float")),

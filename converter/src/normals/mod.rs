@@ -210,19 +210,20 @@ impl ChunkStep for NormalStep {
             |t, near| {
                 let i = next_row;
                 next_row += 1;
-                // Fewer than k within the search radius: the k-th is beyond it.
-                let rk = if near.len() < k {
+                let radius = if near.len() < k {
+                    // Fewer than k within the search radius: the k-th is beyond it, and the
+                    // density is what the n found within it give, ρπR² = n; no farther than
+                    // the search looked.
                     totals[total::PARTIAL] += 1.0;
-                    search
+                    (search * COVER / (near.len() as f64).sqrt()).min(search)
                 } else {
-                    near.farthest().sqrt()
+                    near.farthest().sqrt() * COVER / (k as f64).sqrt()
                 };
                 let steps = near.index.iter().map(|&j| tree.steps(t, j as usize));
                 let pc = principal(covariance_of_steps(steps, scale));
                 let p = tree.points[t];
                 let q = [0, 1, 2].map(|a| (p[a] + origin[a] as f64) * scale[a]);
                 let row = &mut rows[i * stride..(i + 1) * stride];
-                let radius = rk * COVER / (k as f64).sqrt();
                 totals[total::RADIUS_SUM] += radius;
                 targets.put_radius(row, radius);
                 targets.put_variation(row, pc.surface_variation());

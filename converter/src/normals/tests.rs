@@ -38,7 +38,7 @@ fn read_normals(dir: &Path) -> PointNormals {
                 q,
                 meta.to_real(q),
                 oct16_decode(raw),
-                AttrType::F16.read_f64(&rc[2 * i..]),
+                AttrType::F32.read_f64(&rc[4 * i..]),
                 AttrType::F16.read_f64(&sc[2 * i..]),
             ));
         }
@@ -328,4 +328,92 @@ fn orienting_towards_a_scanner_without_one_is_refused() {
         })
         .is_err()
     );
+}
+
+#[test]
+fn radii_hold_where_neighbours_are_few_or_distances_tiny() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let mut s = 5u64;
+    let mut next = move || {
+        s = s
+            .wrapping_mul(6364136223846793005)
+            .wrapping_add(1442695040888963407);
+        (s >> 11) as f64 / (1u64 << 53) as f64
+    };
+    // Micrometre-sized: a plane of 4000 points 10 µm wide, with a cluster of 5 points and a
+    // lone point far from it; neighbours are searched within R.
+    let (side, r) = (1e-5, 2e-6);
+    let mut pts: Vec<[f64; 3]> = (0..4000)
+        .map(|_| [next() * side, next() * side, 0.0])
+        .collect();
+    pts.extend((0..5).map(|i| [5e-5 + 1e-8 * f64::from(i), 5e-5, 0.0]));
+    pts.push([-5e-5, -5e-5, 0.0]);
+    let ply = dir.path().join("tiny.ply");
+    write_ply(&ply, &pts, None);
+    let out = dir.path().join("tiny");
+    let step = NormalStep::new(NormalOptions {
+        radius: Some(r),
+        ..NormalOptions::default()
+    })
+    .expect("options");
+    convert_with(&options(&ply, out.clone(), 1 << 30), &step).expect("convert");
+    let got = read_normals(&out);
+    let radius_at = |p: [f64; 3]| {
+        got.iter()
+            .filter(|g| (0..3).all(|a| (g.1[a] - p[a]).abs() < 1e-9))
+            .map(|g| g.3)
+            .next()
+            .expect("the point")
+    };
+    // f32 holds micrometre radii (f16 ends at 6e-5); the plane's are near its spacing.
+    let spacing = side / 4000f64.sqrt();
+    let inner = got.iter().filter(|g| {
+        g.1[0] > 0.2 * side && g.1[0] < 0.8 * side && g.1[1] > 0.2 * side && g.1[1] < 0.8 * side
+    });
+    for g in inner {
+        assert!(
+            g.3 > 0.5 * spacing && g.3 < 2.0 * spacing,
+            "radius {} for spacing {spacing}",
+            g.3
+        );
+    }
+    // Five found within R: the density they give, R √(ln 100 / 5).
+    let five = radius_at(pts[4000]);
+    let want = r * COVER / 5f64.sqrt();
+    assert!((five / want - 1.0).abs() < 1e-3, "{five} against {want}");
+    // One found: no farther than the search looked.
+    let lone = radius_at(pts[4005]);
+    assert!((lone / r - 1.0).abs() < 1e-3, "{lone} against {r}");
+}
+
+#[test]
+fn upward_normals_of_a_wall_never_face_down() {
+    // A vertical wall: every normal is horizontal, where rounding the octahedral grid alone
+    // decodes some a hair below the horizon.
+    let dir = tempfile::tempdir().expect("tempdir");
+    let mut s = 9u64;
+    let mut next = move || {
+        s = s
+            .wrapping_mul(6364136223846793005)
+            .wrapping_add(1442695040888963407);
+        (s >> 11) as f64 / (1u64 << 53) as f64
+    };
+    let pts: Vec<[f64; 3]> = (0..20_000)
+        .map(|_| [3.0, next() * 10.0, next() * 10.0])
+        .collect();
+    let ply = dir.path().join("wall.ply");
+    write_ply(&ply, &pts, None);
+    let out = dir.path().join("wall");
+    convert_with(
+        &options(&ply, out.clone(), 1 << 30),
+        &step(Orient::Up, None),
+    )
+    .expect("convert");
+    let got = read_normals(&out);
+    assert_eq!(got.len(), pts.len());
+    for (_, p, n, _, _) in &got {
+        let n = n.expect("a normal");
+        assert!(n[2] >= 0.0, "{n:?} at {p:?} faces down");
+        assert!(angle(n, [1.0, 0.0, 0.0]).min(angle(n, [-1.0, 0.0, 0.0])) < 0.1);
+    }
 }
