@@ -144,12 +144,21 @@ pub fn oct16_encode(n: [f64; 3]) -> [u16; 2] {
     // down by 1.5e-5, and an upward normal must never face down (`--orient up`). The grid has
     // no point on the edge where an axis meets it, (±1, 0), so the ring one step out is tried
     // too.
+    let rounded = [gu.round() as u16, gv.round() as u16];
+    // Only within a few grid steps of the edge can rounding cross it.
+    if (1.0 - u.abs() - v.abs()).abs() > 4.0 / 65535.0 {
+        return if rounded == [0, 0] {
+            [65535, 65535]
+        } else {
+            rounded
+        };
+    }
     let upward = n[2] >= 0.0;
     let side = |cu: f64, cv: f64| {
         let z = 1.0 - (cu / 65535.0 * 2.0 - 1.0).abs() - (cv / 65535.0 * 2.0 - 1.0).abs();
         (z >= 0.0) == upward
     };
-    let mut best = ([gu.round() as u16, gv.round() as u16], f64::INFINITY);
+    let mut best = (rounded, f64::INFINITY);
     if side(gu.round(), gv.round()) {
         best.1 = 0.0;
     }

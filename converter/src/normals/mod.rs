@@ -5,6 +5,7 @@
 
 mod all_nearest;
 mod attrs;
+mod duplicates;
 mod kdtree;
 mod pca;
 mod select;
@@ -14,6 +15,7 @@ use crate::chunk_step::{ChunkRows, ChunkStep, Halo, StepTotals};
 use crate::error::{ConvertError, Result};
 use crate::prepare::Plan;
 use attrs::Targets;
+use duplicates::Distinct;
 use kdtree::KdTree;
 use pca::{covariance_of_steps, dot, principal};
 #[cfg(test)]
@@ -203,6 +205,7 @@ impl ChunkStep for NormalStep {
         let mut next_row = 0;
         let rows = &mut *chunk.rows;
         let opts = &self.opts;
+        let mut distinct = Distinct::default();
         tree.all_nearest(
             k,
             search,
@@ -210,6 +213,12 @@ impl ChunkStep for NormalStep {
             |t, near| {
                 let i = next_row;
                 next_row += 1;
+                let near = if Distinct::repeats(&tree, near) {
+                    distinct.nearest(&tree, t, k, search);
+                    &distinct.found
+                } else {
+                    near
+                };
                 let radius = if near.len() < k {
                     // Fewer than k within the search radius: the k-th is beyond it, and the
                     // density is what the n found within it give, ρπR² = n; no farther than

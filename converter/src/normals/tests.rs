@@ -417,3 +417,40 @@ fn upward_normals_of_a_wall_never_face_down() {
         assert!(angle(n, [1.0, 0.0, 0.0]).min(angle(n, [-1.0, 0.0, 0.0])) < 0.1);
     }
 }
+
+#[test]
+fn repeated_positions_count_once() {
+    // Every point three times, one of them forty times more: the same normals and radii as
+    // the cloud without repeats.
+    let dir = tempfile::tempdir().expect("tempdir");
+    let base = sphere(4000, [0.0; 3], 1.0, 21);
+    let mut repeated: Vec<[f64; 3]> = base.iter().flat_map(|&p| [p; 3]).collect();
+    repeated.extend([base[7]; 40]);
+    let mut normals = Vec::new();
+    for (name, pts) in [("once", &base), ("repeated", &repeated)] {
+        let ply = dir.path().join(format!("{name}.ply"));
+        write_ply(&ply, pts, None);
+        let out = dir.path().join(name);
+        convert_with(
+            &options(&ply, out.clone(), 1 << 30),
+            &step(Orient::None, None),
+        )
+        .expect("convert");
+        let got = read_normals(&out);
+        assert_eq!(got.len(), pts.len());
+        let by_position: HashMap<[i32; 3], (Option<[f64; 3]>, f64)> =
+            got.iter().map(|g| (g.0, (g.2, g.3))).collect();
+        normals.push(by_position);
+    }
+    let (once, repeated) = (&normals[0], &normals[1]);
+    assert_eq!(once.len(), repeated.len(), "the same positions");
+    for (q, (n, r)) in once {
+        let (m, s) = repeated[q];
+        let (n, m) = (n.expect("a normal"), m.expect("a normal"));
+        assert!(
+            angle(n, m).min(angle(n, m.map(|c| -c))) < 1e-3,
+            "{q:?}: {n:?} against {m:?}"
+        );
+        assert!((r / s - 1.0).abs() < 1e-6, "{q:?}: radius {r} against {s}");
+    }
+}
