@@ -221,3 +221,50 @@ fn extra_bytes_described_in_an_extended_vlr_keep_their_names() {
     let meta = std::fs::read_to_string(ds.join("metadata.json")).expect("metadata");
     assert!(meta.contains("\"height\""), "{meta}");
 }
+
+#[test]
+fn undescribed_extra_bytes_go_back_out_undescribed() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let (input, ds, out) = (
+        dir.path().join("raw.las"),
+        dir.path().join("ds"),
+        dir.path().join("out.las"),
+    );
+    let mut builder = las::Builder::from((1, 4));
+    builder.point_format = las::point::Format::new(1).expect("format");
+    builder.point_format.extra_bytes = 2;
+    let header = builder.into_header().expect("header");
+    let mut writer = las::Writer::from_path(&input, header).expect("writer");
+    for i in 0..3u8 {
+        writer
+            .write_point(las::Point {
+                x: f64::from(i),
+                gps_time: Some(0.0),
+                extra_bytes: vec![i, 200 + i],
+                ..Default::default()
+            })
+            .expect("write");
+    }
+    writer.close().expect("close");
+    run_ok(&["convert", s(&input), "-o", s(&ds), "-q"]);
+    run_ok(&["export", s(&ds), "-o", s(&out)]);
+    let mut reader = las::Reader::from_path(&out).expect("read export");
+    let eb = reader
+        .header()
+        .vlrs()
+        .iter()
+        .find(|v| v.user_id == "LASF_Spec" && v.record_id == 4)
+        .expect("an Extra Bytes record")
+        .data
+        .clone();
+    assert_eq!(eb.len(), 192, "one descriptor");
+    assert_eq!((eb[2], eb[3]), (0, 2), "type 0 (undescribed), two bytes");
+    let mut got: Vec<Vec<u8>> = reader
+        .read_all()
+        .expect("points")
+        .points()
+        .map(|p| p.expect("point").extra_bytes)
+        .collect();
+    got.sort();
+    assert_eq!(got, vec![vec![0, 200], vec![1, 201], vec![2, 202]]);
+}

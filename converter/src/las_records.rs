@@ -5,7 +5,7 @@
 
 use crate::error::{ConvertError, Result};
 use crate::input::las_layout::{
-    ExtraBytesField, FieldOp, eb_code, las_fields, las_fields_ungrouped, row_to_record,
+    ExtraBytesField, FieldOp, UNDESCRIBED, eb_code, las_fields, las_fields_ungrouped, row_to_record,
 };
 use crate::input::las_normals::{EXPORT_NORMAL_NAMES, is_normal_component};
 use std::path::Path;
@@ -259,6 +259,9 @@ fn extra_fields(a: &Attribute, split_normal: bool) -> Vec<ExtraBytesField> {
 fn eb_descriptor(a: &Attribute) -> Vec<u8> {
     let mut d = vec![0u8; 192];
     let (code, options) = match a.count {
+        // Bytes no descriptor covered are written back as such (LAS 1.4 R15: type 0, their
+        // count in `options`), not as a field of bytes.
+        _ if a.name == UNDESCRIBED && a.ty == AttrType::U8 => (0, a.size() as u8),
         1 => (eb_code(a.ty), 0u8),
         2 => (eb_code(a.ty) + 10, 0),
         3 => (eb_code(a.ty) + 20, 0),

@@ -337,7 +337,7 @@ pub fn parse_extra_bytes(
             ));
         }
         fields.push(ExtraBytesField {
-            attribute: Attribute::new("extra_bytes", AttrType::U8, rest as u8),
+            attribute: Attribute::new(UNDESCRIBED, AttrType::U8, rest as u8),
             len: rest,
         });
     }
@@ -386,6 +386,9 @@ fn eb_type(code: u8) -> AttrType {
         _ => AttrType::F64,
     }
 }
+
+/// The name given to the extra bytes of a record that no Extra Bytes descriptor covers.
+pub const UNDESCRIBED: &str = "extra_bytes";
 
 /// The Extra Bytes VLR data type code of an attribute type.
 pub fn eb_code(t: AttrType) -> u8 {
