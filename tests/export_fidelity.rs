@@ -268,3 +268,26 @@ fn undescribed_extra_bytes_go_back_out_undescribed() {
     got.sort();
     assert_eq!(got, vec![vec![0, 200], vec![1, 201], vec![2, 202]]);
 }
+
+#[test]
+fn an_empty_las_has_finite_bounds() {
+    // A profile with no point in its corridor still writes a LAS file readers accept.
+    let dir = tempfile::tempdir().expect("tempdir");
+    let dataset = common::converted("export-fidelity", "autzen_trim.laz", "autzen");
+    let out = dir.path().join("empty.las");
+    run_ok(&[
+        "profile",
+        s(&dataset),
+        "--line",
+        "0,0;1,1",
+        "--width",
+        "1",
+        "-o",
+        s(&out),
+    ]);
+    let bytes = std::fs::read(&out).expect("profile");
+    for i in 0..6 {
+        let v = f64::from_le_bytes(bytes[179 + 8 * i..187 + 8 * i].try_into().unwrap());
+        assert_eq!(v, 0.0, "bound {i}");
+    }
+}

@@ -233,9 +233,7 @@ impl RowWriter for LasRowWriter {
         self.writer
             .close()
             .map_err(|e| ConvertError::output(&self.part, format!("cannot finish ({e})")))?;
-        if self.min[0] <= self.max[0] {
-            self.write_exact_bounds()?;
-        }
+        self.write_exact_bounds()?;
         std::fs::rename(&self.part, &self.path)
             .map_err(|e| ConvertError::io(&self.path, "cannot move into place", e))
     }
@@ -247,7 +245,15 @@ impl LasRowWriter {
     /// (98.99999999999994 steps becomes 98), a step beyond the points.
     fn write_exact_bounds(&self) -> Result<()> {
         use std::io::{Seek, SeekFrom};
-        let real = |a: usize, v: i32| self.offset[a] + self.scale[a] * f64::from(v);
+        // No points: zero bounds (the `las` crate leaves infinities, which readers refuse).
+        let empty = self.min[0] > self.max[0];
+        let real = |a: usize, v: i32| {
+            if empty {
+                0.0
+            } else {
+                self.offset[a] + self.scale[a] * f64::from(v)
+            }
+        };
         // Max X, min X, max Y, min Y, max Z, min Z from byte 179 of every LAS header version.
         let mut bytes = Vec::with_capacity(48);
         for a in 0..3 {

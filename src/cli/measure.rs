@@ -10,7 +10,7 @@ use strata_viewer::measure::{MeasureKind, Measurement, Measurements};
 #[derive(Debug, clap::Args)]
 pub struct Args {
     #[command(flatten)]
-    at: PickView,
+    pub(crate) at: PickView,
     /// What to measure: distance (a polyline), area (a polygon), height (of the second point
     /// above the first) or angle (at the second of three points).
     #[arg(long, default_value = "distance")]

@@ -59,7 +59,20 @@ impl Cli {
     /// The command reads local files and prints text, and opens no socket: a closed pipe may
     /// end it quietly (a server or an HTTP client must not die of a peer that went away).
     pub fn prints_local_text(&self) -> bool {
-        matches!(self.command, Command::Info(_) | Command::Pipelines(_))
+        let local =
+            |dataset: &str| !dataset.starts_with("http://") && !dataset.starts_with("https://");
+        match &self.command {
+            Command::Info(_)
+            | Command::Pipelines(_)
+            | Command::Verify(_)
+            | Command::Export(_)
+            | Command::Convert(_)
+            | Command::Synth(_) => true,
+            Command::Pick(a) => local(&a.at.dataset),
+            Command::Measure(a) => local(&a.at.dataset),
+            Command::Profile(a) => local(a.dataset()),
+            Command::Serve(_) | Command::View(_) | Command::Render(_) | Command::Demo(_) => false,
+        }
     }
 }
 

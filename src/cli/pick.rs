@@ -60,7 +60,7 @@ impl PickView {
 #[derive(Debug, clap::Args)]
 pub struct Args {
     #[command(flatten)]
-    at: PickView,
+    pub(crate) at: PickView,
     /// The pixel, X,Y from the top left.
     #[arg(long)]
     pixel: String,

@@ -34,6 +34,12 @@ pub struct Args {
     token: Option<String>,
 }
 
+impl Args {
+    pub fn dataset(&self) -> &str {
+        &self.dataset
+    }
+}
+
 pub fn run(a: Args) -> anyhow::Result<ExitCode> {
     if !(a.spacing.is_finite() && a.spacing >= 0.0) {
         anyhow::bail!("--spacing {} is not a distance of 0 or more", a.spacing);

@@ -36,11 +36,8 @@ impl PickedPoint {
     /// One line a value, as `strata pick` prints it and the panel shows it.
     pub fn lines(&self) -> Vec<String> {
         let [x, y, z] = self.position;
-        let mut out = vec![
-            format!("x {x:.6}"),
-            format!("y {y:.6}"),
-            format!("z {z:.6}"),
-        ];
+        // Every digit the stored position has (rounded to its scale already).
+        let mut out = vec![format!("x {x}"), format!("y {y}"), format!("z {z}")];
         for a in &self.attributes {
             let values: Vec<String> = a.values.iter().map(|v| format_value(*v)).collect();
             let mut line = format!("{} {}", a.name, values.join(" "));
@@ -64,7 +61,10 @@ pub fn to_decimals(v: f64, scale: f64) -> f64 {
     }
     let f = 10f64.powf(d);
     let r = (v * f).round() / f;
-    if (r - v).abs() <= scale * 1e-6 { r } else { v }
+    // Within a millionth of a step, or (for fine scales far from zero) a few units in the
+    // last place of `v`, which is all the sum `offset + scale * n` could round by.
+    let near = (scale * 1e-6).max(v.abs() * 4.0 * f64::EPSILON);
+    if (r - v).abs() <= near { r } else { v }
 }
 
 /// Whole numbers without a fraction, others with all the digits they need.
@@ -158,6 +158,16 @@ impl StreamDataset {
 /// The components of one stored value of attribute `a` (its `a.size()` bytes), scaled where
 /// the attribute stores scaled integers.
 pub fn attribute_values(a: &strata_format::Attribute, raw: &[u8]) -> Vec<f64> {
+    // An octahedral normal is shown as the unit vector it stands for (zero: none).
+    if a.is_oct16() && raw.len() >= 4 {
+        let code = [
+            u16::from_le_bytes([raw[0], raw[1]]),
+            u16::from_le_bytes([raw[2], raw[3]]),
+        ];
+        return strata_format::oct16_decode(code)
+            .unwrap_or([0.0; 3])
+            .to_vec();
+    }
     raw.chunks_exact(a.ty.size())
         .enumerate()
         .map(|(c, b)| {
@@ -272,5 +282,36 @@ mod tests {
             "849296.45"
         );
         assert_eq!(to_decimals(1.0 + 0.3 * 2.0, 0.3), 1.0 + 0.3 * 2.0);
+        // A fine scale far from zero: the sum rounds by more than a millionth of a step.
+        let (offset, scale) = (205.00099999999998, 9.999999999999999e-9);
+        let v = offset + scale * 120_400_000.0;
+        assert_eq!(to_decimals(v, scale).to_string(), "206.205");
+    }
+
+    #[test]
+    fn a_picked_point_prints_every_digit_and_its_normal_as_a_vector() {
+        let normal = strata_format::Attribute::oct16_normal();
+        let code = strata_format::oct16_encode([-0.4472136, 0.0, 0.8944272]);
+        let raw: Vec<u8> = code.iter().flat_map(|c| c.to_le_bytes()).collect();
+        let values = attribute_values(&normal, &raw);
+        assert_eq!(values.len(), 3);
+        for (v, want) in values.iter().zip([-0.4472136, 0.0, 0.8944272]) {
+            assert!((v - want).abs() < 1e-4, "{values:?}");
+        }
+        assert_eq!(
+            attribute_values(&normal, &[0; 4]),
+            vec![0.0; 3],
+            "no normal"
+        );
+        let point = PickedPoint {
+            pixel: [0, 0],
+            depth: 1.0,
+            node: "r".into(),
+            index: 0,
+            position: [11.0000001, 48.0008986, 300.125],
+            attributes: Vec::new(),
+        };
+        let lines = point.lines();
+        assert_eq!(&lines[..3], ["x 11.0000001", "y 48.0008986", "z 300.125"]);
     }
 }

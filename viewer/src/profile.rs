@@ -163,6 +163,9 @@ pub struct Profile {
     /// Whether the levels down to the asked spacing were all read (else the cap on points
     /// read stopped it).
     pub complete: bool,
+    /// Decimals of the distance and offset columns: those of the finer horizontal scale and
+    /// one more (at least 4), so that degrees (1e-7) keep theirs.
+    pub decimals: usize,
 }
 
 /// How detailed a profile is read.
@@ -196,6 +199,9 @@ pub fn extract(
         spacing: f64::INFINITY,
         points_read: 0,
         complete: true,
+        decimals: (1.0 - m.scale[0].min(m.scale[1]).log10())
+            .ceil()
+            .clamp(4.0, 15.0) as usize,
     };
     let mut tree = Tree::default();
     tree.add_page(ds.root_hierarchy_page());
@@ -306,7 +312,9 @@ impl Profile {
             .map(String::from)
             .to_vec();
         for a in &self.layout.attributes {
-            if a.count == 1 {
+            if a.is_oct16() {
+                h.extend(["x", "y", "z"].map(|c| format!("{}_{c}", a.name)));
+            } else if a.count == 1 {
                 h.push(a.name.clone());
             } else {
                 h.extend((0..a.count).map(|c| format!("{}_{c}", a.name)));
@@ -327,7 +335,12 @@ impl Profile {
             let stride = self.layout.stride;
             for (i, p) in self.points.iter().enumerate() {
                 let [x, y, z] = p.position;
-                write!(w, "{:.4},{:.4},{x},{y},{z}", p.place.along, p.place.offset)?;
+                let d = self.decimals;
+                write!(
+                    w,
+                    "{:.d$},{:.d$},{x},{y},{z}",
+                    p.place.along, p.place.offset
+                )?;
                 let row = &self.rows[i * stride..(i + 1) * stride];
                 for (k, a) in self.layout.attributes.iter().enumerate() {
                     let at = self.layout.offsets[k];
@@ -351,6 +364,61 @@ impl Profile {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn the_csv_keeps_fine_distances_and_writes_a_normal_as_a_vector() {
+        let layout = RowLayout::new(vec![strata_format::Attribute::oct16_normal()]);
+        let mut row = vec![0u8; 12];
+        for c in strata_format::oct16_encode([0.0, 0.0, 1.0]) {
+            row.extend(c.to_le_bytes());
+        }
+        let profile = Profile {
+            corridor: Corridor::parse("11,48; 11.01,48.01", 0.002).expect("parses"),
+            points: vec![ProfilePoint {
+                place: Place {
+                    along: 0.000_129_896,
+                    offset: -0.000_081_1,
+                },
+                position: [11.0000001, 48.0000002, 300.0],
+            }],
+            rows: row,
+            layout,
+            level: 0,
+            spacing: 0.0,
+            points_read: 1,
+            complete: true,
+            // Degrees at 1e-7.
+            decimals: 8,
+        };
+        let dir = tempfile::tempdir().expect("tempdir");
+        let path = dir.path().join("p.csv");
+        profile.write_csv(&path).expect("writes");
+        let text = std::fs::read_to_string(&path).expect("reads");
+        let mut lines = text.lines();
+        assert_eq!(
+            lines.next(),
+            Some("distance,offset,x,y,z,normal_x,normal_y,normal_z")
+        );
+        let row: Vec<&str> = lines.next().expect("a row").split(',').collect();
+        assert_eq!(
+            &row[..5],
+            [
+                "0.00012990",
+                "-0.00008110",
+                "11.0000001",
+                "48.0000002",
+                "300"
+            ]
+        );
+        let n: Vec<f64> = row[5..]
+            .iter()
+            .map(|v| v.parse().expect("number"))
+            .collect();
+        assert!(
+            (n[0].abs() + n[1].abs()) < 1e-4 && (n[2] - 1.0).abs() < 1e-6,
+            "{n:?}"
+        );
+    }
 
     #[test]
     fn a_point_lies_across_the_nearest_segment_within_half_the_width() {
