@@ -391,3 +391,28 @@ fn an_e57_point_count_beyond_its_file_is_refused_naming_it() {
         "scan 0 of 1 says it holds 2090000000 points, more than a file of 34816 bytes can",
     );
 }
+
+#[test]
+fn single_precision_scans_far_from_the_origin_keep_their_own_precision() {
+    // Singles of ±4 m are good to a micrometre in the scan's frame; its pose puts it 5e6 m
+    // away, where a single would be good to half a metre.
+    let dir = tempfile::tempdir().expect("tempdir");
+    let input = dir.path().join("far.e57");
+    let spec = ScanSpec::new(Storage::Single, 3000)
+        .rotated([0.0, 0.0, 1.0], 20.0)
+        .at([5e6, 4e6, 100.0]);
+    write_e57(&input, std::slice::from_ref(&spec));
+    let read = crate_points(&input);
+    let ds = convert(dir.path(), &[&input]);
+    let (meta, got) = stored(&ds);
+    assert!(
+        meta.scale.iter().all(|&s| s <= 1e-6),
+        "scale {:?} is coarser than the singles",
+        meta.scale
+    );
+    let expected: Vec<_> = read
+        .iter()
+        .map(|p| (p.position, tags(&meta, p, 0)))
+        .collect();
+    assert_same_points(&meta, &got, &expected);
+}

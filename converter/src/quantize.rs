@@ -29,7 +29,7 @@ fn pow10_floor(v: f64) -> f64 {
 
 /// The scale that keeps a float coordinate of magnitude `max_abs` to within half its unit in
 /// the last place: the largest power of ten not above one ULP.
-fn float_scale(max_abs: f64, mantissa_bits: i32) -> f64 {
+pub(crate) fn float_scale(max_abs: f64, mantissa_bits: i32) -> f64 {
     let m = max_abs.max(1e-30);
     let ulp = 2f64.powi(m.log2().floor() as i32 - mantissa_bits);
     pow10_floor(ulp)

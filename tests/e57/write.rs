@@ -15,6 +15,8 @@ pub enum Storage {
     Double,
     /// Cartesian scaled integers (0.1 mm).
     Scaled,
+    /// Cartesian singles (f32).
+    Single,
     /// Spherical doubles (range, azimuth, elevation).
     Spherical,
 }
@@ -100,6 +102,11 @@ fn prototype(spec: &ScanSpec) -> Vec<Record> {
             rec(RecordName::CartesianY, scaled.clone()),
             rec(RecordName::CartesianZ, scaled),
         ],
+        Storage::Single => vec![
+            Record::CARTESIAN_X_F32,
+            Record::CARTESIAN_Y_F32,
+            Record::CARTESIAN_Z_F32,
+        ],
         Storage::Spherical => vec![
             Record::SPHERICAL_RANGE_F64,
             Record::SPHERICAL_AZIMUTH_F64,
@@ -172,6 +179,13 @@ pub fn write_e57(path: &Path, scans: &[ScanSpec]) -> Vec<Vec<[f64; 3]>> {
                         valid.push(p.map(|v| v as f64 * 1e-4));
                     }
                     p.map(RecordValue::ScaledInteger).to_vec()
+                }
+                Storage::Single => {
+                    let p = [0; 3].map(|_| rng.range(-4.0, 4.0) as f32);
+                    if state == 0 {
+                        valid.push(p.map(f64::from));
+                    }
+                    p.map(RecordValue::Single).to_vec()
                 }
                 Storage::Spherical => {
                     let (r, a, e) = (

@@ -7,6 +7,7 @@ use super::e57_decode::{self, Batch, Job, Msg, Pose, QUEUED, RowShape};
 use super::laz_check::guarded;
 use super::{NO_SCANNER, PointSource, Precision, SourceInfo};
 use crate::error::{ConvertError, Result};
+use crate::quantize::float_scale;
 use e57::{E57Reader, PointCloud, RecordDataType, RecordName};
 use std::fs::File;
 use std::io::BufReader;
@@ -229,13 +230,22 @@ impl PointSource for E57Source {
     }
 }
 
-/// How finely the file stores positions: any scan in doubles makes it `Float64`, else any in
-/// singles `Float32`, else the finest step of its scaled (or plain) integers. Spherical scans
-/// count by their range. After the pose these are real coordinates on no grid.
+/// How finely the file stores positions: any scan in doubles makes it `Float64`, else the
+/// finest step of its scaled (or plain) integers and its singles. Spherical scans count by
+/// their range. After the pose these are real coordinates on no grid.
+///
+/// Singles are precise to their own magnitude in the scan's frame, not to the world's: a
+/// scan of ±10 m in singles placed 5e6 m away by its (double) pose is good to a micrometre,
+/// though a single of 5e6 is good only to half a metre. Where the scan states its local
+/// extent (the field's limits, its Cartesian bounds, its largest range), that gives the step;
+/// where it does not and its pose moves it, the pose makes its coordinates doubles.
 fn precision(clouds: &[PointCloud]) -> Precision {
     let mut step = f64::INFINITY;
     let mut single = false;
     for pc in clouds {
+        let moved = pc.transform.as_ref().is_some_and(|t| {
+            t.translation.x != 0.0 || t.translation.y != 0.0 || t.translation.z != 0.0
+        });
         let names = if pc.has_cartesian() {
             [
                 RecordName::CartesianX,
@@ -249,18 +259,41 @@ fn precision(clouds: &[PointCloud]) -> Precision {
         for r in pc.prototype.iter().filter(|r| names.contains(&r.name)) {
             match r.data_type {
                 RecordDataType::Double { .. } => return Precision::Float64,
-                RecordDataType::Single { .. } => single = true,
+                RecordDataType::Single { min, max } => match local_extent(pc, min, max) {
+                    Some(m) => step = step.min(float_scale(m, 23)),
+                    None if moved => return Precision::Float64,
+                    None => single = true,
+                },
                 RecordDataType::ScaledInteger { scale, .. } => step = step.min(scale.abs()),
                 RecordDataType::Integer { .. } => step = step.min(1.0),
             }
         }
     }
     if single {
+        // Unmoved singles: their world magnitude is their own.
         Precision::Float32
     } else if step.is_normal() {
         Precision::Resolution([step; 3])
     } else {
         // A scale of zero or not a number: the coordinates say what they are worth.
         Precision::Float64
+    }
+}
+
+/// The largest magnitude a scan's single-precision coordinate field holds in its own frame,
+/// where the file says: the field's limits, else the scan's Cartesian bounds (or its largest
+/// range, for a spherical scan).
+fn local_extent(pc: &PointCloud, min: Option<f32>, max: Option<f32>) -> Option<f64> {
+    let finite = |v: f64| v.is_finite().then_some(v.abs());
+    if let (Some(lo), Some(hi)) = (min, max) {
+        return Some(finite(f64::from(lo))?.max(finite(f64::from(hi))?));
+    }
+    if pc.has_cartesian() {
+        let b = pc.cartesian_bounds.as_ref()?;
+        [b.x_min, b.x_max, b.y_min, b.y_max, b.z_min, b.z_max]
+            .into_iter()
+            .try_fold(0.0f64, |m, v| Some(m.max(finite(v?)?)))
+    } else {
+        finite(pc.spherical_bounds.as_ref()?.range_max?)
     }
 }
