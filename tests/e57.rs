@@ -416,3 +416,45 @@ fn single_precision_scans_far_from_the_origin_keep_their_own_precision() {
         .collect();
     assert_same_points(&meta, &got, &expected);
 }
+
+#[test]
+fn a_non_finite_coordinate_is_named_where_it_is() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let input = dir.path().join("inf.e57");
+    let mut w = e57::E57Writer::from_file(&input, "strata-test-inf").expect("writer");
+    let prototype = vec![
+        e57::Record::CARTESIAN_X_F64,
+        e57::Record::CARTESIAN_Y_F64,
+        e57::Record::CARTESIAN_Z_F64,
+    ];
+    let mut pc = w.add_pointcloud("scan", prototype).expect("scan");
+    pc.set_transform(Some(e57::Transform {
+        rotation: e57::Quaternion {
+            w: 1.0,
+            x: 0.0,
+            y: 0.0,
+            z: 0.0,
+        },
+        translation: e57::Translation {
+            x: 10.0,
+            y: 20.0,
+            z: 0.0,
+        },
+    }));
+    for k in 0..5 {
+        let y = if k == 3 { f64::INFINITY } else { 1.0 };
+        pc.add_point(
+            [f64::from(k), y, 0.0]
+                .map(e57::RecordValue::Double)
+                .to_vec(),
+        )
+        .expect("point");
+    }
+    pc.finalize().expect("scan written");
+    w.finalize().expect("file written");
+    let err = convert_fails(&input, "non-finite");
+    assert!(
+        err.contains("point 3 has a non-finite y coordinate (inf)"),
+        "{err}"
+    );
+}

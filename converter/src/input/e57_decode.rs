@@ -207,6 +207,14 @@ fn decode_scan(
         let CartesianCoordinate::Valid { x, y, z } = p.cartesian else {
             continue;
         };
+        // Checked in the scan's frame: a pose would spread one axis's infinity to all three.
+        if let Some(a) = [x, y, z].iter().position(|v| !v.is_finite()) {
+            return Err(format!(
+                "{scan} point {k} has a non-finite {} coordinate ({})",
+                ["x", "y", "z"][a],
+                [x, y, z][a]
+            ));
+        }
         batch.xyz.push(pose.apply([x, y, z]));
         let at = batch.rows.len();
         batch.rows.resize(at + shape.len, 0);
