@@ -458,3 +458,63 @@ fn a_non_finite_coordinate_is_named_where_it_is() {
         "{err}"
     );
 }
+
+#[test]
+fn intensity_limits_stored_as_scaled_integers_scale_the_intensity() {
+    // Intensity as 0.01 steps of 0..40 with limits 0..20: a value of 10 is half way.
+    let dir = tempfile::tempdir().expect("tempdir");
+    let written = dir.path().join("raw.e57");
+    let scaled = e57::RecordDataType::ScaledInteger {
+        min: 0,
+        max: 4000,
+        scale: 0.01,
+        offset: 0.0,
+    };
+    let mut prototype = vec![
+        e57::Record::CARTESIAN_X_F64,
+        e57::Record::CARTESIAN_Y_F64,
+        e57::Record::CARTESIAN_Z_F64,
+    ];
+    prototype.push(e57::Record {
+        name: e57::RecordName::Intensity,
+        data_type: scaled,
+    });
+    let mut w = e57::E57Writer::from_file(&written, "strata-test-limits").expect("writer");
+    let mut pc = w.add_pointcloud("scan", prototype).expect("scan");
+    // The crate writes a scaled limit without its scale: a raw value as long as the text
+    // that replaces it below.
+    pc.set_intensity_limits(Some(e57::IntensityLimits {
+        intensity_min: Some(e57::RecordValue::ScaledInteger(0)),
+        intensity_max: Some(e57::RecordValue::ScaledInteger(1_000_000_000_000_002_000)),
+    }));
+    let raw = [0i64, 500, 1000, 2000, 3000];
+    for (k, &v) in raw.iter().enumerate() {
+        let mut values: Vec<e57::RecordValue> =
+            [k as f64, 0.0, 0.0].map(e57::RecordValue::Double).to_vec();
+        values.push(e57::RecordValue::ScaledInteger(v));
+        pc.add_point(values).expect("point");
+    }
+    pc.finalize().expect("scan written");
+    w.finalize().expect("file written");
+    let bytes = xml_replaced(
+        std::fs::read(&written).expect("read"),
+        "\">1000000000000002000<",
+        "\" scale=\"0.01\">002000<",
+    );
+    let input = dir.path().join("limits.e57");
+    std::fs::write(&input, bytes).expect("write");
+    let ds = convert(dir.path(), &[&input]);
+    let (meta, got) = stored(&ds);
+    assert!(meta.attributes.iter().any(|a| a.name == "intensity"));
+    let mut by_x: Vec<(i64, u16)> = got
+        .iter()
+        .map(|(q, tags)| (q[0], *tags.last().expect("intensity")))
+        .collect();
+    by_x.sort_unstable();
+    let want: Vec<u16> = raw
+        .iter()
+        .map(|&v| ((v as f64 * 0.01 / 20.0).clamp(0.0, 1.0) * 65535.0).round() as u16)
+        .collect();
+    let intensities: Vec<u16> = by_x.iter().map(|p| p.1).collect();
+    assert_eq!(intensities, want);
+}

@@ -5,6 +5,7 @@
 //! because the crate's point reader borrows the file reader: one owner for both, and bounded
 //! batches over a channel, keep memory flat whatever the file's size.
 
+use super::e57_limits::{OwnRanges, normalised, own_ranges};
 use super::laz_check::guarded;
 use e57::{CartesianCoordinate, E57Reader, PointCloud};
 use std::fs::File;
@@ -158,11 +159,18 @@ pub fn run(job: Job, tx: &SyncSender<Msg>) {
     } = job;
     let n = clouds.len();
     let mut valid = 0u64;
-    for (i, (pc, pose)) in clouds.iter().zip(&poses).enumerate() {
+    let ranges = own_ranges(reader.xml(), &clouds);
+    for (i, ((pc, pose), own)) in clouds.iter().zip(&poses).zip(&ranges).enumerate() {
         let scan = format!("scan {i} of {n}");
         let scanner = (first as usize + i) as u16;
+        let at = Place {
+            pose,
+            own,
+            scanner,
+            scan: &scan,
+        };
         let sent = guarded(&format!("the point data of {scan}"), || {
-            decode_scan(&mut reader, pc, pose, shape, scanner, &scan, tx, &mut valid)
+            decode_scan(&mut reader, pc, &at, shape, tx, &mut valid)
         });
         match sent {
             Ok(true) => {}
@@ -176,18 +184,30 @@ pub fn run(job: Job, tx: &SyncSender<Msg>) {
     let _ = tx.send(Msg::Done { valid });
 }
 
+/// What a scan's points are placed and scaled by.
+struct Place<'a> {
+    pose: &'a Pose,
+    /// Ranges the crate cannot normalise by (see `e57_limits`).
+    own: &'a OwnRanges,
+    scanner: u16,
+    scan: &'a str,
+}
+
 /// One scan; `Ok(false)` when the reading side has gone.
-#[allow(clippy::too_many_arguments)]
 fn decode_scan(
     reader: &mut E57Reader<BufReader<File>>,
     pc: &PointCloud,
-    pose: &Pose,
+    at: &Place,
     shape: RowShape,
-    scanner: u16,
-    scan: &str,
     tx: &SyncSender<Msg>,
     valid: &mut u64,
 ) -> Result<bool, String> {
+    let Place {
+        pose,
+        own,
+        scanner,
+        scan,
+    } = *at;
     let mut points = reader
         .pointcloud_simple(pc)
         .map_err(|e| format!("{scan} cannot be read ({})", plain(&e)))?;
@@ -196,6 +216,8 @@ fn decode_scan(
     points.apply_pose(false);
     points.intensity_to_color(false);
     points.spherical_to_cartesian(true);
+    points.normalize_intensity(own.intensity.is_none());
+    points.normalize_color(own.rgb.is_none());
     let mut batch = Batch::default();
     for (k, p) in points.enumerate() {
         let p = p.map_err(|e| {
@@ -221,10 +243,12 @@ fn decode_scan(
         let row = &mut batch.rows[at..];
         if let (Some(o), Some(c)) = (shape.rgb, &p.color) {
             for (k, v) in [c.red, c.green, c.blue].into_iter().enumerate() {
+                let v = own.rgb.map_or(v, |r| normalised(v, r[k]));
                 row[o + 2 * k..o + 2 * k + 2].copy_from_slice(&unit_to_u16(v).to_le_bytes());
             }
         }
         if let (Some(o), Some(v)) = (shape.intensity, p.intensity) {
+            let v = own.intensity.map_or(v, |r| normalised(v, r));
             row[o..o + 2].copy_from_slice(&unit_to_u16(v).to_le_bytes());
         }
         row[shape.scanner..shape.scanner + 2].copy_from_slice(&scanner.to_le_bytes());
