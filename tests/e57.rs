@@ -518,3 +518,58 @@ fn intensity_limits_stored_as_scaled_integers_scale_the_intensity() {
     let intensities: Vec<u16> = by_x.iter().map(|p| p.1).collect();
     assert_eq!(intensities, want);
 }
+
+#[test]
+fn single_precision_limits_of_the_whole_float_range_say_nothing() {
+    // libE57Format gives every float field the limits ±FLT_MAX.
+    for translation in [[0.0, 0.0, 0.0], [5e6, 4e6, 100.0]] {
+        let dir = tempfile::tempdir().expect("tempdir");
+        let input = dir.path().join("flt_max.e57");
+        let single = e57::RecordDataType::Single {
+            min: Some(-f32::MAX),
+            max: Some(f32::MAX),
+        };
+        let prototype = [
+            e57::RecordName::CartesianX,
+            e57::RecordName::CartesianY,
+            e57::RecordName::CartesianZ,
+        ]
+        .map(|name| e57::Record {
+            name,
+            data_type: single.clone(),
+        })
+        .to_vec();
+        let mut w = e57::E57Writer::from_file(&input, "strata-test-flt-max").expect("writer");
+        let mut pc = w.add_pointcloud("scan", prototype).expect("scan");
+        let [x, y, z] = translation;
+        pc.set_transform(Some(e57::Transform {
+            rotation: e57::Quaternion {
+                w: 1.0,
+                x: 0.0,
+                y: 0.0,
+                z: 0.0,
+            },
+            translation: e57::Translation { x, y, z },
+        }));
+        for k in 0..400 {
+            let p = [(k % 20) as f32 * 0.01, (k / 20) as f32 * 0.01, 1.5];
+            pc.add_point(p.map(e57::RecordValue::Single).to_vec())
+                .expect("point");
+        }
+        pc.finalize().expect("scan written");
+        w.finalize().expect("file written");
+        let read = crate_points(&input);
+        let ds = convert(dir.path(), &[&input]);
+        let (meta, got) = stored(&ds);
+        assert!(
+            meta.scale.iter().all(|&s| s <= 1e-6),
+            "at {translation:?}: scale {:?}",
+            meta.scale
+        );
+        let expected: Vec<_> = read
+            .iter()
+            .map(|p| (p.position, tags(&meta, p, 0)))
+            .collect();
+        assert_same_points(&meta, &got, &expected);
+    }
+}

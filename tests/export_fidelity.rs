@@ -74,9 +74,10 @@ fn a_class_the_legacy_format_cannot_hold_is_refused_not_cut() {
     classed_ply(&ply, &[(637000.0, 200, 1), (637001.0, 2, 1)]);
     let autzen = data("autzen_trim.las");
     let reader = las::Reader::from_path(&autzen).expect("autzen");
-    if reader.header().point_format().is_extended {
-        return;
-    }
+    assert!(
+        !reader.header().point_format().is_extended,
+        "the test needs a legacy LAS"
+    );
     run_ok(&["convert", s(&autzen), s(&ply), "-o", s(&ds), "-q"]);
     let out = run(&["export", s(&ds), "-o", s(&las)]);
     let err = String::from_utf8_lossy(&out.stderr);
@@ -218,8 +219,34 @@ fn extra_bytes_described_in_an_extended_vlr_keep_their_names() {
     }
     writer.close().expect("close");
     run_ok(&["convert", s(&input), "-o", s(&ds), "-q"]);
-    let meta = std::fs::read_to_string(ds.join("metadata.json")).expect("metadata");
-    assert!(meta.contains("\"height\""), "{meta}");
+    let meta: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(ds.join("metadata.json")).expect("metadata"))
+            .expect("json");
+    let height = meta["attributes"]
+        .as_array()
+        .expect("attributes")
+        .iter()
+        .find(|a| a["name"] == "height")
+        .unwrap_or_else(|| panic!("no height in {meta}"));
+    assert_eq!(height["type"], "i32");
+    assert_eq!(height["scale"][0], 0.01);
+}
+
+#[test]
+fn a_return_number_beyond_four_bits_is_refused_not_cut() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let (ply, ds) = (dir.path().join("r.ply"), dir.path().join("ds"));
+    classed_ply(&ply, &[(0.0, 2, 20), (1.0, 2, 3)]);
+    run_ok(&["convert", s(&ply), "-o", s(&ds), "-q"]);
+    for name in ["r.las", "r.copc.laz"] {
+        let out = dir.path().join(name);
+        let o = run(&["export", s(&ds), "-o", s(&out)]);
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert!(!o.status.success(), "{name}: {err}");
+        assert!(err.contains("return_number is 20"), "{name}: {err}");
+        assert!(!out.exists(), "{name}: no output that looks complete");
+    }
+    run_ok(&["export", s(&ds), "-o", s(&dir.path().join("out.ply"))]);
 }
 
 #[test]

@@ -213,6 +213,7 @@ fn write_points(
                 wide.convert(&rows, &mut rows_wide);
                 &rows_wide
             };
+            records.check_fits(part, rows)?;
             records.fill(rows, &mut recs);
             for rec in recs.chunks_exact(records.record_len) {
                 totals.add(rec);

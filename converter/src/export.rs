@@ -87,12 +87,18 @@ pub fn export_rows(
     let wide = widened(layout);
     let n = (rows.len() / layout.stride.max(1)) as u64;
     let mut writer = open_writer(output, &wide.layout, scale, offset, n, overwrite)?;
-    if wide.is_identity() {
-        writer.write_rows(rows)?;
+    let written = if wide.is_identity() {
+        writer.write_rows(rows)
     } else {
         let mut out = Vec::new();
         wide.convert(rows, &mut out);
-        writer.write_rows(&out)?;
+        writer.write_rows(&out)
+    };
+    if let Err(e) = written {
+        // Nothing that looks like an output stays.
+        drop(writer);
+        let _ = std::fs::remove_file(part_path(output));
+        return Err(e);
     }
     writer.finish()?;
     Ok(n)

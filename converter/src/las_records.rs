@@ -34,8 +34,23 @@ enum Source {
     One,
 }
 
+/// The fields LAS holds in fewer than 8 bits: name, and the largest value formats 0 to 5 and
+/// formats 6 to 10 hold (255: a whole byte, or not a field of the family).
+pub const BIT_FIELDS: [(&str, u8, u8); 6] = [
+    ("classification", 31, 255),
+    ("return_number", 7, 15),
+    ("number_of_returns", 7, 15),
+    ("classification_flags", 7, 15),
+    ("scan_direction_flag", 1, 1),
+    ("edge_of_flight_line", 1, 1),
+];
+
 pub struct LasRecords {
     stride: usize,
+    format_number: u8,
+    /// Per bit field of the rows: its row offset, name and the largest value the format holds,
+    /// so that a value it cannot hold is refused rather than cut.
+    limits: Vec<(usize, &'static str, u8)>,
     /// Per LAS-order attribute: where it comes from, its offset and size in the LAS row.
     gather: Vec<(Source, usize, usize)>,
     ops: Vec<FieldOp>,
@@ -126,8 +141,23 @@ impl LasRecords {
             ));
         }
         let names = las_attrs.iter().map(|a| a.name.clone()).collect();
+        let limits = BIT_FIELDS
+            .iter()
+            .filter_map(|&(name, legacy, extended)| {
+                let max = if format_number < 6 { legacy } else { extended };
+                let i = layout.index_of(name)?;
+                let a = &layout.attributes[i];
+                (max < u8::MAX && a.ty == AttrType::U8 && a.count == 1).then_some((
+                    layout.offsets[i],
+                    name,
+                    max,
+                ))
+            })
+            .collect();
         Ok(LasRecords {
             stride: layout.stride,
+            format_number,
+            limits,
             gather,
             ops,
             las_row_len: at,
@@ -163,6 +193,26 @@ impl LasRecords {
                 .flat_map(|e| eb_descriptor(&e.attribute))
                 .collect()
         })
+    }
+
+    /// Refuses `rows` where a field holds a value the point format cannot (a PLY's class 200
+    /// in format 3, return 20 in format 6); `path` names the output.
+    pub fn check_fits(&self, path: &Path, rows: &[u8]) -> Result<()> {
+        for row in rows.chunks_exact(self.stride) {
+            for &(at, name, max) in &self.limits {
+                if row[at] > max {
+                    return Err(ConvertError::output(
+                        path,
+                        format!(
+                            "a point's {name} is {}, more than LAS point format {} holds ({max}); \
+                             export to .ply to keep it",
+                            row[at], self.format_number
+                        ),
+                    ));
+                }
+            }
+        }
+        Ok(())
     }
 
     /// The records of `rows`, into `out` (replacing its contents).

@@ -2,7 +2,7 @@
 //! Files are written under a temporary name and renamed when complete.
 
 use crate::error::{ConvertError, Result};
-use crate::las_records::{LasRecords, refuse_encoded};
+use crate::las_records::{BIT_FIELDS, LasRecords, refuse_encoded};
 use las::{PointDataBuilder, Transform, Vector, Vlr, Writer};
 use std::fs::File;
 use std::io::{BufWriter, Write};
@@ -74,7 +74,10 @@ fn las_format_for(layout: &RowLayout) -> u8 {
     // Formats 0 to 5 hold classes up to 31 and return numbers up to 7. Rows read from those
     // formats (the ones with a scan angle rank) fit them; a class or return number from
     // anywhere else (a PLY's uchar) may not, and goes to formats 6 to 10.
-    let legacy_fits = has("scan_angle_rank") || !LEGACY_LIMITS.iter().any(|(n, _)| has(n));
+    let legacy_fits = has("scan_angle_rank")
+        || !BIT_FIELDS
+            .iter()
+            .any(|&(n, legacy, extended)| legacy < extended && has(n));
     if has("scan_angle") || has("scanner_channel") || !legacy_fits {
         match (wave, has("nir"), rgb) {
             (true, true, _) => 10,
@@ -95,24 +98,13 @@ fn las_format_for(layout: &RowLayout) -> u8 {
     }
 }
 
-/// The attributes that formats 0 to 5 hold in fewer bits, and the largest value each holds.
-const LEGACY_LIMITS: [(&str, u8); 3] = [
-    ("classification", 31),
-    ("return_number", 7),
-    ("number_of_returns", 7),
-];
-
 struct LasRowWriter {
     path: PathBuf,
     part: PathBuf,
     writer: Writer<BufWriter<File>>,
     records: LasRecords,
     buf: Vec<u8>,
-    format_number: u8,
     stride: usize,
-    /// Where formats 0 to 5 are written: each narrower attribute's row offset, name and
-    /// largest value, so that a value they cannot hold is refused rather than cut.
-    limits: Vec<(usize, &'static str, u8)>,
     /// The integer bounds of the positions written, for the header (see `finish`).
     min: [i32; 3],
     max: [i32; 3],
@@ -127,18 +119,7 @@ impl LasRowWriter {
         if format_number >= 6 {
             records = records.single_returns_where_missing();
         }
-        let limits = if format_number < 6 {
-            LEGACY_LIMITS
-                .iter()
-                .filter_map(|&(name, max)| {
-                    let i = layout.index_of(name)?;
-                    let a = &layout.attributes[i];
-                    (a.ty == AttrType::U8 && a.count == 1).then_some((layout.offsets[i], name, max))
-                })
-                .collect()
-        } else {
-            Vec::new()
-        };
+
         let mut builder = las::Builder::from((1, 4));
         builder.point_format = las::point::Format::new(format_number).map_err(|e| {
             ConvertError::output(
@@ -187,9 +168,7 @@ impl LasRowWriter {
             writer,
             records,
             buf: Vec::new(),
-            format_number,
             stride: layout.stride,
-            limits,
             min: [i32::MAX; 3],
             max: [i32::MIN; 3],
             scale,
@@ -200,19 +179,8 @@ impl LasRowWriter {
 
 impl RowWriter for LasRowWriter {
     fn write_rows(&mut self, rows: &[u8]) -> Result<()> {
+        self.records.check_fits(&self.path, rows)?;
         for row in rows.chunks_exact(self.stride) {
-            for &(at, name, max) in &self.limits {
-                if row[at] > max {
-                    return Err(ConvertError::output(
-                        &self.path,
-                        format!(
-                            "a point's {name} is {}, more than point format {} holds ({max}); \
-                             export to .copc.laz or .ply to keep it",
-                            row[at], self.format_number
-                        ),
-                    ));
-                }
-            }
             for (a, v) in row_position(row).into_iter().enumerate() {
                 self.min[a] = self.min[a].min(v);
                 self.max[a] = self.max[a].max(v);

@@ -110,8 +110,9 @@ pub struct NormalsInfo {
     pub computed: u64,
     /// Normals taken from the inputs as they were.
     pub kept: u64,
-    /// Points with fewer than k neighbours within `search_radius` (their estimate used those
-    /// it had; their radius assumes the k-th at the search radius).
+    /// Points with fewer than k distinct neighbours within `search_radius` (their estimate
+    /// used the n they had; their radius is `search_radius * sqrt(ln 100 / n)`, at most
+    /// `search_radius`).
     pub partial: u64,
     /// Neighbours farther than this (real units) were not used.
     #[serde(default)]

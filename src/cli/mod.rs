@@ -59,8 +59,7 @@ impl Cli {
     /// The command reads local files and prints text, and opens no socket: a closed pipe may
     /// end it quietly (a server or an HTTP client must not die of a peer that went away).
     pub fn prints_local_text(&self) -> bool {
-        let local =
-            |dataset: &str| !dataset.starts_with("http://") && !dataset.starts_with("https://");
+        let local = |dataset: &str| !strata_viewer::dataset::is_remote(dataset);
         match &self.command {
             Command::Info(_)
             | Command::Pipelines(_)

@@ -75,10 +75,15 @@ pub struct StreamDataset {
     streams: StreamSource,
 }
 
+/// Whether `location` names a dataset served over HTTP rather than a local directory.
+pub fn is_remote(location: &str) -> bool {
+    location.starts_with("http://") || location.starts_with("https://")
+}
+
 impl StreamDataset {
     /// Opens `http://HOST:PORT/DATASET` or a local dataset directory.
     pub fn open(location: &str, http: HttpOptions) -> Result<StreamDataset, ViewerError> {
-        if location.starts_with("http://") || location.starts_with("https://") {
+        if is_remote(location) {
             let (source, metadata) = HttpSource::open(location, http)?;
             StreamDataset::from_source(Arc::new(source), metadata)
         } else {

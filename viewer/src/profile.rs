@@ -177,6 +177,14 @@ pub struct ProfileDetail {
     pub max_points_read: u64,
 }
 
+/// Decimals for the CSV's distance and offset at a dataset's `scale`: those of the finer
+/// horizontal step and one more, at least 4 and at most 15.
+pub fn csv_decimals(scale: [f64; 3]) -> usize {
+    (1.0 - scale[0].min(scale[1]).log10())
+        .ceil()
+        .clamp(4.0, 15.0) as usize
+}
+
 /// Reads the profile of `corridor`, calling `on_level` with what there is after each level;
 /// it stops after a level where `on_level` returns false (no one wants more).
 pub fn extract(
@@ -199,9 +207,7 @@ pub fn extract(
         spacing: f64::INFINITY,
         points_read: 0,
         complete: true,
-        decimals: (1.0 - m.scale[0].min(m.scale[1]).log10())
-            .ceil()
-            .clamp(4.0, 15.0) as usize,
+        decimals: csv_decimals(m.scale),
     };
     let mut tree = Tree::default();
     tree.add_page(ds.root_hierarchy_page());
@@ -388,8 +394,11 @@ mod tests {
             points_read: 1,
             complete: true,
             // Degrees at 1e-7.
-            decimals: 8,
+            decimals: csv_decimals([1e-7, 1e-7, 1e-3]),
         };
+        assert_eq!(csv_decimals([0.01, 0.01, 0.01]), 4);
+        assert_eq!(csv_decimals([0.0025, 0.001, 0.01]), 4);
+        assert_eq!(csv_decimals([1e-5, 1e-5, 1e-3]), 6);
         let dir = tempfile::tempdir().expect("tempdir");
         let path = dir.path().join("p.csv");
         profile.write_csv(&path).expect("writes");

@@ -269,7 +269,11 @@ fn precision(clouds: &[PointCloud]) -> Precision {
             }
         }
     }
-    if single {
+    if single && step.is_finite() {
+        // Unmoved singles (world magnitude theirs) beside scans with a finer step of their
+        // own: no one variant says both, and doubles are never coarser than either.
+        Precision::Float64
+    } else if single {
         // Unmoved singles: their world magnitude is their own.
         Precision::Float32
     } else if step.is_normal() {
@@ -283,17 +287,31 @@ fn precision(clouds: &[PointCloud]) -> Precision {
 /// The largest magnitude a scan's single-precision coordinate field holds in its own frame,
 /// where the file says: the field's limits, else the scan's Cartesian bounds (or its largest
 /// range, for a spherical scan).
+///
+/// libE57Format writes ±FLT_MAX as the limits of every float field: values that large say
+/// nothing, and where both the limits and the bounds say something the smaller is taken.
 fn local_extent(pc: &PointCloud, min: Option<f32>, max: Option<f32>) -> Option<f64> {
-    let finite = |v: f64| v.is_finite().then_some(v.abs());
-    if let (Some(lo), Some(hi)) = (min, max) {
-        return Some(finite(f64::from(lo))?.max(finite(f64::from(hi))?));
-    }
-    if pc.has_cartesian() {
-        let b = pc.cartesian_bounds.as_ref()?;
-        [b.x_min, b.x_max, b.y_min, b.y_max, b.z_min, b.z_max]
-            .into_iter()
-            .try_fold(0.0f64, |m, v| Some(m.max(finite(v?)?)))
+    // No scanner measures 1e20 units from itself.
+    let told = |v: f64| (v.is_finite() && v.abs() < 1e20).then_some(v.abs());
+    let limits = match (min, max) {
+        (Some(lo), Some(hi)) => told(f64::from(lo))
+            .zip(told(f64::from(hi)))
+            .map(|(a, b)| a.max(b)),
+        _ => None,
+    };
+    let bounds = if pc.has_cartesian() {
+        pc.cartesian_bounds.as_ref().and_then(|b| {
+            [b.x_min, b.x_max, b.y_min, b.y_max, b.z_min, b.z_max]
+                .into_iter()
+                .try_fold(0.0f64, |m, v| Some(m.max(told(v?)?)))
+        })
     } else {
-        finite(pc.spherical_bounds.as_ref()?.range_max?)
+        pc.spherical_bounds
+            .as_ref()
+            .and_then(|b| told(b.range_max?))
+    };
+    match (limits, bounds) {
+        (Some(l), Some(b)) => Some(l.min(b)),
+        (l, b) => l.or(b),
     }
 }

@@ -4,7 +4,8 @@
 
 use super::kdtree::{Found, KdTree, Pending};
 
-/// The most neighbours a search takes to find k distinct positions among repeats.
+/// The most neighbours a search takes to find k distinct positions among repeats: a point
+/// with more repeats than this near it gets fewer than k (counted in `normals.partial`).
 const MAX_SEARCHED: usize = 4096;
 
 /// Room for the searches that skip repeats.
@@ -20,19 +21,24 @@ impl Distinct {
     /// repeats, so they are looked for first, without a branch.
     pub fn repeats(tree: &KdTree, near: &Found) -> bool {
         let d = &near.dist;
-        let ties: u32 = d
-            .iter()
-            .enumerate()
-            .map(|(i, &a)| d[i + 1..].iter().map(|&b| u32::from(a == b)).sum::<u32>())
-            .sum();
-        ties > 0
-            && (0..d.len()).any(|i| {
-                (i + 1..d.len()).any(|j| {
-                    d[i] == d[j]
-                        && tree.points[near.index[i] as usize]
-                            == tree.points[near.index[j] as usize]
-                })
+        // Pairwise without a branch for the usual k; sorted for large ones (k up to 256).
+        let tie = if d.len() <= 32 {
+            d.iter()
+                .enumerate()
+                .map(|(i, &a)| d[i + 1..].iter().map(|&b| u32::from(a == b)).sum::<u32>())
+                .sum::<u32>()
+                > 0
+        } else {
+            let mut sorted = d.clone();
+            sorted.sort_unstable_by(f64::total_cmp);
+            sorted.windows(2).any(|w| w[0] == w[1])
+        };
+        tie && (0..d.len()).any(|i| {
+            (i + 1..d.len()).any(|j| {
+                d[i] == d[j]
+                    && tree.points[near.index[i] as usize] == tree.points[near.index[j] as usize]
             })
+        })
     }
 
     /// Into `self.found`, the `k` nearest distinct positions to tree point `t` within

@@ -189,7 +189,9 @@ impl ChunkStep for NormalStep {
             .collect();
         let tree = KdTree::build(points, scale);
         let search = halo.margin();
-        let k = self.opts.k.min(tree.len());
+        // Not capped at the chunk's points: how many a chunk (and its halo) holds depends on
+        // how the cloud was cut, and a point's values must not.
+        let k = self.opts.k;
         let at = Placement {
             offset: chunk.offset,
             scanners: chunk.scanners,
@@ -224,7 +226,14 @@ impl ChunkStep for NormalStep {
                     // density is what the n found within it give, ρπR² = n; no farther than
                     // the search looked.
                     totals[total::PARTIAL] += 1.0;
-                    (search * COVER / (near.len() as f64).sqrt()).min(search)
+                    let n = (near.len() as f64).max(1.0);
+                    if search.is_finite() {
+                        (search * COVER / n.sqrt()).min(search)
+                    } else {
+                        // No bound on the search (no density estimate): every point was
+                        // found, and the farthest of them gives the density.
+                        near.farthest().sqrt() * COVER / n.sqrt()
+                    }
                 } else {
                     near.farthest().sqrt() * COVER / (k as f64).sqrt()
                 };
