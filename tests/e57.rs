@@ -10,7 +10,7 @@ use common::*;
 use std::collections::HashMap;
 use std::path::{Path, PathBuf};
 use strata_format::{LocalDataset, Metadata};
-use write::{CratePoint, ScanSpec, Storage, crate_points, world, write_e57};
+use write::{CratePoint, ScanSpec, Storage, crate_points, pose, world, write_e57};
 
 /// A stored point: integer position and the values of `scanner`, `rgb`, `intensity` (those the
 /// dataset has, in that order).
@@ -434,19 +434,7 @@ fn a_non_finite_coordinate_is_named_where_it_is() {
         e57::Record::CARTESIAN_Z_F64,
     ];
     let mut pc = w.add_pointcloud("scan", prototype).expect("scan");
-    pc.set_transform(Some(e57::Transform {
-        rotation: e57::Quaternion {
-            w: 1.0,
-            x: 0.0,
-            y: 0.0,
-            z: 0.0,
-        },
-        translation: e57::Translation {
-            x: 10.0,
-            y: 20.0,
-            z: 0.0,
-        },
-    }));
+    pc.set_transform(Some(pose([1.0, 0.0, 0.0, 0.0], [10.0, 20.0, 0.0])));
     for k in 0..5 {
         let y = if k == 3 { f64::INFINITY } else { 1.0 };
         pc.add_point(
@@ -547,16 +535,7 @@ fn single_precision_limits_of_the_whole_float_range_say_nothing() {
         .to_vec();
         let mut w = e57::E57Writer::from_file(&input, "strata-test-flt-max").expect("writer");
         let mut pc = w.add_pointcloud("scan", prototype).expect("scan");
-        let [x, y, z] = translation;
-        pc.set_transform(Some(e57::Transform {
-            rotation: e57::Quaternion {
-                w: 1.0,
-                x: 0.0,
-                y: 0.0,
-                z: 0.0,
-            },
-            translation: e57::Translation { x, y, z },
-        }));
+        pc.set_transform(Some(pose([1.0, 0.0, 0.0, 0.0], translation)));
         for k in 0..400 {
             let p = [(k % 20) as f32 * 0.01, (k / 20) as f32 * 0.01, 1.5];
             pc.add_point(p.map(e57::RecordValue::Single).to_vec())

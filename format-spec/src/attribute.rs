@@ -144,39 +144,38 @@ pub fn oct16_encode(n: [f64; 3]) -> [u16; 2] {
     // down by 1.5e-5, and an upward normal must never face down (`--orient up`). The grid has
     // no point on the edge where an axis meets it, (±1, 0), so the ring one step out is tried
     // too.
-    let rounded = [gu.round() as u16, gv.round() as u16];
     // Only within a few grid steps of the edge can rounding cross it.
-    if (1.0 - u.abs() - v.abs()).abs() > 4.0 / 65535.0 {
-        return if rounded == [0, 0] {
-            [65535, 65535]
-        } else {
-            rounded
-        };
-    }
-    let upward = n[2] >= 0.0;
+    let code = if (1.0 - u.abs() - v.abs()).abs() <= 4.0 / 65535.0 {
+        nearest_on_side(gu, gv, n[2] >= 0.0)
+    } else {
+        [gu.round() as u16, gv.round() as u16]
+    };
+    // The corner (-1, -1) is the -z pole, as are the other three corners: use another.
+    if code == [0, 0] { [65535, 65535] } else { code }
+}
+
+/// Of the grid points around grid position (gu, gv), the nearest whose decoded z is on the
+/// `upward` side (z >= 0) or the other; the rounded one if none is.
+fn nearest_on_side(gu: f64, gv: f64, upward: bool) -> [u16; 2] {
     let side = |cu: f64, cv: f64| {
         let z = 1.0 - (cu / 65535.0 * 2.0 - 1.0).abs() - (cv / 65535.0 * 2.0 - 1.0).abs();
         (z >= 0.0) == upward
     };
-    let mut best = (rounded, f64::INFINITY);
+    let rounded = [gu.round() as u16, gv.round() as u16];
     if side(gu.round(), gv.round()) {
-        best.1 = 0.0;
+        return rounded;
     }
+    let mut best = (rounded, f64::INFINITY);
     let around = |g: f64| [g.floor() - 1.0, g.floor(), g.ceil(), g.ceil() + 1.0];
     for cu in around(gu).map(|c| c.clamp(0.0, 65535.0)) {
         for cv in around(gv).map(|c| c.clamp(0.0, 65535.0)) {
             let gap = (cu - gu).powi(2) + (cv - gv).powi(2);
-            if best.1 > 0.0 && gap < best.1 && side(cu, cv) {
+            if gap < best.1 && side(cu, cv) {
                 best = ([cu as u16, cv as u16], gap);
             }
         }
     }
-    // The corner (-1, -1) is the -z pole, as are the other three corners: use another.
-    if best.0 == [0, 0] {
-        [65535, 65535]
-    } else {
-        best.0
-    }
+    best.0
 }
 
 /// Decodes octahedral 2 x u16 to a unit vector; `None` for `[0, 0]` (no normal).

@@ -67,6 +67,18 @@ impl ScanSpec {
     }
 }
 
+/// A scan's pose: rotation quaternion (w, x, y, z) and translation.
+pub fn pose([w, x, y, z]: [f64; 4], [tx, ty, tz]: [f64; 3]) -> Transform {
+    Transform {
+        rotation: Quaternion { w, x, y, z },
+        translation: Translation {
+            x: tx,
+            y: ty,
+            z: tz,
+        },
+    }
+}
+
 /// A small deterministic generator, so every run writes the same files.
 struct Lcg(u64);
 
@@ -144,21 +156,7 @@ pub fn write_e57(path: &Path, scans: &[ScanSpec]) -> Vec<Vec<[f64; 3]>> {
         let mut pc = w
             .add_pointcloud(&format!("strata-test-scan-{i}"), prototype(spec))
             .expect("point cloud writer");
-        let [qw, qx, qy, qz] = spec.rotation;
-        let [tx, ty, tz] = spec.translation;
-        pc.set_transform(Some(Transform {
-            rotation: Quaternion {
-                w: qw,
-                x: qx,
-                y: qy,
-                z: qz,
-            },
-            translation: Translation {
-                x: tx,
-                y: ty,
-                z: tz,
-            },
-        }));
+        pc.set_transform(Some(pose(spec.rotation, spec.translation)));
         let mut valid = Vec::new();
         for k in 0..spec.points {
             let state = match spec.invalid_every {
