@@ -66,8 +66,37 @@ fn daemon(program: &str, args: &[&str], conf: &Path) -> Result<Child, String> {
         .map_err(|e| format!("cannot start {program}: {e}"))
 }
 
-/// A one-node cluster in `dir`, or why there cannot be one here.
+/// Two consecutive ports nothing listens on, for slurmctld and slurmd: ports of our own, so
+/// that a Slurm already on the machine is left alone. They are taken below the kernel's
+/// ephemeral range (32768 and up), where the client sockets of earlier tests (the server's
+/// soak test opens hundreds) cannot hold them; `dir` varies the start between attempts.
+fn free_port_pair(dir: &Path) -> Result<u16, String> {
+    use std::hash::{Hash, Hasher};
+    let mut h = std::collections::hash_map::DefaultHasher::new();
+    (std::process::id(), dir).hash(&mut h);
+    let start = 10_000 + (h.finish() % 20_000) as u16;
+    let free = |p: u16| std::net::TcpListener::bind(("0.0.0.0", p)).is_ok();
+    (0..2_000u16)
+        .map(|i| 10_000 + (start - 10_000 + 2 * i) % 20_000)
+        .find(|&p| free(p) && free(p + 1))
+        .ok_or_else(|| "no two free ports between 10000 and 30000".into())
+}
+
+/// A one-node cluster, or why there cannot be one here. A port taken between our check and
+/// the daemon's bind is a race, not a missing Slurm: that alone is retried, on other ports.
 fn start_cluster(dir: &Path) -> Result<Cluster, String> {
+    let mut last = String::new();
+    for attempt in 0..3 {
+        match start_cluster_once(&dir.join(format!("try{attempt}"))) {
+            Err(why) if why.contains("Address already in use") => last = why,
+            other => return other,
+        }
+    }
+    Err(last)
+}
+
+/// A one-node cluster in `dir`, or why there cannot be one here.
+fn start_cluster_once(dir: &Path) -> Result<Cluster, String> {
     let missing: Vec<&str> = [
         "sbatch",
         "squeue",
@@ -113,8 +142,7 @@ fn start_cluster(dir: &Path) -> Result<Cluster, String> {
     }
     let sock = dir.join("munge.sock");
     let conf = dir.join("slurm.conf");
-    // Ports of our own, so that a Slurm already on the machine is left alone.
-    let port = 20000 + (std::process::id() % 20000) as u16;
+    let port = free_port_pair(dir)?;
     let d = |name: &str| dir.join(name).display().to_string();
     std::fs::create_dir_all(dir.join("state")).map_err(|e| e.to_string())?;
     std::fs::create_dir_all(dir.join("spool")).map_err(|e| e.to_string())?;
