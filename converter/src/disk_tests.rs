@@ -273,3 +273,27 @@ fn the_plans_disk_estimate_holds_its_tasks_files() {
     assert!(!plan.plan.exists());
     assert!(done.dataset_bytes <= output);
 }
+
+/// An export that fills the disk fails with the disk's error, in every format, and leaves
+/// nothing behind: no panic from the `las` crate closing its writer again, no `.part`.
+#[test]
+fn an_export_that_fills_the_disk_fails_cleanly_and_leaves_nothing() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let ds = convert(&city(dir.path(), "ds")).expect("convert").output;
+    let disk = dir.path().join("disk");
+    let Some(_fs) = Tmpfs::mount(&disk, "2m") else {
+        return;
+    };
+    for name in ["out.las", "out.laz", "out.ply"] {
+        let err = crate::export::export(&ds, &disk.join(name), false).expect_err("disk fills");
+        assert!(err.to_string().contains("No space left"), "{name}: {err}");
+        let left: Vec<_> = fs::read_dir(&disk).expect("read disk").flatten().collect();
+        assert!(left.is_empty(), "{name}: left {left:?}");
+    }
+    // A folder in the output's place is refused before anything is written.
+    let folder = dir.path().join("folder.las");
+    fs::create_dir(&folder).expect("folder");
+    let err = crate::export::export(&ds, &folder, true).expect_err("a folder");
+    assert!(err.to_string().contains("is a folder"), "{err}");
+    assert!(!crate::writers::part_path(&folder).exists());
+}

@@ -1,7 +1,7 @@
 //! `strata export`: every point of a dataset back out as LAS, LAZ or PLY.
 
 use crate::error::{ConvertError, Result};
-use crate::writers::{open_writer, part_path};
+use crate::writers::{RowWriter, open_writer, part_path};
 use std::path::Path;
 use strata_format::{AttrType, Attribute, DatasetFile, LocalDataset, RowLayout, oct16_decode};
 
@@ -23,7 +23,7 @@ pub fn export(dataset: &Path, output: &Path, overwrite: bool) -> Result<u64> {
     let meta = ds.metadata();
     let layout = ds.layout().clone();
     let wide = widened(&layout);
-    let mut writer = open_writer(
+    let writer = open_writer(
         output,
         &wide.layout,
         meta.scale,
@@ -31,7 +31,7 @@ pub fn export(dataset: &Path, output: &Path, overwrite: bool) -> Result<u64> {
         meta.points,
         overwrite,
     )?;
-    let mut write_all = || -> Result<u64> {
+    let write_all = |writer: &mut dyn RowWriter| -> Result<u64> {
         let mut written = 0u64;
         let mut out = Vec::new();
         for node in ds.all_nodes()? {
@@ -60,18 +60,27 @@ pub fn export(dataset: &Path, output: &Path, overwrite: bool) -> Result<u64> {
         }
         Ok(written)
     };
-    match write_all() {
-        Ok(written) => {
-            writer.finish()?;
-            Ok(written)
-        }
+    write_then_finish(writer, output, write_all)
+}
+
+/// Writes with `write`, then finishes: the writer works under a temporary name, removed on
+/// any failure, so that nothing that looks like an export stays.
+fn write_then_finish(
+    mut writer: Box<dyn RowWriter>,
+    output: &Path,
+    write: impl FnOnce(&mut dyn RowWriter) -> Result<u64>,
+) -> Result<u64> {
+    let result = match write(writer.as_mut()) {
+        Ok(written) => writer.finish().map(|()| written),
         Err(e) => {
-            // The writer works under a temporary name: nothing that looks like an export stays.
             drop(writer);
-            let _ = std::fs::remove_file(part_path(output));
             Err(e)
         }
+    };
+    if result.is_err() {
+        let _ = std::fs::remove_file(part_path(output));
     }
+    result
 }
 
 /// Writes `rows` of a dataset's `layout` (a selection of its points, such as a profile) to
@@ -86,22 +95,17 @@ pub fn export_rows(
 ) -> Result<u64> {
     let wide = widened(layout);
     let n = (rows.len() / layout.stride.max(1)) as u64;
-    let mut writer = open_writer(output, &wide.layout, scale, offset, n, overwrite)?;
-    let written = if wide.is_identity() {
-        writer.write_rows(rows)
-    } else {
-        let mut out = Vec::new();
-        wide.convert(rows, &mut out);
-        writer.write_rows(&out)
-    };
-    if let Err(e) = written {
-        // Nothing that looks like an output stays.
-        drop(writer);
-        let _ = std::fs::remove_file(part_path(output));
-        return Err(e);
-    }
-    writer.finish()?;
-    Ok(n)
+    let writer = open_writer(output, &wide.layout, scale, offset, n, overwrite)?;
+    write_then_finish(writer, output, |writer| {
+        if wide.is_identity() {
+            writer.write_rows(rows)?;
+        } else {
+            let mut out = Vec::new();
+            wide.convert(rows, &mut out);
+            writer.write_rows(&out)?;
+        }
+        Ok(n)
+    })
 }
 
 /// A dataset's rows as the export formats can hold them: an `oct16` normal decoded to three

@@ -23,6 +23,53 @@ pub(crate) fn part_path(path: &Path) -> PathBuf {
     path.with_file_name(name)
 }
 
+/// The LAS writer's file, which after its first failure (a full disk) takes every further
+/// write and seek without doing it: the `las` crate closes a writer again when it is dropped
+/// and panics if that fails, and a writer whose close failed is dropped on the error path.
+/// The first failure is the one reported; the file is removed.
+struct Latched {
+    inner: BufWriter<File>,
+    failed: bool,
+}
+
+impl Latched {
+    /// Passes `r` on, remembering a failure (an interruption is retried, not a failure).
+    fn latch<T>(&mut self, r: std::io::Result<T>) -> std::io::Result<T> {
+        self.failed = r
+            .as_ref()
+            .is_err_and(|e| e.kind() != std::io::ErrorKind::Interrupted);
+        r
+    }
+}
+
+impl Write for Latched {
+    fn write(&mut self, buf: &[u8]) -> std::io::Result<usize> {
+        if self.failed {
+            return Ok(buf.len());
+        }
+        let r = self.inner.write(buf);
+        self.latch(r)
+    }
+
+    fn flush(&mut self) -> std::io::Result<()> {
+        if self.failed {
+            return Ok(());
+        }
+        let r = self.inner.flush();
+        self.latch(r)
+    }
+}
+
+impl std::io::Seek for Latched {
+    fn seek(&mut self, pos: std::io::SeekFrom) -> std::io::Result<u64> {
+        if self.failed {
+            return Ok(0);
+        }
+        let r = self.inner.seek(pos);
+        self.latch(r)
+    }
+}
+
 /// Opens a writer chosen by the extension of `path`. `points` is the exact number of rows
 /// that will be written (PLY needs it up front).
 pub fn open_writer(
@@ -45,6 +92,13 @@ pub fn open_writer(
         return Err(ConvertError::output(
             path,
             "output already exists (pass --overwrite to replace it)",
+        ));
+    }
+    // Found before any point is written, not when the finished file is moved into place.
+    if path.is_dir() {
+        return Err(ConvertError::output(
+            path,
+            "is a folder; the output is a file",
         ));
     }
     let ext = path
@@ -101,7 +155,7 @@ fn las_format_for(layout: &RowLayout) -> u8 {
 struct LasRowWriter {
     path: PathBuf,
     part: PathBuf,
-    writer: Writer<BufWriter<File>>,
+    writer: Writer<Latched>,
     records: LasRecords,
     buf: Vec<u8>,
     stride: usize,
@@ -160,7 +214,11 @@ impl LasRowWriter {
             .map_err(|e| ConvertError::output(path, format!("cannot build LAS header ({e})")))?;
         let part = part_path(path);
         let file = File::create(&part).map_err(|e| ConvertError::io(&part, "cannot create", e))?;
-        let writer = Writer::new(BufWriter::with_capacity(1 << 20, file), header)
+        let sink = Latched {
+            inner: BufWriter::with_capacity(1 << 20, file),
+            failed: false,
+        };
+        let writer = Writer::new(sink, header)
             .map_err(|e| ConvertError::output(&part, format!("cannot create ({e})")))?;
         Ok(LasRowWriter {
             path: path.to_path_buf(),
