@@ -307,27 +307,32 @@ fn laszip_vlr_that_disagrees_with_the_header_is_refused_before_decoding() {
 }
 
 #[test]
-fn a_coarsened_scale_is_said_even_with_quiet_and_recorded() {
+fn a_coarse_step_is_said_even_with_quiet_and_recorded() {
     let dir = tempfile::tempdir().expect("tempdir");
+    // Doubles 10^12 apart: stored in steps of 1000, which merges points nearer than that.
     let ply = "ply\nformat ascii 1.0\nelement vertex 2\nproperty double x\nproperty double y\nproperty double z\nend_header\n0.5 0 0\n1e12 1 1\n";
     let p = write(dir.path(), "far.ply", ply.as_bytes());
     let out = dir.path().join("ds");
     let o = run(&["convert", s(&p), "-o", s(&out), "--quiet"]);
     assert!(o.status.success());
+    let said = "floating-point coordinates stored x in steps of 1e3";
     let err = String::from_utf8_lossy(&o.stderr);
-    assert!(
-        err.contains("warning:") && err.contains("coarsened"),
-        "{err}"
-    );
+    assert!(err.contains("warning:") && err.contains(said), "{err}");
     let meta = std::fs::read_to_string(out.join("metadata.json")).expect("metadata");
     let v: serde_json::Value = serde_json::from_str(&meta).expect("json");
     let warnings = v["warnings"].as_array().expect("warnings recorded");
     assert!(
         warnings
             .iter()
-            .any(|w| w.as_str().is_some_and(|w| w.contains("coarsened")))
+            .any(|w| w.as_str().is_some_and(|w| w.contains(said)))
     );
     run_ok(&["verify", s(&out)]);
+    // Doubles a few metres apart fit on a fine step: nothing to say.
+    let near = ply.replace("1e12 1 1", "2 1 1");
+    let p = write(dir.path(), "near.ply", near.as_bytes());
+    let o = run_ok(&["convert", s(&p), "-o", s(&dir.path().join("near"))]);
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(!err.contains("warning"), "{err}");
 }
 
 #[test]

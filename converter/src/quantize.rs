@@ -15,7 +15,8 @@ pub struct SourceExtent {
 pub struct Quantization {
     pub scale: [f64; 3],
     pub offset: [f64; 3],
-    /// Set when no scale that loses no precision fits 32-bit positions.
+    /// Set when the step an input declares (a LAS scale, an E57 resolution) does not fit
+    /// 32-bit positions and a coarser one was taken.
     pub coarsened: bool,
     /// Said where floating-point inputs are stored in steps over one unit: their magnitude
     /// set the step, and points nearer each other than it become one position (one far
@@ -24,7 +25,23 @@ pub struct Quantization {
 }
 
 fn pow10_floor(v: f64) -> f64 {
-    10f64.powi(v.log10().floor() as i32)
+    pow10(v.log10().floor() as i32)
+}
+
+/// `step` × 10^`e` as the decimal `step` is written in (1e-9 three times is 1e-6, not the
+/// product's 1.0000000000000002e-6).
+fn tenfold(step: f64, e: i32) -> f64 {
+    let written = format!("{step:e}");
+    let shifted = written.split_once('e').and_then(|(mantissa, exp)| {
+        let exp: i32 = exp.parse().ok()?;
+        format!("{mantissa}e{}", exp + e).parse().ok()
+    });
+    shifted.unwrap_or(f64::INFINITY)
+}
+
+/// 10^e, correctly rounded (as the decimal literal `1e{e}` is; `powi` may be a unit off).
+fn pow10(e: i32) -> f64 {
+    format!("1e{e}").parse().unwrap_or(f64::INFINITY)
 }
 
 /// The scale that keeps a float coordinate of magnitude `max_abs` to within half its unit in
@@ -43,20 +60,36 @@ pub fn choose(
     max: [f64; 3],
 ) -> Result<Quantization, String> {
     let mut scale = [f64::INFINITY; 3];
+    // The finest step an input declares (a LAS scale, an E57 resolution, integers): only a
+    // scale coarser than that loses what an input holds. A float's own resolution depends on
+    // its magnitude and is no promise of precision; its loss is `coarse_floats`.
+    let mut declared = [f64::INFINITY; 3];
     for s in sources {
-        for (a, scale_a) in scale.iter_mut().enumerate() {
+        for a in 0..3 {
             let max_abs = s.min[a].abs().max(s.max[a].abs());
-            let sa = match s.precision {
-                Precision::Scaled { scale, .. } => scale[a].abs(),
-                Precision::Float32 => float_scale(max_abs, 23),
-                Precision::Float64 => float_scale(max_abs, 52),
-                Precision::Integer => 1.0,
-                Precision::Resolution(step) => step[a].abs(),
+            let (sa, is_declared) = match s.precision {
+                Precision::Scaled { scale, .. } => (scale[a].abs(), true),
+                // Zero on this axis everywhere: it asks no step (a tiny one would become 0
+                // in a reader's single precision).
+                Precision::Float32 | Precision::Float64 if max_abs == 0.0 => (f64::INFINITY, false),
+                Precision::Float32 => (float_scale(max_abs, 23), false),
+                Precision::Float64 => (float_scale(max_abs, 52), false),
+                Precision::Integer => (1.0, true),
+                Precision::Resolution(step) => (step[a].abs(), true),
             };
-            *scale_a = scale_a.min(sa);
+            scale[a] = scale[a].min(sa);
+            if is_declared {
+                declared[a] = declared[a].min(sa);
+            }
         }
     }
-    // Reuse an input's offset when every scaled input sits on its grid: positions stay exact.
+    // An axis no input asks a step of (floats all zero on it) takes the others' final step.
+    let unasked = scale.map(|s| !s.is_finite());
+    for s in &mut scale {
+        if !s.is_finite() {
+            *s = 1.0;
+        }
+    }
     let first_scaled = sources.iter().find_map(|s| match s.precision {
         Precision::Scaled { offset, .. } => Some(offset),
         _ => None,
@@ -106,13 +139,15 @@ pub fn choose(
             let moved = offset[a] + ((mid - offset[a]) / scale[a]).round() * scale[a];
             offset[a] = if moved.is_finite() { moved } else { mid };
         }
-        // Each pass multiplies the scale by ten: from the smallest normal f64 to the largest
-        // takes about 616, so the bound only stops what could never fit.
+        // Each pass makes the scale ten times the input's, as decimals (a product of
+        // repeated tenfolds drifts: 9.999999999999998e-8): from the smallest normal f64 to
+        // the largest takes about 616 passes, so the bound only stops what could never fit.
+        let finest = scale[a];
         let mut passes = 0;
         while !fits(offset[a], scale[a]) {
-            scale[a] *= 10.0;
-            coarsened = true;
             passes += 1;
+            scale[a] = tenfold(finest, passes);
+            coarsened |= scale[a] > declared[a];
             if !scale[a].is_finite() || passes > 700 {
                 return Err(too_far());
             }
@@ -124,6 +159,12 @@ pub fn choose(
         if !(scale[a].is_normal() && offset[a].is_finite()) {
             return Err(too_far());
         }
+    }
+    let asked = (0..3).filter(|&a| !unasked[a]).map(|a| scale[a]);
+    let step = asked.fold(f64::INFINITY, f64::min);
+    for a in (0..3).filter(|&a| unasked[a] && step.is_finite()) {
+        scale[a] = step;
+        offset[a] = (min[a] / step).floor() * step;
     }
     let floats = sources
         .iter()
@@ -280,6 +321,27 @@ mod tests {
         };
         // Coarsened to a finite scale; whether the cube is storable is prepare's check.
         let q = choose(&[wide], [-1.7e308; 3], [1.7e308; 3]).expect("coarsened");
-        assert!(q.coarsened && q.scale[0].is_normal() && q.offset[0].is_finite());
+        assert!(q.scale[0].is_normal() && q.offset[0].is_finite());
+        assert!(q.coarse_floats.is_some(), "a step over one unit is said");
+    }
+
+    #[test]
+    fn floats_are_stored_on_a_decimal_step_without_a_coarsening_warning() {
+        let doubles = |min: [f64; 3], max: [f64; 3]| SourceExtent {
+            precision: Precision::Float64,
+            min,
+            max,
+        };
+        // Three points 2 m apart, on the x axis only: a double's own resolution does not
+        // fit 32 bits, which says nothing of the data; y and z, zero everywhere, take x's step
+        // rather than one that single precision holds as 0.
+        let (min, max) = ([0.0; 3], [2.0, 0.0, 0.0]);
+        let q = choose(&[doubles(min, max)], min, max).expect("fits");
+        assert!(!q.coarsened && q.coarse_floats.is_none(), "{q:?}");
+        assert_eq!(q.scale, [1e-9; 3], "a tenfold of 1e-16 rounded once");
+        // A declared step that must grow is said, and is an exact decimal.
+        let q = choose(&[las(1e-9, 0.0, -1e3, 1e3)], [-1e3; 3], [1e3; 3]).expect("fits");
+        assert!(q.coarsened);
+        assert_eq!(q.scale, [1e-6; 3]);
     }
 }
