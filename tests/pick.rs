@@ -62,7 +62,7 @@ fn a_picked_point_is_a_stored_point_with_every_attribute() {
         let ds = strata_viewer::StreamDataset::open_path(&dataset).expect("dataset opens");
         let camera = strata_viewer::headless::default_camera(&ds, 320, 240);
         let rel = (glam::DVec3::new(pos[0], pos[1], pos[2]) - ds.anchor()).as_vec3();
-        let (near, far) = strata_viewer::lod::clip_range(&ds, &camera);
+        let (near, far) = strata_viewer::lod::clip_range(&ds, &camera, 320.0 / 240.0);
         let clip = camera.projection(320.0 / 240.0, near, far) * camera.view() * rel.extend(1.0);
         let (fx, fy) = (
             (clip.x / clip.w * 0.5 + 0.5) * 320.0,

@@ -131,7 +131,7 @@ pub fn select(
     clip: &ClipRegion,
 ) -> Selection {
     let aspect = params.width as f32 / params.height.max(1) as f32;
-    let (near, far) = clip_range(ds, camera);
+    let (near, far) = clip_range(ds, camera, aspect);
     let frustum = Frustum::from_view_proj(camera.projection(aspect, near, far) * camera.view());
     let focal = camera.focal_px(params.height);
     let mut out = Selection::default();
@@ -221,16 +221,34 @@ fn box_distance(p: Vec3, min: Vec3, max: Vec3) -> f32 {
     (p.clamp(min, max) - p).length()
 }
 
-/// Automatic near and far planes that enclose the dataset's bounds as seen from the eye.
-pub fn clip_range(ds: &StreamDataset, camera: &Camera) -> (f32, f32) {
+/// Automatic near and far planes that enclose the dataset's bounds as seen from the eye, in a
+/// view of `aspect` (width / height). The near plane lies in front of every point of the
+/// bounds that the view can show: no nearer along the view axis than the box's nearest corner,
+/// nor than its nearest point seen at the view's widest angle (a point off the axis is nearer
+/// along it than its distance).
+pub fn clip_range(ds: &StreamDataset, camera: &Camera, aspect: f32) -> (f32, f32) {
     let (min, max) = ds.bounds();
     let radius = ((max - min) * 0.5).length().max(1e-3);
     let centre = (min + max) * 0.5;
     let to_centre = (centre - camera.eye).length();
     let far = (to_centre + radius) * 1.01;
-    let nearest = box_distance(camera.eye, min, max);
+    let forward = (camera.target - camera.eye).normalize_or(Vec3::Y);
+    let nearest_depth = (0..8)
+        .map(|i| {
+            let corner = Vec3::new(
+                if i & 1 == 0 { min.x } else { max.x },
+                if i & 2 == 0 { min.y } else { max.y },
+                if i & 4 == 0 { min.z } else { max.z },
+            );
+            (corner - camera.eye).dot(forward)
+        })
+        .fold(f32::INFINITY, f32::min);
+    // The widest angle from the axis a view shows: towards a corner of the image.
+    let half_diagonal = (camera.fov_y * 0.5).tan() * (1.0 + aspect * aspect).sqrt();
+    let widest_cos = 1.0 / (1.0 + half_diagonal * half_diagonal).sqrt();
+    let nearest = box_distance(camera.eye, min, max) * widest_cos;
     // Inside the bounds the nearest surface can be close: keep the ratio far/near bounded.
-    let near = (nearest * 0.9).max(far * 1e-5);
+    let near = (nearest.max(nearest_depth) * 0.9).max(far * 1e-5);
     (near, far)
 }
 

@@ -22,7 +22,7 @@ const NEAR_W: f32 = 1e-4;
 
 impl ScreenProjector {
     pub fn new(ds: &StreamDataset, camera: &Camera, width: u32, height: u32) -> ScreenProjector {
-        let (near, far) = clip_range(ds, camera);
+        let (near, far) = clip_range(ds, camera, width as f32 / height.max(1) as f32);
         ScreenProjector::from_view(camera, ds.anchor(), width, height, near, far)
     }
 

@@ -382,7 +382,7 @@ fn render_view(
     // Load everything the view needs.
     load_all(renderer, camera, w, h, &base)?;
     let aspect = w as f32 / h as f32;
-    let (near, far) = clip_range(renderer.dataset(), camera);
+    let (near, far) = clip_range(renderer.dataset(), camera, aspect);
     let reference_image = reference.render(
         ctx,
         camera.view(),

@@ -124,7 +124,7 @@ pub fn orbit_flicker(
         renderer.frame(&cam, w, h, settings)?;
         renderer.wait_gpu()?;
         let (_, _, rgba) = renderer.read_image()?;
-        let (near, far) = clip_range(renderer.dataset(), &cam);
+        let (near, far) = clip_range(renderer.dataset(), &cam, w as f32 / h as f32);
         let image = reference.render(
             ctx,
             cam.view(),

@@ -123,7 +123,7 @@ impl Renderer {
             None => None,
         };
         let aspect = width as f32 / height as f32;
-        let (near, far) = clip_range(&self.ds, camera);
+        let (near, far) = clip_range(&self.ds, camera, aspect);
         let view_proj = camera.projection(aspect, near, far) * camera.view();
         let (bmin, bmax) = self.ds.bounds();
         let [r, g, b] = settings.background;

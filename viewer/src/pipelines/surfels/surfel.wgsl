@@ -106,14 +106,16 @@ fn surfel_at(group: u32, lane: u32) -> Surfel {
     }
     let clip = frame.view_proj * vec4<f32>(p, 1.0);
     let reach = s.bound * s.radius;
-    // Beyond the far plane, or reaching behind the eye: not drawn (the projection drops the
-    // first too).
-    if clip.w <= reach || clip.z > clip.w {
+    // Nearer than the near plane or beyond the far one: not drawn, as the projection drops
+    // them.
+    if clip.z < 0.0 || clip.z > clip.w {
         return s;
     }
     let ndc = clip.xy / clip.w;
     s.centre_px = vec2<f32>((ndc.x * 0.5 + 0.5) * f32(frame.width), (0.5 - ndc.y * 0.5) * f32(frame.height));
-    s.reach_px = min(reach * frame.focal_px / (clip.w - reach), MAX_REACH_PX);
+    // A surfel that reaches behind the eye (the eye close to a large one) has no bounded
+    // image: it takes the largest box, and each pixel's ray finds where it meets it.
+    s.reach_px = select(MAX_REACH_PX, min(reach * frame.focal_px / (clip.w - reach), MAX_REACH_PX), clip.w > reach);
     let size = vec2<f32>(f32(frame.width), f32(frame.height));
     if any(s.centre_px + s.reach_px < vec2<f32>(0.0)) || any(s.centre_px - s.reach_px > size) {
         return s;

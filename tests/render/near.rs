@@ -1,0 +1,100 @@
+//! The near plane and the eye: every point in view is drawn however far off the view axis the
+//! nearest ones lie, and a surfel that reaches behind the eye is still drawn.
+
+use super::*;
+
+/// An ASCII PLY of `points` (x y z), converted, in a folder of its own.
+fn converted_points(name: &str, points: &[[f64; 3]], normals: bool) -> PathBuf {
+    let dir = Path::new(env!("CARGO_TARGET_TMPDIR")).join(format!("render-near-{name}"));
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).expect("fixture dir");
+    let mut ply = format!(
+        "ply\nformat ascii 1.0\nelement vertex {}\nproperty double x\nproperty double y\n\
+         property double z\nend_header\n",
+        points.len()
+    );
+    for p in points {
+        ply.push_str(&format!("{} {} {}\n", p[0], p[1], p[2]));
+    }
+    let input = dir.join("in.ply");
+    std::fs::write(&input, ply).expect("ply");
+    let out = dir.join("ds");
+    let mut args = vec!["convert", s(&input), "-o", s(&out), "--quiet"];
+    if normals {
+        args.push("--normals=compute");
+    }
+    common::run_ok(&args);
+    out
+}
+
+#[test]
+fn points_far_off_the_view_axis_next_to_the_eye_are_drawn() {
+    // A line seen from beside its end: the nearest points lie far from the view axis, nearer
+    // along it than their distance (the near plane took the distance and cut them off).
+    let line: Vec<[f64; 3]> = (0..=50).map(|i| [i as f64, 0.0, 0.0]).collect();
+    let dataset = converted_points("line", &line, false);
+    let (w, h) = (320u32, 240u32);
+    let out = dataset.with_extension("png");
+    gpu_ok(&[
+        "render",
+        s(&dataset),
+        "-o",
+        s(&out),
+        "--size",
+        "320x240",
+        "--pipeline",
+        "points",
+        "--point-size",
+        "3",
+    ]);
+    let (_, _, rgba) = read_png(&out);
+    let ds = StreamDataset::open_path(&dataset).expect("dataset opens");
+    let camera = default_camera(&ds, w, h);
+    let vp = camera.projection(w as f32 / h as f32, 0.01, 1e4) * camera.view();
+    let mut missing = Vec::new();
+    for p in &line {
+        let rel = (glam::DVec3::from_array(*p) - ds.anchor()).as_vec3();
+        let q = vp.project_point3(rel);
+        let (x, y) = ((q.x * 0.5 + 0.5) * w as f32, (0.5 - q.y * 0.5) * h as f32);
+        // Drawn within a pixel of where it projects.
+        let near_drawn = (-1..=1).any(|dy| {
+            (-1..=1).any(|dx| {
+                let (px, py) = (x as i64 + dx, y as i64 + dy);
+                (0..w as i64).contains(&px)
+                    && (0..h as i64).contains(&py)
+                    && drawn(&rgba[((py as u32 * w + px as u32) * 4) as usize..][..4])
+            })
+        });
+        if !near_drawn {
+            missing.push(p[0]);
+        }
+    }
+    assert!(missing.is_empty(), "points at x = {missing:?} not drawn");
+}
+
+#[test]
+fn a_surfel_reaching_behind_the_eye_is_drawn() {
+    // A grid of 1-unit spacing, its normals computed, seen from 0.8 above: the surfels under
+    // the eye reach past it (they were dropped whole, leaving an empty picture).
+    let grid: Vec<[f64; 3]> = (0..100)
+        .map(|i| [(i % 10) as f64, (i / 10) as f64, 0.0])
+        .collect();
+    let dataset = converted_points("grid", &grid, true);
+    let out = dataset.with_extension("png");
+    gpu_ok(&[
+        "render",
+        s(&dataset),
+        "-o",
+        s(&out),
+        "--size",
+        "320x240",
+        "--pipeline",
+        "surfels",
+        "--camera",
+        "eye=4.5,4.5,0.8;target=4.5,4.5,0;fov=120",
+    ]);
+    let (_, _, rgba) = read_png(&out);
+    let covered = rgba.chunks_exact(4).filter(|px| drawn(px)).count();
+    // The eight points under the eye, each a disc of at least 16 pixels' radius.
+    assert!(covered > 8 * 500, "{covered} pixels drawn");
+}
