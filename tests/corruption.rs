@@ -126,34 +126,91 @@ fn newer_major_versions_are_refused_clearly() {
     assert!(String::from_utf8_lossy(&o.stderr).contains("version 2.0 is not supported"));
 }
 
-#[test]
-fn an_export_of_a_dataset_whose_count_is_wrong_leaves_nothing() {
-    let dir = tempfile::tempdir().expect("tempdir");
-    let ds = dataset(dir.path());
-    let meta_path = ds.join("metadata.json");
-    let mut meta: serde_json::Value =
-        serde_json::from_slice(&std::fs::read(&meta_path).expect("read")).expect("json");
-    let points = meta["points"].as_u64().expect("points");
-    meta["points"] = (points + 1).into();
-    std::fs::write(&meta_path, meta.to_string()).expect("write");
-    for name in ["out.ply", "out.las"] {
-        let out = dir.path().join(name);
-        let o = run(&["export", s(&ds), "-o", s(&out)]);
+/// Every export of `ds` fails with `says` in its message and leaves nothing named `out*`.
+fn every_export_refuses(ds: &Path, dir: &Path, says: &str) {
+    let targets: [(&str, &[&str]); 4] = [
+        ("out.ply", &[]),
+        ("out.las", &[]),
+        ("out.copc.laz", &[]),
+        ("out_potree", &["--format", "potree2"]),
+    ];
+    for (name, extra) in targets {
+        let out = dir.join(name);
+        let mut args = vec!["export", s(ds), "-o", s(&out)];
+        args.extend_from_slice(extra);
+        let o = run(&args);
         let err = String::from_utf8_lossy(&o.stderr);
         assert!(!o.status.success(), "{name}: exported");
-        assert!(
-            err.contains(&format!(
-                "metadata.json: says the dataset holds {} points, but its nodes hold {points}",
-                points + 1
-            )),
-            "{err}"
-        );
-        let leftovers: Vec<_> = std::fs::read_dir(dir.path())
+        assert!(err.contains(says), "{name}: {err}");
+        let leftovers: Vec<_> = std::fs::read_dir(dir)
             .expect("list")
             .flatten()
             .map(|e| e.file_name().to_string_lossy().into_owned())
             .filter(|n| n.starts_with("out"))
             .collect();
-        assert!(leftovers.is_empty(), "{leftovers:?}");
+        assert!(leftovers.is_empty(), "{name}: {leftovers:?}");
     }
+}
+
+fn edit_metadata(ds: &Path, edit: impl FnOnce(&mut serde_json::Value)) {
+    let meta_path = ds.join("metadata.json");
+    let mut meta: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(&meta_path).expect("read")).expect("json");
+    edit(&mut meta);
+    std::fs::write(&meta_path, meta.to_string()).expect("write");
+}
+
+#[test]
+fn an_export_of_a_dataset_whose_count_is_wrong_leaves_nothing() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let ds = dataset(dir.path());
+    let mut points = 0;
+    edit_metadata(&ds, |meta| {
+        points = meta["points"].as_u64().expect("points");
+        meta["points"] = (points + 1).into();
+    });
+    let says = format!(
+        "metadata.json: says the dataset holds {} points, but its nodes hold {points}",
+        points + 1
+    );
+    every_export_refuses(&ds, dir.path(), &says);
+}
+
+/// Points stored in nodes whose cubes do not hold them (here the cube moved): the exports
+/// that place points by their node (COPC, Potree 2) would lose or misplace them.
+#[test]
+fn an_export_of_points_outside_their_nodes_leaves_nothing() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let ds = dataset(dir.path());
+    edit_metadata(&ds, |meta| {
+        let x = meta["cube"]["min"][0].as_i64().expect("cube min");
+        meta["cube"]["min"][0] = (x + 1000).into();
+    });
+    verify_fails_naming(&ds, "lies outside the node's cube");
+    for (name, says) in [
+        ("out.copc.laz", "inside their nodes' cubes"),
+        ("out_potree", "lies outside the node's cube"),
+    ] {
+        let out = dir.path().join(name);
+        let mut args = vec!["export", s(&ds), "-o", s(&out)];
+        if name == "out_potree" {
+            args.extend(["--format", "potree2"]);
+        }
+        let o = run(&args);
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert!(!o.status.success() && err.contains(says), "{name}: {err}");
+        assert!(!out.exists());
+    }
+}
+
+#[test]
+fn an_attribute_of_an_unknown_encoding_is_refused() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let ds = dataset(dir.path());
+    edit_metadata(&ds, |meta| {
+        meta["attributes"][0]["encoding"] = "zz".into();
+    });
+    verify_fails_naming(&ds, "has encoding \"zz\", which this reader does not know");
+    let o = run(&["info", s(&ds)]);
+    assert!(!o.status.success());
 }

@@ -13,7 +13,7 @@ use laz::{LasZipCompressor, LazVlrBuilder};
 use std::fs::File;
 use std::io::{BufWriter, Read, Seek, SeekFrom, Write};
 use std::path::Path;
-use strata_format::{LocalDataset, RowLayout};
+use strata_format::{DatasetFile, LocalDataset, RowLayout};
 
 /// The LAS 1.4 header's size.
 const HEADER_SIZE: u64 = 375;
@@ -106,7 +106,24 @@ pub fn export_copc(dataset: &Path, output: &Path, overwrite: bool) -> Result<u64
             .sum::<u64>();
 
     let part = part_path(output);
-    let written = write_points(&ds, &part, &wide, &records, laz_vlr, point_data, &vlrs);
+    let written = write_points(&ds, output, &wide, &records, laz_vlr, point_data, &vlrs);
+    // Every point goes to exactly one COPC node, its cell at its level: a dataset whose nodes
+    // hold points outside their cubes, or other than the count it states, loses or repeats
+    // some, and is refused as the other exports refuse it.
+    let written = written.and_then(|w| {
+        if w.2.points == meta.points {
+            Ok(w)
+        } else {
+            Err(ConvertError::input(
+                dataset.join(DatasetFile::Metadata.name()),
+                format!(
+                    "says the dataset holds {} points, but its nodes hold {} (counting the points \
+                     inside their nodes' cubes)",
+                    meta.points, w.2.points
+                ),
+            ))
+        }
+    });
     let (file, entries, totals) = match written {
         Ok(w) => w,
         Err(e) => {
@@ -131,13 +148,14 @@ pub fn export_copc(dataset: &Path, output: &Path, overwrite: bool) -> Result<u64
 /// the totals.
 fn write_points(
     ds: &LocalDataset,
-    part: &Path,
+    output: &Path,
     wide: &crate::export::Widened,
     records: &LasRecords,
     laz_vlr: laz::LazVlr,
     point_data: u64,
     vlrs: &[(&str, u16, &str, Vec<u8>)],
 ) -> Result<(File, Vec<Entry>, Totals)> {
+    let part = &part_path(output);
     let io = |e: std::io::Error| ConvertError::io(part, "cannot write", e);
     // Read too: the chunk table's offset is read back at the end.
     let file = std::fs::OpenOptions::new()
@@ -213,7 +231,7 @@ fn write_points(
                 wide.convert(&rows, &mut rows_wide);
                 &rows_wide
             };
-            records.check_fits(part, rows)?;
+            records.check_fits(output, rows)?;
             records.fill(rows, &mut recs);
             for rec in recs.chunks_exact(records.record_len) {
                 totals.add(rec);

@@ -17,7 +17,7 @@ use std::collections::BTreeMap;
 use std::fs::{self, File};
 use std::io::{BufWriter, Write};
 use std::path::Path;
-use strata_format::{AttrType, LocalDataset, NodeInfo, RowLayout};
+use strata_format::{AttrType, DatasetFile, LocalDataset, NodeInfo, RowLayout};
 
 /// What the export wrote.
 #[derive(Debug, Clone, Copy)]
@@ -233,7 +233,20 @@ fn node_records(
             ranges: cols.iter().map(|c| c.range_in(&[], 1)).collect(),
         });
     }
-    let stored = ds.read_node(node)?.to_rows(ds.layout());
+    let cols_read = ds.read_node(node)?;
+    // Potree places a point by the node it is stored in: one outside that node's cube would
+    // be drawn, and found, in the wrong place.
+    let meta = ds.metadata();
+    if let Some(i) = cols_read.first_outside(node.key, meta.cube.min, meta.cube.bits) {
+        return Err(ConvertError::input(
+            ds.path_of(DatasetFile::Octree),
+            format!(
+                "node {}: point {i} lies outside the node's cube",
+                node.key.name()
+            ),
+        ));
+    }
+    let stored = cols_read.to_rows(ds.layout());
     let mut rows = if wide.is_identity() {
         stored
     } else {
@@ -320,6 +333,16 @@ fn write_dataset(ds: &LocalDataset, dir: &Path, name: &str) -> Result<Potree2Sum
             offset += size;
             points += node.point_count as u64;
         }
+    }
+    // The nodes' counts add up to the dataset's, or some were lost or repeated.
+    if points != meta.points {
+        return Err(ConvertError::input(
+            ds.path_of(DatasetFile::Metadata),
+            format!(
+                "says the dataset holds {} points, but its nodes hold {points}",
+                meta.points
+            ),
+        ));
     }
     let file = out
         .into_inner()

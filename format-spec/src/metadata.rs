@@ -295,6 +295,18 @@ impl Metadata {
             if a.count == 0 {
                 return bad(&format!("attribute '{}' has count 0", a.name));
             }
+            // A reader refuses an encoding it does not know (SPEC.md section 4): its bytes
+            // mean something else than their type says.
+            if let Some(encoding) = &a.encoding
+                && !a.is_oct16()
+            {
+                return bad(&format!(
+                    "attribute '{}' has encoding {encoding:?}, which this reader does not know \
+                     (it knows \"{}\" on two u16)",
+                    a.name,
+                    crate::attribute::OCT16
+                ));
+            }
         }
         Ok(())
     }

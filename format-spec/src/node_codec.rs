@@ -1,6 +1,7 @@
 //! Node payloads: points in column order, LZ4-compressed, protected by CRC-32.
 
 use crate::RowLayout;
+use crate::node_key::NodeKey;
 
 /// Encodes rows (each `layout.stride` bytes) into a stored node payload. Returns the payload and
 /// its CRC-32. A node of no points has no payload (empty, CRC 0), not an LZ4 block of nothing.
@@ -64,6 +65,19 @@ impl NodeColumns {
             ])
         };
         [col(0), col(1), col(2)]
+    }
+
+    /// The first point outside the cube of `key` (in a dataset cube of `2^cube_bits` units
+    /// from `cube_min`), where one is.
+    pub fn first_outside(&self, key: NodeKey, cube_min: [i64; 3], cube_bits: u32) -> Option<usize> {
+        let (min, edge) = key.int_bounds(cube_min, cube_bits);
+        (0..self.count).find(|&i| {
+            let p = self.position(i);
+            (0..3).any(|a| {
+                let v = p[a] as i64;
+                v < min[a] || v >= min[a] + edge
+            })
+        })
     }
 
     /// The bytes of attribute column `index` of `layout` (count * attribute size bytes).

@@ -246,15 +246,7 @@ fn check_nodes(ds: &LocalDataset, nodes: &[NodeInfo], report: &mut VerifyReport)
             });
         match decoded {
             Ok(cols) => {
-                let (min, edge) = n.key.int_bounds(meta.cube.min, meta.cube.bits);
-                let outside = (0..cols.count).find(|&i| {
-                    let p = cols.position(i);
-                    (0..3).any(|a| {
-                        let v = p[a] as i64;
-                        v < min[a] || v >= min[a] + edge
-                    })
-                });
-                if let Some(i) = outside {
+                if let Some(i) = cols.first_outside(n.key, meta.cube.min, meta.cube.bits) {
                     report.fault(part, format!("point {i} lies outside the node's cube"));
                 }
             }
