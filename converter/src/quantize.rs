@@ -133,11 +133,16 @@ pub fn choose(
             )
         };
         let mid = min[a] / 2.0 + max[a] / 2.0;
+        // The offset moves to the middle of the data in whole steps of the scale from where
+        // the inputs' grid starts, so that positions on that grid at the scale's steps stay
+        // on it (where the step count is a number at all).
+        let origin = offset[a];
+        let to_middle = |step: f64| {
+            let moved = origin + ((mid - origin) / step).round() * step;
+            if moved.is_finite() { moved } else { mid }
+        };
         if !fits(offset[a], scale[a]) {
-            // Move the offset to the middle of the data, in whole steps of the scale so that
-            // positions on the old grid stay on it (where the step count is a number at all).
-            let moved = offset[a] + ((mid - offset[a]) / scale[a]).round() * scale[a];
-            offset[a] = if moved.is_finite() { moved } else { mid };
+            offset[a] = to_middle(scale[a]);
         }
         // Each pass makes the scale ten times the input's, as decimals (a product of
         // repeated tenfolds drifts: 9.999999999999998e-8): from the smallest normal f64 to
@@ -151,10 +156,9 @@ pub fn choose(
             if !scale[a].is_finite() || passes > 700 {
                 return Err(too_far());
             }
-            if !fits(offset[a], scale[a]) {
-                let moved = offset[a] + ((mid - offset[a]) / scale[a]).round() * scale[a];
-                offset[a] = if moved.is_finite() { moved } else { mid };
-            }
+            // On the new step's grid, not the old one's (an input whose own step this is
+            // keeps its positions exactly).
+            offset[a] = to_middle(scale[a]);
         }
         if !(scale[a].is_normal() && offset[a].is_finite()) {
             return Err(too_far());
@@ -323,6 +327,23 @@ mod tests {
         let q = choose(&[wide], [-1.7e308; 3], [1.7e308; 3]).expect("coarsened");
         assert!(q.scale[0].is_normal() && q.offset[0].is_finite());
         assert!(q.coarse_floats.is_some(), "a step over one unit is said");
+    }
+
+    #[test]
+    fn a_coarsened_step_keeps_an_input_on_that_step_exactly() {
+        // Centimetres near 0 and millimetres near 10^7: millimetres do not fit 32 bits over
+        // the span, centimetres do, and the centimetre input must keep its positions.
+        let near = las(0.01, 0.0, 100.0, 200.0);
+        let far = las(0.001, 1e7, 1e7, 1e7 + 1.003);
+        let (min, max) = ([100.0; 3], [1e7 + 1.003; 3]);
+        let q = choose(&[near, far], min, max).expect("fits");
+        assert!(q.coarsened);
+        assert_eq!(q.scale, [0.01; 3]);
+        for i in [10_000i64, 12_345, 19_999] {
+            let p = i as f64 * 0.01;
+            let back = q.offset[0] + q.scale[0] * q.quantize(&[p; 3])[0] as f64;
+            assert!((back - p).abs() < 1e-6, "{p} comes back as {back}");
+        }
     }
 
     #[test]

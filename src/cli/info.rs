@@ -117,7 +117,10 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
     }
     if !m.classes.is_empty() {
         println!("classes:");
-        for (code, n) in &m.classes {
+        // By number: the map's keys are text (JSON object keys), in which 10 sorts before 2.
+        let mut classes: Vec<(&String, &u64)> = m.classes.iter().collect();
+        classes.sort_by_key(|(code, _)| (code.parse::<u64>().unwrap_or(u64::MAX), code.as_str()));
+        for (code, n) in classes {
             let name = code
                 .parse::<u8>()
                 .map_or("", strata_viewer::pick::asprs_class_name);

@@ -48,8 +48,8 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
     };
     if !probe.is_complete() {
         anyhow::bail!(
-            "a {} needs {} --pixel, {} given",
-            kind.name(),
+            "{} needs {} --pixel, {} given",
+            kind.a_name(),
             match kind.fixed_points() {
                 Some(n) => n.to_string(),
                 None => format!("at least {}", kind.min_points()),

@@ -40,6 +40,16 @@ impl MeasureKind {
         }
     }
 
+    /// The name with its article, for messages: "an area", "a distance".
+    pub fn a_name(self) -> &'static str {
+        match self {
+            MeasureKind::Distance => "a distance",
+            MeasureKind::Area => "an area",
+            MeasureKind::Height => "a height",
+            MeasureKind::Angle => "an angle",
+        }
+    }
+
     pub fn parse(s: &str) -> Result<MeasureKind, ViewerError> {
         MeasureKind::ALL
             .into_iter()
@@ -381,8 +391,8 @@ fn feature_measurement(f: &Value, index: usize) -> Result<Measurement, String> {
     let m = Measurement { kind, name, points };
     if !m.is_complete() {
         return Err(format!(
-            "a {} needs {} points, it has {}",
-            kind.name(),
+            "{} needs {} points, it has {}",
+            kind.a_name(),
             match kind.fixed_points() {
                 Some(n) => n.to_string(),
                 None => format!("at least {}", kind.min_points()),

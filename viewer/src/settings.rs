@@ -176,8 +176,10 @@ impl PointFilter {
     /// Adds a clip box; at most `ClipBox::MAX`.
     pub fn add_clip(&mut self, clip: ClipBox) -> Result<(), ViewerError> {
         if self.clips.len() >= ClipBox::MAX {
+            let [a, b] = [clip.min, clip.max].map(|c| format!("{},{},{}", c[0], c[1], c[2]));
+            let outside = if clip.outside { ";outside" } else { "" };
             return Err(ViewerError::argument(
-                format!("{clip:?}"),
+                format!("min={a};max={b}{outside}"),
                 format!("at most {} clip boxes", ClipBox::MAX),
             ));
         }
