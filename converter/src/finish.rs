@@ -185,20 +185,26 @@ pub fn finish(
             format!("{member} is not a finite number"),
         ));
     }
+    // metadata.json makes the folder a dataset: written once nothing but renames is left, so
+    // that an interruption leaves no complete dataset under the work folder's name (the work
+    // and a replaced dataset can take a while to remove).
+    fs::remove_dir_all(wd.work()).map_err(io_err(wd.work(), "cannot remove work directory"))?;
     write_synced(
         &wd.dataset_file(DatasetFile::Metadata),
         meta.to_json().as_bytes(),
     )?;
-    fs::remove_dir_all(wd.work()).map_err(io_err(wd.work(), "cannot remove work directory"))?;
-    if opts.output.exists() {
-        let old = wd.replaced();
+    let old = wd.replaced();
+    let replacing = opts.output.exists();
+    if replacing {
         fs::rename(&opts.output, &old).map_err(io_err(&opts.output, "cannot replace"))?;
-        fs::remove_dir_all(&old).map_err(io_err(&old, "cannot remove the replaced dataset"))?;
     }
     fs::rename(wd.root(), &opts.output).map_err(io_err(
         &opts.output,
         "cannot move the finished dataset into place",
     ))?;
+    if replacing {
+        fs::remove_dir_all(&old).map_err(io_err(&old, "cannot remove the replaced dataset"))?;
+    }
     Ok(Finished {
         points,
         nodes: records.len() as u64,
