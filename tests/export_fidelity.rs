@@ -230,6 +230,39 @@ fn extra_bytes_described_in_an_extended_vlr_keep_their_names() {
         .unwrap_or_else(|| panic!("no height in {meta}"));
     assert_eq!(height["type"], "i32");
     assert_eq!(height["scale"][0], 0.01);
+    // PLY has no place for the scale: the value it stands for goes out, as a double.
+    let ply = dir.path().join("out.ply");
+    run_ok(&["export", s(&ds), "-o", s(&ply)]);
+    let bytes = std::fs::read(&ply).expect("export");
+    let end = bytes
+        .windows(11)
+        .position(|w| w == b"end_header\n")
+        .expect("header")
+        + 11;
+    let header = String::from_utf8_lossy(&bytes[..end]);
+    let properties: Vec<(&str, &str)> = header
+        .lines()
+        .filter_map(|l| l.strip_prefix("property "))
+        .filter_map(|l| l.split_once(' '))
+        .collect();
+    let size = |ty: &str| match ty {
+        "char" | "uchar" => 1,
+        "short" | "ushort" => 2,
+        "int" | "uint" | "float" => 4,
+        _ => 8,
+    };
+    let record: usize = properties.iter().map(|(ty, _)| size(ty)).sum();
+    let at: usize = properties
+        .iter()
+        .take_while(|(_, name)| *name != "height")
+        .map(|(ty, _)| size(ty))
+        .sum();
+    assert!(properties.contains(&("double", "height")), "{header}");
+    for i in 0..3 {
+        let v = &bytes[end + i * record + at..][..8];
+        let value = f64::from_le_bytes(v.try_into().expect("8 bytes"));
+        assert!((value - 12.34).abs() < 1e-9, "height {value}");
+    }
 }
 
 #[test]

@@ -303,9 +303,33 @@ struct PlyRowWriter {
     layout: RowLayout,
     scale: [f64; 3],
     offset: [f64; 3],
-    /// 64-bit integer attributes are written as double (PLY has no 64-bit integers) and f16 as
-    /// float (nor half floats).
-    wide: Vec<bool>,
+    /// How each attribute's values are written.
+    written_as: Vec<PlyValue>,
+}
+
+/// How an attribute's stored values become a PLY property's.
+#[derive(Debug, Clone, Copy, PartialEq)]
+enum PlyValue {
+    /// The stored bytes.
+    Stored,
+    /// f16 as float (PLY has no half floats).
+    Float,
+    /// 64-bit integers as double (PLY has no 64-bit integers).
+    Double,
+    /// A LAS extra attribute with a scale or offset, as the double it stands for: PLY has no
+    /// place for the scale, and a reader would take the raw integer for the value.
+    Scaled,
+}
+
+impl PlyValue {
+    fn of(a: &strata_format::Attribute) -> PlyValue {
+        match a.ty {
+            _ if a.scale.is_some() || a.offset.is_some() => PlyValue::Scaled,
+            AttrType::F16 => PlyValue::Float,
+            AttrType::U64 | AttrType::I64 => PlyValue::Double,
+            _ => PlyValue::Stored,
+        }
+    }
 }
 
 fn ply_type(t: AttrType) -> &'static str {
@@ -338,8 +362,12 @@ impl PlyRowWriter {
             env!("CARGO_PKG_VERSION")
         );
         for (a, names) in layout.attributes.iter().zip(ply_property_names(layout)) {
+            let ty = match PlyValue::of(a) {
+                PlyValue::Scaled => "double",
+                _ => ply_type(a.ty),
+            };
             for n in names {
-                h.push_str(&format!("property {} {n}\n", ply_type(a.ty)));
+                h.push_str(&format!("property {ty} {n}\n"));
             }
         }
         h.push_str("end_header\n");
@@ -349,11 +377,7 @@ impl PlyRowWriter {
             path: path.to_path_buf(),
             part,
             out,
-            wide: layout
-                .attributes
-                .iter()
-                .map(|a| matches!(a.ty, AttrType::U64 | AttrType::I64 | AttrType::F16))
-                .collect(),
+            written_as: layout.attributes.iter().map(PlyValue::of).collect(),
             layout: layout.clone(),
             scale,
             offset,
@@ -424,16 +448,30 @@ impl RowWriter for PlyRowWriter {
             }
             for (i, a) in self.layout.attributes.iter().enumerate() {
                 let v = &row[self.layout.offsets[i]..self.layout.offsets[i] + a.size()];
-                if self.wide[i] && a.ty == AttrType::F16 {
-                    for c in v.chunks_exact(2) {
-                        rec.extend_from_slice(&(a.ty.read_f64(c) as f32).to_le_bytes());
+                let values = v.chunks_exact(a.ty.size()).enumerate();
+                match self.written_as[i] {
+                    PlyValue::Stored => rec.extend_from_slice(v),
+                    PlyValue::Float => {
+                        for (_, c) in values {
+                            rec.extend_from_slice(&(a.ty.read_f64(c) as f32).to_le_bytes());
+                        }
                     }
-                } else if self.wide[i] {
-                    for c in v.chunks_exact(8) {
-                        rec.extend_from_slice(&a.ty.read_f64(c).to_le_bytes());
+                    PlyValue::Double => {
+                        for (_, c) in values {
+                            rec.extend_from_slice(&a.ty.read_f64(c).to_le_bytes());
+                        }
                     }
-                } else {
-                    rec.extend_from_slice(v);
+                    PlyValue::Scaled => {
+                        // LAS 1.4: value = raw · scale + offset, each per component.
+                        let at = |v: &Option<Vec<f64>>, c: usize, or: f64| {
+                            v.as_ref().and_then(|v| v.get(c)).copied().unwrap_or(or)
+                        };
+                        for (c, raw) in values {
+                            let value =
+                                a.ty.read_f64(raw) * at(&a.scale, c, 1.0) + at(&a.offset, c, 0.0);
+                            rec.extend_from_slice(&value.to_le_bytes());
+                        }
+                    }
                 }
             }
             self.out
