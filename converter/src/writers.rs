@@ -448,16 +448,16 @@ impl RowWriter for PlyRowWriter {
             }
             for (i, a) in self.layout.attributes.iter().enumerate() {
                 let v = &row[self.layout.offsets[i]..self.layout.offsets[i] + a.size()];
-                let values = v.chunks_exact(a.ty.size()).enumerate();
+                let values = v.chunks_exact(a.ty.size());
                 match self.written_as[i] {
                     PlyValue::Stored => rec.extend_from_slice(v),
                     PlyValue::Float => {
-                        for (_, c) in values {
+                        for c in values {
                             rec.extend_from_slice(&(a.ty.read_f64(c) as f32).to_le_bytes());
                         }
                     }
                     PlyValue::Double => {
-                        for (_, c) in values {
+                        for c in values {
                             rec.extend_from_slice(&a.ty.read_f64(c).to_le_bytes());
                         }
                     }
@@ -466,7 +466,7 @@ impl RowWriter for PlyRowWriter {
                         let at = |v: &Option<Vec<f64>>, c: usize, or: f64| {
                             v.as_ref().and_then(|v| v.get(c)).copied().unwrap_or(or)
                         };
-                        for (c, raw) in values {
+                        for (c, raw) in values.enumerate() {
                             let value =
                                 a.ty.read_f64(raw) * at(&a.scale, c, 1.0) + at(&a.offset, c, 0.0);
                             rec.extend_from_slice(&value.to_le_bytes());
