@@ -412,4 +412,20 @@ fn absurd_counts_are_refused_in_one_sentence() {
         ],
         "4294967295 is more than the 100000 frames a fly-through may take: \"--frames\"",
     );
+    // A keyframe's time that is no positive number (it was taken as the default 3 s).
+    for seconds in ["0", "-1"] {
+        let cut = dir.path().join(format!("cut{seconds}.json"));
+        std::fs::write(
+            &cut,
+            format!(
+                r#"{{"keyframes": [{{"eye": [0, 0, 100], "target": [0, 0, 0]}},
+                   {{"eye": [10, 0, 100], "target": [0, 0, 0], "seconds": {seconds}}}]}}"#
+            ),
+        )
+        .expect("write");
+        fails(
+            &["render", s(&ds), "-o", s(&png), "--path", s(&cut)],
+            &format!("keyframe 2 has seconds {seconds}; it must be a positive number"),
+        );
+    }
 }

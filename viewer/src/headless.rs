@@ -343,6 +343,26 @@ fn cameras(ds: &StreamDataset, opts: &RenderOptions) -> Result<Vec<Camera>, View
                 .map_err(|e| ViewerError::argument(path.display().to_string(), e.to_string()))
         })
         .collect::<Result<_, _>>()?;
+    // A time that is no positive number would be taken as the default: refused instead.
+    if let Some((i, s)) = file
+        .keyframes
+        .iter()
+        .enumerate()
+        .skip(1)
+        .find_map(|(i, k)| {
+            k.seconds
+                .filter(|s| !(s.is_finite() && *s > 0.0))
+                .map(|s| (i, s))
+        })
+    {
+        return Err(ViewerError::argument(
+            path.display().to_string(),
+            format!(
+                "keyframe {} has seconds {s}; it must be a positive number",
+                i + 1
+            ),
+        ));
+    }
     let times = crate::bookmarks::keyframe_times(file.keyframes.iter().map(|k| k.seconds));
     let total = times.last().copied().unwrap_or(0.0);
     // Without --frames (0), one frame each 1/fps of the keyframes' times, both ends included.
