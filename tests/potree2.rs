@@ -275,6 +275,29 @@ fn convert_to_potree2_in_one_step_equals_convert_then_export_and_keeps_normals()
         leftovers.is_empty(),
         "the Strata dataset built on the way is left"
     );
+
+    // Interrupted in its export, the dataset built on the way is whole: --resume exports it
+    // (it refused, naming the hidden folder as an existing output).
+    let city = dir.join("city.las");
+    let source = dir.join(".resumed.strata-for-potree2");
+    common::run_ok(&["convert", s(&city), "-o", s(&source), "--normals", "-q"]);
+    let resumed = dir.join("resumed");
+    common::run_ok(&[
+        "convert",
+        s(&city),
+        "-o",
+        s(&resumed),
+        "--normals",
+        "--format",
+        "potree2",
+        "--resume",
+        "-q",
+    ]);
+    assert!(
+        std::fs::read(resumed.join("octree.bin")).ok()
+            == std::fs::read(direct.join("octree.bin")).ok()
+    );
+    assert!(!source.exists());
 }
 
 #[test]

@@ -17,7 +17,7 @@ pub enum ConvertError {
     #[error("{}: {what}", path.display())]
     Output { path: PathBuf, what: String },
     /// Checked before any work: the conversion would not fit on the disk.
-    #[error("{}: the conversion needs about {} of free disk there, but only {} is free", path.display(), crate::sys::format_bytes(*needed), crate::sys::format_bytes(*free))]
+    #[error("{}: this needs about {} of free disk there, but only {} is free", path.display(), crate::sys::format_bytes(*needed), crate::sys::format_bytes(*free))]
     NoSpace {
         path: PathBuf,
         needed: u64,

@@ -220,7 +220,10 @@ fn convert_to_potree2(
     let source = potree2_source(&output);
     let replace = opts.overwrite;
     opts.output = source.clone();
-    // A source left whole by an interrupted export is built again.
+    // A conversion interrupted before its end resumes; a source it left whole (the export
+    // was interrupted) is built again, as there is nothing to resume.
+    let work = strata_converter::workdir::WorkDir::new(&source, opts.temp_dir.as_deref());
+    opts.resume &= work.plan().exists();
     opts.overwrite = !opts.resume;
     let summary = convert_with(&opts, step)?;
     let exported = strata_converter::potree2::export_potree2(&source, &output, replace);
