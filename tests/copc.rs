@@ -276,3 +276,26 @@ fn queries_match(dataset: &std::path::Path, dir: &std::path::Path) {
         assert_eq!(got(meta.depth as usize + 1 + i), want, "{name}: box {i}");
     }
 }
+
+/// A LAZ whose variable-size chunk table ends with an empty chunk (laz-rs writes one) is valid:
+/// laspy reads it, and so does the conversion (it refused it as a corrupt chunk table).
+#[test]
+fn a_laz_whose_chunk_table_ends_with_an_empty_chunk_converts() {
+    if !have_laspy() {
+        return;
+    }
+    let dir = tempfile::tempdir().expect("tempdir");
+    let laz = dir.path().join("empty_chunk.laz");
+    let script = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/copc/empty_chunk.py");
+    let o = std::process::Command::new("python3")
+        .args([s(&script), s(&laz)])
+        .output()
+        .expect("python3 runs");
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let ds = dir.path().join("ds");
+    common::run_ok(&["convert", s(&laz), "-o", s(&ds), "-q"]);
+    let meta: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(ds.join("metadata.json")).expect("metadata"))
+            .expect("json");
+    assert_eq!(meta["points"], 1000);
+}

@@ -194,11 +194,27 @@ pub fn check_laz(file: &File, h: &LasHeader) -> Result<(), String> {
         ChunkTable::read(&mut Cursor::new(bytes), vlr.chunk_size.is_none())
             .map_err(|_| format!("the chunk table at byte {table_at} is corrupt or truncated"))
     })?;
-    let entries: Vec<ChunkTableEntry> = table.as_ref().to_vec();
+    let mut entries: Vec<ChunkTableEntry> = table.as_ref().to_vec();
+    // Chunks of variable size may end with empty ones (laz-rs writes one when its last batch
+    // of chunks is closed by `done`): they hold nothing to read.
+    if vlr.chunk_size.is_none() {
+        while entries.len() > 1
+            && entries
+                .last()
+                .is_some_and(|e| e.byte_count == 0 && e.point_count == 0)
+        {
+            entries.pop();
+        }
+    }
     let stored: u64 = entries.iter().map(|e| e.byte_count).sum();
-    if stored != data_len || entries.iter().any(|e| e.byte_count == 0) {
+    if stored != data_len {
         return Err(format!(
             "the chunk table at byte {table_at} gives chunk sizes adding up to {stored} bytes, but the compressed data is {data_len} bytes"
+        ));
+    }
+    if let Some(i) = entries.iter().position(|e| e.byte_count == 0) {
+        return Err(format!(
+            "the chunk table at byte {table_at} gives chunk {i} no bytes (only empty chunks at the end may have none)"
         ));
     }
     let last_points = match vlr.chunk_size {
