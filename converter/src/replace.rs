@@ -62,6 +62,23 @@ impl Folder {
 /// Refuses `output` where it exists, unless `overwrite` is given and it is an empty folder or
 /// one that holds only what a `kind` folder holds.
 pub fn check_output(output: &Path, overwrite: bool, kind: Folder) -> Result<()> {
+    // `DIR/.` passes for DIR in most path functions but cannot be renamed into: refused now,
+    // not after the work.
+    let text = output.as_os_str().to_string_lossy();
+    let last = text
+        .trim_end_matches('/')
+        .rsplit('/')
+        .next()
+        .unwrap_or_default();
+    if matches!(last, "" | "." | "..") || output.file_name().is_none() {
+        return Err(ConvertError::output(
+            output,
+            format!(
+                "names no {} folder of its own: give the folder by its name, not ending in . or ..",
+                kind.name()
+            ),
+        ));
+    }
     let meta = match fs::symlink_metadata(output) {
         Ok(meta) => meta,
         Err(e) if e.kind() == std::io::ErrorKind::NotFound => return Ok(()),
@@ -139,6 +156,10 @@ mod tests {
         let root = dir.path();
         // Absent: nothing to replace, with or without --overwrite.
         assert!(check_output(&root.join("none"), false, Folder::Dataset).is_ok());
+        for odd in ["new.strata/.", "new.strata/..", ".", "/", "new.strata/./"] {
+            let e = check_output(&root.join(odd), true, Folder::Dataset).unwrap_err();
+            assert!(e.to_string().contains("names no"), "{odd}: {e}");
+        }
         // An empty folder and a dataset may be replaced, only with --overwrite.
         let ds = root.join("ds");
         fs::create_dir(&ds).unwrap();
