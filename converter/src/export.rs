@@ -1,9 +1,9 @@
 //! `strata export`: every point of a dataset back out as LAS, LAZ or PLY.
 
 use crate::error::{ConvertError, Result};
-use crate::writers::{RowWriter, open_writer, part_path};
+use crate::writers::{RowWriter, open_writer_stating, part_path};
 use std::path::Path;
-use strata_format::{AttrType, Attribute, DatasetFile, LocalDataset, RowLayout, oct16_decode};
+use strata_format::{AttrType, Attribute, Crs, DatasetFile, LocalDataset, RowLayout, oct16_decode};
 
 /// Whether `output` names a COPC file (`.copc.laz`).
 pub fn is_copc(output: &Path) -> bool {
@@ -23,13 +23,14 @@ pub fn export(dataset: &Path, output: &Path, overwrite: bool) -> Result<u64> {
     let meta = ds.metadata();
     let layout = ds.layout().clone();
     let wide = widened(&layout);
-    let writer = open_writer(
+    let writer = open_writer_stating(
         output,
         &wide.layout,
         meta.scale,
         meta.offset,
         meta.points,
         overwrite,
+        meta.crs.as_ref(),
     )?;
     let write_all = |writer: &mut dyn RowWriter| -> Result<u64> {
         let mut written = 0u64;
@@ -92,10 +93,11 @@ pub fn export_rows(
     offset: [f64; 3],
     rows: &[u8],
     overwrite: bool,
+    crs: Option<&Crs>,
 ) -> Result<u64> {
     let wide = widened(layout);
     let n = (rows.len() / layout.stride.max(1)) as u64;
-    let writer = open_writer(output, &wide.layout, scale, offset, n, overwrite)?;
+    let writer = open_writer_stating(output, &wide.layout, scale, offset, n, overwrite, crs)?;
     write_then_finish(writer, output, |writer| {
         if wide.is_identity() {
             writer.write_rows(rows)?;

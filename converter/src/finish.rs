@@ -175,6 +175,7 @@ pub fn finish(
                     .unwrap_or_default(),
             })
             .collect(),
+        crs: plan.crs.clone(),
     };
     record_step(&mut meta);
     // The inputs were checked so that this cannot happen; if it does, no dataset that fails to

@@ -281,6 +281,7 @@ mod tests {
             spacing_quantiles: [0.0; 3],
             scanners: Vec::new(),
             scanner_inputs: Vec::new(),
+            crs: None,
         }
     }
 

@@ -15,6 +15,7 @@ pub mod halo;
 pub mod index;
 pub mod input;
 pub mod journal;
+pub mod las_crs;
 pub mod las_records;
 pub mod merge;
 pub mod morton;

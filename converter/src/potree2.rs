@@ -372,7 +372,7 @@ fn write_dataset(ds: &LocalDataset, dir: &Path, name: &str) -> Result<Potree2Sum
         "name": name,
         "description": format!("written by Strata {}", env!("CARGO_PKG_VERSION")),
         "points": points,
-        "projection": "",
+        "projection": meta.crs.as_ref().and_then(|c| c.wkt.clone()).unwrap_or_default(),
         "hierarchy": {
             "firstChunkSize": hierarchy.first_chunk_size,
             "stepSize": STEP,

@@ -54,6 +54,9 @@ pub struct Plan {
     /// The input (index into the inputs, and so into metadata's `sources`) of each scanner.
     #[serde(default)]
     pub scanner_inputs: Vec<usize>,
+    /// The coordinate reference system the inputs state (the first one stated).
+    #[serde(default)]
+    pub crs: Option<strata_format::Crs>,
 }
 
 impl Plan {
@@ -244,6 +247,7 @@ pub fn count_and_plan(
         spacing_quantiles,
         scanners: summary.scanners,
         scanner_inputs: summary.scanner_inputs,
+        crs: summary.crs,
     };
     Ok(Counted {
         plan,

@@ -39,6 +39,8 @@ pub struct InputsSummary {
     pub scanners: Vec<[f64; 3]>,
     /// The input (index into `inputs`) each scanner belongs to.
     pub scanner_inputs: Vec<usize>,
+    /// The first coordinate reference system an input states.
+    pub crs: Option<strata_format::Crs>,
 }
 
 /// Opens every input: the union of their attributes (a name with two different types is an
@@ -84,6 +86,14 @@ pub fn union_attributes(inputs: &[PathBuf], warnings: &mut Vec<String>) -> Resul
         }
         summary.scanners.extend_from_slice(scanners);
         summary.scanner_inputs.extend(scanners.iter().map(|_| i));
+        match (&summary.crs, &src.info().crs) {
+            (None, Some(crs)) => summary.crs = Some(crs.clone()),
+            (Some(kept), Some(crs)) if kept != crs => warnings.push(format!(
+                "{}: states another coordinate reference system than the inputs before it; the first one stated is kept",
+                path.display()
+            )),
+            _ => {}
+        }
     }
     summary.attributes = union.into_iter().map(|(a, _)| a).collect();
     Ok(summary)

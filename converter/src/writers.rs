@@ -7,7 +7,7 @@ use las::{PointDataBuilder, Transform, Vector, Vlr, Writer};
 use std::fs::File;
 use std::io::{BufWriter, Write};
 use std::path::{Path, PathBuf};
-use strata_format::{AttrType, RowLayout, row_position};
+use strata_format::{AttrType, Crs, RowLayout, row_position};
 
 /// A sink for rows of one layout.
 pub trait RowWriter {
@@ -80,6 +80,19 @@ pub fn open_writer(
     points: u64,
     overwrite: bool,
 ) -> Result<Box<dyn RowWriter>> {
+    open_writer_stating(path, layout, scale, offset, points, overwrite, None)
+}
+
+/// `open_writer`, the file stating `crs` where its format can (LAS and LAZ).
+pub fn open_writer_stating(
+    path: &Path,
+    layout: &RowLayout,
+    scale: [f64; 3],
+    offset: [f64; 3],
+    points: u64,
+    overwrite: bool,
+    crs: Option<&Crs>,
+) -> Result<Box<dyn RowWriter>> {
     // A COPC file is a LAZ file with an octree inside: only `export` of a dataset makes one.
     if crate::export::is_copc(path) {
         return Err(ConvertError::output(
@@ -107,7 +120,9 @@ pub fn open_writer(
         .map(|e| e.to_ascii_lowercase())
         .unwrap_or_default();
     match ext.as_str() {
-        "las" | "laz" => Ok(Box::new(LasRowWriter::create(path, layout, scale, offset)?)),
+        "las" | "laz" => Ok(Box::new(LasRowWriter::create(
+            path, layout, scale, offset, crs,
+        )?)),
         "ply" => Ok(Box::new(PlyRowWriter::create(
             path, layout, scale, offset, points,
         )?)),
@@ -167,7 +182,13 @@ struct LasRowWriter {
 }
 
 impl LasRowWriter {
-    fn create(path: &Path, layout: &RowLayout, scale: [f64; 3], offset: [f64; 3]) -> Result<Self> {
+    fn create(
+        path: &Path,
+        layout: &RowLayout,
+        scale: [f64; 3],
+        offset: [f64; 3],
+        crs: Option<&Crs>,
+    ) -> Result<Self> {
         let format_number = las_format_for(layout);
         let mut records = LasRecords::new(path, layout, format_number)?;
         if format_number >= 6 {
@@ -197,6 +218,18 @@ impl LasRowWriter {
             },
         };
         builder.generating_software = format!("strata {}", env!("CARGO_PKG_VERSION"));
+        // The CRS where the dataset has one (the point formats 6 to 10 call for WKT; GeoTIFF
+        // keys go out as the inputs gave them, there being no conversion here).
+        for (user_id, record_id, description, data) in
+            crs.map(crate::las_crs::crs_records).unwrap_or_default()
+        {
+            builder.vlrs.push(Vlr {
+                user_id: user_id.into(),
+                record_id,
+                description: description.into(),
+                data,
+            });
+        }
         if let Some(data) = records.extra_bytes_vlr() {
             builder.vlrs.push(Vlr {
                 user_id: "LASF_Spec".into(),

@@ -33,8 +33,8 @@ pub use hierarchy::{
     Proxy, decode_page, page_size,
 };
 pub use metadata::{
-    Bounds, Cube, FORMAT_NAME, FileInfo, Files, HierarchyInfo, MAX_PAGE_LEVELS, Metadata,
-    NormalsInfo, Scanner, VERSION_MAJOR, VERSION_MINOR,
+    Bounds, Crs, Cube, FORMAT_NAME, FileInfo, Files, GeoTiffKeys, HierarchyInfo, MAX_PAGE_LEVELS,
+    Metadata, NormalsInfo, Scanner, VERSION_MAJOR, VERSION_MINOR,
 };
 pub use node_codec::{
     NodeColumns, NodeDecodeError, decode_node, encode_node, encode_node_rows, payload_checksum,

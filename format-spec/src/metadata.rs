@@ -97,6 +97,33 @@ pub struct Metadata {
     /// attribute indexes this list (an index past its end names no scanner); informative.
     #[serde(default, skip_serializing_if = "Vec::is_empty")]
     pub scanners: Vec<Scanner>,
+    /// The inputs' coordinate reference system as they stated it, for exports to state it
+    /// again; informative (SPEC.md section 2).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub crs: Option<Crs>,
+}
+
+/// A coordinate reference system as LAS files state it (LAS 1.4 R15, section 2.5): OGC WKT,
+/// GeoTIFF keys, or both where an input carried both. Kept as given; no reader here
+/// interprets it.
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
+pub struct Crs {
+    /// The OGC WKT (record 2112 of `LASF_Projection`).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub wkt: Option<String>,
+    /// The GeoTIFF keys (records 34735, 34736 and 34737).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub geotiff: Option<GeoTiffKeys>,
+}
+
+/// GeoTIFF's GeoKeyDirectoryTag, with the doubles and text its keys point into.
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
+pub struct GeoTiffKeys {
+    pub keys: Vec<u16>,
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub doubles: Vec<f64>,
+    #[serde(default, skip_serializing_if = "String::is_empty")]
+    pub ascii: String,
 }
 
 /// What `strata convert --normals` did (SPEC.md section 4).

@@ -50,6 +50,7 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
             "classes": m.classes,
             "scanners": m.scanners,
             "normals": m.normals,
+            "crs": m.crs,
         });
         println!("{}", serde_json::to_string_pretty(&v)?);
         return Ok(ExitCode::SUCCESS);
@@ -93,6 +94,18 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
             shape.push_str(&format!(" ({e})"));
         }
         println!("  {:<30} {shape}", at.name);
+    }
+    if let Some(crs) = &m.crs {
+        let mut stated = Vec::new();
+        if let Some(wkt) = &crs.wkt {
+            // The WKT's name: what its first quoted word says.
+            let name = wkt.split('"').nth(1).unwrap_or("");
+            stated.push(format!("WKT {name:?}"));
+        }
+        if let Some(g) = &crs.geotiff {
+            stated.push(format!("GeoTIFF keys ({} values)", g.keys.len()));
+        }
+        println!("crs       {}", stated.join(", "));
     }
     if !m.scanners.is_empty() {
         println!(

@@ -114,6 +114,7 @@ pub fn write_points(
         m.offset,
         &profile.rows,
         overwrite,
+        m.crs.as_ref(),
     )?;
     Ok(())
 }

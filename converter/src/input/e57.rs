@@ -133,6 +133,7 @@ impl E57Source {
             precision: precision(&clouds),
             warnings: Vec::new(),
             scanners: poses.iter().map(|p| p.translation).collect(),
+            crs: None,
         };
         Ok(E57Source {
             info,

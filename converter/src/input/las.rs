@@ -94,6 +94,7 @@ impl LasSource {
                 precision: Precision::Scaled { scale, offset },
                 warnings,
                 scanners: Vec::new(),
+                crs: crate::las_crs::crs_of(header.vlrs().iter().chain(header.evlrs())),
             },
             reader,
             data,

@@ -53,6 +53,8 @@ pub struct SourceInfo {
     /// empty for inputs that do not say. The rows' `scanner` attribute indexes this list, from
     /// the source's base on.
     pub scanners: Vec<[f64; 3]>,
+    /// The coordinate reference system the file states (LAS), if any.
+    pub crs: Option<strata_format::Crs>,
 }
 
 impl SourceInfo {

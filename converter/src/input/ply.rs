@@ -159,6 +159,7 @@ impl PlySource {
                 precision,
                 warnings: Vec::new(),
                 scanners: Vec::new(),
+                crs: None,
             },
             reader: body,
             encoding,

@@ -1,0 +1,89 @@
+//! The coordinate reference system LAS files state (LAS 1.4 R15, section 2.5: records of the
+//! `LASF_Projection` user), read from the inputs and written again on export, as given.
+
+use strata_format::{Crs, GeoTiffKeys};
+
+const USER: &str = "LASF_Projection";
+const WKT: u16 = 2112;
+const GEO_KEYS: u16 = 34735;
+const GEO_DOUBLES: u16 = 34736;
+const GEO_ASCII: u16 = 34737;
+
+/// The CRS of a file with these (extended) VLRs, where it states one.
+pub fn crs_of<'a>(vlrs: impl Iterator<Item = &'a las::Vlr> + Clone) -> Option<Crs> {
+    let find = |id: u16| {
+        vlrs.clone()
+            .find(|v| v.user_id == USER && v.record_id == id)
+            .map(|v| v.data.as_slice())
+    };
+    let text = |data: &[u8]| {
+        let end = data.iter().rposition(|&b| b != 0).map_or(0, |i| i + 1);
+        String::from_utf8_lossy(&data[..end]).into_owned()
+    };
+    let wkt = find(WKT).map(text).filter(|w| !w.trim().is_empty());
+    let geotiff = find(GEO_KEYS).map(|keys| GeoTiffKeys {
+        keys: keys
+            .chunks_exact(2)
+            .map(|c| u16::from_le_bytes([c[0], c[1]]))
+            .collect(),
+        doubles: find(GEO_DOUBLES)
+            .unwrap_or_default()
+            .chunks_exact(8)
+            .map(|c| f64::from_le_bytes([c[0], c[1], c[2], c[3], c[4], c[5], c[6], c[7]]))
+            .collect(),
+        ascii: find(GEO_ASCII).map(text).unwrap_or_default(),
+    });
+    (wkt.is_some() || geotiff.is_some()).then_some(Crs { wkt, geotiff })
+}
+
+/// The records that state `crs` in a LAS file: (user, record id, description, payload).
+pub fn crs_records(crs: &Crs) -> Vec<(&'static str, u16, &'static str, Vec<u8>)> {
+    let mut out = Vec::new();
+    if let Some(wkt) = &crs.wkt {
+        let mut data = wkt.as_bytes().to_vec();
+        data.push(0);
+        out.push((USER, WKT, "OGC WKT", data));
+    }
+    if let Some(g) = &crs.geotiff {
+        let keys = g.keys.iter().flat_map(|k| k.to_le_bytes()).collect();
+        out.push((USER, GEO_KEYS, "GeoKeyDirectoryTag", keys));
+        if !g.doubles.is_empty() {
+            let doubles = g.doubles.iter().flat_map(|d| d.to_le_bytes()).collect();
+            out.push((USER, GEO_DOUBLES, "GeoDoubleParamsTag", doubles));
+        }
+        if !g.ascii.is_empty() {
+            let mut ascii = g.ascii.as_bytes().to_vec();
+            ascii.push(0);
+            out.push((USER, GEO_ASCII, "GeoAsciiParamsTag", ascii));
+        }
+    }
+    out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn records_read_back_as_the_crs_they_state() {
+        let crs = Crs {
+            wkt: Some("PROJCS[\"x\"]".into()),
+            geotiff: Some(GeoTiffKeys {
+                keys: vec![1, 1, 0, 1, 3072, 0, 1, 2992],
+                doubles: vec![0.5, 6378137.0],
+                ascii: "NAD83 / Oregon|".into(),
+            }),
+        };
+        let vlrs: Vec<las::Vlr> = crs_records(&crs)
+            .into_iter()
+            .map(|(user, id, description, data)| las::Vlr {
+                user_id: user.into(),
+                record_id: id,
+                description: description.into(),
+                data,
+            })
+            .collect();
+        assert_eq!(crs_of(vlrs.iter()), Some(crs));
+        assert_eq!(crs_of([].iter()), None);
+    }
+}
