@@ -84,6 +84,15 @@ fn random_bytes_with_point_cloud_names() {
     );
     convert_fails(&write(dir.path(), "junk.ply", &junk), "not a PLY file");
     convert_fails(&write(dir.path(), "tiny.las", b"LASF"), "too short");
+    // `info` on a LAS or LAZ file checks it as the conversion does, and says the same.
+    let laz = std::fs::read(data("autzen_trim.laz")).expect("autzen");
+    let cut = write(dir.path(), "cut.laz", &laz[..5000]);
+    let o = run(&["info", s(&cut)]);
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(
+        !o.status.success() && err.contains("the chunk table offset") && err.contains("truncated"),
+        "{err}"
+    );
 }
 
 #[test]

@@ -490,6 +490,19 @@ pub struct FileSummary {
 
 /// Reads the header (and, for COPC, the hierarchy) of the LAS/LAZ file `path`.
 pub fn describe(path: &Path) -> Result<FileSummary> {
+    // The conversion's checks first: a damaged file is named as `convert` names it, not by
+    // the reader's first failed read.
+    let file = File::open(path).map_err(|e| ConvertError::io(path, "cannot open", e))?;
+    let len = file
+        .metadata()
+        .map_err(|e| ConvertError::io(path, "cannot read file size", e))?
+        .len();
+    let raw = crate::input::las_header::LasHeader::read(&file, len)
+        .map_err(|e| ConvertError::input(path, e))?;
+    if raw.compressed {
+        crate::input::laz_check::check_laz(&file, &raw)
+            .map_err(|e| ConvertError::input(path, e))?;
+    }
     let reader = las::Reader::from_path(path)
         .map_err(|e| ConvertError::output(path, format!("not a LAS or LAZ file ({e})")))?;
     let h = reader.header();

@@ -154,9 +154,12 @@ pub fn check_laz(file: &File, h: &LasHeader) -> Result<(), String> {
         ));
     }
     let mut table_at = u64::from_le_bytes(read8(file, start)?);
+    // Where the offset used was read, for the message.
+    let mut stored_at = start;
     // A writer that could not go back to fill the offset in leaves it at the end of the file.
     if table_at <= start || table_at > i64::MAX as u64 {
-        table_at = u64::from_le_bytes(read8(file, h.file_len - 8)?);
+        stored_at = h.file_len - 8;
+        table_at = u64::from_le_bytes(read8(file, stored_at)?);
     }
     let table_end = h
         .after_points
@@ -164,7 +167,7 @@ pub fn check_laz(file: &File, h: &LasHeader) -> Result<(), String> {
         .unwrap_or(h.file_len);
     if table_at < start + 8 || table_at.saturating_add(8) > table_end {
         return Err(format!(
-            "the chunk table offset ({table_at}) stored at byte {start} lies outside the compressed point data (bytes {} to {table_end}): the file is corrupt or truncated",
+            "the chunk table offset ({table_at}) stored at byte {stored_at} lies outside the compressed point data (bytes {} to {table_end}): the file is corrupt or truncated",
             start + 8
         ));
     }
