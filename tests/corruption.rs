@@ -214,3 +214,14 @@ fn an_attribute_of_an_unknown_encoding_is_refused() {
     let o = run(&["info", s(&ds)]);
     assert!(!o.status.success());
 }
+
+#[test]
+fn bounds_other_than_the_points_extent_are_reported() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let ds = dataset(dir.path());
+    edit_metadata(&ds, |meta| {
+        let x = meta["bounds"]["max"][0].as_f64().expect("bounds");
+        meta["bounds"]["max"][0] = (x - 10.0).into();
+    });
+    verify_fails_naming(&ds, "gives bounds");
+}

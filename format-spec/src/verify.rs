@@ -72,7 +72,7 @@ pub fn verify_dataset(dir: &Path) -> VerifyReport {
     report.version = Some(meta.version);
     report.id = meta.id;
     let (nodes, pages_ok) = check_pages(&ds, &mut report);
-    let max_level = check_nodes(&ds, &nodes, &mut report);
+    let (max_level, extent) = check_nodes(&ds, &nodes, &mut report);
     report.nodes_checked = nodes.len() as u64;
     if pages_ok {
         if report.points_checked != meta.points {
@@ -93,6 +93,28 @@ pub fn verify_dataset(dir: &Path) -> VerifyReport {
                     nodes.len()
                 ),
             );
+        }
+        // The bounds are the stored points' own (a reader frames and culls by them).
+        if let Some((lo, hi)) = extent {
+            let real = |a: usize, v: i32| meta.offset[a] + meta.scale[a] * v as f64;
+            let off = |stated: f64, a: usize, v: i32| {
+                let want = real(a, v);
+                (stated - want).abs() > 0.5 * meta.scale[a].abs() + 1e-9 * want.abs()
+            };
+            if (0..3)
+                .any(|a| off(meta.bounds.min[a], a, lo[a]) || off(meta.bounds.max[a], a, hi[a]))
+            {
+                report.fault(
+                    "metadata.json",
+                    format!(
+                        "gives bounds {:?} to {:?}, but the points span {:?} to {:?}",
+                        meta.bounds.min,
+                        meta.bounds.max,
+                        [0, 1, 2].map(|a| real(a, lo[a])),
+                        [0, 1, 2].map(|a| real(a, hi[a])),
+                    ),
+                );
+            }
         }
         if max_level != meta.depth {
             report.fault(
@@ -196,7 +218,13 @@ fn check_page_places(
 /// Every node's payload: its place in `octree.bin`, checksum, decompression and points inside
 /// the node's cube; in 1.1 a node without points has offset, size and checksum 0 (checked when
 /// its page was decoded). Returns the deepest level.
-fn check_nodes(ds: &LocalDataset, nodes: &[NodeInfo], report: &mut VerifyReport) -> u32 {
+/// Checks every node's payload; returns the deepest level and the integer extent of the
+/// points that decoded.
+fn check_nodes(
+    ds: &LocalDataset,
+    nodes: &[NodeInfo],
+    report: &mut VerifyReport,
+) -> (u32, Option<([i32; 3], [i32; 3])>) {
     let meta = ds.metadata();
     let layout = meta.layout();
     let octree_len = meta.files.octree.size;
@@ -205,6 +233,7 @@ fn check_nodes(ds: &LocalDataset, nodes: &[NodeInfo], report: &mut VerifyReport)
     by_offset.sort_by_key(|n| n.offset);
     let mut last_end = layout.head_size(DatasetFile::Octree);
     let mut max_level = 0u32;
+    let mut extent: Option<([i32; 3], [i32; 3])> = None;
     for n in by_offset {
         max_level = max_level.max(n.key.level as u32);
         report.points_checked += n.point_count as u64;
@@ -246,6 +275,14 @@ fn check_nodes(ds: &LocalDataset, nodes: &[NodeInfo], report: &mut VerifyReport)
             });
         match decoded {
             Ok(cols) => {
+                for i in 0..cols.count {
+                    let p = cols.position(i);
+                    let (lo, hi) = extent.get_or_insert((p, p));
+                    for a in 0..3 {
+                        lo[a] = lo[a].min(p[a]);
+                        hi[a] = hi[a].max(p[a]);
+                    }
+                }
                 if let Some(i) = cols.first_outside(n.key, meta.cube.min, meta.cube.bits) {
                     report.fault(part, format!("point {i} lies outside the node's cube"));
                 }
@@ -253,5 +290,5 @@ fn check_nodes(ds: &LocalDataset, nodes: &[NodeInfo], report: &mut VerifyReport)
             Err(what) => report.fault(part, what),
         }
     }
-    max_level
+    (max_level, extent)
 }
