@@ -218,13 +218,16 @@ fn check_page_places(
 /// Every node's payload: its place in `octree.bin`, checksum, decompression and points inside
 /// the node's cube; in 1.1 a node without points has offset, size and checksum 0 (checked when
 /// its page was decoded). Returns the deepest level.
+/// The smallest and largest integer position per axis.
+type Extent = ([i32; 3], [i32; 3]);
+
 /// Checks every node's payload; returns the deepest level and the integer extent of the
 /// points that decoded.
 fn check_nodes(
     ds: &LocalDataset,
     nodes: &[NodeInfo],
     report: &mut VerifyReport,
-) -> (u32, Option<([i32; 3], [i32; 3])>) {
+) -> (u32, Option<Extent>) {
     let meta = ds.metadata();
     let layout = meta.layout();
     let octree_len = meta.files.octree.size;
@@ -233,7 +236,7 @@ fn check_nodes(
     by_offset.sort_by_key(|n| n.offset);
     let mut last_end = layout.head_size(DatasetFile::Octree);
     let mut max_level = 0u32;
-    let mut extent: Option<([i32; 3], [i32; 3])> = None;
+    let mut extent: Option<Extent> = None;
     for n in by_offset {
         max_level = max_level.max(n.key.level as u32);
         report.points_checked += n.point_count as u64;
