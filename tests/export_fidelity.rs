@@ -391,6 +391,9 @@ fn the_inputs_crs_goes_back_out_with_every_export() {
             .collect()
     };
     assert_eq!(trimmed(&crs_records(&las_out)), trimmed(&stated));
+    // Format 3 here: the global encoding's WKT bit says to take the WKT.
+    let reader = las::Reader::from_path(&las_out).expect("read LAS");
+    assert!(reader.header().has_wkt_crs());
     // COPC: the WKT alone, as COPC calls for.
     let copc = dir.path().join("out.copc.laz");
     run_ok(&["export", s(&ds), "-o", s(&copc)]);

@@ -186,14 +186,15 @@ pub fn finish(
             format!("{member} is not a finite number"),
         ));
     }
-    // metadata.json makes the folder a dataset: written once nothing but renames is left, so
-    // that an interruption leaves no complete dataset under the work folder's name (the work
-    // and a replaced dataset can take a while to remove).
+    // metadata.json makes the folder a dataset: written under another name while the work
+    // (and its plan, for --resume) is still there, and given its name once nothing but renames
+    // is left, so that an interruption leaves no complete dataset under the work folder's name
+    // (the work and a replaced dataset can take a while to remove).
+    let metadata = wd.dataset_file(DatasetFile::Metadata);
+    let metadata_part = crate::writers::part_path(&metadata);
+    write_synced(&metadata_part, meta.to_json().as_bytes())?;
     fs::remove_dir_all(wd.work()).map_err(io_err(wd.work(), "cannot remove work directory"))?;
-    write_synced(
-        &wd.dataset_file(DatasetFile::Metadata),
-        meta.to_json().as_bytes(),
-    )?;
+    fs::rename(&metadata_part, &metadata).map_err(io_err(&metadata, "cannot move into place"))?;
     let old = wd.replaced();
     let replacing = opts.output.exists();
     if replacing {

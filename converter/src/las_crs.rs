@@ -33,6 +33,9 @@ pub fn crs_of<'a>(vlrs: impl Iterator<Item = &'a las::Vlr> + Clone) -> Option<Cr
             .collect(),
         ascii: find(GEO_ASCII).map(text).unwrap_or_default(),
     });
+    // metadata.json (JSON) holds finite numbers only: keys whose doubles are not are no
+    // system a reader could use either.
+    let geotiff = geotiff.filter(|g| g.doubles.iter().all(|d| d.is_finite()));
     (wkt.is_some() || geotiff.is_some()).then_some(Crs { wkt, geotiff })
 }
 
@@ -83,7 +86,17 @@ mod tests {
                 data,
             })
             .collect();
-        assert_eq!(crs_of(vlrs.iter()), Some(crs));
+        assert_eq!(crs_of(vlrs.iter()), Some(crs.clone()));
         assert_eq!(crs_of([].iter()), None);
+        // A double JSON cannot hold drops the keys, not the dataset.
+        let mut nan = vlrs.clone();
+        for v in nan.iter_mut().filter(|v| v.record_id == GEO_DOUBLES) {
+            v.data[..8].copy_from_slice(&f64::NAN.to_le_bytes());
+        }
+        let wkt_only = Crs {
+            geotiff: None,
+            ..crs
+        };
+        assert_eq!(crs_of(nan.iter()), Some(wkt_only));
     }
 }

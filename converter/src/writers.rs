@@ -219,7 +219,9 @@ impl LasRowWriter {
         };
         builder.generating_software = format!("strata {}", env!("CARGO_PKG_VERSION"));
         // The CRS where the dataset has one (the point formats 6 to 10 call for WKT; GeoTIFF
-        // keys go out as the inputs gave them, there being no conversion here).
+        // keys go out as the inputs gave them, there being no conversion here). The global
+        // encoding's WKT bit says which a reader takes: the WKT where there is one.
+        builder.has_wkt_crs = crs.is_some_and(|c| c.wkt.is_some());
         for (user_id, record_id, description, data) in
             crs.map(crate::las_crs::crs_records).unwrap_or_default()
         {

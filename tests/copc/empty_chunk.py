@@ -1,12 +1,12 @@
 # Writes a LAZ (point format 6) of 1000 points whose variable-size chunk table ends with an
 # empty chunk, as laz-rs writes one (compress_chunks, then done), and which laspy reads.
-# Usage: empty_chunk.py OUT.laz
+# Usage: empty_chunk.py OUT.laz [POINTS]
 import io, struct, sys
 
 import laspy, lazrs, numpy as np
 
 out = sys.argv[1]
-n = 1000
+n = int(sys.argv[2]) if len(sys.argv) > 2 else 1000
 rng = np.random.default_rng(0)
 header = laspy.LasHeader(point_format=6, version="1.4")
 header.scales = np.array([0.001] * 3)
@@ -30,7 +30,8 @@ head[104] |= 0x80
 out_bytes = io.BytesIO()
 out_bytes.write(bytes(head))
 compressor = lazrs.LasZipCompressor(out_bytes, vlr)
-compressor.compress_chunks([records[: 400 * size], records[400 * size :]])
+cut = min(400, n) * size
+compressor.compress_chunks([records[:cut]] + ([records[cut:]] if len(records) > cut else []))
 compressor.done()
 open(out, "wb").write(out_bytes.getvalue())
 assert len(laspy.read(out).points) == n

@@ -175,8 +175,10 @@ pub fn check_laz(file: &File, h: &LasHeader) -> Result<(), String> {
     let chunks = u32::from_le_bytes([head[4], head[5], head[6], head[7]]) as u64;
     let data_len = table_at - start - 8;
     let points = h.points;
-    // Every chunk holds at least one point in at least one byte.
-    if chunks > data_len || chunks > points {
+    // Every chunk holds at least one point in at least one byte; a table of variable-size
+    // chunks may end with one empty chunk more (see below).
+    let trailing = u64::from(vlr.chunk_size.is_none());
+    if chunks > data_len + trailing || chunks > points + trailing {
         return Err(format!(
             "the chunk table at byte {table_at} lists {chunks} chunks, but the file holds {points} points in {data_len} bytes of compressed data"
         ));
