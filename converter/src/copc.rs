@@ -13,7 +13,7 @@ use laz::{LasZipCompressor, LazVlrBuilder};
 use std::fs::File;
 use std::io::{BufWriter, Read, Seek, SeekFrom, Write};
 use std::path::Path;
-use strata_format::{Crs, DatasetFile, LocalDataset, RowLayout};
+use strata_format::{DatasetFile, LocalDataset, RowLayout};
 
 /// The LAS 1.4 header's size.
 const HEADER_SIZE: u64 = 375;
@@ -91,18 +91,12 @@ pub fn export_copc(dataset: &Path, output: &Path, overwrite: bool) -> Result<u64
             d.len()
         )));
     }
-    // COPC states a CRS in WKT alone (its point formats are 6 to 8).
     let crs = meta
         .crs
         .as_ref()
-        .map(|c| Crs {
-            wkt: c.wkt.clone(),
-            geotiff: None,
-        })
-        .map(|c| crate::las_crs::crs_records(&c))
-        .unwrap_or_default()
+        .map(crate::las_crs::wkt_record)
         .into_iter()
-        .filter(|r| r.3.len() <= u16::MAX as usize)
+        .flatten()
         .map(Some);
     let vlrs: Vec<(&str, u16, &str, Vec<u8>)> = [
         Some(("copc", 1, "COPC info", vec![0u8; INFO_SIZE as usize])),
