@@ -27,6 +27,15 @@ fn converted_points(name: &str, points: &[[f64; 3]], normals: bool) -> PathBuf {
     out
 }
 
+/// `dataset` rendered at 320x240 with `args`, as RGBA.
+fn rendered_320x240(dataset: &Path, args: &[&str]) -> Vec<u8> {
+    let out = dataset.with_extension("png");
+    let mut all = vec!["render", s(dataset), "-o", s(&out), "--size", "320x240"];
+    all.extend_from_slice(args);
+    gpu_ok(&all);
+    read_png(&out).2
+}
+
 #[test]
 fn points_far_off_the_view_axis_next_to_the_eye_are_drawn() {
     // A line seen from beside its end: the nearest points lie far from the view axis, nearer
@@ -34,20 +43,7 @@ fn points_far_off_the_view_axis_next_to_the_eye_are_drawn() {
     let line: Vec<[f64; 3]> = (0..=50).map(|i| [i as f64, 0.0, 0.0]).collect();
     let dataset = converted_points("line", &line, false);
     let (w, h) = (320u32, 240u32);
-    let out = dataset.with_extension("png");
-    gpu_ok(&[
-        "render",
-        s(&dataset),
-        "-o",
-        s(&out),
-        "--size",
-        "320x240",
-        "--pipeline",
-        "points",
-        "--point-size",
-        "3",
-    ]);
-    let (_, _, rgba) = read_png(&out);
+    let rgba = rendered_320x240(&dataset, &["--pipeline", "points", "--point-size", "3"]);
     let ds = StreamDataset::open_path(&dataset).expect("dataset opens");
     let camera = default_camera(&ds, w, h);
     let vp = camera.projection(w as f32 / h as f32, 0.01, 1e4) * camera.view();
@@ -80,20 +76,8 @@ fn a_surfel_reaching_behind_the_eye_is_drawn() {
         .map(|i| [(i % 10) as f64, (i / 10) as f64, 0.0])
         .collect();
     let dataset = converted_points("grid", &grid, true);
-    let out = dataset.with_extension("png");
-    gpu_ok(&[
-        "render",
-        s(&dataset),
-        "-o",
-        s(&out),
-        "--size",
-        "320x240",
-        "--pipeline",
-        "surfels",
-        "--camera",
-        "eye=4.5,4.5,0.8;target=4.5,4.5,0;fov=120",
-    ]);
-    let (_, _, rgba) = read_png(&out);
+    let camera = "eye=4.5,4.5,0.8;target=4.5,4.5,0;fov=120";
+    let rgba = rendered_320x240(&dataset, &["--pipeline", "surfels", "--camera", camera]);
     let covered = rgba.chunks_exact(4).filter(|px| drawn(px)).count();
     // The eight points under the eye, each a disc of at least 16 pixels' radius.
     assert!(covered > 8 * 500, "{covered} pixels drawn");
