@@ -7,7 +7,7 @@ use indicatif::ProgressBar;
 use serde::{Deserialize, Serialize};
 use strata_format::{Cube, GRID_CELLS_LOG2, NodeKey, row_position};
 
-/// The counting grid has 2^7 = 128 cells per axis (8 MiB of counters).
+/// The counting grid has 2^7 = 128 cells per axis (16 MiB of u64 counters, one grid a thread).
 pub const COUNT_GRID_LOG2: u32 = 7;
 
 #[derive(Debug, Clone, Serialize, Deserialize, PartialEq)]
