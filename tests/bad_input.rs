@@ -438,3 +438,21 @@ fn absurd_counts_are_refused_in_one_sentence() {
         );
     }
 }
+
+#[test]
+fn a_file_given_twice_is_said() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let las = data("autzen_trim.las");
+    let again = las
+        .parent()
+        .expect("folder")
+        .join(".")
+        .join("autzen_trim.las");
+    let out = dir.path().join("ds");
+    let o = run_ok(&["convert", s(&las), s(&again), "-o", s(&out), "-q"]);
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(
+        err.contains("the same file as") && err.contains("converted twice"),
+        "{err}"
+    );
+}

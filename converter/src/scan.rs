@@ -49,8 +49,20 @@ pub struct InputsSummary {
 pub fn union_attributes(inputs: &[PathBuf], warnings: &mut Vec<String>) -> Result<InputsSummary> {
     let mut union: Vec<(Attribute, PathBuf)> = Vec::new();
     let mut summary = InputsSummary::default();
+    let mut seen: Vec<(PathBuf, &PathBuf)> = Vec::new();
     for (i, path) in inputs.iter().enumerate() {
         let src = open_source(path)?;
+        // One file named twice (`a.las ./a.las`) is read twice: said, as it is rarely meant.
+        if let Ok(real) = std::fs::canonicalize(path) {
+            if let Some((_, first)) = seen.iter().find(|(r, _)| *r == real) {
+                warnings.push(format!(
+                    "{}: the same file as {} given before it; its points are converted twice",
+                    path.display(),
+                    first.display()
+                ));
+            }
+            seen.push((real, path));
+        }
         // Saturating: E57 point counts are the file's word, not yet checked against its data.
         summary.points = summary.points.saturating_add(src.info().points);
         warnings.extend(src.info().warnings.iter().cloned());
