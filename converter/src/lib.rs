@@ -3,6 +3,7 @@
 pub mod build;
 pub mod chunk_step;
 pub mod copc;
+pub mod copc_describe;
 pub mod copc_nodes;
 pub mod disk;
 #[cfg(test)]

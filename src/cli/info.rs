@@ -146,7 +146,7 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
 /// A LAS or LAZ file: its header, and for a COPC file its octree and hierarchy.
 fn point_file(a: &Args) -> anyhow::Result<ExitCode> {
     let path = &a.dataset;
-    let f = strata_converter::copc::describe(path)?;
+    let f = strata_converter::copc_describe::describe(path)?;
     if a.json {
         println!("{}", serde_json::to_string_pretty(&f)?);
         return Ok(ExitCode::SUCCESS);

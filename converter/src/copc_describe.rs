@@ -1,0 +1,154 @@
+//! Reading a LAS, LAZ or COPC file's header for `strata info`: the checks the conversion
+//! makes, then for COPC the octree and hierarchy it states.
+
+use crate::copc::{ENTRY_SIZE, INFO_SIZE};
+use crate::error::{ConvertError, Result};
+use std::fs::File;
+use std::path::Path;
+
+/// What `strata info` says of a COPC file: its octree and its hierarchy.
+#[derive(Debug, Clone, serde::Serialize)]
+pub struct CopcSummary {
+    pub centre: [f64; 3],
+    pub halfsize: f64,
+    pub spacing: f64,
+    pub gps_time: [f64; 2],
+    /// Hierarchy entries with points, and the deepest level.
+    pub nodes: u64,
+    pub depth: i32,
+    /// Points the hierarchy lists.
+    pub points: u64,
+}
+
+/// What `strata info` says of a LAS, LAZ or COPC file.
+#[derive(Debug, Clone, serde::Serialize)]
+pub struct FileSummary {
+    /// "las", "laz" or "copc".
+    pub kind: &'static str,
+    pub version: String,
+    pub point_format: u8,
+    pub points: u64,
+    pub min: [f64; 3],
+    pub max: [f64; 3],
+    pub scale: [f64; 3],
+    pub offset: [f64; 3],
+    pub copc: Option<CopcSummary>,
+}
+
+/// Reads the header (and, for COPC, the hierarchy) of the LAS/LAZ file `path`.
+pub fn describe(path: &Path) -> Result<FileSummary> {
+    // The conversion's checks first: a damaged file is named as `convert` names it, not by
+    // the reader's first failed read.
+    let file = File::open(path).map_err(|e| ConvertError::io(path, "cannot open", e))?;
+    let len = file
+        .metadata()
+        .map_err(|e| ConvertError::io(path, "cannot read file size", e))?
+        .len();
+    let raw = crate::input::las_header::LasHeader::read(&file, len)
+        .map_err(|e| ConvertError::input(path, e))?;
+    if raw.compressed {
+        crate::input::laz_check::check_laz(&file, &raw)
+            .map_err(|e| ConvertError::input(path, e))?;
+    }
+    let reader = las::Reader::from_path(path)
+        .map_err(|e| ConvertError::output(path, format!("not a LAS or LAZ file ({e})")))?;
+    let h = reader.header();
+    let copc = read_summary(h, path)?;
+    let (b, t, v, format) = (h.bounds(), h.transforms(), h.version(), h.point_format());
+    Ok(FileSummary {
+        kind: match (&copc, format.is_compressed) {
+            (Some(_), _) => "copc",
+            (None, true) => "laz",
+            (None, false) => "las",
+        },
+        version: format!("{}.{}", v.major, v.minor),
+        point_format: format.to_u8().unwrap_or(0),
+        points: h.number_of_points(),
+        min: [b.min.x, b.min.y, b.min.z],
+        max: [b.max.x, b.max.y, b.max.z],
+        scale: [t.x.scale, t.y.scale, t.z.scale],
+        offset: [t.x.offset, t.y.offset, t.z.offset],
+        copc,
+    })
+}
+
+/// The COPC info of a LAS/LAZ file whose first VLR is COPC's, with its hierarchy summed up;
+/// `None` for a file that is not COPC.
+fn read_summary(header: &las::Header, path: &Path) -> Result<Option<CopcSummary>> {
+    let Some(info) = header
+        .vlrs()
+        .first()
+        .filter(|v| v.user_id == "copc" && v.record_id == 1)
+    else {
+        return Ok(None);
+    };
+    let bad = |what: &str| ConvertError::output(path, format!("COPC {what}"));
+    let d = &info.data;
+    if d.len() < INFO_SIZE as usize {
+        return Err(bad("info VLR is shorter than 160 bytes"));
+    }
+    let f = |i: usize| f64::from_le_bytes(d[i * 8..i * 8 + 8].try_into().unwrap_or([0; 8]));
+    let hierarchy = header
+        .evlrs()
+        .iter()
+        .find(|v| v.user_id == "copc" && v.record_id == 1000)
+        .ok_or_else(|| bad("hierarchy EVLR is missing"))?;
+    // What a COPC reader takes on trust: the cube, and where the root hierarchy page is.
+    let u = |i: usize| u64::from_le_bytes(d[i * 8..i * 8 + 8].try_into().unwrap_or([0; 8]));
+    if let Some(name) = [("centre", f(0)), ("centre", f(1)), ("centre", f(2))]
+        .into_iter()
+        .chain([("half size", f(3)), ("spacing", f(4))])
+        .find(|&(name, v)| !v.is_finite() || (name != "centre" && v <= 0.0))
+        .map(|(name, _)| name)
+    {
+        return Err(bad(&format!(
+            "info VLR's {name} is not a finite{} number",
+            if name == "centre" { "" } else { " positive" }
+        )));
+    }
+    let (root_at, root_size) = (u(5), u(6));
+    let file_len = std::fs::metadata(path)
+        .map_err(|e| ConvertError::io(path, "cannot read the file's size", e))?
+        .len();
+    // The page is in an EVLR's data: after the first EVLR's 60-byte header (LAS 1.4 keeps
+    // where that is at byte 235 of the file header).
+    let mut first_evlr = [0u8; 8];
+    std::fs::File::open(path)
+        .and_then(|f| std::os::unix::fs::FileExt::read_exact_at(&f, &mut first_evlr, 235))
+        .map_err(|e| ConvertError::io(path, "cannot read the header", e))?;
+    let evlr_data = u64::from_le_bytes(first_evlr).saturating_add(60);
+    if root_size == 0
+        || root_size % ENTRY_SIZE as u64 != 0
+        || root_size > hierarchy.data.len() as u64
+        || root_at < evlr_data
+        || root_at
+            .checked_add(root_size)
+            .is_none_or(|end| end > file_len)
+    {
+        return Err(bad(&format!(
+            "info VLR puts the root hierarchy page at byte {root_at}, {root_size} bytes long, \
+             which is not a page of whole entries inside the hierarchy EVLR and the file"
+        )));
+    }
+    let (mut nodes, mut depth, mut points) = (0u64, 0i32, 0u64);
+    // Every entry of the EVLR (the pages a writer puts there one after the other; entries
+    // of -1 points, pointing at pages elsewhere, are not counted).
+    for e in hierarchy.data.chunks_exact(ENTRY_SIZE) {
+        let int = |i: usize| i32::from_le_bytes(e[i..i + 4].try_into().unwrap_or([0; 4]));
+        let count = int(28);
+        if count > 0 {
+            nodes += 1;
+            points += count as u64;
+            depth = depth.max(int(0));
+        }
+    }
+    Ok(Some(CopcSummary {
+        centre: [f(0), f(1), f(2)],
+        halfsize: f(3),
+        spacing: f(4),
+        gps_time: [f(7), f(8)],
+        nodes,
+        depth,
+        points,
+    }))
+}
