@@ -119,8 +119,16 @@ fn las_extra_bytes_nx_ny_nz_are_one_normal_that_normals_keeps() {
         }
     }
     let scale = [0.001; 3];
-    let mut w = open_writer(&las, &layout, scale, [0.0; 3], (side * side) as u64, false)
-        .expect("LAS writer");
+    let mut w = open_writer(
+        &las,
+        &layout,
+        scale,
+        [0.0; 3],
+        (side * side) as u64,
+        false,
+        None,
+    )
+    .expect("LAS writer");
     w.write_rows(&rows).expect("rows written");
     w.finish().expect("LAS finished");
 

@@ -84,12 +84,7 @@ fn projected_bounds(dataset: &Path, w: u32, h: u32) -> (f32, f32, f32, f32) {
     let (min, max) = ds.bounds();
     let vp = cam.projection(w as f32 / h as f32, 0.01, 1e7) * cam.view();
     let mut r = (f32::MAX, f32::MAX, f32::MIN, f32::MIN);
-    for i in 0..8 {
-        let c = glam::Vec3::new(
-            if i & 1 == 0 { min.x } else { max.x },
-            if i & 2 == 0 { min.y } else { max.y },
-            if i & 4 == 0 { min.z } else { max.z },
-        );
+    for c in strata_viewer::camera::box_corners(min, max) {
         let p = vp.project_point3(c);
         let (x, y) = ((p.x * 0.5 + 0.5) * w as f32, (0.5 - p.y * 0.5) * h as f32);
         r = (r.0.min(x), r.1.min(y), r.2.max(x), r.3.max(y));

@@ -1,7 +1,7 @@
 //! `strata export`: every point of a dataset back out as LAS, LAZ or PLY.
 
 use crate::error::{ConvertError, Result};
-use crate::writers::{RowWriter, open_writer_stating, part_path};
+use crate::writers::{RowWriter, open_writer, part_path};
 use std::path::Path;
 use strata_format::{AttrType, Attribute, Crs, DatasetFile, LocalDataset, RowLayout, oct16_decode};
 
@@ -23,7 +23,7 @@ pub fn export(dataset: &Path, output: &Path, overwrite: bool) -> Result<u64> {
     let meta = ds.metadata();
     let layout = ds.layout().clone();
     let wide = widened(&layout);
-    let writer = open_writer_stating(
+    let writer = open_writer(
         output,
         &wide.layout,
         meta.scale,
@@ -97,7 +97,7 @@ pub fn export_rows(
 ) -> Result<u64> {
     let wide = widened(layout);
     let n = (rows.len() / layout.stride.max(1)) as u64;
-    let writer = open_writer_stating(output, &wide.layout, scale, offset, n, overwrite, crs)?;
+    let writer = open_writer(output, &wide.layout, scale, offset, n, overwrite, crs)?;
     write_then_finish(writer, output, |writer| {
         if wide.is_identity() {
             writer.write_rows(rows)?;

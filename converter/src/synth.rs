@@ -272,7 +272,7 @@ pub fn synth(
         seed,
         side: (points as f64 / DENSITY).sqrt().max(10.0),
     };
-    let mut writer = open_writer(output, &layout, [SCALE; 3], ORIGIN, points, overwrite)?;
+    let mut writer = open_writer(output, &layout, [SCALE; 3], ORIGIN, points, overwrite, None)?;
     let off = |n: &str| layout.range_of(n).map_or(0, |r| r.start);
     let (o_int, o_ret, o_nret, o_class, o_gps, o_rgb, o_psid) = (
         off("intensity"),

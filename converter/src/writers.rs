@@ -71,20 +71,9 @@ impl std::io::Seek for Latched {
 }
 
 /// Opens a writer chosen by the extension of `path`. `points` is the exact number of rows
-/// that will be written (PLY needs it up front).
+/// that will be written (PLY needs it up front); the file states `crs` where its format can
+/// (LAS and LAZ).
 pub fn open_writer(
-    path: &Path,
-    layout: &RowLayout,
-    scale: [f64; 3],
-    offset: [f64; 3],
-    points: u64,
-    overwrite: bool,
-) -> Result<Box<dyn RowWriter>> {
-    open_writer_stating(path, layout, scale, offset, points, overwrite, None)
-}
-
-/// `open_writer`, the file stating `crs` where its format can (LAS and LAZ).
-pub fn open_writer_stating(
     path: &Path,
     layout: &RowLayout,
     scale: [f64; 3],

@@ -4,6 +4,17 @@
 use crate::ViewerError;
 use glam::{DVec3, Mat4, Vec3, Vec4};
 
+/// The eight corners of the box `min`..`max`.
+pub fn box_corners(min: Vec3, max: Vec3) -> [Vec3; 8] {
+    std::array::from_fn(|i| {
+        Vec3::new(
+            if i & 1 == 0 { min.x } else { max.x },
+            if i & 2 == 0 { min.y } else { max.y },
+            if i & 4 == 0 { min.z } else { max.z },
+        )
+    })
+}
+
 /// Z is up, as in every survey coordinate system Strata reads.
 pub const UP: Vec3 = Vec3::Z;
 
@@ -32,13 +43,9 @@ impl Camera {
         for _ in 0..6 {
             let vp =
                 cam.projection(aspect.max(0.05), distance * 1e-3, distance * 10.0) * cam.view();
-            let extent = (0..8)
-                .map(|i| {
-                    let c = Vec3::new(
-                        if i & 1 == 0 { min.x } else { max.x },
-                        if i & 2 == 0 { min.y } else { max.y },
-                        if i & 4 == 0 { min.z } else { max.z },
-                    );
+            let extent = box_corners(min, max)
+                .into_iter()
+                .map(|c| {
                     let p = vp.project_point3(c);
                     p.x.abs().max(p.y.abs())
                 })

@@ -233,15 +233,9 @@ pub fn clip_range(ds: &StreamDataset, camera: &Camera, aspect: f32) -> (f32, f32
     let to_centre = (centre - camera.eye).length();
     let far = (to_centre + radius) * 1.01;
     let forward = (camera.target - camera.eye).normalize_or(Vec3::Y);
-    let nearest_depth = (0..8)
-        .map(|i| {
-            let corner = Vec3::new(
-                if i & 1 == 0 { min.x } else { max.x },
-                if i & 2 == 0 { min.y } else { max.y },
-                if i & 4 == 0 { min.z } else { max.z },
-            );
-            (corner - camera.eye).dot(forward)
-        })
+    let nearest_depth = crate::camera::box_corners(min, max)
+        .into_iter()
+        .map(|corner| (corner - camera.eye).dot(forward))
         .fold(f32::INFINITY, f32::min);
     // The widest angle from the axis a view shows: towards a corner of the image.
     let half_diagonal = (camera.fov_y * 0.5).tan() * (1.0 + aspect * aspect).sqrt();
