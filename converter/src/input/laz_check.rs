@@ -200,18 +200,17 @@ pub fn check_laz(file: &File, h: &LasHeader) -> Result<(), String> {
             .map_err(|_| format!("the chunk table at byte {table_at} is corrupt or truncated"))
     })?;
     let mut entries: Vec<ChunkTableEntry> = table.as_ref().to_vec();
+    let stored: u64 = entries.iter().map(|e| e.byte_count).sum();
     // Chunks of variable size may end with empty ones (laz-rs writes one when its last batch
-    // of chunks is closed by `done`): they hold nothing to read.
+    // of chunks is closed by `done`): they hold no point to read, though the point-wise
+    // compressor of formats 0 to 5 gives one a few bytes.
     if vlr.chunk_size.is_none() {
-        while entries.len() > 1
-            && entries
-                .last()
-                .is_some_and(|e| e.byte_count == 0 && e.point_count == 0)
-        {
+        while entries.len() > 1 && entries.last().is_some_and(|e| e.point_count == 0) {
             entries.pop();
         }
     }
-    let stored: u64 = entries.iter().map(|e| e.byte_count).sum();
+    // Where the chunks holding points end.
+    let used: u64 = entries.iter().map(|e| e.byte_count).sum();
     if stored != data_len {
         return Err(format!(
             "the chunk table at byte {table_at} gives chunk sizes adding up to {stored} bytes, but the compressed data is {data_len} bytes"
@@ -235,7 +234,7 @@ pub fn check_laz(file: &File, h: &LasHeader) -> Result<(), String> {
         }
     };
     let last = entries[entries.len() - 1];
-    let last_at = start + 8 + stored - last.byte_count;
+    let last_at = start + 8 + used - last.byte_count;
     check_last_chunk(file, h, &vlr, &laz_vlr, last_at, last, last_points)
 }
 
