@@ -186,16 +186,15 @@ fn ply_export_declares_every_property_once() {
     );
 }
 
-#[test]
-fn extra_bytes_described_in_an_extended_vlr_keep_their_names() {
-    let dir = tempfile::tempdir().expect("tempdir");
-    let (input, ds) = (dir.path().join("evlr.las"), dir.path().join("ds"));
-    // One i32 field "height" at 0.01 a unit (LAS 1.4 R15, table 24: 192 bytes a field).
+/// A LAS 1.4 file of three points with one i32 extra-bytes field "height" (described in an
+/// extended VLR: LAS 1.4 R15, table 24, 192 bytes a field), value = offset + scale · raw.
+fn height_las(path: &Path, scale: f64, offset: f64, raw: i32) {
     let mut eb = vec![0u8; 192];
     eb[2] = 6; // data type: i32
-    eb[3] = 1 << 3; // options: scale present
+    eb[3] = (1 << 3) | (1 << 4); // options: scale and offset present
     eb[4..10].copy_from_slice(b"height");
-    eb[112..120].copy_from_slice(&0.01f64.to_le_bytes());
+    eb[112..120].copy_from_slice(&scale.to_le_bytes());
+    eb[136..144].copy_from_slice(&offset.to_le_bytes());
     let mut builder = las::Builder::from((1, 4));
     builder.point_format = las::point::Format::new(1).expect("format");
     builder.point_format.extra_bytes = 4;
@@ -206,18 +205,25 @@ fn extra_bytes_described_in_an_extended_vlr_keep_their_names() {
         data: eb,
     });
     let header = builder.into_header().expect("header");
-    let mut writer = las::Writer::from_path(&input, header).expect("writer");
+    let mut writer = las::Writer::from_path(path, header).expect("writer");
     for i in 0..3 {
         writer
             .write_point(las::Point {
                 x: f64::from(i),
                 gps_time: Some(0.0),
-                extra_bytes: 1234i32.to_le_bytes().to_vec(),
+                extra_bytes: raw.to_le_bytes().to_vec(),
                 ..Default::default()
             })
             .expect("write");
     }
     writer.close().expect("close");
+}
+
+#[test]
+fn extra_bytes_described_in_an_extended_vlr_keep_their_names() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let (input, ds) = (dir.path().join("evlr.las"), dir.path().join("ds"));
+    height_las(&input, 0.01, 0.0, 1234);
     run_ok(&["convert", s(&input), "-o", s(&ds), "-q"]);
     let meta: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(ds.join("metadata.json")).expect("metadata"))
@@ -263,6 +269,39 @@ fn extra_bytes_described_in_an_extended_vlr_keep_their_names() {
         let value = f64::from_le_bytes(v.try_into().expect("8 bytes"));
         assert!((value - 12.34).abs() < 1e-9, "height {value}");
     }
+}
+
+/// The rows keep an extra attribute's raw integers under one scale: inputs that scale it
+/// differently are refused (their values were read with the first input's scale).
+#[test]
+fn extra_bytes_scaled_differently_in_two_inputs_are_refused() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let (a, b, same) = (
+        dir.path().join("a.las"),
+        dir.path().join("b.las"),
+        dir.path().join("same.las"),
+    );
+    height_las(&a, 0.01, 0.0, 100);
+    height_las(&b, 0.1, 5.0, 100);
+    height_las(&same, 0.01, 0.0, 250);
+    let ds = dir.path().join("ds");
+    let o = run(&["convert", s(&a), s(&b), "-o", s(&ds), "-q"]);
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(!o.status.success(), "{err}");
+    assert!(
+        err.contains("b.las")
+            && err.contains("\"height\"")
+            && err.contains("scale 0.1 and offset 5")
+            && err.contains("scale 0.01 and offset 0"),
+        "{err}"
+    );
+    assert!(!ds.exists(), "no output");
+    // Scaled alike, they merge, each value kept.
+    run_ok(&["convert", s(&a), s(&same), "-o", s(&ds), "-q"]);
+    let ply = dir.path().join("out.ply");
+    run_ok(&["export", s(&ds), "-o", s(&ply)]);
+    let text = String::from_utf8_lossy(&std::fs::read(&ply).expect("export")).into_owned();
+    assert!(text.contains("property double height"), "{text}");
 }
 
 #[test]

@@ -82,7 +82,26 @@ pub fn union_attributes(inputs: &[PathBuf], warnings: &mut Vec<String>) -> Resul
                         ),
                     ));
                 }
-                Some(_) => {}
+                Some((u, first)) => {
+                    // The rows keep the raw integers: one scale must hold for every input.
+                    let differs = (0..a.count as usize).find(|&c| u.scaling(c) != a.scaling(c));
+                    if let Some(c) = differs {
+                        let shown = |a: &Attribute| {
+                            let (scale, offset) = a.scaling(c);
+                            format!("scale {scale} and offset {offset}")
+                        };
+                        return Err(ConvertError::input(
+                            path,
+                            format!(
+                                "attribute \"{}\" is stored with {} here but {} in {}; inputs must agree on how an attribute is scaled",
+                                a.name,
+                                shown(a),
+                                shown(u),
+                                first.display()
+                            ),
+                        ));
+                    }
+                }
                 None => union.push((a.clone(), path.clone())),
             }
         }

@@ -487,12 +487,9 @@ impl RowWriter for PlyRowWriter {
                     }
                     PlyValue::Scaled => {
                         // LAS 1.4: value = raw · scale + offset, each per component.
-                        let at = |v: &Option<Vec<f64>>, c: usize, or: f64| {
-                            v.as_ref().and_then(|v| v.get(c)).copied().unwrap_or(or)
-                        };
                         for (c, raw) in values.enumerate() {
-                            let value =
-                                a.ty.read_f64(raw) * at(&a.scale, c, 1.0) + at(&a.offset, c, 0.0);
+                            let (scale, offset) = a.scaling(c);
+                            let value = a.ty.read_f64(raw) * scale + offset;
                             rec.extend_from_slice(&value.to_le_bytes());
                         }
                     }

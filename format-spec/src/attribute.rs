@@ -119,6 +119,15 @@ impl Attribute {
     pub fn size(&self) -> usize {
         self.ty.size() * self.count as usize
     }
+
+    /// Component `c`'s scale and offset (value = offset + scale · raw): 1 and 0 where none
+    /// is given.
+    pub fn scaling(&self, c: usize) -> (f64, f64) {
+        let at = |v: &Option<Vec<f64>>, or: f64| {
+            v.as_ref().and_then(|v| v.get(c)).copied().unwrap_or(or)
+        };
+        (at(&self.scale, 1.0), at(&self.offset, 0.0))
+    }
 }
 
 /// The encoding name of octahedral unit vectors in two u16.

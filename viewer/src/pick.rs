@@ -171,10 +171,8 @@ pub fn attribute_values(a: &strata_format::Attribute, raw: &[u8]) -> Vec<f64> {
     raw.chunks_exact(a.ty.size())
         .enumerate()
         .map(|(c, b)| {
-            let v = a.ty.read_f64(b);
-            let scale = a.scale.as_ref().and_then(|s| s.get(c)).copied();
-            let offset = a.offset.as_ref().and_then(|o| o.get(c)).copied();
-            offset.unwrap_or(0.0) + scale.unwrap_or(1.0) * v
+            let (scale, offset) = a.scaling(c);
+            offset + scale * a.ty.read_f64(b)
         })
         .collect()
 }
