@@ -321,6 +321,43 @@ fn a_return_number_beyond_four_bits_is_refused_not_cut() {
     run_ok(&["export", s(&ds), "-o", s(&dir.path().join("out.ply"))]);
 }
 
+/// A standard field held in another type than LAS's (a PLY's ushort return number, float
+/// intensity) is refused where LAS cannot hold its value, as a uchar one is, not cut to its bits
+/// or clamped.
+#[test]
+fn standard_fields_of_other_types_beyond_las_are_refused() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    for (name, value, said) in [
+        ("return_number", "ushort", "return_number is 20"),
+        ("intensity", "float", "intensity is 70000"),
+    ] {
+        let ply = dir.path().join(format!("{name}.ply"));
+        let v = if value == "ushort" { "20" } else { "70000" };
+        std::fs::write(
+            &ply,
+            format!(
+                "ply\nformat ascii 1.0\nelement vertex 2\nproperty float x\nproperty float y\nproperty float z\nproperty {value} {name}\nend_header\n0 0 0 1\n1 0 0 {v}\n"
+            ),
+        )
+        .expect("write ply");
+        let ds = dir.path().join(format!("{name}_ds"));
+        run_ok(&["convert", s(&ply), "-o", s(&ds), "-q"]);
+        for out in ["r.las", "r.copc.laz"] {
+            let out = dir.path().join(out);
+            let o = run(&["export", s(&ds), "-o", s(&out)]);
+            let err = String::from_utf8_lossy(&o.stderr);
+            assert!(!o.status.success() && err.contains(said), "{name}: {err}");
+            assert!(!out.exists(), "{name}: no output that looks complete");
+        }
+        run_ok(&[
+            "export",
+            s(&ds),
+            "-o",
+            s(&dir.path().join(format!("{name}_out.ply"))),
+        ]);
+    }
+}
+
 #[test]
 fn undescribed_extra_bytes_go_back_out_undescribed() {
     let dir = tempfile::tempdir().expect("tempdir");

@@ -20,8 +20,8 @@ enum Source {
     Widen(usize),
     /// A legacy scan angle rank (i8 degrees) as a scan angle (i16, 0.006°).
     RankToAngle(usize),
-    /// Another type than the field's (an f32 intensity from a PLY): each component converted,
-    /// rounded and held within the field's range.
+    /// Another type than the field's (an f32 intensity from a PLY): each component converted
+    /// and rounded (a value beyond the field's range is refused by `check_fits`).
     Cast {
         at: usize,
         from: AttrType,
@@ -32,6 +32,19 @@ enum Source {
     Zero,
     /// Not in the dataset: one (a single return).
     One,
+}
+
+/// A row value that must lie within `min..=max` to fit its LAS field.
+#[derive(Debug, Clone)]
+struct Limit {
+    /// Where the value is in the row, and its type there.
+    at: usize,
+    ty: AttrType,
+    name: String,
+    min: f64,
+    max: f64,
+    /// Why the bound: the point format's bit field, or the field's type.
+    bits: bool,
 }
 
 /// The fields LAS holds in fewer than 8 bits: name, and the largest value formats 0 to 5 and
@@ -48,9 +61,9 @@ pub const BIT_FIELDS: [(&str, u8, u8); 6] = [
 pub struct LasRecords {
     stride: usize,
     format_number: u8,
-    /// Per bit field of the rows: its row offset, name and the largest value the format holds,
-    /// so that a value it cannot hold is refused rather than cut.
-    limits: Vec<(usize, &'static str, u8)>,
+    /// The values the format's fields hold, so that one it cannot hold is refused rather than
+    /// cut or clamped.
+    limits: Vec<Limit>,
     /// Per LAS-order attribute: where it comes from, its offset and size in the LAS row.
     gather: Vec<(Source, usize, usize)>,
     ops: Vec<FieldOp>,
@@ -140,20 +153,42 @@ impl LasRecords {
                 ),
             ));
         }
-        let names = las_attrs.iter().map(|a| a.name.clone()).collect();
-        let limits = BIT_FIELDS
+        let names: Vec<String> = las_attrs.iter().map(|a| a.name.clone()).collect();
+        let mut limits: Vec<Limit> = BIT_FIELDS
             .iter()
             .filter_map(|&(name, legacy, extended)| {
                 let max = if format_number < 6 { legacy } else { extended };
                 let i = layout.index_of(name)?;
                 let a = &layout.attributes[i];
-                (max < u8::MAX && a.ty == AttrType::U8 && a.count == 1).then_some((
-                    layout.offsets[i],
-                    name,
-                    max,
-                ))
+                (max < u8::MAX && a.count == 1).then(|| Limit {
+                    at: layout.offsets[i],
+                    ty: a.ty,
+                    name: name.to_string(),
+                    min: 0.0,
+                    max: f64::from(max),
+                    bits: true,
+                })
             })
             .collect();
+        for (&(source, _, _), name) in gather.iter().zip(&names) {
+            if let Source::Cast {
+                at,
+                from,
+                to,
+                count,
+            } = source
+                && let Some((min, max)) = integer_range(to)
+            {
+                limits.extend((0..count).map(|c| Limit {
+                    at: at + c * from.size(),
+                    ty: from,
+                    name: name.clone(),
+                    min,
+                    max,
+                    bits: false,
+                }));
+            }
+        }
         Ok(LasRecords {
             stride: layout.stride,
             format_number,
@@ -199,17 +234,24 @@ impl LasRecords {
     /// in format 3, return 20 in format 6); `path` names the output.
     pub fn check_fits(&self, path: &Path, rows: &[u8]) -> Result<()> {
         for row in rows.chunks_exact(self.stride) {
-            for &(at, name, max) in &self.limits {
-                if row[at] > max {
-                    return Err(ConvertError::output(
-                        path,
-                        format!(
-                            "a point's {name} is {}, more than LAS point format {} holds ({max}); \
-                             export to .ply to keep it",
-                            row[at], self.format_number
-                        ),
-                    ));
+            for l in &self.limits {
+                let v = l.ty.read_f64(&row[l.at..]);
+                // Rounded as `store` rounds it.
+                if v.round() >= l.min && v.round() <= l.max {
+                    continue;
                 }
+                let holds = if l.bits {
+                    format!("LAS point format {} holds", self.format_number)
+                } else {
+                    "LAS's field holds".to_string()
+                };
+                return Err(ConvertError::output(
+                    path,
+                    format!(
+                        "a point's {} is {v}, outside what {holds} ({} to {}); export to .ply to keep it",
+                        l.name, l.min, l.max
+                    ),
+                ));
             }
         }
         Ok(())
@@ -336,27 +378,35 @@ fn eb_descriptor(a: &Attribute) -> Vec<u8> {
     d
 }
 
+/// The smallest and largest value of an integer type.
+fn integer_range(ty: AttrType) -> Option<(f64, f64)> {
+    Some(match ty {
+        AttrType::U8 => (0.0, u8::MAX as f64),
+        AttrType::I8 => (i8::MIN as f64, i8::MAX as f64),
+        AttrType::U16 => (0.0, u16::MAX as f64),
+        AttrType::I16 => (i16::MIN as f64, i16::MAX as f64),
+        AttrType::U32 => (0.0, u32::MAX as f64),
+        AttrType::I32 => (i32::MIN as f64, i32::MAX as f64),
+        AttrType::U64 => (0.0, u64::MAX as f64),
+        AttrType::I64 => (i64::MIN as f64, i64::MAX as f64),
+        AttrType::F16 | AttrType::F32 | AttrType::F64 => return None,
+    })
+}
+
 /// `v` in the bytes of `ty`: integers rounded and held within their range (NaN as 0).
 fn store(ty: AttrType, v: f64, out: &mut [u8]) {
     let v = if v.is_nan() { 0.0 } else { v };
-    let int = |lo: f64, hi: f64| v.round().clamp(lo, hi);
+    // `as` from a value within the type's range is exact.
+    let v = integer_range(ty).map_or(v, |(lo, hi)| v.round().clamp(lo, hi));
     match ty {
-        AttrType::U8 => out.copy_from_slice(&[int(0.0, u8::MAX as f64) as u8]),
-        AttrType::I8 => {
-            out.copy_from_slice(&(int(i8::MIN as f64, i8::MAX as f64) as i8).to_le_bytes())
-        }
-        AttrType::U16 => out.copy_from_slice(&(int(0.0, u16::MAX as f64) as u16).to_le_bytes()),
-        AttrType::I16 => {
-            out.copy_from_slice(&(int(i16::MIN as f64, i16::MAX as f64) as i16).to_le_bytes())
-        }
-        AttrType::U32 => out.copy_from_slice(&(int(0.0, u32::MAX as f64) as u32).to_le_bytes()),
-        AttrType::I32 => {
-            out.copy_from_slice(&(int(i32::MIN as f64, i32::MAX as f64) as i32).to_le_bytes())
-        }
-        AttrType::U64 => out.copy_from_slice(&(int(0.0, u64::MAX as f64) as u64).to_le_bytes()),
-        AttrType::I64 => {
-            out.copy_from_slice(&(int(i64::MIN as f64, i64::MAX as f64) as i64).to_le_bytes())
-        }
+        AttrType::U8 => out.copy_from_slice(&[v as u8]),
+        AttrType::I8 => out.copy_from_slice(&(v as i8).to_le_bytes()),
+        AttrType::U16 => out.copy_from_slice(&(v as u16).to_le_bytes()),
+        AttrType::I16 => out.copy_from_slice(&(v as i16).to_le_bytes()),
+        AttrType::U32 => out.copy_from_slice(&(v as u32).to_le_bytes()),
+        AttrType::I32 => out.copy_from_slice(&(v as i32).to_le_bytes()),
+        AttrType::U64 => out.copy_from_slice(&(v as u64).to_le_bytes()),
+        AttrType::I64 => out.copy_from_slice(&(v as i64).to_le_bytes()),
         // No LAS field is a half float; the plan refuses them before this.
         AttrType::F32 | AttrType::F16 => {
             let n = out.len().min(4);
@@ -392,24 +442,50 @@ mod tests {
     }
 
     #[test]
-    fn a_field_of_another_type_is_converted_within_its_range() {
-        // A PLY's f32 intensity into LAS's u16 field; a u16 classification into the u8 one.
+    fn a_field_of_another_type_is_converted_or_refused_beyond_its_range() {
+        // A PLY's f32 intensity into LAS's u16 field; a u16 classification into the u8 one; a
+        // u16 return number into format 6's four bits.
         let layout = RowLayout::new(vec![
             Attribute::new("intensity", AttrType::F32, 1),
             Attribute::new("classification", AttrType::U16, 1),
+            Attribute::new("return_number", AttrType::U16, 1),
         ]);
         let plan = LasRecords::new(Path::new("x.las"), &layout, 6).expect("plan");
-        let mut rows = Vec::new();
-        for (i, c) in [(1234.6f32, 6u16), (-5.0, 300), (1e9, 2)] {
-            rows.extend([0u8; 12]);
-            rows.extend(i.to_le_bytes());
-            rows.extend(c.to_le_bytes());
-        }
+        let row = |i: f32, c: u16, r: u16| {
+            let mut row = vec![0u8; 12];
+            row.extend(i.to_le_bytes());
+            row.extend(c.to_le_bytes());
+            row.extend(r.to_le_bytes());
+            row
+        };
+        let fits = row(1234.6, 255, 15);
+        assert!(plan.check_fits(Path::new("x.las"), &fits).is_ok());
         let mut recs = Vec::new();
-        plan.fill(&rows, &mut recs);
-        let rec = |p: usize| &recs[p * plan.record_len..(p + 1) * plan.record_len];
-        let intensity = |p: usize| u16::from_le_bytes([rec(p)[12], rec(p)[13]]);
-        assert_eq!([intensity(0), intensity(1), intensity(2)], [1235, 0, 65535]);
-        assert_eq!([rec(0)[16], rec(1)[16], rec(2)[16]], [6, 255, 2]);
+        plan.fill(&fits, &mut recs);
+        assert_eq!(u16::from_le_bytes([recs[12], recs[13]]), 1235);
+        assert_eq!(recs[14] & 0xF, 15, "return number");
+        assert_eq!(recs[16], 255, "classification");
+        for (bad, said) in [
+            (
+                row(-5.0, 2, 1),
+                "intensity is -5, outside what LAS's field holds (0 to 65535)",
+            ),
+            (row(1e9, 2, 1), "intensity is 1000000000, outside"),
+            (row(f32::NAN, 2, 1), "intensity is NaN, outside"),
+            (
+                row(1.0, 300, 1),
+                "classification is 300, outside what LAS's field holds (0 to 255)",
+            ),
+            (
+                row(1.0, 2, 20),
+                "return_number is 20, outside what LAS point format 6 holds (0 to 15)",
+            ),
+        ] {
+            let err = plan
+                .check_fits(Path::new("x.las"), &bad)
+                .expect_err(said)
+                .to_string();
+            assert!(err.contains(said), "{err}");
+        }
     }
 }
