@@ -119,6 +119,17 @@ fn non_finite_coordinates() {
         &write(dir.path(), "inf.ply", inf),
         "non-finite z coordinate",
     );
+    // Beyond f32's range, in a float property: not a float's value (it was taken as infinity,
+    // or as the double it spells for a coordinate).
+    for (name, line) in [("big_x.ply", "1e39 0 0 1"), ("big_i.ply", "0 0 0 -1e39")] {
+        let ply = format!(
+            "ply\nformat ascii 1.0\nelement vertex 2\nproperty float x\nproperty float y\nproperty float z\nproperty float intensity\nend_header\n0 0 0 1\n{line}\n"
+        );
+        convert_fails(
+            &write(dir.path(), name, ply.as_bytes()),
+            "e39\" that is not a f32 number",
+        );
+    }
 }
 
 #[test]

@@ -294,6 +294,8 @@ fn encode_ascii(token: &str, t: AttrType, out: &mut [u8; 8]) -> Option<f64> {
     if t.is_float() {
         let v: f64 = token.parse().ok()?;
         match t {
+            // A finite value beyond f32's range is not a float's.
+            AttrType::F32 if v.is_finite() && !(v as f32).is_finite() => return None,
             AttrType::F32 => out[..4].copy_from_slice(&(v as f32).to_le_bytes()),
             _ => out[..8].copy_from_slice(&v.to_le_bytes()),
         }
