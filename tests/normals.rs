@@ -108,10 +108,12 @@ fn normals_face_the_scanner_that_took_each_point() {
 fn normal_flags_are_checked_before_any_work() {
     let dir = tempfile::tempdir().expect("tempdir");
     let las = common::data("autzen_trim.las");
-    let cases: [(&[&str], &str); 4] = [
+    let cases: [(&[&str], &str); 5] = [
         (&["--normals", "--orient", "scanner"], "--viewpoint"),
         (&["--normals", "--normal-k", "1"], "--normal-k 1"),
         (&["--normals", "--viewpoint", "1,2"], "X,Y,Z"),
+        // A negative coordinate first is the viewpoint's, not a flag.
+        (&["--normals", "--viewpoint", "-5,2"], "X,Y,Z"),
         (&["--normal-k", "8"], "--normals"),
     ];
     for (i, (flags, says)) in cases.iter().enumerate() {

@@ -325,3 +325,37 @@ fn info_shows_encodings_and_how_normals_were_made() {
         serde_json::from_slice(&run_ok(&["info", s(&plain), "--json"]).stdout).expect("JSON");
     assert!(json["normals"].is_null());
 }
+
+/// PLY normals named `normal_x normal_y normal_z` are one `normal`, as `nx ny nz` are, and kept
+/// by `--normals`.
+#[test]
+fn ply_normal_x_y_z_are_one_normal_that_normals_keeps() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let ply = dir.path().join("n.ply");
+    let mut text = String::from(
+        "ply\nformat ascii 1.0\nelement vertex 400\nproperty float x\nproperty float y\nproperty float z\nproperty float normal_x\nproperty float normal_y\nproperty float normal_z\nend_header\n",
+    );
+    for i in 0..400 {
+        // A flat grid whose stated normals lean away from the plane's: kept, not estimated.
+        text += &format!("{} {} 0 0.6 0 0.8\n", i % 20, i / 20);
+    }
+    std::fs::write(&ply, text).expect("write ply");
+    let ds = dir.path().join("ds");
+    run_ok(&["convert", s(&ply), "-o", s(&ds), "-q", "--normals"]);
+    let meta = metadata(&ds);
+    let names: Vec<&str> = meta["attributes"]
+        .as_array()
+        .expect("attributes")
+        .iter()
+        .filter_map(|a| a["name"].as_str())
+        .collect();
+    assert!(
+        names.contains(&"normal") && !names.contains(&"normal_x"),
+        "{names:?}"
+    );
+    assert_eq!(meta["normals"]["kept"], 400, "{meta}");
+    for (_, n, _, _) in points(&ds, grid(&ds)) {
+        let n = n.expect("a normal");
+        assert!(angle(n, [0.6, 0.0, 0.8]) < 0.1, "{n:?}");
+    }
+}

@@ -94,7 +94,7 @@ pub struct Args {
     #[arg(long, value_enum, requires = "normals")]
     orient: Option<OrientArg>,
     /// Where a single static scanner stood, X,Y,Z in the inputs' coordinates.
-    #[arg(long, value_parser = parse_point, requires = "normals")]
+    #[arg(long, value_parser = parse_point, requires = "normals", allow_hyphen_values = true)]
     viewpoint: Option<[f64; 3]>,
     /// Neighbours farther than this (the inputs' units) are not used, so that estimates do not
     /// depend on how the cloud is cut into chunks (default: twice the k-th neighbour's

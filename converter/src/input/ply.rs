@@ -45,10 +45,12 @@ pub struct PlySource {
 }
 
 /// Properties that group into one vector attribute: (attribute name, component property names).
-const GROUPS: [(&str, [&str; 3]); 3] = [
+/// The first of a name's groups found is taken.
+const GROUPS: [(&str, [&str; 3]); 4] = [
     ("rgb", ["red", "green", "blue"]),
     ("rgb", ["diffuse_red", "diffuse_green", "diffuse_blue"]),
     ("normal", ["nx", "ny", "nz"]),
+    ("normal", ["normal_x", "normal_y", "normal_z"]),
 ];
 
 impl PlySource {
