@@ -4,7 +4,9 @@
 //!
 //! Positions are whole quantization steps from the chunk's corner and a distance is taken
 //! from their exact difference, so it depends on the two points alone, not on the chunk: the
-//! same cloud cut into other chunks finds the same neighbours, bit for bit.
+//! same cloud cut into other chunks finds the same neighbours, bit for bit. Ties are distances
+//! equal as computed (scaled to real units and rounded): two offsets of equal length in steps
+//! may round apart where the scale is not a power of two, and then the nearer as rounded wins.
 
 /// Points per leaf: about twice k, so that the query's own leaf gives a tight first bound.
 pub(super) const LEAF: usize = 32;

@@ -267,6 +267,10 @@ impl ChunkStep for NormalStep {
                     .filter(|&t| (tree.order[t] as usize) < own)
                     .map(|t| tree.offset(range, t)),
             );
+            // A position counts once, as in the neighbourhoods: three copies of one point
+            // are no triangle.
+            region.sort_unstable_by(|a, b| a.partial_cmp(b).unwrap_or(std::cmp::Ordering::Equal));
+            region.dedup();
             cluster(&mut region, &mut sizes);
         }
         totals[total::TRIANGLE_RADIUS_SUM] = sizes.radius_sum;

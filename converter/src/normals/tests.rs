@@ -446,7 +446,7 @@ fn repeated_positions_count_once() {
     let base = sphere(4000, [0.0; 3], 1.0, 21);
     let mut repeated: Vec<[f64; 3]> = base.iter().flat_map(|&p| [p; 3]).collect();
     repeated.extend([base[7]; 40]);
-    let mut normals = Vec::new();
+    let (mut normals, mut sizes) = (Vec::new(), Vec::new());
     for (name, pts) in [("once", &base), ("repeated", &repeated)] {
         let ply = dir.path().join(format!("{name}.ply"));
         write_ply(&ply, pts, None);
@@ -458,6 +458,13 @@ fn repeated_positions_count_once() {
         .expect("convert");
         let got = read_normals(&out);
         assert_eq!(got.len(), pts.len());
+        let info = LocalDataset::open(&out)
+            .expect("open")
+            .metadata()
+            .normals
+            .clone()
+            .expect("normals recorded");
+        sizes.push((info.surfel_radius, info.triangles));
         let by_position: HashMap<[i32; 3], (Option<[f64; 3]>, f64)> =
             got.iter().map(|g| (g.0, (g.2, g.3))).collect();
         normals.push(by_position);
@@ -473,4 +480,12 @@ fn repeated_positions_count_once() {
         );
         assert!((r / s - 1.0).abs() < 1e-6, "{q:?}: radius {r} against {s}");
     }
+    // Paper 001's surfel size from triangles of distinct points (a cluster of one position
+    // three times is no triangle), about the same (another sample of the sphere's triangles).
+    let [(once, t1), (repeated, t2)] = [sizes[0], sizes[1]];
+    assert!(t1 > 300 && t2 > 300, "triangles {t1} and {t2}");
+    assert!(
+        (repeated / once - 1.0).abs() < 0.1,
+        "surfel size {repeated} against {once}"
+    );
 }
