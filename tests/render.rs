@@ -9,6 +9,8 @@ mod common;
 mod filters;
 #[path = "render/fly_through.rs"]
 mod fly_through;
+#[path = "render/footprint.rs"]
+mod footprint;
 #[path = "render/near.rs"]
 mod near;
 #[path = "render/paths.rs"]

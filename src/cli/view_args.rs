@@ -38,8 +38,9 @@ pub struct ViewArgs {
     /// with ";outside", hiding it); repeatable, up to 4. Nodes outside are not loaded.
     #[arg(long = "clip", value_name = "BOX")]
     pub clip: Vec<String>,
-    /// Point size in pixels (or, with --attenuate, in multiples of the point spacing).
-    #[arg(long, default_value_t = 2.0)]
+    /// Point size in pixels, the width of the disc a point covers (or, with --attenuate, in
+    /// multiples of the point spacing).
+    #[arg(long, default_value_t = 3.0)]
     pub point_size: f32,
     /// Size points by their spacing in the world instead of in pixels.
     #[arg(long)]

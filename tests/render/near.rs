@@ -4,7 +4,7 @@
 use super::*;
 
 /// An ASCII PLY of `points` (x y z), converted, in a folder of its own.
-fn converted_points(name: &str, points: &[[f64; 3]], normals: bool) -> PathBuf {
+pub(super) fn converted_points(name: &str, points: &[[f64; 3]], normals: bool) -> PathBuf {
     let dir = Path::new(env!("CARGO_TARGET_TMPDIR")).join(format!("render-near-{name}"));
     let _ = std::fs::remove_dir_all(&dir);
     std::fs::create_dir_all(&dir).expect("fixture dir");
@@ -28,7 +28,7 @@ fn converted_points(name: &str, points: &[[f64; 3]], normals: bool) -> PathBuf {
 }
 
 /// `dataset` rendered at 320x240 with `args`, as RGBA.
-fn rendered_320x240(dataset: &Path, args: &[&str]) -> Vec<u8> {
+pub(super) fn rendered_320x240(dataset: &Path, args: &[&str]) -> Vec<u8> {
     let out = dataset.with_extension("png");
     let mut all = vec!["render", s(dataset), "-o", s(&out), "--size", "320x240"];
     all.extend_from_slice(args);

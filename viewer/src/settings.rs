@@ -271,7 +271,7 @@ impl Default for Settings {
                 .find(|p| p.name == pipelines::DEFAULT_PIPELINE)
                 .unwrap_or(pipelines::REGISTRY[0]),
             params: ParamValues::default(),
-            point_size: 2.0,
+            point_size: 3.0,
             size_mode: SizeMode::Fixed,
             colour: ColourMode::Rgb,
             min_spacing_px: 1.0,

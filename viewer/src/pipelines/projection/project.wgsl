@@ -45,20 +45,30 @@ fn main(
         size = r.spacing * frame.point_size * frame.focal_px / clip.w;
     }
     size = clamp(size, 1.0, MAX_SPLAT);
-    let half = i32(floor((size - 1.0) * 0.5 + 0.5));
+    // A disc `w` pixels across: per axis, the w pixels whose centres lie within w/2 of the
+    // point. An odd w centres on the point's pixel; an even one reaches one further towards
+    // the half of the pixel the point lies in (so 2 is 2x2, not 3x3 as a centred span gives).
+    let w = i32(round(size));
+    let half = w / 2;
     let cx = i32(floor(fx));
     let cy = i32(floor(fy));
     if cx < -half || cy < -half || cx >= i32(frame.width) + half || cy >= i32(frame.height) + half {
         return;
     }
+    let even = i32(w % 2 == 0);
+    let x0 = cx - half + even * i32(fract(fx) >= 0.5);
+    let y0 = cy - half + even * i32(fract(fy) >= 0.5);
     // Linear depth (view-space distance along the axis): positive floats order like their bits.
     let depth = bitcast<u32>(clip.w);
     let global = (ranges[0].start << frame.arena_shift) | idx;
-    let r2 = half * half + half;
-    for (var dy = -half; dy <= half; dy++) {
-        for (var dx = -half; dx <= half; dx++) {
-            let x = cx + dx;
-            let y = cy + dy;
+    // In doubled units from the disc's centre, so that half pixels are whole numbers.
+    let r2 = w * w;
+    for (var j = 0; j < w; j++) {
+        for (var i = 0; i < w; i++) {
+            let x = x0 + i;
+            let y = y0 + j;
+            let dx = 2 * i + 1 - w;
+            let dy = 2 * j + 1 - w;
             if dx * dx + dy * dy <= r2 && x >= 0 && y >= 0 && x < i32(frame.width) && y < i32(frame.height) {
                 emit(u32(y) * frame.width + u32(x), depth, global);
             }

@@ -1,0 +1,24 @@
+//! A point's footprint: `--point-size N` draws a disc N pixels across, even sizes included.
+
+use super::near::{converted_points, rendered_320x240};
+use super::*;
+
+#[test]
+fn a_point_of_size_n_covers_a_disc_n_pixels_across() {
+    // Four points far apart: each covers its own pixels.
+    let corners = [
+        [0.0, 0.0, 0.0],
+        [10.0, 0.0, 0.0],
+        [0.0, 10.0, 0.0],
+        [10.0, 10.0, 0.0],
+    ];
+    let dataset = converted_points("footprint", &corners, false);
+    // Per point: 1, a 2x2 square (it was 3x3, as size 3), the 3x3 square, the 4x4 square
+    // without its corners.
+    for (size, pixels) in [(1, 1), (2, 4), (3, 9), (4, 12)] {
+        let size = size.to_string();
+        let rgba = rendered_320x240(&dataset, &["--pipeline", "points", "--point-size", &size]);
+        let covered = rgba.chunks_exact(4).filter(|px| drawn(px)).count();
+        assert_eq!(covered, 4 * pixels, "point size {size}");
+    }
+}
