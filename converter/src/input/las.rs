@@ -120,12 +120,18 @@ impl LasSource {
             return Ok(&[]);
         }
         let kind = if self.compressed { "LAZ" } else { "LAS" };
-        let after = self.read_so_far;
+        // The batch is decoded as a whole (a LAZ's chunks in parallel): the fault lies somewhere
+        // in it.
+        let batch = format!(
+            "points {} to {}",
+            self.read_so_far,
+            self.read_so_far + n - 1
+        );
         let (reader, data) = (&mut self.reader, &mut self.data);
-        let got = guarded(&format!("{kind} point data after point {after}"), || {
+        let got = guarded(&format!("{kind} point data of {batch}"), || {
             reader.fill_points(n, data).map_err(|e| {
                 format!(
-                    "{kind} point data is corrupt or truncated after point {after} ({})",
+                    "{kind} point data is corrupt or truncated within {batch} ({})",
                     plain(&e)
                 )
             })
