@@ -106,6 +106,41 @@ fn ply_without_z_or_with_a_bad_header() {
     convert_fails(&write(dir.path(), "short.ply", short), "truncated");
 }
 
+/// The elements after the vertices are read to the end of the body too (their faults were
+/// taken silently where the vertices were not the last element).
+#[test]
+fn ply_faults_after_the_vertices_are_found() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let binary = |faces: u32, tail: &[u8]| {
+        let mut b = format!(
+            "ply\nformat binary_little_endian 1.0\nelement vertex 3\nproperty float x\nproperty float y\nproperty float z\nelement face {faces}\nproperty list uchar int vertex_indices\nend_header\n"
+        )
+        .into_bytes();
+        for v in [[0f32, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]] {
+            v.iter().for_each(|c| b.extend(c.to_le_bytes()));
+        }
+        b.push(3);
+        [0i32, 1, 2].iter().for_each(|i| b.extend(i.to_le_bytes()));
+        b.extend_from_slice(tail);
+        b
+    };
+    let good = write(dir.path(), "good.ply", &binary(1, b""));
+    run_ok(&["convert", s(&good), "-o", s(&dir.path().join("ds")), "-q"]);
+    convert_fails(
+        &write(dir.path(), "faces.ply", &binary(5, b"")),
+        "the file ends inside element \"face\" (item 1)",
+    );
+    convert_fails(
+        &write(dir.path(), "tail.ply", &binary(1, b"garbage")),
+        "7 bytes follow the last item of element \"face\"",
+    );
+    let ascii = b"ply\nformat ascii 1.0\nelement vertex 1\nproperty float x\nproperty float y\nproperty float z\nelement face 1\nproperty list uchar int vertex_indices\nend_header\n0 0 0\n3 0 0 0\nnot a face\n";
+    convert_fails(
+        &write(dir.path(), "tail_ascii.ply", ascii),
+        "follow the last item of element \"face\"",
+    );
+}
+
 #[test]
 fn non_finite_coordinates() {
     let dir = tempfile::tempdir().expect("tempdir");

@@ -38,8 +38,9 @@ pub struct PlySource {
     read_so_far: u64,
     /// Bytes of the file not yet read.
     left: u64,
-    /// Whether the vertices are the last element (then nothing may follow them).
-    vertex_last: bool,
+    /// The elements after the vertices: read through once the vertices are, so that the body
+    /// is checked to its end whichever element is last.
+    after: Vec<ElementDef>,
     line: String,
     scratch: Vec<u8>,
 }
@@ -169,7 +170,7 @@ impl PlySource {
             remaining: points,
             read_so_far: 0,
             left,
-            vertex_last: vertex_pos + 1 == elements.len(),
+            after: elements[vertex_pos + 1..].to_vec(),
             line: String::new(),
             scratch: Vec::new(),
         })
@@ -207,18 +208,26 @@ impl PlySource {
 
     /// After the last vertex: when no element follows, nothing may (but white space in text).
     fn check_end(&mut self) -> Result<()> {
-        if !self.vertex_last || self.left == 0 {
+        for el in &self.after {
+            skip_element(&mut self.reader, el, self.encoding, &mut self.left)
+                .map_err(|e| ConvertError::input(&self.info.path, e))?;
+        }
+        if self.left == 0 {
             return Ok(());
         }
         let mut rest = Vec::new();
         let _ = (&mut self.reader).take(1 << 16).read_to_end(&mut rest);
         let only_space = rest.iter().all(|b| b.is_ascii_whitespace() || *b == 0);
         if self.encoding != Encoding::Ascii || !only_space {
+            let last = match self.after.last() {
+                Some(el) => format!("element \"{}\"", shown(&el.name)),
+                None => format!("the {} vertices", self.info.points),
+            };
             return Err(ConvertError::input(
                 &self.info.path,
                 format!(
-                    "{} bytes follow the last of the {} vertices that the header describes (does the format line say the right encoding?)",
-                    self.left, self.info.points
+                    "{} bytes follow the last item of {last}, the header's last element (does the format line say the right encoding?)",
+                    self.left
                 ),
             ));
         }
