@@ -122,7 +122,7 @@ fn quick_run_writes_the_table_the_charts_and_the_images() {
     );
     // The filters close what one-pixel points leave open where there is about a point per
     // pixel (their 3x3 masks cannot tell a gap several pixels wide from the outside, so at one
-    // point per ten pixels they do not), shade better than eye-dome lighting there, and do
+    // point per ten pixels they do not), fill more faithfully than eye-dome lighting there, and do
     // not let the inner sphere through the outer one's gaps.
     let at = |scene: &str, pipeline: &str, setting: &str, column: usize| {
         rows.iter()
@@ -141,9 +141,11 @@ fn quick_run_writes_the_table_the_charts_and_the_images() {
             filters <= 0.5 * points && filters < 0.02,
             "{scene}: filters leave {filters} open, points {points}"
         );
-        let ssim = at(scene, "filters", "1px", 7);
-        let edl = at(scene, "edl", "1px", 7).max(at(scene, "edl", "2px", 7));
-        assert!(ssim > edl, "{scene}: filters SSIM {ssim}, edl {edl}");
+        // Albedo SSIM: each shaded image is scored against its own lighting (eye-dome
+        // darkening against a headlight), so their shaded SSIMs do not compare.
+        let ssim = at(scene, "filters", "1px", 9);
+        let edl = at(scene, "edl", "1px", 9).max(at(scene, "edl", "2px", 9));
+        assert!(ssim > edl, "{scene}: filters albedo SSIM {ssim}, edl {edl}");
     }
     let filters_leak = leak("filters", "1px");
     assert!(
@@ -152,7 +154,17 @@ fn quick_run_writes_the_table_the_charts_and_the_images() {
     );
     // Each pipeline is scored against the light it uses: points are unlit, so their shaded
     // image is scored against the mesh's albedo, exactly as their albedo is.
-    let lighting: HashMap<&str, &str> = rows.iter().map(|r| (r[1], r[3])).collect();
+    // Shadowed configurations are lit from their light, with the mesh's shadows.
+    let lighting: HashMap<&str, &str> = rows
+        .iter()
+        .filter(|r| !r[2].starts_with("shadows="))
+        .map(|r| (r[1], r[3]))
+        .collect();
+    assert!(
+        rows.iter()
+            .filter(|r| r[2].starts_with("shadows="))
+            .all(|r| r[3] == "directional Blinn-Phong with shadows")
+    );
     assert_eq!(lighting.get("points"), Some(&"none"));
     assert_eq!(lighting.get("edl"), Some(&"eye-dome"));
     assert_eq!(lighting.get("pyramid"), Some(&"headlight Blinn-Phong"));
@@ -178,8 +190,9 @@ fn quick_run_writes_the_table_the_charts_and_the_images() {
     );
     // Paper 004's transparency and shadows against the mesh peeled and shadowed the same way:
     // six layers at half opacity at least 25 dB; the lit or shadowed state right for at least
-    // 95 % of the pixels (37.2 dB and 99.3 % on lavapipe).
-    // Rows of that table: scene, density, setting, PSNR, SSIM, state, speckle, GPU ms.
+    // 95 % of the pixels, and since most pixels are lit (a frame without shadows scores the lit share),
+    // the shadows' intersection over union at least 0.6 (38.7 dB, 99.5 % and 0.78 on lavapipe).
+    // Rows of that table: scene, density, setting, PSNR, SSIM, state, IoU, speckle, GPU ms.
     let cells = |scene: &str, setting: &str| -> Vec<String> {
         summary
             .lines()
@@ -200,12 +213,19 @@ fn quick_run_writes_the_table_the_charts_and_the_images() {
     let layers = cells("layers", "layers=6 opacity=0.5");
     assert!(number(&layers[4]) >= 25.0, "transparency: {layers:?}");
     let shadow = cells("shadow", "shadows=1 2px");
-    assert!(number(&shadow[6]) >= 95.0, "shadows: {shadow:?}");
-    // A light grazing the floor, and soft shadows whose penumbra has no speckle (0.29 %).
+    assert!(
+        number(&shadow[6]) >= 95.0 && number(&shadow[7]) >= 0.6,
+        "shadows: {shadow:?}"
+    );
+    // A light grazing the floor (0.77), and soft shadows whose penumbra has no speckle
+    // (0.66 %).
     let grazing = cells("shadow", "shadows=1 grazing");
-    assert!(number(&grazing[6]) >= 90.0, "grazing light: {grazing:?}");
+    assert!(
+        number(&grazing[6]) >= 90.0 && number(&grazing[7]) >= 0.6,
+        "grazing light: {grazing:?}"
+    );
     let soft = cells("shadow", "shadows=2");
-    assert!(number(&soft[7]) < 1.0, "soft shadows' speckle: {soft:?}");
+    assert!(number(&soft[8]) < 1.0, "soft shadows' speckle: {soft:?}");
     // Paper 002's triangulation after its warm-up: its targets met on every frame where
     // points leave holes, and back within 8 frames of a camera jump on every view (at most 4
     // on lavapipe).

@@ -215,8 +215,8 @@ fn main() -> anyhow::Result<()> {
                         scene: scene.name.clone(),
                         view: vi,
                         pipeline: r.config.pipeline.name.into(),
+                        lighting: r.config.lighting_name(),
                         setting: r.config.setting,
-                        lighting: r.config.pipeline.lighting.name(),
                         density,
                         noise,
                         metrics: r.metrics,
@@ -360,7 +360,7 @@ struct ConfigResult {
     albedo_psnr: f64,
     albedo_ssim: f64,
     gpu_ms: f64,
-    shadow_match: Option<(f64, f64)>,
+    shadow_match: Option<(f64, f64, f64)>,
 }
 
 fn render_view(
@@ -467,6 +467,7 @@ fn render_view(
             surface,
         };
         let param = |spec: &ParamSpec| stats.params.get(spec.name).copied().unwrap_or(spec.default);
+        let mut shadow_match = None;
         let lit = match peeled {
             Some((layers, opacity)) => reference.render_peeled(
                 ctx,
@@ -478,42 +479,55 @@ fn render_view(
                 layers,
                 opacity,
             )?,
+            // Lit from the configuration's light, with the mesh's own shadows (a ray per
+            // pixel towards the light), and each pixel's lit or shadowed state scored.
+            None if config.shadowed() => {
+                // The same view without shadows: what a lit pixel of the frame looks like.
+                let mut unshadowed = settings.clone();
+                unshadowed.set_param("shadows=0")?;
+                renderer.frame(camera, w, h, &unshadowed)?;
+                renderer.wait_gpu()?;
+                let (_, _, plain) = renderer.read_image()?;
+                let lit_by_mesh = shadows::lit_by_mesh(
+                    &scene.mesh,
+                    renderer.dataset().anchor(),
+                    camera.view(),
+                    tan_half,
+                    (w, h),
+                    &reference_image.surface,
+                    config.light(),
+                );
+                let region: Vec<bool> = reference_image
+                    .surface
+                    .iter()
+                    .zip(&frame.surface)
+                    .map(|(r, f)| r.is_some() && f.is_some())
+                    .collect();
+                let scores =
+                    shadows::shadow_scores(&rgba, &plain, &albedo, &lit_by_mesh, &region, (w, h));
+                shadow_match = Some((scores.state, scores.shadow_iou, scores.speckle));
+                let directional = reference.render_lit(
+                    ctx,
+                    camera.view(),
+                    camera.projection(aspect, near, far),
+                    w,
+                    h,
+                    base.background,
+                    config.light(),
+                )?;
+                shadows::shadowed_reference(
+                    &directional.rgba,
+                    &reference_image.albedo,
+                    &lit_by_mesh,
+                )
+            }
             None => lit_as(
                 &reference_image,
                 p.lighting,
                 (param(&edl::STRENGTH), param(&edl::RADIUS)),
             ),
         };
-        let mut metrics = compare(&lit, &reference_image.surface, &frame, tan_half);
-        let mut shadow_match = None;
-        if config.shadowed() {
-            // The same view without shadows: the lit colours the mesh's lit pixels keep.
-            let mut unshadowed = settings.clone();
-            unshadowed.set_param("shadows=0")?;
-            renderer.frame(camera, w, h, &unshadowed)?;
-            renderer.wait_gpu()?;
-            let (_, _, plain) = renderer.read_image()?;
-            let lit_by_mesh = shadows::lit_by_mesh(
-                &scene.mesh,
-                renderer.dataset().anchor(),
-                camera.view(),
-                tan_half,
-                (w, h),
-                &reference_image.surface,
-                config.light(),
-            );
-            let region: Vec<bool> = reference_image
-                .surface
-                .iter()
-                .zip(&frame.surface)
-                .map(|(r, f)| r.is_some() && f.is_some())
-                .collect();
-            let scores =
-                shadows::shadow_scores(&rgba, &plain, &albedo, &lit_by_mesh, &region, (w, h));
-            metrics.psnr = scores.psnr;
-            metrics.ssim = scores.ssim;
-            shadow_match = Some((scores.state, scores.speckle));
-        }
+        let metrics = compare(&lit, &reference_image.surface, &frame, tan_half);
         let (albedo_psnr, albedo_ssim) = albedo_scores(
             &reference_image.albedo,
             &reference_image.surface,
@@ -565,7 +579,9 @@ fn temporal_rows(
         };
         load_all(renderer, camera, size.0, size.1, &settings)?;
         let jump_frames = if pipeline.previous_frame {
-            Some(temporal::jump_frames(renderer, &settings, camera, size)?)
+            Some(temporal::jump_frames(
+                renderer, &settings, reference, ctx, camera, size,
+            )?)
         } else {
             None
         };

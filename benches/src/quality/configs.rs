@@ -36,6 +36,16 @@ impl Config {
         glam::Vec3::new(axis("light.x"), axis("light.y"), axis("light.z"))
     }
 
+    /// The lighting its picture is scored under: a shadowed configuration's light fixed in the
+    /// world, with the mesh's shadows, replaces the pipeline's own.
+    pub fn lighting_name(&self) -> &'static str {
+        if self.shadowed() {
+            "directional Blinn-Phong with shadows"
+        } else {
+            self.pipeline.lighting.name()
+        }
+    }
+
     /// The scene a variant is made for; `None`: every scene.
     pub fn scene(&self) -> Option<&'static str> {
         if self.peeled().is_some() {
@@ -79,7 +89,8 @@ const VARIANTS: &[Variant] = &[
         2.0,
         "shadows=1 2px",
     ),
-    // The stability sweep of the shadows: a light grazing the floor (about 10° above it).
+    // The stability sweep of the shadows: a light grazing the floor (about 15° above it, from
+    // in front, so that the ball's long shadow falls on the floor in view).
     (
         "filters",
         &[
@@ -111,7 +122,7 @@ const LAYERS_SCENE: &str = "layers";
 const SHADOW_SCENE: &str = "shadow";
 /// The shadow scene's light: towards +x, -y and up; and one grazing the floor.
 const SHADOW_LIGHT: [f32; 3] = [0.5, -0.3, 1.0];
-const GRAZING_LIGHT: [f32; 3] = [0.98, -0.2, 0.18];
+const GRAZING_LIGHT: [f32; 3] = [0.25, -0.95, 0.27];
 
 /// Every registered pipeline at its defaults with one- and two-pixel points, and, in the full
 /// run, each automatic parameter at half and twice its automatic value: the sweeps come from

@@ -16,7 +16,7 @@ pub struct Frame<'a> {
 pub struct Metrics {
     /// Over the pixels where either image shows the object, in dB (capped at 100).
     pub psnr: f64,
-    /// Mean SSIM (7x7 windows, luminance) over the same pixels.
+    /// Mean SSIM (11x11 Gaussian windows, luminance) over the same pixels.
     pub ssim: f64,
     /// Mean |depth - reference depth| / reference depth where both show a surface.
     pub depth_err: f64,
@@ -103,7 +103,7 @@ pub fn albedo_scores(
     colour_scores(reference_albedo, albedo, &region, w, h)
 }
 
-/// PSNR (dB, capped at 100) and mean SSIM (7x7 windows, luminance) of `rgba` against
+/// PSNR (dB, capped at 100) and mean SSIM (11x11 Gaussian windows, luminance) of `rgba` against
 /// `reference` over the pixels of `region`.
 pub fn colour_scores(
     reference: &[u8],
@@ -143,46 +143,57 @@ fn mean(values: impl Iterator<Item = f64>) -> f64 {
     if count == 0 { 0.0 } else { sum / count as f64 }
 }
 
-/// Per-pixel SSIM over 7x7 windows (clipped at the borders), from summed-area tables.
+/// Per-pixel SSIM (Wang, Bovik, Sheikh and Simoncelli 2004): statistics over an 11x11 Gaussian
+/// window of deviation 1.5 pixels, clipped at the borders (its weights there renormalised),
+/// with K1 = 0.01, K2 = 0.03 and a dynamic range of 1.
 pub fn ssim(a: &[f64], b: &[f64], w: usize, h: usize) -> Vec<f64> {
-    const R: usize = 3;
     const C1: f64 = 0.01 * 0.01;
     const C2: f64 = 0.03 * 0.03;
-    let table = |f: &dyn Fn(usize) -> f64| {
-        let mut t = vec![0.0f64; (w + 1) * (h + 1)];
-        for y in 0..h {
-            let mut row = 0.0;
-            for x in 0..w {
-                row += f(y * w + x);
-                t[(y + 1) * (w + 1) + x + 1] = t[y * (w + 1) + x + 1] + row;
+    let product =
+        |x: &[f64], y: &[f64]| -> Vec<f64> { x.iter().zip(y).map(|(p, q)| p * q).collect() };
+    let (ma, mb) = (gaussian_blur(a, w, h), gaussian_blur(b, w, h));
+    let saa = gaussian_blur(&product(a, a), w, h);
+    let sbb = gaussian_blur(&product(b, b), w, h);
+    let sab = gaussian_blur(&product(a, b), w, h);
+    (0..w * h)
+        .map(|i| {
+            let (ma, mb) = (ma[i], mb[i]);
+            let va = (saa[i] - ma * ma).max(0.0);
+            let vb = (sbb[i] - mb * mb).max(0.0);
+            let cov = sab[i] - ma * mb;
+            ((2.0 * ma * mb + C1) * (2.0 * cov + C2)) / ((ma * ma + mb * mb + C1) * (va + vb + C2))
+        })
+        .collect()
+}
+
+/// `f` averaged over an 11x11 Gaussian window of deviation 1.5 pixels (separably), the window
+/// clipped at the image's borders and its weights renormalised there.
+fn gaussian_blur(f: &[f64], w: usize, h: usize) -> Vec<f64> {
+    const R: i64 = 5;
+    const SIGMA: f64 = 1.5;
+    let weights: Vec<f64> = (-R..=R)
+        .map(|k| (-((k * k) as f64) / (2.0 * SIGMA * SIGMA)).exp())
+        .collect();
+    // One pass along rows (`step` 1, `len` w) or columns (`step` w, `len` h).
+    let pass = |src: &[f64], len: usize, lines: usize, step: usize, stride: usize| {
+        let mut out = vec![0.0; src.len()];
+        for line in 0..lines {
+            for i in 0..len as i64 {
+                let (mut sum, mut weight) = (0.0, 0.0);
+                for (k, g) in (-R..=R).zip(&weights) {
+                    let j = i + k;
+                    if (0..len as i64).contains(&j) {
+                        sum += g * src[line * stride + j as usize * step];
+                        weight += g;
+                    }
+                }
+                out[line * stride + i as usize * step] = sum / weight;
             }
         }
-        t
+        out
     };
-    let sa = table(&|i| a[i]);
-    let sb = table(&|i| b[i]);
-    let saa = table(&|i| a[i] * a[i]);
-    let sbb = table(&|i| b[i] * b[i]);
-    let sab = table(&|i| a[i] * b[i]);
-    let mut out = vec![0.0; w * h];
-    for y in 0..h {
-        let (y0, y1) = (y.saturating_sub(R), (y + R + 1).min(h));
-        for x in 0..w {
-            let (x0, x1) = (x.saturating_sub(R), (x + R + 1).min(w));
-            let area = ((y1 - y0) * (x1 - x0)) as f64;
-            let sum = |t: &[f64]| {
-                t[y1 * (w + 1) + x1] - t[y0 * (w + 1) + x1] - t[y1 * (w + 1) + x0]
-                    + t[y0 * (w + 1) + x0]
-            };
-            let (ma, mb) = (sum(&sa) / area, sum(&sb) / area);
-            let va = (sum(&saa) / area - ma * ma).max(0.0);
-            let vb = (sum(&sbb) / area - mb * mb).max(0.0);
-            let cov = sum(&sab) / area - ma * mb;
-            out[y * w + x] = ((2.0 * ma * mb + C1) * (2.0 * cov + C2))
-                / ((ma * ma + mb * mb + C1) * (va + vb + C2));
-        }
-    }
-    out
+    let rows = pass(f, w, h, 1, w);
+    pass(&rows, h, w, w, 1)
 }
 
 /// The frame's own normals, or where it has none, normals from its depth by the cross product
@@ -227,6 +238,22 @@ fn normals_of(frame: &Frame, tan_half: [f32; 2]) -> Vec<Option<Vec3>> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn ssim_is_wangs_over_an_11_pixel_gaussian_window() {
+        let (w, h) = (32, 32);
+        // Two flat images: luminance term alone, (2 μa μb + C1) / (μa² + μb² + C1).
+        let (a, b) = (vec![0.5; w * h], vec![0.6; w * h]);
+        let want = (2.0 * 0.5 * 0.6 + 1e-4) / (0.25 + 0.36 + 1e-4);
+        assert!(ssim(&a, &b, w, h).iter().all(|v| (v - want).abs() < 1e-12));
+        // One pixel changed: the window reaches 5 pixels from its centre, not 6.
+        let mut c = vec![0.5; w * h];
+        c[16 * w + 16] = 1.0;
+        let map = ssim(&a, &c, w, h);
+        assert!(map[16 * w + 21] < 1.0 && map[21 * w + 16] < 1.0);
+        assert_eq!(map[16 * w + 22], 1.0);
+        assert_eq!(map[22 * w + 16], 1.0);
+    }
 
     fn flat(w: u32, h: u32, rgb: [u8; 3]) -> Vec<u8> {
         (0..w * h)

@@ -1,5 +1,6 @@
 //! The ground truth: a mesh drawn with wgpu triangles under the viewer's camera into its albedo
-//! (unlit colour), the same lit by the shared headlight Blinn-Phong, and a surface image
+//! (unlit colour), the same lit by the shared headlight Blinn-Phong (or, for a pipeline given a
+//! light fixed in the world, the shared Blinn-Phong from that direction), and a surface image
 //! (view-space normal and linear depth per pixel). `lit_as` gives the reference for a
 //! pipeline's own lighting, so that no pipeline is scored against a light it does not use.
 
@@ -15,6 +16,8 @@ const SHADER: &str = r#"
 struct Uniforms {
     view_proj: mat4x4<f32>,
     view: mat4x4<f32>,
+    // View-space direction towards a light fixed in the world; w = 0: the headlight.
+    light: vec4<f32>,
     width: u32,
 }
 @group(0) @binding(0) var<uniform> u: Uniforms;
@@ -82,7 +85,11 @@ fn shade(f: Out) -> Targets {
         n = -n;
     }
     var t: Targets;
-    t.colour = vec4<f32>(clamp(headlight(albedo, n, v), vec3<f32>(0.0), vec3<f32>(1.0)), 1.0);
+    var lit = headlight(albedo, n, v);
+    if u.light.w > 0.5 {
+        lit = phong(albedo, n, v, normalize(u.light.xyz), 1.0);
+    }
+    t.colour = vec4<f32>(clamp(lit, vec3<f32>(0.0), vec3<f32>(1.0)), 1.0);
     t.surface = vec4<f32>(n, -f.view_pos.z);
     t.albedo = vec4<f32>(clamp(albedo, vec3<f32>(0.0), vec3<f32>(1.0)), 1.0);
     return t;
@@ -103,6 +110,7 @@ struct Vertex {
 struct Uniforms {
     view_proj: [[f32; 4]; 4],
     view: [[f32; 4]; 4],
+    light: [f32; 4],
     width: u32,
     pad: [u32; 3],
 }
@@ -111,7 +119,7 @@ struct Uniforms {
 pub struct ReferenceImage {
     pub width: u32,
     pub height: u32,
-    /// Lit by the headlight Blinn-Phong.
+    /// Lit by the headlight Blinn-Phong, or by the light `render_lit` was given.
     pub rgba: Vec<u8>,
     /// The unlit surface colour.
     pub albedo: Vec<u8>,
@@ -250,7 +258,27 @@ impl ReferenceRenderer {
         height: u32,
         background: [u8; 3],
     ) -> anyhow::Result<ReferenceImage> {
-        self.draw(ctx, view, projection, width, height, background, None)
+        self.draw(ctx, view, projection, width, height, background, None, None)
+    }
+
+    /// As `render`, lit by the shared Blinn-Phong from world direction `light` (towards the
+    /// light), unshadowed.
+    #[allow(clippy::too_many_arguments)]
+    pub fn render_lit(
+        &self,
+        ctx: &GpuContext,
+        view: Mat4,
+        projection: Mat4,
+        width: u32,
+        height: u32,
+        background: [u8; 3],
+        light: glam::Vec3,
+    ) -> anyhow::Result<ReferenceImage> {
+        let towards = view.transform_vector3(light.normalize());
+        let light = Some(towards);
+        self.draw(
+            ctx, view, projection, width, height, background, None, light,
+        )
     }
 
     /// The mesh as `layers` depth-peeled layers of front faces, each lit by the headlight and
@@ -280,6 +308,7 @@ impl ReferenceRenderer {
                 height,
                 background,
                 Some(before.as_slice()),
+                None,
             )?;
             for (i, s) in layer.surface.iter().enumerate() {
                 match s {
@@ -310,7 +339,8 @@ impl ReferenceRenderer {
             .collect())
     }
 
-    /// One draw of the mesh; with `before` (linear depth per pixel) a peeled layer.
+    /// One draw of the mesh; with `before` (linear depth per pixel) a peeled layer; with
+    /// `light` (view space, towards it) lit from there instead of by the headlight.
     #[allow(clippy::too_many_arguments)]
     fn draw(
         &self,
@@ -321,6 +351,7 @@ impl ReferenceRenderer {
         height: u32,
         background: [u8; 3],
         before: Option<&[f32]>,
+        light: Option<glam::Vec3>,
     ) -> anyhow::Result<ReferenceImage> {
         let device = &ctx.device;
         let target = |label: &str, format: wgpu::TextureFormat| {
@@ -346,6 +377,7 @@ impl ReferenceRenderer {
         let uniforms = Uniforms {
             view_proj: (projection * view).to_cols_array_2d(),
             view: view.to_cols_array_2d(),
+            light: light.map_or([0.0; 4], |l| [l.x, l.y, l.z, 1.0]),
             width,
             pad: [0; 3],
         };
@@ -544,3 +576,7 @@ pub fn lit_as(image: &ReferenceImage, lighting: Lighting, edl: (f32, f32)) -> Ve
         Lighting::EyeDome => eye_dome(image, &image.albedo, edl.0, edl.1),
     }
 }
+
+#[cfg(test)]
+#[path = "reference_layout.rs"]
+mod layout;

@@ -27,9 +27,9 @@ pub struct Row {
     pub gpu_ms: f64,
     pub stability: bool,
     /// Shadowed frames: the share of the scored pixels whose lit or shadowed state matches
-    /// the mesh's, and the share of the penumbra's pixels that are speckle
-    /// (`shadows::shadow_scores`).
-    pub shadow_match: Option<(f64, f64)>,
+    /// the mesh's, the shadows' intersection over union, and the share of the penumbra's
+    /// pixels that are speckle (`shadows::shadow_scores`).
+    pub shadow_match: Option<(f64, f64, f64)>,
 }
 
 impl Row {
@@ -103,16 +103,20 @@ fn layers_and_shadows(rows: &[Row]) -> String {
         return String::new();
     }
     let mut md = String::from(
-        "\n## Transparency and shadows\n\n| scene | density | setting | PSNR dB | SSIM | lit/shadowed state right | penumbra speckle | GPU ms |\n|---|---|---|---|---|---|---|---|\n",
+        "\n## Transparency and shadows\n\n| scene | density | setting | PSNR dB | SSIM | lit/shadowed state right | shadow IoU | penumbra speckle | GPU ms |\n|---|---|---|---|---|---|---|---|---|\n",
     );
     for r in picked {
-        let (state, speckle) = match r.shadow_match {
-            Some((m, s)) => (format!("{:.1} %", 100.0 * m), format!("{:.2} %", 100.0 * s)),
-            None => ("-".to_string(), "-".to_string()),
+        let (state, iou, speckle) = match r.shadow_match {
+            Some((m, iou, s)) => (
+                format!("{:.1} %", 100.0 * m),
+                format!("{iou:.3}"),
+                format!("{:.2} %", 100.0 * s),
+            ),
+            None => ("-".to_string(), "-".to_string(), "-".to_string()),
         };
         let _ = writeln!(
             md,
-            "| {} | {:.3} | {} | {:.2} | {:.3} | {state} | {speckle} | {:.1} |",
+            "| {} | {:.3} | {} | {:.2} | {:.3} | {state} | {iou} | {speckle} | {:.1} |",
             r.scene, r.density, r.setting, r.metrics.psnr, r.metrics.ssim, r.gpu_ms
         );
     }

@@ -202,12 +202,14 @@ fn stability_scenes(quick: bool) -> Vec<Scene> {
         points: Points::Sampled,
         stability: true,
     });
-    // A ball over a floor, for shadows (the light is the harness's SHADOW_LIGHT).
+    // A ball over a floor, for shadows (the lights are the harness's SHADOW_LIGHT and
+    // GRAZING_LIGHT); the floor reaches far enough behind the ball for the long shadow of the
+    // grazing light to fall on it in view.
     let mut shadow = plane(
-        Vec3::new(-1.5, -1.5, 0.0),
-        Vec3::X * 3.0,
-        Vec3::Y * 3.0,
-        16,
+        Vec3::new(-2.5, -1.5, 0.0),
+        Vec3::X * 5.0,
+        Vec3::Y * 5.5,
+        24,
         Vec3::new(0.8, 0.75, 0.7),
     );
     shadow.append(&sphere(

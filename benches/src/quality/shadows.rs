@@ -1,9 +1,9 @@
 //! The reference of point shadows (paper 004, section 6): which of the mesh's visible surface
 //! pixels a directional light reaches, by a ray from each towards the light against every
-//! triangle; and the scores of a shadowed frame against it.
+//! triangle; the mesh's picture with those shadows; and the scores of a shadowed frame's lit or
+//! shadowed states against them.
 
 use super::mesh::Mesh;
-use super::metrics::colour_scores;
 use glam::{DVec3, Mat4, Vec3};
 use strata_viewer::pipelines::LIGHTING_WGSL;
 
@@ -96,21 +96,42 @@ fn hits(o: Vec3, d: Vec3, [a, b, c]: &[Vec3; 3]) -> bool {
     e2.dot(q) * inv > 0.0
 }
 
-/// How a shadowed frame matches the mesh's shadows.
+/// The mesh lit from the light (`lit`: its picture unshadowed, `albedo` its unlit colour) with
+/// its shadows: where the light does not reach, the ambient term alone (the shared Blinn-Phong
+/// with nothing of the light arriving), as a shadowed point is lit.
+pub fn shadowed_reference(lit: &[u8], albedo: &[u8], reached: &[Option<bool>]) -> Vec<u8> {
+    let ambient = ambient();
+    let mut out = lit.to_vec();
+    for (i, _) in reached
+        .iter()
+        .enumerate()
+        .filter(|(_, r)| **r == Some(false))
+    {
+        for c in 0..3 {
+            out[4 * i + c] = (albedo[4 * i + c] as f32 * ambient).round() as u8;
+        }
+    }
+    out
+}
+
+/// How a shadowed frame's lit and shadowed states match the mesh's shadows.
 pub struct ShadowScores {
     /// The share of the scored pixels (a surface in both, facing the light) whose lit or
     /// shadowed state agrees with the mesh's.
     pub state: f64,
-    /// PSNR and SSIM of the frame against the same pipeline's picture without shadows where
-    /// the mesh is lit and its ambient colour (albedo times the ambient share) where not.
-    pub psnr: f64,
-    pub ssim: f64,
+    /// Of the scored pixels shadowed in the frame or by the mesh, the share shadowed in both:
+    /// where shadows cover little of the picture, `state` is high without any (a frame that
+    /// draws none scores the lit share), this is not.
+    pub shadow_iou: f64,
     /// Of the penumbra's pixels (between lit and shadowed by more than a tenth either way),
     /// the share darker, by more than 2 % of the way from shadowed to lit, than both
     /// neighbours across the penumbra (along the axis its brightness changes most on): speckle.
     pub speckle: f64,
 }
 
+/// `frame` against the mesh's shadows (`lit`), a pixel's state read against the same
+/// pipeline's picture without shadows (`unshadowed`) and its unlit colour (`albedo`), over the
+/// pixels of `region`.
 pub fn shadow_scores(
     frame: &[u8],
     unshadowed: &[u8],
@@ -121,27 +142,21 @@ pub fn shadow_scores(
 ) -> ShadowScores {
     let ambient = ambient();
     let luma = |p: &[u8]| 0.299 * p[0] as f32 + 0.587 * p[1] as f32 + 0.114 * p[2] as f32;
-    let mut reference = unshadowed.to_vec();
     let (mut scored, mut agree) = (0usize, 0usize);
+    let (mut both, mut either) = (0usize, 0usize);
     for (i, state) in lit.iter().enumerate() {
         let Some(reached) = state else { continue };
         let px = 4 * i..4 * i + 4;
-        let dark: Vec<u8> = albedo[px.clone()]
-            .iter()
-            .take(3)
-            .map(|&c| (c as f32 * ambient).round() as u8)
-            .collect();
-        if !reached {
-            reference[4 * i..4 * i + 3].copy_from_slice(&dark);
-        }
         if region[i] {
-            let (y, bright, low) = (luma(&frame[px.clone()]), luma(&unshadowed[px]), luma(&dark));
+            let low = luma(&albedo[px.clone()]) * ambient;
+            let (y, bright) = (luma(&frame[px.clone()]), luma(&unshadowed[px]));
             let frame_lit = (y - bright).abs() < (y - low).abs();
             scored += 1;
             agree += usize::from(frame_lit == *reached);
+            both += usize::from(!frame_lit && !reached);
+            either += usize::from(!frame_lit || !reached);
         }
     }
-    let (psnr, ssim) = colour_scores(&reference, frame, region, size.0 as usize, size.1 as usize);
     // Speckle across the penumbra.
     let (w, h) = (size.0 as usize, size.1 as usize);
     let y = |i: usize| luma(&frame[4 * i..4 * i + 4]);
@@ -174,8 +189,7 @@ pub fn shadow_scores(
     }
     ShadowScores {
         state: agree as f64 / scored.max(1) as f64,
-        psnr,
-        ssim,
+        shadow_iou: both as f64 / either.max(1) as f64,
         speckle: speckled as f64 / penumbra.max(1) as f64,
     }
 }

@@ -10,8 +10,6 @@ use strata_viewer::lod::clip_range;
 use strata_viewer::pipelines::{PipelineInfo, edl, params::ParamSpec};
 use strata_viewer::{Camera, Renderer, Settings};
 
-/// The measure a pipeline reports its hole rate under (`--stats` measures).
-pub const HOLE_RATE: &str = strata_viewer::pipelines::triangulate::HOLE_RATE;
 /// The jump the convergence is measured after: the camera turned this far about the target.
 pub const JUMP_DEG: f32 = 60.0;
 /// The orbit: this many frames, each turned this far about the target's vertical.
@@ -61,13 +59,28 @@ pub fn settled_after(rates: &[f32]) -> u32 {
 }
 
 /// Frames `settings` needs after jumping to `camera` from the camera turned `JUMP_DEG` away,
-/// settled there first.
+/// settled there first: the hole rate is the harness's own (the reference mesh's surface
+/// pixels left empty), not the pipeline's estimate, which cannot see gaps wider than its
+/// search.
 pub fn jump_frames(
     renderer: &mut Renderer,
     settings: &Settings,
+    reference: &ReferenceRenderer,
+    ctx: &GpuContext,
     camera: &Camera,
     (w, h): (u32, u32),
 ) -> anyhow::Result<u32> {
+    let (near, far) = clip_range(renderer.dataset(), camera, w as f32 / h as f32);
+    let surface = reference
+        .render(
+            ctx,
+            camera.view(),
+            camera.projection(w as f32 / h as f32, near, far),
+            w,
+            h,
+            settings.background,
+        )?
+        .surface;
     let away = turned(camera, JUMP_DEG);
     for _ in 0..=settings.pipeline.warmup_frames(&settings.params) {
         renderer.frame(&away, w, h, settings)?;
@@ -77,12 +90,13 @@ pub fn jump_frames(
     for _ in 0..JUMP_HORIZON {
         renderer.frame(camera, w, h, settings)?;
         renderer.wait_gpu()?;
-        let measures = renderer.read_measures()?;
-        let rate = measures
-            .get(HOLE_RATE)
-            .copied()
-            .ok_or_else(|| anyhow::anyhow!("{} reports no {HOLE_RATE}", settings.pipeline.name))?;
-        rates.push(rate);
+        let frame = renderer.read_surface()?;
+        let (mut holes, mut of) = (0usize, 0usize);
+        for (r, f) in surface.iter().zip(&frame) {
+            of += usize::from(r.is_some());
+            holes += usize::from(r.is_some() && f.is_none());
+        }
+        rates.push(holes as f32 / of.max(1) as f32);
     }
     Ok(settled_after(&rates))
 }

