@@ -258,3 +258,89 @@ fn quick_run_writes_the_table_the_charts_and_the_images() {
         .count();
     assert!(images >= 5, "{images} side-by-side images");
 }
+
+/// A mesh of the user's own (`--mesh`) is a scene like the bunny: sampled, converted, rendered
+/// through every pipeline and scored; a file that is no mesh is refused, naming it.
+#[test]
+fn a_users_mesh_is_a_scene_of_its_own() {
+    let out = tempfile::tempdir().expect("temp dir");
+    // A closed octahedron, y up.
+    let ply = out.path().join("octa.ply");
+    let v = [
+        [1.0, 0.0, 0.0],
+        [-1.0, 0.0, 0.0],
+        [0.0, 1.0, 0.0],
+        [0.0, -1.0, 0.0],
+        [0.0, 0.0, 1.0],
+        [0.0, 0.0, -1.0],
+    ];
+    let faces = [
+        [0, 2, 4],
+        [2, 1, 4],
+        [1, 3, 4],
+        [3, 0, 4],
+        [2, 0, 5],
+        [1, 2, 5],
+        [3, 1, 5],
+        [0, 3, 5],
+    ];
+    let mut text = String::from(
+        "ply\nformat ascii 1.0\nelement vertex 6\nproperty float x\nproperty float y\nproperty float z\nelement face 8\nproperty list uchar int vertex_indices\nend_header\n",
+    );
+    for p in v {
+        text += &format!("{} {} {}\n", p[0], p[1], p[2]);
+    }
+    for f in faces {
+        text += &format!("3 {} {} {}\n", f[0], f[1], f[2]);
+    }
+    std::fs::write(&ply, text).expect("write mesh");
+    let backend = std::env::var("WGPU_BACKEND").unwrap_or_else(|_| "vulkan".into());
+    let quality = |args: &[&std::ffi::OsStr]| {
+        Command::new(env!("CARGO_BIN_EXE_quality"))
+            .env("WGPU_BACKEND", &backend)
+            .args(args)
+            .output()
+            .expect("quality runs")
+    };
+    let dir = out.path().join("run");
+    let run = quality(&[
+        "--quick".as_ref(),
+        "--size".as_ref(),
+        "96x72".as_ref(),
+        "--out".as_ref(),
+        dir.as_os_str(),
+        "--mesh".as_ref(),
+        ply.as_os_str(),
+        "--y-up".as_ref(),
+        "--scenes".as_ref(),
+        "octa".as_ref(),
+    ]);
+    let stderr = String::from_utf8_lossy(&run.stderr);
+    assert!(run.status.success(), "quality failed:\n{stderr}");
+    let csv = std::fs::read_to_string(dir.join("quality.csv")).expect("quality.csv");
+    let rows: Vec<&str> = csv.lines().skip(1).collect();
+    assert!(
+        !rows.is_empty() && rows.iter().all(|r| r.starts_with("octa")),
+        "{csv}"
+    );
+    // Points drawn over the sampled octahedron: its surface is seen, not all holes.
+    let holes: Vec<f64> = rows
+        .iter()
+        .filter(|r| r.contains(",pyramid,"))
+        .filter_map(|r| r.split(',').nth(12)?.parse().ok())
+        .collect();
+    assert!(!holes.is_empty() && holes.iter().all(|h| *h < 0.5), "{csv}");
+    let bad = out.path().join("octa.stl");
+    std::fs::write(&bad, "solid").expect("write");
+    let run = quality(&[
+        "--out".as_ref(),
+        dir.as_os_str(),
+        "--mesh".as_ref(),
+        bad.as_os_str(),
+    ]);
+    let stderr = String::from_utf8_lossy(&run.stderr);
+    assert!(
+        !run.status.success() && stderr.contains("octa.stl: not a .ply or .obj file"),
+        "{stderr}"
+    );
+}

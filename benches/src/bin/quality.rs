@@ -10,13 +10,14 @@ use std::path::{Path, PathBuf};
 use std::sync::Arc;
 use std::time::{Duration, Instant};
 use strata_bench::convert_with_normals;
+use strata_bench::quality::cli::{Args, USAGE, parse_args};
 use strata_bench::quality::configs::{Config, configs};
 use strata_bench::quality::mesh::y_up_to_z_up;
 use strata_bench::quality::metrics::{Frame, albedo_scores, compare};
 use strata_bench::quality::reference::{ReferenceImage, ReferenceRenderer, lit_as};
 use strata_bench::quality::report::{Row, charts, init_fonts, side_by_side, summary, write_csv};
 use strata_bench::quality::sample::{PointSet, load_scan, sample_mesh, thin_along_x, write_ply};
-use strata_bench::quality::scenes::{CLAY, Points, Scene, View, scenes};
+use strata_bench::quality::scenes::{CLAY, Points, Scene, View, scenes, user_scene};
 use strata_bench::quality::shadows;
 use strata_bench::quality::temporal::{self, Temporal};
 use strata_viewer::gpu::{GpuContext, ProjectionPath};
@@ -26,85 +27,8 @@ use strata_viewer::pipelines::params::ParamSpec;
 use strata_viewer::settings::SizeMode;
 use strata_viewer::{Camera, Renderer, Settings, StreamDataset};
 
-struct Args {
-    out: PathBuf,
-    quick: bool,
-    width: u32,
-    height: u32,
-    data: PathBuf,
-    /// Only the scenes of these names; all when empty.
-    scenes: Vec<String>,
-    /// The noise levels of the sampled scenes (fractions of the bounding diagonal) in place of
-    /// the run's own, for a sweep of noise alone.
-    noises: Option<Vec<f64>>,
-}
-
-fn parse_args() -> anyhow::Result<Args> {
-    let mut out = None;
-    let mut quick = false;
-    let mut size = None;
-    let mut only = Vec::new();
-    let mut noises = None;
-    let mut data = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../shared/data");
-    let mut it = std::env::args().skip(1);
-    while let Some(a) = it.next() {
-        match a.as_str() {
-            "--out" => out = it.next().map(PathBuf::from),
-            "--quick" => quick = true,
-            "--size" => size = it.next(),
-            "--scenes" => {
-                let list = it.next().context("--scenes needs a comma-separated list")?;
-                only = list.split(',').map(str::to_owned).collect();
-            }
-            "--noises" => {
-                let list = it.next().context("--noises needs a comma-separated list")?;
-                let levels: Result<Vec<f64>, _> = list.split(',').map(str::parse).collect();
-                let levels = levels.with_context(|| format!("--noises {list}: not numbers"))?;
-                if levels.iter().any(|n| !(0.0..=0.1).contains(n)) {
-                    bail!("--noises {list}: each level is a fraction of the diagonal, 0 to 0.1");
-                }
-                noises = Some(levels);
-            }
-            "--data" => {
-                data = it
-                    .next()
-                    .map(PathBuf::from)
-                    .context("--data needs a directory")?
-            }
-            other => bail!("unknown argument {other:?}; usage: {USAGE}"),
-        }
-    }
-    let out = out.context("--out DIR is required")?;
-    let (width, height) = match size {
-        Some(s) => {
-            let (w, h) = s.split_once('x').context("--size is WxH")?;
-            (
-                w.parse().context("--size width")?,
-                h.parse().context("--size height")?,
-            )
-        }
-        None if quick => (320, 240),
-        None => (960, 720),
-    };
-    if !(16..=4096).contains(&width) || !(16..=4096).contains(&height) {
-        bail!("--size {width}x{height} is outside 16 to 4096 pixels");
-    }
-    Ok(Args {
-        out,
-        quick,
-        width,
-        height,
-        data,
-        scenes: only,
-        noises,
-    })
-}
-
 const BUDGET: u64 = 20_000_000;
 const MAX_POINTS: usize = 4_000_000;
-
-const USAGE: &str = "cargo run --release -p strata-bench --bin quality -- --out DIR [--quick] [--size WxH]\n    \
-       [--scenes NAME,NAME] [--noises 0,0.002,0.005] [--data DIR]";
 
 fn main() -> anyhow::Result<()> {
     if strata_bench::answered_help(USAGE) {
@@ -117,6 +41,17 @@ fn main() -> anyhow::Result<()> {
     let ctx = Arc::new(GpuContext::new(ProjectionPath::Auto)?);
     let work = tempfile::tempdir_in(&args.out).context("cannot make a work directory")?;
     let mut scenes = scenes(&args.data, args.quick)?;
+    for m in &args.meshes {
+        let scene = user_scene(m, args.quick)?;
+        if scenes.iter().any(|s| s.name == scene.name) {
+            bail!(
+                "--mesh {}: a scene is already named {:?}; rename the file",
+                m.path.display(),
+                scene.name
+            );
+        }
+        scenes.push(scene);
+    }
     if !args.scenes.is_empty() {
         if let Some(unknown) = args
             .scenes

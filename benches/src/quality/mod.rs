@@ -1,6 +1,7 @@
 //! The quality-versus-speed harness (`--bin quality`): ground-truth meshes, point sets sampled
 //! from them, the reference renderer, the metrics and the report.
 
+pub mod cli;
 pub mod configs;
 pub mod mesh;
 pub mod metrics;

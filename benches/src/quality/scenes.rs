@@ -1,8 +1,10 @@
 //! The scenes the harness renders: each a ground-truth mesh, where its points come from, and
 //! the views to judge it from.
 
+use super::cli::UserMesh;
 use super::mesh::{Mesh, Texture, y_up_to_z_up};
 use super::shapes::{cuboid, plane, sphere};
+use anyhow::{Context, bail};
 use glam::Vec3;
 use std::path::{Path, PathBuf};
 
@@ -101,6 +103,52 @@ pub fn scenes(data: &Path, quick: bool) -> anyhow::Result<Vec<Scene>> {
     ];
     out.extend(stability_scenes(quick));
     Ok(out)
+}
+
+/// A scene of the user's own mesh, sampled and viewed as the bunny and Spot are, named by its
+/// file's stem.
+pub fn user_scene(m: &UserMesh, quick: bool) -> anyhow::Result<Scene> {
+    let ext = m
+        .path
+        .extension()
+        .and_then(|e| e.to_str())
+        .map(str::to_ascii_lowercase);
+    let mut mesh = match (ext.as_deref(), &m.texture) {
+        (Some("ply"), None) => Mesh::load_ply(&m.path, CLAY)?,
+        (Some("ply"), Some(_)) => bail!(
+            "--mesh {}: a texture needs an OBJ's texture coordinates",
+            m.path.display()
+        ),
+        (Some("obj"), texture) => {
+            let texture = match texture {
+                Some(t) => Texture::load_png(t)?,
+                None => Texture::white(),
+            };
+            Mesh::load_obj(&m.path, texture)?
+        }
+        _ => bail!("--mesh {}: not a .ply or .obj file", m.path.display()),
+    };
+    if m.y_up {
+        mesh.map_positions(y_up_to_z_up);
+    }
+    let (lo, hi) = mesh.bounds();
+    if !(hi - lo).is_finite() || (hi - lo).length() <= 0.0 {
+        bail!("--mesh {}: the mesh has no extent", m.path.display());
+    }
+    let name = m
+        .path
+        .file_stem()
+        .and_then(|s| s.to_str())
+        .context("--mesh: the file needs a name")?
+        .to_string();
+    let n = if quick { 1 } else { ORBIT.len() };
+    Ok(Scene {
+        name,
+        views: orbit(&mesh, &ORBIT[..n], 40.0),
+        mesh,
+        points: Points::Sampled,
+        stability: false,
+    })
 }
 
 fn stability_scenes(quick: bool) -> Vec<Scene> {
