@@ -6,6 +6,7 @@ use std::process::Command;
 fn every_benchmark_prints_its_usage_on_help() {
     for (name, exe) in [
         ("convert-bench", env!("CARGO_BIN_EXE_convert-bench")),
+        ("normals-bench", env!("CARGO_BIN_EXE_normals-bench")),
         ("quality", env!("CARGO_BIN_EXE_quality")),
         ("render-bench", env!("CARGO_BIN_EXE_render-bench")),
         ("serve-bench", env!("CARGO_BIN_EXE_serve-bench")),

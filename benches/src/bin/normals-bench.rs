@@ -1,5 +1,5 @@
-//! Accuracy of `strata convert --normals` against ground truth: the bunny and spot meshes
-//! sampled uniformly over their area, without noise and at the quality harness's two noise
+//! Accuracy of `strata convert --normals` against ground truth: the bunny and spot meshes (and
+//! any given with `--mesh`) sampled uniformly over their area, without noise and at the quality harness's two noise
 //! levels, each point carrying the normal of the triangle it came from. The points go
 //! through the real conversion; the normals are read back from the dataset.
 //!
@@ -9,14 +9,16 @@ use anyhow::{Context, bail};
 use glam::Vec3;
 use std::io::Write;
 use std::path::{Path, PathBuf};
+use strata_bench::quality::cli::UserMesh;
 use strata_bench::quality::mesh::{Mesh, triangle_area};
-use strata_bench::quality::scenes::{bunny_mesh, spot_mesh};
+use strata_bench::quality::scenes::{bunny_mesh, load_user_mesh, spot_mesh};
 use strata_converter::synth::Rng;
 use strata_converter::{ConvertOptions, NormalOptions, NormalStep, Orient, Sampling, convert_with};
 use strata_format::{AttrType, LocalDataset, oct16_decode};
 
 const USAGE: &str = "cargo run --release -p strata-bench --bin normals-bench -- [--points 200000]\n    \
-       [--k 16] [--data ../shared/data] [--dir DIR] [--csv FILE]";
+       [--k 16] [--data ../shared/data] [--dir DIR] [--csv FILE] [--mesh FILE.ply|FILE.obj ...]\n    \
+       [--y-up] [--only-meshes]";
 
 /// The quality harness's noise levels, as a share of the bounding diagonal.
 const NOISES: [f64; 3] = [0.0, 0.002, 0.005];
@@ -152,11 +154,24 @@ fn main() -> anyhow::Result<()> {
     let mut data = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../shared/data");
     let mut dir = PathBuf::from("target/bench-data/normals");
     let mut csv = None;
+    let (mut meshes, mut y_up, mut only_meshes) = (Vec::new(), false, false);
     let args: Vec<String> = std::env::args().skip(1).collect();
     let mut it = args.iter();
     while let Some(a) = it.next() {
+        match a.as_str() {
+            "--y-up" => {
+                y_up = true;
+                continue;
+            }
+            "--only-meshes" => {
+                only_meshes = true;
+                continue;
+            }
+            _ => {}
+        }
         let v = it.next().with_context(|| format!("{a} needs a value"))?;
         match a.as_str() {
+            "--mesh" => meshes.push(PathBuf::from(v)),
             "--points" => points = strata_bench::parse_count(v)? as usize,
             "--k" => k = v.parse().context("--k needs a count")?,
             "--data" => data = PathBuf::from(v),
@@ -172,7 +187,25 @@ fn main() -> anyhow::Result<()> {
     );
     println!("|---|---|---|---|---|");
     let mut table = String::from("mesh,noise,median_deg,p95_deg,wrong_side_up\n");
-    for (name, mesh) in [("bunny", bunny_mesh(&data)?), ("spot", spot_mesh(&data)?)] {
+    let mut all = Vec::new();
+    if !only_meshes {
+        all.push(("bunny".to_string(), bunny_mesh(&data)?));
+        all.push(("spot".to_string(), spot_mesh(&data)?));
+    }
+    for path in meshes {
+        let name = path
+            .file_stem()
+            .and_then(|s| s.to_str())
+            .context("--mesh: the file needs a name")?
+            .to_string();
+        let m = UserMesh {
+            path,
+            texture: None,
+            y_up,
+        };
+        all.push((name, load_user_mesh(&m)?));
+    }
+    for (name, mesh) in all {
         let (lo, hi) = mesh.bounds();
         let diagonal = (hi - lo).length();
         for noise in NOISES {

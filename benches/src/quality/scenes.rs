@@ -105,9 +105,9 @@ pub fn scenes(data: &Path, quick: bool) -> anyhow::Result<Vec<Scene>> {
     Ok(out)
 }
 
-/// A scene of the user's own mesh, sampled and viewed as the bunny and Spot are, named by its
-/// file's stem.
-pub fn user_scene(m: &UserMesh, quick: bool) -> anyhow::Result<Scene> {
+/// A mesh of the user's own: a PLY in one colour or an OBJ with its texture, turned to z up
+/// where it has y up.
+pub fn load_user_mesh(m: &UserMesh) -> anyhow::Result<Mesh> {
     let ext = m
         .path
         .extension()
@@ -135,6 +135,13 @@ pub fn user_scene(m: &UserMesh, quick: bool) -> anyhow::Result<Scene> {
     if !(hi - lo).is_finite() || (hi - lo).length() <= 0.0 {
         bail!("--mesh {}: the mesh has no extent", m.path.display());
     }
+    Ok(mesh)
+}
+
+/// A scene of the user's own mesh, sampled and viewed as the bunny and Spot are, named by its
+/// file's stem.
+pub fn user_scene(m: &UserMesh, quick: bool) -> anyhow::Result<Scene> {
+    let mesh = load_user_mesh(m)?;
     let name = m
         .path
         .file_stem()
