@@ -4,6 +4,7 @@
 //! triangulation converges within 8 frames of a camera jump.
 
 use std::collections::HashMap;
+mod common;
 use std::process::Command;
 
 #[test]
@@ -264,36 +265,9 @@ fn quick_run_writes_the_table_the_charts_and_the_images() {
 #[test]
 fn a_users_mesh_is_a_scene_of_its_own() {
     let out = tempfile::tempdir().expect("temp dir");
-    // A closed octahedron, y up.
+    // A closed octahedron, read as y up.
     let ply = out.path().join("octa.ply");
-    let v = [
-        [1.0, 0.0, 0.0],
-        [-1.0, 0.0, 0.0],
-        [0.0, 1.0, 0.0],
-        [0.0, -1.0, 0.0],
-        [0.0, 0.0, 1.0],
-        [0.0, 0.0, -1.0],
-    ];
-    let faces = [
-        [0, 2, 4],
-        [2, 1, 4],
-        [1, 3, 4],
-        [3, 0, 4],
-        [2, 0, 5],
-        [1, 2, 5],
-        [3, 1, 5],
-        [0, 3, 5],
-    ];
-    let mut text = String::from(
-        "ply\nformat ascii 1.0\nelement vertex 6\nproperty float x\nproperty float y\nproperty float z\nelement face 8\nproperty list uchar int vertex_indices\nend_header\n",
-    );
-    for p in v {
-        text += &format!("{} {} {}\n", p[0], p[1], p[2]);
-    }
-    for f in faces {
-        text += &format!("3 {} {} {}\n", f[0], f[1], f[2]);
-    }
-    std::fs::write(&ply, text).expect("write mesh");
+    common::write_octahedron(&ply);
     let backend = std::env::var("WGPU_BACKEND").unwrap_or_else(|_| "vulkan".into());
     let quality = |args: &[&std::ffi::OsStr]| {
         Command::new(env!("CARGO_BIN_EXE_quality"))
