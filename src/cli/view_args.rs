@@ -38,10 +38,10 @@ pub struct ViewArgs {
     /// with ";outside", hiding it); repeatable, up to 4. Nodes outside are not loaded.
     #[arg(long = "clip", value_name = "BOX")]
     pub clip: Vec<String>,
-    /// Point size in pixels, the width of the disc a point covers (or, with --attenuate, in
-    /// multiples of the point spacing).
-    #[arg(long, default_value_t = 3.0)]
-    pub point_size: f32,
+    /// Point size in pixels, the width of the disc a point covers (default 3); or, with
+    /// --attenuate, in multiples of the point spacing (default 2).
+    #[arg(long)]
+    pub point_size: Option<f32>,
     /// Size points by their spacing in the world instead of in pixels.
     #[arg(long)]
     pub attenuate: bool,
@@ -80,12 +80,15 @@ impl ViewArgs {
                 self.budget
             );
         }
-        if !(self.point_size.is_finite() && (0.1..=15.0).contains(&self.point_size)) {
-            anyhow::bail!("--point-size {} is outside 0.1 to 15", self.point_size);
+        let point_size = self
+            .point_size
+            .unwrap_or(if self.attenuate { 2.0 } else { 3.0 });
+        if !(point_size.is_finite() && (0.1..=15.0).contains(&point_size)) {
+            anyhow::bail!("--point-size {point_size} is outside 0.1 to 15");
         }
         let mut settings = Settings {
             budget: self.budget,
-            point_size: self.point_size,
+            point_size,
             size_mode: if self.attenuate {
                 SizeMode::Attenuated
             } else {

@@ -22,3 +22,26 @@ fn a_point_of_size_n_covers_a_disc_n_pixels_across() {
         assert_eq!(covered, 4 * pixels, "point size {size}");
     }
 }
+
+#[test]
+fn attenuated_points_default_to_two_spacings() {
+    // Sized by their spacing, points keep the default multiple of 2 (the pixel default of 3
+    // would draw them half again as wide).
+    let grid: Vec<[f64; 3]> = (0..400)
+        .map(|i| [(i % 20) as f64, (i / 20) as f64, 0.0])
+        .collect();
+    let dataset = converted_points("attenuated", &grid, false);
+    let covered = |args: &[&str]| {
+        let mut all = vec!["--pipeline", "points", "--attenuate"];
+        all.extend_from_slice(args);
+        let rgba = rendered_320x240(&dataset, &all);
+        rgba.chunks_exact(4).filter(|px| drawn(px)).count()
+    };
+    let (default, two, three) = (
+        covered(&[]),
+        covered(&["--point-size", "2"]),
+        covered(&["--point-size", "3"]),
+    );
+    assert_eq!(default, two);
+    assert!(three > two, "{three} pixels at 3 spacings, {two} at 2");
+}

@@ -224,8 +224,13 @@ pub fn check_laz(file: &File, h: &LasHeader) -> Result<(), String> {
     let last_points = match vlr.chunk_size {
         Some(size) => points - size * (chunks - 1),
         None => {
+            if let Some(i) = entries.iter().position(|e| e.point_count == 0) {
+                return Err(format!(
+                    "the chunk table at byte {table_at} gives chunk {i} no points (only chunks at the end may be empty)"
+                ));
+            }
             let listed: u64 = entries.iter().map(|e| e.point_count).sum();
-            if listed != points || entries.iter().any(|e| e.point_count == 0) {
+            if listed != points {
                 return Err(format!(
                     "the chunk table at byte {table_at} lists {listed} points, but header field \"number of point records\" says {points}"
                 ));
