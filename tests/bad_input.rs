@@ -134,11 +134,41 @@ fn ply_faults_after_the_vertices_are_found() {
         &write(dir.path(), "tail.ply", &binary(1, b"garbage")),
         "7 bytes follow the last item of element \"face\"",
     );
-    let ascii = b"ply\nformat ascii 1.0\nelement vertex 1\nproperty float x\nproperty float y\nproperty float z\nelement face 1\nproperty list uchar int vertex_indices\nend_header\n0 0 0\n3 0 0 0\nnot a face\n";
+    let ascii = |faces: u32, body: &str| {
+        format!(
+            "ply\nformat ascii 1.0\nelement vertex 1\nproperty float x\nproperty float y\nproperty float z\nelement face {faces}\nproperty list uchar int vertex_indices\nend_header\n0 0 0\n{body}"
+        )
+    };
     convert_fails(
-        &write(dir.path(), "tail_ascii.ply", ascii),
-        "follow the last item of element \"face\"",
+        &write(
+            dir.path(),
+            "tail_ascii.ply",
+            ascii(1, "3 0 0 0\nnot a face\n").as_bytes(),
+        ),
+        "text follows the last item of element \"face\"",
     );
+    convert_fails(
+        &write(
+            dir.path(),
+            "few_ascii.ply",
+            ascii(3, "3 0 0 0\n3 0 0 0\n").as_bytes(),
+        ),
+        "the file ends inside element \"face\" (item 2)",
+    );
+    // Text PLY is words, not lines: a blank line, or two faces on one line, is fine.
+    for (name, body) in [
+        ("blank.ply", "\n3 0 0 0\n\n3 0 0 0\n"),
+        ("one_line.ply", "3 0 0 0 3 0 0 0\n"),
+    ] {
+        let p = write(dir.path(), name, ascii(2, body).as_bytes());
+        run_ok(&[
+            "convert",
+            s(&p),
+            "-o",
+            s(&dir.path().join(name).with_extension("ds")),
+            "-q",
+        ]);
+    }
 }
 
 #[test]

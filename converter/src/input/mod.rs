@@ -10,6 +10,7 @@ pub mod las_normals;
 pub mod laz_check;
 pub mod ply;
 pub mod ply_header;
+mod ply_skip;
 
 use crate::error::{ConvertError, Result};
 use std::path::{Path, PathBuf};

@@ -4,6 +4,7 @@
 //! is used.
 
 use super::ply_header::{ElementDef, Encoding, PlyHeader, read_header, shown};
+use super::ply_skip::skip_text_elements;
 use super::{PointSource, Precision, SourceInfo};
 use crate::error::{ConvertError, Result};
 use std::fs::File;
@@ -206,11 +207,17 @@ impl PlySource {
         Ok(())
     }
 
-    /// After the last vertex: when no element follows, nothing may (but white space in text).
+    /// After the last vertex: the elements that follow are read through, and after the last
+    /// element nothing may follow (but white space in text).
     fn check_end(&mut self) -> Result<()> {
+        let path = &self.info.path;
+        if self.encoding == Encoding::Ascii && !self.after.is_empty() {
+            return skip_text_elements(&mut self.reader, &self.after, &mut self.left)
+                .map_err(|e| ConvertError::input(path, e));
+        }
         for el in &self.after {
             skip_element(&mut self.reader, el, self.encoding, &mut self.left)
-                .map_err(|e| ConvertError::input(&self.info.path, e))?;
+                .map_err(|e| ConvertError::input(path, e))?;
         }
         if self.left == 0 {
             return Ok(());
@@ -220,13 +227,13 @@ impl PlySource {
         let only_space = rest.iter().all(|b| b.is_ascii_whitespace() || *b == 0);
         if self.encoding != Encoding::Ascii || !only_space {
             let last = match self.after.last() {
-                Some(el) => format!("element \"{}\"", shown(&el.name)),
-                None => format!("the {} vertices", self.info.points),
+                Some(el) => format!("the last item of element \"{}\"", shown(&el.name)),
+                None => format!("the last of the {} vertices", self.info.points),
             };
             return Err(ConvertError::input(
-                &self.info.path,
+                path,
                 format!(
-                    "{} bytes follow the last item of {last}, the header's last element (does the format line say the right encoding?)",
+                    "{} bytes follow {last}, the header's last element (does the format line say the right encoding?)",
                     self.left
                 ),
             ));
