@@ -53,6 +53,16 @@ fn truncated_laz() {
     let b = std::fs::read(data("autzen_trim.laz")).expect("laz");
     let p = write(dir.path(), "cut.laz", &b[..b.len() * 2 / 3]);
     convert_fails(&p, "corrupt or truncated");
+    // Damaged in the middle: the fault is named by the batch decoded at once, not by its
+    // first point alone.
+    let mut flipped = b.clone();
+    let m = flipped.len() / 2;
+    flipped[m..m + 64].iter_mut().for_each(|x| *x ^= 0x5a);
+    let p = write(dir.path(), "flipped.laz", &flipped);
+    convert_fails(
+        &p,
+        "LAZ point data is corrupt or truncated within points 0 to 109999 (counting from 0)",
+    );
 }
 
 #[test]

@@ -116,6 +116,18 @@ fn normal_flags_are_checked_before_any_work() {
         (&["--normals", "--viewpoint", "-5,2"], "X,Y,Z"),
         (&["--normal-k", "8"], "--normals"),
     ];
+    // A negative coordinate first is taken.
+    let ok = dir.path().join("viewpoint");
+    run_ok(&[
+        "convert",
+        s(&las),
+        "-o",
+        s(&ok),
+        "-q",
+        "--normals",
+        "--viewpoint",
+        "-5,2,3",
+    ]);
     for (i, (flags, says)) in cases.iter().enumerate() {
         let out = dir.path().join(format!("ds{i}"));
         let mut args = vec!["convert", s(&las), "-o", s(&out), "-q"];

@@ -248,8 +248,16 @@ impl LasRecords {
                 return Err(ConvertError::output(
                     path,
                     format!(
-                        "a point's {} is {v}, outside what {holds} ({} to {}); export to .ply to keep it",
-                        l.name, l.min, l.max
+                        "a point's {} is {}, outside what {holds} ({} to {}); export to .ply to keep it",
+                        l.name,
+                        // In its own type's digits (an f32's -0.6, not -0.6000000238418579).
+                        if l.ty == AttrType::F32 {
+                            format!("{}", v as f32)
+                        } else {
+                            format!("{v}")
+                        },
+                        l.min,
+                        l.max
                     ),
                 ));
             }

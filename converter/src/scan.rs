@@ -86,6 +86,11 @@ pub fn union_attributes(inputs: &[PathBuf], warnings: &mut Vec<String>) -> Resul
                     // The rows keep the raw integers: one scale must hold for every input.
                     let differs = (0..a.count as usize).find(|&c| u.scaling(c) != a.scaling(c));
                     if let Some(c) = differs {
+                        let component = if a.count > 1 {
+                            format!(" (component {c})")
+                        } else {
+                            String::new()
+                        };
                         let shown = |a: &Attribute| {
                             let (scale, offset) = a.scaling(c);
                             format!("scale {scale} and offset {offset}")
@@ -93,7 +98,7 @@ pub fn union_attributes(inputs: &[PathBuf], warnings: &mut Vec<String>) -> Resul
                         return Err(ConvertError::input(
                             path,
                             format!(
-                                "attribute \"{}\" is stored with {} here but {} in {}; inputs must agree on how an attribute is scaled",
+                                "attribute \"{}\"{component} is stored with {} here but {} in {}; inputs must agree on how an attribute is scaled",
                                 a.name,
                                 shown(a),
                                 shown(u),

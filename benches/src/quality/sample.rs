@@ -170,3 +170,45 @@ pub fn write_ply(path: &Path, points: &PointSet) -> anyhow::Result<()> {
     w.flush()?;
     Ok(())
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use glam::Vec2;
+
+    #[test]
+    fn sampled_normals_are_the_interpolated_vertex_normals() {
+        // A tent of two triangles folded by 90° along their shared edge (x = 0): the vertex
+        // normals on the edge are the faces' mean, so a point's normal turns from its face's
+        // towards the other's as it nears the edge, as the reference shades it.
+        let mut mesh = Mesh::new();
+        for p in [
+            Vec3::new(0.0, 0.0, 0.0),
+            Vec3::new(0.0, 1.0, 0.0),
+            Vec3::new(-1.0, 0.5, -1.0),
+            Vec3::new(1.0, 0.5, -1.0),
+        ] {
+            mesh.push_vertex(p, Vec2::ZERO, Vec3::ONE);
+        }
+        mesh.triangles = vec![[0, 2, 1], [0, 1, 3]];
+        let set = sample_mesh(&mesh, Vec3::new(0.0, 0.5, 5.0), 100.0, 1.0, 0.0, 3, 2000);
+        let faces = mesh
+            .triangles
+            .iter()
+            .map(|t| {
+                let [a, b, c] = mesh.corners(*t);
+                (b - a).cross(c - a).normalize()
+            })
+            .collect::<Vec<_>>();
+        let mut turned = 0;
+        for (p, n) in set.positions.iter().zip(&set.normals) {
+            assert!((n.length() - 1.0).abs() < 1e-5);
+            let face = if p.x < 0.0 { faces[0] } else { faces[1] };
+            // Between its face's normal and the mean of both (45° apart).
+            let from_face = n.dot(face).clamp(-1.0, 1.0).acos().to_degrees();
+            assert!(from_face <= 45.01, "{from_face}° at {p:?}");
+            turned += usize::from(from_face > 1.0);
+        }
+        assert!(turned > set.positions.len() / 2, "{turned}");
+    }
+}

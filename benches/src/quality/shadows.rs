@@ -189,7 +189,12 @@ pub fn shadow_scores(
     }
     ShadowScores {
         state: agree as f64 / scored.max(1) as f64,
-        shadow_iou: both as f64 / either.max(1) as f64,
+        // Neither shadowed anywhere: they agree.
+        shadow_iou: if either == 0 {
+            1.0
+        } else {
+            both as f64 / either as f64
+        },
         speckle: speckled as f64 / penumbra.max(1) as f64,
     }
 }

@@ -88,22 +88,27 @@ fn outline(covered: &[bool], w: usize, h: usize) -> Vec<bool> {
         .collect()
 }
 
-/// `covered` closed by a disc of radius `CLOSING_PX` (dilated, then eroded).
+/// `covered` closed by a disc of radius `CLOSING_PX` (dilated, then eroded), the image's
+/// outside taken as background (a margin of it around the image while closing), so that
+/// nothing is closed up to the border.
 fn closed(covered: &[bool], w: usize, h: usize) -> Vec<bool> {
     if !covered.contains(&true) {
         return covered.to_vec();
     }
-    let dilated: Vec<bool> = distance_to(covered, w, h)
-        .into_iter()
-        .map(|d| d <= CLOSING_PX)
-        .collect();
-    let background: Vec<bool> = dilated.iter().map(|c| !c).collect();
-    if !background.contains(&true) {
-        return dilated;
+    let m = CLOSING_PX.ceil() as usize + 1;
+    let (pw, ph) = (w + 2 * m, h + 2 * m);
+    let mut padded = vec![false; pw * ph];
+    for y in 0..h {
+        padded[(y + m) * pw + m..(y + m) * pw + m + w]
+            .copy_from_slice(&covered[y * w..(y + 1) * w]);
     }
-    distance_to(&background, w, h)
+    let background: Vec<bool> = distance_to(&padded, pw, ph)
         .into_iter()
         .map(|d| d > CLOSING_PX)
+        .collect();
+    let eroded = distance_to(&background, pw, ph);
+    (0..w * h)
+        .map(|i| eroded[(i / w + m) * pw + i % w + m] > CLOSING_PX)
         .collect()
 }
 
@@ -218,6 +223,21 @@ mod tests {
             .collect();
         let e = silhouette_error(&a, &b, w, h);
         assert!(e < 0.5, "{e}");
+    }
+
+    #[test]
+    fn closing_does_not_reach_the_border() {
+        // Rectangles 3 and 5 pixels from the image's left edge, 2 apart all round: the nearer
+        // is not closed up to the border (its outline there would lie 5 from the other's).
+        let (w, h) = (64, 64);
+        let rect = |x0: usize, x1: usize, y0: usize, y1: usize| -> Vec<bool> {
+            (0..w * h)
+                .map(|i| (x0..x1).contains(&(i % w)) && (y0..y1).contains(&(i / w)))
+                .collect()
+        };
+        let (a, b) = (rect(3, 40, 10, 54), rect(5, 38, 12, 52));
+        let e = silhouette_error(&a, &b, w, h);
+        assert!((e - 2.0).abs() < 0.2, "{e}");
     }
 
     #[test]

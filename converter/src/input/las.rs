@@ -123,7 +123,7 @@ impl LasSource {
         // The batch is decoded as a whole (a LAZ's chunks in parallel): the fault lies somewhere
         // in it.
         let batch = format!(
-            "points {} to {}",
+            "points {} to {} (counting from 0)",
             self.read_so_far,
             self.read_so_far + n - 1
         );
