@@ -148,6 +148,34 @@ fn head_validators_multirange_and_listing() {
         &[("If-None-Match", &etag)],
     );
     assert_eq!(again.status, 304);
+    // Weak comparison (RFC 9110, 13.1.2).
+    let weak = format!("W/{etag}");
+    let again = http::request(
+        &server.addr,
+        "GET",
+        "/autzen.strata/metadata.json",
+        &[("If-None-Match", &weak)],
+    );
+    assert_eq!(again.status, 304);
+    // Range is for GET: HEAD answers for the whole file.
+    let head_range = http::request(
+        &server.addr,
+        "HEAD",
+        "/autzen.strata/metadata.json",
+        &[("Range", "bytes=0-9")],
+    );
+    assert_eq!(head_range.status, 200);
+    assert_eq!(
+        head_range.header("Content-Length"),
+        Some(meta_len.to_string().as_str())
+    );
+    let upper = http::request(
+        &server.addr,
+        "GET",
+        "/autzen.strata/metadata.json",
+        &[("Range", "Bytes=0-9")],
+    );
+    assert_eq!((upper.status, upper.body.len()), (206, 10));
     let multi = http::request(
         &server.addr,
         "GET",
@@ -190,9 +218,20 @@ fn head_validators_multirange_and_listing() {
 fn traversal_and_missing_tokens_are_refused() {
     let server = Server::start_in(&root(), &["--quiet", "--token", "s3cret"]);
     let auth = [("Authorization", "Bearer s3cret")];
+    let ok = http::request(&server.addr, "GET", "/autzen.strata/metadata.json", &auth);
+    assert_eq!(ok.status, 200);
+    // Behind a token no shared cache may keep an answer (RFC 9111, 3.5).
+    assert_eq!(ok.header("Cache-Control"), Some("private, max-age=60"));
+    // Without CORS, OPTIONS is not allowed, and Allow says so.
+    let options = http::request(
+        &server.addr,
+        "OPTIONS",
+        "/autzen.strata/metadata.json",
+        &auth,
+    );
     assert_eq!(
-        http::request(&server.addr, "GET", "/autzen.strata/metadata.json", &auth).status,
-        200
+        (options.status, options.header("Allow")),
+        (405, Some("GET, HEAD"))
     );
     for (path, headers) in [
         ("/autzen.strata/metadata.json", &[][..]),
@@ -387,6 +426,32 @@ fn slow_clients_are_cut_off_and_sigterm_stops_gracefully() {
         "a slow client held its connection"
     );
     assert!(n == 0 || String::from_utf8_lossy(&buf[..n]).contains("408"));
+    // Before HTTP/1 and HTTP/2 are told apart: silence, or HTTP/2's preface a byte at a time,
+    // has the header timeout too (they held the connection for the idle limit, and again with
+    // each byte).
+    for dripped in [&b""[..], b"PRI * HTTP/2.0"] {
+        let mut quiet = std::net::TcpStream::connect(&server.addr).expect("connect");
+        quiet
+            .set_read_timeout(Some(Duration::from_secs(8)))
+            .expect("timeout");
+        let start = Instant::now();
+        let mut closed = false;
+        for b in dripped {
+            if quiet.write_all(&[*b]).is_err() {
+                closed = true;
+                break;
+            }
+            std::thread::sleep(Duration::from_millis(300));
+        }
+        if !closed {
+            let _ = quiet.read(&mut buf);
+        }
+        assert!(
+            start.elapsed() < Duration::from_secs(6),
+            "a connection sending {dripped:?} was held {:?}",
+            start.elapsed()
+        );
+    }
 
     let status = Command::new("kill")
         .args(["-TERM", &server.child.id().to_string()])

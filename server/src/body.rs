@@ -14,7 +14,7 @@ use std::task::{Context, Poll};
 pub type ResponseBody = UnsyncBoxBody<Bytes, std::io::Error>;
 
 /// Chunk size when streaming a range too large to read in one go.
-const CHUNK: u64 = 1 << 20;
+const CHUNK: u64 = 256 << 10;
 
 pub fn full(bytes: impl Into<Bytes>) -> ResponseBody {
     Full::new(bytes.into())

@@ -184,16 +184,16 @@ impl Catalog {
         stat.is_file().then_some(path)
     }
 
-    /// Every dataset directly under the root, by name.
-    pub fn list(&self) -> Vec<DatasetEntry> {
-        let Ok(dir) = std::fs::read_dir(&self.root) else {
-            return Vec::new();
-        };
+    /// Every dataset directly under the root, by name; `None` where the root cannot be read
+    /// (gone since the start, say), which is no empty list.
+    pub fn list(&self) -> Option<Vec<DatasetEntry>> {
+        let dir = std::fs::read_dir(&self.root).ok()?;
         let mut out: Vec<DatasetEntry> = dir
             .filter_map(Result::ok)
             .filter_map(|e| {
                 let name = e.file_name().to_str()?.to_string();
-                if name.starts_with('.') {
+                // Hidden, or a name no request can give (`path::segments` refuses it).
+                if name.starts_with('.') || name.contains([':', '\\']) {
                     return None;
                 }
                 let dir = self.dataset_dir(&name)?;
@@ -205,6 +205,6 @@ impl Catalog {
         if let Ok(mut cache) = self.known.lock() {
             cache.retain(|name, _| out.iter().any(|e| &e.name == name));
         }
-        out
+        Some(out)
     }
 }

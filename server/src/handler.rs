@@ -123,7 +123,9 @@ async fn respond<B>(req: &Request<B>, shared: &Shared) -> Response<ResponseBody>
         );
         h.insert(
             header::ACCESS_CONTROL_ALLOW_HEADERS,
-            HeaderValue::from_static("Range, Authorization, If-None-Match, Content-Type"),
+            HeaderValue::from_static(
+                "Range, If-Range, Authorization, If-None-Match, If-Modified-Since, Content-Type",
+            ),
         );
         h.insert(
             header::ACCESS_CONTROL_MAX_AGE,
@@ -151,10 +153,14 @@ async fn respond<B>(req: &Request<B>, shared: &Shared) -> Response<ResponseBody>
             StatusCode::METHOD_NOT_ALLOWED,
             "read-only: GET and HEAD only\n",
         );
-        r.headers_mut().insert(
-            header::ALLOW,
-            HeaderValue::from_static("GET, HEAD, OPTIONS"),
-        );
+        // OPTIONS is answered only where CORS is on (a preflight).
+        let allow = if config.cors.is_some() {
+            "GET, HEAD, OPTIONS"
+        } else {
+            "GET, HEAD"
+        };
+        r.headers_mut()
+            .insert(header::ALLOW, HeaderValue::from_static(allow));
         return r;
     }
     let mut segs = match segments(req.uri().path()) {
@@ -172,7 +178,7 @@ async fn respond<B>(req: &Request<B>, shared: &Shared) -> Response<ResponseBody>
     let (Some(name), Some(dataset)) = (segs.pop(), segs.pop()) else {
         return not_found();
     };
-    let conditions = Conditions::of(req.headers(), head);
+    let conditions = Conditions::of(req.headers(), head, config.token.is_some());
     let catalog = shared.catalog.clone();
     match serve_file::serve(catalog, &shared.pool, dataset, name, conditions).await {
         Ok(r) => r,
@@ -183,7 +189,7 @@ async fn respond<B>(req: &Request<B>, shared: &Shared) -> Response<ResponseBody>
 
 async fn listing(shared: &Shared, head: bool) -> Response<ResponseBody> {
     let catalog = shared.catalog.clone();
-    let Ok(list) = shared.pool.run(move || catalog.list()).await else {
+    let Ok(Some(list)) = shared.pool.run(move || catalog.list()).await else {
         return status(StatusCode::INTERNAL_SERVER_ERROR, "cannot list\n");
     };
     let json = serde_json::to_vec_pretty(&list).unwrap_or_default();

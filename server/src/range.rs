@@ -10,23 +10,34 @@ pub enum RangeRequest {
     Unsatisfiable,
 }
 
-/// Parses `bytes=a-b`, `bytes=a-` and `bytes=-n` against a file of `len` bytes. Several ranges
-/// are refused with 416; a header in another unit is ignored (RFC 9110 allows serving 200).
+/// Parses `bytes=a-b`, `bytes=a-` and `bytes=-n` against a file of `len` bytes (the unit in
+/// any case, empty list elements skipped, RFC 9110 section 14). Several ranges are refused
+/// with 416; a header in another unit is ignored (RFC 9110 allows serving 200).
 pub fn parse_range(header: Option<&str>, len: u64) -> RangeRequest {
     let Some(h) = header else {
         return RangeRequest::Whole;
     };
-    let Some(spec) = h.trim().strip_prefix("bytes=") else {
+    let h = h.trim();
+    let Some(spec) = h
+        .get(..6)
+        .filter(|unit| unit.eq_ignore_ascii_case("bytes="))
+        .map(|_| &h[6..])
+    else {
         return RangeRequest::Whole;
     };
-    if spec.contains(',') {
+    let mut ranges = spec.split(',').map(str::trim).filter(|r| !r.is_empty());
+    let (Some(one), None) = (ranges.next(), ranges.next()) else {
         return RangeRequest::Unsatisfiable;
-    }
-    let Some((a, b)) = spec.trim().split_once('-') else {
+    };
+    let Some((a, b)) = one.split_once('-') else {
         return RangeRequest::Unsatisfiable;
     };
     let (a, b) = (a.trim(), b.trim());
-    let parse = |s: &str| s.parse::<u64>().ok();
+    // Digits only; a number past u64 is a position past any file's end.
+    let parse = |s: &str| {
+        (!s.is_empty() && s.bytes().all(|c| c.is_ascii_digit()))
+            .then(|| s.parse::<u64>().unwrap_or(u64::MAX))
+    };
     let (start, end) = match (a.is_empty(), b.is_empty()) {
         (true, false) => match parse(b) {
             Some(0) | None => return RangeRequest::Unsatisfiable,
@@ -62,6 +73,18 @@ mod tests {
         assert_eq!(parse_range(Some("bytes=-500"), 100), part(0, 100));
         assert_eq!(parse_range(Some("bytes=95-200"), 100), part(95, 100));
         assert_eq!(parse_range(Some("items=0-1"), 100), RangeRequest::Whole);
+        // The unit in any case, empty list elements, and positions past u64.
+        assert_eq!(parse_range(Some("Bytes=0-9"), 100), part(0, 10));
+        assert_eq!(parse_range(Some("bytes=0-9,"), 100), part(0, 10));
+        assert_eq!(parse_range(Some("bytes=, 0-9"), 100), part(0, 10));
+        assert_eq!(
+            parse_range(Some("bytes=0-99999999999999999999"), 100),
+            part(0, 100)
+        );
+        assert_eq!(
+            parse_range(Some("bytes=-99999999999999999999"), 100),
+            part(0, 100)
+        );
         for bad in [
             "bytes=100-",
             "bytes=5-2",
@@ -69,6 +92,8 @@ mod tests {
             "bytes=-0",
             "bytes=x-",
             "bytes=-",
+            "bytes=+0-+9",
+            "bytes=",
         ] {
             assert_eq!(
                 parse_range(Some(bad), 100),

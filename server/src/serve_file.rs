@@ -13,8 +13,10 @@ use std::fs::File;
 use std::sync::Arc;
 use std::time::{SystemTime, UNIX_EPOCH};
 
-/// Ranges up to this size are read in one `pread` into one buffer; larger ones stream.
-const READ_WHOLE_MAX: u64 = 4 << 20;
+/// Ranges up to this size are read in one `pread` into one buffer; larger ones stream, a chunk
+/// at a time as the client takes them. Small, since an answer's buffer lives until the client
+/// reads it (4 MiB let 64 stalled HTTP/2 streams hold 265 MiB).
+const READ_WHOLE_MAX: u64 = 256 << 10;
 
 /// The request headers the answer depends on, owned so they can travel to the pool.
 pub struct Conditions {
@@ -22,10 +24,12 @@ pub struct Conditions {
     if_range: Option<String>,
     if_none_match: Option<String>,
     head: bool,
+    /// Answers only for those who hold the token: no shared cache may keep them.
+    private: bool,
 }
 
 impl Conditions {
-    pub fn of(headers: &HeaderMap, head: bool) -> Conditions {
+    pub fn of(headers: &HeaderMap, head: bool, private: bool) -> Conditions {
         let get = |name| {
             headers
                 .get(name)
@@ -33,10 +37,12 @@ impl Conditions {
                 .map(str::to_string)
         };
         Conditions {
-            range: get(header::RANGE),
+            // RFC 9110, 14.2: Range applies to GET alone; HEAD answers as for the whole.
+            range: get(header::RANGE).filter(|_| !head),
             if_range: get(header::IF_RANGE),
             if_none_match: get(header::IF_NONE_MATCH),
             head,
+            private,
         }
     }
 }
@@ -87,7 +93,12 @@ fn prepare(
         Some("json") => "application/json",
         _ => "application/octet-stream",
     };
-    let matches_etag = |v: &str| v.split(',').any(|t| t.trim() == etag || t.trim() == "*");
+    // Weak comparison (RFC 9110, 13.1.2): a `W/` prefix does not matter.
+    let matches_etag = |v: &str| {
+        v.split(',')
+            .map(str::trim)
+            .any(|t| t == "*" || t.strip_prefix("W/").unwrap_or(t) == etag)
+    };
     let outcome = if c.if_none_match.as_deref().is_some_and(matches_etag) {
         Outcome::NotModified
     } else {
@@ -141,12 +152,17 @@ pub async fn serve(
     name: String,
     c: Conditions,
 ) -> Result<Response<ResponseBody>, Failure> {
+    let cache = if c.private {
+        "private, max-age=60"
+    } else {
+        "public, max-age=60"
+    };
     let job = move || prepare(&catalog, &dataset, &name, c);
     let p = pool.run(job).await.map_err(|_| Failure::Io)??;
     let mut builder = Response::builder()
         .header(header::ACCEPT_RANGES, "bytes")
         .header(header::ETAG, &p.etag)
-        .header(header::CACHE_CONTROL, "public, max-age=60")
+        .header(header::CACHE_CONTROL, cache)
         .header(header::CONTENT_TYPE, p.content_type);
     if let Some(m) = p.modified {
         builder = builder.header(header::LAST_MODIFIED, httpdate::fmt_http_date(m));

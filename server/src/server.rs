@@ -96,11 +96,14 @@ fn connection_builder(config: &ServerConfig) -> auto::Builder<TokioExecutor> {
     builder
         .http2()
         .timer(TokioTimer::new())
-        .max_concurrent_streams(256)
+        // Each open stream may hold an answer's buffer (a range up to 256 KiB, or a streamed
+        // chunk) until the client reads it: few streams, small buffers (256 streams of 4 MiB
+        // let one connection hold a gigabyte).
+        .max_concurrent_streams(32)
         // Windows large enough that a 64 KiB node never waits on a WINDOW_UPDATE.
         .initial_stream_window_size(1 << 20)
         .initial_connection_window_size(16 << 20)
-        .max_send_buf_size(1 << 20);
+        .max_send_buf_size(256 << 10);
     builder
 }
 
@@ -165,7 +168,11 @@ pub async fn run(
         };
         let accepted = Instant::now();
         let _ = stream.set_nodelay(true);
-        let io = TokioIo::new(IdleTimeout::new(stream, config.idle_timeout));
+        let io = TokioIo::new(IdleTimeout::new(
+            stream,
+            config.idle_timeout,
+            config.header_timeout,
+        ));
         let for_service = shared.clone();
         let service = service_fn(move |req| handle(req, peer, for_service.clone()));
         let conn = graceful.watch(builder.serve_connection(io, service).into_owned());
