@@ -50,9 +50,17 @@ impl Entry {
 
     fn line(&self, format: LogFormat) -> String {
         match format {
+            // A quote or a backslash in the path is escaped, so that the quoted request ends
+            // where it seems to.
             LogFormat::Text => format!(
                 "{} \"{} {} {}\" {} {} {:.1}ms\n",
-                self.client, self.method, self.path, self.version, self.status, self.bytes, self.ms
+                self.client,
+                self.method,
+                self.path.replace('\\', "\\\\").replace('"', "\\\""),
+                self.version,
+                self.status,
+                self.bytes,
+                self.ms
             ),
             LogFormat::Json => {
                 let mut s = serde_json::to_string(self).unwrap_or_default();
@@ -110,5 +118,22 @@ fn write_lines(lines: Receiver<String>) {
             let _ = err.write_all(more.as_bytes());
         }
         let _ = err.flush();
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_quote_in_the_path_is_escaped_in_text() {
+        let mut e = Entry::new("127.0.0.1:9".parse().expect("addr"), 404, 0, Duration::ZERO);
+        e.method = "GET".into();
+        e.path = "/x\" HTTP/1.1\\".into();
+        let line = e.line(LogFormat::Text);
+        assert!(
+            line.starts_with("127.0.0.1:9 \"GET /x\\\" HTTP/1.1\\\\ -\" 404 0"),
+            "{line}"
+        );
     }
 }
