@@ -157,6 +157,27 @@ fn head_validators_multirange_and_listing() {
         &[("If-None-Match", &weak)],
     );
     assert_eq!(again.status, 304);
+    // If-Match and If-Unmodified-Since (RFC 9110, 13.1.1 and 13.1.4): a resuming client never
+    // splices two versions of a file.
+    let meta_path = "/autzen.strata/metadata.json";
+    let status_with = |h: &[(&str, &str)]| http::request(&server.addr, "GET", meta_path, h).status;
+    assert_eq!(status_with(&[("If-Match", "\"other\"")]), 412);
+    assert_eq!(status_with(&[("If-Match", &etag)]), 200);
+    let epoch = "Thu, 01 Jan 1970 00:00:00 GMT";
+    assert_eq!(status_with(&[("If-Unmodified-Since", epoch)]), 412);
+    // If-Range by date: the Last-Modified the client saw keeps its range.
+    let modified = head
+        .header("Last-Modified")
+        .expect("last modified")
+        .to_string();
+    assert_eq!(
+        status_with(&[("Range", "bytes=0-9"), ("If-Range", &modified)]),
+        206
+    );
+    assert_eq!(
+        status_with(&[("Range", "bytes=0-9"), ("If-Range", epoch)]),
+        200
+    );
     // Range is for GET: HEAD answers for the whole file.
     let head_range = http::request(
         &server.addr,

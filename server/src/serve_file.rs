@@ -23,6 +23,8 @@ pub struct Conditions {
     range: Option<String>,
     if_range: Option<String>,
     if_none_match: Option<String>,
+    if_match: Option<String>,
+    if_unmodified_since: Option<String>,
     head: bool,
     /// Answers only for those who hold the token: no shared cache may keep them.
     private: bool,
@@ -41,6 +43,8 @@ impl Conditions {
             range: get(header::RANGE).filter(|_| !head),
             if_range: get(header::IF_RANGE),
             if_none_match: get(header::IF_NONE_MATCH),
+            if_match: get(header::IF_MATCH),
+            if_unmodified_since: get(header::IF_UNMODIFIED_SINCE),
             head,
             private,
         }
@@ -49,6 +53,8 @@ impl Conditions {
 
 enum Outcome {
     NotModified,
+    /// If-Match or If-Unmodified-Since failed: 412.
+    PreconditionFailed,
     Unsatisfiable,
     /// Bytes `start..end`: already read, or left to stream from `file`.
     Body {
@@ -99,11 +105,34 @@ fn prepare(
             .map(str::trim)
             .any(|t| t == "*" || t.strip_prefix("W/").unwrap_or(t) == etag)
     };
-    let outcome = if c.if_none_match.as_deref().is_some_and(matches_etag) {
+    let last_modified = modified.map(httpdate::fmt_http_date);
+    // RFC 9110, 13.2.2: If-Match (strong comparison), else If-Unmodified-Since, then
+    // If-None-Match, then If-Range.
+    let strong = |v: &str| v.split(',').map(str::trim).any(|t| t == "*" || t == etag);
+    let precondition_failed = match (&c.if_match, &c.if_unmodified_since) {
+        (Some(m), _) => !strong(m),
+        (None, Some(since)) => match (httpdate::parse_http_date(since.trim()), modified) {
+            (Ok(since), Some(m)) => m
+                .duration_since(UNIX_EPOCH)
+                .ok()
+                .zip(since.duration_since(UNIX_EPOCH).ok())
+                .is_some_and(|(m, s)| m.as_secs() > s.as_secs()),
+            // An invalid date is ignored.
+            _ => false,
+        },
+        (None, None) => false,
+    };
+    let outcome = if precondition_failed {
+        Outcome::PreconditionFailed
+    } else if c.if_none_match.as_deref().is_some_and(matches_etag) {
         Outcome::NotModified
     } else {
-        // A range applies only while the representation is the one the client saw.
-        let if_range_ok = c.if_range.as_deref().is_none_or(|v| v.trim() == etag);
+        // A range applies only while the representation is the one the client saw: the
+        // same ETag, or the same Last-Modified date.
+        let if_range_ok = c.if_range.as_deref().is_none_or(|v| {
+            let v = v.trim();
+            v == etag || last_modified.as_deref() == Some(v)
+        });
         let range = c.range.as_deref().filter(|_| if_range_ok);
         let (status, start, end) = match parse_range(range, len) {
             RangeRequest::Whole => (StatusCode::OK, 0, len),
@@ -170,6 +199,10 @@ pub async fn serve(
     let len = p.len;
     let response = match p.outcome {
         Outcome::NotModified => builder.status(StatusCode::NOT_MODIFIED).body(empty()),
+        Outcome::PreconditionFailed => builder
+            .status(StatusCode::PRECONDITION_FAILED)
+            .header(header::CONTENT_LENGTH, 0)
+            .body(empty()),
         Outcome::Unsatisfiable => builder
             .status(StatusCode::RANGE_NOT_SATISFIABLE)
             .header(header::CONTENT_RANGE, format!("bytes */{len}"))
