@@ -138,9 +138,10 @@ impl Drop for Waiting {
 }
 
 impl BlockingPool {
-    /// `workers` threads serving the queue, `max_threads` at most counting stuck ones.
+    /// `workers` threads serving the queue (no more than `max_threads`), `max_threads` at most
+    /// counting stuck ones.
     pub fn new(workers: usize, max_threads: usize) -> BlockingPool {
-        let workers = workers.max(1);
+        let workers = workers.clamp(1, max_threads.max(1));
         BlockingPool {
             inner: Arc::new(Inner {
                 queue: Mutex::new(Queue::default()),
@@ -190,6 +191,13 @@ mod tests {
     use super::*;
     use std::sync::mpsc;
     use std::time::Duration;
+
+    #[test]
+    fn workers_are_no_more_than_the_threads_allowed() {
+        assert_eq!(BlockingPool::new(4, 1).inner.workers, 1);
+        assert_eq!(BlockingPool::new(4, 64).inner.workers, 4);
+        assert_eq!(BlockingPool::new(0, 64).inner.workers, 1);
+    }
 
     fn runtime() -> tokio::runtime::Runtime {
         tokio::runtime::Builder::new_current_thread()

@@ -114,7 +114,10 @@ pub fn run_serve(a: Args) -> anyhow::Result<ExitCode> {
         LogFormatArg::Text => LogFormat::Text,
         LogFormatArg::Json => LogFormat::Json,
     };
-    config.blocking_threads = a.blocking_threads.max(1);
+    if a.blocking_threads == 0 {
+        anyhow::bail!("--blocking-threads must be at least 1");
+    }
+    config.blocking_threads = a.blocking_threads;
     let runtime = tokio::runtime::Builder::new_multi_thread()
         // File-system calls go to the server's own pool; tokio's serves nothing of ours.
         .max_blocking_threads(4)
