@@ -69,10 +69,7 @@ fn parse_origin(s: &str) -> Result<String, String> {
                 && scheme
                     .chars()
                     .all(|c| c.is_ascii_lowercase() || c.is_ascii_digit() || "+-.".contains(c))
-                && !host.is_empty()
-                && host
-                    .chars()
-                    .all(|c| c.is_ascii_graphic() && !c.is_ascii_uppercase() && !"/@?#".contains(c))
+                && host_and_port(host)
         });
     if well_formed {
         Ok(s.to_string())
@@ -83,6 +80,25 @@ fn parse_origin(s: &str) -> Result<String, String> {
             s.escape_debug()
         ))
     }
+}
+
+/// `host[:port]` as an origin has it: a lower-case name, an IPv4 address or a bracketed IPv6
+/// one, and a port that is a port.
+fn host_and_port(s: &str) -> bool {
+    let (host, port) = match s.rsplit_once(':') {
+        Some((h, p)) if !s.ends_with(']') => (h, Some(p)),
+        _ => (s, None),
+    };
+    let name_ok = match host.strip_prefix('[').and_then(|h| h.strip_suffix(']')) {
+        Some(v6) => !v6.is_empty() && v6.chars().all(|c| c.is_ascii_hexdigit() || c == ':'),
+        None => {
+            !host.is_empty()
+                && host
+                    .chars()
+                    .all(|c| c.is_ascii_lowercase() || c.is_ascii_digit() || "-.".contains(c))
+        }
+    };
+    name_ok && port.is_none_or(|p| !p.is_empty() && p.parse::<u16>().is_ok())
 }
 
 /// The token from --token or --token-file, checked.
@@ -159,6 +175,8 @@ mod tests {
             "https://viewer.example.org",
             "http://localhost:8080",
             "https://[::1]:3000",
+            "https://[::1]",
+            "http://127.0.0.1:8080",
             "app+x://a-b.c",
         ] {
             assert_eq!(parse_origin(good).as_deref(), Ok(good));
@@ -175,6 +193,9 @@ mod tests {
             "https://a.org?x",
             "https://a.org#x",
             "https://a .org",
+            "https://a.org:99999",
+            "https://a.org:",
+            "x://\"<>",
         ] {
             let e = parse_origin(bad).expect_err(bad);
             assert!(e.contains("is not an origin"), "{bad}: {e}");
