@@ -163,14 +163,22 @@ fn ply_faults_after_the_vertices_are_found() {
             "few_ascii.ply",
             ascii(3, "3 0 0 0\n3 0 0 0\n").as_bytes(),
         ),
-        "the file ends inside element \"face\" (item 2)",
+        "the file ends inside element \"face\" (item 2, counting from 0)",
     );
-    // Text PLY is words, not lines: a blank line, or two faces on one line, is fine.
+    convert_fails(
+        &write(dir.path(), "count.ply", ascii(1, "300 0 0 0\n").as_bytes()),
+        "list \"vertex_indices\" has an item count 300 that its count type, u8, cannot give",
+    );
+    // Text PLY is words, not lines: a blank line, or two faces on one line, is fine; so is NUL
+    // padding after the body.
     for (name, body) in [
-        ("blank.ply", "\n3 0 0 0\n\n3 0 0 0\n"),
-        ("one_line.ply", "3 0 0 0 3 0 0 0\n"),
+        ("blank.ply", &b"\n3 0 0 0\n\n3 0 0 0\n"[..]),
+        ("one_line.ply", b"3 0 0 0 3 0 0 0\n"),
+        ("padded.ply", b"3 0 0 0\n3 0 0 0\n\0\0\0\0"),
     ] {
-        let p = write(dir.path(), name, ascii(2, body).as_bytes());
+        let mut bytes = ascii(2, "").into_bytes();
+        bytes.extend_from_slice(body);
+        let p = write(dir.path(), name, &bytes);
         run_ok(&[
             "convert",
             s(&p),

@@ -124,7 +124,8 @@ async fn respond<B>(req: &Request<B>, shared: &Shared) -> Response<ResponseBody>
         h.insert(
             header::ACCESS_CONTROL_ALLOW_HEADERS,
             HeaderValue::from_static(
-                "Range, If-Range, Authorization, If-None-Match, If-Modified-Since, Content-Type",
+                "Range, If-Range, Authorization, If-None-Match, If-Match, If-Unmodified-Since, \
+                 Content-Type",
             ),
         );
         h.insert(

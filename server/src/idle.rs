@@ -1,8 +1,8 @@
 //! A connection that fails once it has made no progress, in either direction, for a while:
 //! a client that stops reading or writing cannot hold a connection. Its opening (until HTTP/1
-//! and HTTP/2 are told apart) has a deadline of its own: hyper's header timeout starts only
-//! after that, and a client sending nothing, or HTTP/2's preface a byte at a time, held a
-//! connection for the idle limit, and again with each byte.
+//! and HTTP/2 are told apart) has a deadline of its own, from when the connection opens:
+//! hyper's header timeout starts only after that, and a client sending nothing, or HTTP/2's
+//! preface a byte at a time, held a connection for the idle limit, and again with each byte.
 
 use std::pin::Pin;
 use std::task::{Context, Poll};
@@ -10,40 +10,49 @@ use std::time::Duration;
 use tokio::io::{AsyncRead, AsyncWrite, ReadBuf};
 use tokio::time::{Instant, Sleep};
 
-/// Bytes that tell HTTP/1 from HTTP/2: the length of HTTP/2's connection preface.
-const OPENING_BYTES: usize = 24;
+/// What an HTTP/2 connection opens with (prior knowledge); the first byte that differs says
+/// HTTP/1, whose requests hyper's header timeout then covers.
+const PREFACE: &[u8; 24] = b"PRI * HTTP/2.0\r\n\r\nSM\r\n\r\n";
 
 pub struct IdleTimeout<S> {
     inner: S,
     limit: Duration,
     timer: Pin<Box<Sleep>>,
-    /// Bytes still to read before the opening is over (0: over); the first write (an answer)
-    /// ends it too.
+    /// Bytes of the preface still to read before the opening is over (0: over); a byte that
+    /// differs from the preface, or the first write (an answer), ends it too.
     opening: usize,
 }
 
 impl<S> IdleTimeout<S> {
-    /// `opening`: the time the client has to send its first `OPENING_BYTES` bytes (or a whole
-    /// shorter request); `limit`: the time without progress after that.
+    /// `opening`: the time the client has to show HTTP/1 (a byte other than the preface's) or
+    /// send HTTP/2's whole preface; `limit`: the time without progress after that.
     pub fn new(inner: S, limit: Duration, opening: Duration) -> Self {
         IdleTimeout {
             inner,
             limit,
             timer: Box::pin(tokio::time::sleep(opening.min(limit))),
-            opening: OPENING_BYTES,
+            opening: PREFACE.len(),
         }
     }
 
-    /// `read` bytes came in, or (`None`) some went out.
-    fn progress(&mut self, read: Option<usize>) {
+    /// `read` (the bytes that came in), or (`None`) some went out.
+    fn progress(&mut self, read: Option<&[u8]>) {
         if self.opening > 0 {
             match read {
-                Some(n) if n < self.opening => {
-                    // Still opening: the deadline stands.
-                    self.opening -= n;
-                    return;
+                Some(bytes) => {
+                    let at = PREFACE.len() - self.opening;
+                    let n = bytes.len().min(self.opening);
+                    self.opening = if bytes[..n] == PREFACE[at..at + n] {
+                        self.opening - n
+                    } else {
+                        0
+                    };
                 }
-                _ => self.opening = 0,
+                None => self.opening = 0,
+            }
+            if self.opening > 0 {
+                // Still opening: the deadline stands.
+                return;
             }
         }
         self.timer.as_mut().reset(Instant::now() + self.limit);
@@ -70,10 +79,9 @@ impl<S: AsyncRead + Unpin> AsyncRead for IdleTimeout<S> {
         let before = buf.filled().len();
         match Pin::new(&mut this.inner).poll_read(cx, buf) {
             Poll::Ready(r) => {
-                let read = buf.filled().len() - before;
                 // End of input is no progress either: it is the client leaving.
-                if read > 0 {
-                    this.progress(Some(read));
+                if buf.filled().len() > before {
+                    this.progress(Some(&buf.filled()[before..]));
                 }
                 Poll::Ready(r)
             }
@@ -134,5 +142,50 @@ impl<S: AsyncWrite + Unpin> AsyncWrite for IdleTimeout<S> {
 
     fn poll_shutdown(self: Pin<&mut Self>, cx: &mut Context<'_>) -> Poll<std::io::Result<()>> {
         Pin::new(&mut self.get_mut().inner).poll_shutdown(cx)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use tokio::io::{AsyncReadExt, AsyncWriteExt};
+
+    /// Reads what is there within `wait`; `Err` if the connection failed.
+    async fn read_within(
+        io: &mut IdleTimeout<tokio::io::DuplexStream>,
+        wait: Duration,
+    ) -> std::io::Result<usize> {
+        let mut buf = [0u8; 64];
+        match tokio::time::timeout(wait, io.read(&mut buf)).await {
+            Ok(r) => r,
+            Err(_) => Ok(0),
+        }
+    }
+
+    #[tokio::test]
+    async fn the_opening_ends_at_the_first_byte_that_is_not_http_2s() {
+        let opening = Duration::from_millis(100);
+        // A whole HTTP/1.0 request shorter than the preface: HTTP/1 from its first byte, so
+        // only the idle limit applies after (it was cut at the opening deadline while its
+        // answer was being made).
+        let (mut client, server) = tokio::io::duplex(1024);
+        let mut io = IdleTimeout::new(server, Duration::from_secs(10), opening);
+        client
+            .write_all(b"GET / HTTP/1.0\r\n\r\n")
+            .await
+            .expect("write");
+        assert_eq!(read_within(&mut io, opening).await.expect("read"), 18);
+        tokio::time::sleep(opening * 2).await;
+        assert!(
+            read_within(&mut io, opening).await.is_ok(),
+            "cut after the opening"
+        );
+        // The preface's first bytes, then nothing: cut at the opening deadline.
+        let (mut client, server) = tokio::io::duplex(1024);
+        let mut io = IdleTimeout::new(server, Duration::from_secs(10), opening);
+        client.write_all(b"PRI * HTTP").await.expect("write");
+        assert_eq!(read_within(&mut io, opening).await.expect("read"), 10);
+        let cut = read_within(&mut io, opening * 3).await;
+        assert!(cut.is_err(), "{cut:?}");
     }
 }

@@ -199,12 +199,16 @@ pub async fn serve(
     let len = p.len;
     let response = match p.outcome {
         Outcome::NotModified => builder.status(StatusCode::NOT_MODIFIED).body(empty()),
-        Outcome::PreconditionFailed => builder
+        // Refusals are no representation: nothing for a cache to keep, no type.
+        Outcome::PreconditionFailed => Response::builder()
             .status(StatusCode::PRECONDITION_FAILED)
+            .header(header::CACHE_CONTROL, "no-store")
             .header(header::CONTENT_LENGTH, 0)
             .body(empty()),
-        Outcome::Unsatisfiable => builder
+        Outcome::Unsatisfiable => Response::builder()
             .status(StatusCode::RANGE_NOT_SATISFIABLE)
+            .header(header::CACHE_CONTROL, "no-store")
+            .header(header::ACCEPT_RANGES, "bytes")
             .header(header::CONTENT_RANGE, format!("bytes */{len}"))
             .header(header::CONTENT_LENGTH, 0)
             .body(empty()),

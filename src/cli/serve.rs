@@ -90,15 +90,27 @@ fn host_and_port(s: &str) -> bool {
         _ => (s, None),
     };
     let name_ok = match host.strip_prefix('[').and_then(|h| h.strip_suffix(']')) {
-        Some(v6) => !v6.is_empty() && v6.chars().all(|c| c.is_ascii_hexdigit() || c == ':'),
+        Some(v6) => {
+            v6.contains(':')
+                && v6
+                    .chars()
+                    .all(|c| c.is_ascii_digit() || ('a'..='f').contains(&c) || c == ':')
+        }
+        // `_` too: browsers send it (container service names such as viewer_app).
         None => {
             !host.is_empty()
                 && host
                     .chars()
-                    .all(|c| c.is_ascii_lowercase() || c.is_ascii_digit() || "-.".contains(c))
+                    .all(|c| c.is_ascii_lowercase() || c.is_ascii_digit() || "-._".contains(c))
         }
     };
-    name_ok && port.is_none_or(|p| !p.is_empty() && p.parse::<u16>().is_ok())
+    // Digits as a browser writes them: no sign, no leading zero, 1 to 65535.
+    let port_ok = |p: &str| {
+        !p.starts_with('0')
+            && p.bytes().all(|b| b.is_ascii_digit())
+            && p.parse::<u16>().is_ok_and(|n| n > 0)
+    };
+    name_ok && port.is_none_or(port_ok)
 }
 
 /// The token from --token or --token-file, checked.
@@ -177,6 +189,7 @@ mod tests {
             "https://[::1]:3000",
             "https://[::1]",
             "http://127.0.0.1:8080",
+            "http://viewer_app:8080",
             "app+x://a-b.c",
         ] {
             assert_eq!(parse_origin(good).as_deref(), Ok(good));
@@ -195,6 +208,10 @@ mod tests {
             "https://a .org",
             "https://a.org:99999",
             "https://a.org:",
+            "https://a.org:+80",
+            "https://a.org:0080",
+            "https://a.org:0",
+            "https://[::ABCD]",
             "x://\"<>",
         ] {
             let e = parse_origin(bad).expect_err(bad);

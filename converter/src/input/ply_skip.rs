@@ -5,9 +5,10 @@
 use super::ply_header::{ElementDef, shown};
 use std::fs::File;
 use std::io::{BufRead, BufReader, Read};
+use strata_format::AttrType;
 
-/// Reads `elements` from `body` (`left` bytes of the file unread), then what follows them must
-/// be white space. The error is the fault, in words, without the file name.
+/// Reads `elements` from `body` (`left` bytes of the file unread); what follows them must be
+/// white space. The error is the fault, in words, without the file name.
 pub fn skip_text_elements(
     body: &mut BufReader<File>,
     elements: &[ElementDef],
@@ -17,18 +18,18 @@ pub fn skip_text_elements(
     for el in elements {
         let name = shown(&el.name);
         for i in 0..el.count {
+            let ends =
+                || format!("the file ends inside element \"{name}\" (item {i}, counting from 0)");
             for p in &el.properties {
-                let ends = || format!("the file ends inside element \"{name}\" (item {i})");
-                let Some(first) = words.next(body, left)? else {
+                let Some(word) = words.next(body, left)? else {
                     return Err(ends());
                 };
                 let count = match p.list {
                     None => 0,
-                    Some(_) => words.line[first.clone()].parse::<u64>().map_err(|_| {
+                    Some(ty) => list_count(&words.line[word], ty).map_err(|fault| {
                         format!(
-                            "element \"{name}\" item {i}: list \"{}\" has an item count \"{}\" that is not a whole number",
-                            shown(&p.name),
-                            shown(&words.line[first.clone()])
+                            "element \"{name}\" item {i} (counting from 0): list \"{}\" has {fault}",
+                            shown(&p.name)
                         )
                     })?,
                 };
@@ -40,7 +41,7 @@ pub fn skip_text_elements(
             }
         }
     }
-    if words.next(body, left)?.is_some() || *left > 0 && !only_space(body, left) {
+    if words.next(body, left)?.is_some() {
         let last = elements.last().map_or(String::new(), |e| shown(&e.name));
         return Err(format!(
             "text follows the last item of element \"{last}\", the header's last element (is its count in the header right?)"
@@ -49,10 +50,38 @@ pub fn skip_text_elements(
     Ok(())
 }
 
-/// The words of the text, a line at a time.
+/// A list's item count from its word: a whole number its count type holds.
+fn list_count(word: &[u8], ty: AttrType) -> Result<u64, String> {
+    let text = String::from_utf8_lossy(word);
+    let n: i128 = text.parse().map_err(|_| {
+        format!(
+            "an item count \"{}\" that is not a whole number",
+            shown(&text)
+        )
+    })?;
+    let max: i128 = match ty {
+        AttrType::I8 => i8::MAX.into(),
+        AttrType::U8 => u8::MAX.into(),
+        AttrType::I16 => i16::MAX.into(),
+        AttrType::U16 => u16::MAX.into(),
+        AttrType::I32 => i32::MAX.into(),
+        AttrType::U32 => u32::MAX.into(),
+        _ => u64::MAX.into(),
+    };
+    if n < 0 || n > max {
+        return Err(format!(
+            "an item count {n} that its count type, {}, cannot give (0 to {max})",
+            ty.name()
+        ));
+    }
+    Ok(n as u64)
+}
+
+/// The words of the text, a line at a time, as bytes (text PLY need not be UTF-8 where it is
+/// only skipped); NUL counts as white space, as padding after the body does.
 #[derive(Default)]
 struct Words {
-    line: String,
+    line: Vec<u8>,
     at: usize,
 }
 
@@ -63,33 +92,30 @@ impl Words {
         body: &mut BufReader<File>,
         left: &mut u64,
     ) -> Result<Option<std::ops::Range<usize>>, String> {
+        let space = |b: &u8| b.is_ascii_whitespace() || *b == 0;
         loop {
             let rest = &self.line[self.at..];
-            let start = rest.len() - rest.trim_start().len();
-            if start < rest.len() {
-                let word = &rest[start..];
-                let len = word.find(|c: char| c.is_whitespace()).unwrap_or(word.len());
+            if let Some(start) = rest.iter().position(|b| !space(b)) {
+                let len = rest[start..]
+                    .iter()
+                    .position(space)
+                    .unwrap_or(rest.len() - start);
                 let from = self.at + start;
                 self.at = from + len;
                 return Ok(Some(from..from + len));
             }
             self.line.clear();
             self.at = 0;
-            let got = body.take(*left).read_line(&mut self.line).map_err(|e| {
-                format!("cannot read the elements after the vertices ({})", e.kind())
-            })?;
+            let got = body
+                .take(*left)
+                .read_until(b'\n', &mut self.line)
+                .map_err(|e| {
+                    format!("cannot read the elements after the vertices ({})", e.kind())
+                })?;
             if got == 0 {
                 return Ok(None);
             }
             *left -= got as u64;
         }
     }
-}
-
-/// Whether the rest of the body (`left` bytes) is white space.
-fn only_space(body: &mut BufReader<File>, left: &mut u64) -> bool {
-    let mut rest = Vec::new();
-    let _ = body.take(*left).read_to_end(&mut rest);
-    *left = 0;
-    rest.iter().all(|b| b.is_ascii_whitespace() || *b == 0)
 }
