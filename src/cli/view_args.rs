@@ -80,20 +80,19 @@ impl ViewArgs {
                 self.budget
             );
         }
-        let point_size = self
-            .point_size
-            .unwrap_or(if self.attenuate { 2.0 } else { 3.0 });
+        let mode = if self.attenuate {
+            SizeMode::Attenuated
+        } else {
+            SizeMode::Fixed
+        };
+        let point_size = self.point_size.unwrap_or(mode.default_size());
         if !(point_size.is_finite() && (0.1..=15.0).contains(&point_size)) {
             anyhow::bail!("--point-size {point_size} is outside 0.1 to 15");
         }
         let mut settings = Settings {
             budget: self.budget,
             point_size,
-            size_mode: if self.attenuate {
-                SizeMode::Attenuated
-            } else {
-                SizeMode::Fixed
-            },
+            size_mode: mode,
             colour: ColourMode::parse(&self.colour).context("--colour")?,
             fused_finish: !self.separate_passes,
             pass_clock: PassClock::parse(&self.pass_clock).context("--pass-clock")?,

@@ -74,6 +74,16 @@ pub enum SizeMode {
     Attenuated,
 }
 
+impl SizeMode {
+    /// The point size a mode starts at: a disc 3 pixels across, or 2 spacings.
+    pub fn default_size(self) -> f32 {
+        match self {
+            SizeMode::Fixed => 3.0,
+            SizeMode::Attenuated => 2.0,
+        }
+    }
+}
+
 /// A box in the dataset's coordinates: points inside it are kept, or (with `outside`) hidden.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct ClipBox {
@@ -271,7 +281,7 @@ impl Default for Settings {
                 .find(|p| p.name == pipelines::DEFAULT_PIPELINE)
                 .unwrap_or(pipelines::REGISTRY[0]),
             params: ParamValues::default(),
-            point_size: 3.0,
+            point_size: SizeMode::Fixed.default_size(),
             size_mode: SizeMode::Fixed,
             colour: ColourMode::Rgb,
             min_spacing_px: 1.0,
@@ -285,6 +295,15 @@ impl Default for Settings {
 }
 
 impl Settings {
+    /// Switches how points are sized; a size left at the old mode's default takes the new
+    /// one's (3 pixels would be 3 spacings, half again the attenuated default).
+    pub fn set_size_mode(&mut self, mode: SizeMode) {
+        if self.point_size == self.size_mode.default_size() {
+            self.point_size = mode.default_size();
+        }
+        self.size_mode = mode;
+    }
+
     /// Chooses the pipeline `name`; the error lists the registered ones.
     pub fn set_pipeline(&mut self, name: &str) -> Result<(), ViewerError> {
         self.pipeline = pipelines::find(name)?;
@@ -313,3 +332,21 @@ impl std::fmt::Debug for Settings {
 
 pub const MIN_BUDGET: u64 = 100_000;
 pub const MAX_BUDGET: u64 = 100_000_000;
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_default_size_follows_the_size_mode_and_a_chosen_one_stays() {
+        let mut s = Settings::default();
+        assert_eq!((s.size_mode, s.point_size), (SizeMode::Fixed, 3.0));
+        s.set_size_mode(SizeMode::Attenuated);
+        assert_eq!(s.point_size, 2.0);
+        s.set_size_mode(SizeMode::Fixed);
+        assert_eq!(s.point_size, 3.0);
+        s.point_size = 5.0;
+        s.set_size_mode(SizeMode::Attenuated);
+        assert_eq!((s.size_mode, s.point_size), (SizeMode::Attenuated, 5.0));
+    }
+}

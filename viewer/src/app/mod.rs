@@ -241,11 +241,11 @@ impl ViewerApp {
             .checkbox(&mut attenuate, "size by point spacing")
             .changed()
         {
-            self.settings.size_mode = if attenuate {
+            self.settings.set_size_mode(if attenuate {
                 SizeMode::Attenuated
             } else {
                 SizeMode::Fixed
-            };
+            });
         }
 
         ui.label("Colour");
