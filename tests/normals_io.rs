@@ -343,12 +343,7 @@ fn ply_normal_x_y_z_are_one_normal_that_normals_keeps() {
     let ds = dir.path().join("ds");
     run_ok(&["convert", s(&ply), "-o", s(&ds), "-q", "--normals"]);
     let meta = metadata(&ds);
-    let names: Vec<&str> = meta["attributes"]
-        .as_array()
-        .expect("attributes")
-        .iter()
-        .filter_map(|a| a["name"].as_str())
-        .collect();
+    let names = attribute_names(&meta);
     assert!(
         names.contains(&"normal") && !names.contains(&"normal_x"),
         "{names:?}"

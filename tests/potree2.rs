@@ -174,12 +174,7 @@ fn the_export_holds_every_point_once_in_its_node_as_potree_reads_it() {
     common::run_ok(&["export", s(&dataset), "-o", s(&out), "--format", "potree2"]);
     let p = read_potree2(&out);
     assert_holds_the_dataset(&p, &dataset);
-    let names: Vec<&str> = p.meta["attributes"]
-        .as_array()
-        .expect("attributes")
-        .iter()
-        .map(|a| a["name"].as_str().expect("name"))
-        .collect();
+    let names = common::attribute_names(&p.meta);
     for want in [
         "position",
         "intensity",

@@ -245,12 +245,7 @@ fn several_inputs_make_one_dataset_with_the_union_of_attributes() {
     let info = run_ok(&["info", s(&ds), "--json"]);
     let v: serde_json::Value = serde_json::from_slice(&info.stdout).expect("json");
     assert_eq!(v["points"], 220000);
-    let names: Vec<&str> = v["attributes"]
-        .as_array()
-        .expect("attributes")
-        .iter()
-        .filter_map(|a| a["name"].as_str())
-        .collect();
+    let names = common::attribute_names(&v);
     assert!(
         names.contains(&"scan_angle_rank")
             && names.contains(&"scan_angle")

@@ -11,7 +11,7 @@ use hyper::header::{self, HeaderMap};
 use hyper::{Response, StatusCode};
 use std::fs::File;
 use std::sync::Arc;
-use std::time::{SystemTime, UNIX_EPOCH};
+use std::time::UNIX_EPOCH;
 
 /// Ranges up to this size are read in one `pread` into one buffer; larger ones stream, a chunk
 /// at a time as the client takes them. Small, since an answer's buffer lives until the client
@@ -70,7 +70,8 @@ struct Prepared {
     content_type: &'static str,
     len: u64,
     etag: String,
-    modified: Option<SystemTime>,
+    /// Last-Modified, as an HTTP date.
+    last_modified: Option<String>,
     outcome: Outcome,
 }
 
@@ -142,7 +143,7 @@ fn prepare(
                     content_type,
                     len,
                     etag,
-                    modified,
+                    last_modified,
                     outcome: Outcome::Unsatisfiable,
                 });
             }
@@ -168,7 +169,7 @@ fn prepare(
         content_type,
         len,
         etag,
-        modified,
+        last_modified,
         outcome,
     })
 }
@@ -193,8 +194,8 @@ pub async fn serve(
         .header(header::ETAG, &p.etag)
         .header(header::CACHE_CONTROL, cache)
         .header(header::CONTENT_TYPE, p.content_type);
-    if let Some(m) = p.modified {
-        builder = builder.header(header::LAST_MODIFIED, httpdate::fmt_http_date(m));
+    if let Some(m) = p.last_modified {
+        builder = builder.header(header::LAST_MODIFIED, m);
     }
     let len = p.len;
     let response = match p.outcome {

@@ -272,3 +272,13 @@ pub fn e57_crc32c(bytes: &[u8]) -> u32 {
     }
     !crc
 }
+
+/// The names in the `attributes` list of a metadata or `info --json` document, in order.
+pub fn attribute_names(doc: &serde_json::Value) -> Vec<&str> {
+    doc["attributes"]
+        .as_array()
+        .expect("an attributes list")
+        .iter()
+        .map(|a| a["name"].as_str().expect("an attribute name"))
+        .collect()
+}
