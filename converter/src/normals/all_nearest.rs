@@ -54,6 +54,7 @@ impl KdTree {
         let mut done_found: Vec<u32> = Vec::new();
         let mut last_done: Vec<u32> = Vec::new();
         let mut taken = Taken::default();
+        let mut outside: Vec<f64> = Vec::with_capacity(k);
         let mut group: (usize, Vec<Candidate>) = (usize::MAX, Vec::new());
         for (li, leaf) in leaves.iter().enumerate() {
             if !(leaf.lo..leaf.hi).any(&wanted) {
@@ -112,10 +113,19 @@ impl KdTree {
                     s => Some(&done_found[s * k..(s + 1) * k]),
                 };
                 if let Some(hint) = hint {
-                    let bound = hint
-                        .iter()
-                        .fold(0.0f64, |m, &j| m.max(self.distance2(q, j as usize)))
-                        .min(within2);
+                    // The hint's points outside the leaf, by distance (those inside are in
+                    // `own`): with the leaf's, a tighter bound where k of them are nearer.
+                    outside.resize(k, 0.0);
+                    for (o, &j) in outside.iter_mut().zip(hint) {
+                        *o = self.distance2(q, j as usize);
+                    }
+                    let bound = farthest(&outside);
+                    for (o, &j) in outside.iter_mut().zip(hint) {
+                        if (leaf.lo..leaf.hi).contains(&(j as usize)) {
+                            *o = f64::INFINITY;
+                        }
+                    }
+                    let bound = tighter(bound.min(within2), k, &own, &outside);
                     let scope = Scope {
                         leaf: li,
                         own: &own,
@@ -219,15 +229,21 @@ impl KdTree {
         found: &mut Found,
     ) {
         let mut m = 0;
+        // A leaf's points are written to a window of LEAF slots from `m` on, each over the
+        // last unless taken.
         let mut take = |d2: &[f64; LEAF], lo: usize, hi: usize| {
             let points = &mut taken.points;
             if points.len() < m + LEAF {
                 points.resize(m + LEAF, (0.0, 0));
             }
-            for (i, &d) in d2[..hi - lo].iter().enumerate() {
-                points[m] = (d, (lo + i) as u32);
-                m += usize::from(d <= bound);
+            let window = &mut points[m..m + LEAF];
+            let mut j = 0;
+            for (i, &d) in d2[..(hi - lo).min(LEAF)].iter().enumerate() {
+                // j ≤ i < LEAF, a power of two: the mask changes nothing but spares a check.
+                window[j & (LEAF - 1)] = (d, (lo + i) as u32);
+                j += usize::from(d <= bound);
             }
+            m += j;
         };
         let own = &scope.leaves[scope.leaf];
         take(scope.own, own.lo, own.hi);
@@ -391,4 +407,36 @@ fn gap2(
         };
         d * scale[i]
     }))
+}
+
+/// `bound`, or a fraction of it within which `k` of the points at squared distances `own` and
+/// `outside` (distinct points) lie, so that fewer candidates are taken.
+fn tighter(bound: f64, k: usize, own: &[f64; LEAF], outside: &[f64]) -> f64 {
+    let mut best = bound;
+    for f in [0.85, 0.7, 0.55] {
+        let t = bound * f;
+        let n = own.iter().map(|&d| usize::from(d <= t)).sum::<usize>()
+            + outside.iter().map(|&d| usize::from(d <= t)).sum::<usize>();
+        if n < k {
+            break;
+        }
+        best = t;
+    }
+    best
+}
+
+/// The largest of `d` (none NaN), or 0: in four independent lanes, not one chain of
+/// dependent comparisons.
+fn farthest(d: &[f64]) -> f64 {
+    let mut lanes = [0.0f64; 4];
+    let mut quads = d.chunks_exact(4);
+    for q in &mut quads {
+        for (l, &x) in lanes.iter_mut().zip(q) {
+            *l = if x > *l { x } else { *l };
+        }
+    }
+    for &x in quads.remainder() {
+        lanes[0] = if x > lanes[0] { x } else { lanes[0] };
+    }
+    lanes.iter().fold(0.0, |m, &x| if x > m { x } else { m })
 }

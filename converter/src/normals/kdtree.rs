@@ -10,6 +10,7 @@
 
 /// Points per leaf: about twice k, so that the query's own leaf gives a tight first bound.
 pub(super) const LEAF: usize = 32;
+const _: () = assert!(LEAF.is_power_of_two());
 
 pub struct KdTree {
     /// Positions in quantization steps from the chunk's corner (whole numbers), in tree order.

@@ -169,7 +169,7 @@ pub fn principal(cov: [f64; 6]) -> Principal {
     let [a, b, c, d, e, f] = shifted;
     let c1 = (a * d - b * b) + (a * f - c * c) + (d * f - e * e);
     let det = a * (d * f - e * e) - b * (b * f - e * c) + c * (b * e - d * c);
-    let m0 = smallest_root(c1, det, shifted);
+    let m0 = smallest_root(c1, det, shifted, -q);
     // The other two: their sum is −μ0 and their product c1 + μ0².
     let half_gap = (-3.0 * m0 * m0 - 4.0 * c1).max(0.0).sqrt() * 0.5;
     let (m1, m2) = ((-0.5 * m0 - half_gap).max(m0), -0.5 * m0 + half_gap);
@@ -189,15 +189,20 @@ pub fn principal(cov: [f64; 6]) -> Principal {
 /// The smallest root of μ³ + c1 μ − det, the characteristic polynomial of the symmetric
 /// matrix `m` of trace 0. Left of that root the cubic rises and bends down, so Newton's steps
 /// from any point there climb to it without passing it: no trigonometry, and a few steps.
-fn smallest_root(c1: f64, det: f64, m: [f64; 6]) -> f64 {
+/// `floor` is known not to exceed the root: −q for a covariance shifted by q, whose
+/// eigenvalues are not negative. Most neighbourhoods lie nearly in a plane, λ0 near 0, so the
+/// climb from there takes a step or two.
+fn smallest_root(c1: f64, det: f64, m: [f64; 6], floor: f64) -> f64 {
     let [a, b, c, d, e, f] = m;
-    // Two points left of the root, the nearer taken: Gershgorin's bound, and −2√(−c1/3),
-    // below which no root of a cubic μ³ + c1 μ − det with three real roots lies (exact
-    // for a disc, λ1 = λ2).
+    // Three points left of the root, the nearest taken: `floor`, Gershgorin's bound, and
+    // −2√(−c1/3), below which no root of a cubic μ³ + c1 μ − det with three real roots lies
+    // (exact for a disc, λ1 = λ2).
     let gershgorin = (a - b.abs() - c.abs())
         .min(d - b.abs() - e.abs())
         .min(f - c.abs() - e.abs());
-    let mut x = gershgorin.max(-2.0 * (-c1 / 3.0).max(0.0).sqrt());
+    let mut x = gershgorin
+        .max(-2.0 * (-c1 / 3.0).max(0.0).sqrt())
+        .max(floor);
     let cubic = |x: f64| (x * x + c1) * x - det;
     let slope = |x: f64| 3.0 * x * x + c1;
     let mut rise = slope(x);
