@@ -7,7 +7,8 @@ use indicatif::ProgressBar;
 use serde::{Deserialize, Serialize};
 use strata_format::{Cube, GRID_CELLS_LOG2, NodeKey, row_position};
 
-/// The counting grid has 2^7 = 128 cells per axis (16 MiB of u64 counters, one grid a thread).
+/// The counting grid has 2^7 = 128 cells per axis (16 MiB of u64 counters, one grid a counting
+/// worker; see `count_workers`).
 pub const COUNT_GRID_LOG2: u32 = 7;
 
 #[derive(Debug, Clone, Serialize, Deserialize, PartialEq)]
@@ -103,6 +104,15 @@ impl Counts {
             self.max[a] = self.max[a].max(other.max[a]);
         }
     }
+}
+
+/// Workers that may count at once within `memory_limit`: each holds a grid of counters (16
+/// MiB), and together they take at most half the limit, however many threads were asked for.
+pub fn count_workers(memory_limit: u64, threads: usize) -> usize {
+    let grid = (std::mem::size_of::<u64>() as u64) << (3 * COUNT_GRID_LOG2);
+    usize::try_from(memory_limit / 2 / grid)
+        .unwrap_or(usize::MAX)
+        .clamp(1, threads.max(1))
 }
 
 /// Counts the rows of `inputs` per grid cell into `total`, `threads` parts of each input at
@@ -241,4 +251,35 @@ pub fn max_chunk_points(
 /// Root spacing in real units.
 pub fn root_spacing(cube: &Cube, scale: f64) -> f64 {
     scale * (1u64 << cube.bits) as f64 / (1u64 << GRID_CELLS_LOG2) as f64
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn counting_grids_take_at_most_half_the_memory_limit() {
+        let grid = 8u64 << (3 * COUNT_GRID_LOG2);
+        for (limit, threads) in [
+            (64u64 << 20, 16),
+            (512 << 20, 16),
+            (8 << 30, 16),
+            (1 << 20, 4),
+        ] {
+            let workers = count_workers(limit, threads);
+            assert!((1..=threads).contains(&workers), "{limit} {threads}");
+            // One worker at least, however small the limit; else within half of it.
+            assert!(
+                workers == 1 || workers as u64 * grid <= limit / 2,
+                "{limit} {threads}"
+            );
+        }
+        assert_eq!(count_workers(64 << 20, 16), 2);
+        assert_eq!(
+            count_workers(8 << 30, 16),
+            16,
+            "a large limit keeps every thread"
+        );
+        assert_eq!(count_workers(1 << 20, 0), 1);
+    }
 }
