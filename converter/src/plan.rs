@@ -107,10 +107,12 @@ impl Counts {
 }
 
 /// Workers that may count at once within `memory_limit`: each holds a grid of counters (16
-/// MiB), and together they take at most half the limit, however many threads were asked for.
+/// MiB) until all are merged into the total's, and the grids together take at most half the
+/// limit (one worker at least), however many threads were asked for.
 pub fn count_workers(memory_limit: u64, threads: usize) -> usize {
     let grid = (std::mem::size_of::<u64>() as u64) << (3 * COUNT_GRID_LOG2);
-    usize::try_from(memory_limit / 2 / grid)
+    // One of the grids is the total's.
+    usize::try_from((memory_limit / 2 / grid).saturating_sub(1))
         .unwrap_or(usize::MAX)
         .clamp(1, threads.max(1))
 }
@@ -268,13 +270,15 @@ mod tests {
         ] {
             let workers = count_workers(limit, threads);
             assert!((1..=threads).contains(&workers), "{limit} {threads}");
-            // One worker at least, however small the limit; else within half of it.
+            // One worker at least, however small the limit; else its grids and the total's
+            // within half of it.
             assert!(
-                workers == 1 || workers as u64 * grid <= limit / 2,
+                workers == 1 || (workers as u64 + 1) * grid <= limit / 2,
                 "{limit} {threads}"
             );
         }
-        assert_eq!(count_workers(64 << 20, 16), 2);
+        assert_eq!(count_workers(64 << 20, 16), 1);
+        assert_eq!(count_workers(512 << 20, 16), 15);
         assert_eq!(
             count_workers(8 << 30, 16),
             16,

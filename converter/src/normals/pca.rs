@@ -144,7 +144,8 @@ fn from_sums(
     cov
 }
 
-/// Eigen-decomposition of a symmetric 3x3 matrix given as (xx, xy, xz, yy, yz, zz): shifted
+/// Eigen-decomposition of a covariance (a symmetric 3x3 matrix with no negative eigenvalue;
+/// the solver relies on it) given as (xx, xy, xz, yy, yz, zz): shifted
 /// by the mean eigenvalue, the smallest eigenvalue by Newton's method on the characteristic
 /// cubic, the other two from the quadratic left once it is divided out, then eigenvectors
 /// from cross products of the rows of (A − λI).
