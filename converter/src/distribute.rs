@@ -148,6 +148,10 @@ fn distribute_part(
 ) -> Result<ClassCounts> {
     let mut classes = [0u64; 256];
     let (level, shift) = grid_shape(d.cube);
+    // The batches read take as much again as the row buffers: many workers under a small
+    // limit read fewer records at a time.
+    let batch_bytes =
+        usize::try_from(d.buffer_budget / d.threads.max(1) as u64).unwrap_or(usize::MAX);
     let per_chunk = (d.buffer_budget / (d.chunk_count.max(1) * d.threads.max(1)) as u64)
         .clamp(16 << 10, 4 << 20) as usize;
     // Emptied (one that failed may have left rows), keeping their memory.
@@ -159,7 +163,7 @@ fn distribute_part(
     let release = d.share == Share::WHOLE;
     let ranges: Vec<Range<u64>> = d.inputs.iter().map(|i| i.part(part, d.threads)).collect();
     for (input, range) in d.inputs.iter().zip(d.share.of(&ranges)) {
-        input.for_each_rows(range, d.stride, release, |rows| {
+        input.for_each_rows(range, d.stride, release, batch_bytes, |rows| {
             for row in rows.chunks_exact(d.stride) {
                 let chunk = d.lut[grid_cell(row_position(row), d.cube, level, shift)] as usize;
                 if let Some(&c) = d.class_at.and_then(|at| row.get(at)) {

@@ -185,15 +185,16 @@ impl RowInput {
         range: Range<u64>,
         each: impl FnMut(&[u8], u64) -> Result<()>,
     ) -> Result<()> {
-        self.read_raw(range, false, each)
+        self.read_raw(range, false, BATCH as usize, each)
     }
 
-    /// As `for_each_raw`; with `release`, a staging file frees what has been read (the last
-    /// reading, by the distribute phase).
+    /// As `for_each_raw`, at most `most` records at a time; with `release`, a staging file
+    /// frees what has been read (the last reading, by the distribute phase).
     fn read_raw(
         &self,
         range: Range<u64>,
         release: bool,
+        most: usize,
         mut each: impl FnMut(&[u8], u64) -> Result<()>,
     ) -> Result<()> {
         if let Some(blocks) = &self.blocks {
@@ -205,7 +206,7 @@ impl RowInput {
         let mut raw = Vec::new();
         let mut at = range.start;
         while at < range.end {
-            let n = (range.end - at).min(batch_records(self.record_len, BATCH as usize) as u64);
+            let n = (range.end - at).min(batch_records(self.record_len, most) as u64);
             raw.resize(n as usize * self.record_len, 0);
             file.read_exact_at(&mut raw, self.start + at * self.record_len as u64)
                 .map_err(|e| {
@@ -223,21 +224,63 @@ impl RowInput {
 
     /// Calls `each(rows)` on the rows of `range`, in batches. With `release`, for the last
     /// time: the blocks of a staging file are freed as they are read (so distributing moves
-    /// the rows from the staging file into the chunk files rather than copying them).
+    /// the rows from the staging file into the chunk files rather than copying them). A
+    /// batch's records and rows together take at most `batch_bytes` (one record at least).
     pub fn for_each_rows(
         &self,
         range: Range<u64>,
         stride: usize,
         release: bool,
+        batch_bytes: usize,
         mut each: impl FnMut(&[u8]) -> Result<()>,
     ) -> Result<()> {
         let mut rows = Vec::new();
-        self.read_raw(range, release, |raw, first| match &self.convert {
+        let most = (batch_bytes / (self.record_len + stride).max(1)).clamp(1, BATCH as usize);
+        self.read_raw(range, release, most, |raw, first| match &self.convert {
             Some(c) => {
                 c.convert(raw, self.record_len, first, &mut rows, stride)?;
                 each(&rows)
             }
             None => each(raw),
         })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_small_batch_budget_reads_the_same_rows_fewer_at_a_time() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("rows.bin");
+        let (len, records) = (20usize, 1000u64);
+        let bytes: Vec<u8> = (0..len * records as usize)
+            .map(|i| (i % 251) as u8)
+            .collect();
+        // A header of 7 bytes before the records.
+        let mut file = vec![0xAA; 7];
+        file.extend_from_slice(&bytes);
+        std::fs::write(&path, &file).unwrap();
+        let input = RowInput {
+            path,
+            start: 7,
+            record_len: len,
+            records,
+            convert: None,
+            blocks: None,
+        };
+        for (budget, most) in [(usize::MAX, BATCH as usize), (40 * 33, 33), (1, 1)] {
+            let (mut read, mut largest) = (Vec::new(), 0);
+            input
+                .for_each_rows(10..records, len, false, budget, |rows| {
+                    largest = largest.max(rows.len() / len);
+                    read.extend_from_slice(rows);
+                    Ok(())
+                })
+                .unwrap();
+            assert_eq!(read, bytes[10 * len..], "budget {budget}");
+            assert_eq!(largest, most.min(990), "budget {budget}");
+        }
     }
 }
