@@ -109,7 +109,7 @@ impl Counts {
 /// Workers that may count at once within `memory_limit`: each holds a grid of counters (16
 /// MiB) until all are merged into the total's, and the grids together take at most half the
 /// limit (one worker at least), however many threads were asked for.
-pub fn count_workers(memory_limit: u64, threads: usize) -> usize {
+fn count_workers(memory_limit: u64, threads: usize) -> usize {
     let grid = (std::mem::size_of::<u64>() as u64) << (3 * COUNT_GRID_LOG2);
     // One of the grids is the total's.
     usize::try_from((memory_limit / 2 / grid).saturating_sub(1))
@@ -117,14 +117,17 @@ pub fn count_workers(memory_limit: u64, threads: usize) -> usize {
         .clamp(1, threads.max(1))
 }
 
-/// Counts the rows of `inputs` per grid cell into `total`, `threads` parts of each input at
-/// once.
+/// Counts the rows of `inputs` per grid cell into `total`, with up to `threads` workers (as
+/// many as `memory_limit` holds grids for, see `count_workers`), each taking a part of every
+/// input. The counts do not depend on how many workers there were.
 pub fn count(
     inputs: &[&RowInput],
     total: &mut Counts,
     threads: usize,
+    memory_limit: u64,
     bar: &ProgressBar,
 ) -> Result<()> {
+    let threads = count_workers(memory_limit, threads);
     let cube = total.cube;
     let parts: Vec<Result<Counts>> = std::thread::scope(|scope| {
         let workers: Vec<_> = (0..threads)
@@ -285,5 +288,42 @@ mod tests {
             "a large limit keeps every thread"
         );
         assert_eq!(count_workers(1 << 20, 0), 1);
+    }
+
+    #[test]
+    fn counts_do_not_depend_on_how_many_workers_the_limit_allows() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("rows.bin");
+        let records = 5000u64;
+        let mut bytes = Vec::new();
+        for i in 0..records as i32 {
+            for v in [i % 64, i * 7 % 61, i * 13 % 59] {
+                bytes.extend_from_slice(&v.to_le_bytes());
+            }
+        }
+        std::fs::write(&path, &bytes).unwrap();
+        let input = RowInput {
+            path,
+            start: 0,
+            record_len: 12,
+            records,
+            convert: None,
+            blocks: None,
+        };
+        let cube = Cube {
+            min: [0; 3],
+            bits: 6,
+        };
+        let counted = |limit: u64| {
+            let mut c = Counts::new(&cube);
+            count(&[&input], &mut c, 8, limit, &ProgressBar::hidden()).unwrap();
+            (c.cells, c.min, c.max)
+        };
+        // One worker, four, and all eight.
+        let one = counted(64 << 20);
+        assert_eq!(one.0.iter().sum::<u64>(), records);
+        assert_eq!((one.1, one.2), ([0; 3], [63, 60, 58]));
+        assert_eq!(counted(160 << 20), one);
+        assert_eq!(counted(8 << 30), one);
     }
 }

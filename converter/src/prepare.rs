@@ -9,9 +9,7 @@ use crate::distribute::{ClassCounts, Distribution, RowBuffers, Share, distribute
 use crate::error::{ConvertError, Result, io_err};
 use crate::input::las::LasSource;
 use crate::input::{PointSource, Precision};
-use crate::plan::{
-    Chunk, Counts, count, count_workers, cube_for, grid_shape, max_chunk_points, plan_chunks,
-};
+use crate::plan::{Chunk, Counts, count, cube_for, grid_shape, max_chunk_points, plan_chunks};
 use crate::progress::Phases;
 use crate::quantize::{Quantization, SourceExtent, choose};
 use crate::rows::{RecordToRow, RowInput};
@@ -407,12 +405,7 @@ fn stage_from_headers(
     let rest: Vec<&RowInput> = inputs.iter().filter(|i| !wd.holds(&i.path)).collect();
     let total = rest.iter().map(|i| i.records).sum();
     phases.timed("count", Some((total, "points")), |bar| {
-        count(
-            &rest,
-            &mut counts,
-            count_workers(opts.memory_limit, threads),
-            bar,
-        )
+        count(&rest, &mut counts, threads, opts.memory_limit, bar)
     })?;
     Ok(Some(Staged {
         inputs,
@@ -458,12 +451,7 @@ fn stage_measured(
     })?;
     let mut counts = Counts::new(&cube);
     phases.timed("count", Some((declared, "points")), |bar| {
-        count(
-            &[&input],
-            &mut counts,
-            count_workers(opts.memory_limit, threads),
-            bar,
-        )
+        count(&[&input], &mut counts, threads, opts.memory_limit, bar)
     })?;
     Ok(Staged {
         inputs: vec![input],

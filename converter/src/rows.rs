@@ -224,8 +224,9 @@ impl RowInput {
 
     /// Calls `each(rows)` on the rows of `range`, in batches. With `release`, for the last
     /// time: the blocks of a staging file are freed as they are read (so distributing moves
-    /// the rows from the staging file into the chunk files rather than copying them). A
-    /// batch's records and rows together take at most `batch_bytes` (one record at least).
+    /// the rows from the staging file into the chunk files rather than copying them). From a
+    /// file of plain records, a batch's records and rows together take at most `batch_bytes`
+    /// (one record at least); a staging file comes a block (1 MiB at most) at a time.
     pub fn for_each_rows(
         &self,
         range: Range<u64>,
