@@ -175,6 +175,38 @@ fn tasks_with_normals_give_the_single_runs_bytes() {
     assert_same_dataset(&single, &out);
 }
 
+/// Chunks finish out of order with more workers than cores, and commit while other workers
+/// index: the dataset is still the one a single worker writes.
+#[test]
+fn any_number_of_workers_gives_the_same_bytes() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let las = synth(dir.path(), "city.las", "600000", "11");
+    let mut outs = Vec::new();
+    for threads in ["1", "5"] {
+        let out = dir.path().join(format!("threads{threads}"));
+        let stats = dir.path().join(format!("stats{threads}.json"));
+        run_ok(&[
+            "convert",
+            s(&las),
+            "-o",
+            s(&out),
+            "--memory-limit",
+            "64MiB",
+            "--threads",
+            threads,
+            "--normals",
+            "--stats",
+            s(&stats),
+            "-q",
+        ]);
+        let text = std::fs::read_to_string(&stats).expect("stats");
+        let json: serde_json::Value = serde_json::from_str(&text).expect("stats json");
+        assert!(json["chunks"].as_u64().unwrap_or(0) >= 8, "{text}");
+        outs.push(out);
+    }
+    assert_same_dataset(&outs[0], &outs[1]);
+}
+
 #[test]
 fn a_killed_task_resumes_to_the_same_bytes() {
     let dir = tempfile::tempdir().expect("tempdir");

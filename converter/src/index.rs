@@ -17,7 +17,7 @@ use std::fs;
 use std::ops::Range;
 use std::panic::{AssertUnwindSafe, catch_unwind};
 use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
-use std::sync::{Condvar, Mutex};
+use std::sync::{Condvar, Mutex, MutexGuard};
 use strata_format::RowLayout;
 
 /// What indexing needs besides the chunk files.
@@ -34,7 +34,9 @@ pub struct Indexing<'a> {
 }
 
 struct CommitState {
-    committer: Committer,
+    /// `None` while a worker commits, outside the lock.
+    committer: Option<Committer>,
+    /// The first chunk not yet handed to the committer.
     next: usize,
     ready: BTreeMap<usize, BuiltChunk>,
     entries: Vec<JournalEntry>,
@@ -55,7 +57,7 @@ pub fn index_chunks(
     let next_chunk = AtomicUsize::new(first);
     let abort = AtomicBool::new(false);
     let state = Mutex::new(CommitState {
-        committer,
+        committer: Some(committer),
         next: first,
         ready: BTreeMap::new(),
         entries: Vec::new(),
@@ -84,7 +86,8 @@ pub fn index_chunks(
                     if i >= n {
                         return;
                     }
-                    // Wait so at most `threads` chunks are ahead of the commit point.
+                    // Wait so at most `threads` chunks are ahead of those handed to the
+                    // committer.
                     {
                         let Ok(mut s) = state.lock() else { return };
                         while i >= s.next + threads && !abort.load(Ordering::SeqCst) {
@@ -110,8 +113,7 @@ pub fn index_chunks(
                     };
                     let Ok(mut s) = state.lock() else { return };
                     s.ready.insert(i, built);
-                    commit_ready(ix, &mut s, &abort, bar);
-                    turn.notify_all();
+                    commit_ready(ix, s, &state, &turn, &abort, bar);
                 }
             });
         }
@@ -122,7 +124,10 @@ pub fn index_chunks(
     if let Some(e) = s.error {
         return Err(e);
     }
-    Ok((s.entries, s.committer))
+    let committer = s.committer.ok_or_else(|| {
+        ConvertError::internal("indexing chunks", "a worker panicked while committing")
+    })?;
+    Ok((s.entries, committer))
 }
 
 /// Reads chunk `i`, runs the step on it and builds its tree, in `mem`'s buffers, which it
@@ -164,33 +169,54 @@ fn build_chunk(
     ))
 }
 
-/// Commits the chunks that are ready, in plan order from the commit point on.
-fn commit_ready(ix: &Indexing, s: &mut CommitState, abort: &AtomicBool, bar: &ProgressBar) {
-    while let Some(done) = {
-        let next = s.next;
-        s.ready.remove(&next)
-    } {
+/// Commits the chunks that are ready, in plan order from the commit point on, unless another
+/// worker is committing (it takes them when it is done). The writing happens outside the lock,
+/// and a chunk counts as handed over as it starts, so that a worker waiting for its turn
+/// starts its next chunk instead of waiting out the writes.
+fn commit_ready<'s>(
+    ix: &Indexing,
+    mut s: MutexGuard<'s, CommitState>,
+    state: &'s Mutex<CommitState>,
+    turn: &Condvar,
+    abort: &AtomicBool,
+    bar: &ProgressBar,
+) {
+    loop {
         let idx = s.next;
-        match s.committer.commit(ix.wd, idx, done) {
-            Ok(entry) => {
-                s.entries.push(entry);
-                // Consumed: its files go now, so the work files shrink as the dataset grows.
-                // Shared ones stay: other tasks read their bands.
-                for part in (0..ix.parts).filter(|_| ix.wd.owns_chunks()) {
-                    let _ = fs::remove_file(ix.wd.chunk_part(idx, part));
-                }
-                if let Err(e) = ix.halos.release(ix.wd, idx) {
-                    s.error.get_or_insert(e);
-                    abort.store(true, Ordering::SeqCst);
-                    break;
-                }
-                bar.inc(ix.plan.chunks[idx].points);
-                s.next += 1;
+        if !s.ready.contains_key(&idx) {
+            return;
+        }
+        let Some(mut committer) = s.committer.take() else {
+            return;
+        };
+        let Some(done) = s.ready.remove(&idx) else {
+            return;
+        };
+        s.next += 1;
+        turn.notify_all();
+        drop(s);
+        let committed = committer.commit(ix.wd, idx, done).and_then(|entry| {
+            // Consumed: its files go now, so the work files shrink as the dataset grows.
+            // Shared ones stay: other tasks read their bands.
+            for part in (0..ix.parts).filter(|_| ix.wd.owns_chunks()) {
+                let _ = fs::remove_file(ix.wd.chunk_part(idx, part));
             }
+            ix.halos.release(ix.wd, idx)?;
+            bar.inc(ix.plan.chunks[idx].points);
+            Ok(entry)
+        });
+        s = match state.lock() {
+            Ok(s) => s,
+            Err(_) => return,
+        };
+        s.committer = Some(committer);
+        match committed {
+            Ok(entry) => s.entries.push(entry),
             Err(e) => {
                 s.error.get_or_insert(e);
                 abort.store(true, Ordering::SeqCst);
-                break;
+                turn.notify_all();
+                return;
             }
         }
     }
