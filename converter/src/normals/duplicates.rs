@@ -8,6 +8,9 @@ use super::kdtree::{Found, KdTree, Pending};
 /// with more repeats than this near it gets fewer than k (counted in `normals.partial`).
 const MAX_SEARCHED: usize = 4096;
 
+/// Neighbourhoods up to this size are checked for equal distances pair by pair.
+const SHORT: usize = 32;
+
 /// Room for the searches that skip repeats.
 #[derive(Default)]
 pub struct Distinct {
@@ -22,12 +25,8 @@ impl Distinct {
     pub fn repeats(tree: &KdTree, near: &Found) -> bool {
         let d = &near.dist;
         // Pairwise without a branch for the usual k; sorted for large ones (k up to 256).
-        let tie = if d.len() <= 32 {
-            d.iter()
-                .enumerate()
-                .map(|(i, &a)| d[i + 1..].iter().map(|&b| u32::from(a == b)).sum::<u32>())
-                .sum::<u32>()
-                > 0
+        let tie = if d.len() <= SHORT {
+            any_equal(d)
         } else {
             let mut sorted = d.clone();
             sorted.sort_unstable_by(f64::total_cmp);
@@ -65,6 +64,48 @@ impl Distinct {
                 return;
             }
             searched = (searched * 4).min(MAX_SEARCHED);
+        }
+    }
+}
+
+/// Whether two of `d` (at most `SHORT`, none NaN) are equal. Each pair is some element and
+/// the one `s` places after it, cyclically, for a shift `s` of at most half the length: the
+/// comparisons of a shift run over two contiguous slices, which vectorise, where the
+/// triangle of pairs did not.
+fn any_equal(d: &[f64]) -> bool {
+    let n = d.len();
+    let mut twice = [0.0f64; 2 * SHORT];
+    twice[..n].copy_from_slice(d);
+    twice[n..2 * n].copy_from_slice(d);
+    let mut equal = 0u64;
+    for s in 1..=n / 2 {
+        equal |= twice[..n]
+            .iter()
+            .zip(&twice[s..s + n])
+            .fold(0u64, |e, (a, b)| e | u64::from(a == b));
+    }
+    equal != 0
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::synth::Rng;
+
+    #[test]
+    fn any_equal_finds_every_pair() {
+        let mut rng = Rng::new(3, 1, 2);
+        for n in 0..=SHORT {
+            let distinct: Vec<f64> = (0..n).map(|i| i as f64 + rng.unit() * 0.5).collect();
+            assert!(!any_equal(&distinct), "{distinct:?}");
+            // Each pair in turn made equal, whatever the gap between them.
+            for i in 0..n {
+                for j in i + 1..n {
+                    let mut d = distinct.clone();
+                    d[j] = d[i];
+                    assert!(any_equal(&d), "{i} {j} of {n}");
+                }
+            }
         }
     }
 }
