@@ -28,6 +28,7 @@ pub mod prepare;
 pub mod progress;
 pub mod quantize;
 pub mod replace;
+pub mod row_shuffle;
 pub mod rowfile;
 pub mod rows;
 pub mod sampling;

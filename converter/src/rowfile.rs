@@ -6,6 +6,7 @@
 //! positions and attributes, compressed with lz4.
 
 use crate::error::{ConvertError, Result, io_err};
+use crate::row_shuffle::{shuffle, unshuffle};
 use std::fs::{File, OpenOptions};
 use std::io::{BufReader, BufWriter, Read, Seek, SeekFrom, Write};
 use std::ops::Range;
@@ -17,51 +18,6 @@ const HEADER: usize = 8;
 /// that a record's block is found by division.
 pub fn block_rows(stride: usize) -> usize {
     ((1usize << 20) / stride.max(1)).clamp(1, 1 << 14)
-}
-
-/// Groups the bytes of `rows` (of `stride` bytes each) by their place in the row.
-fn shuffle(rows: &[u8], stride: usize, out: &mut Vec<u8>) {
-    let n = rows.len() / stride;
-    out.clear();
-    out.resize(n * stride, 0);
-    if n == 0 {
-        return;
-    }
-    // A tile of rows at a time, so that the rows being read stay in the first-level cache
-    // while each of their columns is written.
-    for t0 in (0..n).step_by(TILE) {
-        let t1 = (t0 + TILE).min(n);
-        let tile = &rows[t0 * stride..t1 * stride];
-        for (j, col) in out.chunks_exact_mut(n).enumerate() {
-            for (b, row) in col[t0..t1].iter_mut().zip(tile.chunks_exact(stride)) {
-                *b = row[j];
-            }
-        }
-    }
-}
-
-/// Rows per tile of `shuffle` and `unshuffle`: 256 rows of a typical 30 to 60 byte stride fill
-/// about half of a 32 KiB first-level cache (64 and 1024 measured slower).
-const TILE: usize = 256;
-
-/// Appends to `out` the rows whose bytes `grouped` holds grouped by place in the row.
-fn unshuffle(grouped: &[u8], stride: usize, out: &mut Vec<u8>) {
-    let n = grouped.len() / stride;
-    let start = out.len();
-    out.resize(start + n * stride, 0);
-    if n == 0 {
-        return;
-    }
-    let rows = &mut out[start..];
-    for t0 in (0..n).step_by(TILE) {
-        let t1 = (t0 + TILE).min(n);
-        let tile = &mut rows[t0 * stride..t1 * stride];
-        for (j, col) in grouped.chunks_exact(n).enumerate() {
-            for (row, b) in tile.chunks_exact_mut(stride).zip(&col[t0..t1]) {
-                row[j] = *b;
-            }
-        }
-    }
 }
 
 /// Reusable buffers for encoding and decoding blocks.
@@ -337,24 +293,6 @@ pub fn for_each_in(
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    #[test]
-    fn unshuffle_undoes_shuffle() {
-        // Row counts around the tile size and a stride that is not a power of two.
-        for n in [0, 1, 200, 255, 256, 257, 600] {
-            let stride = 37;
-            let rows: Vec<u8> = (0..n * stride).map(|i| (i * 7 + i / 13) as u8).collect();
-            let mut grouped = Vec::new();
-            shuffle(&rows, stride, &mut grouped);
-            if n > 1 {
-                assert_eq!(grouped[1], rows[stride], "byte 0 of row 1 comes second");
-            }
-            let mut back = vec![9u8; 3];
-            unshuffle(&grouped, stride, &mut back);
-            assert_eq!(&back[..3], &[9, 9, 9], "appended after what was there");
-            assert_eq!(&back[3..], &rows[..], "{n} rows");
-        }
-    }
 
     #[test]
     fn rows_come_back_whole_and_smaller() {
