@@ -58,7 +58,7 @@ impl Taken {
             } else {
                 (&two[..], &mut one[..])
             };
-            let pivot = lo + (hi - lo) * (need as f64 / len as f64);
+            let pivot = lo + (hi - lo) * (need as f64 * reciprocal(len));
             // Nearer than the pivot to the front, the rest to the back.
             let (mut near, mut far) = (0, 0);
             let mut part = |d: f64| {
@@ -73,21 +73,42 @@ impl Taken {
             } else {
                 src[start..start + len].iter().for_each(|&d| part(d));
             }
-            if near >= need {
-                if near == need {
-                    // The nearest `need` of the range, so the k-th is the farthest of them.
-                    return dst[..near].iter().fold(0.0, |x, &d| x.max(d));
-                }
-                (start, len, hi) = (0, near, pivot);
-            } else {
-                (start, len, lo) = (near, len - near, pivot);
-                need -= near;
+            if near == need {
+                // The nearest `need` of the range, so the k-th is the farthest of them.
+                return dst[..near].iter().fold(0.0, |x, &d| x.max(d));
             }
+            // Which side holds the k-th, chosen without a branch: it goes either way about
+            // as often, and a mispredicted branch costs more than the choice.
+            let below = near > need;
+            start = if below { 0 } else { near };
+            len = if below { near } else { len - near };
+            hi = if below { pivot } else { hi };
+            lo = if below { lo } else { pivot };
+            need = if below { need } else { need - near };
         }
         // `need` of `len` (more than `need`) remain, in the buffer the last round wrote.
         let rest = if ROUNDS % 2 == 1 { two } else { one };
         let rest = &mut rest[start..start + len];
         *rest.select_nth_unstable_by(need - 1, f64::total_cmp).1
+    }
+}
+
+/// 1 / n, from a table for the usual sizes: a division's latency would lie on the path
+/// from one round to the next.
+#[inline]
+fn reciprocal(n: usize) -> f64 {
+    const TABLE: [f64; 64] = {
+        let mut t = [0.0; 64];
+        let mut i = 1;
+        while i < 64 {
+            t[i] = 1.0 / i as f64;
+            i += 1;
+        }
+        t
+    };
+    match TABLE.get(n) {
+        Some(&r) if n > 0 => r,
+        _ => 1.0 / n as f64,
     }
 }
 
@@ -125,6 +146,13 @@ mod tests {
         assert_eq!(got, want, "k = {k} of {distances:?}");
         for &(d, i) in out {
             assert_eq!(distances[i as usize], d);
+        }
+    }
+
+    #[test]
+    fn reciprocals_from_the_table_are_the_quotients() {
+        for n in 1..200 {
+            assert_eq!(reciprocal(n), 1.0 / n as f64, "{n}");
         }
     }
 
