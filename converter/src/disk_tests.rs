@@ -34,8 +34,10 @@ impl ChunkStep for Inspect {
             on_disk > 0 && on_disk * 10 < rows * 6,
             "chunk {i}: {on_disk} bytes on disk for {rows} bytes of rows"
         );
-        // Chunks at least `threads` behind this one have committed: their files are gone.
-        for j in 0..(i + 1).saturating_sub(self.threads) {
+        // Chunks more than `threads` behind this one have committed: their files are gone.
+        // (The one `threads` behind may still be committing: a chunk starts once those
+        // before it are handed to the committer.)
+        for j in 0..i.saturating_sub(self.threads) {
             assert!(
                 parts(j).all(|p| !p.exists()),
                 "chunk {j}'s files outlive it"
