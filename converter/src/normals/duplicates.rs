@@ -68,23 +68,33 @@ impl Distinct {
     }
 }
 
-/// Whether two of `d` (at most `SHORT`, none NaN) are equal. Each pair is some element and
-/// the one `s` places after it, cyclically, for a shift `s` of at most half the length: the
-/// comparisons of a shift run over two contiguous slices, which vectorise, where the
-/// triangle of pairs did not.
+/// Whether two of `d` (at most `SHORT`, none NaN) are equal.
 fn any_equal(d: &[f64]) -> bool {
-    let n = d.len();
-    let mut twice = [0.0f64; 2 * SHORT];
-    twice[..n].copy_from_slice(d);
-    twice[n..2 * n].copy_from_slice(d);
-    let mut equal = 0u64;
-    for s in 1..=n / 2 {
-        equal |= twice[..n]
-            .iter()
-            .zip(&twice[s..s + n])
-            .fold(0u64, |e, (a, b)| e | u64::from(a == b));
+    // The default k as a constant, so that the loops unroll.
+    if d.len() == 16 {
+        equal_pair(d, 16)
+    } else {
+        equal_pair(d, d.len())
     }
-    equal != 0
+}
+
+/// Whether two of the `n` values of `d` are equal. Each pair is some value and the one `s`
+/// places after it, cyclically, for a shift `s` of at most half the length: the comparisons of
+/// a shift run over contiguous slices, which vectorise, where the triangle of pairs did not.
+#[inline(always)]
+fn equal_pair(d: &[f64], n: usize) -> bool {
+    let d = &d[..n];
+    let equal = |a: &[f64], b: &[f64]| {
+        a.iter()
+            .zip(b)
+            .fold(0u64, |e, (x, y)| e | u64::from(x == y))
+    };
+    let mut any = 0u64;
+    for s in 1..=n / 2 {
+        // Value i against i + s, and those past the end against the start.
+        any |= equal(&d[..n - s], &d[s..]) | equal(&d[n - s..], &d[..s]);
+    }
+    any != 0
 }
 
 #[cfg(test)]
