@@ -8,6 +8,7 @@ mod attrs;
 mod duplicates;
 mod kdtree;
 mod pca;
+mod row_order;
 mod select;
 mod surfel_size;
 
@@ -152,12 +153,12 @@ impl ChunkStep for NormalStep {
         attrs::added(inputs)
     }
 
-    fn bytes_per_point(&self, stride: usize) -> usize {
-        // Building the k-d tree: (position, index) items, then the tree's positions and order
-        // (then the positions again, axis by axis, once the items are gone); its leaves' boxes
-        // (64 bytes a leaf of 16 or more points); and a copy of the rows while they are put in
-        // its order.
-        32 + 24 + 4 + 4 + stride
+    fn bytes_per_point(&self, _stride: usize) -> usize {
+        // The positions (kept as the tree's), with the tree's order and, while the tree is
+        // built, (position, index) items; once they are gone, the positions again, axis by
+        // axis; its leaves' boxes (64 bytes a leaf of 16 or more points); and while the rows
+        // are put in its order (in place), their sources and a flag each.
+        24 + 4 + 24 + 4 + 4 + 1
     }
 
     fn halo_margin(&self, plan: &Plan) -> f64 {
@@ -198,12 +199,14 @@ impl ChunkStep for NormalStep {
         };
         // The rows in the order the search visits them, so that reading and writing them runs
         // through memory once (rows may come in any order; the tree sorts them afterwards).
-        let mut in_tree_order = Vec::with_capacity(chunk.rows.len());
-        for &i in tree.order.iter().filter(|&&i| (i as usize) < own) {
-            let i = i as usize;
-            in_tree_order.extend_from_slice(&chunk.rows[i * stride..(i + 1) * stride]);
-        }
-        *chunk.rows = in_tree_order;
+        let source: Vec<u32> = tree
+            .order
+            .iter()
+            .copied()
+            .filter(|&i| (i as usize) < own)
+            .collect();
+        row_order::permute_rows(chunk.rows, stride, &source);
+        drop(source);
         let mut next_row = 0;
         let rows = &mut *chunk.rows;
         let opts = &self.opts;
