@@ -1,7 +1,8 @@
-//! Gathering each chunk's halo. Before indexing, every chunk writes its band: its rows within
-//! the margin of its own faces, the only ones another chunk's halo can hold. A chunk's halo is
-//! then read from its neighbours' bands, not their whole chunk files, and the bands outlive the
-//! chunk files, which indexing deletes as it commits.
+//! Gathering each chunk's halo. Before indexing, every chunk writes its bands: for each
+//! neighbour whose halo it reaches into, the rows that lie there, in a file of their own. A
+//! chunk's halo is then read from the bands written for it, not from its neighbours' whole
+//! chunk files (nor from rows near their other faces, which other chunks need), and the bands
+//! outlive the chunk files, which indexing deletes as it commits.
 
 use crate::chunk_step::{GridBox, Halo, row_in};
 use crate::error::{ConvertError, Result, io_err, panic_message};
@@ -19,11 +20,11 @@ pub struct Halos {
     /// The margin in real units, as the step asked for it.
     asked: f64,
     boxes: Vec<GridBox>,
-    /// For each chunk, the chunks whose band can reach into its halo.
+    /// For each chunk, the chunks whose rows can lie in its halo.
     neighbours: Vec<Vec<usize>>,
+    /// For each chunk, the chunks whose halo its rows can lie in: it writes a band for each.
+    readers: Vec<Vec<usize>>,
     stride: usize,
-    /// For each chunk, the bands no chunk after it reads: removed once it commits.
-    release_at: Vec<Vec<usize>>,
     /// Rows read from bands, all chunks together.
     rows_read: AtomicU64,
 }
@@ -56,14 +57,14 @@ impl Halos {
                     .collect();
             }
         }
-        // A band is read by its own chunk's neighbours only (and written from its own chunk).
-        let mut release_at = vec![Vec::new(); boxes.len()];
-        for (j, n) in neighbours.iter().enumerate() {
-            let last = n.iter().copied().max().unwrap_or(j).max(j);
-            release_at[last].push(j);
+        let mut readers = vec![Vec::new(); boxes.len()];
+        for (i, n) in neighbours.iter().enumerate() {
+            for &j in n {
+                readers[j].push(i);
+            }
         }
         Halos {
-            release_at,
+            readers,
             margin,
             asked: margin_real,
             boxes,
@@ -83,12 +84,6 @@ impl Halos {
         self.boxes[chunk].grown(self.margin)
     }
 
-    /// Chunk `chunk`'s box shrunk by the margin: no other chunk's halo reaches in here, so its
-    /// band holds the rest.
-    pub fn inner(&self, chunk: usize) -> GridBox {
-        self.boxes[chunk].grown(self.margin.map(|m| -m))
-    }
-
     /// Whether any chunk can have a halo, so that bands are worth writing.
     pub fn needed(&self) -> bool {
         self.margin != [0; 3]
@@ -98,8 +93,9 @@ impl Halos {
         self.rows_read.load(Ordering::Relaxed)
     }
 
-    /// Writes the band of each chunk from `first` on that has none yet (earlier ones were
-    /// committed by an interrupted run, so theirs exist already), `threads` at a time.
+    /// Writes the bands of each chunk from `first` on for the chunks from `first` on, those
+    /// that do not exist yet (earlier chunks were committed by an interrupted run: theirs
+    /// exist already, and bands for them are needed no more), `threads` at a time.
     pub fn write_bands(
         &self,
         wd: &WorkDir,
@@ -109,14 +105,16 @@ impl Halos {
         bar: &ProgressBar,
     ) -> Result<()> {
         let chunks: Vec<usize> = (first..self.boxes.len()).collect();
-        self.write_bands_of(wd, &chunks, parts, threads, bar)
+        self.write_bands_of(wd, &chunks, |reader| reader >= first, parts, threads, bar)
     }
 
-    /// Writes the bands of `chunks` that have none yet, `threads` at a time.
+    /// Writes the bands of `chunks` for the readers `wanted` picks, those that do not exist
+    /// yet, `threads` at a time.
     pub fn write_bands_of(
         &self,
         wd: &WorkDir,
         chunks: &[usize],
+        wanted: impl Fn(usize) -> bool + Sync,
         parts: usize,
         threads: usize,
         bar: &ProgressBar,
@@ -132,7 +130,7 @@ impl Halos {
                             let Some(&i) = chunks.get(next.fetch_add(1, Ordering::SeqCst)) else {
                                 return Ok(());
                             };
-                            self.write_band(wd, i, parts)?;
+                            self.write_band(wd, i, &wanted, parts)?;
                             bar.inc(1);
                         }
                     })
@@ -153,36 +151,64 @@ impl Halos {
         results.into_iter().collect()
     }
 
-    fn write_band(&self, wd: &WorkDir, chunk: usize, parts: usize) -> Result<()> {
-        let path = wd.chunk_band(chunk);
-        if path.exists() {
+    /// Writes chunk `chunk`'s band for each reader `wanted` picks, unless all exist already.
+    fn write_band(
+        &self,
+        wd: &WorkDir,
+        chunk: usize,
+        wanted: &impl Fn(usize) -> bool,
+        parts: usize,
+    ) -> Result<()> {
+        let readers: Vec<usize> = self.readers[chunk]
+            .iter()
+            .copied()
+            .filter(|&r| wanted(r))
+            .collect();
+        if readers.iter().all(|&r| wd.chunk_band(chunk, r).exists()) {
             return Ok(());
         }
-        let inner = self.inner(chunk);
-        let part_path = path.with_extension("part");
-        let mut out = RowWriter::create(&part_path, self.stride)?;
+        let reaches: Vec<GridBox> = readers.iter().map(|&r| self.reach(r)).collect();
+        // No other chunk's halo reaches this far in: most rows are tested once.
+        let inner = self.boxes[chunk].grown(self.margin.map(|m| -m));
+        let mut outs = readers
+            .iter()
+            .map(|&r| {
+                RowWriter::create(&wd.chunk_band(chunk, r).with_extension("part"), self.stride)
+            })
+            .collect::<Result<Vec<_>>>()?;
         for part in 0..parts {
             let src = wd.chunk_part(chunk, part);
             for_each_row(&src, self.stride, |row| {
-                if !row_in(&inner, row) {
-                    out.write(row)?;
+                if row_in(&inner, row) {
+                    return Ok(());
+                }
+                // A row near a corner lies in several halos.
+                for (reach, out) in reaches.iter().zip(&mut outs) {
+                    if row_in(reach, row) {
+                        out.write(row)?;
+                    }
                 }
                 Ok(())
             })?;
         }
-        out.finish()?;
-        // Renamed only once whole, so a resumed run never takes a cut band for a full one.
-        fs::rename(&part_path, &path).map_err(io_err(&path, "cannot write"))
+        for (out, &r) in outs.into_iter().zip(&readers) {
+            out.finish()?;
+            let path = wd.chunk_band(chunk, r);
+            // Renamed only once whole, so a resumed run never takes a cut band for a full one.
+            fs::rename(path.with_extension("part"), &path)
+                .map_err(io_err(&path, "cannot write"))?;
+        }
+        Ok(())
     }
 
-    /// Removes the bands no chunk after `committed` reads, now that it has committed. An
+    /// Removes the bands written for chunk `committed`, now that it has committed. An
     /// interrupted run resumes after its last committed chunk, so it never needs them.
     pub fn release(&self, wd: &WorkDir, committed: usize) -> Result<()> {
         if !self.needed() {
             return Ok(());
         }
-        for &j in &self.release_at[committed] {
-            let path = wd.chunk_band(j);
+        for &j in &self.neighbours[committed] {
+            let path = wd.chunk_band(j, committed);
             match fs::remove_file(&path) {
                 Err(e) if e.kind() != std::io::ErrorKind::NotFound => {
                     return Err(ConvertError::io(&path, "cannot remove band file", e));
@@ -202,8 +228,10 @@ impl Halos {
         let reach = halo.reach;
         let mut read = 0u64;
         for &j in &self.neighbours[chunk] {
-            for_each_row(&wd.chunk_band(j), self.stride, |row| {
+            for_each_row(&wd.chunk_band(j, chunk), self.stride, |row| {
                 read += 1;
+                // Written for this chunk: every row lies in its reach (checked all the same,
+                // as the halo's promise to the step).
                 if row_in(&reach, row) {
                     halo.rows.extend_from_slice(row);
                 }
@@ -308,15 +336,16 @@ mod tests {
                 assert!(!own.contains(p) && halo.reach().contains(p), "{p:?}");
             }
         }
-        // Each chunk read the bands of its 7 neighbours: all but the 4^3 inner rows of each.
-        assert_eq!(halos.rows_read(), 8 * 7 * (512 - 64));
-        // Every octant touches chunk 7, the last: no band can go before it commits.
-        for i in 0..7 {
+        // Each chunk read the rows of its halo and no others.
+        assert_eq!(halos.rows_read(), 8 * (10 * 10 * 10 - 8 * 8 * 8));
+        // Each octant touches the 7 others; a chunk's bands go when it commits.
+        let band = |j: usize, r: usize| wd.chunk_band(j, r).exists();
+        for i in 0..8 {
+            assert!((0..8).filter(|&j| j != i).all(|j| band(j, i)), "before {i}");
             halos.release(&wd, i).expect("release");
-            assert!((0..8).all(|j| wd.chunk_band(j).exists()), "after {i}");
+            assert!((0..8).all(|j| !band(j, i)), "after {i}");
+            assert!((0..8).filter(|&j| j != i).all(|j| band(i, j) == (j > i)));
         }
-        halos.release(&wd, 7).expect("release");
-        assert!((0..8).all(|j| !wd.chunk_band(j).exists()));
     }
 
     #[test]

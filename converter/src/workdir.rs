@@ -130,13 +130,15 @@ impl WorkDir {
         self.roots().join(format!("c{chunk}.bin"))
     }
 
-    /// The rows of each chunk near its faces, which neighbouring chunks see as their halo.
+    /// The rows of each chunk within its neighbours' reach, which they see as their halo, a
+    /// file for each neighbour.
     pub fn bands(&self) -> PathBuf {
         self.work.join("bands")
     }
 
-    pub fn chunk_band(&self, chunk: usize) -> PathBuf {
-        self.bands().join(format!("c{chunk}.bin"))
+    /// The rows of chunk `chunk` that lie in chunk `reader`'s halo.
+    pub fn chunk_band(&self, chunk: usize, reader: usize) -> PathBuf {
+        self.bands().join(format!("c{chunk}-for-c{reader}.bin"))
     }
 
     /// Its presence marks a work directory that `--resume` can continue.

@@ -139,8 +139,10 @@ fn build(
             .collect();
         banded.sort_unstable();
         banded.dedup();
+        // Bands for the chunks left, the only ones to read them.
+        let left = first..range.end;
         phases.timed("halo", Some((banded.len() as u64, "chunks")), |bar| {
-            halos.write_bands_of(wd, &banded, parts, threads, bar)
+            halos.write_bands_of(wd, &banded, |r| left.contains(&r), parts, threads, bar)
         })?;
     }
     let remaining: u64 = plan.chunks[first..range.end].iter().map(|c| c.points).sum();
