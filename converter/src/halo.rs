@@ -173,7 +173,10 @@ impl Halos {
         let mut outs = readers
             .iter()
             .map(|&r| {
-                RowWriter::create(&wd.chunk_band(chunk, r).with_extension("part"), self.stride)
+                RowWriter::create_small(
+                    &wd.chunk_band(chunk, r).with_extension("part"),
+                    self.stride,
+                )
             })
             .collect::<Result<Vec<_>>>()?;
         for part in 0..parts {

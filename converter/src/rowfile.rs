@@ -154,13 +154,24 @@ pub struct RowWriter {
 
 impl RowWriter {
     pub fn create(path: &Path, stride: usize) -> Result<Self> {
+        Self::with_buffers(path, stride, 4 << 20, block_rows(stride))
+    }
+
+    /// A writer that holds at most about 64 KiB of rows and 64 KiB of output at a time, in
+    /// shorter blocks (read sequentially only): for many files written at once, such as a
+    /// chunk's bands, one for each neighbour.
+    pub fn create_small(path: &Path, stride: usize) -> Result<Self> {
+        Self::with_buffers(path, stride, 64 << 10, ((64 << 10) / stride.max(1)).max(1))
+    }
+
+    fn with_buffers(path: &Path, stride: usize, buffer: usize, rows: usize) -> Result<Self> {
         let file = File::create(path).map_err(io_err(path, "cannot create"))?;
         Ok(RowWriter {
             path: path.to_path_buf(),
-            out: BufWriter::with_capacity(4 << 20, file),
+            out: BufWriter::with_capacity(buffer, file),
             stride,
             pending: Vec::new(),
-            block: block_rows(stride) * stride,
+            block: rows * stride,
             scratch: Scratch::default(),
             rows: 0,
             offsets: Vec::new(),
@@ -308,6 +319,17 @@ mod tests {
                 r
             })
             .collect();
+        // A small writer's short blocks read back the same.
+        let small = dir.path().join("small.bin");
+        let mut w = RowWriter::create_small(&small, stride).expect("create");
+        for part in rows.chunks(stride * 999) {
+            w.write(part).expect("write");
+        }
+        let (n, offsets) = w.finish_indexed().expect("finish");
+        assert_eq!((n, offsets.len()), (100_000, 25), "64 KiB blocks of 16-byte rows");
+        let mut back = Vec::new();
+        read_rows(&small, stride, &mut back, &mut Scratch::default()).expect("read");
+        assert!(back == rows);
         let mut w = RowWriter::create(&path, stride).expect("create");
         for part in rows.chunks(stride * 999) {
             w.write(part).expect("write");
