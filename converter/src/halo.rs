@@ -14,6 +14,9 @@ use std::fs;
 use std::path::Path;
 use std::sync::atomic::{AtomicU64, AtomicUsize, Ordering};
 
+/// The most band files a worker writes at once.
+const MAX_OPEN_BANDS: usize = 64;
+
 pub struct Halos {
     /// The margin in quantization steps per axis; all 0 when the step needs no halo.
     margin: [i64; 3],
@@ -167,39 +170,45 @@ impl Halos {
         if readers.iter().all(|&r| wd.chunk_band(chunk, r).exists()) {
             return Ok(());
         }
-        let reaches: Vec<GridBox> = readers.iter().map(|&r| self.reach(r)).collect();
         // No other chunk's halo reaches this far in: most rows are tested once.
         let inner = self.boxes[chunk].grown(self.margin.map(|m| -m));
-        let mut outs = readers
-            .iter()
-            .map(|&r| {
-                RowWriter::create_small(
-                    &wd.chunk_band(chunk, r).with_extension("part"),
-                    self.stride,
-                )
-            })
-            .collect::<Result<Vec<_>>>()?;
-        for part in 0..parts {
-            let src = wd.chunk_part(chunk, part);
-            for_each_row(&src, self.stride, |row| {
-                if row_in(&inner, row) {
-                    return Ok(());
-                }
-                // A row near a corner lies in several halos.
-                for (reach, out) in reaches.iter().zip(&mut outs) {
-                    if row_in(reach, row) {
-                        out.write(row)?;
+        // A coarse chunk beside many fine ones has many readers: their files are written a
+        // group at a time, so that a worker holds no more than this many open.
+        for group in readers.chunks(MAX_OPEN_BANDS) {
+            let reaches: Vec<GridBox> = group.iter().map(|&r| self.reach(r)).collect();
+            let mut outs = group
+                .iter()
+                .map(|&r| {
+                    RowWriter::create_small(
+                        &wd.chunk_band(chunk, r).with_extension("part"),
+                        self.stride,
+                    )
+                })
+                .collect::<Result<Vec<_>>>()?;
+            for part in 0..parts {
+                let src = wd.chunk_part(chunk, part);
+                for_each_row(&src, self.stride, |row| {
+                    if row_in(&inner, row) {
+                        return Ok(());
                     }
-                }
-                Ok(())
-            })?;
-        }
-        for (out, &r) in outs.into_iter().zip(&readers) {
-            out.finish()?;
-            let path = wd.chunk_band(chunk, r);
-            // Renamed only once whole, so a resumed run never takes a cut band for a full one.
-            fs::rename(path.with_extension("part"), &path)
-                .map_err(io_err(&path, "cannot write"))?;
+                    // A row near a corner lies in several halos.
+                    for (reach, out) in reaches.iter().zip(&mut outs) {
+                        if row_in(reach, row) {
+                            out.write(row)?;
+                        }
+                    }
+                    Ok(())
+                })?;
+            }
+            // Every band is a file, rows or none, so that a missing one is known for lost.
+            for (out, &r) in outs.into_iter().zip(group) {
+                out.finish()?;
+                let path = wd.chunk_band(chunk, r);
+                // Renamed only once whole, so a resumed run never takes a cut band for a full
+                // one.
+                fs::rename(path.with_extension("part"), &path)
+                    .map_err(io_err(&path, "cannot write"))?;
+            }
         }
         Ok(())
     }
@@ -231,7 +240,16 @@ impl Halos {
         let reach = halo.reach;
         let mut read = 0u64;
         for &j in &self.neighbours[chunk] {
-            for_each_row(&wd.chunk_band(j, chunk), self.stride, |row| {
+            let band = wd.chunk_band(j, chunk);
+            if !band.exists() {
+                return Err(ConvertError::input(
+                    &band,
+                    format!(
+                        "chunk {j}'s band for chunk {chunk} is missing from the work directory: it was removed, or the work was begun by another version of strata; convert again from the start"
+                    ),
+                ));
+            }
+            for_each_row(&band, self.stride, |row| {
                 read += 1;
                 // Written for this chunk: every row lies in its reach (checked all the same,
                 // as the halo's promise to the step).
@@ -349,6 +367,31 @@ mod tests {
             assert!((0..8).all(|j| !band(j, i)), "after {i}");
             assert!((0..8).filter(|&j| j != i).all(|j| band(i, j) == (j > i)));
         }
+    }
+
+    #[test]
+    fn a_missing_band_is_an_error_not_an_empty_halo() {
+        let dir = tempfile::tempdir().expect("tempdir");
+        let wd = WorkDir::for_output(&dir.path().join("ds"));
+        let plan = octants(&wd);
+        let halos = Halos::new(&plan, 12, 1.0);
+        halos
+            .write_bands(&wd, 0, 1, 2, &ProgressBar::hidden())
+            .expect("bands");
+        std::fs::remove_file(wd.chunk_band(3, 5)).expect("remove");
+        let mut halo = Halo::default();
+        let e = halos.gather(&wd, 5, &mut halo).expect_err("missing band");
+        let text = e.to_string();
+        assert!(
+            text.contains("chunk 3's band for chunk 5 is missing"),
+            "{text}"
+        );
+        // Written again where missing.
+        halos
+            .write_bands(&wd, 0, 1, 2, &ProgressBar::hidden())
+            .expect("bands");
+        halos.gather(&wd, 5, &mut halo).expect("gather");
+        assert_eq!(halo.len(), 10 * 10 * 10 - 8 * 8 * 8);
     }
 
     #[test]

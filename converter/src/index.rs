@@ -38,6 +38,8 @@ struct CommitState {
     committer: Option<Committer>,
     /// The first chunk not yet handed to the committer.
     next: usize,
+    /// A commit failed: no later chunk may commit.
+    commit_failed: bool,
     ready: BTreeMap<usize, BuiltChunk>,
     entries: Vec<JournalEntry>,
     error: Option<ConvertError>,
@@ -59,6 +61,7 @@ pub fn index_chunks(
     let state = Mutex::new(CommitState {
         committer: Some(committer),
         next: first,
+        commit_failed: false,
         ready: BTreeMap::new(),
         entries: Vec::new(),
         error: None,
@@ -182,28 +185,39 @@ fn commit_ready<'s>(
     bar: &ProgressBar,
 ) {
     loop {
-        let idx = s.next;
-        if !s.ready.contains_key(&idx) {
+        // After a failed commit nothing later may commit: a resumed run starts at the failed
+        // chunk, and needs the files of those after it. (A chunk that failed to build stops
+        // nothing before it.)
+        if s.commit_failed || s.committer.is_none() {
             return;
         }
-        let Some(mut committer) = s.committer.take() else {
+        let idx = s.next;
+        let Some(done) = s.ready.remove(&idx) else {
             return;
         };
-        let Some(done) = s.ready.remove(&idx) else {
+        let Some(mut committer) = s.committer.take() else {
             return;
         };
         s.next += 1;
         turn.notify_all();
         drop(s);
-        let committed = committer.commit(ix.wd, idx, done).and_then(|entry| {
-            // Consumed: its files go now, so the work files shrink as the dataset grows.
-            // Shared ones stay: other tasks read their bands.
-            for part in (0..ix.parts).filter(|_| ix.wd.owns_chunks()) {
-                let _ = fs::remove_file(ix.wd.chunk_part(idx, part));
-            }
-            ix.halos.release(ix.wd, idx)?;
-            bar.inc(ix.plan.chunks[idx].points);
-            Ok(entry)
+        let committed = catch_unwind(AssertUnwindSafe(|| {
+            committer.commit(ix.wd, idx, done).and_then(|entry| {
+                // Consumed: its files go now, so the work files shrink as the dataset grows.
+                // Shared ones stay: other tasks read them to write their own bands.
+                for part in (0..ix.parts).filter(|_| ix.wd.owns_chunks()) {
+                    let _ = fs::remove_file(ix.wd.chunk_part(idx, part));
+                }
+                ix.halos.release(ix.wd, idx)?;
+                bar.inc(ix.plan.chunks[idx].points);
+                Ok(entry)
+            })
+        }))
+        .unwrap_or_else(|p| {
+            Err(ConvertError::internal(
+                format!("committing chunk {idx}"),
+                panic_message(p.as_ref()),
+            ))
         });
         s = match state.lock() {
             Ok(s) => s,
@@ -213,6 +227,7 @@ fn commit_ready<'s>(
         match committed {
             Ok(entry) => s.entries.push(entry),
             Err(e) => {
+                s.commit_failed = true;
                 s.error.get_or_insert(e);
                 abort.store(true, Ordering::SeqCst);
                 turn.notify_all();

@@ -236,8 +236,9 @@ pub fn chunk_lut(chunks: &[Chunk], cube: &Cube) -> Vec<u32> {
 
 /// Points per chunk that keep indexing inside `memory_limit` with `threads` workers.
 /// Each worker holds its chunk's rows, index arrays and compressed output, and what the
-/// per-chunk step needs (`step_bytes` a point); as many finished chunks again may wait for
-/// their in-order commit.
+/// per-chunk step needs (`step_bytes` a point); finished chunks wait for their in-order commit,
+/// `threads + 1` of them at most (those ahead of the commit and the one being written), whose
+/// compressed output is within the rows' share (the 40 % the formula leaves is room for it).
 pub fn max_chunk_points(
     memory_limit: u64,
     threads: usize,
