@@ -6,13 +6,15 @@ pub enum RangeRequest {
     Whole,
     /// Bytes `start..end` (end exclusive).
     Part { start: u64, end: u64 },
-    /// Cannot be satisfied (past the end, or several ranges): 416.
+    /// Cannot be satisfied (every range past the end, or malformed): 416.
     Unsatisfiable,
 }
 
 /// Parses `bytes=a-b`, `bytes=a-` and `bytes=-n` against a file of `len` bytes (the unit in
-/// any case, empty list elements skipped, RFC 9110 section 14). Several ranges are refused
-/// with 416; a header in another unit is ignored (RFC 9110 allows serving 200).
+/// any case, empty list elements skipped, RFC 9110 section 14). Several ranges are served as
+/// the whole file (RFC 9110 lets a server ignore Range, and this one sends no multipart
+/// answers) unless none of them can be satisfied, which is 416 (section 15.5.17); a header in
+/// another unit is ignored.
 pub fn parse_range(header: Option<&str>, len: u64) -> RangeRequest {
     let Some(h) = header else {
         return RangeRequest::Whole;
@@ -26,9 +28,22 @@ pub fn parse_range(header: Option<&str>, len: u64) -> RangeRequest {
         return RangeRequest::Whole;
     };
     let mut ranges = spec.split(',').map(str::trim).filter(|r| !r.is_empty());
-    let (Some(one), None) = (ranges.next(), ranges.next()) else {
-        return RangeRequest::Unsatisfiable;
-    };
+    match (ranges.next(), ranges.next()) {
+        (None, _) => RangeRequest::Unsatisfiable,
+        (Some(one), None) => one_range(one, len),
+        (Some(one), Some(two)) => {
+            let mut all = [one, two].into_iter().chain(ranges);
+            if all.any(|r| matches!(one_range(r, len), RangeRequest::Part { .. })) {
+                RangeRequest::Whole
+            } else {
+                RangeRequest::Unsatisfiable
+            }
+        }
+    }
+}
+
+/// One range of a `bytes=` list against a file of `len` bytes.
+fn one_range(one: &str, len: u64) -> RangeRequest {
     let Some((a, b)) = one.split_once('-') else {
         return RangeRequest::Unsatisfiable;
     };
@@ -85,10 +100,21 @@ mod tests {
             parse_range(Some("bytes=-99999999999999999999"), 100),
             part(0, 100)
         );
+        // Several ranges: the whole file where any can be satisfied, else 416.
+        assert_eq!(parse_range(Some("bytes=0-1,5-6"), 100), RangeRequest::Whole);
+        assert_eq!(
+            parse_range(Some("bytes=200-,5-6"), 100),
+            RangeRequest::Whole
+        );
+        assert_eq!(
+            parse_range(Some("bytes=x-,-0,90-"), 100),
+            RangeRequest::Whole
+        );
         for bad in [
+            "bytes=100-,200-300",
+            "bytes=x-,-0",
             "bytes=100-",
             "bytes=5-2",
-            "bytes=0-1,5-6",
             "bytes=-0",
             "bytes=x-",
             "bytes=-",
