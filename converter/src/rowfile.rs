@@ -326,7 +326,11 @@ mod tests {
             w.write(part).expect("write");
         }
         let (n, offsets) = w.finish_indexed().expect("finish");
-        assert_eq!((n, offsets.len()), (100_000, 25), "64 KiB blocks of 16-byte rows");
+        assert_eq!(
+            (n, offsets.len()),
+            (100_000, 25),
+            "64 KiB blocks of 16-byte rows"
+        );
         let mut back = Vec::new();
         read_rows(&small, stride, &mut back, &mut Scratch::default()).expect("read");
         assert!(back == rows);
