@@ -193,8 +193,9 @@ fn quick_run_writes_the_table_the_charts_and_the_images() {
     // six layers at half opacity at least 25 dB; the lit or shadowed state right for at least
     // 95 % of the pixels, and since most pixels are lit (a frame without shadows scores the lit share),
     // the shadows' intersection over union at least 0.6 (38.7 dB, 99.5 % and 0.78 on lavapipe).
-    // Rows of that table: scene, density, setting, PSNR, SSIM, state, IoU, speckle, GPU ms.
-    let cells = |scene: &str, setting: &str| -> Vec<String> {
+    // Rows of that table: scene, density, pipeline, setting, PSNR, SSIM, state, IoU, speckle,
+    // GPU ms.
+    let cells = |scene: &str, pipeline: &str, setting: &str| -> Vec<String> {
         summary
             .lines()
             .map(|l| {
@@ -203,30 +204,39 @@ fn quick_run_writes_the_table_the_charts_and_the_images() {
                     .collect::<Vec<_>>()
             })
             .find(|c| {
-                c.len() > 7
+                c.len() > 8
                     && c[1] == scene
                     && c[2].parse::<f64>().is_ok()
-                    && c[3].starts_with(setting)
+                    && c[3] == pipeline
+                    && c[4].starts_with(setting)
             })
-            .unwrap_or_else(|| panic!("no {scene} {setting} row in the summary:\n{summary}"))
+            .unwrap_or_else(|| {
+                panic!("no {scene} {pipeline} {setting} row in the summary:\n{summary}")
+            })
     };
     let number = |c: &str| -> f64 { c.trim_end_matches(" %").parse().unwrap_or(f64::NAN) };
-    let layers = cells("layers", "layers=6 opacity=0.5");
-    assert!(number(&layers[4]) >= 25.0, "transparency: {layers:?}");
-    let shadow = cells("shadow", "shadows=1 2px");
+    let layers = cells("layers", "filters", "layers=6 opacity=0.5");
+    assert!(number(&layers[5]) >= 25.0, "transparency: {layers:?}");
+    let shadow = cells("shadow", "filters", "shadows=1 2px");
     assert!(
-        number(&shadow[6]) >= 95.0 && number(&shadow[7]) >= 0.6,
+        number(&shadow[7]) >= 95.0 && number(&shadow[8]) >= 0.6,
         "shadows: {shadow:?}"
+    );
+    // The same shadows carried through the pyramid's pull-push.
+    let pulled = cells("shadow", "pyramid", "shadows=1");
+    assert!(
+        number(&pulled[7]) >= 95.0 && number(&pulled[8]) >= 0.6,
+        "pyramid's shadows: {pulled:?}"
     );
     // A light grazing the floor (0.77), and soft shadows whose penumbra has no speckle
     // (0.66 %).
-    let grazing = cells("shadow", "shadows=1 grazing");
+    let grazing = cells("shadow", "filters", "shadows=1 grazing");
     assert!(
-        number(&grazing[6]) >= 90.0 && number(&grazing[7]) >= 0.6,
+        number(&grazing[7]) >= 90.0 && number(&grazing[8]) >= 0.6,
         "grazing light: {grazing:?}"
     );
-    let soft = cells("shadow", "shadows=2");
-    assert!(number(&soft[8]) < 1.0, "soft shadows' speckle: {soft:?}");
+    let soft = cells("shadow", "filters", "shadows=2");
+    assert!(number(&soft[9]) < 1.0, "soft shadows' speckle: {soft:?}");
     // Paper 002's triangulation after its warm-up: its targets met on every frame where
     // points leave holes, and back within 8 frames of a camera jump on every view (at most 4
     // on lavapipe).

@@ -308,6 +308,11 @@ fn plate_over_ground() -> &'static Path {
 /// The plate scene seen from above, lit from +x and above; the image and the pixel of each
 /// ground point asked for.
 fn shadow_shot(set: &[&str], ground: &[[f32; 2]]) -> (Vec<[u8; 3]>, Vec<usize>) {
+    shadow_shot_in("filters", set, ground)
+}
+
+/// `shadow_shot` through `pipeline`.
+fn shadow_shot_in(pipeline: &str, set: &[&str], ground: &[[f32; 2]]) -> (Vec<[u8; 3]>, Vec<usize>) {
     let ds = Arc::new(StreamDataset::open_path(plate_over_ground()).expect("dataset opens"));
     let ctx = Arc::new(GpuContext::new(ProjectionPath::Auto).expect("GPU adapter"));
     let mut r = Renderer::new(ctx, ds.clone(), 1 << 30, 1).expect("renderer");
@@ -317,7 +322,7 @@ fn shadow_shot(set: &[&str], ground: &[[f32; 2]]) -> (Vec<[u8; 3]>, Vec<usize>) 
         target: -anchor,
         fov_y: 45f32.to_radians(),
     };
-    let settings = lit_from_x(set);
+    let settings = lit_from_x_in(pipeline, set);
     paths::frame_until_complete(&mut r, &camera, W, H, &settings);
     r.frame(&camera, W, H, &settings).expect("frame");
     r.wait_gpu().expect("GPU");
@@ -338,11 +343,15 @@ fn grey(p: [u8; 3]) -> f32 {
 
 /// `filters` lit from +x and above (the plate's shadow falls towards -x), with `set`.
 fn lit_from_x(set: &[&str]) -> Settings {
+    lit_from_x_in("filters", set)
+}
+
+fn lit_from_x_in(pipeline: &str, set: &[&str]) -> Settings {
     let mut settings = Settings {
         budget: 10_000_000,
         ..Settings::default()
     };
-    settings.set_pipeline("filters").expect("pipeline");
+    settings.set_pipeline(pipeline).expect("pipeline");
     for a in ["light=1,0,1"].iter().chain(set) {
         settings.set_param(a).expect("parameter");
     }
@@ -402,6 +411,32 @@ fn the_plate_shades_the_ground_hard_and_soft() {
     assert!(
         last > 2.0 * first && middle >= 3,
         "a penumbra, not a step: {values:?}"
+    );
+}
+
+/// Beyond the paper: `pyramid` shades with the same per-point lit stream, its shares carried
+/// through the pull-push with the colour, so its picture shows the plate's shadow as the
+/// filters' does, and a lit point looks as it does without shadows.
+#[test]
+fn the_pyramid_shows_the_same_shadows() {
+    let ground = [[-0.6, 0.0], [0.6, 0.0], [-0.6, 0.8]];
+    let (plain, at) = shadow_shot_in("pyramid", &[], &ground);
+    let (hard, _) = shadow_shot_in("pyramid", &["shadows=1"], &ground);
+    let [shadowed, lit, beside] = [at[0], at[1], at[2]].map(|i| grey(hard[i]));
+    assert!(
+        (shadowed - 180.0 * 0.25).abs() < 12.0,
+        "in the shadow only the ambient term: {shadowed} (lit {lit})"
+    );
+    assert!(
+        lit > 2.0 * shadowed && beside > 2.0 * shadowed,
+        "{shadowed} {lit} {beside}"
+    );
+    // Without shadows the point in the shadow is lit (its normal, estimated beside the plate's
+    // edge, turns it a little from the light: 142 against 152 on lavapipe).
+    let unshadowed = [at[0], at[1]].map(|i| grey(plain[i]));
+    assert!(
+        unshadowed[0] > 2.5 * shadowed && (unshadowed[1] - lit).abs() < 4.0,
+        "without shadows both points are lit, the lit one as with them: {unshadowed:?} against {lit}"
     );
 }
 

@@ -1,6 +1,6 @@
 //! The pipeline configurations the quality harness compares: every registered pipeline at its
 //! defaults with one- and two-pixel points, the automatic parameters' sweeps, and the variants
-//! made for one scene (the filters' transparency and shadows).
+//! made for one scene (the filters' transparency, and the filters' and the pyramid's shadows).
 
 use strata_viewer::pipelines::{PipelineInfo, REGISTRY};
 
@@ -68,8 +68,20 @@ type Variant = (
 
 /// Variants compared beside each pipeline's defaults: the surfels' planar and all-curved
 /// modes against their hybrid default (paper 001's Table 2); the filters' transparency, six
-/// layers at half opacity (paper 004's Figure 17).
+/// layers at half opacity (paper 004's Figure 17); the point shadows (paper 004, section 6) in
+/// the filters and carried through the pyramid's pull-push.
 const VARIANTS: &[Variant] = &[
+    (
+        "pyramid",
+        &[
+            ("shadows", 1.0),
+            ("light.x", SHADOW_LIGHT[0]),
+            ("light.y", SHADOW_LIGHT[1]),
+            ("light.z", SHADOW_LIGHT[2]),
+        ],
+        1.0,
+        "shadows=1 1px",
+    ),
     ("surfels", &[("mode", 0.0)], 1.0, "mode=planar"),
     ("surfels", &[("mode", 1.0)], 1.0, "mode=curved"),
     (

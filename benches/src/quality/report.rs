@@ -92,7 +92,8 @@ pub fn write_csv(path: &Path, rows: &[Row]) -> anyhow::Result<()> {
 }
 
 /// Transparency and shadows (paper 004): the filters' peeled layers against the mesh peeled
-/// and blended the same way, and their shadows against the mesh's (lit or shadowed state per
+/// and blended the same way, and the shadows of every pipeline that casts them (the filters',
+/// and the pyramid's through its pull-push) against the mesh's (lit or shadowed state per
 /// pixel, and the image against the same picture with the mesh's shadows).
 fn layers_and_shadows(rows: &[Row]) -> String {
     let picked: Vec<&Row> = rows
@@ -103,7 +104,7 @@ fn layers_and_shadows(rows: &[Row]) -> String {
         return String::new();
     }
     let mut md = String::from(
-        "\n## Transparency and shadows\n\n| scene | density | setting | PSNR dB | SSIM | lit/shadowed state right | shadow IoU | penumbra speckle | GPU ms |\n|---|---|---|---|---|---|---|---|---|\n",
+        "\n## Transparency and shadows\n\n| scene | density | pipeline | setting | PSNR dB | SSIM | lit/shadowed state right | shadow IoU | penumbra speckle | GPU ms |\n|---|---|---|---|---|---|---|---|---|---|\n",
     );
     for r in picked {
         let (state, iou, speckle) = match r.shadow_match {
@@ -116,8 +117,8 @@ fn layers_and_shadows(rows: &[Row]) -> String {
         };
         let _ = writeln!(
             md,
-            "| {} | {:.3} | {} | {:.2} | {:.3} | {state} | {iou} | {speckle} | {:.1} |",
-            r.scene, r.density, r.setting, r.metrics.psnr, r.metrics.ssim, r.gpu_ms
+            "| {} | {:.3} | {} | {} | {:.2} | {:.3} | {state} | {iou} | {speckle} | {:.1} |",
+            r.scene, r.density, r.pipeline, r.setting, r.metrics.psnr, r.metrics.ssim, r.gpu_ms
         );
     }
     md

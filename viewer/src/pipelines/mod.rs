@@ -10,6 +10,7 @@ pub mod projection;
 pub mod shader;
 #[cfg(test)]
 mod shader_tests;
+pub mod shadows;
 pub mod surface;
 
 use crate::ViewerError;

@@ -289,11 +289,12 @@ impl Renderer {
             self.loader.set_form(form.0, form.1.clone());
             self.cache.clear();
         }
-        // The cache holds a pipeline's per-point streams only while that pipeline is active.
+        // The cache holds a pipeline's per-point streams only while that pipeline is active,
+        // and those of its shadows only while they are on.
         let ctx = self.ctx.clone();
+        let streams = crate::pipelines::shadows::streams(settings.pipeline, &settings.params);
         ctx.scoped("uploading nodes to the GPU", || {
-            self.cache
-                .set_streams(&ctx.device, settings.pipeline.streams);
+            self.cache.set_streams(&ctx.device, &streams);
             self.upload(settings, &form);
         })?;
 

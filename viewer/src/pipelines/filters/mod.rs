@@ -8,10 +8,10 @@
 
 mod passes;
 mod peel;
-mod shadow;
 mod targets;
 
 use super::params::{Auto, ParamSpec, ResolvedParams, Scale};
+use super::shadows::{self, LIT_STREAM};
 use super::{AlbedoResult, Lighting, Pipeline, PipelineFrame, PipelineInfo, PointStream, ViewFrame};
 use crate::ViewerError;
 use crate::gpu::GpuContext;
@@ -22,6 +22,8 @@ use std::collections::BTreeMap;
 use targets::{FiltersTargets, LayerCounts, counts_from};
 
 pub use passes::{CLASSES, FiltersUniforms, MAX_ITERATIONS, MAX_LAYERS, Step};
+pub use shadows::DTILDE_SPACINGS;
+pub(crate) use passes::{MASKS_WGSL, bind};
 
 /// `opacity.C`: the opacity factor of class C, one spec per ASPRS standard class.
 macro_rules! class_opacities {
@@ -50,13 +52,8 @@ const fn param(name: &'static str, help: &'static str, default: f32, min: f32, m
     }
 }
 
-/// d~ left automatic, in point spacings of the nodes drawn: the depth noise of real scans
-/// exceeds one spacing, and at one spacing the occluded fill keeps trading noisy depths between
-/// neighbours (16 iterations on the bunny scans against 7 at four spacings).
-pub const DTILDE_SPACINGS: u32 = 4;
-
-/// Parameters before the per-class opacities.
-const OWN: usize = 12;
+/// Parameters before the per-class opacities: the filters' own, then the light and shadows'.
+const OWN: usize = 5 + shadows::PARAMS.len();
 
 static PARAMS: [ParamSpec; OWN + CLASSES] = {
     let own = [
@@ -94,48 +91,6 @@ static PARAMS: [ParamSpec; OWN + CLASSES] = {
             Scale::Integer,
         ),
         param("opacity", "opacity of every layer's points", 1.0, 0.0, 1.0, Scale::Linear),
-        param(
-            "light.x",
-            "direction towards a light fixed in the world, x (0,0,0: the headlight; light=X,Y,Z takes any length)",
-            0.0,
-            -1.0,
-            1.0,
-            Scale::Linear,
-        ),
-        param("light.y", "direction towards the light, y", 0.0, -1.0, 1.0, Scale::Linear),
-        param("light.z", "direction towards the light, z", 0.0, -1.0, 1.0, Scale::Linear),
-        param(
-            "shadows",
-            "point shadow textures: 0 off, 1 hard (a point light), 2 soft (an area light)",
-            0.0,
-            0.0,
-            2.0,
-            Scale::Integer,
-        ),
-        param(
-            "shadow_samples",
-            "light samples of soft shadows (Monte-Carlo over the area light)",
-            16.0,
-            1.0,
-            64.0,
-            Scale::Integer,
-        ),
-        param(
-            "light_size",
-            "the area light's angular diameter, degrees (soft shadows)",
-            5.0,
-            0.0,
-            45.0,
-            Scale::Linear,
-        ),
-        param(
-            "shadow_budget",
-            "points the light's own view loads for casters outside the camera's view",
-            2e6,
-            1e5,
-            1e8,
-            Scale::Log,
-        ),
     ];
     let classes = class_opacities![
         0: "created, never classified",
@@ -164,9 +119,14 @@ static PARAMS: [ParamSpec; OWN + CLASSES] = {
         all[k] = own[k];
         k += 1;
     }
+    let mut l = 0;
+    while l < shadows::PARAMS.len() {
+        all[own.len() + l] = shadows::PARAMS[l];
+        l += 1;
+    }
     let mut c = 0;
     while c < classes.len() {
-        all[own.len() + c] = classes[c];
+        all[OWN + c] = classes[c];
         c += 1;
     }
     all
@@ -178,7 +138,7 @@ pub static INFO: PipelineInfo = PipelineInfo {
     paper: Some("004_d47bc4d6e82cf0e9.txt (Dobrev, Rosenthal, Linsen)"),
     lighting: Lighting::Headlight,
     params: &PARAMS,
-    streams: &[PointStream::Normals, shadow::LIT_STREAM],
+    streams: &[PointStream::Normals, LIT_STREAM],
     // In the order they first run: the peel starts the second layer.
     passes: &[
         "shadows",
@@ -194,7 +154,7 @@ pub static INFO: PipelineInfo = PipelineInfo {
     create,
     shaders: |int64| {
         let mut all = passes::shaders(int64);
-        all.extend(shadow::shaders());
+        all.extend(shadows::shaders());
         all
     },
 };
@@ -204,20 +164,6 @@ pub static INFO: PipelineInfo = PipelineInfo {
 pub const NO_NORMALS: &str = "the dataset has no normals (convert with --normals): no back-face culling, normals estimated from the filled depth";
 pub const NOT_OUTWARD: &str = "the dataset's normals are not known to face out of every surface (computed with --orient up or none; kept or --orient scanner normals are): no back-face culling";
 
-/// The unit direction towards a light fixed in the world, `None` for the headlight.
-fn world_light(params: &ResolvedParams) -> Option<glam::Vec3> {
-    glam::Vec3::new(
-        value(params, "light.x"),
-        value(params, "light.y"),
-        value(params, "light.z"),
-    )
-    .try_normalize()
-}
-
-/// `shadows`: off, hard, soft.
-const SHADOWS_OFF: u32 = 0;
-const SHADOWS_HARD: u32 = 1;
-
 /// The measures it reports.
 pub const LAYERS_USED: &str = "layers_used";
 pub const BACKGROUND_ITERATIONS: &str = "background_fill_iterations";
@@ -225,7 +171,7 @@ pub const OCCLUDED_ITERATIONS: &str = "occluded_fill_iterations";
 
 struct Filters {
     passes: FiltersPasses,
-    shadows: shadow::Shadows,
+    shadows: shadows::Shadows,
     targets: Option<FiltersTargets>,
     note: Option<&'static str>,
     counts: Option<LayerCounts>,
@@ -234,7 +180,7 @@ struct Filters {
 fn create(ctx: &GpuContext) -> Result<Box<dyn Pipeline>, ViewerError> {
     Ok(Box::new(Filters {
         passes: FiltersPasses::new(ctx)?,
-        shadows: shadow::Shadows::new(&ctx.device)?,
+        shadows: shadows::Shadows::new(&ctx.device)?,
         targets: None,
         note: None,
         counts: None,
@@ -261,7 +207,7 @@ fn value(params: &ResolvedParams, name: &str) -> f32 {
 /// The uniforms of one frame.
 pub fn uniforms(view: &ViewFrame, params: &ResolvedParams, has_normals: bool) -> FiltersUniforms {
     let rays = view.pixel_rays();
-    let light = match world_light(params) {
+    let light = match shadows::world_light(params) {
         Some(l) => [l.x, l.y, l.z, 1.0],
         None => [0.0; 4],
     };
@@ -308,15 +254,7 @@ impl Pipeline for Filters {
         camera: &crate::Camera,
         bounds: [glam::Vec3; 2],
     ) -> Option<(crate::Camera, u64)> {
-        if value(params, "shadows") as u32 == SHADOWS_OFF {
-            return None;
-        }
-        let forward = (camera.target - camera.eye).normalize_or(glam::Vec3::NEG_Z);
-        let light = world_light(params).unwrap_or(-forward);
-        Some((
-            shadow::light_camera(light, bounds),
-            value(params, "shadow_budget") as u64,
-        ))
+        shadows::extra_view(params, camera, bounds)
     }
 
     fn encode(
@@ -340,24 +278,9 @@ impl Pipeline for Filters {
             cull: frame.back_faces_culled,
         };
         let mut u = uniforms(frame.view, frame.params, frame.has_normals);
-        let mode = value(frame.params, "shadows") as u32;
-        if mode != SHADOWS_OFF {
-            // With the headlight the light comes from the eye: shadows hide behind their casters.
-            let light = world_light(frame.params)
-                .unwrap_or(-glam::Vec3::from_slice(&u.forward[..3]));
-            let setup = shadow::ShadowSetup {
-                samples: if mode == SHADOWS_HARD {
-                    1
-                } else {
-                    value(frame.params, "shadow_samples") as u32
-                },
-                light,
-                light_size: value(frame.params, "light_size").to_radians(),
-                dtilde: u.dtilde,
-                normals: frame.has_normals,
-                bounds: frame.bounds,
-            };
-            u.lit_scale = self.shadows.encode(frame, encoder, &setup, timer)?;
+        let forward = glam::Vec3::from_slice(&u.forward[..3]);
+        if let Some(shadow) = shadows::setup(frame, forward, u.dtilde) {
+            u.lit_scale = self.shadows.encode(frame, encoder, &shadow, timer)?;
         }
         self.passes.encode(frame, encoder, targets, &u, &setup, timer)
     }

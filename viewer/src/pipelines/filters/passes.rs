@@ -12,7 +12,7 @@ use crate::pipelines::projection::{
     ArenaGroup, COLOUR_WGSL, GROUP_SIZE, OCT16_WGSL, pixel_groups,
 };
 use crate::pipelines::shader::ShaderSource;
-use super::shadow::LIT_STREAM;
+use crate::pipelines::shadows::LIT_STREAM;
 use crate::pipelines::{LIGHTING_WGSL, PipelineFrame, PointStream};
 use bytemuck::{Pod, Zeroable};
 
@@ -21,7 +21,7 @@ pub(super) const UNIFORMS_WGSL: &str = include_str!("uniforms.wgsl");
 const RESOLVE_WGSL: &str = include_str!("resolve.wgsl");
 const FILL_WGSL: &str = include_str!("fill.wgsl");
 /// The hole filling's 3x3 masks, shared with the light map's fill.
-pub(super) const MASKS_WGSL: &str = include_str!("masks.wgsl");
+pub(crate) const MASKS_WGSL: &str = include_str!("masks.wgsl");
 const SMOOTH_WGSL: &str = include_str!("smooth.wgsl");
 const SHADE_WGSL: &str = include_str!("shade.wgsl");
 const ARGS_WGSL: &str = include_str!("args.wgsl");
@@ -115,10 +115,10 @@ pub struct FrameSetup {
 }
 
 /// A bind group entry: binding and resource.
-pub(super) type Entry<'a> = (u32, wgpu::BindingResource<'a>);
+pub(crate) type Entry<'a> = (u32, wgpu::BindingResource<'a>);
 
 /// A bind group of `pipe`'s layout `group` from (binding, resource) pairs.
-pub(super) fn bind(
+pub(crate) fn bind(
     device: &wgpu::Device,
     pipe: &wgpu::ComputePipeline,
     group: u32,

@@ -183,6 +183,7 @@ fn hpr_labels_match_the_per_pixel_definition() {
         fov_y,
         far: 100.0,
         focal_px: h as f32 * 0.5 / (fov_y * 0.5).tan(),
+        light: [0.0; 4],
     };
     let pyramid = PyramidPasses::new(device).expect("pyramid passes");
     let targets = pyramid.targets(device, w, h);

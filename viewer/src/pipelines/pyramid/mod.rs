@@ -2,6 +2,7 @@
 //! projected points by a min-depth point pyramid, pyramidal hidden-point removal, pull-push
 //! filling, multi-level normals and deferred headlight shading (`passes`).
 
+mod lit;
 mod passes;
 
 pub use passes::{
@@ -10,6 +11,7 @@ pub use passes::{
 };
 
 use super::params::{Auto, ParamSpec, ResolvedParams, Scale};
+use super::shadows::{self, DTILDE_SPACINGS};
 use super::projection::FrameUniforms;
 use super::{AlbedoResult, Lighting, Pipeline, PipelineFrame, PipelineInfo, edl};
 use crate::ViewerError;
@@ -26,7 +28,34 @@ pub static INFO: PipelineInfo = PipelineInfo {
     description: "hidden-point removal, pull-push fill, pyramid normals, deferred shading",
     paper: Some("003_a7e57431d45858e9.txt (Bouchiba, Deschaud, Goulette 2018)"),
     lighting: Lighting::Headlight,
-    params: &[
+    params: &PARAMS,
+    streams: &[],
+    passes: &[
+        "shadows",
+        "pyramid lit",
+        "pyramid",
+        "hpr",
+        "noise",
+        "pull",
+        "push",
+        "normals",
+        "pyramid shade",
+    ],
+    previous_frame: false,
+    cull_back_faces: false,
+    screen_buffers: PyramidPasses::screen_buffers,
+    create,
+    shaders: |_| {
+        let mut all = passes::shaders();
+        all.extend(lit::shaders());
+        all.extend(shadows::shaders());
+        all
+    },
+};
+
+/// Its own parameters, then the light and shadows' (`shadows`: beyond the paper, the point
+/// shadows of paper 004 carried through the pull-push).
+const OWN: [ParamSpec; 4] = [
         ParamSpec {
             name: "s0",
             help: "the metric scale of the sampling, in dataset units: about the point spacing",
@@ -47,22 +76,20 @@ pub static INFO: PipelineInfo = PipelineInfo {
         },
         edl::STRENGTH,
         edl::RADIUS,
-    ],
-    streams: &[],
-    passes: &[
-        "pyramid",
-        "hpr",
-        "noise",
-        "pull",
-        "push",
-        "normals",
-        "pyramid shade",
-    ],
-    previous_frame: false,
-    cull_back_faces: false,
-    screen_buffers: PyramidPasses::screen_buffers,
-    create,
-    shaders: |_| passes::shaders(),
+];
+
+static PARAMS: [ParamSpec; OWN.len() + shadows::PARAMS.len()] = {
+    let mut all = [OWN[0]; OWN.len() + shadows::PARAMS.len()];
+    let mut k = 0;
+    while k < all.len() {
+        all[k] = if k < OWN.len() {
+            OWN[k]
+        } else {
+            shadows::PARAMS[k - OWN.len()]
+        };
+        k += 1;
+    }
+    all
 };
 
 /// The measure the pipeline reports: the depth noise of the visible points, as a deviation in
@@ -76,6 +103,8 @@ struct Pyramid {
     noise_readback: AsyncReadback,
     depth_noise: Option<f32>,
     device: wgpu::Device,
+    shadows: shadows::Shadows,
+    lit: lit::LitPass,
 }
 
 fn create(ctx: &GpuContext) -> Result<Box<dyn Pipeline>, ViewerError> {
@@ -85,6 +114,8 @@ fn create(ctx: &GpuContext) -> Result<Box<dyn Pipeline>, ViewerError> {
         noise_readback: AsyncReadback::new(&ctx.device, "depth noise readback", 4),
         depth_noise: None,
         device: ctx.device.clone(),
+        shadows: shadows::Shadows::new(&ctx.device)?,
+        lit: lit::LitPass::new(&ctx.device),
     }))
 }
 
@@ -110,6 +141,16 @@ impl Pipeline for Pyramid {
         self.depth_noise = None;
         // A readback still on its way measured another picture.
         self.noise_readback = AsyncReadback::new(&self.device, "depth noise readback", 4);
+        self.shadows.reset();
+    }
+
+    fn extra_view(
+        &self,
+        params: &ResolvedParams,
+        camera: &crate::Camera,
+        bounds: [glam::Vec3; 2],
+    ) -> Option<(crate::Camera, u64)> {
+        shadows::extra_view(params, camera, bounds)
     }
 
     fn encode(
@@ -124,11 +165,28 @@ impl Pipeline for Pyramid {
             .ok_or_else(|| ViewerError::Gpu("the pyramid's buffers were not made".into()))?;
         let screen = frame.screen;
         // Without points there is no scale; any positive s0 leaves an empty frame empty.
+        let s0 = frame.params.get_or("s0", 1.0);
+        let forward = -frame.view.view.inverse().z_axis.truncate();
+        // The shadows' d~ is the filters' automatic one: DTILDE_SPACINGS point spacings.
+        let shadow = shadows::setup(frame, forward, DTILDE_SPACINGS as f32 * s0);
+        let world = shadows::world_light(frame.params);
+        let light = match world {
+            Some(l) => frame.view.view.transform_vector3(l).normalize_or_zero().extend(1.0),
+            None => glam::Vec4::new(0.0, 0.0, 0.0, shadow.is_some() as u32 as f32),
+        };
+        if let Some(setup) = &shadow {
+            let lit_scale = self.shadows.encode(frame, encoder, setup, timer)?;
+            // 0: no sample summed yet, every point lit (the resolved alpha is 1).
+            if lit_scale > 0.0 {
+                self.lit.encode(frame, encoder, lit_scale, timer)?;
+            }
+        }
         let pyramid_frame = PyramidFrame {
-            s0: frame.params.get_or("s0", 1.0),
+            s0,
             fov_y: frame.view.fov_y,
             far: frame.view.far,
             focal_px: frame.view.focal_px,
+            light: light.to_array(),
         };
         self.passes.encode(
             &frame.ctx.device,

@@ -43,6 +43,9 @@ pub struct PyramidFrame {
     pub fov_y: f32,
     pub far: f32,
     pub focal_px: f32,
+    /// `light` of pyramid.wgsl's uniforms: a world light's view-space direction, and w = 1 for
+    /// Blinn-Phong with the lit share.
+    pub light: [f32; 4],
 }
 
 #[repr(C)]
@@ -59,6 +62,7 @@ pub(crate) struct PyramidUniforms {
     s0: f32,
     /// Copied on the GPU from the noise estimate (`PyramidTargets::noise`) each frame.
     noise_scale: f32,
+    light: [f32; 4],
     table: [[u32; 4]; MAX_LEVELS],
 }
 
@@ -78,6 +82,7 @@ impl PyramidUniforms {
             coarse_level: COARSE_LEVEL.min(top),
             s0: frame.s0,
             noise_scale: 0.0,
+            light: frame.light,
             table: [[0; 4]; MAX_LEVELS],
         };
         for (slot, l) in params.table.iter_mut().zip(&t.levels) {
@@ -585,6 +590,7 @@ pub(crate) fn uniforms_layout() -> (u32, Vec<(String, u32)>) {
             coarse_level,
             s0,
             noise_scale,
+            light,
             table
         ),
     )

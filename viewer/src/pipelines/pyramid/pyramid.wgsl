@@ -21,6 +21,10 @@ struct Pyramid {
     // The depth noise's normal level at depth z is 0.5 log2(noise_scale / z); written on the
     // GPU by the noise estimate each frame, 0 before it.
     noise_scale: f32,
+    // The direction towards a light fixed in the world, in view space (0: the headlight);
+    // w: 1 where the shading is Blinn-Phong with the lit share (a world light or shadows),
+    // 0 for the plain two-sided headlight.
+    light: vec4<f32>,
     table: array<vec4<u32>, MAX_LEVELS>,
 }
 

@@ -1,5 +1,6 @@
 // Pull: one coarser level of the pull-push pyramid, the weighted mean of each 2x2 block, its
-// weight the sum of the block's weights clamped to 1 (Kraus 2009).
+// weight the sum of the block's weights clamped to 1 (Kraus 2009). The colour's alpha is the
+// share of the light that reaches the surface (pyramid_lit.wgsl), averaged like colour.
 @compute @workgroup_size(16, 16)
 fn main(@builtin(global_invocation_id) id: vec3<u32>) {
     let l = level.index;
@@ -10,7 +11,7 @@ fn main(@builtin(global_invocation_id) id: vec3<u32>) {
     let fine = level_size(l - 1u);
     let fine_off = level_offset(l - 1u);
     var depth = 0.0;
-    var colour = vec3<f32>(0.0);
+    var colour = vec4<f32>(0.0);
     var weight = 0.0;
     for (var dy = 0u; dy < 2u; dy++) {
         for (var dx = 0u; dx < 2u; dx++) {
@@ -19,7 +20,7 @@ fn main(@builtin(global_invocation_id) id: vec3<u32>) {
                 let j = fine_off + c.y * fine.x + c.x;
                 let f = fill[j];
                 depth += f.x * f.y;
-                colour += unpack4x8unorm(fill_colour[j]).rgb * f.y;
+                colour += unpack4x8unorm(fill_colour[j]) * f.y;
                 weight += f.y;
             }
         }
@@ -27,7 +28,7 @@ fn main(@builtin(global_invocation_id) id: vec3<u32>) {
     let o = level_offset(l) + id.y * size.x + id.x;
     if weight > 0.0 {
         fill[o] = vec2<f32>(depth / weight, min(weight, 1.0));
-        fill_colour[o] = pack4x8unorm(vec4<f32>(colour / weight, 1.0));
+        fill_colour[o] = pack4x8unorm(colour / weight);
     } else {
         fill[o] = vec2<f32>(0.0, 0.0);
         fill_colour[o] = 0u;

@@ -3,6 +3,7 @@
 // holds a value wherever the coarser one did, and its weight becomes 1 + w: at least 1 means
 // filled, and the part above 1 keeps how much real data the cell had, which the normals need
 // to tell measured surface from extrapolated. The top level only gets its weights marked.
+// Colour's alpha (the lit share) is interpolated with it.
 @compute @workgroup_size(16, 16)
 fn main(@builtin(global_invocation_id) id: vec3<u32>) {
     let l = level.index;
@@ -24,7 +25,7 @@ fn main(@builtin(global_invocation_id) id: vec3<u32>) {
     let base = vec2<i32>(floor(u));
     let t = u - vec2<f32>(base);
     var depth = 0.0;
-    var colour = vec3<f32>(0.0);
+    var colour = vec4<f32>(0.0);
     var weight = 0.0;
     for (var dy = 0; dy < 2; dy++) {
         for (var dx = 0; dx < 2; dx++) {
@@ -33,7 +34,7 @@ fn main(@builtin(global_invocation_id) id: vec3<u32>) {
             let j = coarse_off + u32(c.y) * coarse.x + u32(c.x);
             let w = select(0.0, b, fill[j].y >= 1.0);
             depth += fill[j].x * w;
-            colour += unpack4x8unorm(fill_colour[j]).rgb * w;
+            colour += unpack4x8unorm(fill_colour[j]) * w;
             weight += w;
         }
     }
@@ -41,7 +42,7 @@ fn main(@builtin(global_invocation_id) id: vec3<u32>) {
         return;
     }
     let keep = f.y;
-    let fine_colour = unpack4x8unorm(fill_colour[o]).rgb;
+    let fine_colour = unpack4x8unorm(fill_colour[o]);
     fill[o] = vec2<f32>(keep * f.x + (1.0 - keep) * depth / weight, 1.0 + keep);
-    fill_colour[o] = pack4x8unorm(vec4<f32>(keep * fine_colour + (1.0 - keep) * colour / weight, 1.0));
+    fill_colour[o] = pack4x8unorm(keep * fine_colour + (1.0 - keep) * colour / weight);
 }

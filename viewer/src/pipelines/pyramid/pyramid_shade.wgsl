@@ -1,5 +1,6 @@
 // Deferred shading of the reconstructed surface: background where the HPR found visible
-// background, else the filled colour lit by the headlight with the normal interpolated between
+// background, else the filled colour lit by the headlight (or a light fixed in the world, with
+// the shadows' lit share) with the normal interpolated between
 // the two pyramid levels nearest the pixel's normal radius, or the coarser level the frame's
 // depth noise calls for (bilinear within each level). EDL may darken it on top. Writes the
 // output image and the per-pixel surface for readback.
@@ -63,8 +64,16 @@ fn main(@builtin(global_invocation_id) id: vec3<u32>) {
         n = v;
     }
     n = normalize(n);
-    let albedo = unpack4x8unorm(fill_colour[i]).rgb;
-    let rgb = headlight(albedo, n, v) * edl_factor(id.xy, d);
+    let filled = unpack4x8unorm(fill_colour[i]);
+    var rgb = headlight(filled.rgb, n, v);
+    if pyr.light.w != 0.0 {
+        // A light fixed in the world, or shadows: Blinn-Phong with the share of the light the
+        // pull-push carried in the colour's alpha, the normal turned to face the eye.
+        n = select(n, -n, dot(n, v) < 0.0);
+        let l = select(v, pyr.light.xyz, dot(pyr.light.xyz, pyr.light.xyz) > 0.0);
+        rgb = phong(filled.rgb, n, v, l, filled.a);
+    }
+    rgb *= edl_factor(id.xy, d);
     textureStore(output, vec2<i32>(id.xy), vec4<f32>(clamp(rgb, vec3<f32>(0.0), vec3<f32>(1.0)), 1.0));
     surface[i] = vec2<u32>(d, encode_normal(n));
 }

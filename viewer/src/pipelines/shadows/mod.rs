@@ -1,24 +1,197 @@
-//! Point shadow textures (paper 004, section 6): per light sample, the drawn points and those
-//! the light's own view selected (`Pipeline::extra_view`) splatted into a light map along the light, its occluded pixels filled, and every point within Δd of
-//! the front layer counted lit, in a per-point stream beside the node arenas. Soft shadows
-//! average samples spread over an area light (Monte-Carlo). The counts are kept between frames
-//! and added to progressively (one sample a frame while the view moves, the rest once it
-//! stops); they start again when the light, the parameters, the point filters or the drawn
-//! points change.
+//! Point shadow textures (paper 004, section 6), a per-point stream any pipeline can shade
+//! with: per light sample, the drawn points and those the light's own view selected
+//! (`Pipeline::extra_view`) are splatted into a light map along the light, its occluded pixels
+//! filled, and every point within Δd of the front layer counted lit, in a per-point stream
+//! beside the node arenas. Soft shadows average samples spread over an area light
+//! (Monte-Carlo). The counts are kept between frames and added to progressively (one sample a
+//! frame while the view moves, the rest once it stops); they start again when the light, the
+//! parameters, the point filters or the drawn points change. `filters` shades its layers with
+//! them and `pyramid` carries them through its pull-push; both take the parameters below.
 
-use super::DTILDE_SPACINGS;
-use super::passes::bind;
 use crate::ViewerError;
 use crate::gpu::timing::Timer;
+use crate::pipelines::filters::{MASKS_WGSL, bind};
+use crate::pipelines::params::{ParamSpec, ParamValue, ParamValues, ResolvedParams, Scale};
 use crate::pipelines::projection::{
     ArenaGroup, FILTERS_WGSL, GROUP_SIZE, OCT16_WGSL, RANGE_SEARCH_WGSL, pixel_groups,
     plane_buffer, split_groups,
 };
 use crate::pipelines::shader::ShaderSource;
-use crate::pipelines::{PipelineFrame, PointStream};
+use crate::pipelines::{PipelineFrame, PipelineInfo, PointStream};
 use bytemuck::{Pod, Zeroable};
 use glam::Vec3;
 use std::hash::{Hash, Hasher};
+
+/// d~ in point spacings of the nodes drawn, where a pipeline leaves it automatic: the depth
+/// noise of real scans exceeds one spacing, and at one spacing the occluded fill keeps trading
+/// noisy depths between neighbours (16 iterations on the bunny scans against 7 at four
+/// spacings). It also sets the light map's pixel: d~ / DTILDE_SPACINGS.
+pub const DTILDE_SPACINGS: u32 = 4;
+
+const fn param(
+    name: &'static str,
+    help: &'static str,
+    default: f32,
+    min: f32,
+    max: f32,
+    scale: Scale,
+) -> ParamSpec {
+    ParamSpec {
+        name,
+        help,
+        default,
+        min,
+        max,
+        scale,
+        auto: None,
+    }
+}
+
+/// The light and shadow parameters, the same in every pipeline that takes them: the direction
+/// towards a light fixed in the world (`light=X,Y,Z`; 0,0,0 the headlight), then the shadows.
+pub const PARAMS: [ParamSpec; 7] = [
+    param(
+        "light.x",
+        "direction towards a light fixed in the world, x (0,0,0: the headlight; light=X,Y,Z takes any length)",
+        0.0,
+        -1.0,
+        1.0,
+        Scale::Linear,
+    ),
+    param(
+        "light.y",
+        "direction towards the light, y",
+        0.0,
+        -1.0,
+        1.0,
+        Scale::Linear,
+    ),
+    param(
+        "light.z",
+        "direction towards the light, z",
+        0.0,
+        -1.0,
+        1.0,
+        Scale::Linear,
+    ),
+    param(
+        "shadows",
+        "point shadow textures: 0 off, 1 hard (a point light), 2 soft (an area light)",
+        0.0,
+        0.0,
+        2.0,
+        Scale::Integer,
+    ),
+    param(
+        "shadow_samples",
+        "light samples of soft shadows (Monte-Carlo over the area light)",
+        16.0,
+        1.0,
+        64.0,
+        Scale::Integer,
+    ),
+    param(
+        "light_size",
+        "the area light's angular diameter, degrees (soft shadows)",
+        5.0,
+        0.0,
+        45.0,
+        Scale::Linear,
+    ),
+    param(
+        "shadow_budget",
+        "points the light's own view loads for casters outside the camera's view",
+        2e6,
+        1e5,
+        1e8,
+        Scale::Log,
+    ),
+];
+
+/// `shadows`: off, hard, soft.
+const SHADOWS_OFF: u32 = 0;
+const SHADOWS_HARD: u32 = 1;
+
+fn value(params: &ResolvedParams, name: &str) -> f32 {
+    let default = PARAMS
+        .iter()
+        .find(|p| p.name == name)
+        .map_or(0.0, |p| p.default);
+    params.get_or(name, default)
+}
+
+/// The unit direction towards a light fixed in the world, `None` for the headlight.
+pub fn world_light(params: &ResolvedParams) -> Option<Vec3> {
+    Vec3::new(
+        value(params, "light.x"),
+        value(params, "light.y"),
+        value(params, "light.z"),
+    )
+    .try_normalize()
+}
+
+/// Whether the frame asks for shadows.
+pub fn on(params: &ResolvedParams) -> bool {
+    value(params, "shadows") as u32 != SHADOWS_OFF
+}
+
+/// The per-point streams `pipeline` needs with `values`: its own, and the normals and lit
+/// counts while it casts shadows, so that a pipeline that can shade shadows holds no stream
+/// for them while they are off.
+pub fn streams(pipeline: &PipelineInfo, values: &ParamValues) -> Vec<PointStream> {
+    let mut wanted = pipeline.streams.to_vec();
+    let shadows = pipeline.params.iter().find(|p| p.name == "shadows");
+    let casting = shadows.is_some_and(|spec| match values.get(pipeline, spec) {
+        ParamValue::Value(v) => v as u32 != SHADOWS_OFF,
+        ParamValue::Auto => false,
+    });
+    if casting {
+        for s in [PointStream::Normals, LIT_STREAM] {
+            if !wanted.contains(&s) {
+                wanted.push(s);
+            }
+        }
+    }
+    wanted
+}
+
+/// The light's own view, for `Pipeline::extra_view`: `None` without shadows.
+pub fn extra_view(
+    params: &ResolvedParams,
+    camera: &crate::Camera,
+    bounds: [Vec3; 2],
+) -> Option<(crate::Camera, u64)> {
+    if !on(params) {
+        return None;
+    }
+    let forward = (camera.target - camera.eye).normalize_or(Vec3::NEG_Z);
+    let light = world_light(params).unwrap_or(-forward);
+    Some((
+        light_camera(light, bounds),
+        value(params, "shadow_budget") as u64,
+    ))
+}
+
+/// What `frame` asks of the shadows, `None` where they are off; `forward`: the camera's view
+/// direction (the headlight's light comes from the eye, so shadows hide behind their casters).
+pub fn setup(frame: &PipelineFrame, forward: Vec3, dtilde: f32) -> Option<ShadowSetup> {
+    let mode = value(frame.params, "shadows") as u32;
+    if mode == SHADOWS_OFF {
+        return None;
+    }
+    Some(ShadowSetup {
+        samples: if mode == SHADOWS_HARD {
+            1
+        } else {
+            value(frame.params, "shadow_samples") as u32
+        },
+        light: world_light(frame.params).unwrap_or(-forward),
+        light_size: value(frame.params, "light_size").to_radians(),
+        dtilde,
+        normals: frame.has_normals,
+        bounds: frame.bounds,
+    })
+}
 
 const SHADOW_UNIFORMS_WGSL: &str = include_str!("shadow_uniforms.wgsl");
 const SHADOW_WGSL: &str = include_str!("shadow.wgsl");
@@ -66,11 +239,11 @@ pub fn shaders() -> Vec<ShaderSource> {
         ShaderSource::new("shadow mark", &points).with_entry("mark"),
         ShaderSource::new(
             "shadow fill",
-            &[SHADOW_UNIFORMS_WGSL, super::passes::MASKS_WGSL, SHADOW_FILL_WGSL],
+            &[SHADOW_UNIFORMS_WGSL, MASKS_WGSL, SHADOW_FILL_WGSL],
         ),
         ShaderSource::new(
             "shadow clear",
-            &[SHADOW_UNIFORMS_WGSL, super::passes::MASKS_WGSL, SHADOW_FILL_WGSL],
+            &[SHADOW_UNIFORMS_WGSL, MASKS_WGSL, SHADOW_FILL_WGSL],
         )
         .with_entry("clear"),
     ]
@@ -249,16 +422,18 @@ impl Shadows {
                 }
             };
             let (gx, gy) = pixel_groups(map.width, map.height);
-            let full_screen =
-                |pass: &mut wgpu::ComputePass, pipe: &wgpu::ComputePipeline, from: &wgpu::Buffer, to: &wgpu::Buffer| {
-                    let mut entries = vec![(0, uniform.clone()), (2, to.as_entire_binding())];
-                    if std::ptr::eq(pipe, &self.fill) {
-                        entries.push((1, from.as_entire_binding()));
-                    }
-                    pass.set_pipeline(pipe);
-                    pass.set_bind_group(0, &bind(device, pipe, 0, &entries), &[]);
-                    pass.dispatch_workgroups(gx, gy, 1);
-                };
+            let full_screen = |pass: &mut wgpu::ComputePass,
+                               pipe: &wgpu::ComputePipeline,
+                               from: &wgpu::Buffer,
+                               to: &wgpu::Buffer| {
+                let mut entries = vec![(0, uniform.clone()), (2, to.as_entire_binding())];
+                if std::ptr::eq(pipe, &self.fill) {
+                    entries.push((1, from.as_entire_binding()));
+                }
+                pass.set_pipeline(pipe);
+                pass.set_bind_group(0, &bind(device, pipe, 0, &entries), &[]);
+                pass.dispatch_workgroups(gx, gy, 1);
+            };
             full_screen(&mut pass, &self.clear, &maps[1], &maps[0]);
             per_point(&mut pass, &self.splat, &maps[0], false);
             for i in 0..FILL_ITERATIONS as usize {
@@ -345,9 +520,21 @@ impl LightMap {
         let half = self.width as f32 * self.pixel * 0.5;
         let corners = (0..8).map(|k| {
             Vec3::new(
-                if k & 1 == 0 { self.bounds[0].x } else { self.bounds[1].x },
-                if k & 2 == 0 { self.bounds[0].y } else { self.bounds[1].y },
-                if k & 4 == 0 { self.bounds[0].z } else { self.bounds[1].z },
+                if k & 1 == 0 {
+                    self.bounds[0].x
+                } else {
+                    self.bounds[1].x
+                },
+                if k & 2 == 0 {
+                    self.bounds[0].y
+                } else {
+                    self.bounds[1].y
+                },
+                if k & 4 == 0 {
+                    self.bounds[0].z
+                } else {
+                    self.bounds[1].z
+                },
             )
         });
         let top = corners.map(|c| c.dot(l)).fold(f32::MIN, f32::max);
@@ -393,3 +580,6 @@ pub fn sample_direction(setup: &ShadowSetup, k: u32) -> Vec3 {
     let (u, v) = l.any_orthonormal_pair();
     (l + radius * (angle.cos() * u + angle.sin() * v)).normalize()
 }
+
+#[cfg(test)]
+mod tests;
