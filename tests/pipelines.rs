@@ -120,7 +120,23 @@ fn pipelines_lists_every_pipeline_with_its_parameters() {
         .iter()
         .filter_map(|p| p["name"].as_str())
         .collect();
-    assert_eq!(params, ["s0", "edl", "edl_strength", "edl_radius"]);
+    assert_eq!(
+        params,
+        [
+            "s0",
+            "edl",
+            "edl_strength",
+            "edl_radius",
+            // The filters' light and point shadows, carried through the pull-push.
+            "light.x",
+            "light.y",
+            "light.z",
+            "shadows",
+            "shadow_samples",
+            "light_size",
+            "shadow_budget"
+        ]
+    );
     assert_eq!(pyramid["params"][0]["default"], "auto");
     assert!(
         pyramid["passes"]

@@ -52,11 +52,13 @@ const fn param(name: &'static str, help: &'static str, default: f32, min: f32, m
     }
 }
 
+/// The filters' own parameters.
+const OWN_COUNT: usize = 5;
 /// Parameters before the per-class opacities: the filters' own, then the light and shadows'.
-const OWN: usize = 5 + shadows::PARAMS.len();
+const OWN: usize = OWN_COUNT + shadows::PARAMS.len();
 
 static PARAMS: [ParamSpec; OWN + CLASSES] = {
-    let own = [
+    let own: [ParamSpec; OWN_COUNT] = [
         ParamSpec {
             name: "dtilde",
             help: "d~, the minimum distance between two surface layers, in dataset units (auto: a few point spacings)",

@@ -68,10 +68,11 @@ fn main(@builtin(global_invocation_id) id: vec3<u32>) {
     var rgb = headlight(filled.rgb, n, v);
     if pyr.light.w != 0.0 {
         // A light fixed in the world, or shadows: Blinn-Phong with the share of the light the
-        // pull-push carried in the colour's alpha, the normal turned to face the eye.
-        n = select(n, -n, dot(n, v) < 0.0);
+        // pull-push carried in the colour's alpha, the normal turned to face the eye (for the
+        // lighting only: the surface read back keeps the pyramid's own).
+        let facing = select(n, -n, dot(n, v) < 0.0);
         let l = select(v, pyr.light.xyz, dot(pyr.light.xyz, pyr.light.xyz) > 0.0);
-        rgb = phong(filled.rgb, n, v, l, filled.a);
+        rgb = phong(filled.rgb, facing, v, l, filled.a);
     }
     rgb *= edl_factor(id.xy, d);
     textureStore(output, vec2<i32>(id.xy), vec4<f32>(clamp(rgb, vec3<f32>(0.0), vec3<f32>(1.0)), 1.0));

@@ -208,7 +208,7 @@ const SAMPLES_PER_FRAME: u64 = 64;
 const SLOT: u64 = 256;
 /// The per-point stream of lit counts.
 pub const LIT_STREAM: PointStream = PointStream::Kept {
-    name: "filters lit",
+    name: "lit share",
     bytes: 4,
 };
 
