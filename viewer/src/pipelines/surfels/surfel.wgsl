@@ -99,6 +99,11 @@ fn surfel_at(group: u32, lane: u32) -> Surfel {
         s.n = v;
         s.curved = false;
     }
+    // Each module draws one kind (DRAWS_CURVED) and leaves the other's surfels unmade: in
+    // hybrid mode the curved module runs over every point for the few at the silhouette.
+    if s.curved != DRAWS_CURVED {
+        return s;
+    }
     s.bound = 1.0;
     if s.curved {
         let drop = phi(1.0);
