@@ -11,7 +11,7 @@ mod peel;
 mod targets;
 
 use super::params::{Auto, ParamSpec, ResolvedParams, Scale};
-use super::shadows::{self, LIT_STREAM};
+use super::shadows::{self, LIT_STREAM, param};
 use super::{AlbedoResult, Lighting, Pipeline, PipelineFrame, PipelineInfo, PointStream, ViewFrame};
 use crate::ViewerError;
 use crate::gpu::GpuContext;
@@ -38,18 +38,6 @@ macro_rules! class_opacities {
             auto: None,
         }),*]
     };
-}
-
-const fn param(name: &'static str, help: &'static str, default: f32, min: f32, max: f32, scale: Scale) -> ParamSpec {
-    ParamSpec {
-        name,
-        help,
-        default,
-        min,
-        max,
-        scale,
-        auto: None,
-    }
 }
 
 /// The filters' own parameters.

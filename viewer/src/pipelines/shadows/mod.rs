@@ -28,7 +28,8 @@ use std::hash::{Hash, Hasher};
 /// spacings). It also sets the light map's pixel: d~ / DTILDE_SPACINGS.
 pub const DTILDE_SPACINGS: u32 = 4;
 
-const fn param(
+/// A parameter without an automatic value (shared with the filters' own table).
+pub(crate) const fn param(
     name: &'static str,
     help: &'static str,
     default: f32,
