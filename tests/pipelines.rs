@@ -468,6 +468,19 @@ fn every_declared_pass_runs_and_the_stats_list_them_in_run_order() {
             ];
             args.extend_from_slice(extra);
             let passes = frame_passes(&args, &stats);
+            // The projection resolves its colour plane only for a pipeline that reads it.
+            let resolves = passes.iter().any(|n| n == "resolve");
+            if p["reads_colour_plane"] == false {
+                assert!(
+                    !resolves,
+                    "{name} {extra:?} reads no colour plane: {passes:?}"
+                );
+            } else if extra == ["--separate-passes"] {
+                assert!(
+                    resolves,
+                    "{name} {extra:?} reads the colour plane: {passes:?}"
+                );
+            }
             let at: Vec<usize> = passes
                 .iter()
                 .map(|n| {

@@ -60,6 +60,7 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
                     "streams": p.streams.iter().map(stream_name).collect::<Vec<_>>(),
                     "passes": p.passes,
                     "previous_frame": p.previous_frame,
+                    "reads_colour_plane": p.reads_colour_plane,
                 })
             })
             .collect();

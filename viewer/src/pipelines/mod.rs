@@ -113,6 +113,10 @@ pub struct PipelineInfo {
     /// The projection skips points whose normal faces away from the eye, where the dataset's
     /// normals mark back faces (the pipeline then declares the Normals stream).
     pub cull_back_faces: bool,
+    /// It reads the colour plane the projection resolves (each pixel's point coloured by the
+    /// colouring mode); a pipeline that fetches its points' attributes itself leaves the
+    /// projection's per-arena resolve pass out.
+    pub reads_colour_plane: bool,
     /// The buffers its `make_targets` creates for a `width` x `height` screen, for the check
     /// against the adapter's limits before anything is created or compiled.
     pub screen_buffers: fn(width: u32, height: u32) -> Vec<ScreenBuffer>,

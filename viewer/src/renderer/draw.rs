@@ -207,6 +207,7 @@ impl Renderer {
                     force_int32: settings.force_int32,
                     fused: pipeline.fused(params),
                     cull_back_faces: cull,
+                    resolve_colours: info.reads_colour_plane,
                 },
                 count,
                 timer,
@@ -241,6 +242,7 @@ impl Renderer {
         })??;
         self.last_int64 = int64;
         self.last_fused = fused;
+        self.last_colour_plane = !fused && info.reads_colour_plane;
         if info.previous_frame {
             self.previous_view = Some(view);
         }

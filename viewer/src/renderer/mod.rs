@@ -63,6 +63,8 @@ pub struct Renderer {
     last_int64: bool,
     /// The last frame ended in the fused finish (its colour plane was not written).
     last_fused: bool,
+    /// The last frame resolved the projection's colour plane.
+    last_colour_plane: bool,
     /// The last frame's view, for pipelines that keep the previous frame.
     previous_view: Option<crate::pipelines::ViewFrame>,
     frame: u64,
@@ -127,6 +129,7 @@ impl Renderer {
             last_drawn: HashSet::new(),
             last_int64: false,
             last_fused: false,
+            last_colour_plane: false,
             previous_view: None,
             frame: 0,
             bytes_total: 0,

@@ -53,6 +53,12 @@ impl Renderer {
                     .into(),
             ));
         }
+        if !self.last_colour_plane {
+            return Err(ViewerError::Gpu(
+                "the last frame's pipeline resolved no colour plane and keeps no albedo of its own"
+                    .into(),
+            ));
+        }
         let pixels = screen.width as u64 * screen.height as u64;
         let depths = read_buffer(&self.ctx, &screen.depths, pixels * 4)?;
         let colours = read_buffer(&self.ctx, &screen.colours, pixels * 4)?;

@@ -140,6 +140,7 @@ pub static INFO: PipelineInfo = PipelineInfo {
     ],
     previous_frame: false,
     cull_back_faces: true,
+    reads_colour_plane: false,
     screen_buffers: FiltersTargets::screen_buffers,
     create,
     shaders: |int64| {

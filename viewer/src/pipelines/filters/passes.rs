@@ -184,7 +184,7 @@ impl FiltersPasses {
         let queue = &frame.ctx.queue;
         queue.write_buffer(&targets.uniforms, 0, bytemuck::bytes_of(uniforms));
         encoder.clear_buffer(&targets.counters, 0, None);
-        encoder.clear_buffer(&targets.accum, 0, None);
+        // No clear of the blend: the first layer's shading writes every pixel of it.
         encoder.clear_buffer(&targets.tile_list, 0, None);
 
         let arenas: Vec<(ArenaGroup, [&wgpu::Buffer; 4], &wgpu::Buffer)> = frame

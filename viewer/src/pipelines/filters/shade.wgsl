@@ -67,9 +67,12 @@ fn normal_of(t: Texel, q: vec2<i32>, to_eye: vec3<f32>) -> vec3<f32> {
     return select(n, -n, dot(n, to_eye) < 0.0);
 }
 
-fn lit_colour(t: Texel, q: vec2<i32>) -> vec3<f32> {
-    let to_eye = -normalize(pixel_ray(vec2<f32>(q) + 0.5));
-    let n = normal_of(t, q, to_eye);
+fn eye_dir(q: vec2<i32>) -> vec3<f32> {
+    return -normalize(pixel_ray(vec2<f32>(q) + 0.5));
+}
+
+// Texel `t` at `q` lit, its normal `n` and the unit direction to the eye given.
+fn lit_colour(t: Texel, n: vec3<f32>, to_eye: vec3<f32>) -> vec3<f32> {
     let rgb = unpack4x8unorm(t.y).rgb;
     if fil.light.w == 0.0 && fil.lit_scale == 0.0 {
         return headlight(rgb, n, to_eye);
@@ -89,10 +92,17 @@ fn main(@builtin(global_invocation_id) id: vec3<u32>) {
     let i = id.y * frame.width + id.x;
     let q = vec2<i32>(id.xy);
     let t = texels[i];
-    var sum = accum[i];
+    // The first layer starts the blend (and writes every pixel of it); later ones add to it.
+    var sum = vec4<f32>(0.0);
+    if step.layer > 0u {
+        sum = accum[i];
+    }
+    let to_eye = eye_dir(q);
+    var n = to_eye;
     if t.x != 0u {
+        n = normal_of(t, q, to_eye);
         let d = bitcast<f32>(t.x);
-        var colour = lit_colour(t, q);
+        var colour = lit_colour(t, n, to_eye);
         var alpha = unpack4x8unorm(t.y).a;
         if fil.antialias != ANTIALIAS_OFF {
             // Laplace on depth, background at depth 0 (section 3.5).
@@ -107,9 +117,11 @@ fn main(@builtin(global_invocation_id) id: vec3<u32>) {
                 var around = vec3<f32>(0.0);
                 var covered = 0.0;
                 for (var k = 0; k < 4; k++) {
-                    let n = texel_at(q + AXES[k]);
-                    if n.x != 0u {
-                        around += lit_colour(n, q + AXES[k]);
+                    let o = q + AXES[k];
+                    let u = texel_at(o);
+                    if u.x != 0u {
+                        let u_eye = eye_dir(o);
+                        around += lit_colour(u, normal_of(u, o, u_eye), u_eye);
                         covered += 1.0;
                     }
                 }
@@ -120,6 +132,8 @@ fn main(@builtin(global_invocation_id) id: vec3<u32>) {
             }
         }
         sum += vec4<f32>(colour * alpha, alpha) * (1.0 - sum.a);
+    }
+    if t.x != 0u || step.layer == 0u {
         accum[i] = sum;
     }
     if step.layer == 0u {
@@ -127,8 +141,6 @@ fn main(@builtin(global_invocation_id) id: vec3<u32>) {
             surface[i] = vec4<f32>(0.0, 0.0, 0.0, -1.0);
             albedo[i] = 0u;
         } else {
-            let to_eye = -normalize(pixel_ray(vec2<f32>(q) + 0.5));
-            let n = normal_of(t, q, to_eye);
             let right = normalize(fil.right.xyz);
             let up = normalize(fil.up.xyz);
             surface[i] = vec4<f32>(dot(n, right), dot(n, up), -dot(n, fil.forward.xyz), bitcast<f32>(t.x));

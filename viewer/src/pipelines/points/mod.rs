@@ -22,6 +22,7 @@ pub static INFO: PipelineInfo = PipelineInfo {
     passes: &[SHADING.passes.0, SHADING.passes.1],
     previous_frame: false,
     cull_back_faces: false,
+    reads_colour_plane: true,
     screen_buffers: super::no_screen_buffers,
     create: |ctx| Ok(SHADING.create(ctx)),
     shaders: |int64| SHADING.shaders(int64),

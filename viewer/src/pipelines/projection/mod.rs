@@ -133,6 +133,8 @@ pub struct FrameDraw<'a> {
     /// Skip the points whose normal faces away from the eye (the arenas hold the Normals
     /// stream, and the dataset's normals face outwards).
     pub cull_back_faces: bool,
+    /// Resolve the colour plane (the pipeline reads it).
+    pub resolve_colours: bool,
 }
 
 /// What one arena draws this frame.
@@ -409,6 +411,9 @@ impl Projection {
             pass.dispatch_workgroups(gx, gy, 1);
         }
 
+        if !frame.resolve_colours {
+            return false;
+        }
         // Resolve, per arena.
         let fb = frame_bind(
             device,

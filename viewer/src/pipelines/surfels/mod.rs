@@ -96,6 +96,7 @@ pub static INFO: PipelineInfo = PipelineInfo {
     passes: &["surfel depth", "surfel blend", "surfel shade"],
     previous_frame: false,
     cull_back_faces: false,
+    reads_colour_plane: false,
     screen_buffers: SurfelPasses::screen_buffers,
     create,
     shaders: |_| passes::shaders(),
