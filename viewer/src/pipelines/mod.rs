@@ -344,7 +344,8 @@ pub trait Pipeline {
     }
 
     /// The unlit colour of the surface the last frame shows, per pixel (`None`: background),
-    /// where the pipeline reconstructs its own surface; `None`: the resolved colour plane is it.
+    /// where the pipeline reconstructs its own surface; `None`: the resolved colour plane is it
+    /// (a pipeline that declares no `reads_colour_plane` has none, and must give its own).
     fn read_albedo(&self, ctx: &GpuContext) -> Option<AlbedoResult> {
         let _ = ctx;
         None

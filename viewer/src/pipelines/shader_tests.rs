@@ -212,3 +212,26 @@ fn workgroup_sizes_match_the_dispatches() {
         }
     }
 }
+
+/// The projection resolves its colour plane only for a pipeline that declares it reads it: one
+/// whose shaders bind the plane (a global `colours`, as the projection's resolve names it) and
+/// declared otherwise would read an unwritten plane.
+#[test]
+fn a_pipeline_that_binds_the_colour_plane_declares_it_reads_it() {
+    for p in REGISTRY {
+        for s in (p.shaders)(true).iter().chain((p.shaders)(false).iter()) {
+            let module = parse(s);
+            let binds = module
+                .global_variables
+                .iter()
+                .any(|(_, g)| g.name.as_deref() == Some("colours"));
+            assert!(
+                !binds || p.reads_colour_plane,
+                "{}: module {} binds the colour plane but the pipeline does not declare \
+                 reads_colour_plane",
+                p.name,
+                s.label
+            );
+        }
+    }
+}

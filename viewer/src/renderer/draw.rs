@@ -187,6 +187,8 @@ impl Renderer {
             &mut self.drawn_count,
         );
         let int64 = screen.keys.is_some() && !settings.force_int32;
+        // Until this frame is drawn, no colour plane is known to be this frame's.
+        self.last_colour_plane = false;
         let fused = ctx.scoped(&format!("drawing with the {} pipeline", info.name), || {
             let mut encoder = ctx
                 .device

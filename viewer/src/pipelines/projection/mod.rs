@@ -276,8 +276,9 @@ impl Projection {
 
     #[allow(clippy::too_many_arguments)]
     /// Encodes clear and projection, then the fused finish where `fused` is given and the
-    /// frame allows it (returns true: the output image is written), else unpack and resolve
-    /// into the depth and colour planes (returns false: the pipeline shades).
+    /// frame allows it (returns true: the output image is written), else unpack into the depth
+    /// plane and, where the pipeline reads it, resolve the colour plane (returns false: the
+    /// pipeline shades).
     pub fn encode(
         &self,
         ctx: &GpuContext,
