@@ -250,6 +250,12 @@ impl FiltersPasses {
                 None => 0,
             };
             encoder.clear_buffer(&targets.texels[current], 0, None);
+            // The first layer's fill starts only where the resolve put points (tiles.wgsl): the
+            // other buffer must hold the same background everywhere else.
+            if reference.is_none() {
+                encoder.clear_buffer(&targets.texels[1 - current], 0, None);
+            }
+            encoder.clear_buffer(&targets.tiles, 0, None);
             {
                 let (depths, indices) = if reference.is_some() {
                     (&targets.peel_depths, &targets.peel_indices)
@@ -267,6 +273,7 @@ impl FiltersPasses {
                         (3, indices.as_entire_binding()),
                         (4, targets.texels[current].as_entire_binding()),
                         (5, targets.counters.as_entire_binding()),
+                        (6, targets.tiles.as_entire_binding()),
                     ],
                 );
                 let sb = step_bind(
@@ -340,7 +347,6 @@ impl FiltersPasses {
 
             // Fill: background pixels, then occluded ones, ping-ponging between the texel buffers.
             if setup.fill_iterations > 0 {
-                encoder.clear_buffer(&targets.tiles, 0, None);
                 let timestamp_writes = timer.pass(encoder, "fill");
                 let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
                     label: Some("fill"),

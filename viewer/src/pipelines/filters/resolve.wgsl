@@ -1,11 +1,13 @@
 // A layer's texels from its depth and index planes, once per arena: each pixel whose point
 // lives in this arena takes that point's colour, opacity (by its class), normal (turned to face
-// the eye) and share of the light. Marks the layer as holding a pixel.
+// the eye) and share of the light. Marks the layer, and the pixel's fill tile, as holding one.
 @group(0) @binding(0) var<uniform> frame: Frame;
 @group(0) @binding(2) var<storage, read> depths: array<u32>;
 @group(0) @binding(3) var<storage, read> indices: array<u32>;
 @group(0) @binding(4) var<storage, read_write> texels: array<Texel>;
 @group(0) @binding(5) var<storage, read_write> counters: array<u32>;
+// The fill's tile flags (`occupied_slot`).
+@group(0) @binding(6) var<storage, read_write> tiles: array<u32>;
 @group(1) @binding(0) var<storage, read> points: array<vec4<u32>>;
 @group(1) @binding(1) var<storage, read> ranges: array<Range>;
 @group(1) @binding(2) var<storage, read> attributes: array<u32>;
@@ -57,4 +59,5 @@ fn main(@builtin(global_invocation_id) id: vec3<u32>) {
     }
     texels[i] = t;
     counters[step.layer] = 1u;
+    tiles[occupied_slot(id.xy / 16u)] = 1u;
 }

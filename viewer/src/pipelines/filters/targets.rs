@@ -17,10 +17,11 @@ pub const STEP_STRIDE: u64 = 256;
 /// per fill iteration of each kind the tile list, the arguments and the fill.
 const STEP_SLOTS: u64 = MAX_LAYERS as u64 * (3 + 6 * MAX_ITERATIONS as u64);
 
-/// Flags of the fill's changed tiles (`tile_slot` in fill.wgsl): per kind and iteration, one
-/// per 16x16 tile.
+/// Flags of the fill's 16x16 tiles: per kind and iteration, one per tile where it changed
+/// (`tile_slot` in uniforms.wgsl), then one per tile where the resolve put a point
+/// (`occupied_slot`).
 fn tile_flags(width: u32, height: u32) -> u64 {
-    2 * MAX_ITERATIONS as u64 * tile_count(width, height)
+    (2 * MAX_ITERATIONS as u64 + 1) * tile_count(width, height)
 }
 
 fn tile_count(width: u32, height: u32) -> u64 {

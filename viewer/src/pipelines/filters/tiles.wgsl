@@ -1,17 +1,22 @@
-// The tiles a fill iteration works on: every tile in the first iteration, then those that
-// changed, or lie beside one that changed, in the iteration before; appended to `tile_list`
-// after its count, which args.wgsl turns into the fill's workgroups.
+// The tiles a fill iteration works on: in the first iteration every tile of a peeled layer,
+// and the first layer's tiles that hold a point or lie beside one; then those that changed, or
+// lie beside one that changed, in the iteration before; appended to `tile_list` after its
+// count, which args.wgsl turns into the fill's workgroups. The first layer's other tiles are
+// background in both texel buffers (both cleared), and no fill changes them: a background pixel
+// is filled only from a neighbour, an occluded one is not background.
 @group(0) @binding(0) var<uniform> frame: Frame;
 @group(0) @binding(2) var<storage, read> tiles: array<u32>;
 @group(0) @binding(3) var<storage, read_write> tile_list: array<atomic<u32>>;
 @group(1) @binding(0) var<uniform> step: Step;
 
-fn changed_near(tile: vec2<u32>) -> bool {
+// Whether `tile` or one beside it has its flag set, in the flags that start at `first` (those
+// of the tile at 0, 0).
+fn flagged_near(tile: vec2<u32>, first: u32) -> bool {
     for (var dy = -1; dy <= 1; dy++) {
         for (var dx = -1; dx <= 1; dx++) {
             let t = vec2<i32>(tile) + vec2<i32>(dx, dy);
             if t.x >= 0 && t.y >= 0 && t.x < i32(tiles_x()) && t.y < i32(tiles_y())
-                && tiles[tile_slot(step.kind, step.iteration - 1u, vec2<u32>(t))] != 0u {
+                && tiles[first + u32(t.y) * tiles_x() + u32(t.x)] != 0u {
                 return true;
             }
         }
@@ -26,7 +31,13 @@ fn main(@builtin(global_invocation_id) id: vec3<u32>) {
         return;
     }
     let tile = vec2<u32>(id.x % tiles_x(), id.x / tiles_x());
-    if step.iteration == 0u || changed_near(tile) {
+    var listed: bool;
+    if step.iteration > 0u {
+        listed = flagged_near(tile, tile_slot(step.kind, step.iteration - 1u, vec2<u32>(0u)));
+    } else {
+        listed = step.layer > 0u || flagged_near(tile, occupied_slot(vec2<u32>(0u)));
+    }
+    if listed {
         let at = atomicAdd(&tile_list[0], 1u);
         atomicStore(&tile_list[1u + at], tile.y << 16u | tile.x);
     }

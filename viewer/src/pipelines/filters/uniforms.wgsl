@@ -80,6 +80,12 @@ fn tile_slot(kind: u32, iteration: u32, tile: vec2<u32>) -> u32 {
     return ((kind - 1u) * MAX_ITERATIONS + iteration) * tiles_x() * tiles_y() + tile.y * tiles_x() + tile.x;
 }
 
+// After every kind's and iteration's flags: per tile, 1 where the layer's resolve put a point in
+// it (the first layer's first fill iterations work only on those tiles and the ones beside).
+fn occupied_slot(tile: vec2<u32>) -> u32 {
+    return 2u * MAX_ITERATIONS * tiles_x() * tiles_y() + tile.y * tiles_x() + tile.x;
+}
+
 fn texel_lit(t: Texel) -> f32 {
     return f32(t.w >> 16u) / 65535.0;
 }
