@@ -1,7 +1,7 @@
 // Dispatch arguments for the next pass of a layer. A layer's shading: none where the layer is
-// empty. A fill iteration: a workgroup per tile of the list tiles.wgsl made (all of them in the
-// first iteration, so that both buffers are this frame's; none once an iteration changed
-// nothing, its output then equal to its input in both buffers).
+// empty. A fill iteration: a workgroup per tile of the list tiles.wgsl made (in the first
+// iteration every tile that can change, so that both buffers are this frame's; none once an
+// iteration changed nothing, its output then equal to its input in both buffers).
 @group(0) @binding(0) var<uniform> frame: Frame;
 @group(0) @binding(2) var<storage, read> counters: array<u32>;
 @group(0) @binding(3) var<storage, read_write> args: array<u32>;

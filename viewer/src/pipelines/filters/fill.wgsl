@@ -11,7 +11,8 @@
 @group(0) @binding(2) var<storage, read> src: array<Texel>;
 @group(0) @binding(3) var<storage, read_write> dst: array<Texel>;
 @group(0) @binding(4) var<storage, read_write> counters: array<u32>;
-// Per kind, iteration and 16x16 tile: 1 where the iteration changed a pixel of the tile.
+// Per kind, iteration and 16x16 tile: 1 where the iteration changed a pixel of the tile (then
+// the resolve's occupied tiles, `occupied_slot`).
 @group(0) @binding(5) var<storage, read_write> tiles: array<u32>;
 // [0]: the count (tiles.wgsl), then the tiles to work on, y << 16 | x.
 @group(0) @binding(6) var<storage, read> tile_list: array<u32>;

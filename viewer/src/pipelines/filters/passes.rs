@@ -31,6 +31,11 @@ const TILES_WGSL: &str = include_str!("tiles.wgsl");
 pub const MAX_LAYERS: u32 = 8;
 /// Fill iterations at most, per kind and layer (`MAX_ITERATIONS`).
 pub const MAX_ITERATIONS: u32 = 16;
+// The first layer's fill starts on the tiles that hold a point or lie beside one (tiles.wgsl):
+// its background fill must not carry a texel past the tile beside, one pixel an iteration.
+const _: () = assert!(MAX_ITERATIONS <= 16, "a fill tile is 16 pixels wide");
+/// Storage buffers the filters bind in one pass at most (the resolve's).
+pub const STORAGE_BUFFERS: u32 = 10;
 /// Classes with an opacity of their own (`CLASSES`): the ASPRS standard classes 0 to 18.
 pub const CLASSES: usize = 19;
 /// Words of the counters buffer (`COUNTERS`): a flag per layer, then a flag per layer, kind
@@ -140,6 +145,12 @@ pub(crate) fn bind(
 
 impl FiltersPasses {
     pub fn new(ctx: &GpuContext) -> Result<FiltersPasses, ViewerError> {
+        let have = ctx.device.limits().max_storage_buffers_per_shader_stage;
+        if have < STORAGE_BUFFERS {
+            return Err(ViewerError::Gpu(format!(
+                "the filters pipeline binds {STORAGE_BUFFERS} storage buffers in a pass; this adapter allows {have}"
+            )));
+        }
         let mut compiled = shaders(ctx.int64_atomics)
             .into_iter()
             .map(|s| s.compute(&ctx.device, None));

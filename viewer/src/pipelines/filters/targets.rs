@@ -52,7 +52,8 @@ pub struct FiltersTargets {
     pub counters_readback: AsyncReadback,
     /// Dispatch arguments of the next indirect pass.
     pub args: wgpu::Buffer,
-    /// Per fill kind, iteration and 16x16 tile: whether the iteration changed the tile.
+    /// Per fill kind, iteration and 16x16 tile: whether the iteration changed the tile; then
+    /// per tile whether the layer's resolve put a point in it.
     pub tiles: wgpu::Buffer,
     /// The tiles the next fill iteration works on, after their count.
     pub tile_list: wgpu::Buffer,

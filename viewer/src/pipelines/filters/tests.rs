@@ -144,3 +144,21 @@ fn the_parameter_table_names_every_class_once() {
     assert!(values.set_text(&INFO, "layers", "9").is_err());
     assert!(values.set_text(&INFO, "light", "1,2").is_err(), "a light takes three numbers");
 }
+
+/// The adapter check in `FiltersPasses::new` names the most storage buffers any filters module
+/// binds in one pass.
+#[test]
+fn the_storage_buffer_check_counts_the_largest_pass() {
+    let most = super::passes::shaders(true)
+        .iter()
+        .chain(super::passes::shaders(false).iter())
+        .map(|s| {
+            module_named(s.label)
+                .global_variables
+                .iter()
+                .filter(|(_, g)| matches!(g.space, naga::AddressSpace::Storage { .. }))
+                .count() as u32
+        })
+        .max();
+    assert_eq!(most, Some(super::passes::STORAGE_BUFFERS));
+}

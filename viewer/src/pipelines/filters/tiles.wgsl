@@ -3,7 +3,9 @@
 // lie beside one that changed, in the iteration before; appended to `tile_list` after its
 // count, which args.wgsl turns into the fill's workgroups. The first layer's other tiles are
 // background in both texel buffers (both cleared), and no fill changes them: a background pixel
-// is filled only from a neighbour, an occluded one is not background.
+// is filled only from a neighbour, one pixel an iteration, so at most MAX_ITERATIONS (16, the
+// tile's width) background iterations reach no further than the tile beside a point's; an
+// occluded pixel is not background.
 @group(0) @binding(0) var<uniform> frame: Frame;
 @group(0) @binding(2) var<storage, read> tiles: array<u32>;
 @group(0) @binding(3) var<storage, read_write> tile_list: array<atomic<u32>>;
