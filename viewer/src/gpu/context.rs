@@ -43,6 +43,18 @@ pub struct GpuContext {
 }
 
 impl GpuContext {
+    /// Whether the device lets `pipeline`'s largest pass bind `count` storage buffers; the
+    /// error says how many it allows, before anything is compiled.
+    pub fn require_storage_buffers(&self, pipeline: &str, count: u32) -> Result<(), ViewerError> {
+        let have = self.device.limits().max_storage_buffers_per_shader_stage;
+        if have < count {
+            return Err(ViewerError::Gpu(format!(
+                "the {pipeline} pipeline binds {count} storage buffers in a pass; this adapter allows {have}"
+            )));
+        }
+        Ok(())
+    }
+
     /// Picks an adapter (WGPU_BACKEND and WGPU_ADAPTER_NAME are honoured) and opens a device
     /// with the features the chosen projection path needs.
     pub fn new(path: ProjectionPath) -> Result<GpuContext, ViewerError> {

@@ -145,12 +145,7 @@ pub(crate) fn bind(
 
 impl FiltersPasses {
     pub fn new(ctx: &GpuContext) -> Result<FiltersPasses, ViewerError> {
-        let have = ctx.device.limits().max_storage_buffers_per_shader_stage;
-        if have < STORAGE_BUFFERS {
-            return Err(ViewerError::Gpu(format!(
-                "the filters pipeline binds {STORAGE_BUFFERS} storage buffers in a pass; this adapter allows {have}"
-            )));
-        }
+        ctx.require_storage_buffers("filters", STORAGE_BUFFERS)?;
         let mut compiled = shaders(ctx.int64_atomics)
             .into_iter()
             .map(|s| s.compute(&ctx.device, None));

@@ -97,9 +97,10 @@ fn main(@builtin(global_invocation_id) id: vec3<u32>) {
     if step.layer > 0u {
         sum = accum[i];
     }
-    let to_eye = eye_dir(q);
-    var n = to_eye;
+    // The normal, for the surface the first layer leaves; background pixels need none.
+    var n = vec3<f32>(0.0);
     if t.x != 0u {
+        let to_eye = eye_dir(q);
         n = normal_of(t, q, to_eye);
         let d = bitcast<f32>(t.x);
         var colour = lit_colour(t, n, to_eye);

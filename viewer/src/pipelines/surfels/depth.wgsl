@@ -12,8 +12,8 @@ fn main(
     @builtin(local_invocation_index) lane: u32,
 ) {
     let s = surfel_at(wg.x + wg.y * groups.x, lane);
-    // This module draws one kind of surfel; the other kind's module draws the rest.
-    if !s.ok || s.curved != DRAWS_CURVED {
+    // Not ok as well where the surfel is the other kind's, which the other module draws.
+    if !s.ok {
         return;
     }
     atomicAdd(&counts[select(0u, 1u, s.curved)], 1u);

@@ -151,12 +151,7 @@ pub struct SurfelPasses {
 
 impl SurfelPasses {
     pub fn new(ctx: &GpuContext) -> Result<SurfelPasses, ViewerError> {
-        let have = ctx.device.limits().max_storage_buffers_per_shader_stage;
-        if have < STORAGE_BUFFERS {
-            return Err(ViewerError::Gpu(format!(
-                "the surfels pipeline binds {STORAGE_BUFFERS} storage buffers in a pass; this adapter allows {have}"
-            )));
-        }
+        ctx.require_storage_buffers("surfels", STORAGE_BUFFERS)?;
         let mut compiled = shaders()
             .into_iter()
             .map(|s| s.compute(&ctx.device, None));

@@ -121,12 +121,7 @@ pub struct TriangulatePasses {
 
 impl TriangulatePasses {
     pub fn new(ctx: &GpuContext) -> Result<TriangulatePasses, ViewerError> {
-        let have = ctx.device.limits().max_storage_buffers_per_shader_stage;
-        if have < STORAGE_BUFFERS {
-            return Err(ViewerError::Gpu(format!(
-                "the triangulate pipeline binds {STORAGE_BUFFERS} storage buffers in a pass; this adapter allows {have}"
-            )));
-        }
+        ctx.require_storage_buffers("triangulate", STORAGE_BUFFERS)?;
         let int64 = ctx.int64_atomics;
         let mut compiled: std::collections::HashMap<&str, wgpu::ComputePipeline> = shaders(int64)
             .into_iter()
