@@ -11,7 +11,7 @@ fn main(
     @builtin(num_workgroups) groups: vec3<u32>,
     @builtin(local_invocation_index) lane: u32,
 ) {
-    let s = surfel_at(wg.x + wg.y * groups.x, lane);
+    let s = thread_surfel(wg, groups, lane);
     // Not ok as well where the surfel is the other kind's, which the other module draws.
     if !s.ok {
         return;

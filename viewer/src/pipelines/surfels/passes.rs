@@ -26,6 +26,9 @@ const PLANAR_WGSL: &str = include_str!("planar.wgsl");
 const CURVED_WGSL: &str = include_str!("curved.wgsl");
 const DEPTH_WGSL: &str = include_str!("depth.wgsl");
 const BLEND_WGSL: &str = include_str!("blend.wgsl");
+const THREAD_LISTING_WGSL: &str = include_str!("thread_listing.wgsl");
+const THREAD_LISTED_WGSL: &str = include_str!("thread_listed.wgsl");
+const THREAD_ALL_WGSL: &str = include_str!("thread_all.wgsl");
 const SHADE_WGSL: &str = include_str!("shade.wgsl");
 
 /// `mode` of the planar surfels (`MODE_PLANAR` in uniforms.wgsl).
@@ -33,7 +36,10 @@ pub const MODE_PLANAR: u32 = 0;
 /// Words per pixel of the blend sums (`SUM_WORDS` in sums.wgsl).
 pub const SUM_WORDS: u64 = 8;
 /// Storage buffers the depth and blend passes bind in one stage.
-const STORAGE_BUFFERS: u32 = 7;
+pub const STORAGE_BUFFERS: u32 = 8;
+/// Words before the slots in a list of curved surfels (`LIST_HEADER` in surfel.wgsl): the
+/// count, then the curved modules' indirect dispatch.
+pub const LIST_HEADER: u64 = 4;
 
 /// What the dataset's normals are (`NORMALS_*` in uniforms.wgsl).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -99,21 +105,33 @@ pub struct SurfelRange {
 
 /// Every module the surfels compile: the depth and the blend pass once for planar and once for
 /// curved surfels (a module that carries the c-surfel's code draws planar surfels at half the
-/// speed on lavapipe), then the shading.
+/// speed on lavapipe), then the shading. Where curved surfels can exist, the planar depth
+/// pass lists them (a third depth module, so that the planar mode does not carry the listing),
+/// and the curved modules run over that list alone.
 pub fn shaders() -> Vec<ShaderSource> {
     let mut v = Vec::new();
-    for (label, shape) in [
-        ("surfel depth planar", PLANAR_WGSL),
-        ("surfel depth curved", CURVED_WGSL),
+    for (label, shape, thread) in [
+        ("surfel depth planar", PLANAR_WGSL, THREAD_ALL_WGSL),
+        ("surfel depth listing", PLANAR_WGSL, THREAD_LISTING_WGSL),
+        ("surfel depth curved", CURVED_WGSL, THREAD_LISTED_WGSL),
     ] {
         v.push(ShaderSource::new(
             label,
-            &[UNIFORMS_WGSL, FILTERS_WGSL, RANGE_SEARCH_WGSL, OCT16_WGSL, SURFEL_WGSL, shape, DEPTH_WGSL],
+            &[
+                UNIFORMS_WGSL,
+                FILTERS_WGSL,
+                RANGE_SEARCH_WGSL,
+                OCT16_WGSL,
+                SURFEL_WGSL,
+                shape,
+                thread,
+                DEPTH_WGSL,
+            ],
         ));
     }
-    for (label, shape) in [
-        ("surfel blend planar", PLANAR_WGSL),
-        ("surfel blend curved", CURVED_WGSL),
+    for (label, shape, thread) in [
+        ("surfel blend planar", PLANAR_WGSL, THREAD_ALL_WGSL),
+        ("surfel blend curved", CURVED_WGSL, THREAD_LISTED_WGSL),
     ] {
         v.push(ShaderSource::new(
             label,
@@ -126,6 +144,7 @@ pub fn shaders() -> Vec<ShaderSource> {
                 OCT16_WGSL,
                 SURFEL_WGSL,
                 shape,
+                thread,
                 BLEND_WGSL,
             ],
         ));
@@ -137,9 +156,11 @@ pub fn shaders() -> Vec<ShaderSource> {
     v
 }
 
-/// A pass's two modules: for planar and for curved surfels.
+/// A pass's modules: for planar surfels, for planar ones listing the curved (the depth pass
+/// only), and for curved surfels.
 struct Kinds {
     planar: wgpu::ComputePipeline,
+    listing: Option<wgpu::ComputePipeline>,
     curved: wgpu::ComputePipeline,
 }
 
@@ -163,10 +184,12 @@ impl SurfelPasses {
         Ok(SurfelPasses {
             depth: Kinds {
                 planar: next()?,
+                listing: Some(next()?),
                 curved: next()?,
             },
             blend: Kinds {
                 planar: next()?,
+                listing: None,
                 curved: next()?,
             },
             shade: next()?,
@@ -225,6 +248,23 @@ impl SurfelPasses {
                 (d.arena, buffer, groups)
             })
             .collect();
+        // Planar surfels exist in every mode (points without a normal are discs); curved ones
+        // only where the mode and the normals allow them.
+        let curved = uniforms.mode != MODE_PLANAR && uniforms.normals != Normals::None as u32;
+        // A list of curved surfels per arena, with room for each of its points where curved
+        // ones can exist; emptied, with its dispatch at (0, 1, 1), before the depth pass.
+        let capacities: Vec<u64> = tables
+            .iter()
+            .map(|(_, _, groups)| if curved { *groups as u64 * GROUP_SIZE as u64 } else { 0 })
+            .collect();
+        targets.grow_curved_lists(device, &capacities);
+        let lists = &targets.curved_lists[..capacities.len()];
+        for list in lists.iter().filter(|_| curved) {
+            frame
+                .ctx
+                .queue
+                .write_buffer(list, 0, bytemuck::cast_slice(&[0u32, 0, 1, 1]));
+        }
         let mut arena_groups = Vec::with_capacity(tables.len());
         for (arena, ranges, groups) in &tables {
             let (a, [normals, radii]) = frame
@@ -241,9 +281,6 @@ impl SurfelPasses {
                 *groups,
             ));
         }
-        // Planar surfels exist in every mode (points without a normal are discs); curved ones
-        // only where the mode and the normals allow them.
-        let curved = uniforms.mode != MODE_PLANAR && uniforms.normals != Normals::None as u32;
         let per_point = |name: &str,
                          kinds: &Kinds,
                          own: [&wgpu::Buffer; 2],
@@ -254,8 +291,18 @@ impl SurfelPasses {
                 label: Some(name),
                 timestamp_writes,
             });
-            let pipes = [Some(&kinds.planar), curved.then_some(&kinds.curved)];
-            for pipe in pipes.into_iter().flatten() {
+            // (module, whether it binds the lists, whether it runs over them). Where curved
+            // surfels can exist, the depth pass's planar module lists them, and the curved
+            // module runs over each list.
+            let mut pipes = Vec::with_capacity(2);
+            match (&kinds.listing, curved) {
+                (Some(listing), true) => pipes.push((listing, true, false)),
+                _ => pipes.push((&kinds.planar, false, false)),
+            }
+            if curved {
+                pipes.push((&kinds.curved, true, true));
+            }
+            for (pipe, binds_list, listed) in pipes {
                 let fb = bind(
                     device,
                     pipe,
@@ -264,13 +311,22 @@ impl SurfelPasses {
                 );
                 pass.set_pipeline(pipe);
                 pass.set_bind_group(0, &fb, &[]);
-                for (buffers, groups) in &arena_groups {
+                for ((buffers, groups), list) in arena_groups.iter().zip(lists) {
                     if *groups == 0 {
                         continue;
                     }
-                    pass.set_bind_group(1, &bind(device, pipe, 1, buffers), &[]);
-                    let (x, y) = split_groups(*groups);
-                    pass.dispatch_workgroups(x, y, 1);
+                    let mut bound = buffers.to_vec();
+                    if binds_list {
+                        bound.push(list);
+                    }
+                    pass.set_bind_group(1, &bind(device, pipe, 1, &bound), &[]);
+                    if listed {
+                        // The dispatch the depth pass counted (words 1 to 3).
+                        pass.dispatch_workgroups_indirect(list, 4);
+                    } else {
+                        let (x, y) = split_groups(*groups);
+                        pass.dispatch_workgroups(x, y, 1);
+                    }
                 }
             }
         };
@@ -397,6 +453,8 @@ pub struct SurfelTargets {
     /// Surfels drawn: planar, curved.
     counts: wgpu::Buffer,
     pub counts_readback: AsyncReadback,
+    /// Per arena drawn, the curved surfels the planar depth pass listed (thread_listing.wgsl).
+    curved_lists: Vec<wgpu::Buffer>,
 }
 
 impl SurfelTargets {
@@ -418,6 +476,30 @@ impl SurfelTargets {
             albedo: storage("surfel albedo", pixels * 4),
             counts: storage("surfel counts", 8),
             counts_readback: AsyncReadback::new(device, "surfel counts readback", 8),
+            curved_lists: Vec::new(),
+        }
+    }
+
+    /// One list of curved surfels per capacity (in surfels), kept from frame to frame and
+    /// grown to the next power of two, so that nodes arriving do not remake them every frame.
+    fn grow_curved_lists(&mut self, device: &wgpu::Device, capacities: &[u64]) {
+        for (k, capacity) in capacities.iter().enumerate() {
+            let bytes = (LIST_HEADER + capacity) * 4;
+            if self.curved_lists.get(k).is_some_and(|b| b.size() >= bytes) {
+                continue;
+            }
+            let list = device.create_buffer(&wgpu::BufferDescriptor {
+                label: Some("surfel curved list"),
+                size: bytes.next_power_of_two(),
+                usage: wgpu::BufferUsages::STORAGE
+                    | wgpu::BufferUsages::INDIRECT
+                    | wgpu::BufferUsages::COPY_DST,
+                mapped_at_creation: false,
+            });
+            match self.curved_lists.get_mut(k) {
+                Some(old) => *old = list,
+                None => self.curved_lists.push(list),
+            }
         }
     }
 

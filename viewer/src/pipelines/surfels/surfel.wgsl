@@ -16,6 +16,9 @@ struct SurfelRange {
     children: u32,
 }
 
+// Words before the slots in the list of curved surfels (thread_listing.wgsl).
+const LIST_HEADER: u32 = 4u;
+
 // Largest screen reach of a surfel, in pixels: a thread walks its box alone.
 const MAX_REACH_PX: f32 = 16.0;
 const PI: f32 = 3.14159265;
@@ -99,8 +102,9 @@ fn surfel_at(group: u32, lane: u32) -> Surfel {
         s.n = v;
         s.curved = false;
     }
-    // Each module draws one kind (DRAWS_CURVED) and leaves the other's surfels unmade: in
-    // hybrid mode the curved module runs over every point for the few at the silhouette.
+    // Each module draws one kind (DRAWS_CURVED) and leaves the other's surfels unmade, with
+    // `curved` set where they are curved: the planar depth pass lists those for the curved
+    // modules (thread_listing.wgsl).
     if s.curved != DRAWS_CURVED {
         return s;
     }

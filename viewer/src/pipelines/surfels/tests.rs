@@ -1,7 +1,9 @@
 //! The surfels' Rust structs and constants against their WGSL, and the pieces of their
 //! geometry that do not need a GPU.
 
-use super::passes::{MODE_PLANAR, SUM_WORDS, SurfelRange, SurfelUniforms, range_table};
+use super::passes::{
+    LIST_HEADER, MODE_PLANAR, STORAGE_BUFFERS, SUM_WORDS, SurfelRange, SurfelUniforms, range_table,
+};
 use crate::pipelines::projection::{GROUP_SIZE, GpuRange, RangeLod};
 use crate::pipelines::shader_tests::{module_named, rust_layout, wgsl_const, wgsl_layout};
 
@@ -10,6 +12,7 @@ use crate::pipelines::shader_tests::{module_named, rust_layout, wgsl_const, wgsl
 fn uniforms_and_ranges_match_their_wgsl() {
     for label in [
         "surfel depth planar",
+        "surfel depth listing",
         "surfel depth curved",
         "surfel blend planar",
         "surfel blend curved",
@@ -55,6 +58,10 @@ fn uniforms_and_ranges_match_their_wgsl() {
         MODE_PLANAR as u64
     );
     assert_eq!(
+        wgsl_const(&module_named("surfel depth listing"), "LIST_HEADER"),
+        LIST_HEADER
+    );
+    assert_eq!(
         wgsl_layout(&module_named("surfel shade"), "Surfels"),
         wgsl_layout(&module_named("surfel depth planar"), "Surfels")
     );
@@ -84,4 +91,39 @@ fn range_tables_carry_the_lod_beside_each_range_and_count_groups() {
     assert_eq!(table[1].children, 0b1000_0001);
     assert_eq!(table[2].centre, [1.0, 2.0, 3.0]);
     assert_eq!(table[2].spacing, 0.5);
+}
+
+/// The check of the adapter's storage buffers before compiling counts the largest pass.
+#[test]
+fn the_storage_buffer_check_counts_the_largest_pass() {
+    let most = super::passes::shaders()
+        .iter()
+        .map(|s| {
+            module_named(s.label)
+                .global_variables
+                .iter()
+                .filter(|(_, g)| matches!(g.space, naga::AddressSpace::Storage { .. }))
+                .count() as u32
+        })
+        .max();
+    assert_eq!(most, Some(STORAGE_BUFFERS));
+}
+
+/// The curved modules draw the surfels the listing depth module lists, so those bind the
+/// list, and the planar modules (which run over every point) do not.
+#[test]
+fn the_curved_list_is_bound_where_it_is_filled_and_read() {
+    for (label, binds) in [
+        ("surfel depth planar", false),
+        ("surfel depth listing", true),
+        ("surfel depth curved", true),
+        ("surfel blend planar", false),
+        ("surfel blend curved", true),
+    ] {
+        let found = module_named(label)
+            .global_variables
+            .iter()
+            .any(|(_, g)| g.name.as_deref() == Some("curved_list"));
+        assert_eq!(found, binds, "{label}");
+    }
 }
