@@ -481,16 +481,20 @@ impl SurfelTargets {
     }
 
     /// One list of curved surfels per capacity (in surfels), kept from frame to frame and
-    /// grown to the next power of two, so that nodes arriving do not remake them every frame.
+    /// its capacity grown to the next power of two, so that nodes arriving do not remake them
+    /// every frame.
     fn grow_curved_lists(&mut self, device: &wgpu::Device, capacities: &[u64]) {
         for (k, capacity) in capacities.iter().enumerate() {
-            let bytes = (LIST_HEADER + capacity) * 4;
-            if self.curved_lists.get(k).is_some_and(|b| b.size() >= bytes) {
+            if self
+                .curved_lists
+                .get(k)
+                .is_some_and(|b| b.size() >= (LIST_HEADER + capacity) * 4)
+            {
                 continue;
             }
             let list = device.create_buffer(&wgpu::BufferDescriptor {
                 label: Some("surfel curved list"),
-                size: bytes.next_power_of_two(),
+                size: (LIST_HEADER + capacity.next_power_of_two()) * 4,
                 usage: wgpu::BufferUsages::STORAGE
                     | wgpu::BufferUsages::INDIRECT
                     | wgpu::BufferUsages::COPY_DST,

@@ -1,8 +1,10 @@
 // Surfels (paper 001): each drawn point becomes a planar n-gon or a curved c-surfel, oriented by
 // its normal and scaled by its radius, and is ray cast per pixel of its screen box. Shared by
 // the depth and the blend pass, which must agree on every surfel and every hit. Each pass is
-// compiled twice, with planar.wgsl or curved.wgsl giving `shape_hit` and `DRAWS_CURVED`: a
-// module carrying the c-surfel's code runs planar surfels at half the speed (lavapipe).
+// compiled per kind, with planar.wgsl or curved.wgsl giving `shape_hit` and `DRAWS_CURVED` (a
+// module carrying the c-surfel's code runs planar surfels at half the speed on lavapipe), and
+// a thread_*.wgsl choosing each thread's surfel: the depth pass thrice (planar, planar listing
+// the curved, curved over that list), the blend pass twice (planar, curved over the list).
 
 // One drawn node's points in an arena; [0] is a header (start = arena, count = ranges).
 struct SurfelRange {
@@ -62,7 +64,8 @@ fn phi(r: f32) -> f32 {
     return 1.0 - exp(-q * q);
 }
 
-// The surfel of this thread's point, or one with ok = false (no point, filtered, off screen).
+// The surfel of this thread's point, or one with ok = false (no point, filtered, off screen,
+// or the other kind's: then with `curved` as that kind has it).
 fn surfel_at(group: u32, lane: u32) -> Surfel {
     var s: Surfel;
     s.ok = false;

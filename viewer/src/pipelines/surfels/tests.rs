@@ -109,8 +109,8 @@ fn the_storage_buffer_check_counts_the_largest_pass() {
     assert_eq!(most, Some(STORAGE_BUFFERS));
 }
 
-/// The curved modules draw the surfels the listing depth module lists, so those bind the
-/// list, and the planar modules (which run over every point) do not.
+/// The curved modules draw the surfels the listing depth module lists: the listing module and
+/// the curved ones bind the list, the other planar modules do not.
 #[test]
 fn the_curved_list_is_bound_where_it_is_filled_and_read() {
     for (label, binds) in [
