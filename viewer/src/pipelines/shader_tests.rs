@@ -96,6 +96,21 @@ macro_rules! rust_layout {
 pub(crate) use rust_layout;
 
 /// The module `label` as a pipeline composes it (with 64-bit atomics).
+/// The most storage buffers one of `shaders` binds: what a pipeline checks the adapter for
+/// before compiling (`GpuContext::require_storage_buffers`).
+pub(crate) fn most_storage_buffers(shaders: &[ShaderSource]) -> Option<u32> {
+    shaders
+        .iter()
+        .map(|s| {
+            parse(s)
+                .global_variables
+                .iter()
+                .filter(|(_, g)| matches!(g.space, naga::AddressSpace::Storage { .. }))
+                .count() as u32
+        })
+        .max()
+}
+
 pub(crate) fn module_named(label: &str) -> naga::Module {
     let s = all_shaders(true)
         .into_iter()

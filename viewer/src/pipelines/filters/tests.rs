@@ -8,7 +8,9 @@ use super::{
 };
 use crate::pipelines::ViewFrame;
 use crate::pipelines::params::{ParamValues, ResolvedParams};
-use crate::pipelines::shader_tests::{module_named, rust_layout, wgsl_const, wgsl_layout};
+use crate::pipelines::shader_tests::{
+    module_named, most_storage_buffers, rust_layout, wgsl_const, wgsl_layout,
+};
 
 
 #[test]
@@ -149,16 +151,10 @@ fn the_parameter_table_names_every_class_once() {
 /// binds in one pass.
 #[test]
 fn the_storage_buffer_check_counts_the_largest_pass() {
-    let most = super::passes::shaders(true)
-        .iter()
-        .chain(super::passes::shaders(false).iter())
-        .map(|s| {
-            module_named(s.label)
-                .global_variables
-                .iter()
-                .filter(|(_, g)| matches!(g.space, naga::AddressSpace::Storage { .. }))
-                .count() as u32
-        })
-        .max();
-    assert_eq!(most, Some(super::passes::STORAGE_BUFFERS));
+    let mut shaders = super::passes::shaders(true);
+    shaders.extend(super::passes::shaders(false));
+    assert_eq!(
+        most_storage_buffers(&shaders),
+        Some(super::passes::STORAGE_BUFFERS)
+    );
 }

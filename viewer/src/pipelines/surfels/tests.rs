@@ -5,7 +5,9 @@ use super::passes::{
     LIST_HEADER, MODE_PLANAR, STORAGE_BUFFERS, SUM_WORDS, SurfelRange, SurfelUniforms, range_table,
 };
 use crate::pipelines::projection::{GROUP_SIZE, GpuRange, RangeLod};
-use crate::pipelines::shader_tests::{module_named, rust_layout, wgsl_const, wgsl_layout};
+use crate::pipelines::shader_tests::{
+    module_named, most_storage_buffers, rust_layout, wgsl_const, wgsl_layout,
+};
 
 
 #[test]
@@ -96,17 +98,10 @@ fn range_tables_carry_the_lod_beside_each_range_and_count_groups() {
 /// The check of the adapter's storage buffers before compiling counts the largest pass.
 #[test]
 fn the_storage_buffer_check_counts_the_largest_pass() {
-    let most = super::passes::shaders()
-        .iter()
-        .map(|s| {
-            module_named(s.label)
-                .global_variables
-                .iter()
-                .filter(|(_, g)| matches!(g.space, naga::AddressSpace::Storage { .. }))
-                .count() as u32
-        })
-        .max();
-    assert_eq!(most, Some(STORAGE_BUFFERS));
+    assert_eq!(
+        most_storage_buffers(&super::passes::shaders()),
+        Some(STORAGE_BUFFERS)
+    );
 }
 
 /// The curved modules draw the surfels the listing depth module lists: the listing module and
