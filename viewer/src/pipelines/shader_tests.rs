@@ -95,7 +95,6 @@ macro_rules! rust_layout {
 }
 pub(crate) use rust_layout;
 
-/// The module `label` as a pipeline composes it (with 64-bit atomics).
 /// The most storage buffers one of `shaders` binds: what a pipeline checks the adapter for
 /// before compiling (`GpuContext::require_storage_buffers`).
 pub(crate) fn most_storage_buffers(shaders: &[ShaderSource]) -> Option<u32> {
@@ -111,6 +110,7 @@ pub(crate) fn most_storage_buffers(shaders: &[ShaderSource]) -> Option<u32> {
         .max()
 }
 
+/// The module `label` as a pipeline composes it (with 64-bit atomics).
 pub(crate) fn module_named(label: &str) -> naga::Module {
     let s = all_shaders(true)
         .into_iter()
