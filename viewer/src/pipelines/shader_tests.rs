@@ -250,3 +250,41 @@ fn a_pipeline_that_binds_the_colour_plane_declares_it_reads_it() {
         }
     }
 }
+
+/// Where a value array (a `let`, a function argument) is indexed by a variable, naga copies the
+/// whole array into a function variable at each such access. NVIDIA's driver (580, H200) never
+/// finished compiling the pyramid's HPR module written that way, its 6x6 cells of 16 bytes
+/// passed by value to the functions picking their rings; such arrays belong in a `var`, passed
+/// by pointer. Small ones (the eight directions of a ring, up to 64 bytes) compiled at once.
+#[test]
+fn no_large_value_array_is_indexed_by_a_variable() {
+    const LARGEST_COPIED: u32 = 64;
+    let caps = Capabilities::SHADER_INT64 | Capabilities::SHADER_INT64_ATOMIC_MIN_MAX;
+    for s in all_shaders(true) {
+        let module = parse(&s);
+        let info = Validator::new(ValidationFlags::all(), caps)
+            .validate(&module)
+            .unwrap_or_else(|e| panic!("{}: {e}", s.label));
+        let functions = module.functions.iter().map(|(h, f)| (f, &info[h]));
+        let entries = module
+            .entry_points
+            .iter()
+            .enumerate()
+            .map(|(i, e)| (&e.function, info.get_entry_point(i)));
+        for (function, function_info) in functions.chain(entries) {
+            for (_, expression) in function.expressions.iter() {
+                let naga::Expression::Access { base, .. } = *expression else {
+                    continue;
+                };
+                let ty = function_info[base].ty.inner_with(&module.types);
+                let bytes = ty.size(module.to_ctx());
+                assert!(
+                    !matches!(ty, naga::TypeInner::Array { .. }) || bytes <= LARGEST_COPIED,
+                    "{}: function {} indexes a value array of {bytes} bytes by a variable",
+                    s.label,
+                    function.name.as_deref().unwrap_or("(entry point)")
+                );
+            }
+        }
+    }
+}

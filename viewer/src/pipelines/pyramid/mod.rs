@@ -5,6 +5,8 @@
 mod lit;
 mod passes;
 
+mod hpr;
+pub use hpr::HprShape;
 pub use passes::{
     COARSE_LEVEL, HPR_SCALE_S0, HPR_THRESHOLD, MAX_LEVELS, NOISE_BINS, NORMAL_SCALE_S0,
     PyramidFrame, depth_noise_from,
@@ -110,7 +112,7 @@ struct Pyramid {
 
 fn create(ctx: &GpuContext) -> Result<Box<dyn Pipeline>, ViewerError> {
     Ok(Box::new(Pyramid {
-        passes: PyramidPasses::new(&ctx.device)?,
+        passes: PyramidPasses::new(&ctx.device, HprShape::for_adapter(&ctx.adapter.get_info()))?,
         targets: None,
         noise_readback: AsyncReadback::new(&ctx.device, "depth noise readback", 4),
         depth_noise: None,

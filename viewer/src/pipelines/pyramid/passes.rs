@@ -13,6 +13,7 @@ use crate::pipelines::ScreenBuffer;
 use crate::pipelines::edl::EDL_WGSL;
 use crate::pipelines::projection::pixel_groups;
 use crate::pipelines::shader::ShaderSource;
+use super::hpr::HprShape;
 use bytemuck::{Pod, Zeroable};
 use wgpu::util::DeviceExt;
 
@@ -34,6 +35,7 @@ pub const MAX_LEVELS: usize = 16;
 
 const COMMON_WGSL: &str = include_str!("pyramid.wgsl");
 const NOISE_WGSL: &str = include_str!("pyramid_noise.wgsl");
+const HPR_WGSL: &str = include_str!("pyramid_hpr.wgsl");
 
 /// Everything the pyramid passes need to know of the frame beyond `FrameUniforms`.
 #[derive(Debug, Clone, Copy)]
@@ -127,6 +129,7 @@ pub struct PyramidPasses {
     base: wgpu::ComputePipeline,
     down: wgpu::ComputePipeline,
     hpr: wgpu::ComputePipeline,
+    hpr_shape: HprShape,
     pull: wgpu::ComputePipeline,
     push: wgpu::ComputePipeline,
     normals: wgpu::ComputePipeline,
@@ -223,7 +226,14 @@ pub fn shaders() -> Vec<ShaderSource> {
         ShaderSource::new("noise estimate", &[COMMON_WGSL, NOISE_WGSL]).with_entry("estimate"),
         pass("pyramid base", include_str!("pyramid_base.wgsl")),
         pass("pyramid down", include_str!("pyramid_down.wgsl")),
-        pass("hpr", include_str!("pyramid_hpr.wgsl")),
+        ShaderSource::new(
+            HprShape::Pixel.module(),
+            &[COMMON_WGSL, HPR_WGSL, include_str!("pyramid_hpr_pixel.wgsl")],
+        ),
+        ShaderSource::new(
+            HprShape::Block.module(),
+            &[COMMON_WGSL, HPR_WGSL, include_str!("pyramid_hpr_block.wgsl")],
+        ),
         pass("pull", include_str!("pyramid_pull.wgsl")),
         pass("push", include_str!("pyramid_push.wgsl")),
         pass("normals", include_str!("pyramid_normals.wgsl")),
@@ -240,7 +250,7 @@ pub fn shaders() -> Vec<ShaderSource> {
 }
 
 impl PyramidPasses {
-    pub fn new(device: &wgpu::Device) -> Result<PyramidPasses, ViewerError> {
+    pub fn new(device: &wgpu::Device, hpr_shape: HprShape) -> Result<PyramidPasses, ViewerError> {
         let frame_layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
             label: Some("pyramid frame"),
             entries: &[uniform_entry(0), uniform_entry(1), uniform_entry(2)],
@@ -292,7 +302,8 @@ impl PyramidPasses {
             noise_layout,
             base: make("pyramid base")?,
             down: make("pyramid down")?,
-            hpr: make("hpr")?,
+            hpr: make(hpr_shape.module())?,
+            hpr_shape,
             pull: make("pull")?,
             push: make("push")?,
             normals: make("normals")?,
@@ -503,9 +514,10 @@ impl PyramidPasses {
             &data,
             &mut (1..levels).map(at),
         );
-        // One HPR invocation labels a 4x4 block of pixels, a workgroup 8x8 blocks.
+        // A workgroup is 8x8 invocations, each labelling a pixel or a block.
         let [_, w0, h0] = t.levels[0];
-        let hpr_groups = (0, (w0.div_ceil(32), h0.div_ceil(32)));
+        let group_side = 8 * self.hpr_shape.side();
+        let hpr_groups = (0, (w0.div_ceil(group_side), h0.div_ceil(group_side)));
         run(
             e,
             tm,

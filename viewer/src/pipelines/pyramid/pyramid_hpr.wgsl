@@ -5,15 +5,8 @@
 // background enclosed by surface), else it stays a visible point or visible background.
 // Also seeds level 0 of the pull-push pyramid with the visible points.
 //
-// One invocation labels an aligned 4x4 block of pixels, so that each neighbour is read and
-// unprojected once for sixteen pixels. From level 2 up the block lies in one cell and shares
-// its coarse depth, its `reach` and its ring; on level 1 it covers 2x2 cells whose rings lie in
-// 4x4 cells; on level 0 its rings lie in 6x6 cells. That is 36 + 16 + 8 (reach - 1) reads a
-// block against 128 (reach + 1) one pixel an invocation. The labels are the same. The block's
-// pixels are written out row by row, never looped over: lavapipe kept looped-over arrays in
-// memory, and the pass took over twice as long. On lavapipe 2x2 blocks took 1.4-1.7x as long
-// as 4x4, and a workgroup tile in shared memory was slower still. The sixteen pixels' sectors
-// hold 128 floats: should a GPU spill them, 2x2 blocks (commit 762701c) are the step back.
+// What both shapes of the pass share (pyramid_hpr_pixel.wgsl: one pixel an invocation, for
+// GPUs; pyramid_hpr_block.wgsl: a 4x4 block, for CPU adapters). They give the same labels.
 
 // A neighbour: its view-space point and that point's squared length. A cell outside the level
 // gives a point on the view axis beyond the far plane instead: seen from any pixel's point
@@ -58,83 +51,6 @@ fn fold(s: Sectors, x: vec3<f32>, r: array<vec4<f32>, 8>) -> Sectors {
     return Sectors(min(s.lo, lo), min(s.hi, hi));
 }
 
-// One row of the block: its four pixels' sectors, left to right.
-alias Row = array<Sectors, 4>;
-
-// Level 0's 6x6 cells around the block, by rows, from the cell left of and above it.
-alias Cells0 = array<array<vec4<f32>, 6>, 6>;
-// Level 1's 4x4 cells around the block's 2x2 cells, by rows.
-alias Cells1 = array<array<vec4<f32>, 4>, 4>;
-
-// The ring, in sector order, of cell (a + 1, b + 1) of `q`: the level-0 ring of block pixel
-// (a, b).
-fn ring0(q: Cells0, a: i32, b: i32) -> array<vec4<f32>, 8> {
-    return array<vec4<f32>, 8>(
-        q[b + 1][a + 2], q[b + 2][a + 2], q[b + 2][a + 1], q[b + 2][a],
-        q[b + 1][a], q[b][a], q[b][a + 1], q[b][a + 2],
-    );
-}
-
-// As ring0 on level 1's cells (WGSL has no generics): the ring of the block's level-1 cell
-// (a, b).
-fn ring1(q: Cells1, a: i32, b: i32) -> array<vec4<f32>, 8> {
-    return array<vec4<f32>, 8>(
-        q[b + 1][a + 2], q[b + 2][a + 2], q[b + 2][a + 1], q[b + 2][a],
-        q[b + 1][a], q[b][a], q[b][a + 1], q[b][a + 2],
-    );
-}
-
-// Six cells of a level in a row from `p`.
-fn cells6(p: vec2<i32>, size: vec2<i32>, off: u32) -> array<vec4<f32>, 6> {
-    return array<vec4<f32>, 6>(
-        neighbour(p, size, off),
-        neighbour(p + vec2<i32>(1, 0), size, off),
-        neighbour(p + vec2<i32>(2, 0), size, off),
-        neighbour(p + vec2<i32>(3, 0), size, off),
-        neighbour(p + vec2<i32>(4, 0), size, off),
-        neighbour(p + vec2<i32>(5, 0), size, off),
-    );
-}
-
-// As cells6, four cells.
-fn cells4(p: vec2<i32>, size: vec2<i32>, off: u32) -> array<vec4<f32>, 4> {
-    return array<vec4<f32>, 4>(
-        neighbour(p, size, off),
-        neighbour(p + vec2<i32>(1, 0), size, off),
-        neighbour(p + vec2<i32>(2, 0), size, off),
-        neighbour(p + vec2<i32>(3, 0), size, off),
-    );
-}
-
-// The points of row `b` of the block.
-fn points(q: Cells0, b: i32) -> array<vec3<f32>, 4> {
-    let r = q[b + 1];
-    return array<vec3<f32>, 4>(r[1].xyz, r[2].xyz, r[3].xyz, r[4].xyz);
-}
-
-fn fold_row0(s: Row, x: array<vec3<f32>, 4>, q: Cells0, b: i32) -> Row {
-    return Row(
-        fold(s[0], x[0], ring0(q, 0, b)),
-        fold(s[1], x[1], ring0(q, 1, b)),
-        fold(s[2], x[2], ring0(q, 2, b)),
-        fold(s[3], x[3], ring0(q, 3, b)),
-    );
-}
-
-fn fold_row1(s: Row, x: array<vec3<f32>, 4>, q: Cells1, b: i32) -> Row {
-    return Row(
-        fold(s[0], x[0], ring1(q, 0, b / 2)),
-        fold(s[1], x[1], ring1(q, 0, b / 2)),
-        fold(s[2], x[2], ring1(q, 1, b / 2)),
-        fold(s[3], x[3], ring1(q, 1, b / 2)),
-    );
-}
-
-// Folds a ring the whole row shares (levels 2 and up).
-fn fold_row(s: Row, x: array<vec3<f32>, 4>, r: array<vec4<f32>, 8>) -> Row {
-    return Row(fold(s[0], x[0], r), fold(s[1], x[1], r), fold(s[2], x[2], r), fold(s[3], x[3], r));
-}
-
 // The ring of cell `p` of a level, in sector order.
 fn ring(p: vec2<i32>, size: vec2<i32>, off: u32) -> array<vec4<f32>, 8> {
     return array<vec4<f32>, 8>(
@@ -166,90 +82,4 @@ fn finish(px: vec2<u32>, s: Sectors) {
     let point = label == LABEL_POINT;
     fill[i] = vec2<f32>(select(0.0, bitcast<f32>(d), point), select(0.0, 1.0, point));
     fill_colour[i] = select(0u, colours[i], point);
-}
-
-// Labels the four pixels of row `b` of the block at `base`.
-fn finish_row(base: vec2<u32>, b: u32, s: Row) {
-    finish(base + vec2<u32>(0u, b), s[0]);
-    finish(base + vec2<u32>(1u, b), s[1]);
-    finish(base + vec2<u32>(2u, b), s[2]);
-    finish(base + vec2<u32>(3u, b), s[3]);
-}
-
-@compute @workgroup_size(8, 8)
-fn main(@builtin(global_invocation_id) id: vec3<u32>) {
-    let base = id.xy * 4u;
-    if base.x >= frame.width || base.y >= frame.height {
-        return;
-    }
-    let c = pyr.coarse_level;
-    let coarse = pts[level_offset(c) + (base.y >> c) * level_size(c).x + (base.x >> c)];
-    let z = max(bitcast<f32>(coarse.x), 1e-6);
-    let top = i32(pyr.levels) - 1;
-    let reach = clamp(i32(round(log2(pyr.hpr_scale / z))), 1, max(top, 1));
-    // The ring of every level up to `reach` lies inside the cells at `reach` around the block's
-    // (3x3, or 4x4 at level 1). Where those hold only the far plane (background away from any
-    // surface, most of the image in an overview), nothing occludes and the sectors can be
-    // skipped.
-    let top_size = vec2<i32>(level_size(u32(reach)));
-    let top_off = level_offset(u32(reach));
-    let lo = (vec2<i32>(base) >> vec2<u32>(u32(reach))) - 1;
-    let hi = ((vec2<i32>(base) + 3) >> vec2<u32>(u32(reach))) + 1;
-    var nearest = EMPTY;
-    for (var y = lo.y; y <= hi.y; y++) {
-        for (var x = lo.x; x <= hi.x; x++) {
-            let cell = clamp(vec2<i32>(x, y), vec2<i32>(0), top_size - 1);
-            nearest = min(nearest, pts[top_off + u32(cell.y * top_size.x + cell.x)].x);
-        }
-    }
-    let open = Sectors(vec4<f32>(1.0), vec4<f32>(1.0));
-    var s0 = Row(open, open, open, open);
-    var s1 = s0;
-    var s2 = s0;
-    var s3 = s0;
-    if nearest < bitcast<u32>(pyr.far) {
-        let size0 = vec2<i32>(level_size(0u));
-        let corner0 = vec2<i32>(base) - 1;
-        let q0 = Cells0(
-            cells6(corner0, size0, 0u),
-            cells6(corner0 + vec2<i32>(0, 1), size0, 0u),
-            cells6(corner0 + vec2<i32>(0, 2), size0, 0u),
-            cells6(corner0 + vec2<i32>(0, 3), size0, 0u),
-            cells6(corner0 + vec2<i32>(0, 4), size0, 0u),
-            cells6(corner0 + vec2<i32>(0, 5), size0, 0u),
-        );
-        let x0 = points(q0, 0);
-        let x1 = points(q0, 1);
-        let x2 = points(q0, 2);
-        let x3 = points(q0, 3);
-        s0 = fold_row0(s0, x0, q0, 0);
-        s1 = fold_row0(s1, x1, q0, 1);
-        s2 = fold_row0(s2, x2, q0, 2);
-        s3 = fold_row0(s3, x3, q0, 3);
-        let size1 = vec2<i32>(level_size(1u));
-        let corner1 = vec2<i32>(base >> vec2<u32>(1u)) - 1;
-        let off1 = level_offset(1u);
-        let q1 = Cells1(
-            cells4(corner1, size1, off1),
-            cells4(corner1 + vec2<i32>(0, 1), size1, off1),
-            cells4(corner1 + vec2<i32>(0, 2), size1, off1),
-            cells4(corner1 + vec2<i32>(0, 3), size1, off1),
-        );
-        s0 = fold_row1(s0, x0, q1, 0);
-        s1 = fold_row1(s1, x1, q1, 1);
-        s2 = fold_row1(s2, x2, q1, 2);
-        s3 = fold_row1(s3, x3, q1, 3);
-        for (var l = 2; l <= reach; l++) {
-            let size = vec2<i32>(level_size(u32(l)));
-            let r = ring(vec2<i32>(base >> vec2<u32>(u32(l))), size, level_offset(u32(l)));
-            s0 = fold_row(s0, x0, r);
-            s1 = fold_row(s1, x1, r);
-            s2 = fold_row(s2, x2, r);
-            s3 = fold_row(s3, x3, r);
-        }
-    }
-    finish_row(base, 0u, s0);
-    finish_row(base, 1u, s1);
-    finish_row(base, 2u, s2);
-    finish_row(base, 3u, s3);
 }
