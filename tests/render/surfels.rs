@@ -183,7 +183,12 @@ fn surfels_close_the_holes_points_leave_and_keep_the_outline() {
     assert_eq!(planar.measures[CURVED_SHARE], 0.0);
     assert_eq!(curved.measures[CURVED_SHARE], 1.0);
     let (_, planar_over) = holes_and_overshoot(&planar.covered);
-    let (_, curved_over) = holes_and_overshoot(&curved.covered);
+    let (curved_holes, curved_over) = holes_and_overshoot(&curved.covered);
+    // Every surfel curved: the c-surfels close the sphere as the planar ones do.
+    assert!(
+        curved_holes < 0.01,
+        "c-surfels leave {curved_holes:.4} of the sphere empty"
+    );
     assert!(
         overshoot <= planar_over + 1e-3 && curved_over <= planar_over + 1e-3,
         "c-surfels bend back at the outline: planar {planar_over:.3} px beyond it, hybrid {overshoot:.3}, curved {curved_over:.3}"
