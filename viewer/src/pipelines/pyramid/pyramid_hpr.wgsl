@@ -65,6 +65,32 @@ fn ring(p: vec2<i32>, size: vec2<i32>, off: u32) -> array<vec4<f32>, 8> {
     );
 }
 
+// The highest level whose ring counts for pixel `p`: equation 1 with the coarse level's depth
+// at `p`.
+fn reach_at(p: vec2<u32>) -> i32 {
+    let c = pyr.coarse_level;
+    let coarse = pts[level_offset(c) + (p.y >> c) * level_size(c).x + (p.x >> c)];
+    let z = max(bitcast<f32>(coarse.x), 1e-6);
+    let top = i32(pyr.levels) - 1;
+    return clamp(i32(round(log2(pyr.hpr_scale / z))), 1, max(top, 1));
+}
+
+// The nearest depth among cells `lo` to `hi` (inclusive, clamped into level `l`). Where it is
+// the far plane (background away from any surface, most of the image in an overview), nothing
+// there occludes and the sectors can be skipped.
+fn nearest_in(l: u32, lo: vec2<i32>, hi: vec2<i32>) -> u32 {
+    let size = vec2<i32>(level_size(l));
+    let off = level_offset(l);
+    var nearest = EMPTY;
+    for (var y = lo.y; y <= hi.y; y++) {
+        for (var x = lo.x; x <= hi.x; x++) {
+            let cell = clamp(vec2<i32>(x, y), vec2<i32>(0), size - 1);
+            nearest = min(nearest, pts[off + u32(cell.y * size.x + cell.x)].x);
+        }
+    }
+    return nearest;
+}
+
 // Labels pixel `px` (skipped where it lies outside the frame) from its sectors and seeds the
 // pull-push with it.
 fn finish(px: vec2<u32>, s: Sectors) {

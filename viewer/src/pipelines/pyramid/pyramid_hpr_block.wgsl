@@ -100,26 +100,13 @@ fn main(@builtin(global_invocation_id) id: vec3<u32>) {
     if base.x >= frame.width || base.y >= frame.height {
         return;
     }
-    let c = pyr.coarse_level;
-    let coarse = pts[level_offset(c) + (base.y >> c) * level_size(c).x + (base.x >> c)];
-    let z = max(bitcast<f32>(coarse.x), 1e-6);
-    let top = i32(pyr.levels) - 1;
-    let reach = clamp(i32(round(log2(pyr.hpr_scale / z))), 1, max(top, 1));
+    // From level 2 up the block lies in one cell of the coarse level: one reach for all.
+    let reach = reach_at(base);
     // The ring of every level up to `reach` lies inside the cells at `reach` around the block's
-    // (3x3, or 4x4 at level 1). Where those hold only the far plane (background away from any
-    // surface, most of the image in an overview), nothing occludes and the sectors can be
-    // skipped.
-    let top_size = vec2<i32>(level_size(u32(reach)));
-    let top_off = level_offset(u32(reach));
+    // (3x3, or 4x4 at level 1).
     let lo = (vec2<i32>(base) >> vec2<u32>(u32(reach))) - 1;
     let hi = ((vec2<i32>(base) + 3) >> vec2<u32>(u32(reach))) + 1;
-    var nearest = EMPTY;
-    for (var y = lo.y; y <= hi.y; y++) {
-        for (var x = lo.x; x <= hi.x; x++) {
-            let cell = clamp(vec2<i32>(x, y), vec2<i32>(0), top_size - 1);
-            nearest = min(nearest, pts[top_off + u32(cell.y * top_size.x + cell.x)].x);
-        }
-    }
+    let nearest = nearest_in(u32(reach), lo, hi);
     let open = Sectors(vec4<f32>(1.0), vec4<f32>(1.0));
     var s0 = Row(open, open, open, open);
     var s1 = s0;
