@@ -184,7 +184,7 @@ fn surfels_close_the_holes_points_leave_and_keep_the_outline() {
     assert_eq!(curved.measures[CURVED_SHARE], 1.0);
     let (_, planar_over) = holes_and_overshoot(&planar.covered);
     let (curved_holes, curved_over) = holes_and_overshoot(&curved.covered);
-    // Every surfel curved: the c-surfels close the sphere as the planar ones do.
+    // Every surfel curved: the c-surfels close the sphere too.
     assert!(
         curved_holes < 0.01,
         "c-surfels leave {curved_holes:.4} of the sphere empty"

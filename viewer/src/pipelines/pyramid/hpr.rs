@@ -1,5 +1,9 @@
 //! The shape of the hidden-point removal pass (pyramid_hpr.wgsl), chosen per adapter.
 
+// The block shape takes one reach for its 4x4 pixels from the coarse level's depth: they share
+// a cell from level 2 up.
+const _: () = assert!(super::COARSE_LEVEL >= 2);
+
 /// How the HPR pass spreads the pixels over its invocations. Both give the same labels; each is
 /// the faster where it is chosen.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]

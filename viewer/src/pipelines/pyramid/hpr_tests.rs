@@ -1,7 +1,7 @@
 //! The GPU hidden-point removal against a direct CPU reading of paper 003, 3.1.2: per pixel,
 //! the eight-cell ring on every level of the min-depth pyramid up to equation 1's level, the
-//! most occluding neighbour per sector, and the mean against the threshold. The shader labels
-//! a 4x4 block per invocation with shared reads; this pins it to the per-pixel definition.
+//! most occluding neighbour per sector, and the mean against the threshold. Both shapes of the
+//! pass (`HprShape`: one pixel an invocation, or a 4x4 block with shared reads) are pinned to it.
 
 use super::*;
 use crate::gpu::{GpuContext, ProjectionPath};

@@ -7,7 +7,7 @@
 // in memory, and the pass took over twice as long. On lavapipe 2x2 blocks took 1.4-1.7x as long
 // as 4x4, and a workgroup tile in shared memory was slower still. The cells are held in
 // function variables and passed by pointer: passed by value and indexed with a variable, each
-// call copied the whole array, and NVIDIA's driver (580, H200) never finished compiling that
+// access copied the whole array, and NVIDIA's driver (580, H200) never finished compiling that
 // module (by pointer it takes 1.7 s; the pixel shape 80 ms).
 
 // One row of the block: its four pixels' sectors, left to right.
