@@ -19,8 +19,8 @@ pub enum HprShape {
 impl HprShape {
     pub const ALL: [HprShape; 2] = [HprShape::Pixel, HprShape::Block];
 
-    pub fn for_adapter(info: &wgpu::AdapterInfo) -> HprShape {
-        if info.device_type == wgpu::DeviceType::Cpu {
+    pub fn for_device(device_type: wgpu::DeviceType) -> HprShape {
+        if device_type == wgpu::DeviceType::Cpu {
             HprShape::Block
         } else {
             HprShape::Pixel
@@ -39,6 +39,25 @@ impl HprShape {
         match self {
             HprShape::Pixel => 1,
             HprShape::Block => 4,
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::HprShape;
+    use wgpu::DeviceType;
+
+    #[test]
+    fn cpu_adapters_take_the_block_and_gpus_one_pixel_an_invocation() {
+        assert_eq!(HprShape::for_device(DeviceType::Cpu), HprShape::Block);
+        for gpu in [
+            DeviceType::DiscreteGpu,
+            DeviceType::IntegratedGpu,
+            DeviceType::VirtualGpu,
+            DeviceType::Other,
+        ] {
+            assert_eq!(HprShape::for_device(gpu), HprShape::Pixel, "{gpu:?}");
         }
     }
 }

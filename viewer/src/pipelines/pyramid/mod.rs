@@ -112,7 +112,7 @@ struct Pyramid {
 
 fn create(ctx: &GpuContext) -> Result<Box<dyn Pipeline>, ViewerError> {
     Ok(Box::new(Pyramid {
-        passes: PyramidPasses::new(&ctx.device, HprShape::for_adapter(&ctx.adapter.get_info()))?,
+        passes: PyramidPasses::new(&ctx.device, HprShape::for_device(ctx.adapter.get_info().device_type))?,
         targets: None,
         noise_readback: AsyncReadback::new(&ctx.device, "depth noise readback", 4),
         depth_noise: None,
