@@ -6,6 +6,7 @@
 use super::*;
 use crate::gpu::{GpuContext, ProjectionPath};
 use crate::pipelines::projection::FrameUniforms;
+use bytemuck::Zeroable;
 
 const EMPTY: u32 = u32::MAX;
 const LABEL_POINT: u32 = 0;

@@ -6,10 +6,11 @@ mod lit;
 mod passes;
 
 mod hpr;
+mod uniforms;
 pub use hpr::HprShape;
-pub use passes::{
-    COARSE_LEVEL, HPR_SCALE_S0, HPR_THRESHOLD, MAX_LEVELS, NOISE_BINS, NORMAL_SCALE_S0,
-    PyramidFrame, depth_noise_from,
+pub use passes::{NOISE_BINS, depth_noise_from};
+pub use uniforms::{
+    COARSE_LEVEL, HPR_SCALE_S0, HPR_THRESHOLD, MAX_LEVELS, NORMAL_SCALE_S0, PyramidFrame,
 };
 
 use super::params::{Auto, ParamSpec, ResolvedParams, Scale};
@@ -281,7 +282,7 @@ fn decode_octahedral(e: u32) -> [f32; 3] {
 
 #[cfg(test)]
 mod layout_tests {
-    use super::passes::uniforms_layout;
+    use super::uniforms::uniforms_layout;
     use super::{MAX_LEVELS, NOISE_BINS};
     use crate::pipelines::shader_tests::{module_named, wgsl_const, wgsl_layout};
 

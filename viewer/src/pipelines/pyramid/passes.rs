@@ -14,85 +14,12 @@ use crate::pipelines::edl::EDL_WGSL;
 use crate::pipelines::projection::pixel_groups;
 use crate::pipelines::shader::ShaderSource;
 use super::hpr::HprShape;
-use bytemuck::{Pod, Zeroable};
+use super::uniforms::{PyramidFrame, PyramidUniforms, level_table};
 use wgpu::util::DeviceExt;
-
-/// The paper's HPR neighbourhood size, in multiples of s0 (its section 3.1.2).
-pub const HPR_SCALE_S0: f32 = 10.0;
-/// Mean sector occlusion below which a pixel is a hole (the paper's 0.1 for all datasets).
-pub const HPR_THRESHOLD: f32 = 0.1;
-/// The pyramid level whose min depth decides each pixel's HPR neighbourhood (the paper's 4th).
-pub const COARSE_LEVEL: u32 = 4;
-/// Radius of the surface the normals are estimated over, in multiples of s0, where the depth
-/// noise does not call for more (pyramid_noise.wgsl). The paper leaves it open. Measured with
-/// the quality harness (960x720), noise-aware: 4·s0 gives 22.2 dB / SSIM 0.82 on the real
-/// bunny scans and 22.6 dB / 0.78 on the clean sampled bunny, 8·s0 21.8 / 0.82 and 21.1 / 0.75
-/// (a larger radius rounds off edges; without the noise estimate it was the only defence
-/// against noisy normals).
-pub const NORMAL_SCALE_S0: f32 = 4.0;
-/// Pyramid levels at most (`MAX_LEVELS` in pyramid.wgsl).
-pub const MAX_LEVELS: usize = 16;
 
 const COMMON_WGSL: &str = include_str!("pyramid.wgsl");
 const NOISE_WGSL: &str = include_str!("pyramid_noise.wgsl");
 const HPR_WGSL: &str = include_str!("pyramid_hpr.wgsl");
-
-/// Everything the pyramid passes need to know of the frame beyond `FrameUniforms`.
-#[derive(Debug, Clone, Copy)]
-pub struct PyramidFrame {
-    /// The metric scale of the point sampling, in dataset units.
-    pub s0: f32,
-    pub fov_y: f32,
-    pub far: f32,
-    pub focal_px: f32,
-    /// `light` of pyramid.wgsl's uniforms: a world light's view-space direction, and w = 1 for
-    /// Blinn-Phong with the lit share.
-    pub light: [f32; 4],
-}
-
-#[repr(C)]
-#[derive(Debug, Clone, Copy, Pod, Zeroable)]
-pub(crate) struct PyramidUniforms {
-    pixel_scale: [f32; 2],
-    pixel_bias: [f32; 2],
-    far: f32,
-    hpr_scale: f32,
-    normal_scale: f32,
-    threshold: f32,
-    levels: u32,
-    coarse_level: u32,
-    s0: f32,
-    /// Copied on the GPU from the noise estimate (`PyramidTargets::noise`) each frame.
-    noise_scale: f32,
-    light: [f32; 4],
-    table: [[u32; 4]; MAX_LEVELS],
-}
-
-impl PyramidUniforms {
-    fn new(t: &PyramidTargets, frame: &PyramidFrame) -> PyramidUniforms {
-        let top = t.levels.len() as u32 - 1;
-        let tan_y = (frame.fov_y * 0.5).tan();
-        let tan_x = tan_y * t.width as f32 / t.height.max(1) as f32;
-        let mut params = PyramidUniforms {
-            pixel_scale: [2.0 * tan_x / t.width as f32, -2.0 * tan_y / t.height as f32],
-            pixel_bias: [-tan_x, tan_y],
-            far: frame.far,
-            hpr_scale: HPR_SCALE_S0 * frame.s0 * frame.focal_px,
-            normal_scale: NORMAL_SCALE_S0 * frame.s0 * frame.focal_px,
-            threshold: HPR_THRESHOLD,
-            levels: t.levels.len() as u32,
-            coarse_level: COARSE_LEVEL.min(top),
-            s0: frame.s0,
-            noise_scale: 0.0,
-            light: frame.light,
-            table: [[0; 4]; MAX_LEVELS],
-        };
-        for (slot, l) in params.table.iter_mut().zip(&t.levels) {
-            *slot = [l[0], l[1], l[2], 0];
-        }
-        params
-    }
-}
 
 /// Bins of the depth-noise histogram (`NOISE_BINS` in pyramid_noise.wgsl); the noise scale
 /// and the deviation follow them in the same buffer.
@@ -100,22 +27,6 @@ pub const NOISE_BINS: u64 = 80;
 const NOISE_BYTES: u64 = (NOISE_BINS + 2) * 4;
 /// Where the noise estimate leaves σ: after the bins and the noise scale.
 const NOISE_SIGMA_AT: u64 = (NOISE_BINS + 1) * 4;
-
-/// Per level of a `width` x `height` pyramid: offset into the pyramid buffers, width, height.
-fn level_table(width: u32, height: u32) -> Vec<[u32; 3]> {
-    let mut levels = Vec::new();
-    let (mut w, mut h, mut offset) = (width.max(1), height.max(1), 0u32);
-    loop {
-        levels.push([offset, w, h]);
-        offset += w * h;
-        if (w == 1 && h == 1) || levels.len() == MAX_LEVELS {
-            break;
-        }
-        w = w.div_ceil(2);
-        h = h.div_ceil(2);
-    }
-    levels
-}
 
 /// The compiled passes, shared by every viewport size.
 pub struct PyramidPasses {
@@ -141,7 +52,7 @@ pub struct PyramidTargets {
     pub width: u32,
     pub height: u32,
     /// Per level: offset into the pyramid buffers, width, height.
-    levels: Vec<[u32; 3]>,
+    pub(super) levels: Vec<[u32; 3]>,
     pts: wgpu::Buffer,
     fill: wgpu::Buffer,
     /// Level 0 holds the filled colour each pixel is shaded with.
@@ -580,30 +491,3 @@ impl PyramidPasses {
 #[cfg(test)]
 #[path = "hpr_tests.rs"]
 mod hpr_tests;
-
-/// `PyramidUniforms`' size and field offsets, for the check against pyramid.wgsl.
-#[cfg(test)]
-pub(crate) fn uniforms_layout() -> (u32, Vec<(String, u32)>) {
-    macro_rules! fields {
-        ($($f:ident),*) => {
-            vec![$((stringify!($f).to_string(), std::mem::offset_of!(PyramidUniforms, $f) as u32)),*]
-        };
-    }
-    (
-        std::mem::size_of::<PyramidUniforms>() as u32,
-        fields!(
-            pixel_scale,
-            pixel_bias,
-            far,
-            hpr_scale,
-            normal_scale,
-            threshold,
-            levels,
-            coarse_level,
-            s0,
-            noise_scale,
-            light,
-            table
-        ),
-    )
-}
