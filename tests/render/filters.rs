@@ -188,6 +188,44 @@ fn filters_close_the_holes_points_leave_without_growing_past_the_outline() {
 }
 
 #[test]
+fn sparse_points_are_drawn_as_wide_as_their_radius_and_the_masks_close_the_rest() {
+    use super::surfels::{Sphere, shot as sphere_shot};
+    let points = sphere_shot(Sphere::Sparse, "points", &[], false);
+    let (points_holes, _) = holes_and_overshoot(&points.covered);
+    // The paper's one pixel a point: the masks cannot tell holes this wide from the outside.
+    let one_pixel = sphere_shot(Sphere::Sparse, "filters", &["splat=0"], false);
+    let (one_pixel_holes, _) = holes_and_overshoot(&one_pixel.covered);
+    assert!(
+        one_pixel_holes > 0.5 * points_holes,
+        "one-pixel points leave {one_pixel_holes:.3} of the sphere empty (points {points_holes:.3})"
+    );
+    let splats = sphere_shot(Sphere::Sparse, "filters", &[], false);
+    let (holes, overshoot) = holes_and_overshoot(&splats.covered);
+    assert!(
+        holes < 0.02 && holes <= 0.5 * points_holes,
+        "points as wide as their radius leave {holes:.4} of the sphere empty (points {points_holes:.3})"
+    );
+    assert!(
+        overshoot < 2.0,
+        "the outline reaches {overshoot:.2} px beyond the sphere's"
+    );
+    // Where the LOD stopped at the root, its points stand for the ones it did not load: they
+    // are drawn as wide as the root's spacing, and leave no hole either.
+    let coarse = sphere_shot(Sphere::Dense, "filters", &[], true);
+    let (coarse_holes, _) = holes_and_overshoot(&coarse.covered);
+    assert!(
+        coarse_holes < 0.02,
+        "a coarse LOD leaves {coarse_holes:.4} of the sphere empty"
+    );
+    let coarse_one_pixel = sphere_shot(Sphere::Dense, "filters", &["splat=0"], true);
+    let (coarse_one_pixel_holes, _) = holes_and_overshoot(&coarse_one_pixel.covered);
+    assert!(
+        coarse_one_pixel_holes > 2.0 * coarse_holes + 0.05,
+        "one-pixel points of the root alone leave {coarse_one_pixel_holes:.4} empty"
+    );
+}
+
+#[test]
 fn peeled_layers_blend_front_to_back_and_back_faces_stay_culled() {
     let one = shot(nested(true), "filters", &["layers=1", "opacity=0.5"]);
     assert_eq!(one.measures[LAYERS_USED], 1.0);

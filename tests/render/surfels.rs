@@ -77,15 +77,15 @@ pub(super) fn sphere(flavour: Sphere) -> &'static Path {
     })
 }
 
-struct Shot {
+pub(super) struct Shot {
     /// Drawn pixels.
-    covered: Vec<bool>,
+    pub(super) covered: Vec<bool>,
     measures: std::collections::BTreeMap<&'static str, f32>,
     note: Option<&'static str>,
 }
 
 /// Renders the sphere until complete with `pipeline` and the `--set` assignments.
-fn shot(flavour: Sphere, pipeline: &str, set: &[&str], coarse: bool) -> Shot {
+pub(super) fn shot(flavour: Sphere, pipeline: &str, set: &[&str], coarse: bool) -> Shot {
     let dataset = sphere(flavour);
     let ds = Arc::new(StreamDataset::open_path(dataset).expect("dataset opens"));
     let ctx = Arc::new(GpuContext::new(ProjectionPath::Auto).expect("GPU adapter"));

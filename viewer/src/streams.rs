@@ -4,10 +4,10 @@
 //! - Normals: one u32 a point, SPEC.md's `oct16` (U in the low 16 bits, V in the high;
 //!   `unpack2x16unorm` in WGSL gives U/65535, V/65535), 0 for a point without a normal.
 //! - Radius: one f32 a point, its stored `radius` in real units (0 where the dataset stores
-//!   none or the value is not a finite positive number). A pipeline draws the larger of it
-//!   and the spacing of the finest level drawn where the point lies (SPEC.md section 4: a
-//!   point of an inner node stands for the points its descendants add; `surfels` applies it
-//!   with the LOD of each frame, so refining a node shrinks what its points drew).
+//!   none or the value is not a finite positive number). Where the LOD stopped at the point's
+//!   node, a pipeline draws at least the node's spacing (SPEC.md section 4: a point of an
+//!   inner node stands for the points its descendants add); `drawn_radius` in frame.wgsl
+//!   applies it with the LOD of each frame, so refining a node shrinks what its points drew.
 
 use crate::pipelines::PointStream;
 use strata_format::{AttrType, NodeColumns, RowLayout, oct16_encode};

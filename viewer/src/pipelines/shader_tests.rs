@@ -137,7 +137,7 @@ fn rust_structs_match_their_wgsl_layouts() {
             arena_shift,
             background,
             clip_count,
-            pad1,
+            footprint,
             shading,
             arena_slots,
             intensity_scale,
@@ -157,7 +157,9 @@ fn rust_structs_match_their_wgsl_layouts() {
             start,
             count,
             first_group,
-            spacing
+            spacing,
+            centre,
+            children
         }),
         "GpuRange against Range (frame.wgsl)"
     );

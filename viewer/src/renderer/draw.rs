@@ -7,9 +7,7 @@ use crate::ViewerError;
 use crate::camera::Camera;
 use crate::lod::{Selection, clip_range};
 use crate::pipelines::params::ResolvedParams;
-use crate::pipelines::projection::{
-    ArenaDraw, FINISH_SLOTS, FrameDraw, FrameUniforms, GpuRange, RangeLod,
-};
+use crate::pipelines::projection::{ArenaDraw, FINISH_SLOTS, FrameDraw, FrameUniforms, GpuRange};
 use crate::pipelines::{PipelineFrame, PipelineInfo, PointStream, ViewFrame};
 use crate::settings::{Settings, SizeMode};
 use std::collections::{BTreeMap, HashSet};
@@ -76,25 +74,26 @@ impl Renderer {
         let mut per_arena: BTreeMap<u32, ArenaDraw> = BTreeMap::new();
         for key in keys {
             let (min, edge) = self.ds.node_cube(*key);
-            let lod = RangeLod {
-                centre: (min + glam::Vec3::splat(edge * 0.5)).to_array(),
-                children: (0..8u8)
-                    .filter(|&c| drawn.contains(&key.child(c)))
-                    .fold(0, |mask, c| mask | 1 << c),
-            };
+            let centre = (min + glam::Vec3::splat(edge * 0.5)).to_array();
+            // A node the tree does not know counts as having every child: its points then
+            // stand for them.
+            let exist = self.tree.node(*key).map_or(0xff, |n| n.child_mask as u32);
+            let children = (0..8u8)
+                .filter(|&c| drawn.contains(&key.child(c)))
+                .fold(exist << 8, |mask, c| mask | 1 << c);
             for p in self.cache.pieces(*key).unwrap_or_default() {
                 let d = per_arena.entry(p.arena).or_insert_with(|| ArenaDraw {
                     arena: p.arena,
                     ranges: Vec::new(),
-                    lod: Vec::new(),
                 });
                 d.ranges.push(GpuRange {
                     start: p.start,
                     count: p.count,
                     first_group: 0,
                     spacing: self.ds.node_spacing(*key),
+                    centre,
+                    children,
                 });
-                d.lod.push(lod);
             }
         }
         per_arena.into_values().collect()
@@ -143,7 +142,7 @@ impl Renderer {
             arena_shift: self.cache.arena_shift,
             background: r as u32 | (g as u32) << 8 | (b as u32) << 16 | 255 << 24,
             clip_count: 0,
-            pad1: 0,
+            footprint: 0.0,
             shading: [0.0; 4],
             arena_slots: [u32::MAX; FINISH_SLOTS],
             intensity_scale: (1.0 / self.ds.intensity_max().max(1e-9)) as f32,

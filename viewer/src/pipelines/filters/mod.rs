@@ -41,7 +41,7 @@ macro_rules! class_opacities {
 }
 
 /// The filters' own parameters.
-const OWN_COUNT: usize = 5;
+const OWN_COUNT: usize = 6;
 /// Parameters before the per-class opacities: the filters' own, then the light and shadows'.
 const OWN: usize = OWN_COUNT + shadows::PARAMS.len();
 
@@ -81,6 +81,14 @@ static PARAMS: [ParamSpec; OWN + CLASSES] = {
             Scale::Integer,
         ),
         param("opacity", "opacity of every layer's points", 1.0, 0.0, 1.0, Scale::Linear),
+        param(
+            "splat",
+            "points drawn at least this many stored radii across, so that sparse ones leave gaps the masks can close (0: one pixel each, as in the paper)",
+            1.0,
+            0.0,
+            2.0,
+            Scale::Linear,
+        ),
     ];
     let classes = class_opacities![
         0: "created, never classified",
@@ -128,7 +136,7 @@ pub static INFO: PipelineInfo = PipelineInfo {
     paper: Some("004_d47bc4d6e82cf0e9.txt (Dobrev, Rosenthal, Linsen)"),
     lighting: Lighting::Headlight,
     params: &PARAMS,
-    streams: &[PointStream::Normals, LIT_STREAM],
+    streams: &[PointStream::Normals, PointStream::Radius, LIT_STREAM],
     // In the order they first run: the peel starts the second layer.
     passes: &[
         "shadows",
@@ -227,6 +235,10 @@ pub fn uniforms(view: &ViewFrame, params: &ResolvedParams, has_normals: bool) ->
 impl Pipeline for Filters {
     fn info(&self) -> &'static PipelineInfo {
         &INFO
+    }
+
+    fn uniforms(&self, params: &ResolvedParams, uniforms: &mut super::projection::FrameUniforms) {
+        uniforms.footprint = value(params, "splat");
     }
 
     fn make_targets(&mut self, device: &wgpu::Device, screen: &super::projection::Screen) {

@@ -197,13 +197,14 @@ impl FiltersPasses {
             .arenas
             .iter()
             .map(|d| {
-                let (a, [normals, lit]) = frame
-                    .cache
-                    .arena_streams(d.arena, [PointStream::Normals, LIT_STREAM])?;
+                let (a, [normals, radii, lit]) = frame.cache.arena_streams(
+                    d.arena,
+                    [PointStream::Normals, PointStream::Radius, LIT_STREAM],
+                )?;
                 Ok((
                     ArenaGroup::new(device, d, GROUP_SIZE),
                     [&a.points, &a.attributes, normals, lit],
-                    normals,
+                    radii,
                 ))
             })
             .collect::<Result<_, ViewerError>>()?;

@@ -77,7 +77,7 @@ pub struct PeelFrame<'a, 'e> {
     /// The previous layer's final texels.
     pub reference: &'a wgpu::Buffer,
     pub targets: &'a FiltersTargets,
-    /// Per drawn arena: its range table, then points, attributes, normals, lit; and normals.
+    /// Per drawn arena: its range table, then points, attributes, normals, lit; and radii.
     pub arenas: &'a [(ArenaGroup, [&'a wgpu::Buffer; 4], &'a wgpu::Buffer)],
     pub cull: bool,
     pub pixel_groups: (u32, u32),
@@ -169,7 +169,7 @@ impl Peels {
             for (pipe, group) in &passes {
                 pass.set_pipeline(pipe);
                 pass.set_bind_group(0, group, &[]);
-                for (g, [points, attributes, _, _], normals) in f.arenas {
+                for (g, [points, attributes, normals, _], radii) in f.arenas {
                     if g.groups == 0 {
                         continue;
                     }
@@ -177,6 +177,7 @@ impl Peels {
                         (0, points.as_entire_binding()),
                         (1, g.ranges.as_entire_binding()),
                         (2, attributes.as_entire_binding()),
+                        (4, radii.as_entire_binding()),
                     ];
                     if f.cull {
                         entries.push((3, normals.as_entire_binding()));

@@ -5,6 +5,7 @@ use super::{ArenaDraw, FINISH_SLOTS, GpuRange, Screen, pixel_groups};
 use crate::gpu::cache::NodeCache;
 use crate::gpu::timing::Timer;
 use crate::pipelines::PointStream;
+use bytemuck::Zeroable;
 use wgpu::util::DeviceExt;
 
 /// One arena's range table on the GPU and the workgroups its points take.
@@ -14,23 +15,30 @@ pub struct ArenaGroup {
     pub groups: u32,
 }
 
+/// The range table of arena `arena` (a header row: start = arena, count = rows; then each range
+/// with the first workgroup of its points) and the workgroups of `group_size` all its points
+/// take.
+pub fn range_table(arena: u32, ranges: &[GpuRange], group_size: u32) -> (Vec<GpuRange>, u32) {
+    let mut table = Vec::with_capacity(ranges.len() + 1);
+    table.push(GpuRange {
+        start: arena,
+        count: ranges.len() as u32,
+        ..GpuRange::zeroed()
+    });
+    let mut groups = 0u32;
+    for r in ranges {
+        table.push(GpuRange {
+            first_group: groups,
+            ..*r
+        });
+        groups += r.count.div_ceil(group_size);
+    }
+    (table, groups)
+}
+
 impl ArenaGroup {
     pub fn new(device: &wgpu::Device, d: &ArenaDraw, group_size: u32) -> ArenaGroup {
-        let mut table = Vec::with_capacity(d.ranges.len() + 1);
-        table.push(GpuRange {
-            start: d.arena,
-            count: d.ranges.len() as u32,
-            first_group: 0,
-            spacing: 0.0,
-        });
-        let mut groups = 0u32;
-        for r in &d.ranges {
-            table.push(GpuRange {
-                first_group: groups,
-                ..*r
-            });
-            groups += r.count.div_ceil(group_size);
-        }
+        let (table, groups) = range_table(d.arena, &d.ranges, group_size);
         let ranges = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
             label: Some("ranges"),
             contents: bytemuck::cast_slice(&table),
@@ -75,27 +83,37 @@ pub fn arena_bind(
     })
 }
 
-/// Group 1 of the culling projection: points, ranges, attributes and the Normals stream;
-/// `None` where the arena holds no normals (the renderer culls only where the pipeline
-/// declared the stream).
-pub fn arena_bind_with_normals(
+/// Group 1 of the projection: points, ranges, attributes, the Normals stream where it culls
+/// back faces, and the Radius stream (the points again where the arena holds none: the frame's
+/// footprint is then 0, and nothing reads it). `None` where it culls and the arena holds no
+/// normals (the renderer culls only where the pipeline declared the stream).
+pub fn project_arena_bind(
     device: &wgpu::Device,
     cache: &NodeCache,
     pipe: &wgpu::ComputePipeline,
     g: &ArenaGroup,
+    cull: bool,
 ) -> Option<wgpu::BindGroup> {
     let a = cache.arenas.get(g.arena as usize)?;
-    let normals = a.stream(PointStream::Normals)?;
-    let entries: Vec<wgpu::BindGroupEntry> = [&a.points, &g.ranges, &a.attributes, normals]
-        .iter()
-        .enumerate()
-        .map(|(i, b)| wgpu::BindGroupEntry {
-            binding: i as u32,
+    let radii = a.stream(PointStream::Radius).unwrap_or(&a.points);
+    let mut buffers = vec![
+        (0, &a.points),
+        (1, &g.ranges),
+        (2, &a.attributes),
+        (4, radii),
+    ];
+    if cull {
+        buffers.push((3, a.stream(PointStream::Normals)?));
+    }
+    let entries: Vec<wgpu::BindGroupEntry> = buffers
+        .into_iter()
+        .map(|(binding, b)| wgpu::BindGroupEntry {
+            binding,
             resource: b.as_entire_binding(),
         })
         .collect();
     Some(device.create_bind_group(&wgpu::BindGroupDescriptor {
-        label: Some("arena with normals"),
+        label: Some("projected arena"),
         layout: &pipe.get_bind_group_layout(1),
         entries: &entries,
     }))

@@ -15,7 +15,9 @@ struct Frame {
     background: u32,
     // Clip boxes in `clip_boxes`.
     clip_count: u32,
-    pad1: u32,
+    // Points are drawn at least footprint * their radius across (the Radius stream, group 1
+    // binding 4 of the projection); 0: never read.
+    footprint: f32,
     // The chosen pipeline's own shading parameters (its `Pipeline::uniforms` sets them; the edl
     // shading reads strength in x and radius in y).
     shading: vec4<f32>,
@@ -58,6 +60,28 @@ struct Range {
     count: u32,
     first_group: u32,
     spacing: f32,
+    // The node's centre, relative to the anchor.
+    centre: vec3<f32>,
+    // Bit k: the child in octant k (x 4, y 2, z 1) is drawn too; bit 8 + k: the dataset has it.
+    children: u32,
+}
+
+// The radius to draw point `p` of range `r` with, `stored` its Radius stream's value (0: none;
+// SPEC.md section 4). Where the LOD stopped at the point's node, the point stands for the
+// points its descendants would add: at least its node's spacing wide, so that stopping leaves
+// no hole. Where they are drawn (the node's child in the point's octant), or there are none
+// (no child there: the node holds every point the dataset has there, often far denser than
+// its level's spacing), the stored radius measures the sampling around it; the spacing of the
+// finest level drawn stands in where none is stored.
+fn drawn_radius(r: Range, p: vec3<f32>, stored: f32) -> f32 {
+    let rel = p - r.centre;
+    let octant = select(0u, 4u, rel.x >= 0.0) | select(0u, 2u, rel.y >= 0.0) | select(0u, 1u, rel.z >= 0.0);
+    let below = (r.children & (1u << octant)) != 0u;
+    let exists = (r.children & (256u << octant)) != 0u;
+    if stored > 0.0 && (below || !exists) {
+        return stored;
+    }
+    return max(stored, select(r.spacing, 0.5 * r.spacing, below));
 }
 
 const EMPTY: u32 = 0xffffffffu;

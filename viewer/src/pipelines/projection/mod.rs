@@ -15,8 +15,8 @@ use super::shader::ShaderSource;
 use crate::gpu::GpuContext;
 use crate::gpu::cache::NodeCache;
 use crate::gpu::timing::Timer;
-pub use bind::ArenaGroup;
-use bind::{arena_bind, arena_bind_with_normals, frame_bind};
+pub use bind::{ArenaGroup, range_table};
+use bind::{arena_bind, frame_bind, project_arena_bind};
 use bytemuck::{Pod, Zeroable};
 
 pub const FRAME_WGSL: &str = include_str!("frame.wgsl");
@@ -72,7 +72,9 @@ pub struct FrameUniforms {
     pub background: u32,
     /// Clip boxes in `clip_boxes`.
     pub clip_count: u32,
-    pub pad1: u32,
+    /// Points are drawn at least `footprint` times their stored radius across, where a
+    /// pipeline declares the Radius stream and sets it (`Pipeline::uniforms`); 0: not at all.
+    pub footprint: f32,
     /// The chosen pipeline's own shading parameters, set by `Pipeline::uniforms`.
     pub shading: [f32; 4],
     /// Arena bound to each slot of the fused finish pass (set by `encode`).
@@ -110,6 +112,12 @@ pub struct GpuRange {
     pub count: u32,
     pub first_group: u32,
     pub spacing: f32,
+    /// The node's centre, relative to the anchor.
+    pub centre: [f32; 3],
+    /// Bit k: the node's child in octant k (`NodeKey::child`) is drawn too; bit 8 + k: the
+    /// dataset has that child (for what sizes points by the finest level drawn where they lie,
+    /// `drawn_radius` in frame.wgsl).
+    pub children: u32,
 }
 
 /// Threads per projection workgroup (`GROUP_SIZE` in frame.wgsl).
@@ -141,18 +149,6 @@ pub struct FrameDraw<'a> {
 pub struct ArenaDraw {
     pub arena: u32,
     pub ranges: Vec<GpuRange>,
-    /// Beside each range, what the LOD drew below its node (for pipelines that size points
-    /// by the finest level drawn where they lie).
-    pub lod: Vec<RangeLod>,
-}
-
-/// What the LOD drew around one drawn node.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct RangeLod {
-    /// The node's centre, relative to the anchor.
-    pub centre: [f32; 3],
-    /// Bit k: the child in octant k (`NodeKey::child`) is drawn too.
-    pub children: u32,
 }
 
 /// The projection's compiled passes.
@@ -363,11 +359,7 @@ impl Projection {
                     if g.groups == 0 {
                         continue;
                     }
-                    let bound = if frame.cull_back_faces {
-                        arena_bind_with_normals(device, cache, pipe, g)
-                    } else {
-                        Some(arena_bind(device, cache, pipe, g, true))
-                    };
+                    let bound = project_arena_bind(device, cache, pipe, g, frame.cull_back_faces);
                     let Some(bound) = bound else { continue };
                     pass.set_bind_group(1, &bound, &[]);
                     let (x, y) = split_groups(g.groups);

@@ -6,6 +6,9 @@
 @group(1) @binding(0) var<storage, read> points: array<vec4<u32>>;
 @group(1) @binding(1) var<storage, read> ranges: array<Range>;
 @group(1) @binding(2) var<storage, read> attributes: array<u32>;
+// Per point: its stored radius (the Radius stream; another buffer, never read, where the
+// frame's footprint is 0).
+@group(1) @binding(4) var<storage, read> radii: array<f32>;
 
 const MAX_SPLAT: f32 = 15.0;
 
@@ -43,6 +46,13 @@ fn main(
     var size = frame.point_size;
     if frame.size_mode == 1u {
         size = r.spacing * frame.point_size * frame.focal_px / clip.w;
+    }
+    if frame.footprint > 0.0 {
+        // A pipeline that needs projected neighbours about a pixel apart (paper 004) draws a
+        // sparse point as wide as the sampling around it: its radius, or where the LOD drew
+        // fewer points than the dataset holds, the spacing of the finest level drawn.
+        let radius = drawn_radius(r, bitcast<vec3<f32>>(p.xyz), radii[idx]);
+        size = max(size, frame.footprint * radius * frame.focal_px / clip.w);
     }
     size = clamp(size, 1.0, MAX_SPLAT);
     // A disc `w` pixels across: per axis, the w pixels whose centres lie within w/2 of the

@@ -16,10 +16,11 @@ fn a_pipeline_holds_the_shadow_streams_only_while_it_casts_shadows() {
         streams(&pyramid::INFO, &values),
         [PointStream::Normals, LIT_STREAM]
     );
-    // The filters' own streams are those, with shadows or without.
+    // The filters' own streams hold those (and the radii they size points by), with shadows
+    // or without.
     assert_eq!(
         streams(&filters::INFO, &ParamValues::default()),
-        [PointStream::Normals, LIT_STREAM]
+        [PointStream::Normals, PointStream::Radius, LIT_STREAM]
     );
 }
 

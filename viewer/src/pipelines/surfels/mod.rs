@@ -20,7 +20,7 @@ use crate::renderer::SurfacePixel;
 use passes::{SurfelPasses, SurfelTargets};
 use std::collections::BTreeMap;
 
-pub use passes::{SurfelRange, SurfelUniforms, range_table};
+pub use passes::SurfelUniforms;
 
 pub static INFO: PipelineInfo = PipelineInfo {
     name: "surfels",

@@ -11,7 +11,7 @@ use crate::gpu::timing::Timer;
 use crate::pipelines::params::ResolvedParams;
 use crate::pipelines::projection::{
     plane_buffer,
-    COLOUR_WGSL, FILTERS_WGSL, GROUP_SIZE, OCT16_WGSL, GpuRange, RANGE_SEARCH_WGSL, RangeLod, pixel_groups, split_groups,
+    COLOUR_WGSL, FILTERS_WGSL, GROUP_SIZE, OCT16_WGSL, RANGE_SEARCH_WGSL, pixel_groups, range_table, split_groups,
 };
 use crate::pipelines::shader::ShaderSource;
 use crate::pipelines::{LIGHTING_WGSL, PipelineFrame, PointStream, ScreenBuffer, ViewFrame};
@@ -89,18 +89,6 @@ impl SurfelUniforms {
             depth_offset: param(params, "depth_offset"),
         }
     }
-}
-
-/// One row of a surfel range table (`SurfelRange` in surfel.wgsl).
-#[repr(C)]
-#[derive(Debug, Clone, Copy, Pod, Zeroable)]
-pub struct SurfelRange {
-    pub start: u32,
-    pub count: u32,
-    pub first_group: u32,
-    pub spacing: f32,
-    pub centre: [f32; 3],
-    pub children: u32,
 }
 
 /// Every module the surfels compile: the depth and the blend pass once for planar and once for
@@ -239,7 +227,7 @@ impl SurfelPasses {
             .arenas
             .iter()
             .map(|d| {
-                let (table, groups) = range_table(d.arena, &d.ranges, &d.lod);
+                let (table, groups) = range_table(d.arena, &d.ranges, GROUP_SIZE);
                 let buffer = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
                     label: Some("surfel ranges"),
                     contents: bytemuck::cast_slice(&table),
@@ -386,37 +374,6 @@ impl SurfelPasses {
             .record(encoder, &targets.counts, 0, 8);
         Ok(())
     }
-}
-
-/// The range table of one arena (a header row, then one row per range with the first
-/// workgroup of its points) and the workgroups all its points take.
-pub fn range_table(arena: u32, ranges: &[GpuRange], lod: &[RangeLod]) -> (Vec<SurfelRange>, u32) {
-    let mut table = Vec::with_capacity(ranges.len() + 1);
-    table.push(SurfelRange {
-        start: arena,
-        count: ranges.len() as u32,
-        first_group: 0,
-        spacing: 0.0,
-        centre: [0.0; 3],
-        children: 0,
-    });
-    let mut groups = 0u32;
-    for (k, r) in ranges.iter().enumerate() {
-        let l = lod.get(k).copied().unwrap_or(RangeLod {
-            centre: [0.0; 3],
-            children: 0,
-        });
-        table.push(SurfelRange {
-            start: r.start,
-            count: r.count,
-            first_group: groups,
-            spacing: r.spacing,
-            centre: l.centre,
-            children: l.children,
-        });
-        groups += r.count.div_ceil(GROUP_SIZE);
-    }
-    (table, groups)
 }
 
 fn bind(

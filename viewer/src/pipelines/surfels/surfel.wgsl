@@ -6,18 +6,6 @@
 // a thread_*.wgsl choosing each thread's surfel: the depth pass thrice (planar, planar listing
 // the curved, curved over that list), the blend pass twice (planar, curved over the list).
 
-// One drawn node's points in an arena; [0] is a header (start = arena, count = ranges).
-struct SurfelRange {
-    start: u32,
-    count: u32,
-    first_group: u32,
-    spacing: f32,
-    // The node's centre, relative to the anchor.
-    centre: vec3<f32>,
-    // Bit k: the child in octant k (x 4, y 2, z 1) is drawn too.
-    children: u32,
-}
-
 // Words before the slots in the list of curved surfels (thread_listing.wgsl).
 const LIST_HEADER: u32 = 4u;
 
@@ -28,7 +16,7 @@ const PI: f32 = 3.14159265;
 @group(0) @binding(0) var<uniform> frame: Frame;
 @group(0) @binding(1) var<uniform> surf: Surfels;
 @group(1) @binding(0) var<storage, read> points: array<vec4<u32>>;
-@group(1) @binding(1) var<storage, read> ranges: array<SurfelRange>;
+@group(1) @binding(1) var<storage, read> ranges: array<Range>;
 @group(1) @binding(2) var<storage, read> attributes: array<u32>;
 @group(1) @binding(3) var<storage, read> normals: array<u32>;
 @group(1) @binding(4) var<storage, read> radii: array<f32>;
@@ -84,15 +72,7 @@ fn surfel_at(group: u32, lane: u32) -> Surfel {
     }
     let to_eye = surf.eye.xyz - p;
     let v = normalize(to_eye);
-    // A point stands for the points its node's descendants would add: its radius is at least
-    // the spacing of the finest level drawn where it lies (its child's where that child is
-    // drawn too, its node's where the LOD stopped), so refining shrinks it and stopping
-    // leaves no hole.
-    let rel = p - r.centre;
-    let octant = select(0u, 4u, rel.x >= 0.0) | select(0u, 2u, rel.y >= 0.0) | select(0u, 1u, rel.z >= 0.0);
-    let drawn_below = (r.children & (1u << octant)) != 0u;
-    let spacing = select(r.spacing, 0.5 * r.spacing, drawn_below);
-    s.radius = max(radii[idx], spacing);
+    s.radius = drawn_radius(r, p, radii[idx]);
     let word = normals[idx];
     if surf.normals != NORMALS_NONE && word != 0u {
         s.n = decode_oct16(word);

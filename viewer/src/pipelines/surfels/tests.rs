@@ -2,9 +2,9 @@
 //! geometry that do not need a GPU.
 
 use super::passes::{
-    LIST_HEADER, MODE_PLANAR, STORAGE_BUFFERS, SUM_WORDS, SurfelRange, SurfelUniforms, range_table,
+    LIST_HEADER, MODE_PLANAR, STORAGE_BUFFERS, SUM_WORDS, SurfelUniforms,
 };
-use crate::pipelines::projection::{GROUP_SIZE, GpuRange, RangeLod};
+use crate::pipelines::projection::{GROUP_SIZE, GpuRange, range_table};
 use crate::pipelines::shader_tests::{
     module_named, most_storage_buffers, rust_layout, wgsl_const, wgsl_layout,
 };
@@ -38,18 +38,6 @@ fn uniforms_and_ranges_match_their_wgsl() {
             }),
             "SurfelUniforms against Surfels (uniforms.wgsl) in {label}"
         );
-        assert_eq!(
-            wgsl_layout(&m, "SurfelRange"),
-            rust_layout!(SurfelRange {
-                start,
-                count,
-                first_group,
-                spacing,
-                centre,
-                children
-            }),
-            "SurfelRange against surfel.wgsl in {label}"
-        );
     }
     assert_eq!(
         wgsl_const(&module_named("surfel blend planar"), "SUM_WORDS"),
@@ -71,20 +59,18 @@ fn uniforms_and_ranges_match_their_wgsl() {
 
 #[test]
 fn range_tables_carry_the_lod_beside_each_range_and_count_groups() {
-    let range = |start, count| GpuRange {
+    let range = |start, count, children| GpuRange {
         start,
         count,
         first_group: 0,
         spacing: 0.5,
-    };
-    let lod = |children| RangeLod {
         centre: [1.0, 2.0, 3.0],
         children,
     };
     let (table, groups) = range_table(
         3,
-        &[range(0, GROUP_SIZE + 1), range(1000, 5)],
-        &[lod(0b1000_0001), lod(0)],
+        &[range(0, GROUP_SIZE + 1, 0b1000_0001), range(1000, 5, 0)],
+        GROUP_SIZE,
     );
     assert_eq!((table[0].start, table[0].count), (3, 2), "header");
     assert_eq!(table[1].first_group, 0);

@@ -91,8 +91,7 @@ pub fn span_table(arena: u32, ranges: &[GpuRange]) -> Vec<GpuRange> {
     table.push(GpuRange {
         start: arena,
         count: ranges.len() as u32,
-        first_group: 0,
-        spacing: 0.0,
+        ..GpuRange::zeroed()
     });
     table.extend(ranges.iter().map(|r| GpuRange {
         first_group: r.start,

@@ -117,8 +117,8 @@ fn span_tables_sort_the_ranges_by_start_after_the_header() {
     let range = |start, spacing| GpuRange {
         start,
         count: 10,
-        first_group: 0,
         spacing,
+        ..bytemuck::Zeroable::zeroed()
     };
     let table = super::passes::span_table(2, &[range(500, 0.5), range(0, 2.0), range(20, 1.0)]);
     assert_eq!((table[0].start, table[0].count), (2, 3), "header");
