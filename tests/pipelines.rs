@@ -77,6 +77,7 @@ fn pipelines_lists_every_pipeline_with_its_parameters() {
         "antialias",
         "layers",
         "opacity",
+        "splat",
         "light.x",
         "opacity.6",
     ] {
