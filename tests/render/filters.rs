@@ -196,7 +196,7 @@ fn sparse_points_are_drawn_as_wide_as_their_radius_and_the_masks_close_the_rest(
     let one_pixel = sphere_shot(Sphere::Sparse, "filters", &["splat=0"], false);
     let (one_pixel_holes, _) = holes_and_overshoot(&one_pixel.covered);
     assert!(
-        one_pixel_holes > 0.5 * points_holes,
+        one_pixel_holes > 0.15,
         "one-pixel points leave {one_pixel_holes:.3} of the sphere empty (points {points_holes:.3})"
     );
     let splats = sphere_shot(Sphere::Sparse, "filters", &[], false);
@@ -205,8 +205,10 @@ fn sparse_points_are_drawn_as_wide_as_their_radius_and_the_masks_close_the_rest(
         holes < 0.02 && holes <= 0.5 * points_holes,
         "points as wide as their radius leave {holes:.4} of the sphere empty (points {points_holes:.3})"
     );
+    // Squares as large as the discs seen obliquely (0.8 px beyond the outline where as wide
+    // as the discs themselves).
     assert!(
-        overshoot < 2.0,
+        overshoot < 0.5,
         "the outline reaches {overshoot:.2} px beyond the sphere's"
     );
     // Where the LOD stopped at the root, its points stand for the ones it did not load: they

@@ -25,8 +25,9 @@ pub fn shaders(int64: bool) -> Vec<ShaderSource> {
     let peel = |label, emit, cull: bool| {
         let mut parts = vec![UNIFORMS_WGSL, emit, FILTERS_WGSL, RANGE_SEARCH_WGSL];
         let reach = emit != PEEL_INDEX_WGSL;
+        parts.push(OCT16_WGSL);
         if cull {
-            parts.extend([OCT16_WGSL, CULL_WGSL]);
+            parts.push(CULL_WGSL);
             parts.extend(reach.then_some(REACH_NORMAL_WGSL));
         } else {
             parts.push(NO_CULL_WGSL);
@@ -173,15 +174,13 @@ impl Peels {
                     if g.groups == 0 {
                         continue;
                     }
-                    let mut entries = vec![
+                    let entries = [
                         (0, points.as_entire_binding()),
                         (1, g.ranges.as_entire_binding()),
                         (2, attributes.as_entire_binding()),
+                        (3, normals.as_entire_binding()),
                         (4, radii.as_entire_binding()),
                     ];
-                    if f.cull {
-                        entries.push((3, normals.as_entire_binding()));
-                    }
                     pass.set_bind_group(1, &bind(f.device, pipe, 1, &entries), &[]);
                     let (x, y) = split_groups(g.groups);
                     pass.dispatch_workgroups(x, y, 1);

@@ -83,10 +83,10 @@ pub fn arena_bind(
     })
 }
 
-/// Group 1 of the projection: points, ranges, attributes, the Normals stream where it culls
-/// back faces, and the Radius stream (the points again where the arena holds none: the frame's
-/// footprint is then 0, and nothing reads it). `None` where it culls and the arena holds no
-/// normals (the renderer culls only where the pipeline declared the stream).
+/// Group 1 of the projection: points, ranges, attributes, the Normals and the Radius stream (the
+/// points again where the arena holds one not: the frame's footprint is then 0, and only the
+/// culling reads the normals). `None` where it culls and the arena holds no normals (the
+/// renderer culls only where the pipeline declared the stream).
 pub fn project_arena_bind(
     device: &wgpu::Device,
     cache: &NodeCache,
@@ -95,16 +95,19 @@ pub fn project_arena_bind(
     cull: bool,
 ) -> Option<wgpu::BindGroup> {
     let a = cache.arenas.get(g.arena as usize)?;
+    let normals = match a.stream(PointStream::Normals) {
+        Some(n) => n,
+        None if cull => return None,
+        None => &a.points,
+    };
     let radii = a.stream(PointStream::Radius).unwrap_or(&a.points);
-    let mut buffers = vec![
+    let buffers = [
         (0, &a.points),
         (1, &g.ranges),
         (2, &a.attributes),
+        (3, normals),
         (4, radii),
     ];
-    if cull {
-        buffers.push((3, a.stream(PointStream::Normals)?));
-    }
     let entries: Vec<wgpu::BindGroupEntry> = buffers
         .into_iter()
         .map(|(binding, b)| wgpu::BindGroupEntry {

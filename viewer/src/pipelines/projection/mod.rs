@@ -201,7 +201,7 @@ fn project_source(label: &'static str, emit: &'static str, cull: bool) -> Shader
     let culling: &[&'static str] = if cull {
         &[OCT16_WGSL, CULL_WGSL]
     } else {
-        &[NO_CULL_WGSL]
+        &[OCT16_WGSL, NO_CULL_WGSL]
     };
     let mut parts = vec![emit, FILTERS_WGSL, RANGE_SEARCH_WGSL];
     parts.extend_from_slice(culling);

@@ -51,7 +51,10 @@ fn main(
         // A pipeline that needs projected neighbours about a pixel apart (paper 004) draws a
         // sparse point as wide as the sampling around it: its radius, or where the LOD drew
         // fewer points than the dataset holds, the spacing of the finest level drawn.
-        let radius = drawn_radius(r, bitcast<vec3<f32>>(p.xyz), radii[idx]);
+        // A disc seen obliquely covers |cos| of its area: the square drawn covers as much, so
+        // that a silhouette, seen edge-on, does not grow.
+        let pos = bitcast<vec3<f32>>(p.xyz);
+        let radius = drawn_radius(r, pos, radii[idx]) * sqrt(max(facing(idx, pos), 1e-3));
         size = max(size, frame.footprint * radius * frame.focal_px / clip.w);
     }
     size = clamp(size, 1.0, MAX_SPLAT);
@@ -84,4 +87,14 @@ fn main(
             }
         }
     }
+}
+
+// How squarely the point's surface faces the eye: |cos| of the angle between its normal and
+// the view ray (1 without a normal).
+fn facing(idx: u32, pos: vec3<f32>) -> f32 {
+    let w = normals[idx];
+    if w == 0u {
+        return 1.0;
+    }
+    return abs(dot(decode_oct16(w), normalize(frame.eye.xyz - pos)));
 }
