@@ -189,17 +189,17 @@ fn filters_close_the_holes_points_leave_without_growing_past_the_outline() {
 
 #[test]
 fn sparse_points_are_drawn_as_wide_as_their_radius_and_the_masks_close_the_rest() {
-    use super::surfels::{Sphere, shot as sphere_shot};
-    let points = sphere_shot(Sphere::Sparse, "points", &[], false);
+    use super::surfels::{Lod, Sphere, shot as sphere_shot};
+    let points = sphere_shot(Sphere::Sparse, "points", &[], Lod::Full);
     let (points_holes, _) = holes_and_overshoot(&points.covered);
     // The paper's one pixel a point: the masks cannot tell holes this wide from the outside.
-    let one_pixel = sphere_shot(Sphere::Sparse, "filters", &["splat=0"], false);
+    let one_pixel = sphere_shot(Sphere::Sparse, "filters", &["splat=0"], Lod::Full);
     let (one_pixel_holes, _) = holes_and_overshoot(&one_pixel.covered);
     assert!(
         one_pixel_holes > 0.15,
         "one-pixel points leave {one_pixel_holes:.3} of the sphere empty (points {points_holes:.3})"
     );
-    let splats = sphere_shot(Sphere::Sparse, "filters", &[], false);
+    let splats = sphere_shot(Sphere::Sparse, "filters", &[], Lod::Full);
     let (holes, overshoot) = holes_and_overshoot(&splats.covered);
     assert!(
         holes < 0.02 && holes <= 0.5 * points_holes,
@@ -213,13 +213,13 @@ fn sparse_points_are_drawn_as_wide_as_their_radius_and_the_masks_close_the_rest(
     );
     // Where the LOD stopped at the root, its points stand for the ones it did not load: they
     // are drawn as wide as the root's spacing, and leave no hole either.
-    let coarse = sphere_shot(Sphere::Dense, "filters", &[], true);
+    let coarse = sphere_shot(Sphere::Dense, "filters", &[], Lod::Root);
     let (coarse_holes, _) = holes_and_overshoot(&coarse.covered);
     assert!(
         coarse_holes < 0.02,
         "a coarse LOD leaves {coarse_holes:.4} of the sphere empty"
     );
-    let coarse_one_pixel = sphere_shot(Sphere::Dense, "filters", &["splat=0"], true);
+    let coarse_one_pixel = sphere_shot(Sphere::Dense, "filters", &["splat=0"], Lod::Root);
     let (coarse_one_pixel_holes, _) = holes_and_overshoot(&coarse_one_pixel.covered);
     assert!(
         coarse_one_pixel_holes > 2.0 * coarse_holes + 0.05,

@@ -84,8 +84,20 @@ pub(super) struct Shot {
     note: Option<&'static str>,
 }
 
+/// Where the LOD stops refining.
+#[derive(Clone, Copy)]
+pub(super) enum Lod {
+    /// Every node drawn.
+    Full,
+    /// The root alone: its points stand for all the others.
+    Root,
+    /// The root and its children: their points stand for their children's, and the root's
+    /// for the points its children gave up to it.
+    Children,
+}
+
 /// Renders the sphere until complete with `pipeline` and the `--set` assignments.
-pub(super) fn shot(flavour: Sphere, pipeline: &str, set: &[&str], coarse: bool) -> Shot {
+pub(super) fn shot(flavour: Sphere, pipeline: &str, set: &[&str], lod: Lod) -> Shot {
     let dataset = sphere(flavour);
     let ds = Arc::new(StreamDataset::open_path(dataset).expect("dataset opens"));
     let ctx = Arc::new(GpuContext::new(ProjectionPath::Auto).expect("GPU adapter"));
@@ -96,10 +108,20 @@ pub(super) fn shot(flavour: Sphere, pipeline: &str, set: &[&str], coarse: bool) 
         target: -anchor,
         fov_y: FOV_DEG.to_radians(),
     };
+    // A node refines where its spacing, seen from the nearest point of its cube, is at least
+    // min_spacing_px: the root's children, no nearer and half as fine, stop at 0.75 of the
+    // root's.
+    let root = strata_format::NodeKey::ROOT;
+    let (min, edge) = ds.node_cube(root);
+    let nearest = (camera.eye - camera.eye.clamp(min, min + glam::Vec3::splat(edge))).length();
+    let root_px = ds.node_spacing(root) / nearest * camera.focal_px(H);
     let mut settings = Settings {
         budget: 10_000_000,
-        // Coarse: refinement stops at the root, whose points stand for all the others.
-        min_spacing_px: if coarse { 1e6 } else { 0.0 },
+        min_spacing_px: match lod {
+            Lod::Full => 0.0,
+            Lod::Root => 1e6,
+            Lod::Children => 0.75 * root_px,
+        },
         ..Settings::default()
     };
     settings.set_pipeline(pipeline).expect("pipeline");
@@ -157,13 +179,13 @@ pub(super) fn holes_and_overshoot(covered: &[bool]) -> (f64, f64) {
 
 #[test]
 fn surfels_close_the_holes_points_leave_and_keep_the_outline() {
-    let points = shot(Sphere::Sparse, "points", &[], false);
+    let points = shot(Sphere::Sparse, "points", &[], Lod::Full);
     let (points_holes, _) = holes_and_overshoot(&points.covered);
     assert!(
         points_holes > 0.3,
         "points at this density leave holes ({points_holes:.3})"
     );
-    let hybrid = shot(Sphere::Sparse, "surfels", &[], false);
+    let hybrid = shot(Sphere::Sparse, "surfels", &[], Lod::Full);
     let (holes, overshoot) = holes_and_overshoot(&hybrid.covered);
     assert!(
         holes < 0.01 && holes <= 0.5 * points_holes,
@@ -178,8 +200,8 @@ fn surfels_close_the_holes_points_leave_and_keep_the_outline() {
     // Hybrid draws c-surfels where the view grazes the surface: a band at the outline.
     let share = hybrid.measures[CURVED_SHARE];
     assert!((0.02..0.4).contains(&share), "curved share {share}");
-    let planar = shot(Sphere::Sparse, "surfels", &["mode=0"], false);
-    let curved = shot(Sphere::Sparse, "surfels", &["mode=1"], false);
+    let planar = shot(Sphere::Sparse, "surfels", &["mode=0"], Lod::Full);
+    let curved = shot(Sphere::Sparse, "surfels", &["mode=1"], Lod::Full);
     assert_eq!(planar.measures[CURVED_SHARE], 0.0);
     assert_eq!(curved.measures[CURVED_SHARE], 1.0);
     let (_, planar_over) = holes_and_overshoot(&planar.covered);
@@ -196,10 +218,30 @@ fn surfels_close_the_holes_points_leave_and_keep_the_outline() {
 }
 
 #[test]
+fn where_the_lod_stops_at_the_roots_children_surfels_and_splats_leave_no_hole() {
+    // The children stand for their children; the root's points fill the cells of the
+    // children's grids they were taken from.
+    let full = shot(Sphere::Dense, "surfels", &[], Lod::Full);
+    for (pipeline, set) in [("surfels", &[][..]), ("filters", &[][..])] {
+        let mid = shot(Sphere::Dense, pipeline, set, Lod::Children);
+        let drawn = mid.measures.get(SURFELS).copied().unwrap_or(0.0);
+        assert!(
+            pipeline != "surfels" || drawn < 0.5 * full.measures[SURFELS],
+            "the LOD stopped at the root's children ({drawn} surfels)"
+        );
+        let (holes, _) = holes_and_overshoot(&mid.covered);
+        assert!(
+            holes < 0.02,
+            "{pipeline}: the root and its children leave {holes:.4} of the sphere empty"
+        );
+    }
+}
+
+#[test]
 fn a_coarse_lod_and_a_refined_one_draw_no_holes() {
     // The root alone: its points stand for its children's, at least the node spacing wide.
-    let coarse = shot(Sphere::Dense, "surfels", &[], true);
-    let full = shot(Sphere::Dense, "surfels", &[], false);
+    let coarse = shot(Sphere::Dense, "surfels", &[], Lod::Root);
+    let full = shot(Sphere::Dense, "surfels", &[], Lod::Full);
     let (holes, _) = holes_and_overshoot(&coarse.covered);
     // Refined, the root's points shrink to their children's spacing and still leave no hole.
     let (full_holes, _) = holes_and_overshoot(&full.covered);
@@ -217,7 +259,7 @@ fn a_coarse_lod_and_a_refined_one_draw_no_holes() {
 
 #[test]
 fn without_normals_surfels_face_the_eye_and_say_so() {
-    let shot = shot(Sphere::SparseWithoutNormals, "surfels", &[], false);
+    let shot = shot(Sphere::SparseWithoutNormals, "surfels", &[], Lod::Full);
     assert_eq!(shot.note, Some(NO_NORMALS));
     let (holes, overshoot) = holes_and_overshoot(&shot.covered);
     assert!(holes < 0.05, "{holes:.4} of the sphere empty");

@@ -75,12 +75,15 @@ impl Renderer {
         for key in keys {
             let (min, edge) = self.ds.node_cube(*key);
             let centre = (min + glam::Vec3::splat(edge * 0.5)).to_array();
-            // A node the tree does not know counts as having every child: its points then
-            // stand for them.
+            // A node the tree does not know counts as having every child, and a child it does
+            // not know as having children: the points then stand for theirs.
             let exist = self.tree.node(*key).map_or(0xff, |n| n.child_mask as u32);
-            let children = (0..8u8)
-                .filter(|&c| drawn.contains(&key.child(c)))
-                .fold(exist << 8, |mask, c| mask | 1 << c);
+            let children = (0..8u8).fold(exist << 8, |mask, c| {
+                let child = key.child(c);
+                let drawn = u32::from(drawn.contains(&child));
+                let leaf = self.tree.node(child).is_some_and(|n| n.child_mask == 0);
+                mask | drawn << c | u32::from(leaf) << (16 + c)
+            });
             for p in self.cache.pieces(*key).unwrap_or_default() {
                 let d = per_arena.entry(p.arena).or_insert_with(|| ArenaDraw {
                     arena: p.arena,

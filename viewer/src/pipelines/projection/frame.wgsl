@@ -36,7 +36,7 @@ struct Frame {
     // Box k: minimum in [2k].xyz (w 1: hides its inside, 0: keeps it), maximum in [2k + 1].xyz;
     // relative to the anchor.
     clip_boxes: array<vec4<f32>, 8>,
-    // The eye, relative to the anchor (the projection's back-face culling).
+    // The eye, relative to the anchor (the projection's back-face culling and footprint).
     eye: vec4<f32>,
 }
 
@@ -62,23 +62,26 @@ struct Range {
     spacing: f32,
     // The node's centre, relative to the anchor.
     centre: vec3<f32>,
-    // Bit k: the child in octant k (x 4, y 2, z 1) is drawn too; bit 8 + k: the dataset has it.
+    // Bit k: the child in octant k (x 4, y 2, z 1) is drawn too; bit 8 + k: the dataset has
+    // it; bit 16 + k: it has no children of its own.
     children: u32,
 }
 
 // The radius to draw point `p` of range `r` with, `stored` its Radius stream's value (0: none;
 // SPEC.md section 4). Where the LOD stopped at the point's node, the point stands for the
 // points its descendants would add: at least its node's spacing wide, so that stopping leaves
-// no hole. Where they are drawn (the node's child in the point's octant), or there are none
-// (no child there: the node holds every point the dataset has there, often far denser than
-// its level's spacing), the stored radius measures the sampling around it; the spacing of the
-// finest level drawn stands in where none is stored.
+// no hole. Where the node's child in the point's octant is drawn, the point fills the cell of
+// the child's grid it was taken from: at least the child's spacing. Where every point the
+// dataset has there is drawn (no child there, or a drawn child without children), the stored
+// radius measures the sampling around the point (often far finer than the level's spacing);
+// the spacing stands in where none is stored.
 fn drawn_radius(r: Range, p: vec3<f32>, stored: f32) -> f32 {
     let rel = p - r.centre;
     let octant = select(0u, 4u, rel.x >= 0.0) | select(0u, 2u, rel.y >= 0.0) | select(0u, 1u, rel.z >= 0.0);
     let below = (r.children & (1u << octant)) != 0u;
     let exists = (r.children & (256u << octant)) != 0u;
-    if stored > 0.0 && (below || !exists) {
+    let leaf_below = (r.children & (65536u << octant)) != 0u;
+    if stored > 0.0 && (!exists || (below && leaf_below)) {
         return stored;
     }
     return max(stored, select(r.spacing, 0.5 * r.spacing, below));
