@@ -41,6 +41,9 @@ fn intersect(s: Surfel, e: vec3<f32>) -> vec2<f32> {
     // The c-surfel: heights a = -phi(rho) along the normal (it bends away from the side its
     // normal faces, as a convex surface does), its profile linear between `rings` rings, so
     // each ring is a cone frustum a = alpha + beta rho.
+    if !within_slab(a0, ad, c0, cd) {
+        return miss;
+    }
     var best = miss;
     let rings = f32(surf.rings);
     var phi_in = 0.0;
@@ -93,3 +96,28 @@ fn intersect(s: Surfel, e: vec3<f32>) -> vec2<f32> {
     return best;
 }
 
+// Whether the ray (heights a0 + k ad along the normal, offsets c0 + k cd in the plane, radius
+// units) comes within radius 1 of the axis while between heights -phi(1) and 0, where the
+// c-surfel lies: most rays through a grazing surfel's pixel box do not, and skip its rings.
+// With a little slack, so that it never turns away a ray the rings would hit.
+fn within_slab(a0: f32, ad: f32, c0: vec3<f32>, cd: vec3<f32>) -> bool {
+    let slack = 1e-3;
+    let low = -phi(1.0) - slack;
+    var k0 = -1e30;
+    var k1 = 1e30;
+    if abs(ad) > 1e-6 {
+        let ka = (low - a0) / ad;
+        let kb = (slack - a0) / ad;
+        k0 = min(ka, kb);
+        k1 = max(ka, kb);
+    } else if a0 < low || a0 > slack {
+        return false;
+    }
+    let cc = dot(cd, cd);
+    var k = 0.0;
+    if cc > 1e-12 {
+        k = -dot(c0, cd) / cc;
+    }
+    let c = c0 + clamp(k, k0, k1) * cd;
+    return dot(c, c) <= (1.0 + slack) * (1.0 + slack);
+}

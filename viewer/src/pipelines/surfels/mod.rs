@@ -217,3 +217,5 @@ fn param(params: &ResolvedParams, name: &str) -> f32 {
 
 #[cfg(test)]
 mod tests;
+#[cfg(test)]
+mod intersect_tests;

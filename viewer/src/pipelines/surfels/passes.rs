@@ -19,11 +19,11 @@ use crate::renderer::SurfacePixel;
 use bytemuck::{Pod, Zeroable};
 use wgpu::util::DeviceExt;
 
-const UNIFORMS_WGSL: &str = include_str!("uniforms.wgsl");
-const SURFEL_WGSL: &str = include_str!("surfel.wgsl");
+pub(super) const UNIFORMS_WGSL: &str = include_str!("uniforms.wgsl");
+pub(super) const SURFEL_WGSL: &str = include_str!("surfel.wgsl");
 const SUMS_WGSL: &str = include_str!("sums.wgsl");
 const PLANAR_WGSL: &str = include_str!("planar.wgsl");
-const CURVED_WGSL: &str = include_str!("curved.wgsl");
+pub(super) const CURVED_WGSL: &str = include_str!("curved.wgsl");
 const DEPTH_WGSL: &str = include_str!("depth.wgsl");
 const BLEND_WGSL: &str = include_str!("blend.wgsl");
 const THREAD_LISTING_WGSL: &str = include_str!("thread_listing.wgsl");

@@ -112,12 +112,7 @@ fn surfel_at(group: u32, lane: u32) -> Surfel {
     if any(s.centre_px + s.reach_px < vec2<f32>(0.0)) || any(s.centre_px - s.reach_px > size) {
         return s;
     }
-    let sgn = select(-1.0, 1.0, s.n.z >= 0.0);
-    let a = -1.0 / (sgn + s.n.z);
-    let b = s.n.x * s.n.y * a;
-    s.b1 = vec3<f32>(1.0 + sgn * s.n.x * s.n.x * a, sgn * b, -sgn * s.n.x);
-    s.b2 = vec3<f32>(b, sgn + s.n.y * s.n.y * a, -s.n.y);
-    s.apothem = cos(PI / f32(surf.sides));
+    set_shape(&s);
     s.plane_num = dot(p - surf.eye.xyz, s.n);
     s.plane_den = vec3<f32>(dot(surf.forward.xyz, s.n), dot(surf.right.xyz, s.n), dot(surf.up.xyz, s.n));
     s.depth = clip.w;
@@ -125,6 +120,17 @@ fn surfel_at(group: u32, lane: u32) -> Surfel {
     s.p = p;
     s.ok = true;
     return s;
+}
+
+// The n-gon's basis and apothem, from the normal and the frame's sides.
+fn set_shape(s: ptr<function, Surfel>) {
+    let n = (*s).n;
+    let sgn = select(-1.0, 1.0, n.z >= 0.0);
+    let a = -1.0 / (sgn + n.z);
+    let b = n.x * n.y * a;
+    (*s).b1 = vec3<f32>(1.0 + sgn * n.x * n.x * a, sgn * b, -sgn * n.x);
+    (*s).b2 = vec3<f32>(b, sgn + n.y * n.y * a, -n.y);
+    (*s).apothem = cos(PI / f32(surf.sides));
 }
 
 // Where the surfel covers pixel (x, y): x its linear depth, y the squared radial distance in

@@ -1,0 +1,299 @@
+//! The c-surfel ray cast (`intersect` in curved.wgsl) on the GPU against a CPU march along
+//! each ray over the surface it stands for: heights -phi(rho) along the normal, phi linear
+//! between the rings, inside the n-gon. Rays come from every side, grazing ones included.
+
+use super::passes::{CURVED_WGSL, SURFEL_WGSL, SurfelUniforms, UNIFORMS_WGSL};
+use crate::gpu::readback::read_buffer;
+use crate::gpu::{GpuContext, ProjectionPath};
+use crate::pipelines::projection::{FILTERS_WGSL, OCT16_WGSL, RANGE_SEARCH_WGSL};
+use crate::pipelines::shader::ShaderSource;
+use bytemuck::{Pod, Zeroable};
+use wgpu::util::DeviceExt;
+
+/// Each case's surfel and ray through `intersect`, the hit out.
+const KERNEL_WGSL: &str = r#"
+struct Case {
+    // xyz the centre, w the radius.
+    p: vec4<f32>,
+    n: vec4<f32>,
+    // The ray's unit direction from the eye.
+    e: vec4<f32>,
+}
+@group(2) @binding(0) var<storage, read> cases: array<Case>;
+@group(2) @binding(1) var<storage, read_write> hits: array<vec2<f32>>;
+
+@compute @workgroup_size(64)
+fn cast_rays(@builtin(global_invocation_id) id: vec3<u32>) {
+    if id.x >= arrayLength(&cases) {
+        return;
+    }
+    let c = cases[id.x];
+    var s: Surfel;
+    s.p = c.p.xyz;
+    s.radius = c.p.w;
+    s.n = c.n.xyz;
+    s.curved = true;
+    let drop = phi(1.0);
+    s.bound = sqrt(1.0 + drop * drop);
+    set_shape(&s);
+    hits[id.x] = intersect(s, c.e.xyz);
+}
+"#;
+
+#[repr(C)]
+#[derive(Debug, Clone, Copy, Pod, Zeroable)]
+struct Case {
+    p: [f32; 4],
+    n: [f32; 4],
+    e: [f32; 4],
+}
+
+const SIDES: u32 = 6;
+const RINGS: u32 = 4;
+const H: f64 = 1.0;
+
+type V = [f64; 3];
+
+fn dot(a: V, b: V) -> f64 {
+    a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
+}
+
+fn scaled(a: V, k: f64) -> V {
+    a.map(|x| x * k)
+}
+
+fn sub(a: V, b: V) -> V {
+    [a[0] - b[0], a[1] - b[1], a[2] - b[2]]
+}
+
+fn unit(a: V) -> V {
+    scaled(a, 1.0 / dot(a, a).sqrt())
+}
+
+fn phi(r: f64) -> f64 {
+    let q = r * r / (H * H);
+    1.0 - (-q * q).exp()
+}
+
+/// phi linear between the rings.
+fn phi_mesh(rho: f64) -> f64 {
+    let k = ((rho * RINGS as f64).floor() as u32).min(RINGS - 1);
+    let (r0, r1) = (k as f64 / RINGS as f64, (k + 1) as f64 / RINGS as f64);
+    let t = (rho - r0) / (r1 - r0);
+    phi(r0) + t * (phi(r1) - phi(r0))
+}
+
+/// The n-gon's basis, as set_shape in surfel.wgsl.
+fn basis(n: V) -> (V, V) {
+    let sgn = if n[2] >= 0.0 { 1.0 } else { -1.0 };
+    let a = -1.0 / (sgn + n[2]);
+    let b = n[0] * n[1] * a;
+    (
+        [1.0 + sgn * n[0] * n[0] * a, sgn * b, -sgn * n[0]],
+        [b, sgn + n[1] * n[1] * a, -n[1]],
+    )
+}
+
+/// The radial distance at which the n-gon's outline lies in the direction of `c`.
+fn outline(c: V, n: V) -> f64 {
+    let (b1, b2) = basis(n);
+    let half = std::f64::consts::PI / SIDES as f64;
+    let theta = dot(c, b2).atan2(dot(c, b1)) + std::f64::consts::PI;
+    let off = theta - 2.0 * half * (theta / (2.0 * half)).floor() - half;
+    half.cos() / off.cos()
+}
+
+/// What the CPU march finds along a ray.
+enum Expect {
+    /// The first crossing of the surface, at this distance, well inside the n-gon.
+    Hit(f64),
+    /// No point of the ray comes near the surface inside the n-gon's circumcircle.
+    Miss,
+    /// Near the rim, or touching without crossing: either answer is right.
+    Either,
+}
+
+fn expect(eye: V, e: V, p: V, radius: f64, n: V) -> Expect {
+    let bound = (1.0 + phi(1.0).powi(2)).sqrt() * radius;
+    let tc = dot(sub(p, eye), e);
+    let off = sub(sub(eye, p), scaled(e, -tc));
+    let half_chord2 = bound * bound - dot(off, off);
+    if half_chord2 <= 0.0 {
+        return Expect::Miss;
+    }
+    let half_chord = half_chord2.sqrt();
+    // Height over the surface (in radius units) and radial distance at distance t.
+    let at = |t: f64| {
+        let o = scaled(sub([eye[0] + t * e[0], eye[1] + t * e[1], eye[2] + t * e[2]], p), 1.0 / radius);
+        let a = dot(o, n);
+        let c = sub(o, scaled(n, a));
+        let u = dot(c, c).sqrt();
+        (a + phi_mesh(u.min(1.0)), u, c)
+    };
+    let steps = 20_000;
+    let (t0, t1) = (tc - half_chord, tc + half_chord);
+    let mut near = f64::MAX;
+    let mut prev = at(t0);
+    for i in 1..=steps {
+        let t = t0 + (t1 - t0) * i as f64 / steps as f64;
+        let cur = at(t);
+        if cur.1 <= 1.0 {
+            near = near.min(cur.0.abs());
+        }
+        if (prev.0 <= 0.0) != (cur.0 <= 0.0) && (prev.1 <= 1.0 || cur.1 <= 1.0) {
+            let (mut lo, mut hi) = (t - (t1 - t0) / steps as f64, t);
+            for _ in 0..60 {
+                let mid = 0.5 * (lo + hi);
+                if (at(mid).0 <= 0.0) == (prev.0 <= 0.0) {
+                    lo = mid;
+                } else {
+                    hi = mid;
+                }
+            }
+            let (_, u, c) = at(lo);
+            let rim = outline(c, n);
+            if u < rim - 2e-3 {
+                return if lo > 0.0 { Expect::Hit(lo) } else { Expect::Either };
+            }
+            if u <= rim + 2e-3 {
+                return Expect::Either;
+            }
+        }
+        prev = cur;
+    }
+    if near > 2e-3 {
+        Expect::Miss
+    } else {
+        Expect::Either
+    }
+}
+
+/// A deterministic source of numbers in [0, 1).
+fn randoms() -> impl FnMut() -> f64 {
+    let mut state = 0x9e37_79b9_7f4a_7c15_u64;
+    move || {
+        state ^= state << 13;
+        state ^= state >> 7;
+        state ^= state << 17;
+        (state >> 11) as f64 / (1u64 << 53) as f64
+    }
+}
+
+#[test]
+fn c_surfel_ray_casts_match_a_march_over_the_surface() {
+    let mut random = randoms();
+    let mut sphere = || loop {
+        let v = [random() * 2.0 - 1.0, random() * 2.0 - 1.0, random() * 2.0 - 1.0];
+        if dot(v, v) <= 1.0 && dot(v, v) > 1e-6 {
+            return v;
+        }
+    };
+    let eye = [0.0, 0.0, 0.0];
+    let mut cases = Vec::new();
+    let mut rays = Vec::new();
+    for _ in 0..4000 {
+        let p = scaled(unit(sphere()), 10.0);
+        let radius = 0.5;
+        let n = unit(sphere());
+        // Aimed anywhere in a box a third wider than the c-surfel's bound.
+        let target = [0, 1, 2].map(|i| p[i] + sphere()[i] * radius * 1.9);
+        let e = unit(sub(target, eye));
+        let f = |v: V, w: f64| [v[0] as f32, v[1] as f32, v[2] as f32, w as f32];
+        cases.push(Case {
+            p: f(p, radius),
+            n: f(n, 0.0),
+            e: f(e, 0.0),
+        });
+        rays.push((p, radius, n, e));
+    }
+    let ctx = GpuContext::new(ProjectionPath::Auto).expect("GPU adapter");
+    let device = &ctx.device;
+    let uniforms = SurfelUniforms {
+        eye: [0.0, 0.0, 0.0, 1.0],
+        sides: SIDES,
+        rings: RINGS,
+        h: H as f32,
+        ..SurfelUniforms::zeroed()
+    };
+    let source = ShaderSource::new(
+        "c-surfel casts",
+        &[
+            UNIFORMS_WGSL,
+            FILTERS_WGSL,
+            RANGE_SEARCH_WGSL,
+            OCT16_WGSL,
+            SURFEL_WGSL,
+            CURVED_WGSL,
+            KERNEL_WGSL,
+        ],
+    )
+    .with_entry("cast_rays");
+    let pipe = source.compute(device, None);
+    let buffer = |contents: &[u8], usage| {
+        device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+            label: None,
+            contents,
+            usage,
+        })
+    };
+    let surf = buffer(bytemuck::bytes_of(&uniforms), wgpu::BufferUsages::UNIFORM);
+    let input = buffer(bytemuck::cast_slice(&cases), wgpu::BufferUsages::STORAGE);
+    let size = (cases.len() * 8) as u64;
+    let hits = device.create_buffer(&wgpu::BufferDescriptor {
+        label: None,
+        size,
+        usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
+        mapped_at_creation: false,
+    });
+    let group = |index: u32, entries: &[(u32, &wgpu::Buffer)]| {
+        let entries: Vec<wgpu::BindGroupEntry> = entries
+            .iter()
+            .map(|(binding, b)| wgpu::BindGroupEntry {
+                binding: *binding,
+                resource: b.as_entire_binding(),
+            })
+            .collect();
+        device.create_bind_group(&wgpu::BindGroupDescriptor {
+            label: None,
+            layout: &pipe.get_bind_group_layout(index),
+            entries: &entries,
+        })
+    };
+    let (g0, g2) = (group(0, &[(1, &surf)]), group(2, &[(0, &input), (1, &hits)]));
+    let g1 = device.create_bind_group(&wgpu::BindGroupDescriptor {
+        label: None,
+        layout: &pipe.get_bind_group_layout(1),
+        entries: &[],
+    });
+    let mut encoder = device.create_command_encoder(&Default::default());
+    {
+        let mut pass = encoder.begin_compute_pass(&Default::default());
+        pass.set_pipeline(&pipe);
+        pass.set_bind_group(0, &g0, &[]);
+        pass.set_bind_group(1, &g1, &[]);
+        pass.set_bind_group(2, &g2, &[]);
+        pass.dispatch_workgroups((cases.len() as u32).div_ceil(64), 1, 1);
+    }
+    ctx.queue.submit([encoder.finish()]);
+    let bytes = read_buffer(&ctx, &hits, size).expect("hits readback");
+    let got: &[[f32; 2]] = bytemuck::cast_slice(&bytes);
+    let (mut hit, mut missed) = (0, 0);
+    for (k, (&(p, radius, n, e), g)) in rays.iter().zip(got).enumerate() {
+        match expect(eye, e, p, radius, n) {
+            Expect::Hit(t) => {
+                hit += 1;
+                assert!(
+                    g[0] > 0.0 && (g[0] as f64 - t).abs() < 2e-3 * radius,
+                    "case {k}: the surface is {t} along the ray, the cast says {g:?}"
+                );
+            }
+            Expect::Miss => {
+                missed += 1;
+                assert!(g[0] < 0.0, "case {k}: the ray misses, the cast says {g:?}");
+            }
+            Expect::Either => {}
+        }
+    }
+    // Enough of both to mean something.
+    assert!(hit > 500 && missed > 500, "{hit} hits and {missed} misses checked");
+}
