@@ -30,9 +30,10 @@ struct Surfel {
     curved: bool,
     // Distance from p that bounds the surfel, in multiples of the radius.
     bound: f32,
-    // Screen box: centre and reach in pixels.
+    // Screen box: centre and reach in pixels, and the pixels it can cover (x0, y0, x1, y1).
     centre_px: vec2<f32>,
     reach_px: f32,
+    box_px: vec4<f32>,
     // A basis of the surfel's plane that depends on n alone (Duff et al. 2017), for the
     // n-gon's corners.
     b1: vec3<f32>,
@@ -118,6 +119,7 @@ fn surfel_at(group: u32, lane: u32) -> Surfel {
     s.depth = clip.w;
     s.idx = idx;
     s.p = p;
+    s.box_px = screen_box(s);
     s.ok = true;
     return s;
 }
@@ -131,6 +133,35 @@ fn set_shape(s: ptr<function, Surfel>) {
     (*s).b1 = vec3<f32>(1.0 + sgn * n.x * n.x * a, sgn * b, -sgn * n.x);
     (*s).b2 = vec3<f32>(b, sgn + n.y * n.y * a, -n.y);
     (*s).apothem = cos(PI / f32(surf.sides));
+}
+
+// The screen box of the surfel's bounding box (its square of the plane, and for a c-surfel the
+// slab it bends into, down to -phi(1) along the normal) within the square of its reach: a
+// grazing surfel, seen edge-on, covers a thin band of that square.
+fn screen_box(s: Surfel) -> vec4<f32> {
+    let square = vec4<f32>(s.centre_px - s.reach_px, s.centre_px + s.reach_px);
+    var depth = 0.0;
+    if s.curved {
+        depth = phi(1.0);
+    }
+    var lo = vec2<f32>(1e30);
+    var hi = vec2<f32>(-1e30);
+    for (var k = 0u; k < 8u; k++) {
+        let u = select(-1.0, 1.0, (k & 1u) != 0u);
+        let v = select(-1.0, 1.0, (k & 2u) != 0u);
+        let a = select(0.0, -depth, (k & 4u) != 0u);
+        let corner = s.p + s.radius * (u * s.b1 + v * s.b2 + a * s.n);
+        let clip = frame.view_proj * vec4<f32>(corner, 1.0);
+        // A corner behind the eye has no place on the screen: the square bounds it.
+        if clip.w <= 1e-6 {
+            return square;
+        }
+        let ndc = clip.xy / clip.w;
+        let px = vec2<f32>((ndc.x * 0.5 + 0.5) * f32(frame.width), (0.5 - ndc.y * 0.5) * f32(frame.height));
+        lo = min(lo, px);
+        hi = max(hi, px);
+    }
+    return vec4<f32>(max(lo, square.xy), min(hi, square.zw));
 }
 
 // Where the surfel covers pixel (x, y): x its linear depth, y the squared radial distance in
@@ -167,10 +198,10 @@ fn pixel_box(s: Surfel) -> vec4<u32> {
         return vec4<u32>(c, c);
     }
     return vec4<u32>(
-        u32(max(floor(s.centre_px.x - s.reach_px), 0.0)),
-        u32(max(floor(s.centre_px.y - s.reach_px), 0.0)),
-        u32(min(s.centre_px.x + s.reach_px, f32(frame.width - 1u))),
-        u32(min(s.centre_px.y + s.reach_px, f32(frame.height - 1u))),
+        u32(max(floor(s.box_px.x), 0.0)),
+        u32(max(floor(s.box_px.y), 0.0)),
+        u32(clamp(s.box_px.z, 0.0, f32(frame.width - 1u))),
+        u32(clamp(s.box_px.w, 0.0, f32(frame.height - 1u))),
     );
 }
 
