@@ -84,7 +84,7 @@ pub fn arena_bind(
 }
 
 /// Group 1 of the projection: points, ranges, attributes, the Normals and the Radius stream (the
-/// points again where the arena holds one not: the frame's footprint is then 0, and only the
+/// points again where the arena holds none: the frame's footprint is then 0, and only the
 /// culling reads the normals). `None` where it culls and the arena holds no normals (the
 /// renderer culls only where the pipeline declared the stream).
 pub fn project_arena_bind(

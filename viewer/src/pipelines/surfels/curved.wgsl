@@ -41,7 +41,7 @@ fn intersect(s: Surfel, e: vec3<f32>) -> vec2<f32> {
     // The c-surfel: heights a = -phi(rho) along the normal (it bends away from the side its
     // normal faces, as a convex surface does), its profile linear between `rings` rings, so
     // each ring is a cone frustum a = alpha + beta rho.
-    if !within_slab(a0, ad, c0, cd) {
+    if !within_slab(a0, ad, c0, cd, s.drop) {
         return miss;
     }
     var best = miss;
@@ -97,12 +97,12 @@ fn intersect(s: Surfel, e: vec3<f32>) -> vec2<f32> {
 }
 
 // Whether the ray (heights a0 + k ad along the normal, offsets c0 + k cd in the plane, radius
-// units) comes within radius 1 of the axis while between heights -phi(1) and 0, where the
-// c-surfel lies: most rays through a grazing surfel's pixel box do not, and skip its rings.
+// units) comes within radius 1 of the axis while between heights -drop (phi(1)) and 0, where
+// the c-surfel lies: most rays through a grazing surfel's pixel box do not, and skip its rings.
 // With a little slack, so that it never turns away a ray the rings would hit.
-fn within_slab(a0: f32, ad: f32, c0: vec3<f32>, cd: vec3<f32>) -> bool {
+fn within_slab(a0: f32, ad: f32, c0: vec3<f32>, cd: vec3<f32>, drop: f32) -> bool {
     let slack = 1e-3;
-    let low = -phi(1.0) - slack;
+    let low = -drop - slack;
     var k0 = -1e30;
     var k1 = 1e30;
     if abs(ad) > 1e-6 {

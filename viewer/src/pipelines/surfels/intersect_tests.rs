@@ -33,8 +33,8 @@ fn cast_rays(@builtin(global_invocation_id) id: vec3<u32>) {
     s.radius = c.p.w;
     s.n = c.n.xyz;
     s.curved = true;
-    let drop = phi(1.0);
-    s.bound = sqrt(1.0 + drop * drop);
+    s.drop = phi(1.0);
+    s.bound = sqrt(1.0 + s.drop * s.drop);
     set_shape(&s);
     hits[id.x] = intersect(s, c.e.xyz);
 }

@@ -30,6 +30,8 @@ struct Surfel {
     curved: bool,
     // Distance from p that bounds the surfel, in multiples of the radius.
     bound: f32,
+    // How far its rim drops along -n, in radii: phi(1) for a c-surfel, 0 for a planar one.
+    drop: f32,
     // Screen box: centre and reach in pixels, and the pixels it can cover (x0, y0, x1, y1).
     centre_px: vec2<f32>,
     reach_px: f32,
@@ -92,11 +94,8 @@ fn surfel_at(group: u32, lane: u32) -> Surfel {
     if s.curved != DRAWS_CURVED {
         return s;
     }
-    s.bound = 1.0;
-    if s.curved {
-        let drop = phi(1.0);
-        s.bound = sqrt(1.0 + drop * drop);
-    }
+    s.drop = select(0.0, phi(1.0), s.curved);
+    s.bound = sqrt(1.0 + s.drop * s.drop);
     let clip = frame.view_proj * vec4<f32>(p, 1.0);
     let reach = s.bound * s.radius;
     // Nearer than the near plane or beyond the far one: not drawn, as the projection drops
@@ -140,16 +139,14 @@ fn set_shape(s: ptr<function, Surfel>) {
 // grazing surfel, seen edge-on, covers a thin band of that square.
 fn screen_box(s: Surfel) -> vec4<f32> {
     let square = vec4<f32>(s.centre_px - s.reach_px, s.centre_px + s.reach_px);
-    var depth = 0.0;
-    if s.curved {
-        depth = phi(1.0);
-    }
     var lo = vec2<f32>(1e30);
     var hi = vec2<f32>(-1e30);
-    for (var k = 0u; k < 8u; k++) {
+    // A planar surfel's box is flat: its four corners.
+    let corners = select(4u, 8u, s.drop > 0.0);
+    for (var k = 0u; k < corners; k++) {
         let u = select(-1.0, 1.0, (k & 1u) != 0u);
         let v = select(-1.0, 1.0, (k & 2u) != 0u);
-        let a = select(0.0, -depth, (k & 4u) != 0u);
+        let a = select(0.0, -s.drop, (k & 4u) != 0u);
         let corner = s.p + s.radius * (u * s.b1 + v * s.b2 + a * s.n);
         let clip = frame.view_proj * vec4<f32>(corner, 1.0);
         // A corner behind the eye has no place on the screen: the square bounds it.
