@@ -104,6 +104,8 @@ fn pipelines_lists_every_pipeline_with_its_parameters() {
             "rings",
             "epsilon",
             "h",
+            "curvature",
+            "flat_px",
             "falloff",
             "depth_offset"
         ]

@@ -1,7 +1,8 @@
 //! The `surfels` pipeline on a sampled unit sphere whose outline is known exactly: it closes
 //! the holes `points` leaves, its outline stays on the sphere's, hybrid puts c-surfels exactly
-//! at the silhouette, a coarse LOD leaves no holes, and a dataset without normals falls back
-//! to view-facing discs and says so.
+//! at the silhouette, c-surfels bend by the curvature (the sphere's, and none on a plane), a
+//! coarse LOD leaves no holes, and a dataset without normals falls back to view-facing discs
+//! and says so.
 
 use super::*;
 use std::io::Write;
@@ -98,13 +99,18 @@ pub(super) enum Lod {
 
 /// Renders the sphere until complete with `pipeline` and the `--set` assignments.
 pub(super) fn shot(flavour: Sphere, pipeline: &str, set: &[&str], lod: Lod) -> Shot {
-    let dataset = sphere(flavour);
+    let eye = glam::Vec3::new(0.0, -DISTANCE, 0.0);
+    shot_of(sphere(flavour), eye, pipeline, set, lod)
+}
+
+/// Renders `dataset` seen from `eye` towards the origin (dataset coordinates).
+fn shot_of(dataset: &Path, eye: glam::Vec3, pipeline: &str, set: &[&str], lod: Lod) -> Shot {
     let ds = Arc::new(StreamDataset::open_path(dataset).expect("dataset opens"));
     let ctx = Arc::new(GpuContext::new(ProjectionPath::Auto).expect("GPU adapter"));
     let mut r = Renderer::new(ctx, ds.clone(), 1 << 30, 1).expect("renderer");
     let anchor = ds.anchor().as_vec3();
     let camera = Camera {
-        eye: glam::Vec3::new(0.0, -DISTANCE, 0.0) - anchor,
+        eye: eye - anchor,
         target: -anchor,
         fov_y: FOV_DEG.to_radians(),
     };
@@ -197,14 +203,22 @@ fn surfels_close_the_holes_points_leave_and_keep_the_outline() {
     );
     assert_eq!(hybrid.note, None);
     assert!(hybrid.measures[SURFELS] > 1000.0, "{:?}", hybrid.measures);
-    // Hybrid draws c-surfels where the view grazes the surface: a band at the outline.
-    let share = hybrid.measures[CURVED_SHARE];
+    // The paper's c-surfels (bent by h alone, not by the curvature): hybrid draws them where
+    // the view grazes the surface, a band at the outline.
+    let paper = shot(Sphere::Sparse, "surfels", &["curvature=0"], Lod::Full);
+    let share = paper.measures[CURVED_SHARE];
     assert!((0.02..0.4).contains(&share), "curved share {share}");
     let planar = shot(Sphere::Sparse, "surfels", &["mode=0"], Lod::Full);
-    let curved = shot(Sphere::Sparse, "surfels", &["mode=1"], Lod::Full);
+    let curved = shot(
+        Sphere::Sparse,
+        "surfels",
+        &["mode=1", "curvature=0"],
+        Lod::Full,
+    );
     assert_eq!(planar.measures[CURVED_SHARE], 0.0);
     assert_eq!(curved.measures[CURVED_SHARE], 1.0);
     let (_, planar_over) = holes_and_overshoot(&planar.covered);
+    let (_, paper_over) = holes_and_overshoot(&paper.covered);
     let (curved_holes, curved_over) = holes_and_overshoot(&curved.covered);
     // Every surfel curved: the c-surfels close the sphere too.
     assert!(
@@ -212,8 +226,10 @@ fn surfels_close_the_holes_points_leave_and_keep_the_outline() {
         "c-surfels leave {curved_holes:.4} of the sphere empty"
     );
     assert!(
-        overshoot <= planar_over + 1e-3 && curved_over <= planar_over + 1e-3,
-        "c-surfels bend back at the outline: planar {planar_over:.3} px beyond it, hybrid {overshoot:.3}, curved {curved_over:.3}"
+        overshoot <= planar_over + 1e-3
+            && paper_over <= planar_over + 1e-3
+            && curved_over <= planar_over + 1e-3,
+        "c-surfels bend back at the outline: planar {planar_over:.3} px beyond it, hybrid {overshoot:.3} ({paper_over:.3} bent by h alone), curved {curved_over:.3}"
     );
 }
 
@@ -265,4 +281,115 @@ fn without_normals_surfels_face_the_eye_and_say_so() {
     assert!(holes < 0.05, "{holes:.4} of the sphere empty");
     assert!(overshoot < 3.0, "{overshoot:.2}");
     assert_eq!(shot.measures[CURVED_SHARE], 0.0);
+}
+
+#[test]
+fn the_curvature_the_c_surfels_bend_by_is_the_unit_spheres() {
+    // kappa r = curvature_scale sqrt(alpha share): on the unit sphere kappa is 1 everywhere.
+    let ds = StreamDataset::open_path(sphere(Sphere::Sparse)).expect("dataset opens");
+    let scale = ds
+        .curvature_scale()
+        .expect("--normals estimated the surface variation");
+    let root = ds.root_hierarchy_page().root_node().expect("root node");
+    let node = ds
+        .load_node(
+            &root,
+            strata_viewer::dataset::ColourWord::Stored,
+            &Default::default(),
+        )
+        .expect("root loads");
+    let radii = node
+        .streams
+        .iter()
+        .find(|(s, _)| *s == strata_viewer::pipelines::PointStream::Radius)
+        .map(|(_, b)| b)
+        .expect("radius stream");
+    let mut kappa: Vec<f64> = node
+        .points
+        .iter()
+        .zip(radii.chunks_exact(4))
+        .map(|(p, r)| {
+            let radius = f32::from_le_bytes([r[0], r[1], r[2], r[3]]) as f64;
+            scale * ((p[3] >> 24) as f64 / 255.0).sqrt() / radius
+        })
+        .collect();
+    assert!(kappa.len() > 100, "{} points", kappa.len());
+    kappa.sort_by(f64::total_cmp);
+    let median = kappa[kappa.len() / 2];
+    assert!(
+        (0.8..1.25).contains(&median),
+        "the unit sphere's curvature is estimated as {median:.3}"
+    );
+}
+
+/// A flat square, two units wide at z = 0, sampled on a 200 x 200 grid with its normal +z.
+fn plane() -> &'static Path {
+    static CELL: OnceLock<PathBuf> = OnceLock::new();
+    CELL.get_or_init(|| {
+        let dir = Path::new(env!("CARGO_TARGET_TMPDIR")).join("render-surfels-plane");
+        let _ = std::fs::remove_dir_all(&dir);
+        std::fs::create_dir_all(&dir).expect("fixture dir");
+        let ply = dir.join("plane.ply");
+        let n = 200;
+        let mut out = std::io::BufWriter::new(std::fs::File::create(&ply).expect("ply"));
+        write!(
+            out,
+            "ply\nformat binary_little_endian 1.0\nelement vertex {}\nproperty float x\nproperty float y\nproperty float z\nproperty float nx\nproperty float ny\nproperty float nz\nend_header\n",
+            n * n
+        )
+        .expect("header");
+        for i in 0..n {
+            for j in 0..n {
+                let at = |k: usize| (k as f32 + 0.5) / n as f32 * 2.0 - 1.0;
+                for v in [at(i), at(j), 0.0, 0.0, 0.0, 1.0] {
+                    out.write_all(&v.to_le_bytes()).expect("write");
+                }
+            }
+        }
+        drop(out);
+        let ds = dir.join("plane.strata");
+        common::run_ok(&["convert", s(&ply), "-o", s(&ds), "--quiet", "--normals"]);
+        ds
+    })
+}
+
+#[test]
+fn c_surfels_on_a_plane_seen_grazing_stay_flat() {
+    // Five degrees above the plane: every surfel is within hybrid's band of the silhouette.
+    let a = 5f32.to_radians();
+    let eye = glam::Vec3::new(0.0, -DISTANCE * a.cos(), DISTANCE * a.sin());
+    let shot = |set: &[&str]| shot_of(plane(), eye, "surfels", set, Lod::Full);
+    let planar = shot(&["mode=0"]);
+    let drawn = planar.covered.iter().filter(|c| **c).count();
+    assert!(drawn > 2000, "the plane covers {drawn} pixels");
+    let differ = |other: &Shot| {
+        planar
+            .covered
+            .iter()
+            .zip(&other.covered)
+            .filter(|(a, b)| a != b)
+            .count()
+    };
+    // Bent by the paper's constant h, c-surfels hang below the plane and widen its outline.
+    let paper = shot(&["curvature=0"]);
+    assert!(paper.measures[CURVED_SHARE] > 0.5, "{:?}", paper.measures);
+    let bent = differ(&paper);
+    assert!(
+        bent > drawn / 50,
+        "the paper's c-surfels change {bent} of {drawn} pixels"
+    );
+    // Bent by the plane's curvature, none: they draw what planar surfels do.
+    for set in [&[][..], &["mode=1"]] {
+        let flat = shot(set);
+        assert_eq!(
+            flat.measures[CURVED_SHARE], 0.0,
+            "{set:?}: {:?}",
+            flat.measures
+        );
+        let changed = differ(&flat);
+        assert!(
+            changed <= drawn / 1000,
+            "{set:?}: {changed} of {drawn} pixels differ from planar"
+        );
+    }
 }

@@ -178,6 +178,17 @@ impl StreamDataset {
         self.colour.variation_max
     }
 
+    /// kappa r / sqrt(s) for a point whose colour's alpha byte holds the share s of
+    /// `variation_max` and whose stored radius is r, kappa its surface's curvature; where the
+    /// converter estimated the surface variation (`--normals`). On a sphere of radius R the k
+    /// nearest neighbours within r_k have variation r_k^2 / (24 R^2), and r = r_k sqrt(ln 100 / k)
+    /// (SPEC.md section 4), so kappa r = sqrt(24 variation ln 100 / k).
+    pub fn curvature_scale(&self) -> Option<f64> {
+        self.colour.variation?;
+        let k = self.metadata.normals.as_ref()?.k;
+        (k > 0).then(|| (24.0 * self.colour.variation_max * 100f64.ln() / k as f64).sqrt())
+    }
+
     /// Whether the dataset has what colouring by `mode` needs (rgb, intensity and the others
     /// fall back or colour alike without theirs; normal and curvature are not offered).
     pub fn offers(&self, mode: ColourMode) -> bool {

@@ -252,6 +252,8 @@ pub struct PipelineFrame<'a> {
     /// The projection culled back faces (the pipeline declared `cull_back_faces` and the
     /// dataset's normals mark them: `StreamDataset::normals_mark_back_faces`).
     pub back_faces_culled: bool,
+    /// The dataset's `StreamDataset::curvature_scale`, where it has one.
+    pub curvature_scale: Option<f32>,
     /// The dataset's bounds, relative to the anchor.
     pub bounds: [glam::Vec3; 2],
     /// Changes whenever the point filters or clip boxes do (for what a pipeline keeps between

@@ -229,6 +229,7 @@ impl Renderer {
                     has_normals,
                     normals_outward,
                     back_faces_culled: cull,
+                    curvature_scale: self.ds.curvature_scale().map(|c| c as f32),
                     bounds: [bmin, bmax],
                     filters_key: filters_key(&uniforms),
                 };

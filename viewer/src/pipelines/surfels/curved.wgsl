@@ -38,7 +38,7 @@ fn intersect(s: Surfel, e: vec3<f32>) -> vec2<f32> {
         }
         return miss;
     }
-    // The c-surfel: heights a = -phi(rho) along the normal (it bends away from the side its
+    // The c-surfel: heights a = -bend phi(rho) along the normal (it bends away from the side its
     // normal faces, as a convex surface does), its profile linear between `rings` rings, so
     // each ring is a cone frustum a = alpha + beta rho.
     if !within_slab(a0, ad, c0, cd, s.drop) {
@@ -50,7 +50,7 @@ fn intersect(s: Surfel, e: vec3<f32>) -> vec2<f32> {
     for (var k = 0u; k < surf.rings; k++) {
         let rho_in = f32(k) / rings;
         let rho_out = f32(k + 1u) / rings;
-        let phi_out = phi(rho_out);
+        let phi_out = s.bend * phi(rho_out);
         let beta = -(phi_out - phi_in) * rings;
         let alpha = -phi_in - beta * rho_in;
         phi_in = phi_out;
@@ -61,19 +61,26 @@ fn intersect(s: Surfel, e: vec3<f32>) -> vec2<f32> {
                 roots.x = -s0 / ad;
             }
         } else {
+            // qa k^2 + 2 hb k + qc = 0, its discriminant (over 4) written so that no two large
+            // terms cancel: a flat cone's (small beta) would otherwise be lost to rounding.
             let b2 = beta * beta;
             let qa = ad * ad - b2 * dot(cd, cd);
-            let qb = 2.0 * (s0 * ad - b2 * dot(c0, cd));
+            let hb = s0 * ad - b2 * dot(c0, cd);
             let qc = s0 * s0 - b2 * dot(c0, c0);
+            let w = ad * c0 - s0 * cd;
+            let x = cross(c0, cd);
+            let disc = b2 * (dot(w, w) - b2 * dot(x, x));
             if abs(qa) < 1e-9 {
-                if abs(qb) > 1e-12 {
-                    roots.x = -qc / qb;
+                if abs(hb) > 1e-12 {
+                    roots.x = -0.5 * qc / hb;
                 }
-            } else {
-                let disc = qb * qb - 4.0 * qa * qc;
-                if disc >= 0.0 {
-                    let sq = sqrt(disc);
-                    roots = vec2<f32>((-qb - sq) / (2.0 * qa), (-qb + sq) / (2.0 * qa));
+            } else if disc >= 0.0 {
+                // The root nearer zero from qc / q, not from a difference of near equals.
+                let q = -(hb + select(-1.0, 1.0, hb >= 0.0) * sqrt(disc));
+                if abs(q) > 1e-30 {
+                    roots = vec2<f32>(q / qa, qc / q);
+                } else {
+                    roots.x = -hb / qa;
                 }
             }
         }
@@ -86,8 +93,9 @@ fn intersect(s: Surfel, e: vec3<f32>) -> vec2<f32> {
             let u = length(c);
             let height = s0 + kk * ad;
             let dist = tc + kk * s.radius;
-            // On this ring, on the cone's sheet (not its mirror), in front of the eye.
-            if u >= rho_in - 1e-4 && u <= rho_out + 1e-4 && height * beta >= -1e-5 && dist > 0.0
+            // On this ring, on the cone's sheet (height / beta is +u there, -u on its mirror;
+            // a little slack at the apex, where they meet), in front of the eye.
+            if u >= rho_in - 1e-4 && u <= rho_out + 1e-4 && height * beta >= -1e-4 * beta * beta && dist > 0.0
                 && (best.x < 0.0 || dist < best.x) && inside_polygon(s, c, u) {
                 best = vec2<f32>(dist, u);
             }
@@ -97,7 +105,7 @@ fn intersect(s: Surfel, e: vec3<f32>) -> vec2<f32> {
 }
 
 // Whether the ray (heights a0 + k ad along the normal, offsets c0 + k cd in the plane, radius
-// units) comes within radius 1 of the axis while between heights -drop (phi(1)) and 0, where
+// units) comes within radius 1 of the axis while between heights -drop (bend phi(1)) and 0, where
 // the c-surfel lies: most rays through a grazing surfel's pixel box do not, and skip its rings.
 // With a little slack, so that it never turns away a ray the rings would hit.
 fn within_slab(a0: f32, ad: f32, c0: vec3<f32>, cd: vec3<f32>, drop: f32) -> bool {

@@ -1,6 +1,6 @@
 //! The c-surfel ray cast (`intersect` in curved.wgsl) on the GPU against a CPU march along
-//! each ray over the surface it stands for: heights -phi(rho) along the normal, phi linear
-//! between the rings, inside the n-gon. Rays come from every side, grazing ones included.
+//! each ray over the surface it stands for: heights -bend phi(rho) along the normal, phi linear
+//! between the rings, inside the n-gon; bent as the paper's and less, as a curvature asks. Rays come from every side, grazing ones included.
 
 use super::passes::{CURVED_WGSL, SURFEL_WGSL, SurfelUniforms, UNIFORMS_WGSL};
 use crate::gpu::readback::read_buffer;
@@ -15,6 +15,7 @@ const KERNEL_WGSL: &str = r#"
 struct Case {
     // xyz the centre, w the radius.
     p: vec4<f32>,
+    // xyz the normal, w the bend.
     n: vec4<f32>,
     // The ray's unit direction from the eye.
     e: vec4<f32>,
@@ -33,7 +34,8 @@ fn cast_rays(@builtin(global_invocation_id) id: vec3<u32>) {
     s.radius = c.p.w;
     s.n = c.n.xyz;
     s.curved = true;
-    s.drop = phi(1.0);
+    s.bend = c.n.w;
+    s.drop = s.bend * phi(1.0);
     s.bound = sqrt(1.0 + s.drop * s.drop);
     set_shape(&s);
     hits[id.x] = intersect(s, c.e.xyz);
@@ -113,8 +115,8 @@ enum Expect {
     Either,
 }
 
-fn expect(eye: V, e: V, p: V, radius: f64, n: V) -> Expect {
-    let bound = (1.0 + phi(1.0).powi(2)).sqrt() * radius;
+fn expect(eye: V, e: V, p: V, radius: f64, n: V, bend: f64) -> Expect {
+    let bound = (1.0 + (bend * phi(1.0)).powi(2)).sqrt() * radius;
     let tc = dot(sub(p, eye), e);
     let off = sub(sub(eye, p), scaled(e, -tc));
     let half_chord2 = bound * bound - dot(off, off);
@@ -128,7 +130,7 @@ fn expect(eye: V, e: V, p: V, radius: f64, n: V) -> Expect {
         let a = dot(o, n);
         let c = sub(o, scaled(n, a));
         let u = dot(c, c).sqrt();
-        (a + phi_mesh(u.min(1.0)), u, c)
+        (a + bend * phi_mesh(u.min(1.0)), u, c)
     };
     let steps = 20_000;
     let (t0, t1) = (tc - half_chord, tc + half_chord);
@@ -191,7 +193,9 @@ fn c_surfel_ray_casts_match_a_march_over_the_surface() {
     let eye = [0.0, 0.0, 0.0];
     let mut cases = Vec::new();
     let mut rays = Vec::new();
-    for _ in 0..4000 {
+    for case in 0..4000 {
+        // The paper's c-surfel, and ones a curvature bends less (curvature_bend).
+        let bend = [1.0, 0.3, 0.0][case % 3];
         let p = scaled(unit(sphere()), 10.0);
         let radius = 0.5;
         let n = unit(sphere());
@@ -201,10 +205,10 @@ fn c_surfel_ray_casts_match_a_march_over_the_surface() {
         let f = |v: V, w: f64| [v[0] as f32, v[1] as f32, v[2] as f32, w as f32];
         cases.push(Case {
             p: f(p, radius),
-            n: f(n, 0.0),
+            n: f(n, bend),
             e: f(e, 0.0),
         });
-        rays.push((p, radius, n, e));
+        rays.push((p, radius, n, e, bend));
     }
     let ctx = GpuContext::new(ProjectionPath::Auto).expect("GPU adapter");
     let device = &ctx.device;
@@ -278,8 +282,8 @@ fn c_surfel_ray_casts_match_a_march_over_the_surface() {
     let bytes = read_buffer(&ctx, &hits, size).expect("hits readback");
     let got: &[[f32; 2]] = bytemuck::cast_slice(&bytes);
     let (mut hit, mut missed) = (0, 0);
-    for (k, (&(p, radius, n, e), g)) in rays.iter().zip(got).enumerate() {
-        match expect(eye, e, p, radius, n) {
+    for (k, (&(p, radius, n, e, bend), g)) in rays.iter().zip(got).enumerate() {
+        match expect(eye, e, p, radius, n, bend) {
             Expect::Hit(t) => {
                 hit += 1;
                 assert!(

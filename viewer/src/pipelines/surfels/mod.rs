@@ -74,6 +74,24 @@ pub static INFO: PipelineInfo = PipelineInfo {
             auto: None,
         },
         ParamSpec {
+            name: "curvature",
+            help: "1: each c-surfel bends as far as its point's curvature (from the surface variation of --normals) asks, at most as far as h; 0: every one as far as h, as in the paper",
+            default: 1.0,
+            min: 0.0,
+            max: 1.0,
+            scale: Scale::Integer,
+            auto: None,
+        },
+        ParamSpec {
+            name: "flat_px",
+            help: "c-surfels whose rim drops no further than this off their plane on the screen, in pixels, are drawn planar, at a planar one's cost (0: only flat ones)",
+            default: 0.0,
+            min: 0.0,
+            max: 2.0,
+            scale: Scale::Linear,
+            auto: None,
+        },
+        ParamSpec {
             name: "falloff",
             help: "the Gaussian alpha's fall-off d (texture units: the rim lies at 1/2)",
             default: 0.3,
@@ -168,7 +186,7 @@ impl Pipeline for Surfels {
             (true, true) => passes::Normals::Outward,
             (true, false) => passes::Normals::FacingEye,
         };
-        let uniforms = SurfelUniforms::new(frame.view, frame.params, normals);
+        let uniforms = SurfelUniforms::new(frame.view, frame.params, normals, frame.curvature_scale);
         self.passes
             .encode(frame, encoder, targets, &uniforms, timer)
     }

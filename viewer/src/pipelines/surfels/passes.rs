@@ -69,10 +69,20 @@ pub struct SurfelUniforms {
     pub h: f32,
     pub falloff: f32,
     pub depth_offset: f32,
+    pub curvature: f32,
+    pub flat_px: f32,
+    pub pad1: f32,
+    pub pad2: f32,
 }
 
 impl SurfelUniforms {
-    pub fn new(view: &ViewFrame, params: &ResolvedParams, normals: Normals) -> SurfelUniforms {
+    /// `curvature`: the dataset's `curvature_scale`, where it has one.
+    pub fn new(
+        view: &ViewFrame,
+        params: &ResolvedParams,
+        normals: Normals,
+        curvature: Option<f32>,
+    ) -> SurfelUniforms {
         let rays = view.pixel_rays();
         SurfelUniforms {
             eye: rays.eye,
@@ -87,6 +97,12 @@ impl SurfelUniforms {
             h: param(params, "h"),
             falloff: param(params, "falloff"),
             depth_offset: param(params, "depth_offset"),
+            curvature: curvature
+                .filter(|_| param(params, "curvature") != 0.0)
+                .unwrap_or(0.0),
+            flat_px: param(params, "flat_px"),
+            pad1: 0.0,
+            pad2: 0.0,
         }
     }
 }

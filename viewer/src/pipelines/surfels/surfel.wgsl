@@ -30,7 +30,9 @@ struct Surfel {
     curved: bool,
     // Distance from p that bounds the surfel, in multiples of the radius.
     bound: f32,
-    // How far its rim drops along -n, in radii: phi(1) for a c-surfel, 0 for a planar one.
+    // How far a c-surfel bends: its heights are -bend phi(rho) along n (0 for a planar one).
+    bend: f32,
+    // How far its rim drops along -n, in radii: bend phi(1).
     drop: f32,
     // Screen box: centre and reach in pixels, and the pixels it can cover (x0, y0, x1, y1).
     centre_px: vec2<f32>,
@@ -53,6 +55,20 @@ struct Surfel {
 fn phi(r: f32) -> f32 {
     let q = r * r / (surf.h * surf.h);
     return 1.0 - exp(-q * q);
+}
+
+// How far a c-surfel of stored radius `stored`, drawn `drawn` wide, bends (its heights are
+// -bend phi(rho)): where the dataset gives each point's surface variation (the paper's future
+// work: adapt the surfel to its neighbourhood's curvature) its rim drops as far as a sphere of
+// that curvature falls away from its tangent plane there, kappa drawn / 2 radii, at most the
+// paper's phi(1) (bend 1); a plane's c-surfels are flat. Else the paper's c-surfel, bend 1.
+fn curvature_bend(stored: f32, drawn: f32, colour: u32) -> f32 {
+    if surf.curvature <= 0.0 || stored <= 0.0 {
+        return 1.0;
+    }
+    // kappa stored = curvature sqrt(variation share), the share in the colour's alpha byte.
+    let kappa_stored = surf.curvature * sqrt(f32(colour >> 24u) / 255.0);
+    return min(0.5 * kappa_stored * drawn / stored / phi(1.0), 1.0);
 }
 
 // The surfel of this thread's point, or one with ok = false (no point, filtered, off screen,
@@ -88,15 +104,23 @@ fn surfel_at(group: u32, lane: u32) -> Surfel {
         s.n = v;
         s.curved = false;
     }
+    let clip = frame.view_proj * vec4<f32>(p, 1.0);
+    if s.curved {
+        s.bend = curvature_bend(radii[idx], s.radius, points[idx].w);
+        // A c-surfel whose rim drops no further than `flat_px` off its plane on the screen is
+        // drawn planar, at a planar one's cost: a flat one (a plane's) always.
+        let drop_px = s.bend * phi(1.0) * s.radius * frame.focal_px / max(clip.w - s.radius, 1e-30);
+        s.curved = clip.w <= s.radius || drop_px > surf.flat_px;
+    }
     // Each module draws one kind (DRAWS_CURVED) and leaves the other's surfels unmade, with
     // `curved` set where they are curved: the planar depth pass lists those for the curved
     // modules (thread_listing.wgsl).
     if s.curved != DRAWS_CURVED {
         return s;
     }
-    s.drop = select(0.0, phi(1.0), s.curved);
+    s.bend = select(0.0, s.bend, s.curved);
+    s.drop = s.bend * phi(1.0);
     s.bound = sqrt(1.0 + s.drop * s.drop);
-    let clip = frame.view_proj * vec4<f32>(p, 1.0);
     let reach = s.bound * s.radius;
     // Nearer than the near plane or beyond the far one: not drawn, as the projection drops
     // them.
@@ -135,7 +159,7 @@ fn set_shape(s: ptr<function, Surfel>) {
 }
 
 // The screen box of the surfel's bounding box (its square of the plane, and for a c-surfel the
-// slab it bends into, down to -phi(1) along the normal) within the square of its reach: a
+// slab it bends into, down to -drop along the normal) within the square of its reach: a
 // grazing surfel, seen edge-on, covers a thin band of that square.
 fn screen_box(s: Surfel) -> vec4<f32> {
     let square = vec4<f32>(s.centre_px - s.reach_px, s.centre_px + s.reach_px);

@@ -34,7 +34,11 @@ fn uniforms_and_ranges_match_their_wgsl() {
                 sin_epsilon,
                 h,
                 falloff,
-                depth_offset
+                depth_offset,
+                curvature,
+                flat_px,
+                pad1,
+                pad2
             }),
             "SurfelUniforms against Surfels (uniforms.wgsl) in {label}"
         );

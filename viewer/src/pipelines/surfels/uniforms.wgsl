@@ -23,6 +23,15 @@ struct Surfels {
     falloff: f32,
     // z_o in multiples of each surfel's radius (section 3.3).
     depth_offset: f32,
+    // kappa r / sqrt(s) for a point of stored radius r whose colour's alpha byte holds the
+    // share s of the dataset's surface variation (StreamDataset::curvature_scale); 0: every
+    // c-surfel bends as the paper's does.
+    curvature: f32,
+    // A c-surfel whose rim drops no further than this off its plane on the screen, in pixels,
+    // is drawn planar.
+    flat_px: f32,
+    pad1: f32,
+    pad2: f32,
 }
 
 const MODE_PLANAR: u32 = 0u;
