@@ -3,10 +3,11 @@
 // "white": it then lies beyond a silhouette (background fill) or beyond the border of a front
 // surface (occluded fill). Else it takes the texel of its nearest neighbour. Every texel is
 // written, so that an iteration that changed nothing leaves `dst` equal to `src`. A workgroup
-// is one 16x16 tile of the list tiles.wgsl made: after the first iteration only tiles that
-// changed, or lie beside one that changed, in the iteration before. Any other tile cannot
-// change, and both buffers already hold it (it did not change when the other was written), so
-// the late iterations that close a few long gaps cost little.
+// is one 16x16 tile of the iteration's list, which tiles.wgsl made (its count is the
+// dispatch's workgroup count): after the first iteration only tiles that changed, or lie
+// beside one that changed, in the iteration before. Any other tile cannot change, and both
+// buffers already hold it (it did not change when the other was written), so the late
+// iterations that close a few long gaps cost little.
 @group(0) @binding(0) var<uniform> frame: Frame;
 @group(0) @binding(2) var<storage, read> src: array<Texel>;
 @group(0) @binding(3) var<storage, read_write> dst: array<Texel>;
@@ -14,8 +15,8 @@
 // Per kind, iteration and 16x16 tile: 1 where the iteration changed a pixel of the tile (then
 // the resolve's occupied tiles, `occupied_slot`).
 @group(0) @binding(5) var<storage, read_write> tiles: array<u32>;
-// [0]: the count (tiles.wgsl), then the tiles to work on, y << 16 | x.
-@group(0) @binding(6) var<storage, read> tile_list: array<u32>;
+// The iterations' lists (`list_base`); this one's tiles to work on, y << 16 | x.
+@group(0) @binding(6) var<storage, read> tile_lists: array<u32>;
 @group(1) @binding(0) var<uniform> step: Step;
 
 
@@ -71,7 +72,7 @@ fn finish(i: u32, keep: Texel, fill: bool, n: Neighbours, tile: vec2<u32>) {
 // Section 3.2: a background pixel is filled unless it lies beyond the silhouette.
 @compute @workgroup_size(16, 16)
 fn background(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_id) local: vec3<u32>) {
-    let packed = tile_list[1u + wg.x];
+    let packed = tile_lists[list_base(list_of(step.kind, step.iteration)) + LIST_HEADER + wg.x];
     let tile = vec2<u32>(packed & 0xffffu, packed >> 16u);
     let id = tile * 16u + local.xy;
     if id.x >= frame.width || id.y >= frame.height {
@@ -94,7 +95,7 @@ fn background(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_id
 // the pixels along a silhouette take each other's texels iteration after iteration).
 @compute @workgroup_size(16, 16)
 fn occluded(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_id) local: vec3<u32>) {
-    let packed = tile_list[1u + wg.x];
+    let packed = tile_lists[list_base(list_of(step.kind, step.iteration)) + LIST_HEADER + wg.x];
     let tile = vec2<u32>(packed & 0xffffu, packed >> 16u);
     let id = tile * 16u + local.xy;
     if id.x >= frame.width || id.y >= frame.height {

@@ -42,6 +42,15 @@ pub const CLASSES: usize = 19;
 /// and iteration.
 pub const COUNTERS: u64 = (MAX_LAYERS + MAX_LAYERS * 2 * MAX_ITERATIONS) as u64;
 
+/// The fill's tile lists, one per kind and iteration (`LIST_HEADER`, `LISTS` and `list_of` in
+/// uniforms.wgsl).
+pub const LIST_HEADER: u64 = 4;
+pub const LISTS: u64 = 2 * MAX_ITERATIONS as u64;
+
+pub fn list_of(kind: u32, iteration: u32) -> u64 {
+    (kind as u64 - 1) * MAX_ITERATIONS as u64 + iteration as u64
+}
+
 /// `kind` of a step (`ARGS_*` in uniforms.wgsl).
 pub const ARGS_LAYER: u32 = 0;
 pub const ARGS_BACKGROUND: u32 = 1;
@@ -191,7 +200,6 @@ impl FiltersPasses {
         queue.write_buffer(&targets.uniforms, 0, bytemuck::bytes_of(uniforms));
         encoder.clear_buffer(&targets.counters, 0, None);
         // No clear of the blend: the first layer's shading writes every pixel of it.
-        encoder.clear_buffer(&targets.tile_list, 0, None);
 
         let arenas: Vec<(ArenaGroup, [&wgpu::Buffer; 4], &wgpu::Buffer)> = frame
             .arenas
@@ -322,7 +330,7 @@ impl FiltersPasses {
                 }
             }
 
-            // Arguments of the next indirect dispatch, from the counters.
+            // Arguments of the peeled layers' shading, from the counters.
             let args_group = bind(
                 device,
                 &self.args,
@@ -331,20 +339,8 @@ impl FiltersPasses {
                     frame_entry(),
                     (2, targets.counters.as_entire_binding()),
                     (3, targets.args.as_entire_binding()),
-                    (4, targets.tile_list.as_entire_binding()),
                 ],
             );
-            let tiles_group = bind(
-                device,
-                &self.tiles,
-                0,
-                &[
-                    frame_entry(),
-                    (2, targets.tiles.as_entire_binding()),
-                    (3, targets.tile_list.as_entire_binding()),
-                ],
-            );
-            let tile_groups = (gx * gy).div_ceil(64);
             let set_args = |pass: &mut wgpu::ComputePass, step_group: &wgpu::BindGroup| {
                 pass.set_pipeline(&self.args);
                 pass.set_bind_group(0, &args_group, &[]);
@@ -352,8 +348,21 @@ impl FiltersPasses {
                 pass.dispatch_workgroups(1, 1, 1);
             };
 
-            // Fill: background pixels, then occluded ones, ping-ponging between the texel buffers.
+            // Fill: background pixels, then occluded ones, ping-ponging between the texel
+            // buffers; each iteration dispatched over the tile list the tiles pass made for
+            // it, whose count is the dispatch's workgroup count.
             if setup.fill_iterations > 0 {
+                encoder.clear_buffer(&targets.tile_lists, 0, None);
+                let tiles_group = bind(
+                    device,
+                    &self.tiles,
+                    0,
+                    &[
+                        frame_entry(),
+                        (2, targets.tiles.as_entire_binding()),
+                        (3, targets.tile_lists.as_entire_binding()),
+                    ],
+                );
                 let timestamp_writes = timer.pass(encoder, "fill");
                 let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
                     label: Some("fill"),
@@ -374,9 +383,7 @@ impl FiltersPasses {
                         pass.set_pipeline(&self.tiles);
                         pass.set_bind_group(0, &tiles_group, &[]);
                         pass.set_bind_group(1, &tiles_step, &[]);
-                        pass.dispatch_workgroups(tile_groups, 1, 1);
-                        let args_step = step_bind(&self.args, 1, step);
-                        set_args(&mut pass, &args_step);
+                        pass.dispatch_workgroups((gx * gy).div_ceil(64), 1, 1);
                         let fill_step = step_bind(pipe, 1, step);
                         let mut entries = vec![
                             frame_entry(),
@@ -384,7 +391,7 @@ impl FiltersPasses {
                             (3, targets.texels[1 - current].as_entire_binding()),
                             (4, targets.counters.as_entire_binding()),
                             (5, targets.tiles.as_entire_binding()),
-                            (6, targets.tile_list.as_entire_binding()),
+                            (6, targets.tile_lists.as_entire_binding()),
                         ];
                         // Only the occluded fill reads d~.
                         if kind == ARGS_OCCLUDED {
@@ -394,7 +401,8 @@ impl FiltersPasses {
                         pass.set_pipeline(pipe);
                         pass.set_bind_group(0, &fb, &[]);
                         pass.set_bind_group(1, &fill_step, &[]);
-                        pass.dispatch_workgroups_indirect(&targets.args, 0);
+                        let at = list_of(kind, iteration) * targets.list_words() * 4;
+                        pass.dispatch_workgroups_indirect(&targets.tile_lists, at);
                         current = 1 - current;
                     }
                 }

@@ -1,7 +1,7 @@
 //! The filters pipeline's per-screen buffers and what is read back from them: the layer
 //! counters (layers used, fill iterations used), the first layer's surface and unlit colour.
 
-use super::passes::{COUNTERS, FiltersUniforms, MAX_ITERATIONS, MAX_LAYERS};
+use super::passes::{COUNTERS, FiltersUniforms, LIST_HEADER, LISTS, MAX_ITERATIONS, MAX_LAYERS};
 use crate::ViewerError;
 use crate::gpu::GpuContext;
 use crate::gpu::async_readback::AsyncReadback;
@@ -14,14 +14,19 @@ use crate::renderer::SurfacePixel;
 /// guarantees.
 pub const STEP_STRIDE: u64 = 256;
 /// Steps one frame encodes at most: per layer the resolve, the shading and its arguments, and
-/// per fill iteration of each kind the tile list, the arguments and the fill.
-const STEP_SLOTS: u64 = MAX_LAYERS as u64 * (3 + 6 * MAX_ITERATIONS as u64);
+/// per fill iteration of each kind the tile list and the fill.
+const STEP_SLOTS: u64 = MAX_LAYERS as u64 * (3 + 4 * MAX_ITERATIONS as u64);
 
 /// Flags of the fill's 16x16 tiles: per kind and iteration, one per tile where it changed
 /// (`tile_slot` in uniforms.wgsl), then one per tile where the resolve put a point
 /// (`occupied_slot`).
 fn tile_flags(width: u32, height: u32) -> u64 {
     (2 * MAX_ITERATIONS as u64 + 1) * tile_count(width, height)
+}
+
+/// Bytes of the fill's tile lists: every list (`LISTS`), each its header and a slot per tile.
+fn list_bytes(width: u32, height: u32) -> u64 {
+    LISTS * (LIST_HEADER + tile_count(width, height)) * 4
 }
 
 fn tile_count(width: u32, height: u32) -> u64 {
@@ -55,8 +60,9 @@ pub struct FiltersTargets {
     /// Per fill kind, iteration and 16x16 tile: whether the iteration changed the tile; then
     /// per tile whether the layer's resolve put a point in it.
     pub tiles: wgpu::Buffer,
-    /// The tiles the next fill iteration works on, after their count.
-    pub tile_list: wgpu::Buffer,
+    /// Per fill kind and iteration, the tiles it works on (`list_base` in uniforms.wgsl); each
+    /// list's count is its iteration's dispatch arguments.
+    pub tile_lists: wgpu::Buffer,
 }
 
 impl FiltersTargets {
@@ -90,6 +96,10 @@ impl FiltersTargets {
             ScreenBuffer {
                 label: "filters fill tiles",
                 bytes: tile_flags(width, height) * 4,
+            },
+            ScreenBuffer {
+                label: "filters fill tile lists",
+                bytes: list_bytes(width, height),
             },
         ]
     }
@@ -134,11 +144,20 @@ impl FiltersTargets {
                 mapped_at_creation: false,
             }),
             tiles: storage("filters fill tiles", tile_flags(width, height) * 4),
-            tile_list: storage(
-                "filters fill tile list",
-                (1 + tile_count(width, height)) * 4,
-            ),
+            tile_lists: device.create_buffer(&wgpu::BufferDescriptor {
+                label: Some("filters fill tile lists"),
+                size: list_bytes(width, height),
+                usage: wgpu::BufferUsages::STORAGE
+                    | wgpu::BufferUsages::INDIRECT
+                    | wgpu::BufferUsages::COPY_DST,
+                mapped_at_creation: false,
+            }),
         }
+    }
+
+    /// Words of one fill tile list.
+    pub fn list_words(&self) -> u64 {
+        LIST_HEADER + tile_count(self.width, self.height)
     }
 
     pub fn step_slots(&self) -> usize {

@@ -1,7 +1,9 @@
 //! The filters' Rust structs and constants against their WGSL, the counters' reading, the
 //! parameter table and the uniforms made from it.
 
-use super::passes::{ARGS_BACKGROUND, ARGS_LAYER, ARGS_OCCLUDED, COUNTERS};
+use super::passes::{
+    ARGS_BACKGROUND, ARGS_LAYER, ARGS_OCCLUDED, COUNTERS, LIST_HEADER, LISTS, list_of,
+};
 use super::targets::{LayerCounts, counts_from};
 use super::{
     CLASSES, DTILDE_SPACINGS, FiltersUniforms, INFO, MAX_ITERATIONS, MAX_LAYERS, Step, uniforms,
@@ -56,6 +58,11 @@ fn uniforms_steps_and_constants_match_their_wgsl() {
     assert_eq!(wgsl_const(&m, "ARGS_LAYER"), ARGS_LAYER as u64);
     assert_eq!(wgsl_const(&m, "ARGS_BACKGROUND"), ARGS_BACKGROUND as u64);
     assert_eq!(wgsl_const(&m, "ARGS_OCCLUDED"), ARGS_OCCLUDED as u64);
+    assert_eq!(wgsl_const(&m, "LIST_HEADER"), LIST_HEADER);
+    assert_eq!(wgsl_const(&m, "LISTS"), LISTS);
+    // Every kind's every iteration has a list of its own.
+    assert_eq!(list_of(ARGS_OCCLUDED, MAX_ITERATIONS - 1), LISTS - 1);
+    assert_eq!(list_of(ARGS_BACKGROUND, MAX_ITERATIONS - 1) + 1, list_of(ARGS_OCCLUDED, 0));
 }
 
 /// The word `changed_slot(layer, kind, iteration)` of uniforms.wgsl writes.

@@ -1,14 +1,14 @@
-// The tiles a fill iteration works on: in the first iteration every tile of a peeled layer,
-// and the first layer's tiles that hold a point or lie beside one; then those that changed, or
-// lie beside one that changed, in the iteration before; appended to `tile_list` after its
-// count, which args.wgsl turns into the fill's workgroups. The first layer's other tiles are
-// background in both texel buffers (both cleared), and no fill changes them: a background pixel
-// is filled only from a neighbour, one pixel an iteration, so at most MAX_ITERATIONS (16, the
-// tile's width) background iterations reach no further than the tile beside a point's; an
-// occluded pixel is not background.
+// The tiles a fill iteration works on, appended to its list (`list_base`), whose count is the
+// iteration's workgroup count: in the first iteration every tile of a peeled layer, and the
+// first layer's tiles that hold a point or lie beside one; then those that changed, or lie
+// beside one that changed, in the iteration before. The first layer's other tiles are
+// background in both texel buffers (both cleared), and no fill changes them: a background
+// pixel is filled only from a neighbour, one pixel an iteration, so at most MAX_ITERATIONS
+// (16, the tile's width) background iterations reach no further than the tile beside a
+// point's; an occluded pixel is not background.
 @group(0) @binding(0) var<uniform> frame: Frame;
 @group(0) @binding(2) var<storage, read> tiles: array<u32>;
-@group(0) @binding(3) var<storage, read_write> tile_list: array<atomic<u32>>;
+@group(0) @binding(3) var<storage, read_write> tile_lists: array<atomic<u32>>;
 @group(1) @binding(0) var<uniform> step: Step;
 
 // Whether `tile` or one beside it has its flag set, in the flags that start at `first` (those
@@ -40,7 +40,11 @@ fn main(@builtin(global_invocation_id) id: vec3<u32>) {
         listed = step.layer > 0u || flagged_near(tile, occupied_slot(vec2<u32>(0u)));
     }
     if listed {
-        let at = atomicAdd(&tile_list[0], 1u);
-        atomicStore(&tile_list[1u + at], tile.y << 16u | tile.x);
+        let base = list_base(list_of(step.kind, step.iteration));
+        let at = atomicAdd(&tile_lists[base], 1u);
+        // A list no tile joins dispatches nothing: its header stays 0, 0, 0.
+        atomicStore(&tile_lists[base + 1u], 1u);
+        atomicStore(&tile_lists[base + 2u], 1u);
+        atomicStore(&tile_lists[base + LIST_HEADER + at], tile.y << 16u | tile.x);
     }
 }

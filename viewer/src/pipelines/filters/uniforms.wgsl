@@ -80,6 +80,20 @@ fn tile_slot(kind: u32, iteration: u32, tile: vec2<u32>) -> u32 {
     return ((kind - 1u) * MAX_ITERATIONS + iteration) * tiles_x() * tiles_y() + tile.y * tiles_x() + tile.x;
 }
 
+// The fill's tile lists, one per kind and iteration. List k starts at word list_base(k):
+// LIST_HEADER words (the count, then 1, 1 once a tile is in it: the arguments of its
+// iteration's indirect dispatch; a pad), then the tiles, y << 16 | x.
+const LIST_HEADER: u32 = 4u;
+const LISTS: u32 = 2u * MAX_ITERATIONS;
+
+fn list_of(kind: u32, iteration: u32) -> u32 {
+    return (kind - 1u) * MAX_ITERATIONS + iteration;
+}
+
+fn list_base(list: u32) -> u32 {
+    return list * (LIST_HEADER + tiles_x() * tiles_y());
+}
+
 // After every kind's and iteration's flags: per tile, 1 where the layer's resolve put a point in
 // it (the first layer's first fill iterations work only on those tiles and the ones beside).
 fn occupied_slot(tile: vec2<u32>) -> u32 {
