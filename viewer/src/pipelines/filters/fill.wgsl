@@ -59,6 +59,23 @@ fn neighbours(c: vec2<i32>) -> Neighbours {
     return n;
 }
 
+struct Listed {
+    ok: bool,
+    tile: vec2<u32>,
+}
+
+// The tile of workgroup `wg` in this iteration's list; not ok past the list's end (the last
+// row of workgroups is not full).
+fn listed_tile(wg: vec2<u32>) -> Listed {
+    let base = list_base(list_of(step.kind, step.iteration));
+    let k = wg.y * MAX_GROUPS_X + wg.x;
+    if k >= tile_lists[base + 3u] {
+        return Listed(false, vec2<u32>(0u));
+    }
+    let packed = tile_lists[base + LIST_HEADER + k];
+    return Listed(true, vec2<u32>(packed & 0xffffu, packed >> 16u));
+}
+
 fn finish(i: u32, keep: Texel, fill: bool, n: Neighbours, tile: vec2<u32>) {
     if fill && n.nearest_depth > 0.0 {
         dst[i] = src[n.nearest];
@@ -72,8 +89,11 @@ fn finish(i: u32, keep: Texel, fill: bool, n: Neighbours, tile: vec2<u32>) {
 // Section 3.2: a background pixel is filled unless it lies beyond the silhouette.
 @compute @workgroup_size(16, 16)
 fn background(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_id) local: vec3<u32>) {
-    let packed = tile_lists[list_base(list_of(step.kind, step.iteration)) + LIST_HEADER + wg.x];
-    let tile = vec2<u32>(packed & 0xffffu, packed >> 16u);
+    let listed = listed_tile(wg.xy);
+    if !listed.ok {
+        return;
+    }
+    let tile = listed.tile;
     let id = tile * 16u + local.xy;
     if id.x >= frame.width || id.y >= frame.height {
         return;
@@ -95,8 +115,11 @@ fn background(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_id
 // the pixels along a silhouette take each other's texels iteration after iteration).
 @compute @workgroup_size(16, 16)
 fn occluded(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_id) local: vec3<u32>) {
-    let packed = tile_lists[list_base(list_of(step.kind, step.iteration)) + LIST_HEADER + wg.x];
-    let tile = vec2<u32>(packed & 0xffffu, packed >> 16u);
+    let listed = listed_tile(wg.xy);
+    if !listed.ok {
+        return;
+    }
+    let tile = listed.tile;
     let id = tile * 16u + local.xy;
     if id.x >= frame.width || id.y >= frame.height {
         return;

@@ -55,7 +55,7 @@ pub struct FiltersTargets {
     pub albedo: wgpu::Buffer,
     pub counters: wgpu::Buffer,
     pub counters_readback: AsyncReadback,
-    /// Dispatch arguments of the next indirect pass.
+    /// Dispatch arguments of a peeled layer's shading.
     pub args: wgpu::Buffer,
     /// Per fill kind, iteration and 16x16 tile: whether the iteration changed the tile; then
     /// per tile whether the layer's resolve put a point in it.

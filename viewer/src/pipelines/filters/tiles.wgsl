@@ -41,10 +41,12 @@ fn main(@builtin(global_invocation_id) id: vec3<u32>) {
     }
     if listed {
         let base = list_base(list_of(step.kind, step.iteration));
-        let at = atomicAdd(&tile_lists[base], 1u);
-        // A list no tile joins dispatches nothing: its header stays 0, 0, 0.
-        atomicStore(&tile_lists[base + 1u], 1u);
-        atomicStore(&tile_lists[base + 2u], 1u);
+        let at = atomicAdd(&tile_lists[base + 3u], 1u);
         atomicStore(&tile_lists[base + LIST_HEADER + at], tile.y << 16u | tile.x);
+        // The dispatch: rows of MAX_GROUPS_X workgroups, enough for every tile listed so far
+        // (a list no tile joins dispatches nothing: its header stays 0, 0, 0).
+        atomicMax(&tile_lists[base], min(at + 1u, MAX_GROUPS_X));
+        atomicMax(&tile_lists[base + 1u], at / MAX_GROUPS_X + 1u);
+        atomicStore(&tile_lists[base + 2u], 1u);
     }
 }

@@ -41,7 +41,7 @@ const ANTIALIAS_EDGES: u32 = 2u;
 struct Step {
     layer: u32,
     iteration: u32,
-    // ARGS_* for the dispatch-arguments pass.
+    // ARGS_*: the layer's passes, or a fill's kind.
     kind: u32,
     complemented: u32,
 }
@@ -81,9 +81,12 @@ fn tile_slot(kind: u32, iteration: u32, tile: vec2<u32>) -> u32 {
 }
 
 // The fill's tile lists, one per kind and iteration. List k starts at word list_base(k):
-// LIST_HEADER words (the count, then 1, 1 once a tile is in it: the arguments of its
-// iteration's indirect dispatch; a pad), then the tiles, y << 16 | x.
+// LIST_HEADER words, the arguments of its iteration's indirect dispatch (x, y, 1: x * y
+// workgroups at least as many as its tiles, 0, 0, 0 while it has none) and its count; then the
+// tiles, y << 16 | x.
 const LIST_HEADER: u32 = 4u;
+// Workgroups a dispatch takes in x at most (WebGPU's least maximum per dimension).
+const MAX_GROUPS_X: u32 = 65535u;
 const LISTS: u32 = 2u * MAX_ITERATIONS;
 
 fn list_of(kind: u32, iteration: u32) -> u32 {

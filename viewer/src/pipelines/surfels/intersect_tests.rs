@@ -1,6 +1,7 @@
 //! The c-surfel ray cast (`intersect` in curved.wgsl) on the GPU against a CPU march along
-//! each ray over the surface it stands for: heights -bend phi(rho) along the normal, phi linear
-//! between the rings, inside the n-gon; bent as the paper's and less, as a curvature asks. Rays come from every side, grazing ones included.
+//! each ray over the surface it stands for: heights -bend phi(rho) along the normal, phi
+//! linear between the rings, inside the n-gon; bent as the paper's and less, as a curvature
+//! asks. Rays come from every side, grazing ones included.
 
 use super::passes::{CURVED_WGSL, SURFEL_WGSL, SurfelUniforms, UNIFORMS_WGSL};
 use crate::gpu::readback::read_buffer;
@@ -39,6 +40,16 @@ fn cast_rays(@builtin(global_invocation_id) id: vec3<u32>) {
     s.bound = sqrt(1.0 + s.drop * s.drop);
     set_shape(&s);
     hits[id.x] = intersect(s, c.e.xyz);
+}
+
+@compute @workgroup_size(64)
+fn bends(@builtin(global_invocation_id) id: vec3<u32>) {
+    if id.x >= arrayLength(&cases) {
+        return;
+    }
+    let c = cases[id.x];
+    let colour = u32(c.e.x) << 24u | 0x5eedu;
+    hits[id.x] = vec2<f32>(curvature_bend(c.p.w, c.n.w, colour), 0.0);
 }
 "#;
 
@@ -181,44 +192,10 @@ fn randoms() -> impl FnMut() -> f64 {
     }
 }
 
-#[test]
-fn c_surfel_ray_casts_match_a_march_over_the_surface() {
-    let mut random = randoms();
-    let mut sphere = || loop {
-        let v = [random() * 2.0 - 1.0, random() * 2.0 - 1.0, random() * 2.0 - 1.0];
-        if dot(v, v) <= 1.0 && dot(v, v) > 1e-6 {
-            return v;
-        }
-    };
-    let eye = [0.0, 0.0, 0.0];
-    let mut cases = Vec::new();
-    let mut rays = Vec::new();
-    for case in 0..4000 {
-        // The paper's c-surfel, and ones a curvature bends less (curvature_bend).
-        let bend = [1.0, 0.3, 0.0][case % 3];
-        let p = scaled(unit(sphere()), 10.0);
-        let radius = 0.5;
-        let n = unit(sphere());
-        // Aimed anywhere in a box a third wider than the c-surfel's bound.
-        let target = [0, 1, 2].map(|i| p[i] + sphere()[i] * radius * 1.9);
-        let e = unit(sub(target, eye));
-        let f = |v: V, w: f64| [v[0] as f32, v[1] as f32, v[2] as f32, w as f32];
-        cases.push(Case {
-            p: f(p, radius),
-            n: f(n, bend),
-            e: f(e, 0.0),
-        });
-        rays.push((p, radius, n, e, bend));
-    }
+/// Runs `entry` of KERNEL_WGSL over `cases`, with `uniforms`; its output per case.
+fn run(entry: &'static str, uniforms: &SurfelUniforms, cases: &[Case]) -> Vec<[f32; 2]> {
     let ctx = GpuContext::new(ProjectionPath::Auto).expect("GPU adapter");
     let device = &ctx.device;
-    let uniforms = SurfelUniforms {
-        eye: [0.0, 0.0, 0.0, 1.0],
-        sides: SIDES,
-        rings: RINGS,
-        h: H as f32,
-        ..SurfelUniforms::zeroed()
-    };
     let source = ShaderSource::new(
         "c-surfel casts",
         &[
@@ -231,7 +208,7 @@ fn c_surfel_ray_casts_match_a_march_over_the_surface() {
             KERNEL_WGSL,
         ],
     )
-    .with_entry("cast_rays");
+    .with_entry(entry);
     let pipe = source.compute(device, None);
     let buffer = |contents: &[u8], usage| {
         device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
@@ -240,8 +217,8 @@ fn c_surfel_ray_casts_match_a_march_over_the_surface() {
             usage,
         })
     };
-    let surf = buffer(bytemuck::bytes_of(&uniforms), wgpu::BufferUsages::UNIFORM);
-    let input = buffer(bytemuck::cast_slice(&cases), wgpu::BufferUsages::STORAGE);
+    let surf = buffer(bytemuck::bytes_of(uniforms), wgpu::BufferUsages::UNIFORM);
+    let input = buffer(bytemuck::cast_slice(cases), wgpu::BufferUsages::STORAGE);
     let size = (cases.len() * 8) as u64;
     let hits = device.create_buffer(&wgpu::BufferDescriptor {
         label: None,
@@ -280,7 +257,47 @@ fn c_surfel_ray_casts_match_a_march_over_the_surface() {
     }
     ctx.queue.submit([encoder.finish()]);
     let bytes = read_buffer(&ctx, &hits, size).expect("hits readback");
-    let got: &[[f32; 2]] = bytemuck::cast_slice(&bytes);
+    bytemuck::cast_slice(&bytes).to_vec()
+}
+
+#[test]
+fn c_surfel_ray_casts_match_a_march_over_the_surface() {
+    let mut random = randoms();
+    let mut sphere = || loop {
+        let v = [random() * 2.0 - 1.0, random() * 2.0 - 1.0, random() * 2.0 - 1.0];
+        if dot(v, v) <= 1.0 && dot(v, v) > 1e-6 {
+            return v;
+        }
+    };
+    let eye = [0.0, 0.0, 0.0];
+    let mut cases = Vec::new();
+    let mut rays = Vec::new();
+    for case in 0..4000 {
+        // The paper's c-surfel, and ones a curvature bends less (curvature_bend), down to
+        // cones so flat that a careless quadratic loses them to rounding.
+        let bend = [1.0, 0.3, 1e-2, 1e-3, 0.0][case % 5];
+        let p = scaled(unit(sphere()), 10.0);
+        let radius = 0.5;
+        let n = unit(sphere());
+        // Aimed anywhere in a box a third wider than the c-surfel's bound.
+        let target = [0, 1, 2].map(|i| p[i] + sphere()[i] * radius * 1.9);
+        let e = unit(sub(target, eye));
+        let f = |v: V, w: f64| [v[0] as f32, v[1] as f32, v[2] as f32, w as f32];
+        cases.push(Case {
+            p: f(p, radius),
+            n: f(n, bend),
+            e: f(e, 0.0),
+        });
+        rays.push((p, radius, n, e, bend));
+    }
+    let uniforms = SurfelUniforms {
+        eye: [0.0, 0.0, 0.0, 1.0],
+        sides: SIDES,
+        rings: RINGS,
+        h: H as f32,
+        ..SurfelUniforms::zeroed()
+    };
+    let got = run("cast_rays", &uniforms, &cases);
     let (mut hit, mut missed) = (0, 0);
     for (k, (&(p, radius, n, e, bend), g)) in rays.iter().zip(got).enumerate() {
         match expect(eye, e, p, radius, n, bend) {
@@ -300,4 +317,42 @@ fn c_surfel_ray_casts_match_a_march_over_the_surface() {
     }
     // Enough of both to mean something.
     assert!(hit > 500 && missed > 500, "{hit} hits and {missed} misses checked");
+}
+
+#[test]
+fn a_c_surfel_bends_by_its_curvature_over_its_drawn_radius() {
+    // The stored radius in p.w, the drawn radius in n.w, the colour's alpha byte in e.x.
+    let scale = 0.8f32;
+    let uniforms = SurfelUniforms {
+        h: H as f32,
+        curvature: scale,
+        ..SurfelUniforms::zeroed()
+    };
+    let phi1 = phi(1.0) as f32;
+    let mut cases = Vec::new();
+    let mut want = Vec::new();
+    for (stored, drawn, alpha) in [
+        (0.5f32, 0.5f32, 64u32),
+        (0.5, 2.0, 64),
+        (2.0, 2.0, 255),
+        (0.1, 0.4, 16),
+        (1.0, 1.0, 0),
+        (0.25, 8.0, 255),
+    ] {
+        // The rim drops kappa drawn / 2 radii, kappa stored = scale sqrt(alpha / 255).
+        let kappa = scale * (alpha as f32 / 255.0).sqrt() / stored;
+        want.push((0.5 * kappa * drawn / phi1).min(1.0));
+        cases.push(Case {
+            p: [0.0, 0.0, 0.0, stored],
+            n: [0.0, 0.0, 1.0, drawn],
+            e: [alpha as f32, 0.0, 0.0, 0.0],
+        });
+    }
+    let got = run("bends", &uniforms, &cases);
+    for (k, (w, g)) in want.iter().zip(&got).enumerate() {
+        assert!((g[0] - w).abs() < 1e-4 * w.max(1e-3), "case {k}: bend {} for {w}", g[0]);
+    }
+    // Without a curvature every c-surfel bends as the paper's.
+    let paper = run("bends", &SurfelUniforms { curvature: 0.0, ..uniforms }, &cases);
+    assert!(paper.iter().all(|g| g[0] == 1.0), "{paper:?}");
 }
