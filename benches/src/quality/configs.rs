@@ -67,7 +67,8 @@ type Variant = (
 );
 
 /// Variants compared beside each pipeline's defaults: the surfels' planar and all-curved
-/// modes against their hybrid default (paper 001's Table 2); the filters' transparency, six
+/// modes against their hybrid default (paper 001's Table 2), and hybrid with the paper's
+/// c-surfels, each bent alike rather than by its curvature; the filters' transparency, six
 /// layers at half opacity (paper 004's Figure 17); the point shadows (paper 004, section 6) in
 /// the filters and carried through the pyramid's pull-push.
 const VARIANTS: &[Variant] = &[
@@ -84,6 +85,7 @@ const VARIANTS: &[Variant] = &[
     ),
     ("surfels", &[("mode", 0.0)], 1.0, "mode=planar"),
     ("surfels", &[("mode", 1.0)], 1.0, "mode=curved"),
+    ("surfels", &[("curvature", 0.0)], 1.0, "curvature=0"),
     (
         "filters",
         &[("layers", 6.0), ("opacity", 0.5)],

@@ -133,6 +133,7 @@ fn surfel_modes(rows: &[Row]) -> String {
     let mode = |setting: &str| match setting {
         "mode=planar" => "planar",
         "mode=curved" => "curved",
+        "curvature=0" => "hybrid, c-surfels bent by h alone",
         _ => "hybrid",
     };
     let Some(planar) = means.get("mode=planar") else {
