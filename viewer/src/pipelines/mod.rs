@@ -117,6 +117,10 @@ pub struct PipelineInfo {
     /// colouring mode); a pipeline that fetches its points' attributes itself leaves the
     /// projection's per-arena resolve pass out.
     pub reads_colour_plane: bool,
+    /// It reads the projection's depth and index planes, which a device with 64-bit atomics
+    /// unpacks from the keys for it; a pipeline that draws from the node arenas alone leaves
+    /// that pass out (picking reads the keys).
+    pub reads_planes: bool,
     /// The buffers its `make_targets` creates for a `width` x `height` screen, for the check
     /// against the adapter's limits before anything is created or compiled.
     pub screen_buffers: fn(width: u32, height: u32) -> Vec<ScreenBuffer>,

@@ -212,6 +212,9 @@ impl Renderer {
                     fused: pipeline.fused(params),
                     cull_back_faces: cull,
                     resolve_colours: info.reads_colour_plane,
+                    unpack_planes: info.reads_planes
+                        || info.reads_colour_plane
+                        || info.previous_frame,
                 },
                 count,
                 timer,

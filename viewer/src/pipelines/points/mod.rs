@@ -23,6 +23,7 @@ pub static INFO: PipelineInfo = PipelineInfo {
     previous_frame: false,
     cull_back_faces: false,
     reads_colour_plane: true,
+    reads_planes: true,
     screen_buffers: super::no_screen_buffers,
     create: |ctx| Ok(SHADING.create(ctx)),
     shaders: |int64| SHADING.shaders(int64),

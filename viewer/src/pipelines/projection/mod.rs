@@ -143,6 +143,8 @@ pub struct FrameDraw<'a> {
     pub cull_back_faces: bool,
     /// Resolve the colour plane (the pipeline reads it).
     pub resolve_colours: bool,
+    /// Unpack the 64-bit keys into the depth and index planes (the pipeline reads them).
+    pub unpack_planes: bool,
 }
 
 /// What one arena draws this frame.
@@ -387,7 +389,7 @@ impl Projection {
             );
             return true;
         }
-        if let (Some(unpack), Some(keys)) = (&self.unpack, keys) {
+        if let (Some(unpack), Some(keys), true) = (&self.unpack, keys, frame.unpack_planes) {
             let fb = frame_bind(
                 device,
                 screen,

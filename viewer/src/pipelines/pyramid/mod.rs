@@ -47,6 +47,7 @@ pub static INFO: PipelineInfo = PipelineInfo {
     previous_frame: false,
     cull_back_faces: false,
     reads_colour_plane: true,
+    reads_planes: true,
     screen_buffers: PyramidPasses::screen_buffers,
     create,
     shaders: |_| {

@@ -115,6 +115,7 @@ pub static INFO: PipelineInfo = PipelineInfo {
     previous_frame: false,
     cull_back_faces: false,
     reads_colour_plane: false,
+    reads_planes: false,
     screen_buffers: SurfelPasses::screen_buffers,
     create,
     shaders: |_| passes::shaders(),

@@ -91,6 +91,7 @@ pub static INFO: PipelineInfo = PipelineInfo {
     previous_frame: true,
     cull_back_faces: false,
     reads_colour_plane: true,
+    reads_planes: true,
     screen_buffers: TriangulateTargets::screen_buffers,
     create,
     shaders: passes::shaders,
