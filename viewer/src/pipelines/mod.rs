@@ -249,6 +249,9 @@ pub struct PipelineFrame<'a> {
     /// The view of the previous frame, whose depth `Screen::previous_depths` holds, for
     /// pipelines that declare `previous_frame` (`None` on their first frame and after a resize).
     pub previous: Option<ViewFrame>,
+    /// The projection took the 64-bit path: `screen.keys` holds this frame's keys (unpacked
+    /// into the depth and index planes only for a pipeline that `reads_planes`).
+    pub int64: bool,
     /// The dataset stores normals (else the `Normals` stream holds none).
     pub has_normals: bool,
     /// Its normals face the outside of the surfaces (`StreamDataset::normals_face_outward`).

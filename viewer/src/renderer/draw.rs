@@ -229,6 +229,7 @@ impl Renderer {
                     params,
                     view: &view,
                     previous: self.previous_view.filter(|_| info.previous_frame),
+                    int64,
                     has_normals,
                     normals_outward,
                     back_faces_culled: cull,

@@ -149,7 +149,7 @@ pub static INFO: PipelineInfo = PipelineInfo {
     previous_frame: false,
     cull_back_faces: true,
     reads_colour_plane: false,
-    reads_planes: true,
+    reads_planes: false,
     screen_buffers: FiltersTargets::screen_buffers,
     create,
     shaders: |int64| {

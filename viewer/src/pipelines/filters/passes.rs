@@ -19,6 +19,8 @@ use bytemuck::{Pod, Zeroable};
 /// The filters' uniforms and layer texels, first in every module.
 pub(super) const UNIFORMS_WGSL: &str = include_str!("uniforms.wgsl");
 const RESOLVE_WGSL: &str = include_str!("resolve.wgsl");
+const RESOLVE_PLANES_WGSL: &str = include_str!("resolve_planes.wgsl");
+const RESOLVE_KEYS_WGSL: &str = include_str!("resolve_keys.wgsl");
 const FILL_WGSL: &str = include_str!("fill.wgsl");
 /// The hole filling's 3x3 masks, shared with the light map's fill.
 pub(crate) const MASKS_WGSL: &str = include_str!("masks.wgsl");
@@ -92,7 +94,13 @@ pub fn shaders(int64: bool) -> Vec<ShaderSource> {
     v.extend([
         ShaderSource::new(
             "filters resolve",
-            &[UNIFORMS_WGSL, COLOUR_WGSL, OCT16_WGSL, RESOLVE_WGSL],
+            &[
+                UNIFORMS_WGSL,
+                COLOUR_WGSL,
+                OCT16_WGSL,
+                RESOLVE_WGSL,
+                RESOLVE_PLANES_WGSL,
+            ],
         ),
         ShaderSource::new("fill background", &[UNIFORMS_WGSL, MASKS_WGSL, FILL_WGSL])
             .with_entry("background"),
@@ -106,12 +114,26 @@ pub fn shaders(int64: bool) -> Vec<ShaderSource> {
         ShaderSource::new("filters args", &[UNIFORMS_WGSL, ARGS_WGSL]),
         ShaderSource::new("filters tiles", &[UNIFORMS_WGSL, TILES_WGSL]),
     ]);
+    if int64 {
+        v.push(ShaderSource::new(
+            "filters resolve keys",
+            &[
+                UNIFORMS_WGSL,
+                COLOUR_WGSL,
+                OCT16_WGSL,
+                RESOLVE_WGSL,
+                RESOLVE_KEYS_WGSL,
+            ],
+        ));
+    }
     v
 }
 
 pub struct FiltersPasses {
     peels: Peels,
     resolve: wgpu::ComputePipeline,
+    /// The resolve reading 64-bit keys, where the device has 64-bit atomics.
+    resolve_keys: Option<wgpu::ComputePipeline>,
     background: wgpu::ComputePipeline,
     occluded: wgpu::ComputePipeline,
     smooth: wgpu::ComputePipeline,
@@ -173,9 +195,15 @@ impl FiltersPasses {
             next()?,
             next()?,
         );
+        let resolve_keys = if ctx.int64_atomics {
+            Some(next()?)
+        } else {
+            None
+        };
         Ok(FiltersPasses {
             peels,
             resolve,
+            resolve_keys,
             background,
             occluded,
             smooth,
@@ -243,9 +271,11 @@ impl FiltersPasses {
 
         // The buffer holding the previous layer's final texels (the peel's reference).
         let mut reference: Option<usize> = None;
+        // The layer's pixels are 64-bit keys (else depth and index planes).
+        let mut keyed = frame.int64;
         for layer in 0..setup.layers.min(MAX_LAYERS) {
             if let Some(r) = reference {
-                self.peels.encode(PeelFrame {
+                keyed = self.peels.encode(PeelFrame {
                     device,
                     encoder,
                     timer,
@@ -255,7 +285,6 @@ impl FiltersPasses {
                     targets,
                     arenas: &arenas,
                     cull: setup.cull,
-                    pixel_groups: (gx, gy),
                 });
             }
 
@@ -272,27 +301,38 @@ impl FiltersPasses {
             }
             encoder.clear_buffer(&targets.tiles, 0, None);
             {
-                let (depths, indices) = if reference.is_some() {
-                    (&targets.peel_depths, &targets.peel_indices)
-                } else {
-                    (&screen.depths, &screen.indices)
+                let keys = match (keyed, reference.is_some()) {
+                    (false, _) => None,
+                    (true, false) => screen.keys.as_ref(),
+                    (true, true) => targets.peel_keys.as_ref(),
                 };
-                let fb = bind(
-                    device,
-                    &self.resolve,
-                    0,
-                    &[
-                        frame_entry(),
-                        fil_entry(),
-                        (2, depths.as_entire_binding()),
-                        (3, indices.as_entire_binding()),
-                        (4, targets.texels[current].as_entire_binding()),
-                        (5, targets.counters.as_entire_binding()),
-                        (6, targets.tiles.as_entire_binding()),
-                    ],
-                );
+                let (resolve, mut entries) = match (keys, &self.resolve_keys) {
+                    (Some(keys), Some(pipe)) => (pipe, vec![(2, keys.as_entire_binding())]),
+                    _ => {
+                        let (depths, indices) = if reference.is_some() {
+                            (&targets.peel_depths, &targets.peel_indices)
+                        } else {
+                            (&screen.depths, &screen.indices)
+                        };
+                        (
+                            &self.resolve,
+                            vec![
+                                (2, depths.as_entire_binding()),
+                                (3, indices.as_entire_binding()),
+                            ],
+                        )
+                    }
+                };
+                entries.extend([
+                    frame_entry(),
+                    fil_entry(),
+                    (4, targets.texels[current].as_entire_binding()),
+                    (5, targets.counters.as_entire_binding()),
+                    (6, targets.tiles.as_entire_binding()),
+                ]);
+                let fb = bind(device, resolve, 0, &entries);
                 let sb = step_bind(
-                    &self.resolve,
+                    resolve,
                     2,
                     Step {
                         layer,
@@ -306,7 +346,7 @@ impl FiltersPasses {
                     label: Some("filters resolve"),
                     timestamp_writes,
                 });
-                pass.set_pipeline(&self.resolve);
+                pass.set_pipeline(resolve);
                 pass.set_bind_group(0, &fb, &[]);
                 pass.set_bind_group(2, &sb, &[]);
                 for (g, [points, attributes, normals, lit], _) in &arenas {
@@ -315,7 +355,7 @@ impl FiltersPasses {
                     }
                     let ab = bind(
                         device,
-                        &self.resolve,
+                        resolve,
                         1,
                         &[
                             (0, points.as_entire_binding()),

@@ -1,7 +1,7 @@
 //! Depth peeling (paper 004, sections 4 and 5): the next layer's points, those farther than
 //! d~ (by the normal at grazing angles) behind the previous layer's filled depth, culled as the
-//! projection culls; one 64-bit pass and an unpack where the device has 64-bit atomics, else two
-//! 32-bit passes (as on GL), both leaving complemented depth and index planes.
+//! projection culls; one 64-bit pass where the device has 64-bit atomics, leaving complemented
+//! keys, else two 32-bit passes (as on GL), leaving complemented depth and index planes.
 
 use super::passes::{Entry, UNIFORMS_WGSL, bind};
 use super::targets::FiltersTargets;
@@ -16,7 +16,6 @@ use crate::pipelines::shader::ShaderSource;
 const PEEL_DEPTH_WGSL: &str = include_str!("peel_depth.wgsl");
 const PEEL_INDEX_WGSL: &str = include_str!("peel_index.wgsl");
 const PEEL_INT64_WGSL: &str = include_str!("peel_int64.wgsl");
-const PEEL_UNPACK_WGSL: &str = include_str!("peel_unpack.wgsl");
 const REACH_NORMAL_WGSL: &str = include_str!("reach_normal.wgsl");
 const REACH_FLAT_WGSL: &str = include_str!("reach_flat.wgsl");
 
@@ -45,10 +44,6 @@ pub fn shaders(int64: bool) -> Vec<ShaderSource> {
     if int64 {
         v.push(peel("peel int64", PEEL_INT64_WGSL, false));
         v.push(peel("peel int64 culled", PEEL_INT64_WGSL, true));
-        v.push(ShaderSource::new(
-            "peel unpack",
-            &[UNIFORMS_WGSL, PEEL_UNPACK_WGSL],
-        ));
     }
     v
 }
@@ -61,11 +56,10 @@ struct Peel {
     int64: Option<wgpu::ComputePipeline>,
 }
 
-/// The peels drawing every point and culling back faces, and the 64-bit keys' unpack.
+/// The peels drawing every point and culling back faces.
 pub struct Peels {
     plain: Peel,
     culled: Peel,
-    unpack: Option<wgpu::ComputePipeline>,
 }
 
 /// What one peel reads and writes.
@@ -81,7 +75,6 @@ pub struct PeelFrame<'a, 'e> {
     /// Per drawn arena: its range table, then points, attributes, normals, lit; and radii.
     pub arenas: &'a [(ArenaGroup, [&'a wgpu::Buffer; 4], &'a wgpu::Buffer)],
     pub cull: bool,
-    pub pixel_groups: (u32, u32),
 }
 
 impl Peels {
@@ -92,10 +85,10 @@ impl Peels {
     ) -> Result<Peels, ViewerError> {
         let (depth, index) = (next()?, next()?);
         let (depth_culled, index_culled) = (next()?, next()?);
-        let (wide, wide_culled, unpack) = if int64 {
-            (Some(next()?), Some(next()?), Some(next()?))
+        let (wide, wide_culled) = if int64 {
+            (Some(next()?), Some(next()?))
         } else {
-            (None, None, None)
+            (None, None)
         };
         Ok(Peels {
             plain: Peel {
@@ -108,20 +101,20 @@ impl Peels {
                 index: index_culled,
                 int64: wide_culled,
             },
-            unpack,
         })
     }
 
-    /// Encodes the peel of the layer after `f.reference` into the targets' peel planes.
-    pub fn encode(&self, f: PeelFrame) {
+    /// Encodes the peel of the layer after `f.reference` into the targets' peel keys (returns
+    /// true) or planes (false).
+    pub fn encode(&self, f: PeelFrame) -> bool {
         let peel = if f.cull { &self.culled } else { &self.plain };
-            // One 64-bit pass and an unpack where the device can, else two 32-bit passes.
-            let one_pass = match (&peel.int64, &self.unpack, &f.targets.peel_keys) {
-                (Some(p), Some(u), Some(k)) => Some((p, u, k)),
+            // One 64-bit pass where the device can, else two 32-bit passes.
+            let one_pass = match (&peel.int64, &f.targets.peel_keys) {
+                (Some(p), Some(k)) => Some((p, k)),
                 _ => None,
             };
             let mut passes: Vec<(&wgpu::ComputePipeline, wgpu::BindGroup)> = Vec::new();
-            if let Some((pipe, _, keys)) = one_pass {
+            if let Some((pipe, keys)) = one_pass {
                 f.encoder.clear_buffer(keys, 0, None);
                 let group = bind(
                     f.device,
@@ -186,21 +179,7 @@ impl Peels {
                     pass.dispatch_workgroups(x, y, 1);
                 }
             }
-            if let Some((_, unpack, keys)) = one_pass {
-                let group = bind(
-                    f.device,
-                    unpack,
-                    0,
-                    &[
-                        f.frame_entry.clone(),
-                        (2, keys.as_entire_binding()),
-                        (3, f.targets.peel_depths.as_entire_binding()),
-                        (4, f.targets.peel_indices.as_entire_binding()),
-                    ],
-                );
-                pass.set_pipeline(unpack);
-                pass.set_bind_group(0, &group, &[]);
-                pass.dispatch_workgroups(f.pixel_groups.0, f.pixel_groups.1, 1);
-            }
+            drop(pass);
+            one_pass.is_some()
     }
 }

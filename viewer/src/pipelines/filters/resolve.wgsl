@@ -1,9 +1,8 @@
-// A layer's texels from its depth and index planes, once per arena: each pixel whose point
-// lives in this arena takes that point's colour, opacity (by its class), normal (turned to face
-// the eye) and share of the light. Marks the layer, and the pixel's fill tile, as holding one.
+// A layer's texels from its depth and index planes or its 64-bit keys (resolve_planes.wgsl or
+// resolve_keys.wgsl gives `pixel_key`), once per arena: each pixel whose point lives in this
+// arena takes that point's colour, opacity (by its class), normal (turned to face the eye) and
+// share of the light. Marks the layer, and the pixel's fill tile, as holding one.
 @group(0) @binding(0) var<uniform> frame: Frame;
-@group(0) @binding(2) var<storage, read> depths: array<u32>;
-@group(0) @binding(3) var<storage, read> indices: array<u32>;
 @group(0) @binding(4) var<storage, read_write> texels: array<Texel>;
 @group(0) @binding(5) var<storage, read_write> counters: array<u32>;
 // The fill's tile flags (`occupied_slot`).
@@ -30,12 +29,9 @@ fn main(@builtin(global_invocation_id) id: vec3<u32>) {
         return;
     }
     let i = id.y * frame.width + id.x;
-    var depth = depths[i];
-    var g = indices[i];
-    if step.complemented != 0u {
-        depth = ~depth;
-        g = ~g;
-    }
+    let key = pixel_key(i);
+    let depth = key.x;
+    let g = key.y;
     if depth == EMPTY || (g >> frame.arena_shift) != ranges[0].start {
         return;
     }
