@@ -61,6 +61,7 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
                     "passes": p.passes,
                     "previous_frame": p.previous_frame,
                     "reads_colour_plane": p.reads_colour_plane,
+                    "reads_planes": p.reads_planes,
                 })
             })
             .collect();

@@ -212,9 +212,8 @@ impl Renderer {
                     fused: pipeline.fused(params),
                     cull_back_faces: cull,
                     resolve_colours: info.reads_colour_plane,
-                    unpack_planes: info.reads_planes
-                        || info.reads_colour_plane
-                        || info.previous_frame,
+                    // The kept depth of the previous frame is copied from the planes.
+                    unpack_planes: info.reads_planes || info.previous_frame,
                 },
                 count,
                 timer,

@@ -308,7 +308,13 @@ impl FiltersPasses {
                 };
                 let (resolve, mut entries) = match (keys, &self.resolve_keys) {
                     (Some(keys), Some(pipe)) => (pipe, vec![(2, keys.as_entire_binding())]),
-                    _ => {
+                    (Some(_), None) => {
+                        return Err(ViewerError::Gpu(
+                            "the filters were given 64-bit keys on a device without 64-bit atomics"
+                                .into(),
+                        ));
+                    }
+                    (None, _) => {
                         let (depths, indices) = if reference.is_some() {
                             (&targets.peel_depths, &targets.peel_indices)
                         } else {

@@ -143,7 +143,8 @@ pub struct FrameDraw<'a> {
     pub cull_back_faces: bool,
     /// Resolve the colour plane (the pipeline reads it).
     pub resolve_colours: bool,
-    /// Unpack the 64-bit keys into the depth and index planes (the pipeline reads them).
+    /// Unpack the 64-bit keys into the depth and index planes (the pipeline reads them; the
+    /// colour resolve does in any case).
     pub unpack_planes: bool,
 }
 
@@ -389,7 +390,9 @@ impl Projection {
             );
             return true;
         }
-        if let (Some(unpack), Some(keys), true) = (&self.unpack, keys, frame.unpack_planes) {
+        // The colour resolve reads the planes too.
+        let planes = frame.unpack_planes || frame.resolve_colours;
+        if let (Some(unpack), Some(keys), true) = (&self.unpack, keys, planes) {
             let fb = frame_bind(
                 device,
                 screen,

@@ -6,6 +6,7 @@
 use super::passes::{CURVED_WGSL, SURFEL_WGSL, SurfelUniforms, UNIFORMS_WGSL};
 use crate::gpu::readback::read_buffer;
 use crate::gpu::{GpuContext, ProjectionPath};
+use crate::pipelines::filters::bind;
 use crate::pipelines::projection::{FILTERS_WGSL, OCT16_WGSL, RANGE_SEARCH_WGSL};
 use crate::pipelines::shader::ShaderSource;
 use bytemuck::{Pod, Zeroable};
@@ -49,7 +50,7 @@ fn bends(@builtin(global_invocation_id) id: vec3<u32>) {
     }
     let c = cases[id.x];
     let colour = u32(c.e.x) << 24u | 0x5eedu;
-    hits[id.x] = vec2<f32>(curvature_bend(c.p.w, c.n.w, colour), 0.0);
+    hits[id.x] = vec2<f32>(curvature_bend(c.p.w, c.n.w, colour, phi(1.0)), 0.0);
 }
 "#;
 
@@ -226,26 +227,14 @@ fn run(entry: &'static str, uniforms: &SurfelUniforms, cases: &[Case]) -> Vec<[f
         usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
         mapped_at_creation: false,
     });
-    let group = |index: u32, entries: &[(u32, &wgpu::Buffer)]| {
-        let entries: Vec<wgpu::BindGroupEntry> = entries
-            .iter()
-            .map(|(binding, b)| wgpu::BindGroupEntry {
-                binding: *binding,
-                resource: b.as_entire_binding(),
-            })
-            .collect();
-        device.create_bind_group(&wgpu::BindGroupDescriptor {
-            label: None,
-            layout: &pipe.get_bind_group_layout(index),
-            entries: &entries,
-        })
-    };
-    let (g0, g2) = (group(0, &[(1, &surf)]), group(2, &[(0, &input), (1, &hits)]));
-    let g1 = device.create_bind_group(&wgpu::BindGroupDescriptor {
-        label: None,
-        layout: &pipe.get_bind_group_layout(1),
-        entries: &[],
-    });
+    let g0 = bind(device, &pipe, 0, &[(1, surf.as_entire_binding())]);
+    let g1 = bind(device, &pipe, 1, &[]);
+    let g2 = bind(
+        device,
+        &pipe,
+        2,
+        &[(0, input.as_entire_binding()), (1, hits.as_entire_binding())],
+    );
     let mut encoder = device.create_command_encoder(&Default::default());
     {
         let mut pass = encoder.begin_compute_pass(&Default::default());

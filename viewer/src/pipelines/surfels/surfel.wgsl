@@ -62,13 +62,14 @@ fn phi(r: f32) -> f32 {
 // work: adapt the surfel to its neighbourhood's curvature) its rim drops as far as a sphere of
 // that curvature falls away from its tangent plane there, kappa drawn / 2 radii, at most the
 // paper's phi(1) (bend 1); a plane's c-surfels are flat. Else the paper's c-surfel, bend 1.
-fn curvature_bend(stored: f32, drawn: f32, colour: u32) -> f32 {
+// `rim` is phi(1).
+fn curvature_bend(stored: f32, drawn: f32, colour: u32, rim: f32) -> f32 {
     if surf.curvature <= 0.0 || stored <= 0.0 {
         return 1.0;
     }
     // kappa stored = curvature sqrt(variation share), the share in the colour's alpha byte.
     let kappa_stored = surf.curvature * sqrt(f32(colour >> 24u) / 255.0);
-    return min(0.5 * kappa_stored * drawn / stored / phi(1.0), 1.0);
+    return min(0.5 * kappa_stored * drawn / stored / rim, 1.0);
 }
 
 // The surfel of this thread's point, or one with ok = false (no point, filtered, off screen,
@@ -106,10 +107,12 @@ fn surfel_at(group: u32, lane: u32) -> Surfel {
     }
     let clip = frame.view_proj * vec4<f32>(p, 1.0);
     if s.curved {
-        s.bend = curvature_bend(radii[idx], s.radius, points[idx].w);
+        let rim = phi(1.0);
+        s.bend = curvature_bend(radii[idx], s.radius, points[idx].w, rim);
+        s.drop = s.bend * rim;
         // A c-surfel whose rim drops no further than `flat_px` off its plane on the screen is
         // drawn planar, at a planar one's cost: a flat one (a plane's) always.
-        let drop_px = s.bend * phi(1.0) * s.radius * frame.focal_px / max(clip.w - s.radius, 1e-30);
+        let drop_px = s.drop * s.radius * frame.focal_px / max(clip.w - s.radius, 1e-30);
         s.curved = clip.w <= s.radius || drop_px > surf.flat_px;
     }
     // Each module draws one kind (DRAWS_CURVED) and leaves the other's surfels unmade, with
@@ -119,7 +122,7 @@ fn surfel_at(group: u32, lane: u32) -> Surfel {
         return s;
     }
     s.bend = select(0.0, s.bend, s.curved);
-    s.drop = s.bend * phi(1.0);
+    s.drop = select(0.0, s.drop, s.curved);
     s.bound = sqrt(1.0 + s.drop * s.drop);
     let reach = s.bound * s.radius;
     // Nearer than the near plane or beyond the far one: not drawn, as the projection drops
