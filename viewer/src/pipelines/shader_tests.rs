@@ -23,11 +23,32 @@ fn parse(s: &ShaderSource) -> naga::Module {
     }
 }
 
+/// Validates `module` and gives its `override` constants the source's values, as the pipeline
+/// does: a value for a constant the module does not declare fails.
 fn validate(s: &ShaderSource, module: &naga::Module, caps: Capabilities) {
     let mut v = Validator::new(ValidationFlags::all(), caps);
-    if let Err(e) = v.validate(module) {
-        panic!("{}: {}", s.label, e.emit_to_string(&s.compose()));
+    let info = match v.validate(module) {
+        Ok(info) => info,
+        Err(e) => panic!("{}: {}", s.label, e.emit_to_string(&s.compose())),
+    };
+    let mut constants = naga::back::PipelineConstants::default();
+    for (name, value) in &s.constants {
+        constants.insert(name.to_string(), *value);
     }
+    let entry = Some((naga::ShaderStage::Compute, s.entry));
+    if let Err(e) =
+        naga::back::pipeline_constants::process_overrides(module, &info, entry, &constants)
+    {
+        panic!("{}: the constants {:?}: {e}", s.label, s.constants);
+    }
+}
+
+/// Parses and validates `s` as a device with 64-bit atomics gets it.
+pub(crate) fn parse_and_validate(s: &ShaderSource) {
+    let caps = Capabilities::default()
+        | Capabilities::SHADER_INT64
+        | Capabilities::SHADER_INT64_ATOMIC_MIN_MAX;
+    validate(s, &parse(s), caps);
 }
 
 #[test]

@@ -8,6 +8,7 @@
 
 mod passes;
 mod peel;
+mod shade;
 mod targets;
 
 use super::params::{Auto, ParamSpec, ResolvedParams, Scale};
@@ -18,6 +19,7 @@ use crate::gpu::GpuContext;
 use crate::gpu::timing::Timer;
 use crate::renderer::SurfacePixel;
 use passes::{FiltersPasses, FrameSetup};
+use shade::ShadeVariant;
 use std::collections::BTreeMap;
 use targets::{FiltersTargets, LayerCounts, counts_from};
 
@@ -223,13 +225,22 @@ pub fn uniforms(view: &ViewFrame, params: &ResolvedParams, has_normals: bool) ->
         light,
         class_opacity,
         dtilde: value(params, "dtilde"),
-        antialias: value(params, "antialias") as u32,
         normals: has_normals as u32,
         opacity: value(params, "opacity"),
         lit_scale: 0.0,
         pad0: 0.0,
         pad1: 0.0,
         pad2: 0.0,
+        pad3: 0.0,
+    }
+}
+
+/// The shade pass for a frame with these parameters and uniforms.
+pub fn shade_variant(params: &ResolvedParams, u: &FiltersUniforms) -> ShadeVariant {
+    ShadeVariant {
+        antialias: value(params, "antialias") as u32,
+        estimate_normals: u.normals == 0,
+        phong: u.light[3] != 0.0 || u.lit_scale != 0.0,
     }
 }
 
@@ -276,16 +287,17 @@ impl Pipeline for Filters {
             (true, false) => Some(NOT_OUTWARD),
             (true, true) => None,
         };
-        let setup = FrameSetup {
-            layers: value(frame.params, "layers") as u32,
-            fill_iterations: value(frame.params, "fill_iterations") as u32,
-            cull: frame.back_faces_culled,
-        };
         let mut u = uniforms(frame.view, frame.params, frame.has_normals);
         let forward = glam::Vec3::from_slice(&u.forward[..3]);
         if let Some(shadow) = shadows::setup(frame, forward, u.dtilde) {
             u.lit_scale = self.shadows.encode(frame, encoder, &shadow, timer)?;
         }
+        let setup = FrameSetup {
+            layers: value(frame.params, "layers") as u32,
+            fill_iterations: value(frame.params, "fill_iterations") as u32,
+            cull: frame.back_faces_culled,
+            shade: shade_variant(frame.params, &u),
+        };
         self.passes.encode(frame, encoder, targets, &u, &setup, timer)
     }
 

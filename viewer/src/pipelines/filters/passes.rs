@@ -4,6 +4,7 @@
 //! smooth, and shade with anti-aliasing and front-to-back blending.
 
 use super::peel::{PeelFrame, Peels};
+use super::shade::{ShadePipelines, ShadeVariant};
 use super::targets::{FiltersTargets, STEP_STRIDE};
 use crate::ViewerError;
 use crate::gpu::GpuContext;
@@ -13,7 +14,7 @@ use crate::pipelines::projection::{
 };
 use crate::pipelines::shader::ShaderSource;
 use crate::pipelines::shadows::LIT_STREAM;
-use crate::pipelines::{LIGHTING_WGSL, PipelineFrame, PointStream};
+use crate::pipelines::{PipelineFrame, PointStream};
 use bytemuck::{Pod, Zeroable};
 
 /// The filters' uniforms and layer texels, first in every module.
@@ -25,7 +26,6 @@ const FILL_WGSL: &str = include_str!("fill.wgsl");
 /// The hole filling's 3x3 masks, shared with the light map's fill.
 pub(crate) const MASKS_WGSL: &str = include_str!("masks.wgsl");
 const SMOOTH_WGSL: &str = include_str!("smooth.wgsl");
-const SHADE_WGSL: &str = include_str!("shade.wgsl");
 const ARGS_WGSL: &str = include_str!("args.wgsl");
 const TILES_WGSL: &str = include_str!("tiles.wgsl");
 
@@ -69,13 +69,13 @@ pub struct FiltersUniforms {
     pub light: [f32; 4],
     pub class_opacity: [[f32; 4]; 5],
     pub dtilde: f32,
-    pub antialias: u32,
     pub normals: u32,
     pub opacity: f32,
     pub lit_scale: f32,
     pub pad0: f32,
     pub pad1: f32,
     pub pad2: f32,
+    pub pad3: f32,
 }
 
 /// What one dispatch works on, laid out as `Step` in uniforms.wgsl.
@@ -107,10 +107,7 @@ pub fn shaders(int64: bool) -> Vec<ShaderSource> {
         ShaderSource::new("fill occluded", &[UNIFORMS_WGSL, MASKS_WGSL, FILL_WGSL])
             .with_entry("occluded"),
         ShaderSource::new("smooth", &[UNIFORMS_WGSL, OCT16_WGSL, SMOOTH_WGSL]),
-        ShaderSource::new(
-            "filters shade",
-            &[UNIFORMS_WGSL, OCT16_WGSL, LIGHTING_WGSL, SHADE_WGSL],
-        ),
+        ShadeVariant::default().source(),
         ShaderSource::new("filters args", &[UNIFORMS_WGSL, ARGS_WGSL]),
         ShaderSource::new("filters tiles", &[UNIFORMS_WGSL, TILES_WGSL]),
     ]);
@@ -137,7 +134,7 @@ pub struct FiltersPasses {
     background: wgpu::ComputePipeline,
     occluded: wgpu::ComputePipeline,
     smooth: wgpu::ComputePipeline,
-    shade: wgpu::ComputePipeline,
+    shades: ShadePipelines,
     args: wgpu::ComputePipeline,
     tiles: wgpu::ComputePipeline,
 }
@@ -148,6 +145,7 @@ pub struct FrameSetup {
     pub fill_iterations: u32,
     /// The projection culled back faces (the peels then cull too).
     pub cull: bool,
+    pub shade: ShadeVariant,
 }
 
 /// A bind group entry: binding and resource.
@@ -207,14 +205,14 @@ impl FiltersPasses {
             background,
             occluded,
             smooth,
-            shade,
+            shades: ShadePipelines::new(ShadeVariant::default(), shade),
             args,
             tiles,
         })
     }
 
     pub fn encode(
-        &self,
+        &mut self,
         frame: &PipelineFrame,
         encoder: &mut wgpu::CommandEncoder,
         targets: &mut FiltersTargets,
@@ -223,6 +221,7 @@ impl FiltersPasses {
         timer: &mut Timer,
     ) -> Result<(), ViewerError> {
         let device = &frame.ctx.device;
+        let shade = self.shades.get(device, setup.shade);
         let screen = frame.screen;
         let queue = &frame.ctx.queue;
         queue.write_buffer(&targets.uniforms, 0, bytemuck::bytes_of(uniforms));
@@ -486,10 +485,10 @@ impl FiltersPasses {
             }
             {
                 let args_step = step_bind(&self.args, 1, layer_step);
-                let shade_step = step_bind(&self.shade, 1, layer_step);
+                let shade_step = step_bind(shade, 1, layer_step);
                 let fb = bind(
                     device,
-                    &self.shade,
+                    shade,
                     0,
                     &[
                         frame_entry(),
@@ -510,7 +509,7 @@ impl FiltersPasses {
                 if layer > 0 {
                     set_args(&mut pass, &args_step);
                 }
-                pass.set_pipeline(&self.shade);
+                pass.set_pipeline(shade);
                 pass.set_bind_group(0, &fb, &[]);
                 pass.set_bind_group(1, &shade_step, &[]);
                 if layer > 0 {

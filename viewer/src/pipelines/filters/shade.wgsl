@@ -14,6 +14,19 @@
 @group(0) @binding(6) var output: texture_storage_2d<rgba8unorm, write>;
 @group(1) @binding(0) var<uniform> step: Step;
 
+// The pass's mode, fixed when its pipeline is made (`ShadeVariant`): a compiled pass holds
+// only its own mode's code.
+const ANTIALIAS_OFF: u32 = 0u;
+const ANTIALIAS_SILHOUETTES: u32 = 1u;
+const ANTIALIAS_EDGES: u32 = 2u;
+// ANTIALIAS_*: which edges the Laplace filter smooths.
+override ANTIALIAS: u32 = ANTIALIAS_SILHOUETTES;
+// The points carry no normals: estimate them from the filled depth. Else a texel without one
+// (a point given none) faces the eye.
+override ESTIMATE_NORMALS: bool = false;
+// Blinn-Phong from `fil.light` with the texel's lit share; else the headlight.
+override PHONG: bool = false;
+
 // The ray through pixel position `px`, scaled so that linear depth d along it lies at eye + d * ray.
 fn pixel_ray(px: vec2<f32>) -> vec3<f32> {
     let ndc = vec2<f32>(px.x / f32(frame.width) * 2.0 - 1.0, 1.0 - px.y / f32(frame.height) * 2.0);
@@ -57,7 +70,7 @@ fn normal_of(t: Texel, q: vec2<i32>, to_eye: vec3<f32>) -> vec3<f32> {
     var n = to_eye;
     if (t.w & 1u) != 0u {
         n = decode_oct16(t.z);
-    } else {
+    } else if ESTIMATE_NORMALS {
         let d = bitcast<f32>(t.x);
         let c = cross(tangent(q, d, vec2<i32>(1, 0)), tangent(q, d, vec2<i32>(0, 1)));
         if dot(c, c) > 1e-20 {
@@ -74,7 +87,7 @@ fn eye_dir(q: vec2<i32>) -> vec3<f32> {
 // Texel `t` at `q` lit, its normal `n` and the unit direction to the eye given.
 fn lit_colour(t: Texel, n: vec3<f32>, to_eye: vec3<f32>) -> vec3<f32> {
     let rgb = unpack4x8unorm(t.y).rgb;
-    if fil.light.w == 0.0 && fil.lit_scale == 0.0 {
+    if !PHONG {
         return headlight(rgb, n, to_eye);
     }
     // Section 6: c = k_a + m (k_d + k_s), m the share of the light that reaches the point.
@@ -105,7 +118,7 @@ fn main(@builtin(global_invocation_id) id: vec3<u32>) {
         let d = bitcast<f32>(t.x);
         var colour = lit_colour(t, n, to_eye);
         var alpha = unpack4x8unorm(t.y).a;
-        if fil.antialias != ANTIALIAS_OFF {
+        if ANTIALIAS != ANTIALIAS_OFF {
             // Laplace on depth, background at depth 0 (section 3.5).
             var laplace = 4.0 * d;
             var silhouette = false;
@@ -114,7 +127,7 @@ fn main(@builtin(global_invocation_id) id: vec3<u32>) {
                 laplace -= bitcast<f32>(depth);
                 silhouette = silhouette || depth == 0u;
             }
-            if abs(laplace) > fil.dtilde && (fil.antialias == ANTIALIAS_EDGES || silhouette) {
+            if abs(laplace) > fil.dtilde && (ANTIALIAS == ANTIALIAS_EDGES || silhouette) {
                 var around = vec3<f32>(0.0);
                 var covered = 0.0;
                 for (var k = 0; k < 4; k++) {

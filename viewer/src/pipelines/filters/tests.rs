@@ -5,13 +5,15 @@ use super::passes::{
     ARGS_BACKGROUND, ARGS_LAYER, ARGS_OCCLUDED, COUNTERS, LIST_HEADER, LISTS, list_of,
 };
 use super::targets::{LayerCounts, counts_from};
+use super::shade::ShadeVariant;
 use super::{
-    CLASSES, DTILDE_SPACINGS, FiltersUniforms, INFO, MAX_ITERATIONS, MAX_LAYERS, Step, uniforms,
+    CLASSES, DTILDE_SPACINGS, FiltersUniforms, INFO, MAX_ITERATIONS, MAX_LAYERS, Step,
+    shade_variant, uniforms,
 };
 use crate::pipelines::ViewFrame;
 use crate::pipelines::params::{ParamValues, ResolvedParams};
 use crate::pipelines::shader_tests::{
-    module_named, most_storage_buffers, rust_layout, wgsl_const, wgsl_layout,
+    module_named, most_storage_buffers, parse_and_validate, rust_layout, wgsl_const, wgsl_layout,
 };
 
 
@@ -29,13 +31,13 @@ fn uniforms_steps_and_constants_match_their_wgsl() {
                 light,
                 class_opacity,
                 dtilde,
-                antialias,
                 normals,
                 opacity,
                 lit_scale,
                 pad0,
                 pad1,
-                pad2
+                pad2,
+                pad3
             }),
             "FiltersUniforms against Filters (uniforms.wgsl) in {label}"
         );
@@ -121,7 +123,11 @@ fn uniforms_take_the_light_the_class_opacities_and_the_drawn_spacing() {
     let u = uniforms(&view(), &resolved(&[]), true);
     assert_eq!(u.light, [0.0; 4], "the headlight by default");
     assert_eq!(u.dtilde, 0.25 * DTILDE_SPACINGS as f32, "d~ follows the drawn spacing");
-    assert_eq!(u.antialias, 1);
+    assert_eq!(
+        shade_variant(&resolved(&[]), &u),
+        ShadeVariant::default(),
+        "the default shade: silhouettes anti-aliased, normals carried, the headlight"
+    );
     assert!((glam::Vec3::from_slice(&u.eye[..3]) - glam::Vec3::new(0.0, -3.0, 0.0)).length() < 1e-5);
     assert!((glam::Vec3::from_slice(&u.forward[..3]) - glam::Vec3::Y).length() < 1e-5);
 
@@ -136,6 +142,44 @@ fn uniforms_take_the_light_the_class_opacities_and_the_drawn_spacing() {
     assert_eq!(u.opacity, 0.5);
     assert_eq!(u.dtilde, 0.1);
     assert_eq!(u.normals, 0);
+    let params = resolved(&[("light", "0,0,2"), ("antialias", "2")]);
+    assert_eq!(
+        shade_variant(&params, &u),
+        ShadeVariant {
+            antialias: 2,
+            estimate_normals: true,
+            phong: true
+        }
+    );
+    let mut shadowed = uniforms(&view(), &resolved(&[]), true);
+    shadowed.lit_scale = 1.0 / 16.0;
+    assert!(
+        shade_variant(&resolved(&[]), &shadowed).phong,
+        "shadows under the headlight need each texel's lit share"
+    );
+}
+
+/// Every shade variant validates and names only overrides shade.wgsl declares; each one's
+/// constants differ, so that no two modes compile to the same pass.
+#[test]
+fn every_shade_variant_validates() {
+    let mut seen = Vec::new();
+    for antialias in 0..=2 {
+        for estimate_normals in [false, true] {
+            for phong in [false, true] {
+                let s = ShadeVariant {
+                    antialias,
+                    estimate_normals,
+                    phong,
+                }
+                .source();
+                parse_and_validate(&s);
+                assert_eq!(s.constants.len(), 3, "{:?}", s.constants);
+                assert!(!seen.contains(&s.constants), "{:?}", s.constants);
+                seen.push(s.constants);
+            }
+        }
+    }
 }
 
 #[test]

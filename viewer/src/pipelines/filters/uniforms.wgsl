@@ -15,8 +15,6 @@ struct Filters {
     class_opacity: array<vec4<f32>, 5>,
     // The minimum distance between two surface layers (section 3.3), in dataset units.
     dtilde: f32,
-    // ANTIALIAS_*.
-    antialias: u32,
     // 1: the points carry normals (else the shading estimates them from the filled depth).
     normals: u32,
     // The opacity of classes without an entry of their own.
@@ -26,15 +24,13 @@ struct Filters {
     pad0: f32,
     pad1: f32,
     pad2: f32,
+    pad3: f32,
 }
 
 @group(0) @binding(1) var<uniform> fil: Filters;
 
 // Classes with an opacity of their own (the ASPRS standard classes 0 to 18).
 const CLASSES: u32 = 19u;
-const ANTIALIAS_OFF: u32 = 0u;
-const ANTIALIAS_SILHOUETTES: u32 = 1u;
-const ANTIALIAS_EDGES: u32 = 2u;
 
 // What one dispatch works on: its layer and fill iteration, and for the resolve whether its
 // depth and index planes hold complements (the peeled layers) or the projection's planes.
