@@ -77,3 +77,31 @@ impl ShaderSource {
         })
     }
 }
+
+/// Pipelines compiled per value of their `override` constants (a key), as frames ask for them:
+/// a parameter that changes a pass's code compiles its variant once, and switching back finds
+/// it here.
+pub struct Variants<K, P> {
+    compiled: Vec<(K, P)>,
+}
+
+impl<K: PartialEq + Copy, P> Variants<K, P> {
+    /// With `first`, compiled up front with the pipeline's other passes.
+    pub fn new(key: K, first: P) -> Variants<K, P> {
+        Variants {
+            compiled: vec![(key, first)],
+        }
+    }
+
+    /// The variant of `key`, made by `make` the first time.
+    pub fn get(&mut self, key: K, make: impl FnOnce(K) -> P) -> &P {
+        let at = match self.compiled.iter().position(|(k, _)| *k == key) {
+            Some(at) => at,
+            None => {
+                self.compiled.push((key, make(key)));
+                self.compiled.len() - 1
+            }
+        };
+        &self.compiled[at].1
+    }
+}

@@ -221,7 +221,9 @@ impl FiltersPasses {
         timer: &mut Timer,
     ) -> Result<(), ViewerError> {
         let device = &frame.ctx.device;
-        let shade = self.shades.get(device, setup.shade);
+        let shade = self
+            .shades
+            .get(setup.shade, |v| v.source().compute(device, None));
         let screen = frame.screen;
         let queue = &frame.ctx.queue;
         queue.write_buffer(&targets.uniforms, 0, bytemuck::bytes_of(uniforms));

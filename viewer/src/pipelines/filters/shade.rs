@@ -6,7 +6,7 @@
 use super::passes::UNIFORMS_WGSL;
 use crate::pipelines::LIGHTING_WGSL;
 use crate::pipelines::projection::OCT16_WGSL;
-use crate::pipelines::shader::ShaderSource;
+use crate::pipelines::shader::{ShaderSource, Variants};
 
 const SHADE_WGSL: &str = include_str!("shade.wgsl");
 
@@ -46,29 +46,5 @@ impl ShadeVariant {
     }
 }
 
-/// The shade pipelines compiled so far, one per variant a frame asked for. Changing a mode in
-/// the panel compiles its variant once; switching back finds it here.
-pub struct ShadePipelines {
-    compiled: Vec<(ShadeVariant, wgpu::ComputePipeline)>,
-}
-
-impl ShadePipelines {
-    /// With `first`, compiled up front with the pipeline's other passes.
-    pub fn new(variant: ShadeVariant, first: wgpu::ComputePipeline) -> ShadePipelines {
-        ShadePipelines {
-            compiled: vec![(variant, first)],
-        }
-    }
-
-    pub fn get(&mut self, device: &wgpu::Device, variant: ShadeVariant) -> &wgpu::ComputePipeline {
-        let at = match self.compiled.iter().position(|(v, _)| *v == variant) {
-            Some(at) => at,
-            None => {
-                let pipe = variant.source().compute(device, None);
-                self.compiled.push((variant, pipe));
-                self.compiled.len() - 1
-            }
-        };
-        &self.compiled[at].1
-    }
-}
+/// The shade pipelines compiled so far, one per variant a frame asked for.
+pub type ShadePipelines = Variants<ShadeVariant, wgpu::ComputePipeline>;

@@ -62,7 +62,8 @@ struct Case {
     e: [f32; 4],
 }
 
-const SIDES: u32 = 6;
+/// The n-gons the ray casts are checked for: even and odd (the outline test's sign differs).
+const SIDES: [u32; 2] = [6, 5];
 const RINGS: u32 = 4;
 const H: f64 = 1.0;
 
@@ -108,10 +109,10 @@ fn basis(n: V) -> (V, V) {
     )
 }
 
-/// The radial distance at which the n-gon's outline lies in the direction of `c`.
-fn outline(c: V, n: V) -> f64 {
+/// The radial distance at which the `sides`-gon's outline lies in the direction of `c`.
+fn outline(c: V, n: V, sides: u32) -> f64 {
     let (b1, b2) = basis(n);
-    let half = std::f64::consts::PI / SIDES as f64;
+    let half = std::f64::consts::PI / sides as f64;
     let theta = dot(c, b2).atan2(dot(c, b1)) + std::f64::consts::PI;
     let off = theta - 2.0 * half * (theta / (2.0 * half)).floor() - half;
     half.cos() / off.cos()
@@ -127,7 +128,7 @@ enum Expect {
     Either,
 }
 
-fn expect(eye: V, e: V, p: V, radius: f64, n: V, bend: f64) -> Expect {
+fn expect(eye: V, e: V, p: V, radius: f64, n: V, bend: f64, sides: u32) -> Expect {
     let bound = (1.0 + (bend * phi(1.0)).powi(2)).sqrt() * radius;
     let tc = dot(sub(p, eye), e);
     let off = sub(sub(eye, p), scaled(e, -tc));
@@ -165,7 +166,7 @@ fn expect(eye: V, e: V, p: V, radius: f64, n: V, bend: f64) -> Expect {
                 }
             }
             let (_, u, c) = at(lo);
-            let rim = outline(c, n);
+            let rim = outline(c, n, sides);
             if u < rim - 2e-3 {
                 return if lo > 0.0 { Expect::Hit(lo) } else { Expect::Either };
             }
@@ -193,8 +194,9 @@ fn randoms() -> impl FnMut() -> f64 {
     }
 }
 
-/// Runs `entry` of KERNEL_WGSL over `cases`, with `uniforms`; its output per case.
-fn run(entry: &'static str, uniforms: &SurfelUniforms, cases: &[Case]) -> Vec<[f32; 2]> {
+/// Runs `entry` of KERNEL_WGSL compiled for `sides`-gons over `cases`, with `uniforms`; its
+/// output per case.
+fn run(entry: &'static str, sides: u32, uniforms: &SurfelUniforms, cases: &[Case]) -> Vec<[f32; 2]> {
     let ctx = GpuContext::new(ProjectionPath::Auto).expect("GPU adapter");
     let device = &ctx.device;
     let source = ShaderSource::new(
@@ -209,7 +211,8 @@ fn run(entry: &'static str, uniforms: &SurfelUniforms, cases: &[Case]) -> Vec<[f
             KERNEL_WGSL,
         ],
     )
-    .with_entry(entry);
+    .with_entry(entry)
+    .with_constant("SIDES", sides as f64);
     let pipe = source.compute(device, None);
     let buffer = |contents: &[u8], usage| {
         device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
@@ -281,31 +284,32 @@ fn c_surfel_ray_casts_match_a_march_over_the_surface() {
     }
     let uniforms = SurfelUniforms {
         eye: [0.0, 0.0, 0.0, 1.0],
-        sides: SIDES,
         rings: RINGS,
         h: H as f32,
         ..SurfelUniforms::zeroed()
     };
-    let got = run("cast_rays", &uniforms, &cases);
-    let (mut hit, mut missed) = (0, 0);
-    for (k, (&(p, radius, n, e, bend), g)) in rays.iter().zip(got).enumerate() {
-        match expect(eye, e, p, radius, n, bend) {
-            Expect::Hit(t) => {
-                hit += 1;
-                assert!(
-                    g[0] > 0.0 && (g[0] as f64 - t).abs() < 2e-3 * radius,
-                    "case {k}: the surface is {t} along the ray, the cast says {g:?}"
-                );
+    for sides in SIDES {
+        let got = run("cast_rays", sides, &uniforms, &cases);
+        let (mut hit, mut missed) = (0, 0);
+        for (k, (&(p, radius, n, e, bend), g)) in rays.iter().zip(got).enumerate() {
+            match expect(eye, e, p, radius, n, bend, sides) {
+                Expect::Hit(t) => {
+                    hit += 1;
+                    assert!(
+                        g[0] > 0.0 && (g[0] as f64 - t).abs() < 2e-3 * radius,
+                        "{sides} sides, case {k}: the surface is {t} along the ray, the cast says {g:?}"
+                    );
+                }
+                Expect::Miss => {
+                    missed += 1;
+                    assert!(g[0] < 0.0, "{sides} sides, case {k}: the ray misses, the cast says {g:?}");
+                }
+                Expect::Either => {}
             }
-            Expect::Miss => {
-                missed += 1;
-                assert!(g[0] < 0.0, "case {k}: the ray misses, the cast says {g:?}");
-            }
-            Expect::Either => {}
         }
+        // Enough of both to mean something.
+        assert!(hit > 500 && missed > 500, "{sides} sides: {hit} hits and {missed} misses checked");
     }
-    // Enough of both to mean something.
-    assert!(hit > 500 && missed > 500, "{hit} hits and {missed} misses checked");
 }
 
 #[test]
@@ -337,11 +341,11 @@ fn a_c_surfel_bends_by_its_curvature_over_its_drawn_radius() {
             e: [alpha as f32, 0.0, 0.0, 0.0],
         });
     }
-    let got = run("bends", &uniforms, &cases);
+    let got = run("bends", SIDES[0], &uniforms, &cases);
     for (k, (w, g)) in want.iter().zip(&got).enumerate() {
         assert!((g[0] - w).abs() < 1e-4 * w.max(1e-3), "case {k}: bend {} for {w}", g[0]);
     }
     // Without a curvature every c-surfel bends as the paper's.
-    let paper = run("bends", &SurfelUniforms { curvature: 0.0, ..uniforms }, &cases);
+    let paper = run("bends", SIDES[0], &SurfelUniforms { curvature: 0.0, ..uniforms }, &cases);
     assert!(paper.iter().all(|g| g[0] == 1.0), "{paper:?}");
 }

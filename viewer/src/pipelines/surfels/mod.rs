@@ -118,7 +118,7 @@ pub static INFO: PipelineInfo = PipelineInfo {
     reads_planes: false,
     screen_buffers: SurfelPasses::screen_buffers,
     create,
-    shaders: |_| passes::shaders(),
+    shaders: |_| passes::shaders(passes::DEFAULT_SIDES),
 };
 
 /// What the pipeline says of a dataset without normals, in the panel and the stats.
@@ -188,8 +188,9 @@ impl Pipeline for Surfels {
             (true, false) => passes::Normals::FacingEye,
         };
         let uniforms = SurfelUniforms::new(frame.view, frame.params, normals, frame.curvature_scale);
+        let sides = param(frame.params, "sides") as u32;
         self.passes
-            .encode(frame, encoder, targets, &uniforms, timer)
+            .encode(frame, encoder, targets, &uniforms, sides, timer)
     }
 
     fn after_submit(&mut self) {

@@ -13,7 +13,7 @@ use crate::pipelines::projection::{
     plane_buffer,
     COLOUR_WGSL, FILTERS_WGSL, GROUP_SIZE, OCT16_WGSL, RANGE_SEARCH_WGSL, pixel_groups, range_table, split_groups,
 };
-use crate::pipelines::shader::ShaderSource;
+use crate::pipelines::shader::{ShaderSource, Variants};
 use crate::pipelines::{LIGHTING_WGSL, PipelineFrame, PointStream, ScreenBuffer, ViewFrame};
 use crate::renderer::SurfacePixel;
 use bytemuck::{Pod, Zeroable};
@@ -61,7 +61,7 @@ pub struct SurfelUniforms {
     pub forward: [f32; 4],
     pub right: [f32; 4],
     pub up: [f32; 4],
-    pub sides: u32,
+    pub pad0: u32,
     pub rings: u32,
     pub mode: u32,
     pub normals: u32,
@@ -89,7 +89,7 @@ impl SurfelUniforms {
             forward: rays.forward,
             right: rays.right,
             up: rays.up,
-            sides: param(params, "sides") as u32,
+            pad0: 0,
             rings: param(params, "rings") as u32,
             mode: param(params, "mode") as u32,
             normals: normals as u32,
@@ -112,14 +112,17 @@ impl SurfelUniforms {
 /// speed on lavapipe), then the shading. Where curved surfels can exist, the planar depth
 /// pass lists them (a third depth module, so that the planar mode does not carry the listing),
 /// and the curved modules run over that list alone.
-pub fn shaders() -> Vec<ShaderSource> {
-    let mut v = Vec::new();
-    for (label, shape, thread) in [
-        ("surfel depth planar", PLANAR_WGSL, THREAD_ALL_WGSL),
-        ("surfel depth listing", PLANAR_WGSL, THREAD_LISTING_WGSL),
-        ("surfel depth curved", CURVED_WGSL, THREAD_LISTED_WGSL),
-    ] {
-        v.push(ShaderSource::new(
+pub fn shaders(sides: u32) -> Vec<ShaderSource> {
+    let mut v = sided_shaders(sides).to_vec();
+    v.push(shade_shader());
+    v
+}
+
+/// The depth and the blend modules, with SIDES `sides`: depth planar, listing and curved,
+/// then blend planar and curved.
+fn sided_shaders(sides: u32) -> [ShaderSource; 5] {
+    let depth = |label, shape, thread| {
+        ShaderSource::new(
             label,
             &[
                 UNIFORMS_WGSL,
@@ -131,13 +134,11 @@ pub fn shaders() -> Vec<ShaderSource> {
                 thread,
                 DEPTH_WGSL,
             ],
-        ));
-    }
-    for (label, shape, thread) in [
-        ("surfel blend planar", PLANAR_WGSL, THREAD_ALL_WGSL),
-        ("surfel blend curved", CURVED_WGSL, THREAD_LISTED_WGSL),
-    ] {
-        v.push(ShaderSource::new(
+        )
+        .with_constant("SIDES", sides as f64)
+    };
+    let blend = |label, shape, thread| {
+        ShaderSource::new(
             label,
             &[
                 UNIFORMS_WGSL,
@@ -151,13 +152,23 @@ pub fn shaders() -> Vec<ShaderSource> {
                 thread,
                 BLEND_WGSL,
             ],
-        ));
-    }
-    v.push(ShaderSource::new(
+        )
+        .with_constant("SIDES", sides as f64)
+    };
+    [
+        depth("surfel depth planar", PLANAR_WGSL, THREAD_ALL_WGSL),
+        depth("surfel depth listing", PLANAR_WGSL, THREAD_LISTING_WGSL),
+        depth("surfel depth curved", CURVED_WGSL, THREAD_LISTED_WGSL),
+        blend("surfel blend planar", PLANAR_WGSL, THREAD_ALL_WGSL),
+        blend("surfel blend curved", CURVED_WGSL, THREAD_LISTED_WGSL),
+    ]
+}
+
+fn shade_shader() -> ShaderSource {
+    ShaderSource::new(
         "surfel shade",
         &[UNIFORMS_WGSL, SUMS_WGSL, LIGHTING_WGSL, SHADE_WGSL],
-    ));
-    v
+    )
 }
 
 /// A pass's modules: for planar surfels, for planar ones listing the curved (the depth pass
@@ -168,35 +179,44 @@ struct Kinds {
     curved: wgpu::ComputePipeline,
 }
 
-pub struct SurfelPasses {
+/// The depth and blend passes for one number of sides (`SIDES` in surfel.wgsl).
+struct Sided {
     depth: Kinds,
     blend: Kinds,
+}
+
+pub struct SurfelPasses {
+    sided: Variants<u32, Sided>,
     shade: wgpu::ComputePipeline,
+}
+
+/// The `sides` a pipeline is made with before a frame asks for others.
+pub const DEFAULT_SIDES: u32 = 6;
+
+/// The depth and blend passes with SIDES `sides`.
+fn compile_sided(device: &wgpu::Device, sides: u32) -> Sided {
+    let [depth_planar, listing, depth_curved, blend_planar, blend_curved] =
+        sided_shaders(sides).map(|s| s.compute(device, None));
+    Sided {
+        depth: Kinds {
+            planar: depth_planar,
+            listing: Some(listing),
+            curved: depth_curved,
+        },
+        blend: Kinds {
+            planar: blend_planar,
+            listing: None,
+            curved: blend_curved,
+        },
+    }
 }
 
 impl SurfelPasses {
     pub fn new(ctx: &GpuContext) -> Result<SurfelPasses, ViewerError> {
         ctx.require_storage_buffers("surfels", STORAGE_BUFFERS)?;
-        let mut compiled = shaders()
-            .into_iter()
-            .map(|s| s.compute(&ctx.device, None));
-        let mut next = || {
-            compiled
-                .next()
-                .ok_or_else(|| ViewerError::Gpu("a surfel shader is missing".into()))
-        };
         Ok(SurfelPasses {
-            depth: Kinds {
-                planar: next()?,
-                listing: Some(next()?),
-                curved: next()?,
-            },
-            blend: Kinds {
-                planar: next()?,
-                listing: None,
-                curved: next()?,
-            },
-            shade: next()?,
+            sided: Variants::new(DEFAULT_SIDES, compile_sided(&ctx.device, DEFAULT_SIDES)),
+            shade: shade_shader().compute(&ctx.device, None),
         })
     }
 
@@ -222,15 +242,18 @@ impl SurfelPasses {
         ]
     }
 
+    /// `sides`: the n-gons' corners (the `sides` parameter).
     pub fn encode(
-        &self,
+        &mut self,
         frame: &PipelineFrame,
         encoder: &mut wgpu::CommandEncoder,
         targets: &mut SurfelTargets,
         uniforms: &SurfelUniforms,
+        sides: u32,
         timer: &mut Timer,
     ) -> Result<(), ViewerError> {
         let device = &frame.ctx.device;
+        let sided = self.sided.get(sides, |n| compile_sided(device, n));
         let screen = frame.screen;
         frame
             .ctx
@@ -336,14 +359,14 @@ impl SurfelPasses {
         };
         per_point(
             "surfel depth",
-            &self.depth,
+            &sided.depth,
             [&targets.planes, &targets.counts],
             timer,
             encoder,
         );
         per_point(
             "surfel blend",
-            &self.blend,
+            &sided.blend,
             [&targets.planes, &targets.sums],
             timer,
             encoder,

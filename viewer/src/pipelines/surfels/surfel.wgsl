@@ -9,6 +9,10 @@
 // Words before the slots in the list of curved surfels (thread_listing.wgsl).
 const LIST_HEADER: u32 = 4u;
 
+// Corners of the planar n-gon (and of each ring of the c-surfel): an override, fixed when the
+// pipeline is made, so that the n-gon test's rounds are known to the compiler.
+override SIDES: u32 = 6u;
+
 // Largest screen reach of a surfel, in pixels: a thread walks its box alone.
 const MAX_REACH_PX: f32 = 16.0;
 const PI: f32 = 3.14159265;
@@ -42,7 +46,7 @@ struct Surfel {
     // n-gon's corners.
     b1: vec3<f32>,
     b2: vec3<f32>,
-    // The n-gon's apothem over its circumradius, cos(pi / sides).
+    // The n-gon's apothem over its circumradius, cos(pi / SIDES).
     apothem: f32,
     // Linear depth of the centre.
     depth: f32,
@@ -150,7 +154,7 @@ fn surfel_at(group: u32, lane: u32) -> Surfel {
     return s;
 }
 
-// The n-gon's basis and apothem, from the normal and the frame's sides.
+// The n-gon's basis and apothem, from the normal and SIDES.
 fn set_shape(s: ptr<function, Surfel>) {
     let n = (*s).n;
     let sgn = select(-1.0, 1.0, n.z >= 0.0);
@@ -158,7 +162,7 @@ fn set_shape(s: ptr<function, Surfel>) {
     let b = n.x * n.y * a;
     (*s).b1 = vec3<f32>(1.0 + sgn * n.x * n.x * a, sgn * b, -sgn * n.x);
     (*s).b2 = vec3<f32>(b, sgn + n.y * n.y * a, -n.y);
-    (*s).apothem = cos(PI / f32(surf.sides));
+    (*s).apothem = cos(PI / f32(SIDES));
 }
 
 // The screen box of the surfel's bounding box (its square of the plane, and for a c-surfel the
@@ -230,7 +234,12 @@ fn pixel_box(s: Surfel) -> vec4<u32> {
 }
 
 // Whether a point of the surfel's plane at offset c (radius units) from its centre, at
-// distance u, lies inside its n-gon (corners at angles 2k pi / sides, paper section 3.2).
+// distance u, lies inside its n-gon (corners at angles 2k pi / SIDES, paper section 3.2).
+// With off the angle between c and the nearest edge's normal, it does where u cos(off) <=
+// apothem: |off| >= acos(apothem / u). Both sides times SIDES lie in [0, pi], where cos
+// falls, so: where cos(SIDES off) <= cos(SIDES acos(apothem / u)) = T(apothem / u), T the
+// Chebyshev polynomial of degree SIDES. No angle is taken: atan2 and cos for every pixel of
+// every surfel were a fifth of the surfel passes on lavapipe.
 fn inside_polygon(s: Surfel, c: vec3<f32>, u: f32) -> bool {
     if u > 1.0 {
         return false;
@@ -238,11 +247,23 @@ fn inside_polygon(s: Surfel, c: vec3<f32>, u: f32) -> bool {
     if u <= s.apothem {
         return true;
     }
-    let half = PI / f32(surf.sides);
-    let theta = atan2(dot(c, s.b2), dot(c, s.b1)) + PI;
-    let sector = 2.0 * half;
-    let off = theta - sector * floor(theta / sector) - half;
-    return u * cos(off) <= s.apothem;
+    // T(cos theta) = cos(SIDES theta), theta the angle of c from b1; the corners lie at theta
+    // = 2k pi / SIDES - pi, so cos(SIDES off) = -(-1)^SIDES cos(SIDES theta).
+    let t = chebyshev_sides(vec2<f32>(dot(c, s.b1) / u, s.apothem / u));
+    let parity = select(-1.0, 1.0, (SIDES & 1u) != 0u);
+    return parity * t.x <= t.y;
+}
+
+// The Chebyshev polynomial of degree SIDES at both of x (in [-1, 1]), by its recurrence.
+fn chebyshev_sides(x: vec2<f32>) -> vec2<f32> {
+    var previous = vec2<f32>(1.0);
+    var t = x;
+    for (var k = 1u; k < SIDES; k++) {
+        let next = 2.0 * x * t - previous;
+        previous = t;
+        t = next;
+    }
+    return t;
 }
 
 // The paper's alpha texture, exp(-(distance from the texture centre)^2 / d^2) with the rim at

@@ -6,7 +6,7 @@ use super::passes::{
 };
 use crate::pipelines::projection::{GROUP_SIZE, GpuRange, range_table};
 use crate::pipelines::shader_tests::{
-    module_named, most_storage_buffers, rust_layout, wgsl_const, wgsl_layout,
+    module_named, most_storage_buffers, parse_and_validate, rust_layout, wgsl_const, wgsl_layout,
 };
 
 
@@ -27,7 +27,7 @@ fn uniforms_and_ranges_match_their_wgsl() {
                 forward,
                 right,
                 up,
-                sides,
+                pad0,
                 rings,
                 mode,
                 normals,
@@ -89,9 +89,26 @@ fn range_tables_carry_the_lod_beside_each_range_and_count_groups() {
 #[test]
 fn the_storage_buffer_check_counts_the_largest_pass() {
     assert_eq!(
-        most_storage_buffers(&super::passes::shaders()),
+        most_storage_buffers(&super::passes::shaders(super::passes::DEFAULT_SIDES)),
         Some(STORAGE_BUFFERS)
     );
+}
+
+/// Every `sides` the parameter allows compiles: SIDES is an override of the depth and blend
+/// modules, and each is given it.
+#[test]
+fn the_modules_take_every_number_of_sides() {
+    for sides in [3, 5, 6, 32] {
+        let shaders = super::passes::shaders(sides);
+        for s in &shaders {
+            parse_and_validate(s);
+        }
+        let given = shaders
+            .iter()
+            .filter(|s| s.constants == [("SIDES", sides as f64)])
+            .count();
+        assert_eq!(given, 5, "the depth and the blend modules, for {sides} sides");
+    }
 }
 
 /// The curved modules draw the surfels the listing depth module lists: the listing module and

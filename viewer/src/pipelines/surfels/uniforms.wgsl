@@ -7,8 +7,7 @@ struct Surfels {
     forward: vec4<f32>,
     right: vec4<f32>,
     up: vec4<f32>,
-    // Corners of the planar n-gon (and of each ring of the c-surfel).
-    sides: u32,
+    pad0: u32,
     // Rings of the c-surfel's mesh: its profile is linear between them.
     rings: u32,
     // MODE_*.
