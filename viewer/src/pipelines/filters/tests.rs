@@ -159,11 +159,9 @@ fn uniforms_take_the_light_the_class_opacities_and_the_drawn_spacing() {
     );
 }
 
-/// Every shade variant validates and names only overrides shade.wgsl declares; each one's
-/// constants differ, so that no two modes compile to the same pass.
+/// Every shade variant validates and names only overrides shade.wgsl declares.
 #[test]
 fn every_shade_variant_validates() {
-    let mut seen = Vec::new();
     for antialias in 0..=2 {
         for estimate_normals in [false, true] {
             for phong in [false, true] {
@@ -175,8 +173,6 @@ fn every_shade_variant_validates() {
                 .source();
                 parse_and_validate(&s);
                 assert_eq!(s.constants.len(), 3, "{:?}", s.constants);
-                assert!(!seen.contains(&s.constants), "{:?}", s.constants);
-                seen.push(s.constants);
             }
         }
     }

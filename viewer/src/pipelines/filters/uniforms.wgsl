@@ -15,7 +15,8 @@ struct Filters {
     class_opacity: array<vec4<f32>, 5>,
     // The minimum distance between two surface layers (section 3.3), in dataset units.
     dtilde: f32,
-    // 1: the points carry normals (else the shading estimates them from the filled depth).
+    // 1: the points carry normals (the resolve reads them; else the shade, compiled with
+    // ESTIMATE_NORMALS, estimates them from the filled depth).
     normals: u32,
     // The opacity of classes without an entry of their own.
     opacity: f32,

@@ -38,7 +38,8 @@ fn uniforms_and_ranges_match_their_wgsl() {
                 curvature,
                 flat_px,
                 pad1,
-                pad2
+                pad2,
+                ring_phi
             }),
             "SurfelUniforms against Surfels (uniforms.wgsl) in {label}"
         );
@@ -94,8 +95,8 @@ fn the_storage_buffer_check_counts_the_largest_pass() {
     );
 }
 
-/// Every `sides` the parameter allows compiles: SIDES is an override of the depth and blend
-/// modules, and each is given it.
+/// `sides` from the parameter's least to its most, odd and even, compiles: SIDES is an override
+/// of the depth and blend modules, and each is given it.
 #[test]
 fn the_modules_take_every_number_of_sides() {
     for sides in [3, 5, 6, 32] {
