@@ -50,7 +50,7 @@ fn intersect(s: Surfel, e: vec3<f32>) -> vec2<f32> {
     for (var k = 0u; k < surf.rings; k++) {
         let rho_in = f32(k) / rings;
         let rho_out = f32(k + 1u) / rings;
-        let phi_out = s.bend * phi(rho_out);
+        let phi_out = s.bend * surf.ring_phi[k / 4u][k % 4u];
         let beta = -(phi_out - phi_in) * rings;
         let alpha = -phi_in - beta * rho_in;
         phi_in = phi_out;

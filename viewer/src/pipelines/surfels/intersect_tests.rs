@@ -285,6 +285,7 @@ fn c_surfel_ray_casts_match_a_march_over_the_surface() {
     let uniforms = SurfelUniforms {
         eye: [0.0, 0.0, 0.0, 1.0],
         rings: RINGS,
+        ring_phi: SurfelUniforms::ring_phi(H as f32, RINGS),
         h: H as f32,
         ..SurfelUniforms::zeroed()
     };

@@ -73,6 +73,7 @@ pub struct SurfelUniforms {
     pub flat_px: f32,
     pub pad1: f32,
     pub pad2: f32,
+    pub ring_phi: [[f32; 4]; 4],
 }
 
 impl SurfelUniforms {
@@ -103,7 +104,19 @@ impl SurfelUniforms {
             flat_px: param(params, "flat_px"),
             pad1: 0.0,
             pad2: 0.0,
+            ring_phi: SurfelUniforms::ring_phi(param(params, "h"), param(params, "rings") as u32),
         }
+    }
+
+    /// phi(r) = 1 - exp(-(r^2 / h^2)^2) at the outer edge of each of `rings` rings (at most 16,
+    /// the parameter's largest), as `ring_phi` in uniforms.wgsl holds it.
+    pub fn ring_phi(h: f32, rings: u32) -> [[f32; 4]; 4] {
+        let mut table = [[0.0; 4]; 4];
+        for k in 1..=rings.min(16) {
+            let q = (k as f32 / rings as f32).powi(2) / (h * h);
+            table[(k as usize - 1) / 4][(k as usize - 1) % 4] = 1.0 - (-q * q).exp();
+        }
+        table
     }
 }
 

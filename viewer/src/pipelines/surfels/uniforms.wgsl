@@ -31,6 +31,9 @@ struct Surfels {
     flat_px: f32,
     pad1: f32,
     pad2: f32,
+    // phi at the outer edge of each ring, k / rings for k = 1..rings, at [(k - 1) / 4][(k - 1) % 4]
+    // (the same for every surfel: worked out once on the CPU, not an exp per ring and pixel).
+    ring_phi: array<vec4<f32>, 4>,
 }
 
 const MODE_PLANAR: u32 = 0u;
