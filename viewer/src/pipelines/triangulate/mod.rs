@@ -242,4 +242,6 @@ impl Pipeline for Triangulate {
 }
 
 #[cfg(test)]
+mod sector_tests;
+#[cfg(test)]
 mod tests;

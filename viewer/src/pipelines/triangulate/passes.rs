@@ -13,7 +13,7 @@ use crate::pipelines::{LIGHTING_WGSL, PipelineFrame, PointStream};
 use bytemuck::{Pod, Zeroable};
 use wgpu::util::DeviceExt;
 
-const UNIFORMS_WGSL: &str = include_str!("uniforms.wgsl");
+pub(super) const UNIFORMS_WGSL: &str = include_str!("uniforms.wgsl");
 const COUNTS_WGSL: &str = include_str!("counts.wgsl");
 const REPROJECT_WGSL: &str = include_str!("reproject.wgsl");
 const GATHER_WGSL: &str = include_str!("gather.wgsl");

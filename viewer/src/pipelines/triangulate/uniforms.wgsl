@@ -33,9 +33,17 @@ const FRAGMENT_WEIGHT: u32 = 16u;
 // so only a triangle seen edge-on across a depth gap, or behind the eye, exceeds it.
 const MAX_TRIANGLE_PX: f32 = 96.0;
 
-// The sector of screen offset (dx, dy) (pixels, y down), counter-clockwise on screen from +x.
+// The sector of screen offset (dx, dy) (pixels, y down), counter-clockwise on screen from +x:
+// sector k holds the angles [k, k + 1) times 45 degrees, a direction on a boundary the sector it
+// starts. By comparisons, not atan2: the search takes it for every pixel of every point's splat
+// (on lavapipe atan2's rounding also put 135 and 180 degrees in the sector before).
 fn sector_of(dx: f32, dy: f32) -> u32 {
-    let a = atan2(-dy, dx);
-    let turn = (a + 6.283185307) % 6.283185307;
-    return min(u32(turn / 0.785398163), SECTORS - 1u);
+    let x = dx;
+    let y = -dy;
+    // The upper half, [0, 180) degrees; the lower one turned half a turn onto it.
+    let upper = y > 0.0 || (y == 0.0 && x > 0.0);
+    let u = select(-x, x, upper);
+    let v = select(-y, y, upper);
+    let quarter = select(select(3u, 2u, v > -u), select(1u, 0u, v < u), u > 0.0);
+    return quarter + select(4u, 0u, upper);
 }
