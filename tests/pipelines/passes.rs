@@ -4,16 +4,8 @@
 
 use super::*;
 
-/// The projection's passes, in the order they can run (`projection::PASSES`).
-const PROJECTION_PASSES: [&str; 7] = [
-    "clear",
-    "project",
-    "project_depth",
-    "project_index",
-    "count drawn",
-    "unpack",
-    "resolve",
-];
+/// The projection's passes, in the order they can run.
+use strata_viewer::pipelines::projection::PASSES as PROJECTION_PASSES;
 
 fn frame_passes(args: &[&str], stats: &Path) -> Vec<String> {
     let o = gpu_run(args);

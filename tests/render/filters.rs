@@ -303,6 +303,37 @@ fn class_opacities_and_without_normals_every_surface_is_a_layer() {
     );
 }
 
+/// The shading is compiled per mode (anti-aliasing, normals estimated or carried): each mode
+/// must reach the image, not the default's pass.
+#[test]
+fn each_shade_mode_draws_its_own_image() {
+    let smooth = shot(nested(true), "filters", &[]);
+    let aliased = shot(nested(true), "filters", &["antialias=0"]);
+    let changed = smooth
+        .rgb
+        .iter()
+        .zip(&aliased.rgb)
+        .filter(|(a, b)| a != b)
+        .count();
+    assert!(
+        changed >= 50,
+        "anti-aliasing the silhouette changes {changed} pixels"
+    );
+    // Without normals they are estimated from the filled depth: the sphere darkens towards its
+    // outline under the headlight, where a normal facing the eye would light it as its centre.
+    let estimated = shot(nested(false), "filters", &["antialias=0"]);
+    let row = (H / 2 * W) as usize;
+    let first = (0..W as usize)
+        .find(|&x| estimated.covered[row + x])
+        .expect("the sphere crosses the middle row");
+    let rim = grey(estimated.rgb[row + first + 2]);
+    let centre = grey(estimated.centre());
+    assert!(
+        rim < centre - 30.0,
+        "near the outline {rim:.0}, at the centre {centre:.0}"
+    );
+}
+
 /// A grey ground (3 x 3, z = 0) under a plate (0.6 x 0.6 at z = 0.6), points 0.01 apart with
 /// normals up, as a PLY.
 fn plate_over_ground() -> &'static Path {

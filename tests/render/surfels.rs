@@ -353,6 +353,27 @@ fn plane() -> &'static Path {
     })
 }
 
+/// `sides` is compiled into the depth and blend passes: a triangle covers less of its disc
+/// than a 16-gon, so the root's large surfels leave more of the screen uncovered.
+#[test]
+fn the_number_of_sides_reaches_the_passes() {
+    let covered =
+        |sides: &str| shot(Sphere::Sparse, "surfels", &["mode=0", sides], Lod::Root).covered;
+    let (triangles, sixteen) = (covered("sides=3"), covered("sides=16"));
+    let count = |c: &[bool]| c.iter().filter(|c| **c).count();
+    let only_sixteen = sixteen
+        .iter()
+        .zip(&triangles)
+        .filter(|(s, t)| **s && !**t)
+        .count();
+    assert!(
+        count(&triangles) < count(&sixteen) && only_sixteen > 200,
+        "triangles cover {}, 16-gons {}, {only_sixteen} by the 16-gons alone",
+        count(&triangles),
+        count(&sixteen)
+    );
+}
+
 #[test]
 fn c_surfels_on_a_plane_seen_grazing_stay_flat() {
     // Five degrees above the plane: every surfel is within hybrid's band of the silhouette.

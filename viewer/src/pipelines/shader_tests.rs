@@ -311,3 +311,35 @@ fn no_large_value_array_is_indexed_by_a_variable() {
         }
     }
 }
+
+/// A buffer of `bytes` for a test kernel to write and `run_kernel` to read back.
+pub(crate) fn kernel_output(device: &wgpu::Device, bytes: u64) -> wgpu::Buffer {
+    device.create_buffer(&wgpu::BufferDescriptor {
+        label: Some("kernel output"),
+        size: bytes,
+        usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
+        mapped_at_creation: false,
+    })
+}
+
+/// Runs a test kernel over `threads` threads (workgroups of 64) with `groups` bound as groups
+/// 0, 1, ..., and reads back `output` whole.
+pub(crate) fn run_kernel(
+    ctx: &crate::gpu::GpuContext,
+    pipe: &wgpu::ComputePipeline,
+    groups: &[wgpu::BindGroup],
+    threads: usize,
+    output: &wgpu::Buffer,
+) -> Vec<u8> {
+    let mut encoder = ctx.device.create_command_encoder(&Default::default());
+    {
+        let mut pass = encoder.begin_compute_pass(&Default::default());
+        pass.set_pipeline(pipe);
+        for (k, g) in groups.iter().enumerate() {
+            pass.set_bind_group(k as u32, g, &[]);
+        }
+        pass.dispatch_workgroups((threads as u32).div_ceil(64), 1, 1);
+    }
+    ctx.queue.submit([encoder.finish()]);
+    crate::gpu::readback::read_buffer(ctx, output, output.size()).expect("kernel output readback")
+}

@@ -13,7 +13,9 @@ mod targets;
 
 use super::params::{Auto, ParamSpec, ResolvedParams, Scale};
 use super::shadows::{self, LIT_STREAM, param};
-use super::{AlbedoResult, Lighting, Pipeline, PipelineFrame, PipelineInfo, PointStream, ViewFrame};
+use super::{
+    AlbedoResult, Lighting, Pipeline, PipelineFrame, PipelineInfo, PointStream, ViewFrame,
+};
 use crate::ViewerError;
 use crate::gpu::GpuContext;
 use crate::gpu::timing::Timer;
@@ -24,8 +26,8 @@ use std::collections::BTreeMap;
 use targets::{FiltersTargets, LayerCounts, counts_from};
 
 pub use passes::{CLASSES, FiltersUniforms, MAX_ITERATIONS, MAX_LAYERS, Step};
-pub use shadows::DTILDE_SPACINGS;
 pub(crate) use passes::{MASKS_WGSL, bind};
+pub use shadows::DTILDE_SPACINGS;
 
 /// `opacity.C`: the opacity factor of class C, one spec per ASPRS standard class.
 macro_rules! class_opacities {
@@ -82,7 +84,14 @@ static PARAMS: [ParamSpec; OWN + CLASSES] = {
             MAX_LAYERS as f32,
             Scale::Integer,
         ),
-        param("opacity", "opacity of every layer's points", 1.0, 0.0, 1.0, Scale::Linear),
+        param(
+            "opacity",
+            "opacity of every layer's points",
+            1.0,
+            0.0,
+            1.0,
+            Scale::Linear,
+        ),
         param(
             "splat",
             "points drawn at least this many stored radii across, so that sparse ones leave gaps the masks can close (0: one pixel each, as in the paper)",
@@ -202,7 +211,10 @@ fn measures(counts: Option<LayerCounts>) -> BTreeMap<&'static str, f32> {
 }
 
 fn value(params: &ResolvedParams, name: &str) -> f32 {
-    let default = PARAMS.iter().find(|p| p.name == name).map_or(0.0, |p| p.default);
+    let default = PARAMS
+        .iter()
+        .find(|p| p.name == name)
+        .map_or(0.0, |p| p.default);
     params.get_or(name, default)
 }
 
@@ -298,7 +310,8 @@ impl Pipeline for Filters {
             cull: frame.back_faces_culled,
             shade: shade_variant(frame.params, &u),
         };
-        self.passes.encode(frame, encoder, targets, &u, &setup, timer)
+        self.passes
+            .encode(frame, encoder, targets, &u, &setup, timer)
     }
 
     fn after_submit(&mut self) {
@@ -308,7 +321,11 @@ impl Pipeline for Filters {
     }
 
     fn measures(&mut self) -> BTreeMap<&'static str, f32> {
-        if let Some(bytes) = self.targets.as_mut().and_then(|t| t.counters_readback.take()) {
+        if let Some(bytes) = self
+            .targets
+            .as_mut()
+            .and_then(|t| t.counters_readback.take())
+        {
             self.counts = counts_from(&bytes);
         }
         measures(self.counts)

@@ -9,9 +9,7 @@ use super::targets::{FiltersTargets, STEP_STRIDE};
 use crate::ViewerError;
 use crate::gpu::GpuContext;
 use crate::gpu::timing::Timer;
-use crate::pipelines::projection::{
-    ArenaGroup, COLOUR_WGSL, GROUP_SIZE, OCT16_WGSL, pixel_groups,
-};
+use crate::pipelines::projection::{ArenaGroup, COLOUR_WGSL, GROUP_SIZE, OCT16_WGSL, pixel_groups};
 use crate::pipelines::shader::ShaderSource;
 use crate::pipelines::shadows::LIT_STREAM;
 use crate::pipelines::{PipelineFrame, PointStream};

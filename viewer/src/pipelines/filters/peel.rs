@@ -8,8 +8,8 @@ use super::targets::FiltersTargets;
 use crate::ViewerError;
 use crate::gpu::timing::Timer;
 use crate::pipelines::projection::{
-    ArenaGroup, CULL_WGSL, FILTERS_WGSL, NO_CULL_WGSL, OCT16_WGSL, PROJECT_WGSL,
-    RANGE_SEARCH_WGSL, split_groups,
+    ArenaGroup, CULL_WGSL, FILTERS_WGSL, NO_CULL_WGSL, OCT16_WGSL, PROJECT_WGSL, RANGE_SEARCH_WGSL,
+    split_groups,
 };
 use crate::pipelines::shader::ShaderSource;
 
@@ -108,78 +108,78 @@ impl Peels {
     /// true) or planes (false).
     pub fn encode(&self, f: PeelFrame) -> bool {
         let peel = if f.cull { &self.culled } else { &self.plain };
-            // One 64-bit pass where the device can, else two 32-bit passes.
-            let one_pass = match (&peel.int64, &f.targets.peel_keys) {
-                (Some(p), Some(k)) => Some((p, k)),
-                _ => None,
-            };
-            let mut passes: Vec<(&wgpu::ComputePipeline, wgpu::BindGroup)> = Vec::new();
-            if let Some((pipe, keys)) = one_pass {
-                f.encoder.clear_buffer(keys, 0, None);
-                let group = bind(
-                    f.device,
-                    pipe,
-                    0,
-                    &[
-                        f.frame_entry.clone(),
-                        f.fil_entry.clone(),
-                        (2, keys.as_entire_binding()),
-                        (3, f.reference.as_entire_binding()),
-                    ],
-                );
-                passes.push((pipe, group));
-            } else {
-                f.encoder.clear_buffer(&f.targets.peel_depths, 0, None);
-                f.encoder.clear_buffer(&f.targets.peel_indices, 0, None);
-                let depth_group = bind(
-                    f.device,
-                    &peel.depth,
-                    0,
-                    &[
-                        f.frame_entry.clone(),
-                        f.fil_entry.clone(),
-                        (2, f.targets.peel_depths.as_entire_binding()),
-                        (3, f.reference.as_entire_binding()),
-                    ],
-                );
-                let index_group = bind(
-                    f.device,
-                    &peel.index,
-                    0,
-                    &[
-                        f.frame_entry.clone(),
-                        (2, f.targets.peel_depths.as_entire_binding()),
-                        (3, f.targets.peel_indices.as_entire_binding()),
-                    ],
-                );
-                passes.push((&peel.depth, depth_group));
-                passes.push((&peel.index, index_group));
-            }
-            let timestamp_writes = f.timer.pass(f.encoder, "peel");
-            let mut pass = f.encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
-                label: Some("peel"),
-                timestamp_writes,
-            });
-            for (pipe, group) in &passes {
-                pass.set_pipeline(pipe);
-                pass.set_bind_group(0, group, &[]);
-                for (g, [points, attributes, normals, _], radii) in f.arenas {
-                    if g.groups == 0 {
-                        continue;
-                    }
-                    let entries = [
-                        (0, points.as_entire_binding()),
-                        (1, g.ranges.as_entire_binding()),
-                        (2, attributes.as_entire_binding()),
-                        (3, normals.as_entire_binding()),
-                        (4, radii.as_entire_binding()),
-                    ];
-                    pass.set_bind_group(1, &bind(f.device, pipe, 1, &entries), &[]);
-                    let (x, y) = split_groups(g.groups);
-                    pass.dispatch_workgroups(x, y, 1);
+        // One 64-bit pass where the device can, else two 32-bit passes.
+        let one_pass = match (&peel.int64, &f.targets.peel_keys) {
+            (Some(p), Some(k)) => Some((p, k)),
+            _ => None,
+        };
+        let mut passes: Vec<(&wgpu::ComputePipeline, wgpu::BindGroup)> = Vec::new();
+        if let Some((pipe, keys)) = one_pass {
+            f.encoder.clear_buffer(keys, 0, None);
+            let group = bind(
+                f.device,
+                pipe,
+                0,
+                &[
+                    f.frame_entry.clone(),
+                    f.fil_entry.clone(),
+                    (2, keys.as_entire_binding()),
+                    (3, f.reference.as_entire_binding()),
+                ],
+            );
+            passes.push((pipe, group));
+        } else {
+            f.encoder.clear_buffer(&f.targets.peel_depths, 0, None);
+            f.encoder.clear_buffer(&f.targets.peel_indices, 0, None);
+            let depth_group = bind(
+                f.device,
+                &peel.depth,
+                0,
+                &[
+                    f.frame_entry.clone(),
+                    f.fil_entry.clone(),
+                    (2, f.targets.peel_depths.as_entire_binding()),
+                    (3, f.reference.as_entire_binding()),
+                ],
+            );
+            let index_group = bind(
+                f.device,
+                &peel.index,
+                0,
+                &[
+                    f.frame_entry.clone(),
+                    (2, f.targets.peel_depths.as_entire_binding()),
+                    (3, f.targets.peel_indices.as_entire_binding()),
+                ],
+            );
+            passes.push((&peel.depth, depth_group));
+            passes.push((&peel.index, index_group));
+        }
+        let timestamp_writes = f.timer.pass(f.encoder, "peel");
+        let mut pass = f.encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
+            label: Some("peel"),
+            timestamp_writes,
+        });
+        for (pipe, group) in &passes {
+            pass.set_pipeline(pipe);
+            pass.set_bind_group(0, group, &[]);
+            for (g, [points, attributes, normals, _], radii) in f.arenas {
+                if g.groups == 0 {
+                    continue;
                 }
+                let entries = [
+                    (0, points.as_entire_binding()),
+                    (1, g.ranges.as_entire_binding()),
+                    (2, attributes.as_entire_binding()),
+                    (3, normals.as_entire_binding()),
+                    (4, radii.as_entire_binding()),
+                ];
+                pass.set_bind_group(1, &bind(f.device, pipe, 1, &entries), &[]);
+                let (x, y) = split_groups(g.groups);
+                pass.dispatch_workgroups(x, y, 1);
             }
-            drop(pass);
-            one_pass.is_some()
+        }
+        drop(pass);
+        one_pass.is_some()
     }
 }

@@ -136,7 +136,11 @@ impl FiltersTargets {
             surface: storage("filters surface", pixels * 16),
             albedo: storage("filters albedo", pixels * 4),
             counters: storage("filters counters", COUNTERS * 4),
-            counters_readback: AsyncReadback::new(device, "filters counters readback", COUNTERS * 4),
+            counters_readback: AsyncReadback::new(
+                device,
+                "filters counters readback",
+                COUNTERS * 4,
+            ),
             args: device.create_buffer(&wgpu::BufferDescriptor {
                 label: Some("filters dispatch arguments"),
                 size: 16,
@@ -208,7 +212,11 @@ pub fn counts_from(bytes: &[u8]) -> Option<LayerCounts> {
             .chunks_exact(MAX_ITERATIONS as usize)
             .skip(kind)
             .step_by(2)
-            .map(|run| run.iter().rposition(|&c| c != 0).map_or(0, |k| k as u32 + 1))
+            .map(|run| {
+                run.iter()
+                    .rposition(|&c| c != 0)
+                    .map_or(0, |k| k as u32 + 1)
+            })
             .max()
             .unwrap_or(0)
     };

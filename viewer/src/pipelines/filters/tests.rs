@@ -4,8 +4,8 @@
 use super::passes::{
     ARGS_BACKGROUND, ARGS_LAYER, ARGS_OCCLUDED, COUNTERS, LIST_HEADER, LISTS, list_of,
 };
-use super::targets::{LayerCounts, counts_from};
 use super::shade::ShadeVariant;
+use super::targets::{LayerCounts, counts_from};
 use super::{
     CLASSES, DTILDE_SPACINGS, FiltersUniforms, INFO, MAX_ITERATIONS, MAX_LAYERS, Step,
     shade_variant, uniforms,
@@ -15,7 +15,6 @@ use crate::pipelines::params::{ParamValues, ResolvedParams};
 use crate::pipelines::shader_tests::{
     module_named, most_storage_buffers, parse_and_validate, rust_layout, wgsl_const, wgsl_layout,
 };
-
 
 #[test]
 fn uniforms_steps_and_constants_match_their_wgsl() {
@@ -64,7 +63,10 @@ fn uniforms_steps_and_constants_match_their_wgsl() {
     assert_eq!(wgsl_const(&m, "LISTS"), LISTS);
     // Every kind's every iteration has a list of its own.
     assert_eq!(list_of(ARGS_OCCLUDED, MAX_ITERATIONS - 1), LISTS - 1);
-    assert_eq!(list_of(ARGS_BACKGROUND, MAX_ITERATIONS - 1) + 1, list_of(ARGS_OCCLUDED, 0));
+    assert_eq!(
+        list_of(ARGS_BACKGROUND, MAX_ITERATIONS - 1) + 1,
+        list_of(ARGS_OCCLUDED, 0)
+    );
 }
 
 /// The word `changed_slot(layer, kind, iteration)` of uniforms.wgsl writes.
@@ -93,11 +95,18 @@ fn counters_give_layers_used_and_the_longest_fill() {
         })
     );
     assert_eq!(counts_from(&bytes[..100]), None);
-    assert_eq!(changed_slot(MAX_LAYERS - 1, ARGS_OCCLUDED, MAX_ITERATIONS - 1), COUNTERS as usize - 1);
+    assert_eq!(
+        changed_slot(MAX_LAYERS - 1, ARGS_OCCLUDED, MAX_ITERATIONS - 1),
+        COUNTERS as usize - 1
+    );
 }
 
 fn view() -> ViewFrame {
-    let view = glam::camera::rh::view::look_at_mat4(glam::Vec3::new(0.0, -3.0, 0.0), glam::Vec3::ZERO, glam::Vec3::Z);
+    let view = glam::camera::rh::view::look_at_mat4(
+        glam::Vec3::new(0.0, -3.0, 0.0),
+        glam::Vec3::ZERO,
+        glam::Vec3::Z,
+    );
     let proj = glam::camera::rh::proj::directx::perspective(1.0, 1.5, 0.1, 10.0);
     ViewFrame {
         view,
@@ -122,18 +131,29 @@ fn resolved(set: &[(&str, &str)]) -> ResolvedParams {
 fn uniforms_take_the_light_the_class_opacities_and_the_drawn_spacing() {
     let u = uniforms(&view(), &resolved(&[]), true);
     assert_eq!(u.light, [0.0; 4], "the headlight by default");
-    assert_eq!(u.dtilde, 0.25 * DTILDE_SPACINGS as f32, "d~ follows the drawn spacing");
+    assert_eq!(
+        u.dtilde,
+        0.25 * DTILDE_SPACINGS as f32,
+        "d~ follows the drawn spacing"
+    );
     assert_eq!(
         shade_variant(&resolved(&[]), &u),
         ShadeVariant::default(),
         "the default shade: silhouettes anti-aliased, normals carried, the headlight"
     );
-    assert!((glam::Vec3::from_slice(&u.eye[..3]) - glam::Vec3::new(0.0, -3.0, 0.0)).length() < 1e-5);
+    assert!(
+        (glam::Vec3::from_slice(&u.eye[..3]) - glam::Vec3::new(0.0, -3.0, 0.0)).length() < 1e-5
+    );
     assert!((glam::Vec3::from_slice(&u.forward[..3]) - glam::Vec3::Y).length() < 1e-5);
 
     let u = uniforms(
         &view(),
-        &resolved(&[("light", "0,0,2"), ("opacity.6", "0.25"), ("opacity", "0.5"), ("dtilde", "0.1")]),
+        &resolved(&[
+            ("light", "0,0,2"),
+            ("opacity.6", "0.25"),
+            ("opacity", "0.5"),
+            ("dtilde", "0.1"),
+        ]),
         false,
     );
     assert_eq!(u.light, [0.0, 0.0, 1.0, 1.0], "a direction, normalised");
@@ -186,12 +206,21 @@ fn the_parameter_table_names_every_class_once() {
     unique.dedup();
     assert_eq!(unique.len(), names.len(), "{names:?}");
     for c in 0..CLASSES {
-        assert!(names.contains(&format!("opacity.{c}").as_str()), "opacity.{c}");
+        assert!(
+            names.contains(&format!("opacity.{c}").as_str()),
+            "opacity.{c}"
+        );
     }
     let mut values = ParamValues::default();
-    assert!(values.set_text(&INFO, "opacity.19", "0.5").is_err(), "classes beyond 18 have none");
+    assert!(
+        values.set_text(&INFO, "opacity.19", "0.5").is_err(),
+        "classes beyond 18 have none"
+    );
     assert!(values.set_text(&INFO, "layers", "9").is_err());
-    assert!(values.set_text(&INFO, "light", "1,2").is_err(), "a light takes three numbers");
+    assert!(
+        values.set_text(&INFO, "light", "1,2").is_err(),
+        "a light takes three numbers"
+    );
 }
 
 /// The adapter check in `FiltersPasses::new` names the most storage buffers any filters module

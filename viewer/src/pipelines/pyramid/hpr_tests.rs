@@ -209,7 +209,8 @@ fn hpr_labels_match_the_per_pixel_definition() {
             &mut timer,
         );
         queue.submit([encoder.finish()]);
-        let bytes = read_buffer(&ctx, &targets.labels, (w * h * 4) as u64).expect("labels readback");
+        let bytes =
+            read_buffer(&ctx, &targets.labels, (w * h * 4) as u64).expect("labels readback");
         let labels: &[u32] = bytemuck::cast_slice(&bytes);
 
         let expected = reference(&depths, w, h, &PyramidUniforms::new(&targets, &frame));
@@ -245,8 +246,14 @@ fn hpr_labels_match_the_per_pixel_definition() {
         };
         let hidden_wall = count(LABEL_HOLE, Some(30.0));
         let visible_disc = count(LABEL_POINT, None) - count(LABEL_POINT, Some(30.0));
-        assert!(hidden_wall > 1000, "{shape:?}: {hidden_wall} wall points hidden");
-        assert!(visible_disc > 1000, "{shape:?}: {visible_disc} disc points visible");
+        assert!(
+            hidden_wall > 1000,
+            "{shape:?}: {hidden_wall} wall points hidden"
+        );
+        assert!(
+            visible_disc > 1000,
+            "{shape:?}: {visible_disc} disc points visible"
+        );
         assert!(count(LABEL_BACKGROUND, None) > 2000);
         assert!(count(LABEL_HOLE, None) > hidden_wall + 500);
     }

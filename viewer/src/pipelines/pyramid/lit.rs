@@ -5,11 +5,11 @@
 
 use crate::ViewerError;
 use crate::gpu::timing::Timer;
+use crate::pipelines::PipelineFrame;
 use crate::pipelines::filters::bind;
 use crate::pipelines::projection::{ArenaGroup, GROUP_SIZE, pixel_groups};
 use crate::pipelines::shader::ShaderSource;
 use crate::pipelines::shadows::LIT_STREAM;
-use crate::pipelines::PipelineFrame;
 
 const LIT_WGSL: &str = include_str!("pyramid_lit.wgsl");
 
@@ -46,10 +46,11 @@ impl LitPass {
     ) -> Result<(), ViewerError> {
         let device = &frame.ctx.device;
         let screen = frame.screen;
-        frame
-            .ctx
-            .queue
-            .write_buffer(&self.scale, 0, bytemuck::cast_slice(&[lit_scale, 0.0, 0.0, 0.0]));
+        frame.ctx.queue.write_buffer(
+            &self.scale,
+            0,
+            bytemuck::cast_slice(&[lit_scale, 0.0, 0.0, 0.0]),
+        );
         let groups = frame
             .arenas
             .iter()

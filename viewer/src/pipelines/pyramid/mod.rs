@@ -14,8 +14,8 @@ pub use uniforms::{
 };
 
 use super::params::{Auto, ParamSpec, ResolvedParams, Scale};
-use super::shadows::{self, DTILDE_SPACINGS};
 use super::projection::FrameUniforms;
+use super::shadows::{self, DTILDE_SPACINGS};
 use super::{AlbedoResult, Lighting, Pipeline, PipelineFrame, PipelineInfo, edl};
 use crate::ViewerError;
 use crate::gpu::GpuContext;
@@ -61,26 +61,26 @@ pub static INFO: PipelineInfo = PipelineInfo {
 /// Its own parameters, then the light and shadows' (`shadows`: beyond the paper, the point
 /// shadows of paper 004 carried through the pull-push).
 const OWN: [ParamSpec; 4] = [
-        ParamSpec {
-            name: "s0",
-            help: "the metric scale of the sampling, in dataset units: about the point spacing",
-            default: 1.0,
-            min: 1e-9,
-            max: 1e9,
-            scale: Scale::Log,
-            auto: Some(Auto::DrawnSpacing),
-        },
-        ParamSpec {
-            name: "edl",
-            help: "eye-dome lighting on top of the shading",
-            default: 0.0,
-            min: 0.0,
-            max: 1.0,
-            scale: Scale::Toggle,
-            auto: None,
-        },
-        edl::STRENGTH,
-        edl::RADIUS,
+    ParamSpec {
+        name: "s0",
+        help: "the metric scale of the sampling, in dataset units: about the point spacing",
+        default: 1.0,
+        min: 1e-9,
+        max: 1e9,
+        scale: Scale::Log,
+        auto: Some(Auto::DrawnSpacing),
+    },
+    ParamSpec {
+        name: "edl",
+        help: "eye-dome lighting on top of the shading",
+        default: 0.0,
+        min: 0.0,
+        max: 1.0,
+        scale: Scale::Toggle,
+        auto: None,
+    },
+    edl::STRENGTH,
+    edl::RADIUS,
 ];
 
 static PARAMS: [ParamSpec; OWN.len() + shadows::PARAMS.len()] = {
@@ -114,7 +114,10 @@ struct Pyramid {
 
 fn create(ctx: &GpuContext) -> Result<Box<dyn Pipeline>, ViewerError> {
     Ok(Box::new(Pyramid {
-        passes: PyramidPasses::new(&ctx.device, HprShape::for_device(ctx.adapter.get_info().device_type))?,
+        passes: PyramidPasses::new(
+            &ctx.device,
+            HprShape::for_device(ctx.adapter.get_info().device_type),
+        )?,
         targets: None,
         noise_readback: AsyncReadback::new(&ctx.device, "depth noise readback", 4),
         depth_noise: None,
@@ -176,7 +179,12 @@ impl Pipeline for Pyramid {
         let shadow = shadows::setup(frame, forward, DTILDE_SPACINGS as f32 * s0);
         let world = shadows::world_light(frame.params);
         let light = match world {
-            Some(l) => frame.view.view.transform_vector3(l).normalize_or_zero().extend(1.0),
+            Some(l) => frame
+                .view
+                .view
+                .transform_vector3(l)
+                .normalize_or_zero()
+                .extend(1.0),
             None => glam::Vec4::new(0.0, 0.0, 0.0, shadow.is_some() as u32 as f32),
         };
         if let Some(setup) = &shadow {

@@ -3,6 +3,8 @@
 //! hidden-point removal, pull-push filling of depth and colour, a normal per level of the
 //! filled depth pyramid, and deferred headlight shading.
 
+use super::hpr::HprShape;
+use super::uniforms::{PyramidFrame, PyramidUniforms, level_table};
 use crate::ViewerError;
 use crate::gpu::GpuContext;
 use crate::gpu::async_readback::AsyncReadback;
@@ -13,8 +15,6 @@ use crate::pipelines::ScreenBuffer;
 use crate::pipelines::edl::EDL_WGSL;
 use crate::pipelines::projection::pixel_groups;
 use crate::pipelines::shader::ShaderSource;
-use super::hpr::HprShape;
-use super::uniforms::{PyramidFrame, PyramidUniforms, level_table};
 use wgpu::util::DeviceExt;
 
 const COMMON_WGSL: &str = include_str!("pyramid.wgsl");
@@ -139,11 +139,19 @@ pub fn shaders() -> Vec<ShaderSource> {
         pass("pyramid down", include_str!("pyramid_down.wgsl")),
         ShaderSource::new(
             HprShape::Pixel.module(),
-            &[COMMON_WGSL, HPR_WGSL, include_str!("pyramid_hpr_pixel.wgsl")],
+            &[
+                COMMON_WGSL,
+                HPR_WGSL,
+                include_str!("pyramid_hpr_pixel.wgsl"),
+            ],
         ),
         ShaderSource::new(
             HprShape::Block.module(),
-            &[COMMON_WGSL, HPR_WGSL, include_str!("pyramid_hpr_block.wgsl")],
+            &[
+                COMMON_WGSL,
+                HPR_WGSL,
+                include_str!("pyramid_hpr_block.wgsl"),
+            ],
         ),
         pass("pull", include_str!("pyramid_pull.wgsl")),
         pass("push", include_str!("pyramid_push.wgsl")),

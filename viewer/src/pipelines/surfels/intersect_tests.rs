@@ -4,11 +4,11 @@
 //! asks. Rays come from every side, grazing ones included.
 
 use super::passes::{CURVED_WGSL, SURFEL_WGSL, SurfelUniforms, UNIFORMS_WGSL};
-use crate::gpu::readback::read_buffer;
 use crate::gpu::{GpuContext, ProjectionPath};
 use crate::pipelines::filters::bind;
 use crate::pipelines::projection::{FILTERS_WGSL, OCT16_WGSL, RANGE_SEARCH_WGSL};
 use crate::pipelines::shader::ShaderSource;
+use crate::pipelines::shader_tests::{kernel_output, run_kernel};
 use bytemuck::{Pod, Zeroable};
 use wgpu::util::DeviceExt;
 
@@ -139,7 +139,10 @@ fn expect(eye: V, e: V, p: V, radius: f64, n: V, bend: f64, sides: u32) -> Expec
     let half_chord = half_chord2.sqrt();
     // Height over the surface (in radius units) and radial distance at distance t.
     let at = |t: f64| {
-        let o = scaled(sub([eye[0] + t * e[0], eye[1] + t * e[1], eye[2] + t * e[2]], p), 1.0 / radius);
+        let o = scaled(
+            sub([eye[0] + t * e[0], eye[1] + t * e[1], eye[2] + t * e[2]], p),
+            1.0 / radius,
+        );
         let a = dot(o, n);
         let c = sub(o, scaled(n, a));
         let u = dot(c, c).sqrt();
@@ -168,7 +171,11 @@ fn expect(eye: V, e: V, p: V, radius: f64, n: V, bend: f64, sides: u32) -> Expec
             let (_, u, c) = at(lo);
             let rim = outline(c, n, sides);
             if u < rim - 2e-3 {
-                return if lo > 0.0 { Expect::Hit(lo) } else { Expect::Either };
+                return if lo > 0.0 {
+                    Expect::Hit(lo)
+                } else {
+                    Expect::Either
+                };
             }
             if u <= rim + 2e-3 {
                 return Expect::Either;
@@ -196,7 +203,12 @@ fn randoms() -> impl FnMut() -> f64 {
 
 /// Runs `entry` of KERNEL_WGSL compiled for `sides`-gons over `cases`, with `uniforms`; its
 /// output per case.
-fn run(entry: &'static str, sides: u32, uniforms: &SurfelUniforms, cases: &[Case]) -> Vec<[f32; 2]> {
+fn run(
+    entry: &'static str,
+    sides: u32,
+    uniforms: &SurfelUniforms,
+    cases: &[Case],
+) -> Vec<[f32; 2]> {
     let ctx = GpuContext::new(ProjectionPath::Auto).expect("GPU adapter");
     let device = &ctx.device;
     let source = ShaderSource::new(
@@ -223,32 +235,19 @@ fn run(entry: &'static str, sides: u32, uniforms: &SurfelUniforms, cases: &[Case
     };
     let surf = buffer(bytemuck::bytes_of(uniforms), wgpu::BufferUsages::UNIFORM);
     let input = buffer(bytemuck::cast_slice(cases), wgpu::BufferUsages::STORAGE);
-    let size = (cases.len() * 8) as u64;
-    let hits = device.create_buffer(&wgpu::BufferDescriptor {
-        label: None,
-        size,
-        usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
-        mapped_at_creation: false,
-    });
+    let hits = kernel_output(device, (cases.len() * 8) as u64);
     let g0 = bind(device, &pipe, 0, &[(1, surf.as_entire_binding())]);
     let g1 = bind(device, &pipe, 1, &[]);
     let g2 = bind(
         device,
         &pipe,
         2,
-        &[(0, input.as_entire_binding()), (1, hits.as_entire_binding())],
+        &[
+            (0, input.as_entire_binding()),
+            (1, hits.as_entire_binding()),
+        ],
     );
-    let mut encoder = device.create_command_encoder(&Default::default());
-    {
-        let mut pass = encoder.begin_compute_pass(&Default::default());
-        pass.set_pipeline(&pipe);
-        pass.set_bind_group(0, &g0, &[]);
-        pass.set_bind_group(1, &g1, &[]);
-        pass.set_bind_group(2, &g2, &[]);
-        pass.dispatch_workgroups((cases.len() as u32).div_ceil(64), 1, 1);
-    }
-    ctx.queue.submit([encoder.finish()]);
-    let bytes = read_buffer(&ctx, &hits, size).expect("hits readback");
+    let bytes = run_kernel(&ctx, &pipe, &[g0, g1, g2], cases.len(), &hits);
     bytemuck::cast_slice(&bytes).to_vec()
 }
 
@@ -256,7 +255,11 @@ fn run(entry: &'static str, sides: u32, uniforms: &SurfelUniforms, cases: &[Case
 fn c_surfel_ray_casts_match_a_march_over_the_surface() {
     let mut random = randoms();
     let mut sphere = || loop {
-        let v = [random() * 2.0 - 1.0, random() * 2.0 - 1.0, random() * 2.0 - 1.0];
+        let v = [
+            random() * 2.0 - 1.0,
+            random() * 2.0 - 1.0,
+            random() * 2.0 - 1.0,
+        ];
         if dot(v, v) <= 1.0 && dot(v, v) > 1e-6 {
             return v;
         }
@@ -303,13 +306,19 @@ fn c_surfel_ray_casts_match_a_march_over_the_surface() {
                 }
                 Expect::Miss => {
                     missed += 1;
-                    assert!(g[0] < 0.0, "{sides} sides, case {k}: the ray misses, the cast says {g:?}");
+                    assert!(
+                        g[0] < 0.0,
+                        "{sides} sides, case {k}: the ray misses, the cast says {g:?}"
+                    );
                 }
                 Expect::Either => {}
             }
         }
         // Enough of both to mean something.
-        assert!(hit > 500 && missed > 500, "{sides} sides: {hit} hits and {missed} misses checked");
+        assert!(
+            hit > 500 && missed > 500,
+            "{sides} sides: {hit} hits and {missed} misses checked"
+        );
     }
 }
 
@@ -344,9 +353,21 @@ fn a_c_surfel_bends_by_its_curvature_over_its_drawn_radius() {
     }
     let got = run("bends", SIDES[0], &uniforms, &cases);
     for (k, (w, g)) in want.iter().zip(&got).enumerate() {
-        assert!((g[0] - w).abs() < 1e-4 * w.max(1e-3), "case {k}: bend {} for {w}", g[0]);
+        assert!(
+            (g[0] - w).abs() < 1e-4 * w.max(1e-3),
+            "case {k}: bend {} for {w}",
+            g[0]
+        );
     }
     // Without a curvature every c-surfel bends as the paper's.
-    let paper = run("bends", SIDES[0], &SurfelUniforms { curvature: 0.0, ..uniforms }, &cases);
+    let paper = run(
+        "bends",
+        SIDES[0],
+        &SurfelUniforms {
+            curvature: 0.0,
+            ..uniforms
+        },
+        &cases,
+    );
     assert!(paper.iter().all(|g| g[0] == 1.0), "{paper:?}");
 }

@@ -153,7 +153,14 @@ fn measures(counts: Option<[u32; 2]>) -> BTreeMap<&'static str, f32> {
     let total = planar as f32 + curved as f32;
     BTreeMap::from([
         (SURFELS, total),
-        (CURVED_SHARE, if total > 0.0 { curved as f32 / total } else { 0.0 }),
+        (
+            CURVED_SHARE,
+            if total > 0.0 {
+                curved as f32 / total
+            } else {
+                0.0
+            },
+        ),
     ])
 }
 
@@ -187,7 +194,8 @@ impl Pipeline for Surfels {
             (true, true) => passes::Normals::Outward,
             (true, false) => passes::Normals::FacingEye,
         };
-        let uniforms = SurfelUniforms::new(frame.view, frame.params, normals, frame.curvature_scale);
+        let uniforms =
+            SurfelUniforms::new(frame.view, frame.params, normals, frame.curvature_scale);
         let sides = param(frame.params, "sides") as u32;
         self.passes
             .encode(frame, encoder, targets, &uniforms, sides, timer)
@@ -231,11 +239,15 @@ impl Pipeline for Surfels {
 
 /// The parameters as the passes read them.
 fn param(params: &ResolvedParams, name: &str) -> f32 {
-    let default = INFO.params.iter().find(|p| p.name == name).map_or(0.0, |p| p.default);
+    let default = INFO
+        .params
+        .iter()
+        .find(|p| p.name == name)
+        .map_or(0.0, |p| p.default);
     params.get_or(name, default)
 }
 
 #[cfg(test)]
-mod tests;
-#[cfg(test)]
 mod intersect_tests;
+#[cfg(test)]
+mod tests;

@@ -10,8 +10,8 @@ use crate::gpu::readback::read_buffer;
 use crate::gpu::timing::Timer;
 use crate::pipelines::params::ResolvedParams;
 use crate::pipelines::projection::{
-    plane_buffer,
-    COLOUR_WGSL, FILTERS_WGSL, GROUP_SIZE, OCT16_WGSL, RANGE_SEARCH_WGSL, pixel_groups, range_table, split_groups,
+    COLOUR_WGSL, FILTERS_WGSL, GROUP_SIZE, OCT16_WGSL, RANGE_SEARCH_WGSL, pixel_groups,
+    plane_buffer, range_table, split_groups,
 };
 use crate::pipelines::shader::{ShaderSource, Variants};
 use crate::pipelines::{LIGHTING_WGSL, PipelineFrame, PointStream, ScreenBuffer, ViewFrame};
@@ -208,8 +208,13 @@ pub const DEFAULT_SIDES: u32 = 6;
 
 /// The depth and blend passes with SIDES `sides`.
 fn compile_sided(device: &wgpu::Device, sides: u32) -> Sided {
-    let [depth_planar, listing, depth_curved, blend_planar, blend_curved] =
-        sided_shaders(sides).map(|s| s.compute(device, None));
+    let [
+        depth_planar,
+        listing,
+        depth_curved,
+        blend_planar,
+        blend_curved,
+    ] = sided_shaders(sides).map(|s| s.compute(device, None));
     Sided {
         depth: Kinds {
             planar: depth_planar,
@@ -295,7 +300,13 @@ impl SurfelPasses {
         // ones can exist; emptied, with its dispatch at (0, 1, 1), before the depth pass.
         let capacities: Vec<u64> = tables
             .iter()
-            .map(|(_, _, groups)| if curved { *groups as u64 * GROUP_SIZE as u64 } else { 0 })
+            .map(|(_, _, groups)| {
+                if curved {
+                    *groups as u64 * GROUP_SIZE as u64
+                } else {
+                    0
+                }
+            })
             .collect();
         targets.grow_curved_lists(device, &capacities);
         let lists = &targets.curved_lists[..capacities.len()];
@@ -310,16 +321,7 @@ impl SurfelPasses {
             let (a, [normals, radii]) = frame
                 .cache
                 .arena_streams(*arena, [PointStream::Normals, PointStream::Radius])?;
-            arena_groups.push((
-                [
-                    &a.points,
-                    ranges,
-                    &a.attributes,
-                    normals,
-                    radii,
-                ],
-                *groups,
-            ));
+            arena_groups.push(([&a.points, ranges, &a.attributes, normals, radii], *groups));
         }
         let per_point = |name: &str,
                          kinds: &Kinds,
@@ -522,7 +524,8 @@ impl SurfelTargets {
 
     pub fn read_counts(&self, ctx: &GpuContext) -> Result<[u32; 2], ViewerError> {
         let bytes = read_buffer(ctx, &self.counts, 8)?;
-        counts_from(&bytes).ok_or_else(|| ViewerError::Gpu("the surfel counts came back short".into()))
+        counts_from(&bytes)
+            .ok_or_else(|| ViewerError::Gpu("the surfel counts came back short".into()))
     }
 
     pub fn read_albedo(&self, ctx: &GpuContext) -> Result<Vec<Option<[u8; 3]>>, ViewerError> {
@@ -538,6 +541,10 @@ impl SurfelTargets {
 
 /// Planar and curved surfel counts from the first eight bytes of a readback.
 pub fn counts_from(bytes: &[u8]) -> Option<[u32; 2]> {
-    let word = |k: usize| -> Option<u32> { Some(u32::from_le_bytes(bytes.get(4 * k..4 * k + 4)?.try_into().ok()?)) };
+    let word = |k: usize| -> Option<u32> {
+        Some(u32::from_le_bytes(
+            bytes.get(4 * k..4 * k + 4)?.try_into().ok()?,
+        ))
+    };
     Some([word(0)?, word(1)?])
 }

@@ -1,14 +1,11 @@
 //! The surfels' Rust structs and constants against their WGSL, and the pieces of their
 //! geometry that do not need a GPU.
 
-use super::passes::{
-    LIST_HEADER, MODE_PLANAR, STORAGE_BUFFERS, SUM_WORDS, SurfelUniforms,
-};
+use super::passes::{LIST_HEADER, MODE_PLANAR, STORAGE_BUFFERS, SUM_WORDS, SurfelUniforms};
 use crate::pipelines::projection::{GROUP_SIZE, GpuRange, range_table};
 use crate::pipelines::shader_tests::{
     module_named, most_storage_buffers, parse_and_validate, rust_layout, wgsl_const, wgsl_layout,
 };
-
 
 #[test]
 fn uniforms_and_ranges_match_their_wgsl() {
@@ -108,7 +105,10 @@ fn the_modules_take_every_number_of_sides() {
             .iter()
             .filter(|s| s.constants == [("SIDES", sides as f64)])
             .count();
-        assert_eq!(given, 5, "the depth and the blend modules, for {sides} sides");
+        assert_eq!(
+            given, 5,
+            "the depth and the blend modules, for {sides} sides"
+        );
     }
 }
 

@@ -120,7 +120,10 @@ fn create(ctx: &GpuContext) -> Result<Box<dyn Pipeline>, ViewerError> {
 }
 
 fn value(params: &ResolvedParams, name: &str) -> f32 {
-    let default = PARAMS.iter().find(|p| p.name == name).map_or(0.0, |p| p.default);
+    let default = PARAMS
+        .iter()
+        .find(|p| p.name == name)
+        .map_or(0.0, |p| p.default);
     params.get_or(name, default)
 }
 

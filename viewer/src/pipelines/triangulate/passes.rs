@@ -67,17 +67,32 @@ pub fn shaders(int64: bool) -> Vec<ShaderSource> {
     };
     let mut v = vec![
         own("triangulate reproject", &[REPROJECT_WGSL, RAYS_WGSL]),
-        own("triangulate gather", &[GATHER_WGSL, RAYS_WGSL, RANGE_SEARCH_WGSL]),
-        own("triangulate search distances", &[SEARCH_DISTANCES_WGSL, RAYS_WGSL, SEARCH_WGSL]),
-        own("triangulate search ids", &[SEARCH_IDS_WGSL, RAYS_WGSL, SEARCH_WGSL]),
+        own(
+            "triangulate gather",
+            &[GATHER_WGSL, RAYS_WGSL, RANGE_SEARCH_WGSL],
+        ),
+        own(
+            "triangulate search distances",
+            &[SEARCH_DISTANCES_WGSL, RAYS_WGSL, SEARCH_WGSL],
+        ),
+        own(
+            "triangulate search ids",
+            &[SEARCH_IDS_WGSL, RAYS_WGSL, SEARCH_WGSL],
+        ),
         own("triangulate normals", &[NORMALS_WGSL, FAN_WGSL]),
         own("triangulate raster", &[RASTER_WGSL, FAN_WGSL]),
-        own("triangulate radii", &[RADII_WGSL, RAYS_WGSL, RANGE_SEARCH_WGSL]),
+        own(
+            "triangulate radii",
+            &[RADII_WGSL, RAYS_WGSL, RANGE_SEARCH_WGSL],
+        ),
         own("triangulate shade", &[LIGHTING_WGSL, SHADE_WGSL]),
         own("triangulate holes", &[HOLES_WGSL]),
     ];
     if int64 {
-        v.push(own("triangulate search", &[SEARCH_INT64_WGSL, RAYS_WGSL, SEARCH_WGSL]));
+        v.push(own(
+            "triangulate search",
+            &[SEARCH_INT64_WGSL, RAYS_WGSL, SEARCH_WGSL],
+        ));
         v.push(own("triangulate search unpack", &[SEARCH_UNPACK_WGSL]));
     }
     v
@@ -142,7 +157,10 @@ impl TriangulatePasses {
             shade: take("triangulate shade")?,
             holes: take("triangulate holes")?,
             search64: if int64 {
-                Some((take("triangulate search")?, take("triangulate search unpack")?))
+                Some((
+                    take("triangulate search")?,
+                    take("triangulate search unpack")?,
+                ))
             } else {
                 None
             },
@@ -251,7 +269,13 @@ impl TriangulatePasses {
         };
 
         if let (Some(previous), 1) = (&screen.previous_depths, uniforms.previous) {
-            pass("reproject", &self.reproject, &[&t.uniforms, previous, &t.reprojected], None, None);
+            pass(
+                "reproject",
+                &self.reproject,
+                &[&t.uniforms, previous, &t.reprojected],
+                None,
+                None,
+            );
         }
         let gather_groups = |pipe: &wgpu::ComputePipeline| {
             arenas
@@ -275,7 +299,13 @@ impl TriangulatePasses {
         );
         match (&self.search64, &t.keys) {
             (Some((search, unpack)), Some(keys)) => {
-                pass("search", search, &[&t.uniforms, &t.points, keys], None, None);
+                pass(
+                    "search",
+                    search,
+                    &[&t.uniforms, &t.points, keys],
+                    None,
+                    None,
+                );
                 pass("search unpack", unpack, &[keys, &t.neighbours], None, None);
             }
             _ => {
@@ -298,7 +328,13 @@ impl TriangulatePasses {
         pass(
             "normals",
             &self.normals,
-            &[&t.uniforms, &t.points, &t.neighbours, &t.normals, &t.feedback],
+            &[
+                &t.uniforms,
+                &t.points,
+                &t.neighbours,
+                &t.normals,
+                &t.feedback,
+            ],
             None,
             None,
         );
@@ -334,11 +370,24 @@ impl TriangulatePasses {
         pass(
             "triangulate shade",
             &self.shade,
-            &[&t.uniforms, &t.sums, &t.front, &t.reconstructed, &t.surface, &t.albedo],
+            &[
+                &t.uniforms,
+                &t.sums,
+                &t.front,
+                &t.reconstructed,
+                &t.surface,
+                &t.albedo,
+            ],
             None,
             Some(&view),
         );
-        pass("holes", &self.holes, &[&t.reconstructed, &t.counts], None, None);
+        pass(
+            "holes",
+            &self.holes,
+            &[&t.reconstructed, &t.counts],
+            None,
+            None,
+        );
         drop(arenas);
         t.counts_readback
             .record(encoder, &t.counts, 0, COUNT_WORDS * 4);

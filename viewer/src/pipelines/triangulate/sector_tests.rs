@@ -3,10 +3,10 @@
 //! clockwise from +x falls in, a direction on a boundary in the sector it starts.
 
 use super::passes::UNIFORMS_WGSL;
-use crate::gpu::readback::read_buffer;
 use crate::gpu::{GpuContext, ProjectionPath};
 use crate::pipelines::filters::bind;
 use crate::pipelines::shader::ShaderSource;
+use crate::pipelines::shader_tests::{kernel_output, run_kernel};
 use wgpu::util::DeviceExt;
 
 const KERNEL_WGSL: &str = r#"
@@ -28,7 +28,16 @@ fn main(@builtin(global_invocation_id) id: vec3<u32>) {
 fn expected(dx: i32, dy: i32) -> u32 {
     let (x, y) = (dx, -dy);
     // The boundaries, 45 degrees apart from +x, counter-clockwise.
-    let boundaries = [(1, 0), (1, 1), (0, 1), (-1, 1), (-1, 0), (-1, -1), (0, -1), (1, -1)];
+    let boundaries = [
+        (1, 0),
+        (1, 1),
+        (0, 1),
+        (-1, 1),
+        (-1, 0),
+        (-1, -1),
+        (0, -1),
+        (1, -1),
+    ];
     for (k, (bx, by)) in boundaries.iter().enumerate() {
         // Along boundary k: parallel to it and facing the same way.
         if x * by == y * bx && x * bx + y * by > 0 {
@@ -47,34 +56,24 @@ fn sectors_follow_the_angle_with_each_boundary_in_the_sector_it_starts() {
         .flat_map(|dy| (-47..=47).map(move |dx| [dx, dy]))
         .filter(|&[dx, dy]| dx != 0 || dy != 0)
         .collect();
-    let pipe = ShaderSource::new("sector test", &[UNIFORMS_WGSL, KERNEL_WGSL]).compute(device, None);
+    let pipe =
+        ShaderSource::new("sector test", &[UNIFORMS_WGSL, KERNEL_WGSL]).compute(device, None);
     let input = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
         label: None,
         contents: bytemuck::cast_slice(&offsets),
         usage: wgpu::BufferUsages::STORAGE,
     });
-    let size = (offsets.len() * 4) as u64;
-    let output = device.create_buffer(&wgpu::BufferDescriptor {
-        label: None,
-        size,
-        usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
-        mapped_at_creation: false,
-    });
+    let output = kernel_output(device, (offsets.len() * 4) as u64);
     let group = bind(
         device,
         &pipe,
         0,
-        &[(0, input.as_entire_binding()), (1, output.as_entire_binding())],
+        &[
+            (0, input.as_entire_binding()),
+            (1, output.as_entire_binding()),
+        ],
     );
-    let mut encoder = device.create_command_encoder(&Default::default());
-    {
-        let mut pass = encoder.begin_compute_pass(&Default::default());
-        pass.set_pipeline(&pipe);
-        pass.set_bind_group(0, &group, &[]);
-        pass.dispatch_workgroups((offsets.len() as u32).div_ceil(64), 1, 1);
-    }
-    ctx.queue.submit([encoder.finish()]);
-    let bytes = read_buffer(&ctx, &output, size).expect("sectors readback");
+    let bytes = run_kernel(&ctx, &pipe, &[group], offsets.len(), &output);
     let got: &[u32] = bytemuck::cast_slice(&bytes);
     let mut per_sector = [0; 8];
     for (&[dx, dy], &s) in offsets.iter().zip(got) {
@@ -82,5 +81,8 @@ fn sectors_follow_the_angle_with_each_boundary_in_the_sector_it_starts() {
         per_sector[s as usize] += 1;
     }
     // A turn of the grid by 90 degrees maps the sectors onto each other: as many in each.
-    assert!(per_sector.iter().all(|&n| n == per_sector[0]), "{per_sector:?}");
+    assert!(
+        per_sector.iter().all(|&n| n == per_sector[0]),
+        "{per_sector:?}"
+    );
 }

@@ -82,7 +82,9 @@ impl Counts {
 /// The counters from a readback of at least `COUNT_WORDS` words.
 pub fn counts_from(bytes: &[u8]) -> Option<Counts> {
     let word = |k: usize| -> Option<u32> {
-        Some(u32::from_le_bytes(bytes.get(4 * k..4 * k + 4)?.try_into().ok()?))
+        Some(u32::from_le_bytes(
+            bytes.get(4 * k..4 * k + 4)?.try_into().ok()?,
+        ))
     };
     Some(Counts {
         culled: word(0)?,

@@ -82,7 +82,12 @@ fn a_still_waits_the_warmup_and_the_first_frame_reprojects_nothing() {
     values.set_text(&INFO, "warmup", "3").expect("warmup");
     assert_eq!(INFO.warmup_frames(&values), 3);
     // A pipeline that keeps no previous frame waits for none.
-    assert_eq!(crate::pipelines::find("pyramid").expect("pyramid").warmup_frames(&values), 0);
+    assert_eq!(
+        crate::pipelines::find("pyramid")
+            .expect("pyramid")
+            .warmup_frames(&values),
+        0
+    );
 
     let view = ViewFrame {
         view: glam::Mat4::IDENTITY,
@@ -100,8 +105,13 @@ fn a_still_waits_the_warmup_and_the_first_frame_reprojects_nothing() {
     assert!((first.max_connection - 1.2).abs() < 1e-6);
     assert_eq!(first.spacing_factor, super::NODE_SPACINGS);
     let mut set = ParamValues::default();
-    set.set_text(&INFO, "max_connection", "0.5").expect("max_connection");
-    let fixed = uniforms(&view, None, &ResolvedParams::resolve(&set, &INFO, || Some(0.3)));
+    set.set_text(&INFO, "max_connection", "0.5")
+        .expect("max_connection");
+    let fixed = uniforms(
+        &view,
+        None,
+        &ResolvedParams::resolve(&set, &INFO, || Some(0.3)),
+    );
     assert_eq!((fixed.max_connection, fixed.spacing_factor), (0.5, 0.0));
     let mut moved = view;
     moved.view = glam::Mat4::from_translation(glam::Vec3::X);
