@@ -1,23 +1,18 @@
 // A point's fan (sections 3.4 and 3.5): its sector neighbours in circular order, and the
 // triangles between consecutive ones whose opening angle seen from the point is below pi.
+// The fan is walked sector by sector, never gathered into an array: on lavapipe a per-thread
+// array indexed by a number that varies between threads costs a memory round trip per thread
+// for every access.
 
-struct Fan {
-    // Pixel ids of the neighbours found, in sector order.
-    ids: array<u32, 8>,
-    count: u32,
-}
-
-fn fan_of(p: u32) -> Fan {
-    var f: Fan;
-    f.count = 0u;
-    for (var s = 0u; s < SECTORS; s++) {
-        let v = neighbours[p * SECTORS + s];
-        if v != 0u {
-            f.ids[f.count] = ~v;
-            f.count += 1u;
-        }
+// Step `s` (0 to SECTORS) of the walk round pixel p's fan: the neighbour in sector s, as its
+// pixel id's complement (0: the sector is empty); after the last sector the first neighbour
+// again, closing the fan, where the walk met at least two (`first` and `previous`: the first
+// and the latest neighbour met, 0 where none).
+fn fan_step(p: u32, s: u32, first: u32, previous: u32) -> u32 {
+    if s < SECTORS {
+        return neighbours[p * SECTORS + s];
     }
-    return f;
+    return select(0u, first, previous != first);
 }
 
 // The screen offset of pixel `q` from pixel `p`, y down.
@@ -27,15 +22,11 @@ fn offset_px(p: u32, q: u32) -> vec2<f32> {
     return b - a;
 }
 
-// Whether the fan's k-th triangle (neighbours k and k + 1, circularly) is drawn: at least two
-// neighbours, and an opening angle below pi counter-clockwise on screen from k to k + 1.
-fn opens(p: u32, f: Fan, k: u32) -> bool {
-    if f.count < 2u {
-        return false;
-    }
-    let a = offset_px(p, f.ids[k]);
-    let b = offset_px(p, f.ids[(k + 1u) % f.count]);
+// Whether the fan's triangle from neighbour a to the next one, b, is drawn: its opening angle
+// is below pi counter-clockwise on screen from a to b.
+fn opens(p: u32, a: u32, b: u32) -> bool {
+    let oa = offset_px(p, a);
+    let ob = offset_px(p, b);
     // Counter-clockwise on screen with y down: a negative cross product of (a, b).
-    let cross = a.x * b.y - a.y * b.x;
-    return cross < 0.0;
+    return oa.x * ob.y - oa.y * ob.x < 0.0;
 }

@@ -20,20 +20,32 @@ fn main(@builtin(global_invocation_id) id: vec3<u32>) {
     if me.w <= 0.0 {
         return;
     }
-    let f = fan_of(p);
     let to_eye = tri.eye.xyz - me.xyz;
     var sum = vec3<f32>(0.0);
-    for (var k = 0u; k < f.count; k++) {
-        let q = pts[f.ids[k]].xyz;
-        atomicMax(&feedback[f.ids[k]], bitcast<u32>(distance(me.xyz, q)));
-        if opens(p, f, k) {
-            let r = pts[f.ids[(k + 1u) % f.count]].xyz;
-            let n = cross(q - me.xyz, r - me.xyz);
+    var first = 0u;
+    var previous = 0u;
+    var previous_q = vec3<f32>(0.0);
+    for (var s = 0u; s <= SECTORS; s++) {
+        let word = fan_step(p, s, first, previous);
+        if word == 0u {
+            continue;
+        }
+        let q = pts[~word].xyz;
+        if s < SECTORS {
+            atomicMax(&feedback[~word], bitcast<u32>(distance(me.xyz, q)));
+        }
+        if previous != 0u && opens(p, ~previous, ~word) {
+            let n = cross(previous_q - me.xyz, q - me.xyz);
             let len = length(n);
             if len > 0.0 {
                 sum += select(n, -n, dot(n, to_eye) < 0.0) / len;
             }
         }
+        if first == 0u {
+            first = word;
+        }
+        previous = word;
+        previous_q = q;
     }
     let len = length(sum);
     if len > 0.0 {

@@ -105,15 +105,25 @@ fn main(@builtin(global_invocation_id) id: vec3<u32>) {
     }
     let centre = vertex(p);
     add_fragment(p, 1.0 / centre.inv_w, centre.colour, centre.normal);
-    let f = fan_of(p);
     var drawn = 0u;
-    for (var k = 0u; k < f.count; k++) {
-        let a = f.ids[k];
-        let b = f.ids[(k + 1u) % f.count];
-        if opens(p, f, k) {
-            rasterize(centre, vertex(a), vertex(b));
+    var first = 0u;
+    var previous = 0u;
+    var previous_v: Vertex;
+    for (var s = 0u; s <= SECTORS; s++) {
+        let word = fan_step(p, s, first, previous);
+        if word == 0u {
+            continue;
+        }
+        let v = vertex(~word);
+        if previous != 0u && opens(p, ~previous, ~word) {
+            rasterize(centre, previous_v, v);
             drawn += 1u;
         }
+        if first == 0u {
+            first = word;
+        }
+        previous = word;
+        previous_v = v;
     }
     if drawn > 0u {
         atomicAdd(&counts[COUNT_TRIANGLES], drawn);
