@@ -17,7 +17,8 @@ use hyper_util::rt::TokioExecutor;
 use std::sync::Arc;
 use std::time::Duration;
 use strata_format::{
-    DatasetFile, HIERARCHY_HEAD_SIZE, Metadata, OCTREE_HEAD_SIZE, check_file_head,
+    DatasetFile, HIERARCHY_HEAD_SIZE, METADATA_MAX_BYTES, Metadata, OCTREE_HEAD_SIZE,
+    check_file_head,
 };
 use tokio::sync::Semaphore;
 
@@ -213,19 +214,35 @@ impl HttpSource {
                 .and_then(|v| v.to_str().ok())
                 .and_then(|v| v.rsplit_once('/'))
                 .and_then(|(_, t)| t.trim().parse::<u64>().ok());
-            let body = resp
-                .into_body()
-                .collect()
+            let length = resp
+                .headers()
+                .get(header::CONTENT_LENGTH)
+                .and_then(|v| v.to_str().ok())
+                .and_then(|v| v.trim().parse::<u64>().ok());
+            let cap = body_cap(status, want);
+            let (body, more) = read_capped(resp.into_body(), cap)
                 .await
-                .map_err(|e| Failure::Transient(format!("body interrupted ({e})")))?
-                .to_bytes();
-            Ok::<_, Failure>((status, body, total))
+                .map_err(|e| Failure::Transient(format!("body interrupted ({e})")))?;
+            // A whole file sent for a range holds more than the range's end: its length is
+            // then what the answer says, if it says. Any other answer longer than asked for
+            // is wrong, but for an error page, whose start tells the error.
+            let whole = match (more, status, want) {
+                (false, ..) => Some(body.len() as u64),
+                (true, StatusCode::OK, Want::Exact(..) | Want::Prefix(..)) => length,
+                (true, StatusCode::OK | StatusCode::PARTIAL_CONTENT, _) => {
+                    return Err(Failure::Permanent(format!(
+                        "HTTP {status} with more than the {cap} bytes expected"
+                    )));
+                }
+                (true, ..) => None,
+            };
+            Ok::<_, Failure>((status, Bytes::from(body), total, whole))
         };
-        let (status, body, total) = tokio::time::timeout(self.opts.timeout, work)
+        let (status, body, total, whole) = tokio::time::timeout(self.opts.timeout, work)
             .await
             .map_err(|_| {
-                Failure::Transient(format!("no answer within {:?}", self.opts.timeout))
-            })??;
+            Failure::Transient(format!("no answer within {:?}", self.opts.timeout))
+        })??;
         let got = body.len() as u64;
         match (status, want) {
             (StatusCode::PARTIAL_CONTENT, Want::Exact(_, len)) if got == len => {
@@ -240,13 +257,13 @@ impl HttpSource {
             // A server that ignores Range sends the whole file: take the part we asked for.
             (StatusCode::OK, Want::Exact(offset, len)) if got >= offset + len => Ok((
                 body[offset as usize..(offset + len) as usize].to_vec(),
-                Some(got),
+                whole,
             )),
             (StatusCode::OK, Want::Prefix(offset, len)) if got >= offset => Ok((
                 body[offset as usize..(offset + len).min(got) as usize].to_vec(),
-                Some(got),
+                whole,
             )),
-            (StatusCode::OK, Want::Whole) => Ok((body.to_vec(), Some(got))),
+            (StatusCode::OK, Want::Whole) => Ok((body.to_vec(), whole)),
             (StatusCode::UNAUTHORIZED | StatusCode::FORBIDDEN, _) => Err(Failure::Permanent(
                 format!("HTTP {status}: the server refused access (check --token)"),
             )),
@@ -259,6 +276,42 @@ impl HttpSource {
             (s, Want::Whole) => Err(Failure::Permanent(format!("HTTP {s}"))),
         }
     }
+}
+
+/// The most bytes of an answer's body read: what was asked for (a server that ignores Range
+/// sends the whole file, of which the range's end is enough), a metadata file's bound, or the
+/// start of an error page. A body that goes on beyond it is not read: a server that never
+/// ends one costs no more memory than this.
+fn body_cap(status: StatusCode, want: Want) -> u64 {
+    match (status, want) {
+        (StatusCode::PARTIAL_CONTENT, Want::Exact(_, len) | Want::Prefix(_, len)) => len,
+        (StatusCode::OK, Want::Exact(offset, len) | Want::Prefix(offset, len)) => offset + len,
+        (StatusCode::OK | StatusCode::PARTIAL_CONTENT, Want::Whole) => METADATA_MAX_BYTES,
+        _ => ERROR_BODY_MAX_BYTES,
+    }
+}
+
+/// The most of an error page read.
+const ERROR_BODY_MAX_BYTES: u64 = 64 << 10;
+
+/// The body up to `cap` bytes, and whether it held more (then left unread).
+async fn read_capped(
+    mut body: hyper::body::Incoming,
+    cap: u64,
+) -> Result<(Vec<u8>, bool), hyper::Error> {
+    let mut out = Vec::new();
+    while let Some(frame) = body.frame().await {
+        let Ok(data) = frame?.into_data() else {
+            continue;
+        };
+        let room = cap.saturating_sub(out.len() as u64);
+        if data.len() as u64 > room {
+            out.extend_from_slice(&data[..room as usize]);
+            return Ok((out, true));
+        }
+        out.extend_from_slice(&data);
+    }
+    Ok((out, false))
 }
 
 impl Source for HttpSource {
