@@ -113,6 +113,36 @@ fn truncated_or_missing_files_are_reported() {
 }
 
 #[test]
+fn data_files_that_are_pipes_are_refused_not_waited_on() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let ds = dataset(dir.path());
+    for name in ["hierarchy.bin", "octree.bin"] {
+        let copy = dir.path().join(format!("pipe-{name}"));
+        run_ok(&["convert", s(&data("autzen_trim.las")), "-o", s(&copy), "-q"]);
+        std::fs::remove_file(copy.join(name)).expect("remove");
+        let fifo = std::process::Command::new("mkfifo")
+            .arg(copy.join(name))
+            .status()
+            .expect("mkfifo");
+        assert!(fifo.success());
+        // Bounded: opening a pipe for reading waits for a writer that never comes.
+        for cmd in ["verify", "info"] {
+            let o = std::process::Command::new("timeout")
+                .args(["60", env!("CARGO_BIN_EXE_strata"), cmd, s(&copy)])
+                .output()
+                .expect("timeout");
+            let err = String::from_utf8_lossy(&o.stderr);
+            assert_eq!(o.status.code(), Some(1), "{cmd} on a pipe {name}: {err}");
+            assert!(
+                err.contains(&format!("{name}: is not a regular file")),
+                "{cmd}: {err}"
+            );
+        }
+    }
+    run_ok(&["verify", s(&ds)]);
+}
+
+#[test]
 fn newer_major_versions_are_refused_clearly() {
     let dir = tempfile::tempdir().expect("tempdir");
     let ds = dataset(dir.path());

@@ -1,7 +1,7 @@
 //! `strata export`: every point of a dataset back out as LAS, LAZ or PLY.
 
 use crate::error::{ConvertError, Result};
-use crate::writers::{RowWriter, open_writer, part_path};
+use crate::writers::{RowWriter, open_writer, write_then_finish};
 use std::path::Path;
 use strata_format::{AttrType, Attribute, Crs, DatasetFile, LocalDataset, RowLayout, oct16_decode};
 
@@ -62,26 +62,6 @@ pub fn export(dataset: &Path, output: &Path, overwrite: bool) -> Result<u64> {
         Ok(written)
     };
     write_then_finish(writer, output, write_all)
-}
-
-/// Writes with `write`, then finishes: the writer works under a temporary name, removed on
-/// any failure, so that nothing that looks like an export stays.
-fn write_then_finish(
-    mut writer: Box<dyn RowWriter>,
-    output: &Path,
-    write: impl FnOnce(&mut dyn RowWriter) -> Result<u64>,
-) -> Result<u64> {
-    let result = match write(writer.as_mut()) {
-        Ok(written) => writer.finish().map(|()| written),
-        Err(e) => {
-            drop(writer);
-            Err(e)
-        }
-    };
-    if result.is_err() {
-        let _ = std::fs::remove_file(part_path(output));
-    }
-    result
 }
 
 /// Writes `rows` of a dataset's `layout` (a selection of its points, such as a profile) to

@@ -6,7 +6,7 @@
 
 use crate::error::{ConvertError, Result};
 use crate::input::las_layout::las_fields;
-use crate::writers::open_writer;
+use crate::writers::{open_writer, write_then_finish};
 use rayon::prelude::*;
 use std::path::Path;
 use strata_format::RowLayout;
@@ -272,7 +272,7 @@ pub fn synth(
         seed,
         side: (points as f64 / DENSITY).sqrt().max(10.0),
     };
-    let mut writer = open_writer(output, &layout, [SCALE; 3], ORIGIN, points, overwrite, None)?;
+    let writer = open_writer(output, &layout, [SCALE; 3], ORIGIN, points, overwrite, None)?;
     let off = |n: &str| layout.range_of(n).map_or(0, |r| r.start);
     let (o_int, o_ret, o_nret, o_class, o_gps, o_rgb, o_psid) = (
         off("intensity"),
@@ -283,43 +283,48 @@ pub fn synth(
         off("rgb"),
         off("point_source_id"),
     );
-    let stride = layout.stride;
-    let mut start = 0u64;
-    let mut rows = Vec::new();
-    while start < points {
-        let n = BATCH.min(points - start);
-        rows.clear();
-        rows.resize(n as usize * stride, 0);
-        rows.par_chunks_mut(stride)
-            .enumerate()
-            .for_each(|(k, row)| {
-                let i = start + k as u64;
-                let (mut p, class, rgb, intensity, ret, nret) = world.point(i);
-                let strip = (p[1] / 250.0).floor().max(0.0) as u16;
-                if noise > 0.0 {
-                    // A stream of its own: the noiseless scene stays the same file.
-                    let mut r = Rng::new(seed, i, 0x4015E);
-                    for c in &mut p {
-                        *c += noise * r.gaussian();
+    // A failed write leaves no partial file beside the output.
+    write_then_finish(writer, output, |writer| {
+        let stride = layout.stride;
+        let mut start = 0u64;
+        let mut rows = Vec::new();
+        while start < points {
+            let n = BATCH.min(points - start);
+            rows.clear();
+            rows.resize(n as usize * stride, 0);
+            rows.par_chunks_mut(stride)
+                .enumerate()
+                .for_each(|(k, row)| {
+                    let i = start + k as u64;
+                    let (mut p, class, rgb, intensity, ret, nret) = world.point(i);
+                    let strip = (p[1] / 250.0).floor().max(0.0) as u16;
+                    if noise > 0.0 {
+                        // A stream of its own: the noiseless scene stays the same file.
+                        let mut r = Rng::new(seed, i, 0x4015E);
+                        for c in &mut p {
+                            *c += noise * r.gaussian();
+                        }
                     }
-                }
-                for a in 0..3 {
-                    let q = (p[a] / SCALE).round() as i32;
-                    row[a * 4..a * 4 + 4].copy_from_slice(&q.to_le_bytes());
-                }
-                row[o_int..o_int + 2].copy_from_slice(&intensity.to_le_bytes());
-                row[o_ret] = ret;
-                row[o_nret] = nret;
-                row[o_class] = class;
-                let gps = 1.0e8 + i as f64 * 1e-5;
-                row[o_gps..o_gps + 8].copy_from_slice(&gps.to_le_bytes());
-                for c in 0..3 {
-                    row[o_rgb + 2 * c..o_rgb + 2 * c + 2].copy_from_slice(&rgb[c].to_le_bytes());
-                }
-                row[o_psid..o_psid + 2].copy_from_slice(&strip.to_le_bytes());
-            });
-        writer.write_rows(&rows)?;
-        start += n;
-    }
-    writer.finish()
+                    for a in 0..3 {
+                        let q = (p[a] / SCALE).round() as i32;
+                        row[a * 4..a * 4 + 4].copy_from_slice(&q.to_le_bytes());
+                    }
+                    row[o_int..o_int + 2].copy_from_slice(&intensity.to_le_bytes());
+                    row[o_ret] = ret;
+                    row[o_nret] = nret;
+                    row[o_class] = class;
+                    let gps = 1.0e8 + i as f64 * 1e-5;
+                    row[o_gps..o_gps + 8].copy_from_slice(&gps.to_le_bytes());
+                    for c in 0..3 {
+                        row[o_rgb + 2 * c..o_rgb + 2 * c + 2]
+                            .copy_from_slice(&rgb[c].to_le_bytes());
+                    }
+                    row[o_psid..o_psid + 2].copy_from_slice(&strip.to_le_bytes());
+                });
+            writer.write_rows(&rows)?;
+            start += n;
+        }
+        Ok(points)
+    })
+    .map(|_| ())
 }

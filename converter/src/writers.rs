@@ -510,3 +510,23 @@ impl RowWriter for PlyRowWriter {
             .map_err(|e| ConvertError::io(&self.path, "cannot move into place", e))
     }
 }
+
+/// Writes with `write`, then finishes: the writer works under a temporary name, removed on
+/// any failure, so that nothing that looks like an export stays.
+pub(crate) fn write_then_finish(
+    mut writer: Box<dyn RowWriter>,
+    output: &Path,
+    write: impl FnOnce(&mut dyn RowWriter) -> Result<u64>,
+) -> Result<u64> {
+    let result = match write(writer.as_mut()) {
+        Ok(written) => writer.finish().map(|()| written),
+        Err(e) => {
+            drop(writer);
+            Err(e)
+        }
+    };
+    if result.is_err() {
+        let _ = std::fs::remove_file(part_path(output));
+    }
+    result
+}

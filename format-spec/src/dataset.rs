@@ -177,18 +177,7 @@ pub const METADATA_MAX_BYTES: u64 = 16 << 20;
 /// device would block or never end) or is larger than any real one.
 pub fn read_metadata_file(path: &Path) -> Result<Vec<u8>, FormatError> {
     const MAX: u64 = METADATA_MAX_BYTES;
-    // Looked at before it is opened: opening a pipe waits for a writer.
-    if !std::fs::metadata(path)
-        .map_err(|e| FormatError::io(path, e))?
-        .is_file()
-    {
-        return Err(FormatError::corrupt(path, "is not a regular file"));
-    }
-    let file = File::open(path).map_err(|e| FormatError::io(path, e))?;
-    let stat = file.metadata().map_err(|e| FormatError::io(path, e))?;
-    if !stat.is_file() {
-        return Err(FormatError::corrupt(path, "is not a regular file"));
-    }
+    let (file, stat) = open_regular(path)?;
     if stat.len() > MAX {
         return Err(FormatError::corrupt(
             path,
@@ -201,9 +190,28 @@ pub fn read_metadata_file(path: &Path) -> Result<Vec<u8>, FormatError> {
     read_range(&file, path, 0, stat.len())
 }
 
+/// A dataset file opened for reading, refused where it is not a regular file: a pipe or a
+/// device would block or never end.
+fn open_regular(path: &Path) -> Result<(File, std::fs::Metadata), FormatError> {
+    // Looked at before it is opened: opening a pipe waits for a writer.
+    if !std::fs::metadata(path)
+        .map_err(|e| FormatError::io(path, e))?
+        .is_file()
+    {
+        return Err(FormatError::corrupt(path, "is not a regular file"));
+    }
+    let file = File::open(path).map_err(|e| FormatError::io(path, e))?;
+    let stat = file.metadata().map_err(|e| FormatError::io(path, e))?;
+    // Looked at again on what was opened: the name may have been replaced in between.
+    if !stat.is_file() {
+        return Err(FormatError::corrupt(path, "is not a regular file"));
+    }
+    Ok((file, stat))
+}
+
 fn open_checked(path: &Path, file: DatasetFile, meta: &Metadata) -> Result<File, FormatError> {
-    let f = File::open(path).map_err(|e| FormatError::io(path, e))?;
-    let len = f.metadata().map_err(|e| FormatError::io(path, e))?.len();
+    let (f, stat) = open_regular(path)?;
+    let len = stat.len();
     let head = read_range(&f, path, 0, meta.layout().head_size(file).min(len))?;
     check_file_head(path, file, Some(len), &head, meta)?;
     Ok(f)

@@ -15,6 +15,7 @@ mod metadata;
 mod node_codec;
 mod node_key;
 mod page_build;
+mod side_file;
 pub mod v1_0;
 mod verify;
 
@@ -41,6 +42,7 @@ pub use node_codec::{
 };
 pub use node_key::NodeKey;
 pub use page_build::{BuiltHierarchy, NodeRecord, build_hierarchy};
+pub use side_file::{SIDE_FILE_MAX_BYTES, read_side_file};
 pub use verify::{Fault, VerifyReport, verify_dataset};
 
 /// Sampling grid cells per node edge: a node's spacing is its edge length / `GRID_CELLS`.

@@ -121,7 +121,7 @@ fn token(a: &Args) -> anyhow::Result<Option<String>> {
     let Some(file) = &a.token_file else {
         return Ok(None);
     };
-    let raw = std::fs::read_to_string(file)
+    let raw = strata_format::read_side_file(file)
         .with_context(|| format!("{}: cannot read the token file", file.display()))?;
     Ok(Some(check_token(
         &raw,

@@ -95,7 +95,7 @@ impl Bookmark {
 impl Bookmarks {
     /// Reads `path`; a file that does not exist yet holds no bookmarks.
     pub fn load(path: &Path) -> Result<Bookmarks, ViewerError> {
-        let text = match std::fs::read_to_string(path) {
+        let text = match strata_format::read_side_file(path) {
             Ok(t) => t,
             Err(e) if e.kind() == std::io::ErrorKind::NotFound => return Ok(Bookmarks::default()),
             Err(e) => return Err(ViewerError::output(path, format!("cannot read ({e})"))),

@@ -78,6 +78,9 @@ pub const DEFAULT_FOV_DEG: f32 = 50.0;
 
 /// Frames a fly-through takes at most from its keyframes' seconds.
 const MAX_PATH_FRAMES: u32 = 100_000;
+/// The pace of a fly-through that does not wait for completeness: a frame at least every
+/// ten seconds, as a viewer's slowest useful pace, so that a run is bounded by its frames.
+const FPS_RANGE: std::ops::RangeInclusive<f32> = 0.1..=1000.0;
 
 /// The whole dataset in view, for a view of `width` x `height`.
 pub fn default_camera(ds: &StreamDataset, width: u32, height: u32) -> Camera {
@@ -313,7 +316,7 @@ fn cameras(ds: &StreamDataset, opts: &RenderOptions) -> Result<Vec<Camera>, View
             None => default,
         }]);
     };
-    let text = std::fs::read_to_string(path).map_err(|e| {
+    let text = strata_format::read_side_file(path).map_err(|e| {
         ViewerError::argument(
             path.display().to_string(),
             format!("cannot read the camera path ({e})"),
@@ -360,6 +363,17 @@ fn cameras(ds: &StreamDataset, opts: &RenderOptions) -> Result<Vec<Camera>, View
             format!(
                 "keyframe {} has seconds {s}; it must be a positive number",
                 i + 1
+            ),
+        ));
+    }
+    if !opts.wait_complete && !FPS_RANGE.contains(&opts.fps) {
+        return Err(ViewerError::argument(
+            "--fps",
+            format!(
+                "{} is outside the {} to {} frames per second a fly-through is paced at",
+                opts.fps,
+                FPS_RANGE.start(),
+                FPS_RANGE.end()
             ),
         ));
     }

@@ -306,7 +306,7 @@ impl Measurements {
 
     /// Reads `path`; a file that does not exist holds none.
     pub fn load(path: &Path) -> Result<Measurements, ViewerError> {
-        let text = match std::fs::read_to_string(path) {
+        let text = match strata_format::read_side_file(path) {
             Ok(t) => t,
             Err(e) if e.kind() == std::io::ErrorKind::NotFound => {
                 return Ok(Measurements::default());
@@ -318,7 +318,7 @@ impl Measurements {
 
     /// Reads `path`, which must exist (a file named on the command line).
     pub fn load_existing(path: &Path) -> Result<Measurements, ViewerError> {
-        let text = std::fs::read_to_string(path)
+        let text = strata_format::read_side_file(path)
             .map_err(|e| ViewerError::output(path, format!("cannot read ({e})")))?;
         Measurements::from_geojson(&text, &path.display().to_string())
     }

@@ -64,7 +64,7 @@ impl Source for MmapSource {
 
     fn metadata_bytes(&self) -> Result<Vec<u8>, ViewerError> {
         let path = self.dir.join(DatasetFile::Metadata.name());
-        std::fs::read(&path).map_err(|e| FormatError::io(&path, e).into())
+        Ok(strata_format::read_metadata_file(&path)?)
     }
 
     fn read(&self, file: DatasetFile, offset: u64, len: u64) -> Result<Vec<u8>, ViewerError> {
