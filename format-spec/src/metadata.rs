@@ -253,20 +253,22 @@ impl Metadata {
         let version = value
             .get("version")
             .and_then(|v| v.as_array())
-            .map(|v| {
-                v.iter()
-                    .map(|n| n.as_u64().unwrap_or(u64::MAX))
-                    .collect::<Vec<_>>()
-            })
-            .unwrap_or_default();
-        if version.len() != 2 || version[0] != VERSION_MAJOR as u64 {
+            .and_then(|v| v.iter().map(|n| n.as_u64()).collect::<Option<Vec<_>>>());
+        let Some(version) = version.filter(|v| v.len() == 2) else {
+            // Named as found, so that a missing or malformed field is not shown as an empty
+            // or wrapped version number.
+            let found = value
+                .get("version")
+                .map_or("none".into(), |v| v.to_string());
+            return Err(FormatError::corrupt(
+                path,
+                format!("\"version\" must be [major, minor], two whole numbers (found {found})"),
+            ));
+        };
+        if version[0] != VERSION_MAJOR as u64 {
             return Err(FormatError::UnsupportedVersion {
                 path: path.into(),
-                found: version
-                    .iter()
-                    .map(|v| v.to_string())
-                    .collect::<Vec<_>>()
-                    .join("."),
+                found: format!("{}.{}", version[0], version[1]),
                 supported: format!("{VERSION_MAJOR}.0 to {VERSION_MAJOR}.{VERSION_MINOR}"),
             });
         }
@@ -386,6 +388,24 @@ mod tests {
         assert!(
             Metadata::from_json_any_minor(newer.to_string().as_bytes(), Path::new("m")).is_ok()
         );
+        // A malformed version is named as found, not as an empty or wrapped number.
+        for (bad, shown) in [
+            (serde_json::json!("1.1"), "\"1.1\""),
+            (serde_json::json!([-1, -1]), "[-1,-1]"),
+            (serde_json::json!([1]), "[1]"),
+        ] {
+            let mut m = meta_1_1();
+            m["version"] = bad;
+            let err = parse(&m).err().unwrap_or_default();
+            assert!(
+                err.contains(&format!("two whole numbers (found {shown})")),
+                "{err}"
+            );
+        }
+        let mut m = meta_1_1();
+        m.as_object_mut().map(|o| o.remove("version"));
+        let err = parse(&m).err().unwrap_or_default();
+        assert!(err.contains("(found none)"), "{err}");
     }
 
     #[test]
