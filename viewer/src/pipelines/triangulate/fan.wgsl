@@ -4,13 +4,18 @@
 // array indexed by a number that varies between threads costs a memory round trip per thread
 // for every access.
 
+// Words per sector in the neighbour buffer: 1 for the two-pass search's ids, 2 where the
+// 64-bit search's keys are read in place (the id's complement is the low word of the key's,
+// and an empty sector's key is 0), so that no pass copies them out.
+override NEIGHBOUR_STRIDE: u32 = 1u;
+
 // Step `s` (0 to SECTORS) of the walk round pixel p's fan: the neighbour in sector s, as its
 // pixel id's complement (0: the sector is empty); after the last sector the first neighbour
 // again, closing the fan, where the walk met at least two (`first` and `previous`: the first
 // and the latest neighbour met, 0 where none).
 fn fan_step(p: u32, s: u32, first: u32, previous: u32) -> u32 {
     if s < SECTORS {
-        return neighbours[p * SECTORS + s];
+        return neighbours[(p * SECTORS + s) * NEIGHBOUR_STRIDE];
     }
     return select(0u, first, previous != first);
 }

@@ -79,7 +79,6 @@ pub static INFO: PipelineInfo = PipelineInfo {
         "reproject",
         "triangulate gather",
         "search",
-        "search unpack",
         "search distances",
         "search ids",
         "normals",

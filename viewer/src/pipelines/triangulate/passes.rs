@@ -22,7 +22,6 @@ const RAYS_WGSL: &str = include_str!("rays.wgsl");
 const SEARCH_DISTANCES_WGSL: &str = include_str!("search_distances.wgsl");
 const SEARCH_IDS_WGSL: &str = include_str!("search_ids.wgsl");
 const SEARCH_INT64_WGSL: &str = include_str!("search_int64.wgsl");
-const SEARCH_UNPACK_WGSL: &str = include_str!("search_unpack.wgsl");
 const FAN_WGSL: &str = include_str!("fan.wgsl");
 const NORMALS_WGSL: &str = include_str!("normals.wgsl");
 const RASTER_WGSL: &str = include_str!("raster.wgsl");
@@ -58,13 +57,15 @@ pub struct TriangulateUniforms {
 }
 
 /// Every module the triangulation compiles; `int64`: the device has 64-bit atomics, and the
-/// sector search takes one pass and an unpack instead of two.
+/// sector search takes one pass instead of two, whose keys the fans read in place.
 pub fn shaders(int64: bool) -> Vec<ShaderSource> {
     let own = |label, parts: &[&'static str]| {
         let mut all = vec![UNIFORMS_WGSL, COUNTS_WGSL];
         all.extend_from_slice(parts);
         ShaderSource::new(label, &all)
     };
+    // Words per sector of what the fans read: the ids, or the 64-bit keys.
+    let neighbour_stride = if int64 { 2.0 } else { 1.0 };
     let mut v = vec![
         own("triangulate reproject", &[REPROJECT_WGSL, RAYS_WGSL]),
         own(
@@ -79,8 +80,10 @@ pub fn shaders(int64: bool) -> Vec<ShaderSource> {
             "triangulate search ids",
             &[SEARCH_IDS_WGSL, RAYS_WGSL, SEARCH_WGSL],
         ),
-        own("triangulate normals", &[NORMALS_WGSL, FAN_WGSL]),
-        own("triangulate raster", &[RASTER_WGSL, FAN_WGSL]),
+        own("triangulate normals", &[NORMALS_WGSL, FAN_WGSL])
+            .with_constant("NEIGHBOUR_STRIDE", neighbour_stride),
+        own("triangulate raster", &[RASTER_WGSL, FAN_WGSL])
+            .with_constant("NEIGHBOUR_STRIDE", neighbour_stride),
         own(
             "triangulate radii",
             &[RADII_WGSL, RAYS_WGSL, RANGE_SEARCH_WGSL],
@@ -93,7 +96,6 @@ pub fn shaders(int64: bool) -> Vec<ShaderSource> {
             "triangulate search",
             &[SEARCH_INT64_WGSL, RAYS_WGSL, SEARCH_WGSL],
         ));
-        v.push(own("triangulate search unpack", &[SEARCH_UNPACK_WGSL]));
     }
     v
 }
@@ -129,8 +131,8 @@ pub struct TriangulatePasses {
     radii: wgpu::ComputePipeline,
     shade: wgpu::ComputePipeline,
     holes: wgpu::ComputePipeline,
-    /// The one-pass 64-bit search and its unpack, where the device has 64-bit atomics.
-    search64: Option<(wgpu::ComputePipeline, wgpu::ComputePipeline)>,
+    /// The one-pass 64-bit search, where the device has 64-bit atomics.
+    search64: Option<wgpu::ComputePipeline>,
 }
 
 impl TriangulatePasses {
@@ -157,10 +159,7 @@ impl TriangulatePasses {
             shade: take("triangulate shade")?,
             holes: take("triangulate holes")?,
             search64: if int64 {
-                Some((
-                    take("triangulate search")?,
-                    take("triangulate search unpack")?,
-                ))
+                Some(take("triangulate search")?)
             } else {
                 None
             },
@@ -297,8 +296,9 @@ impl TriangulatePasses {
             Some(&gather_groups),
             None,
         );
-        match (&self.search64, &t.keys) {
-            (Some((search, unpack)), Some(keys)) => {
+        // The sector neighbours the fans read: the 64-bit keys in place, or the ids.
+        let neighbours = match (&self.search64, &t.keys) {
+            (Some(search), Some(keys)) => {
                 pass(
                     "search",
                     search,
@@ -306,7 +306,7 @@ impl TriangulatePasses {
                     None,
                     None,
                 );
-                pass("search unpack", unpack, &[keys, &t.neighbours], None, None);
+                keys
             }
             _ => {
                 pass(
@@ -323,18 +323,13 @@ impl TriangulatePasses {
                     None,
                     None,
                 );
+                &t.neighbours
             }
-        }
+        };
         pass(
             "normals",
             &self.normals,
-            &[
-                &t.uniforms,
-                &t.points,
-                &t.neighbours,
-                &t.normals,
-                &t.feedback,
-            ],
+            &[&t.uniforms, &t.points, neighbours, &t.normals, &t.feedback],
             None,
             None,
         );
@@ -343,7 +338,7 @@ impl TriangulatePasses {
             &self.raster,
             &[
                 &t.points,
-                &t.neighbours,
+                neighbours,
                 &t.normals,
                 &screen.colours,
                 &t.sums,

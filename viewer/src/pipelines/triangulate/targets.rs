@@ -136,7 +136,12 @@ impl TriangulateTargets {
                 plane(2)
             },
             keys: int64.then(|| plane_buffer(device, "64-bit sector keys", pixels * 8 * SECTORS)),
-            neighbours: plane(3),
+            // The 64-bit search's keys are read in place of the ids.
+            neighbours: if int64 {
+                plane_buffer(device, PLANES[3].0, 16)
+            } else {
+                plane(3)
+            },
             normals: plane(4),
             feedback: plane(5),
             sums: plane(6),
