@@ -5,7 +5,7 @@
 //! files numbered so that, read in order, they are the same rows in the same order.
 
 use crate::error::{ConvertError, Result, panic_message};
-use crate::plan::{grid_cell, grid_shape};
+use crate::plan::{grid_cell_checked, grid_shape};
 use crate::rowfile::{Scratch, append_block};
 use crate::rows::RowInput;
 use indicatif::ProgressBar;
@@ -165,7 +165,17 @@ fn distribute_part(
     for (input, range) in d.inputs.iter().zip(d.share.of(&ranges)) {
         input.for_each_rows(range, d.stride, release, batch_bytes, |rows| {
             for row in rows.chunks_exact(d.stride) {
-                let chunk = d.lut[grid_cell(row_position(row), d.cube, level, shift)] as usize;
+                // The plan's chunks hold every row it counted; a plan edited since may not.
+                let chunk = grid_cell_checked(row_position(row), d.cube, level, shift)
+                    .and_then(|cell| d.lut.get(cell))
+                    .map(|&c| c as usize)
+                    .filter(|&c| c < d.chunk_count && c < buffers.len());
+                let Some(chunk) = chunk else {
+                    return Err(ConvertError::input(
+                        &input.path,
+                        "a row lies in none of the plan's chunks: the plan was changed since it was made; make it again",
+                    ));
+                };
                 if let Some(&c) = d.class_at.and_then(|at| row.get(at)) {
                     classes[c as usize] += 1;
                 }

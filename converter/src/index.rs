@@ -254,9 +254,20 @@ fn chunk_fault(plan: &Plan, i: usize, message: String) -> ConvertError {
 fn read_chunk(ix: &Indexing, chunk: usize, rows: &mut Vec<u8>) -> Result<()> {
     let stride = ix.layout.stride;
     rows.clear();
-    // Its size is known: reserved at once rather than grown (and copied) part by part.
+    // Its size is known: reserved at once rather than grown (and copied) part by part. The
+    // count comes from the plan, a file: one too large is an error, not an abort.
     let points = ix.plan.chunks.get(chunk).map_or(0, |c| c.points);
-    rows.reserve(usize::try_from(points).unwrap_or(0).saturating_mul(stride));
+    let bytes = usize::try_from(points)
+        .ok()
+        .and_then(|p| p.checked_mul(stride));
+    if bytes.is_none_or(|b| rows.try_reserve(b).is_err()) {
+        return Err(ConvertError::input(
+            ix.wd.plan(),
+            format!(
+                "chunk {chunk}'s {points} points, as the plan counts them, do not fit in memory ({stride} bytes each)"
+            ),
+        ));
+    }
     let mut scratch = Scratch::default();
     for part in 0..ix.parts {
         read_rows(&ix.wd.chunk_part(chunk, part), stride, rows, &mut scratch)?;

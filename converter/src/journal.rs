@@ -5,6 +5,7 @@
 use crate::build::ConvertOptions;
 use crate::chunk_step::ChunkStep;
 use crate::error::{ConvertError, Result, io_err};
+use crate::plan::check_chunks;
 use crate::prepare::Plan;
 use crate::rowfile::RowWriter;
 use crate::tree::FinishedNode;
@@ -133,6 +134,13 @@ pub fn resumable_plan(opts: &ConvertOptions, wd: &WorkDir, fp: &str) -> Result<O
     else {
         return Ok(None);
     };
+    // Written by the run, but a file on disk all the same: what sizes tables is checked.
+    check_chunks(&plan.chunks, &plan.cube, plan.points).map_err(|e| {
+        ConvertError::input(
+            wd.plan(),
+            format!("{e}, so the conversion cannot resume: run it again without --resume"),
+        )
+    })?;
     if plan.fingerprint != fp {
         return Err(ConvertError::output(
             wd.root(),

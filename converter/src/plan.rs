@@ -61,6 +61,22 @@ pub fn grid_cell(p: [i32; 3], cube: &Cube, level: u32, shift: u32) -> usize {
     (c(0) << (2 * level)) | (c(1) << level) | c(2)
 }
 
+/// `grid_cell` of a position that may lie outside the cube (rows a plan edited since does
+/// not hold): `None` there.
+#[inline]
+pub fn grid_cell_checked(p: [i32; 3], cube: &Cube, level: u32, shift: u32) -> Option<usize> {
+    let mut cell = 0usize;
+    for (&v, min) in p.iter().zip(cube.min) {
+        // Checked: a cube read from a file may be anywhere (`check_cube` bounds its min).
+        let c = i64::from(v).checked_sub(min)? >> shift.min(63);
+        if !(0..1i64 << level).contains(&c) {
+            return None;
+        }
+        cell = (cell << level) | c as usize;
+    }
+    Some(cell)
+}
+
 /// What the count phase learns: points per grid cell, and the extent of the positions.
 #[derive(Debug, Clone)]
 pub struct Counts {
@@ -171,7 +187,7 @@ pub fn count(
 
 /// Splits the cube top-down until every chunk holds at most `max_points` (or is one grid cell).
 /// Returns the chunks, largest first, and a lookup table from grid cell to chunk index.
-pub fn plan_chunks(counts: &[u64], cube: &Cube, max_points: u64) -> (Vec<Chunk>, Vec<u32>) {
+pub fn plan_chunks(counts: &[u64], cube: &Cube, max_points: u64) -> Result<(Vec<Chunk>, Vec<u32>)> {
     let (level, _) = grid_shape(cube);
     // Sum counts of the cells under node `k` (level <= grid level).
     let sum = |k: &NodeKey| -> u64 {
@@ -211,27 +227,92 @@ pub fn plan_chunks(counts: &[u64], cube: &Cube, max_points: u64) -> (Vec<Chunk>,
         }
     }
     chunks.sort_by(|a, b| b.points.cmp(&a.points).then(a.key().cmp(&b.key())));
-    let lut = chunk_lut(&chunks, cube);
-    (chunks, lut)
+    let lut =
+        chunk_lut(&chunks, cube).map_err(|e| ConvertError::internal("planning the chunks", e))?;
+    Ok((chunks, lut))
+}
+
+/// The most bits a cube may span, as the format's metadata allows.
+pub const MAX_CUBE_BITS: u32 = 32;
+
+/// What is wrong with a cube read from a file, if anything: positions are i32, and the cube
+/// decides the counting grid every table is sized by.
+pub fn check_cube(cube: &Cube) -> std::result::Result<(), String> {
+    if !(1..=MAX_CUBE_BITS).contains(&cube.bits) {
+        return Err(format!(
+            "cube.bits is {}, outside 1 to {MAX_CUBE_BITS}",
+            cube.bits
+        ));
+    }
+    if let Some(a) = (0..3).find(|&a| i32::try_from(cube.min[a]).is_err()) {
+        return Err(format!(
+            "cube.min[{a}] is {}, outside the range of positions",
+            cube.min[a]
+        ));
+    }
+    Ok(())
 }
 
 /// The lookup table from counting-grid cell to chunk index (`u32::MAX` for cells of no
-/// chunk): the chunks alone decide it, so a task rebuilds it from the plan.
-pub fn chunk_lut(chunks: &[Chunk], cube: &Cube) -> Vec<u32> {
+/// chunk): the chunks alone decide it, so a task rebuilds it from the plan. Chunks read from a
+/// file may be anything: one off the grid, or over another's cells, is refused with what is
+/// wrong with it.
+pub fn chunk_lut(chunks: &[Chunk], cube: &Cube) -> std::result::Result<Vec<u32>, String> {
+    check_cube(cube)?;
     let (level, _) = grid_shape(cube);
+    if chunks.len() >= u32::MAX as usize {
+        return Err(format!("it has {} chunks, too many", chunks.len()));
+    }
     let mut lut = vec![u32::MAX; 1 << (3 * level)];
     for (i, c) in chunks.iter().enumerate() {
-        let span = 1u32 << (level - c.level as u32);
+        let fault = |what: String| format!("chunk {i}'s {what}");
+        let Some(depth) = level.checked_sub(u32::from(c.level)) else {
+            return Err(fault(format!(
+                "level {} is deeper than the counting grid's {level}",
+                c.level
+            )));
+        };
+        if let Some((axis, v)) = [("x", c.x), ("y", c.y), ("z", c.z)]
+            .into_iter()
+            .find(|&(_, v)| u64::from(v) >= 1u64 << c.level)
+        {
+            return Err(fault(format!(
+                "{axis} {v} lies outside its level {}, whose cells number {} an axis",
+                c.level,
+                1u64 << c.level
+            )));
+        }
+        // Within the grid now: every cell below fits its axis's `level` bits.
+        let span = 1u32 << depth;
         for x in c.x * span..(c.x + 1) * span {
             for y in c.y * span..(c.y + 1) * span {
                 for z in c.z * span..(c.z + 1) * span {
-                    lut[((x as usize) << (2 * level)) | ((y as usize) << level) | z as usize] =
-                        i as u32;
+                    let cell = ((x as usize) << (2 * level)) | ((y as usize) << level) | z as usize;
+                    if lut[cell] != u32::MAX {
+                        return Err(fault(format!("cells overlap chunk {}'s", lut[cell])));
+                    }
+                    lut[cell] = i as u32;
                 }
             }
         }
     }
-    lut
+    Ok(lut)
+}
+
+/// What is wrong with a plan's chunks read from a file, if anything: where they lie (see
+/// `chunk_lut`) and how many points they hold, which must add up to the plan's.
+pub fn check_chunks(chunks: &[Chunk], cube: &Cube, points: u64) -> std::result::Result<(), String> {
+    chunk_lut(chunks, cube)?;
+    let sum = chunks
+        .iter()
+        .try_fold(0u64, |sum, c| sum.checked_add(c.points));
+    match sum {
+        Some(sum) if sum == points => Ok(()),
+        Some(sum) => Err(format!(
+            "its chunks' points add up to {sum}, not the plan's {points}"
+        )),
+        None => Err("its chunks' points add up to more than 2^64".to_string()),
+    }
 }
 
 /// Points per chunk that keep indexing inside `memory_limit` with `threads` workers.
@@ -289,6 +370,49 @@ mod tests {
             "a large limit keeps every thread"
         );
         assert_eq!(count_workers(1 << 20, 0), 1);
+    }
+
+    #[test]
+    fn chunks_off_the_grid_or_overlapping_are_refused() {
+        let cube = Cube {
+            min: [0; 3],
+            bits: 10,
+        };
+        let chunk = |level, x, y, z, points| Chunk {
+            level,
+            x,
+            y,
+            z,
+            points,
+        };
+        let good = vec![chunk(1, 0, 0, 0, 5), chunk(1, 1, 1, 1, 6)];
+        assert_eq!(check_chunks(&good, &cube, 11), Ok(()));
+        let refused = |chunks: &[Chunk], cube: &Cube, points| {
+            check_chunks(chunks, cube, points).expect_err("refused")
+        };
+        let e = refused(&[chunk(200, 0, 0, 0, 11)], &cube, 11);
+        assert!(e.contains("chunk 0's level 200"), "{e}");
+        let e = refused(&[good[0].clone(), chunk(1, 0, 2, 0, 6)], &cube, 11);
+        assert!(e.contains("chunk 1's y 2"), "{e}");
+        let e = refused(&[good[0].clone(), chunk(2, 1, 1, 0, 6)], &cube, 11);
+        assert!(e.contains("chunk 1's cells overlap chunk 0's"), "{e}");
+        let e = refused(&good, &cube, 12);
+        assert!(e.contains("add up to 11, not the plan's 12"), "{e}");
+        let e = refused(&[good[0].clone(), chunk(1, 1, 1, 1, u64::MAX)], &cube, 11);
+        assert!(e.contains("more than 2^64"), "{e}");
+        for bits in [0, 33, 99] {
+            let e = refused(&good, &Cube { min: [0; 3], bits }, 11);
+            assert!(e.contains(&format!("cube.bits is {bits}")), "{e}");
+        }
+        let e = refused(
+            &good,
+            &Cube {
+                min: [0, 1 << 40, 0],
+                bits: 10,
+            },
+            11,
+        );
+        assert!(e.contains("cube.min[1]"), "{e}");
     }
 
     #[test]

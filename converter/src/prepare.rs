@@ -221,7 +221,7 @@ pub fn count_and_plan(
         step.bytes_per_point(layout.stride),
     )
     .min(balanced);
-    let (chunks, lut) = plan_chunks(&staged.counts.cells, &staged.cube, max_chunk);
+    let (chunks, lut) = plan_chunks(&staged.counts.cells, &staged.cube, max_chunk)?;
 
     let class_at = layout
         .index_of("classification")

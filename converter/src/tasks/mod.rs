@@ -30,6 +30,7 @@ use crate::input::PointSource;
 use crate::input::las::LasSource;
 use crate::journal::run_fingerprint;
 use crate::normals::{NormalOptions, NormalStep};
+use crate::plan::check_chunks;
 use crate::prepare::{Plan, count_and_plan};
 use crate::progress::{Phases, Progress};
 use crate::replace::{Folder, check_output};
@@ -44,6 +45,9 @@ use strata_format::RowLayout;
 
 /// Changes whenever a plan written by one build means something else to another.
 const PLAN_VERSION: u32 = 2;
+
+/// The most threads a plan may ask its tasks for, as `--threads` allows.
+const MAX_THREADS: usize = 1024;
 
 /// Everything the tasks and the finish need, and the options they must all use.
 #[derive(Debug, Clone, Serialize, Deserialize)]
@@ -155,6 +159,8 @@ impl TaskPlan {
                 ),
             ));
         }
+        plan.check()
+            .map_err(|what| ConvertError::input(&path, what))?;
         // Tasks index the chunks by these ranges: they must cover them in order, exactly.
         let mut next = 0;
         for (k, r) in plan.tasks.iter().enumerate() {
@@ -181,6 +187,38 @@ impl TaskPlan {
             ));
         }
         Ok(plan)
+    }
+
+    /// What is wrong with the plan's fields that size memory or index tables, if anything: a
+    /// plan is a file anyone may edit, and a task must refuse it, not panic or abort.
+    fn check(&self) -> std::result::Result<(), String> {
+        let plan = &self.plan;
+        check_chunks(&plan.chunks, &plan.cube, plan.points)
+            .map_err(|e| format!("\"plan\": {e}"))?;
+        if !(1..=MAX_THREADS).contains(&self.threads) {
+            return Err(format!(
+                "\"threads\" is {}, outside 1 to {MAX_THREADS}",
+                self.threads
+            ));
+        }
+        let stride = RowLayout::new(plan.attributes.clone()).stride;
+        for (i, s) in self.sources.iter().enumerate() {
+            match s {
+                RowSource::Las { input } if *input >= self.inputs.len() => {
+                    return Err(format!(
+                        "source {i} names input {input}, but the plan lists {} inputs",
+                        self.inputs.len()
+                    ));
+                }
+                RowSource::Rows { record_len, .. } if *record_len != stride => {
+                    return Err(format!(
+                        "source {i}'s records are {record_len} bytes where the plan's rows are {stride}"
+                    ));
+                }
+                _ => {}
+            }
+        }
+        Ok(())
     }
 
     /// The options of the conversion, writing to `output`.

@@ -158,7 +158,8 @@ fn distribute_share(
     let plan = &tp.plan;
     let layout = RowLayout::new(plan.attributes.clone());
     let inputs = tp.row_inputs(plan_dir)?;
-    let lut = chunk_lut(&plan.chunks, &plan.cube);
+    let lut = chunk_lut(&plan.chunks, &plan.cube)
+        .map_err(|e| ConvertError::input(plan_file(plan_dir), e))?;
     let classes: ClassCounts = distribute(
         &Distribution {
             inputs: &inputs,

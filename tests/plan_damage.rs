@@ -1,0 +1,134 @@
+//! A plan folder is files on shared storage that anyone may edit or a disk may damage: a
+//! changed plan.json is refused in one sentence naming the file,
+//! with a non-zero exit, no panic or abort, and no dataset left behind.
+
+mod common;
+
+use common::{run, run_ok, s};
+use serde_json::{Value, json};
+use std::path::{Path, PathBuf};
+
+/// A plan of two tasks over 300,000 points in small chunks (several a task).
+fn plan(dir: &Path) -> PathBuf {
+    let las = dir.join("a.las");
+    run_ok(&["synth", "--points", "300000", "--seed", "5", "-o", s(&las)]);
+    let plan = dir.join("plan");
+    run_ok(&[
+        "convert",
+        s(&las),
+        "--plan-only",
+        s(&plan),
+        "--tasks",
+        "2",
+        "--memory-limit",
+        "64MiB",
+        "--threads",
+        "2",
+        "-q",
+    ]);
+    plan
+}
+
+/// Runs `args`, which must fail with `expect` (and every word of `more`) in its one-line
+/// message, without a panic or an abort.
+fn fails(args: &[&str], expect: &[&str]) -> String {
+    let o = run(args);
+    let err = String::from_utf8_lossy(&o.stderr).into_owned();
+    assert!(!o.status.success(), "{args:?} should fail: {err}");
+    // A panic exits 101, an abort is a signal: neither is a refusal.
+    assert_eq!(o.status.code(), Some(1), "{args:?}: {err}");
+    for e in expect {
+        assert!(err.contains(e), "expected {e:?} in: {err}");
+    }
+    assert!(!err.contains("panicked"), "{err}");
+    err
+}
+
+fn task(plan: &Path, k: usize) {
+    run_ok(&["convert", "--plan", s(plan), "--task", &k.to_string(), "-q"]);
+}
+
+/// `--finish` must fail naming `expect`, and leave neither the dataset nor its work folder.
+fn finish_fails(plan: &Path, expect: &[&str]) {
+    let out = plan.with_file_name("out.strata");
+    fails(
+        &["convert", "--plan", s(plan), "--finish", "-o", s(&out)],
+        expect,
+    );
+    assert!(!out.exists(), "no dataset");
+    assert!(
+        !plan.with_file_name("out.strata.strata-tmp").exists(),
+        "no half-written dataset"
+    );
+}
+
+/// An edit of plan.json.
+type Edit = Box<dyn Fn(&mut Value)>;
+
+#[test]
+fn an_edited_plan_is_refused_naming_plan_json_and_the_field() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let plan = plan(dir.path());
+    let plan_json = plan.join("plan.json");
+    let good = std::fs::read(&plan_json).expect("plan.json");
+    let original: Value = serde_json::from_slice(&good).expect("JSON");
+    let total = original["plan"]["points"].as_u64().expect("points");
+    let edited = |edit: &dyn Fn(&mut Value)| {
+        let mut v = original.clone();
+        edit(&mut v);
+        std::fs::write(&plan_json, serde_json::to_vec(&v).expect("JSON")).expect("write");
+    };
+    let not_the_plans = format!("not the plan's {total}");
+    let cases: Vec<(Edit, Vec<&str>)> = vec![
+        // Was a panic: the counting grid's table indexed past its end.
+        (
+            Box::new(|v| v["plan"]["chunks"][0]["level"] = json!(200)),
+            vec!["chunk 0's level 200 is deeper than the counting grid's"],
+        ),
+        (
+            Box::new(|v| v["plan"]["chunks"][0]["x"] = json!(4_000_000_000u64)),
+            vec!["chunk 0's x 4000000000 lies outside its level"],
+        ),
+        (
+            Box::new(|v| v["plan"]["chunks"][1] = v["plan"]["chunks"][0].clone()),
+            vec!["chunk 1's cells overlap chunk 0's"],
+        ),
+        (
+            Box::new(|v| v["plan"]["chunks"][0]["points"] = json!(1_000_000_000_000_000u64)),
+            vec!["add up to", &not_the_plans],
+        ),
+        (
+            Box::new(|v| v["plan"]["cube"]["bits"] = json!(99)),
+            vec!["cube.bits is 99, outside 1 to 32"],
+        ),
+        (
+            Box::new(|v| v["threads"] = json!(1u64 << 40)),
+            vec!["\"threads\" is 1099511627776"],
+        ),
+    ];
+    for (edit, expect) in &cases {
+        edited(edit.as_ref());
+        let mut want = vec!["plan.json"];
+        want.extend(expect);
+        fails(&["convert", "--plan", s(&plan), "--task", "0"], &want);
+        assert!(!plan.join("tasks/0").exists(), "{expect:?}: no task result");
+    }
+    // Points that add up, but more than memory holds: was an abort allocating them.
+    edited(&|v| {
+        let first = v["plan"]["chunks"][0]["points"].as_u64().expect("points");
+        let more = 1_000_000_000_000_000u64;
+        v["plan"]["chunks"][0]["points"] = json!(first + more);
+        v["plan"]["points"] = json!(total + more);
+    });
+    fails(
+        &["convert", "--plan", s(&plan), "--task", "0"],
+        &["plan.json", "chunk 0's 1000000000", "do not fit in memory"],
+    );
+    assert!(!plan.join("tasks/0").exists());
+    // The finish refuses the plan too, whatever its tasks did: the dataset would be invalid.
+    std::fs::write(&plan_json, &good).expect("restore");
+    task(&plan, 0);
+    task(&plan, 1);
+    edited(&|v| v["plan"]["cube"]["bits"] = json!(99));
+    finish_fails(&plan, &["plan.json", "cube.bits is 99"]);
+}
