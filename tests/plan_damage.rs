@@ -1,5 +1,5 @@
 //! A plan folder is files on shared storage that anyone may edit or a disk may damage: a
-//! changed plan.json is refused in one sentence naming the file,
+//! changed plan.json or task payload is refused in one sentence naming the file,
 //! with a non-zero exit, no panic or abort, and no dataset left behind.
 
 mod common;
@@ -60,6 +60,17 @@ fn finish_fails(plan: &Path, expect: &[&str]) {
         !plan.with_file_name("out.strata.strata-tmp").exists(),
         "no half-written dataset"
     );
+}
+
+/// Flips a few bits in the middle of `path`, past its first `skip` bytes.
+fn flip(path: &Path, skip: usize) {
+    let mut b = std::fs::read(path).expect("read");
+    assert!(b.len() > skip + 8, "{} is too short", path.display());
+    let at = skip + (b.len() - skip) / 2;
+    for (i, m) in [0x01u8, 0x20, 0x80].into_iter().enumerate() {
+        b[at + i] ^= m;
+    }
+    std::fs::write(path, b).expect("write");
 }
 
 /// An edit of plan.json.
@@ -131,4 +142,22 @@ fn an_edited_plan_is_refused_naming_plan_json_and_the_field() {
     task(&plan, 1);
     edited(&|v| v["plan"]["cube"]["bits"] = json!(99));
     finish_fails(&plan, &["plan.json", "cube.bits is 99"]);
+}
+
+/// Bits flipped in a task's nodes after it ran: was a dataset `strata verify` rejects.
+#[test]
+fn a_damaged_task_payload_stops_the_finish() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let plan = plan(dir.path());
+    task(&plan, 0);
+    task(&plan, 1);
+    // Past the file head: in a node's payload.
+    flip(&plan.join("tasks/0/octree.bin"), 64);
+    finish_fails(
+        &plan,
+        &[
+            "tasks/0/octree.bin",
+            "does not match the checksum task 0's journal records",
+        ],
+    );
 }

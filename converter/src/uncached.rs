@@ -87,8 +87,16 @@ impl UncachedWriter {
 
     /// Appends bytes `offset..offset + len` of the file at `src`, read past the page cache too
     /// where its file system allows (in aligned blocks, the bytes wanted copied out of them);
-    /// returns how many there were (fewer where the file ends first).
-    pub fn copy_file(&mut self, src: &Path, offset: u64, len: u64) -> Result<u64> {
+    /// returns how many there were (fewer where the file ends first). `seen` is shown every
+    /// byte copied, in order, as it goes (a finish checks the nodes' checksums there); an error
+    /// of its stops the copy.
+    pub fn copy_file(
+        &mut self,
+        src: &Path,
+        offset: u64,
+        len: u64,
+        seen: &mut dyn FnMut(&[u8]) -> Result<()>,
+    ) -> Result<u64> {
         let direct = OpenOptions::new()
             .read(true)
             .custom_flags(libc::O_DIRECT)
@@ -96,7 +104,7 @@ impl UncachedWriter {
         let file = match direct {
             Ok(f) => f,
             Err(e) if matches!(e.raw_os_error(), Some(libc::EINVAL | libc::EOPNOTSUPP)) => {
-                return self.copy_buffered(src, offset, len);
+                return self.copy_buffered(src, offset, len, seen);
             }
             Err(e) => return Err(ConvertError::io(src, "cannot open", e)),
         };
@@ -106,7 +114,14 @@ impl UncachedWriter {
             read_buf = vec![0u8; BLOCK + ALIGN];
         }
         let start = read_buf.as_ptr().align_offset(ALIGN);
-        let copied = self.copy_direct(&file, &mut read_buf[start..start + BLOCK], src, offset, len);
+        let copied = self.copy_direct(
+            &file,
+            &mut read_buf[start..start + BLOCK],
+            src,
+            offset,
+            len,
+            seen,
+        );
         self.read_buf = read_buf;
         copied
     }
@@ -119,6 +134,7 @@ impl UncachedWriter {
         src: &Path,
         offset: u64,
         len: u64,
+        seen: &mut dyn FnMut(&[u8]) -> Result<()>,
     ) -> Result<u64> {
         let mut at = offset - offset % ALIGN as u64;
         let mut skip = (offset - at) as usize;
@@ -130,7 +146,7 @@ impl UncachedWriter {
                 // Refused at this offset or alignment: the rest through the page cache.
                 Err(e) if e.raw_os_error() == Some(libc::EINVAL) => {
                     let done = len - left;
-                    return Ok(done + self.copy_buffered(src, offset + done, left)?);
+                    return Ok(done + self.copy_buffered(src, offset + done, left, seen)?);
                 }
                 Err(e) => return Err(ConvertError::io(src, "cannot read", e)),
             };
@@ -138,6 +154,7 @@ impl UncachedWriter {
                 break;
             }
             let take = ((got - skip) as u64).min(left) as usize;
+            seen(&block[skip..skip + take])?;
             self.write_all(&block[skip..skip + take])?;
             left -= take as u64;
             at += got as u64;
@@ -147,16 +164,33 @@ impl UncachedWriter {
     }
 
     /// `copy_file` through the page cache.
-    fn copy_buffered(&mut self, src: &Path, offset: u64, len: u64) -> Result<u64> {
+    fn copy_buffered(
+        &mut self,
+        src: &Path,
+        offset: u64,
+        len: u64,
+        seen: &mut dyn FnMut(&[u8]) -> Result<()>,
+    ) -> Result<u64> {
         let mut file = File::open(src).map_err(io_err(src, "cannot open"))?;
         file.seek(SeekFrom::Start(offset))
             .map_err(io_err(src, "cannot read"))?;
-        self.copy_from(&mut file, src, len)
+        self.copy_seen(&mut file, src, len, seen)
     }
 
     /// Appends the next `len` bytes of `src` (named `src_path` in errors), read straight into
     /// the aligned buffer; returns how many there were (fewer where `src` ends first).
     pub fn copy_from(&mut self, src: &mut impl Read, src_path: &Path, len: u64) -> Result<u64> {
+        self.copy_seen(src, src_path, len, &mut |_| Ok(()))
+    }
+
+    /// `copy_from`, showing `seen` the bytes (see `copy_file`).
+    fn copy_seen(
+        &mut self,
+        src: &mut impl Read,
+        src_path: &Path,
+        len: u64,
+        seen: &mut dyn FnMut(&[u8]) -> Result<()>,
+    ) -> Result<u64> {
         let mut left = len;
         while left > 0 {
             let room = ((BLOCK - self.filled) as u64).min(left) as usize;
@@ -167,6 +201,7 @@ impl UncachedWriter {
                 Err(e) if e.kind() == ErrorKind::Interrupted => continue,
                 Err(e) => return Err(ConvertError::io(src_path, "cannot read", e)),
             };
+            seen(&self.buf[at..at + got])?;
             self.filled += got;
             left -= got as u64;
             self.flush_full()?;
@@ -314,8 +349,18 @@ mod tests {
             let out = dir.path().join("out");
             let mut w = UncachedWriter::create(&out).unwrap();
             w.write_all(b"head").unwrap();
-            let copied = w.copy_file(&src, offset as u64, len as u64).unwrap();
+            let mut shown = Vec::new();
+            let copied = w
+                .copy_file(&src, offset as u64, len as u64, &mut |b| {
+                    shown.extend_from_slice(b);
+                    Ok(())
+                })
+                .unwrap();
             let want = &bytes[offset.min(n)..(offset + len).min(n)];
+            assert!(
+                shown == want,
+                "{offset}+{len}: the bytes shown are those copied"
+            );
             assert_eq!(copied, want.len() as u64, "{offset}+{len}");
             w.finish().unwrap();
             let read = std::fs::read(&out).unwrap();

@@ -20,7 +20,7 @@ use std::fs;
 use std::ops::Range;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
-use strata_format::{DatasetFile, DatasetId, OCTREE_HEAD_SIZE, RowLayout, octree_head};
+use strata_format::{DatasetFile, DatasetId, NodeKey, OCTREE_HEAD_SIZE, RowLayout, octree_head};
 
 /// Finishes the dataset at `output` from the tasks of the plan in `plan_dir`, then removes the
 /// plan folder (its tasks' results are in the dataset now).
@@ -170,17 +170,136 @@ fn gather(
                 format!("its journal ends its nodes at byte {task_end}, inside the file head"),
             )
         })?;
-        let copied = octree.copy_file(&part, OCTREE_HEAD_SIZE, len)?;
+        let mut check = NodeCheck::new(&part, k, &entries, task_end)?;
+        let copied = octree.copy_file(&part, OCTREE_HEAD_SIZE, len, &mut |b| check.see(b))?;
         if copied != len {
             return Err(ConvertError::input(
                 &part,
                 format!("holds {copied} bytes of nodes where its journal says {len}"),
             ));
         }
+        check.all_seen()?;
         let by = end - OCTREE_HEAD_SIZE;
         journal.extend(entries.into_iter().map(|e| e.moved(by)));
         end += len;
     }
     octree.finish()?;
     Ok((journal, classes))
+}
+
+/// A node of a task's octree file: where its payload lies, its checksum, and which it is.
+struct NodeSpan {
+    start: u64,
+    end: u64,
+    checksum: u32,
+    key: NodeKey,
+    chunk: usize,
+}
+
+/// Checks a task's node payloads against the checksums its journal records as the bytes are
+/// copied, so that a task file damaged since the task ran stops the finish instead of passing
+/// into the dataset (where only `strata verify` would find it).
+struct NodeCheck<'a> {
+    part: &'a Path,
+    task: usize,
+    nodes: Vec<NodeSpan>,
+    next: usize,
+    /// Where in the task's file the next byte shown is.
+    at: u64,
+    hasher: crc32fast::Hasher,
+}
+
+impl<'a> NodeCheck<'a> {
+    fn new(part: &'a Path, task: usize, entries: &[JournalEntry], task_end: u64) -> Result<Self> {
+        let mut nodes = Vec::new();
+        let mut end = OCTREE_HEAD_SIZE;
+        for e in entries {
+            for (key, r) in e.records().filter(|(_, r)| r.size > 0) {
+                let start = r.offset;
+                let stop = start.checked_add(u64::from(r.size));
+                // In order, apart and within the nodes: as the task wrote them.
+                let Some(stop) = stop.filter(|&s| start >= end && s <= task_end) else {
+                    return Err(ConvertError::input(
+                        part,
+                        format!(
+                            "task {task}'s journal puts node {} of chunk {} at bytes {start}+{}, outside the nodes or over another's; run the task again after making the plan again",
+                            node_name(&key),
+                            e.chunk,
+                            r.size
+                        ),
+                    ));
+                };
+                nodes.push(NodeSpan {
+                    start,
+                    end: stop,
+                    checksum: r.checksum,
+                    key,
+                    chunk: e.chunk,
+                });
+                end = stop;
+            }
+        }
+        Ok(NodeCheck {
+            part,
+            task,
+            nodes,
+            next: 0,
+            at: OCTREE_HEAD_SIZE,
+            hasher: crc32fast::Hasher::new(),
+        })
+    }
+
+    /// Takes the next bytes of the file.
+    fn see(&mut self, mut bytes: &[u8]) -> Result<()> {
+        while let Some(n) = self.nodes.get(self.next) {
+            if bytes.is_empty() {
+                return Ok(());
+            }
+            let take = if self.at < n.start {
+                // Between nodes: nothing to check.
+                (n.start - self.at).min(bytes.len() as u64) as usize
+            } else {
+                let take = (n.end - self.at).min(bytes.len() as u64) as usize;
+                self.hasher.update(&bytes[..take]);
+                take
+            };
+            bytes = &bytes[take..];
+            self.at += take as u64;
+            if self.at == n.end {
+                let got = std::mem::take(&mut self.hasher).finalize();
+                if got != n.checksum {
+                    return Err(self.damaged(n));
+                }
+                self.next += 1;
+            }
+        }
+        Ok(())
+    }
+
+    /// An error unless every node was seen whole.
+    fn all_seen(&self) -> Result<()> {
+        match self.nodes.get(self.next) {
+            Some(n) => Err(self.damaged(n)),
+            None => Ok(()),
+        }
+    }
+
+    fn damaged(&self, n: &NodeSpan) -> ConvertError {
+        ConvertError::input(
+            self.part,
+            format!(
+                "node {} of chunk {} (bytes {}..{}) does not match the checksum task {}'s journal records: the task's result was damaged since it ran; make the plan again and run its tasks",
+                node_name(&n.key),
+                n.chunk,
+                n.start,
+                n.end,
+                self.task
+            ),
+        )
+    }
+}
+
+/// A node as messages name it: level, then x, y, z.
+fn node_name(key: &NodeKey) -> String {
+    format!("{}-{}-{}-{}", key.level, key.x, key.y, key.z)
 }
