@@ -1,5 +1,5 @@
 //! A plan folder is files on shared storage that anyone may edit or a disk may damage: a
-//! changed plan.json or task payload is refused in one sentence naming the file,
+//! changed plan.json, task payload or chunk root is refused in one sentence naming the file,
 //! with a non-zero exit, no panic or abort, and no dataset left behind.
 
 mod common;
@@ -159,5 +159,28 @@ fn a_damaged_task_payload_stops_the_finish() {
             "tasks/0/octree.bin",
             "does not match the checksum task 0's journal records",
         ],
+    );
+}
+
+/// Bits flipped in a chunk's root rows after the task ran: was a dataset that verifies but
+/// holds other points.
+#[test]
+fn a_damaged_chunk_root_stops_the_finish() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let plan = plan(dir.path());
+    task(&plan, 0);
+    task(&plan, 1);
+    // One bit of its last byte: lz4 ends a block with literal bytes, so it decodes into other
+    // rows without a fault (this very flip passed into the dataset before blocks had
+    // checksums).
+    let root = plan.join("tasks/0/work/roots/c0.bin");
+    let mut b = std::fs::read(&root).expect("read");
+    if let Some(last) = b.last_mut() {
+        *last ^= 0x01;
+    }
+    std::fs::write(&root, b).expect("write");
+    finish_fails(
+        &plan,
+        &["tasks/0/work/roots/c0.bin", "does not match its checksum"],
     );
 }

@@ -102,6 +102,8 @@ pub fn fingerprint(opts: &ConvertOptions) -> String {
         strata_format::VERSION_MAJOR,
         strata_format::VERSION_MINOR
     ));
+    // Work files of another layout read as damaged.
+    parts.push(format!("rows{}", crate::rowfile::ROWFILE_VERSION));
     parts.push(format!(
         "{}:{}:{}",
         opts.sampling.name(),

@@ -1,9 +1,11 @@
 //! Work files of rows (staging rows, chunk parts, halo bands), compressed as they are written
 //! so that a conversion's peak disk stays well under its rows' size. A file is a sequence of
-//! blocks, each of whole rows: 4 bytes of raw length, 4 of compressed length (little endian),
-//! then the block's rows with their bytes grouped by position in the row (every row's first
-//! byte, then every row's second, ...), which lines up the slowly changing high bytes of
-//! positions and attributes, compressed with lz4.
+//! blocks, each of whole rows: 4 bytes of raw length, 4 of compressed length, 4 of CRC-32 of
+//! those 8 bytes and the compressed bytes (little endian), then the block's rows with their
+//! bytes grouped by position in the row (every row's first byte, then every row's second, ...),
+//! which lines up the slowly changing high bytes of positions and attributes, compressed with
+//! lz4. The checksum is there because lz4 decodes most damaged bytes into other rows without a
+//! fault: a work file changed on disk would otherwise pass into the dataset unnoticed.
 
 use crate::error::{ConvertError, Result, io_err};
 use crate::row_shuffle::{shuffle, unshuffle};
@@ -12,7 +14,19 @@ use std::io::{BufReader, BufWriter, Read, Seek, SeekFrom, Write};
 use std::ops::Range;
 use std::path::{Path, PathBuf};
 
-const HEADER: usize = 8;
+const HEADER: usize = 12;
+
+/// Changes whenever work files written by one build read differently in another: it is part
+/// of a run's fingerprint, so `--resume` and a plan's tasks never read another layout.
+pub const ROWFILE_VERSION: u32 = 2;
+
+/// The checksum of a block: its two lengths and its compressed bytes.
+fn block_checksum(lengths: &[u8], packed: &[u8]) -> u32 {
+    let mut h = crc32fast::Hasher::new();
+    h.update(lengths);
+    h.update(packed);
+    h.finalize()
+}
 
 /// Rows per block of a staging file, whose blocks all hold this many rows but the last, so
 /// that a record's block is found by division.
@@ -48,6 +62,8 @@ pub fn write_block(
         })?;
     packed[..4].copy_from_slice(&(rows.len() as u32).to_le_bytes());
     packed[4..8].copy_from_slice(&(len as u32).to_le_bytes());
+    let crc = block_checksum(&packed[..8], &packed[HEADER..HEADER + len]);
+    packed[8..12].copy_from_slice(&crc.to_le_bytes());
     out.write_all(&packed[..HEADER + len])
         .map_err(io_err(path, "cannot write"))?;
     Ok((HEADER + len) as u64)
@@ -64,11 +80,13 @@ pub fn append_block(path: &Path, rows: &[u8], stride: usize, scratch: &mut Scrat
     write_block(&mut f, rows, stride, scratch, path)
 }
 
-/// Appends the next block's rows to `rows`; false at the end of the file.
+/// Appends the next block's rows to `rows`; false at the end of the file. `at` is where the
+/// block starts in the file, for the message when it is damaged.
 fn read_block(
     r: &mut impl Read,
     stride: usize,
     path: &Path,
+    at: u64,
     scratch: &mut Scratch,
     rows: &mut Vec<u8>,
 ) -> Result<bool> {
@@ -78,18 +96,35 @@ fn read_block(
         Err(e) if e.kind() == std::io::ErrorKind::UnexpectedEof => return Ok(false),
         Err(e) => return Err(ConvertError::io(path, "cannot read", e)),
     }
+    let damaged = |what: &str| {
+        ConvertError::input(
+            path,
+            format!(
+                "the block of rows at byte {at} {what}: the work file was damaged or changed since it was written; convert again from the start (or, for a plan, make the plan again)"
+            ),
+        )
+    };
     let raw = u32::from_le_bytes([head[0], head[1], head[2], head[3]]) as usize;
     let len = u32::from_le_bytes([head[4], head[5], head[6], head[7]]) as usize;
-    scratch.packed.resize(len, 0);
-    r.read_exact(&mut scratch.packed)
+    let crc = u32::from_le_bytes([head[8], head[9], head[10], head[11]]);
+    // Read as far as the file goes, not sized by the header: a damaged length must not
+    // allocate gigabytes before the checksum refuses it.
+    scratch.packed.clear();
+    let got = r
+        .by_ref()
+        .take(len as u64)
+        .read_to_end(&mut scratch.packed)
         .map_err(io_err(path, "cannot read"))?;
+    if got != len {
+        return Err(damaged("is cut short"));
+    }
+    if block_checksum(&head[..8], &scratch.packed) != crc {
+        return Err(damaged("does not match its checksum"));
+    }
     scratch.grouped.resize(raw, 0);
     let got = lz4_flex::block::decompress_into(&scratch.packed, &mut scratch.grouped);
     if got.ok() != Some(raw) || !raw.is_multiple_of(stride.max(1)) {
-        return Err(ConvertError::internal(
-            format!("reading {}", path.display()),
-            "a block of rows is damaged",
-        ));
+        return Err(damaged("does not decode to whole rows"));
     }
     unshuffle(&scratch.grouped, stride, rows);
     Ok(true)
@@ -107,10 +142,12 @@ pub fn for_each_block(
     };
     let mut scratch = Scratch::default();
     let mut rows = Vec::new();
+    let mut at = 0;
     while {
         rows.clear();
-        read_block(&mut r, stride, path, &mut scratch, &mut rows)?
+        read_block(&mut r, stride, path, at, &mut scratch, &mut rows)?
     } {
+        at += (HEADER + scratch.packed.len()) as u64;
         each(&rows)?;
     }
     Ok(())
@@ -124,7 +161,10 @@ pub fn read_rows(
     scratch: &mut Scratch,
 ) -> Result<()> {
     if let Some(mut r) = open_blocks(path)? {
-        while read_block(&mut r, stride, path, scratch, out)? {}
+        let mut at = 0;
+        while read_block(&mut r, stride, path, at, scratch, out)? {
+            at += (HEADER + scratch.packed.len()) as u64;
+        }
     }
     Ok(())
 }
@@ -277,7 +317,7 @@ pub fn for_each_in(
     let mut at = block * per;
     while at < range.end {
         rows.clear();
-        if !read_block(&mut r, stride, path, &mut scratch, &mut rows)? {
+        if !read_block(&mut r, stride, path, offset, &mut scratch, &mut rows)? {
             return Err(ConvertError::internal(
                 format!("reading {}", path.display()),
                 format!("the file ends before row {at}"),
@@ -359,6 +399,34 @@ mod tests {
             let want = &rows[range.start as usize * stride..range.end as usize * stride];
             assert!(got == want, "{range:?}");
         }
+    }
+
+    #[test]
+    fn a_changed_byte_anywhere_in_a_block_is_refused_naming_the_file() {
+        let dir = tempfile::tempdir().expect("tempdir");
+        let path = dir.path().join("c0.bin");
+        let stride = 16;
+        // Rows that compress well: lz4 decodes most changes in them into other rows silently.
+        let rows: Vec<u8> = (0..5000u32).flat_map(|i| [(i / 7) as u8; 16]).collect();
+        let mut w = RowWriter::create(&path, stride).expect("create");
+        w.write(&rows).expect("write");
+        w.finish().expect("finish");
+        let whole = std::fs::read(&path).expect("read");
+        for at in [0, 5, 9, HEADER, whole.len() / 2, whole.len() - 1] {
+            let mut bytes = whole.clone();
+            bytes[at] ^= 0x10;
+            std::fs::write(&path, &bytes).expect("write");
+            let e = read_rows(&path, stride, &mut Vec::new(), &mut Scratch::default())
+                .expect_err("damaged")
+                .to_string();
+            assert!(e.contains("c0.bin") && e.contains("at byte 0"), "{at}: {e}");
+        }
+        // Cut short: refused, not read as fewer rows.
+        std::fs::write(&path, &whole[..whole.len() - 3]).expect("write");
+        let e = read_rows(&path, stride, &mut Vec::new(), &mut Scratch::default())
+            .expect_err("cut")
+            .to_string();
+        assert!(e.contains("cut short"), "{e}");
     }
 
     #[test]

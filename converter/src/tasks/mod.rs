@@ -43,8 +43,9 @@ use std::ops::Range;
 use std::path::{Path, PathBuf};
 use strata_format::RowLayout;
 
-/// Changes whenever a plan written by one build means something else to another.
-const PLAN_VERSION: u32 = 2;
+/// Changes whenever a plan written by one build means something else to another (3: work
+/// files' blocks carry a checksum, `rowfile`).
+const PLAN_VERSION: u32 = 3;
 
 /// The most threads a plan may ask its tasks for, as `--threads` allows.
 const MAX_THREADS: usize = 1024;
