@@ -46,6 +46,7 @@ fn every_node_payload_flip_is_named() {
             flip(&ds.join("octree.bin"), at);
         }
     }
+    assert!(!dir.path().join("pipe.png").exists());
     run_ok(&["verify", s(&ds)]);
 }
 
@@ -126,9 +127,15 @@ fn data_files_that_are_pipes_are_refused_not_waited_on() {
             .expect("mkfifo");
         assert!(fifo.success());
         // Bounded: opening a pipe for reading waits for a writer that never comes.
-        for cmd in ["verify", "info"] {
+        let png = dir.path().join("pipe.png");
+        for cmd in ["verify", "info", "render"] {
+            let mut args = vec!["60", env!("CARGO_BIN_EXE_strata"), cmd, s(&copy)];
+            if cmd == "render" {
+                args.extend(["-o", s(&png), "--size", "64x48"]);
+            }
             let o = std::process::Command::new("timeout")
-                .args(["60", env!("CARGO_BIN_EXE_strata"), cmd, s(&copy)])
+                .args(&args)
+                .env("WGPU_BACKEND", "vulkan")
                 .output()
                 .expect("timeout");
             let err = String::from_utf8_lossy(&o.stderr);

@@ -1,8 +1,13 @@
 //! A server whose answers never end: the client reads what it asked for, no more, and fails
-//! with an error naming the file instead of filling the memory.
+//! with an error naming the file instead of filling the memory. A server that ignores Range
+//! and sends whole files still serves: the client reads each up to the range's end.
+
+mod common;
+use common::*;
 
 use std::io::{BufRead, BufReader, Write};
 use std::net::{TcpListener, TcpStream};
+use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant};
 use strata_viewer::{HttpOptions, StreamDataset};
 
@@ -51,4 +56,62 @@ fn an_answer_that_never_ends_is_an_error_not_a_full_memory() {
     assert!(start.elapsed() < Duration::from_secs(8), "{err}");
     assert!(err.contains(&url), "{err}");
     assert!(err.contains("more than the"), "{err}");
+}
+
+/// Answers every request with the whole file under `root`, status 200, whatever its Range.
+fn range_ignoring_server(root: PathBuf) -> String {
+    let listener = TcpListener::bind("127.0.0.1:0").expect("bind");
+    let addr = listener.local_addr().expect("addr").to_string();
+    std::thread::spawn(move || {
+        for stream in listener.incoming().flatten() {
+            let root = root.clone();
+            std::thread::spawn(move || answer_whole_files(stream, &root));
+        }
+    });
+    addr
+}
+
+fn answer_whole_files(stream: TcpStream, root: &Path) {
+    let mut reader = BufReader::new(stream.try_clone().expect("clone"));
+    let mut out = stream;
+    loop {
+        let mut first = String::new();
+        if reader.read_line(&mut first).unwrap_or(0) == 0 {
+            return;
+        }
+        let mut line = String::new();
+        while reader.read_line(&mut line).unwrap_or(0) > 0 && line != "\r\n" {
+            line.clear();
+        }
+        let path = first.split(' ').nth(1).unwrap_or("/").to_string();
+        let data = std::fs::read(root.join(path.trim_start_matches('/'))).unwrap_or_default();
+        let head = format!("HTTP/1.1 200 OK\r\nContent-Length: {}\r\n\r\n", data.len());
+        if out.write_all(head.as_bytes()).is_err() || out.write_all(&data).is_err() {
+            return;
+        }
+    }
+}
+
+#[test]
+fn a_server_that_ignores_range_still_serves_the_nodes() {
+    let ds = converted("range-ignoring", "autzen_trim.las", "ds");
+    let root = ds.parent().expect("parent").to_path_buf();
+    let addr = range_ignoring_server(root);
+    let url = format!("http://{addr}/ds.strata");
+    let remote = StreamDataset::open(&url, HttpOptions::default()).expect("opens");
+    let local = StreamDataset::open_path(&ds).expect("opens locally");
+    let colours = strata_viewer::dataset::ColourWord::Stored;
+    // Every node of the root page, the root (read while opening) and those after it.
+    let nodes: Vec<_> = remote.root_hierarchy_page().nodes().take(4).collect();
+    assert!(nodes.len() > 1, "a root page with several nodes");
+    for node in &nodes {
+        let got = remote
+            .load_node(node, colours, &Default::default())
+            .expect("node over HTTP");
+        let want = local
+            .load_node(node, colours, &Default::default())
+            .expect("node locally");
+        assert_eq!(got.points, want.points, "node {}", node.key);
+        assert_eq!(got.attributes, want.attributes, "node {}", node.key);
+    }
 }

@@ -16,6 +16,10 @@ use std::path::{Path, PathBuf};
 
 const HEADER: usize = 12;
 
+/// The most rows' bytes in one block: writers make at most a few MiB (`block_rows`, the
+/// distribution's flushes), so a larger length is damage, refused before it is read.
+const MAX_BLOCK_BYTES: usize = 64 << 20;
+
 /// Changes whenever work files written by one build read differently in another: it is part
 /// of a run's fingerprint, so `--resume` and a plan's tasks never read another layout.
 pub const ROWFILE_VERSION: u32 = 2;
@@ -49,6 +53,12 @@ pub fn write_block(
     scratch: &mut Scratch,
     path: &Path,
 ) -> Result<u64> {
+    if rows.len() > MAX_BLOCK_BYTES {
+        return Err(ConvertError::internal(
+            format!("writing {}", path.display()),
+            format!("a block of {} bytes, more than a reader takes", rows.len()),
+        ));
+    }
     shuffle(rows, stride, &mut scratch.grouped);
     let packed = &mut scratch.packed;
     packed.clear();
@@ -91,10 +101,15 @@ fn read_block(
     rows: &mut Vec<u8>,
 ) -> Result<bool> {
     let mut head = [0u8; HEADER];
-    match r.read_exact(&mut head) {
-        Ok(()) => {}
-        Err(e) if e.kind() == std::io::ErrorKind::UnexpectedEof => return Ok(false),
-        Err(e) => return Err(ConvertError::io(path, "cannot read", e)),
+    // Read in pieces: no byte of a header is the file's clean end, part of one is a cut.
+    let mut got = 0;
+    while got < HEADER {
+        match r.read(&mut head[got..]) {
+            Ok(0) => break,
+            Ok(n) => got += n,
+            Err(e) if e.kind() == std::io::ErrorKind::Interrupted => {}
+            Err(e) => return Err(ConvertError::io(path, "cannot read", e)),
+        }
     }
     let damaged = |what: &str| {
         ConvertError::input(
@@ -104,11 +119,20 @@ fn read_block(
             ),
         )
     };
+    if got == 0 {
+        return Ok(false);
+    }
+    if got < HEADER {
+        return Err(damaged("is cut short"));
+    }
     let raw = u32::from_le_bytes([head[0], head[1], head[2], head[3]]) as usize;
     let len = u32::from_le_bytes([head[4], head[5], head[6], head[7]]) as usize;
     let crc = u32::from_le_bytes([head[8], head[9], head[10], head[11]]);
-    // Read as far as the file goes, not sized by the header: a damaged length must not
-    // allocate gigabytes before the checksum refuses it.
+    // Lengths no writer makes are refused before anything is read or allocated for them.
+    if raw > MAX_BLOCK_BYTES || len > lz4_flex::block::get_maximum_output_size(raw) {
+        return Err(damaged("has lengths no block has"));
+    }
+    // Read as far as the file goes, not sized by the header.
     scratch.packed.clear();
     let got = r
         .by_ref()
@@ -421,6 +445,30 @@ mod tests {
                 .to_string();
             assert!(e.contains("c0.bin") && e.contains("at byte 0"), "{at}: {e}");
         }
+        // Cut inside a later block's header: refused, not read as a shorter file.
+        let small = dir.path().join("c1.bin");
+        let mut w = RowWriter::create_small(&small, stride).expect("create");
+        w.write(&rows).expect("write");
+        w.finish().expect("finish");
+        let many = std::fs::read(&small).expect("read");
+        let second = HEADER + u32::from_le_bytes([many[4], many[5], many[6], many[7]]) as usize;
+        assert!(
+            second + 5 < many.len(),
+            "the small writer makes several blocks"
+        );
+        std::fs::write(&small, &many[..second + 5]).expect("write");
+        let e = read_rows(&small, stride, &mut Vec::new(), &mut Scratch::default())
+            .expect_err("cut in a header")
+            .to_string();
+        assert!(e.contains("c1.bin") && e.contains("cut short"), "{e}");
+        // A length no writer makes is refused before it is read.
+        let mut bytes = whole.clone();
+        bytes[..4].copy_from_slice(&u32::MAX.to_le_bytes());
+        std::fs::write(&path, &bytes).expect("write");
+        let e = read_rows(&path, stride, &mut Vec::new(), &mut Scratch::default())
+            .expect_err("huge length")
+            .to_string();
+        assert!(e.contains("lengths no block has"), "{e}");
         // Cut short: refused, not read as fewer rows.
         std::fs::write(&path, &whole[..whole.len() - 3]).expect("write");
         let e = read_rows(&path, stride, &mut Vec::new(), &mut Scratch::default())

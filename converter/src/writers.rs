@@ -512,7 +512,7 @@ impl RowWriter for PlyRowWriter {
 }
 
 /// Writes with `write`, then finishes: the writer works under a temporary name, removed on
-/// any failure, so that nothing that looks like an export stays.
+/// any failure, so that nothing that looks like a finished file (an export, a scene) stays.
 pub(crate) fn write_then_finish(
     mut writer: Box<dyn RowWriter>,
     output: &Path,

@@ -192,7 +192,7 @@ pub fn read_metadata_file(path: &Path) -> Result<Vec<u8>, FormatError> {
 
 /// A dataset file opened for reading, refused where it is not a regular file: a pipe or a
 /// device would block or never end.
-fn open_regular(path: &Path) -> Result<(File, std::fs::Metadata), FormatError> {
+pub fn open_regular(path: &Path) -> Result<(File, std::fs::Metadata), FormatError> {
     // Looked at before it is opened: opening a pipe waits for a writer.
     if !std::fs::metadata(path)
         .map_err(|e| FormatError::io(path, e))?

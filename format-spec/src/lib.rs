@@ -22,7 +22,9 @@ mod verify;
 pub use attribute::{
     AttrType, Attribute, OCT16, RowLayout, oct16_decode, oct16_encode, row_position,
 };
-pub use dataset::{DatasetFile, LocalDataset, METADATA_MAX_BYTES, read_metadata_file};
+pub use dataset::{
+    DatasetFile, LocalDataset, METADATA_MAX_BYTES, open_regular, read_metadata_file,
+};
 pub use error::FormatError;
 pub use head::{
     DatasetId, HIERARCHY_HEAD_SIZE, HIERARCHY_MAGIC, HIERARCHY_MAGIC_1_0, HierarchyHead, Layout,

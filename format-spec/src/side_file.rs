@@ -14,25 +14,34 @@ pub const SIDE_FILE_MAX_BYTES: u64 = 64 << 20;
 /// a terminal would wait for typing. Errors are `io::Error`s, so that a caller can still tell
 /// a file that does not exist (`NotFound`) from one that is wrong.
 pub fn read_side_file(path: &Path) -> io::Result<String> {
-    let kind = std::fs::metadata(path)?.file_type();
+    let stat = std::fs::metadata(path)?;
+    let kind = stat.file_type();
     if !(kind.is_file() || kind.is_fifo()) {
         return Err(io::Error::new(
             io::ErrorKind::InvalidInput,
             "not a regular file",
         ));
     }
+    // A file's length is known before it is read; a pipe's only as it is read.
+    if kind.is_file() && stat.len() > SIDE_FILE_MAX_BYTES {
+        return Err(too_long());
+    }
     let mut bytes = Vec::new();
     File::open(path)?
         .take(SIDE_FILE_MAX_BYTES + 1)
         .read_to_end(&mut bytes)?;
     if bytes.len() as u64 > SIDE_FILE_MAX_BYTES {
-        return Err(io::Error::new(
-            io::ErrorKind::InvalidData,
-            format!("longer than {SIDE_FILE_MAX_BYTES} bytes, more than any such file"),
-        ));
+        return Err(too_long());
     }
     String::from_utf8(bytes)
         .map_err(|e| io::Error::new(io::ErrorKind::InvalidData, format!("not UTF-8 text ({e})")))
+}
+
+fn too_long() -> io::Error {
+    io::Error::new(
+        io::ErrorKind::InvalidData,
+        format!("longer than {SIDE_FILE_MAX_BYTES} bytes, more than any such file"),
+    )
 }
 
 #[cfg(test)]

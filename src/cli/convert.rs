@@ -99,7 +99,7 @@ pub struct Args {
     /// Neighbours farther than this (the inputs' units) are not used, so that estimates do not
     /// depend on how the cloud is cut into chunks (default: twice the k-th neighbour's
     /// distance expected where points are sparser than 90% of them).
-    #[arg(long, requires = "normals")]
+    #[arg(long, requires = "normals", allow_negative_numbers = true)]
     normal_radius: Option<f64>,
 }
 
@@ -160,7 +160,8 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
     }
     let threads = a
         .threads
-        .unwrap_or_else(|| std::thread::available_parallelism().map_or(1, |n| n.get()));
+        // All cores, within the 1024 a plan's tasks accept.
+        .unwrap_or_else(|| std::thread::available_parallelism().map_or(1, |n| n.get().min(1024)));
     let normals = normal_options(&a);
     let opts = ConvertOptions {
         inputs: a.inputs,

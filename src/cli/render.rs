@@ -34,7 +34,8 @@ pub struct Args {
     /// --fps).
     #[arg(long, requires = "path")]
     frames: Option<u32>,
-    /// Pace of a fly-through that does not wait for completeness (frames per second).
+    /// Pace of a fly-through that does not wait for completeness (frames per second, 0.1 to
+    /// 1000; 0: unpaced).
     #[arg(long, default_value_t = 30.0)]
     fps: f32,
     /// Write per-frame statistics as JSON.

@@ -14,11 +14,13 @@ pub struct Args {
     #[arg(long, default_value = "city", value_parser = ["city", "terrain"])]
     scene: String,
     /// Seed: the same seed and arguments always give the same file.
-    #[arg(long, default_value_t = 1)]
+    #[arg(long, default_value_t = 1, allow_negative_numbers = true)]
     seed: u64,
     /// Gaussian noise added to every coordinate, as a deviation in metres (a scanner's
     /// ranging noise; 0 leaves the scene exact).
-    #[arg(long, default_value_t = 0.0)]
+    // Negative numbers reach the check that says what is wrong, not clap's "unexpected
+    // argument '-1'".
+    #[arg(long, default_value_t = 0.0, allow_negative_numbers = true)]
     noise: f64,
     /// Replace the output if it exists.
     #[arg(long)]

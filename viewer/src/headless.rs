@@ -78,8 +78,9 @@ pub const DEFAULT_FOV_DEG: f32 = 50.0;
 
 /// Frames a fly-through takes at most from its keyframes' seconds.
 const MAX_PATH_FRAMES: u32 = 100_000;
-/// The pace of a fly-through that does not wait for completeness: a frame at least every
-/// ten seconds, as a viewer's slowest useful pace, so that a run is bounded by its frames.
+/// The pace of a fly-through that does not wait for completeness (or 0, unpaced): a frame at
+/// least every ten seconds, a viewer's slowest useful pace, so that a run is bounded by its
+/// frames.
 const FPS_RANGE: std::ops::RangeInclusive<f32> = 0.1..=1000.0;
 
 /// The whole dataset in view, for a view of `width` x `height`.
@@ -366,11 +367,12 @@ fn cameras(ds: &StreamDataset, opts: &RenderOptions) -> Result<Vec<Camera>, View
             ),
         ));
     }
-    if !opts.wait_complete && !FPS_RANGE.contains(&opts.fps) {
+    // 0: unpaced, each frame drawn as soon as the one before.
+    if !opts.wait_complete && opts.fps != 0.0 && !FPS_RANGE.contains(&opts.fps) {
         return Err(ViewerError::argument(
             "--fps",
             format!(
-                "{} is outside the {} to {} frames per second a fly-through is paced at",
+                "{} is outside the {} to {} frames per second a fly-through is paced at (0: unpaced)",
                 opts.fps,
                 FPS_RANGE.start(),
                 FPS_RANGE.end()

@@ -153,7 +153,8 @@ impl HttpSource {
     }
 
     /// As `fetch`, with the file's whole length where the answer tells it (the total of
-    /// `Content-Range`, or the body of a whole-file answer).
+    /// `Content-Range`; for a whole-file answer its body, or its `Content-Length` where the
+    /// body went on past the range's end and was left unread).
     async fn fetch_async(
         &self,
         file: DatasetFile,

@@ -3,7 +3,6 @@
 
 use crate::ViewerError;
 use memmap2::Mmap;
-use std::fs::File;
 use std::path::{Path, PathBuf};
 use strata_format::{DatasetFile, FormatError, Metadata, check_file_head};
 
@@ -89,7 +88,8 @@ impl Source for MmapSource {
 }
 
 fn map_checked(path: &Path, file: DatasetFile, meta: &Metadata) -> Result<Mmap, FormatError> {
-    let f = File::open(path).map_err(|e| FormatError::io(path, e))?;
+    // Refused where it is not a regular file: opening a pipe waits for a writer.
+    let (f, _) = strata_format::open_regular(path)?;
     // SAFETY: the dataset is read-only by contract (written once, renamed into place); a file
     // truncated under us would fault, which is why sizes are checked against the metadata first.
     let map = unsafe { Mmap::map(&f) }.map_err(|e| FormatError::io(path, e))?;

@@ -1,7 +1,8 @@
 //! The triangulation's GPU passes in the paper's order (its Figure 2 and Table 1): reproject
 //! the previous frame's depth, keep the projected points in front of it (per arena, with their
-//! search radii), search the sector neighbours in two passes, estimate normals (with the radius
-//! feedback), rasterize the fans, keep each point's next radius (per arena), shade, count holes.
+//! search radii), search the sector neighbours (one 64-bit pass, or two), estimate normals
+//! (with the radius feedback), rasterize the fans, keep each point's next radius (per arena),
+//! shade, count holes.
 
 use super::targets::{COUNT_WORDS, TriangulateTargets};
 use crate::ViewerError;

@@ -43,7 +43,8 @@ pub struct TriangulateTargets {
     /// Per pixel and sector: the complement of (distance, pixel id) of the nearest, where the
     /// device has 64-bit atomics (the search is then one pass).
     pub keys: Option<wgpu::Buffer>,
-    /// Per pixel and sector: the complement of the nearest neighbour's pixel id.
+    /// Per pixel and sector: the complement of the nearest neighbour's pixel id (the two-pass
+    /// search's; 16 bytes where the fans read the 64-bit keys in place).
     pub neighbours: wgpu::Buffer,
     pub normals: wgpu::Buffer,
     /// Per pixel: the largest distance at which a neighbour took the point (f32 bits).
