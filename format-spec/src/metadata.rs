@@ -297,6 +297,13 @@ impl Metadata {
         if self.cube.bits > 32 {
             return bad("cube.bits must be at most 32");
         }
+        // SPEC.md names the two; a reader that takes another name would take a tool's typo.
+        if !["poisson", "random"].contains(&self.sampling.as_str()) {
+            return bad(&format!(
+                "sampling is {:?}; it must be \"poisson\" or \"random\"",
+                self.sampling
+            ));
+        }
         if self.hierarchy.page_levels == 0 {
             return bad("hierarchy.page_levels must be at least 1");
         }
@@ -323,6 +330,20 @@ impl Metadata {
         for a in &self.attributes {
             if a.count == 0 {
                 return bad(&format!("attribute '{}' has count 0", a.name));
+            }
+            // One scale and one offset per component: a reader indexes them by component.
+            for (what, values) in [("scale", &a.scale), ("offset", &a.offset)] {
+                if let Some(v) = values
+                    && (v.len() != a.count as usize || v.iter().any(|x| !x.is_finite()))
+                {
+                    return bad(&format!(
+                        "attribute '{}' has {} {what} value(s) for its {} component(s); each \
+                         must be a finite number, one per component",
+                        a.name,
+                        v.len(),
+                        a.count
+                    ));
+                }
             }
             // A reader refuses an encoding it does not know (SPEC.md section 4): its bytes
             // mean something else than their type says.
@@ -406,6 +427,26 @@ mod tests {
         m.as_object_mut().map(|o| o.remove("version"));
         let err = parse(&m).err().unwrap_or_default();
         assert!(err.contains("(found none)"), "{err}");
+    }
+
+    #[test]
+    fn sampling_and_attribute_scales_are_checked() {
+        let mut m = meta_1_1();
+        m["sampling"] = "bogus".into();
+        let err = parse(&m).err().unwrap_or_default();
+        assert!(err.contains("sampling is \"bogus\""), "{err}");
+        let mut m = meta_1_1();
+        m["attributes"] = serde_json::json!([
+            {"name": "position", "type": "i32", "count": 3},
+            {"name": "wave", "type": "u16", "count": 2, "scale": [0.5]}
+        ]);
+        let err = parse(&m).err().unwrap_or_default();
+        assert!(
+            err.contains("attribute 'wave' has 1 scale value(s) for its 2 component(s)"),
+            "{err}"
+        );
+        m["attributes"][1]["scale"] = serde_json::json!([0.5, 0.25]);
+        assert!(parse(&m).is_ok(), "{:?}", parse(&m).err());
     }
 
     #[test]
