@@ -103,6 +103,15 @@ fn random_bytes_with_point_cloud_names() {
         !o.status.success() && err.contains("the chunk table offset") && err.contains("truncated"),
         "{err}"
     );
+    // An uncompressed LAS cut after its header: its count was printed as if the records were there.
+    let las = std::fs::read(data("autzen_trim.las")).expect("autzen");
+    let cut = write(dir.path(), "cut.las", &las[..las.len() / 2]);
+    let o = run(&["info", s(&cut)]);
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(
+        !o.status.success() && err.contains("cut.las") && err.contains("(truncated)"),
+        "{err}"
+    );
 }
 
 #[test]

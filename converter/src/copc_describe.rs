@@ -49,6 +49,11 @@ pub fn describe(path: &Path) -> Result<FileSummary> {
     if raw.compressed {
         crate::input::laz_check::check_laz(&file, &raw)
             .map_err(|e| ConvertError::input(path, e))?;
+    } else {
+        // The header's count is what is printed: a file that does not hold those records is
+        // refused as `convert` refuses it, not summed up as if whole.
+        raw.check_uncompressed_records()
+            .map_err(|e| ConvertError::input(path, e))?;
     }
     let reader = las::Reader::from_path(path)
         .map_err(|e| ConvertError::output(path, format!("not a LAS or LAZ file ({e})")))?;
