@@ -76,6 +76,10 @@ fn unsupported_version_and_point_format() {
     b[104] = 11;
     let p = write(dir.path(), "pf11.las", &b);
     convert_fails(&p, "point format 11 is not supported");
+    // With a top bit set the byte is named too: 99 is not 'format 35' to the user who wrote it.
+    b[104] = 99;
+    let p = write(dir.path(), "pf99.las", &b);
+    convert_fails(&p, "point format 35 (byte 99) is not supported");
 }
 
 #[test]

@@ -124,8 +124,14 @@ impl LasHeader {
         let format_byte = head[104];
         let format = format_byte & 0x3f;
         if format > 10 {
+            // The byte as stored, with the format it names where its top bits (LAZ) are set.
+            let named = if format == format_byte {
+                String::new()
+            } else {
+                format!(" (byte {format_byte})")
+            };
             return Err(format!(
-                "header field \"point data format\": point format {format} is not supported (0 to 10 are)"
+                "header field \"point data format\": point format {format}{named} is not supported (0 to 10 are)"
             ));
         }
         let record_len = u16_at(&head, 105);
