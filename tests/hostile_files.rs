@@ -64,3 +64,18 @@ fn synth_on_a_full_disk_leaves_no_partial_file() {
         assert!(left.is_empty(), "{ext}: {left:?} left behind");
     }
 }
+
+#[test]
+fn an_output_under_a_file_is_named_as_such() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let file = dir.path().join("afile");
+    std::fs::write(&file, b"not a folder").expect("write");
+    let out = file.join("ds");
+    let o = run(&["convert", s(&data("autzen_trim.las")), "-o", s(&out)]);
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(!o.status.success(), "{err}");
+    assert!(
+        err.contains("afile/ds") && err.contains("a part of its path is a file"),
+        "{err}"
+    );
+}

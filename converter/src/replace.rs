@@ -82,7 +82,14 @@ pub fn check_output(output: &Path, overwrite: bool, kind: Folder) -> Result<()> 
     let meta = match fs::symlink_metadata(output) {
         Ok(meta) => meta,
         Err(e) if e.kind() == std::io::ErrorKind::NotFound => return Ok(()),
-        Err(e) => return Err(ConvertError::io(output, "cannot read the output", e)),
+        // ENOTDIR: a folder on the way is a file.
+        Err(e) if e.kind() == std::io::ErrorKind::NotADirectory => {
+            return Err(ConvertError::output(
+                output,
+                "cannot be made: a part of its path is a file, not a folder",
+            ));
+        }
+        Err(e) => return Err(ConvertError::io(output, "cannot look at the output", e)),
     };
     if !overwrite {
         return Err(ConvertError::output(
