@@ -334,20 +334,12 @@ fn existing_output_needs_overwrite() {
 
 #[test]
 fn disk_full_leaves_no_valid_looking_output() {
-    // A file-size limit makes writes fail the way a full disk does (EFBIG instead of ENOSPC).
     let dir = tempfile::tempdir().expect("tempdir");
     let out = dir.path().join("ds");
-    let script = format!(
-        "trap '' XFSZ; ulimit -f 1024; exec {} convert {} -o {}",
-        env!("CARGO_BIN_EXE_strata"),
-        s(&data("autzen_trim.las")),
-        s(&out)
+    let o = run_file_limited(
+        1024,
+        &["convert", s(&data("autzen_trim.las")), "-o", s(&out)],
     );
-    let o = std::process::Command::new("sh")
-        .arg("-c")
-        .arg(&script)
-        .output()
-        .expect("sh");
     let err = String::from_utf8_lossy(&o.stderr);
     assert!(!o.status.success(), "{err}");
     assert!(err.contains("File too large"), "{err}");
@@ -515,35 +507,21 @@ fn absurd_counts_are_refused_in_one_sentence() {
         &["render", s(&ds), "-o", s(&png), "--loaders", "100000"],
         "--loaders",
     );
-    fails(
-        &[
-            "render",
-            s(&ds),
-            "-o",
-            s(&png),
-            "--path",
-            s(&path),
-            "--frames",
-            "4294967295",
-        ],
+    // A fly-through with `extra` arguments.
+    let fly = |extra: &[&str], says: &str| {
+        let mut args = vec!["render", s(&ds), "-o", s(&png), "--path", s(&path)];
+        args.extend_from_slice(extra);
+        fails(&args, says);
+    };
+    fly(
+        &["--frames", "4294967295"],
         "4294967295 is more than the 100000 frames a fly-through may take: \"--frames\"",
     );
     // A pace so slow that the run would not end (a frame every 30 years), or whose period
     // is no number of seconds at all.
     for fps in ["1e-9", "1e-39"] {
-        fails(
-            &[
-                "render",
-                s(&ds),
-                "-o",
-                s(&png),
-                "--path",
-                s(&path),
-                "--frames",
-                "2",
-                "--fps",
-                fps,
-            ],
+        fly(
+            &["--frames", "2", "--fps", fps],
             "is outside the 0.1 to 1000 frames per second",
         );
     }

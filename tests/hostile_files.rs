@@ -22,12 +22,7 @@ fn side_files_that_are_devices_are_refused_before_they_are_read() {
         vec!["render", s(&ds), "-o", s(&png), "--path", "/dev/zero"],
         vec!["serve", s(&ds), "--token-file", "/dev/zero"],
     ] {
-        let o = std::process::Command::new("timeout")
-            .arg("60")
-            .arg(env!("CARGO_BIN_EXE_strata"))
-            .args(&args)
-            .output()
-            .expect("timeout");
+        let o = run_bounded(&args);
         let err = String::from_utf8_lossy(&o.stderr);
         assert_eq!(o.status.code(), Some(1), "{args:?}: {err}");
         assert!(
@@ -43,16 +38,7 @@ fn synth_on_a_full_disk_leaves_no_partial_file() {
     for ext in ["las", "laz", "ply"] {
         let dir = tempfile::tempdir().expect("tempdir");
         let out = dir.path().join(format!("s.{ext}"));
-        let script = format!(
-            "trap '' XFSZ; ulimit -f 64; exec {} synth --points 200000 -o {}",
-            env!("CARGO_BIN_EXE_strata"),
-            s(&out)
-        );
-        let o = std::process::Command::new("sh")
-            .arg("-c")
-            .arg(&script)
-            .output()
-            .expect("sh");
+        let o = run_file_limited(64, &["synth", "--points", "200000", "-o", s(&out)]);
         let err = String::from_utf8_lossy(&o.stderr);
         assert!(!o.status.success(), "{ext}: {err}");
         assert!(err.contains("File too large"), "{ext}: {err}");

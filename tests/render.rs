@@ -5,6 +5,8 @@
 #[path = "render/colours.rs"]
 mod colours;
 mod common;
+#[path = "render/filter_shadows.rs"]
+mod filter_shadows;
 #[path = "render/filters.rs"]
 mod filters;
 #[path = "render/fly_through.rs"]

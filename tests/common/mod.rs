@@ -23,6 +23,36 @@ pub fn run(args: &[&str]) -> Output {
     }
 }
 
+/// Runs strata with `args` under `timeout 60` (on lavapipe where it renders): a run that
+/// would wait forever ends with exit 124 instead of hanging the suite.
+pub fn run_bounded(args: &[&str]) -> Output {
+    let out = Command::new("timeout")
+        .arg("60")
+        .arg(env!("CARGO_BIN_EXE_strata"))
+        .args(args)
+        .env("WGPU_BACKEND", "vulkan")
+        .output();
+    match out {
+        Ok(o) => o,
+        Err(e) => panic!("cannot run timeout strata: {e}"),
+    }
+}
+
+/// Runs strata with `args` where no file may grow past `kib` KiB: writes fail as on a full
+/// disk (EFBIG instead of ENOSPC), and the signal that would kill the process is ignored.
+pub fn run_file_limited(kib: u32, args: &[&str]) -> Output {
+    let out = Command::new("sh")
+        .arg("-c")
+        .arg(format!("trap '' XFSZ; ulimit -f {kib}; exec \"$0\" \"$@\""))
+        .arg(env!("CARGO_BIN_EXE_strata"))
+        .args(args)
+        .output();
+    match out {
+        Ok(o) => o,
+        Err(e) => panic!("cannot run sh: {e}"),
+    }
+}
+
 pub fn run_ok(args: &[&str]) -> Output {
     let o = run(args);
     assert!(

@@ -6,6 +6,19 @@ use super::projection::{self, EMPTY, FrameUniforms, GROUP_SIZE, GpuRange, PIXEL_
 use super::shader::ShaderSource;
 use naga::valid::{Capabilities, ValidationFlags, Validator};
 
+/// The eight screen sectors' directions, counter-clockwise from +x (y up), as the shaders that
+/// split a pixel's neighbourhood into sectors number them.
+pub const SECTOR_DIRECTIONS: [(i32, i32); 8] = [
+    (1, 0),
+    (1, 1),
+    (0, 1),
+    (-1, 1),
+    (-1, 0),
+    (-1, -1),
+    (0, -1),
+    (1, -1),
+];
+
 /// Every module, composed as the pipelines compose them, for a device with and without
 /// 64-bit atomics.
 fn all_shaders(int64: bool) -> Vec<ShaderSource> {

@@ -89,16 +89,7 @@ fn reference(depths: &[u32], w: u32, h: u32, p: &PyramidUniforms) -> Vec<(u32, f
     };
     let dot = |a: [f64; 3], b: [f64; 3]| a[0] * b[0] + a[1] * b[1] + a[2] * b[2];
     // Counter-clockwise from +x, as the shader's sectors.
-    let ring = [
-        (1, 0),
-        (1, 1),
-        (0, 1),
-        (-1, 1),
-        (-1, 0),
-        (-1, -1),
-        (0, -1),
-        (1, -1),
-    ];
+    let ring = crate::pipelines::shader_tests::SECTOR_DIRECTIONS;
     let top = p.levels as i32 - 1;
     let c = p.coarse_level as usize;
     let mut out = Vec::with_capacity((w * h) as usize);

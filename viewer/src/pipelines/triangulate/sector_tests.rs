@@ -6,7 +6,7 @@ use super::passes::UNIFORMS_WGSL;
 use crate::gpu::{GpuContext, ProjectionPath};
 use crate::pipelines::filters::bind;
 use crate::pipelines::shader::ShaderSource;
-use crate::pipelines::shader_tests::{kernel_output, run_kernel};
+use crate::pipelines::shader_tests::{SECTOR_DIRECTIONS, kernel_output, run_kernel};
 use wgpu::util::DeviceExt;
 
 const KERNEL_WGSL: &str = r#"
@@ -28,17 +28,7 @@ fn main(@builtin(global_invocation_id) id: vec3<u32>) {
 fn expected(dx: i32, dy: i32) -> u32 {
     let (x, y) = (dx, -dy);
     // The boundaries, 45 degrees apart from +x, counter-clockwise.
-    let boundaries = [
-        (1, 0),
-        (1, 1),
-        (0, 1),
-        (-1, 1),
-        (-1, 0),
-        (-1, -1),
-        (0, -1),
-        (1, -1),
-    ];
-    for (k, (bx, by)) in boundaries.iter().enumerate() {
+    for (k, (bx, by)) in SECTOR_DIRECTIONS.iter().enumerate() {
         // Along boundary k: parallel to it and facing the same way.
         if x * by == y * bx && x * bx + y * by > 0 {
             return k as u32;
