@@ -206,6 +206,7 @@ struct NodeCheck<'a> {
     next: usize,
     /// Where in the task's file the next byte shown is.
     at: u64,
+    /// `strata_format::payload_checksum` (CRC-32), taken a piece at a time as the copy goes.
     hasher: crc32fast::Hasher,
 }
 
