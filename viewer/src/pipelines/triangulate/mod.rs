@@ -244,6 +244,8 @@ impl Pipeline for Triangulate {
 }
 
 #[cfg(test)]
+mod holes_tests;
+#[cfg(test)]
 mod sector_tests;
 #[cfg(test)]
 mod tests;
