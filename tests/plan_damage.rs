@@ -4,7 +4,7 @@
 
 mod common;
 
-use common::{run, run_ok, s};
+use common::{refused, run_ok, s};
 use serde_json::{Value, json};
 use std::path::{Path, PathBuf};
 
@@ -29,21 +29,6 @@ fn plan(dir: &Path) -> PathBuf {
     plan
 }
 
-/// Runs `args`, which must fail with `expect` (and every word of `more`) in its one-line
-/// message, without a panic or an abort.
-fn fails(args: &[&str], expect: &[&str]) -> String {
-    let o = run(args);
-    let err = String::from_utf8_lossy(&o.stderr).into_owned();
-    assert!(!o.status.success(), "{args:?} should fail: {err}");
-    // A panic exits 101, an abort is a signal: neither is a refusal.
-    assert_eq!(o.status.code(), Some(1), "{args:?}: {err}");
-    for e in expect {
-        assert!(err.contains(e), "expected {e:?} in: {err}");
-    }
-    assert!(!err.contains("panicked"), "{err}");
-    err
-}
-
 fn task(plan: &Path, k: usize) {
     run_ok(&["convert", "--plan", s(plan), "--task", &k.to_string(), "-q"]);
 }
@@ -51,7 +36,7 @@ fn task(plan: &Path, k: usize) {
 /// `--finish` must fail naming `expect`, and leave neither the dataset nor its work folder.
 fn finish_fails(plan: &Path, expect: &[&str]) {
     let out = plan.with_file_name("out.strata");
-    fails(
+    refused(
         &["convert", "--plan", s(plan), "--finish", "-o", s(&out)],
         expect,
     );
@@ -121,7 +106,7 @@ fn an_edited_plan_is_refused_naming_plan_json_and_the_field() {
         edited(edit.as_ref());
         let mut want = vec!["plan.json"];
         want.extend(expect);
-        fails(&["convert", "--plan", s(&plan), "--task", "0"], &want);
+        refused(&["convert", "--plan", s(&plan), "--task", "0"], &want);
         assert!(!plan.join("tasks/0").exists(), "{expect:?}: no task result");
     }
     // Points that add up, but more than memory holds: was an abort allocating them.
@@ -131,7 +116,7 @@ fn an_edited_plan_is_refused_naming_plan_json_and_the_field() {
         v["plan"]["chunks"][0]["points"] = json!(first + more);
         v["plan"]["points"] = json!(total + more);
     });
-    fails(
+    refused(
         &["convert", "--plan", s(&plan), "--task", "0"],
         &["plan.json", "chunk 0's 1000000000", "do not fit in memory"],
     );

@@ -4,7 +4,7 @@
 
 mod common;
 
-use common::{run, run_ok, s, strata};
+use common::{refused, run, run_ok, s, strata};
 use std::path::{Path, PathBuf};
 use std::process::Child;
 use std::time::{Duration, Instant};
@@ -348,23 +348,16 @@ fn contradictory_options_are_refused_in_one_sentence() {
     let dir = tempfile::tempdir().expect("tempdir");
     let las = synth(dir.path(), "a.las", "20000", "1");
     let plan = dir.path().join("plan");
-    let fails = |a: &[&str], expect: &str| {
-        let o = run(a);
-        let err = String::from_utf8_lossy(&o.stderr).to_string();
-        assert!(!o.status.success(), "{a:?} should fail");
-        assert!(err.contains(expect), "expected {expect:?} in: {err}");
-        assert!(!err.contains("panicked"), "{err}");
-    };
-    fails(&["convert", s(&las), "--plan-only", s(&plan)], "--tasks");
+    refused(&["convert", s(&las), "--plan-only", s(&plan)], &["--tasks"]);
     // Without --plan-only, -o is not silently made a plan; absurd counts are refused before
     // anything is allocated or written.
     let out = dir.path().join("x.strata");
-    fails(
+    refused(
         &["convert", s(&las), "--tasks", "2", "-o", s(&out)],
-        "--plan-only",
+        &["--plan-only"],
     );
     assert!(!out.exists());
-    fails(
+    refused(
         &[
             "convert",
             s(&las),
@@ -373,16 +366,16 @@ fn contradictory_options_are_refused_in_one_sentence() {
             "--tasks",
             "100000000000",
         ],
-        "--tasks",
+        &["--tasks"],
     );
-    fails(
+    refused(
         &["convert", s(&las), "-o", s(&out), "--threads", "100000"],
-        "--threads",
+        &["--threads"],
     );
     assert!(!out.exists() && !plan.exists());
-    fails(
+    refused(
         &["convert", "--plan", s(&plan), "--task", "0"],
-        "no conversion plan here",
+        &["no conversion plan here"],
     );
     run_ok(&[
         "convert",
@@ -393,7 +386,7 @@ fn contradictory_options_are_refused_in_one_sentence() {
         "2",
         "-q",
     ]);
-    fails(
+    refused(
         &[
             "convert",
             "--plan",
@@ -403,24 +396,24 @@ fn contradictory_options_are_refused_in_one_sentence() {
             "--threads",
             "3",
         ],
-        "--threads",
+        &["--threads"],
     );
-    fails(
+    refused(
         &["convert", "--plan", s(&plan), "--task", "0", "--normals"],
-        "--normals",
+        &["--normals"],
     );
-    fails(&["convert", "--plan", s(&plan)], "--task K");
-    fails(
+    refused(&["convert", "--plan", s(&plan)], &["--task K"]);
+    refused(
         &["convert", "--plan", s(&plan), "--task", "0", "--tasks", "5"],
-        "--plan-only",
+        &["--plan-only"],
     );
-    fails(
+    refused(
         &["convert", "--plan", s(&plan), "--task", "2"],
-        "task 2 is not in the plan",
+        &["task 2 is not in the plan"],
     );
-    fails(
+    refused(
         &["convert", s(&las), "--plan-only", s(&plan), "--tasks", "2"],
-        "already exists",
+        &["already exists"],
     );
     // A damaged plan whose task ranges run past its chunks is refused, not a panic.
     let plan_json = plan.join("plan.json");
@@ -428,9 +421,9 @@ fn contradictory_options_are_refused_in_one_sentence() {
     let mut v: serde_json::Value = serde_json::from_slice(&good).expect("plan JSON");
     v["tasks"][1]["end"] = serde_json::json!(1_000_000);
     std::fs::write(&plan_json, serde_json::to_vec(&v).expect("JSON")).expect("write");
-    fails(
+    refused(
         &["convert", "--plan", s(&plan), "--task", "1"],
-        "do not follow on from chunk",
+        &["do not follow on from chunk"],
     );
     std::fs::write(&plan_json, &good).expect("restore");
     // An input changed since the plan: its chunks would not hold its points.
@@ -440,9 +433,9 @@ fn contradictory_options_are_refused_in_one_sentence() {
         .open(&las)
         .expect("open");
     f.set_modified(later).expect("touch");
-    fails(
+    refused(
         &["convert", "--plan", s(&plan), "--task", "1"],
-        "a.las: changed (size or modification time) since the plan was made",
+        &["a.las: changed (size or modification time) since the plan was made"],
     );
     assert!(!plan.join("tasks/1").exists());
 }

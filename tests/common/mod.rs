@@ -128,6 +128,24 @@ pub fn converted(tag: &str, input: &str, name: &str) -> PathBuf {
     out
 }
 
+/// Runs `args`, which must be refused: exit 1, or 2 for a usage error the argument parser
+/// reports (a panic exits 101, an abort is a signal), every word of `expect` in the message,
+/// no panic. Returns stderr.
+pub fn refused(args: &[&str], expect: &[&str]) -> String {
+    let o = run(args);
+    let err = String::from_utf8_lossy(&o.stderr).into_owned();
+    assert!(
+        matches!(o.status.code(), Some(1 | 2)),
+        "{args:?} should be refused: {:?}, {err}",
+        o.status.code()
+    );
+    for e in expect {
+        assert!(err.contains(e), "expected {e:?} in: {err}");
+    }
+    assert!(!err.contains("panicked"), "{err}");
+    err
+}
+
 /// Converts `input` and checks the failure; returns stderr.
 pub fn convert_fails(input: &Path, expect: &str) -> String {
     let dir = tempfile::tempdir().expect("tempdir");

@@ -52,6 +52,20 @@ fn plate_over_ground() -> &'static Path {
     })
 }
 
+/// A renderer of the plate scene, its camera from above, and the dataset's anchor.
+fn plate_from_above() -> (Renderer, Camera, glam::Vec3) {
+    let ds = Arc::new(StreamDataset::open_path(plate_over_ground()).expect("dataset opens"));
+    let ctx = Arc::new(GpuContext::new(ProjectionPath::Auto).expect("GPU adapter"));
+    let r = Renderer::new(ctx, ds.clone(), 1 << 30, 1).expect("renderer");
+    let anchor = ds.anchor().as_vec3();
+    let camera = Camera {
+        eye: glam::Vec3::new(0.0, -0.5, 4.0) - anchor,
+        target: -anchor,
+        fov_y: 45f32.to_radians(),
+    };
+    (r, camera, anchor)
+}
+
 /// The plate scene seen from above, lit from +x and above; the image and the pixel of each
 /// ground point asked for.
 fn shadow_shot(set: &[&str], ground: &[[f32; 2]]) -> (Vec<[u8; 3]>, Vec<usize>) {
@@ -60,15 +74,7 @@ fn shadow_shot(set: &[&str], ground: &[[f32; 2]]) -> (Vec<[u8; 3]>, Vec<usize>) 
 
 /// `shadow_shot` through `pipeline`.
 fn shadow_shot_in(pipeline: &str, set: &[&str], ground: &[[f32; 2]]) -> (Vec<[u8; 3]>, Vec<usize>) {
-    let ds = Arc::new(StreamDataset::open_path(plate_over_ground()).expect("dataset opens"));
-    let ctx = Arc::new(GpuContext::new(ProjectionPath::Auto).expect("GPU adapter"));
-    let mut r = Renderer::new(ctx, ds.clone(), 1 << 30, 1).expect("renderer");
-    let anchor = ds.anchor().as_vec3();
-    let camera = Camera {
-        eye: glam::Vec3::new(0.0, -0.5, 4.0) - anchor,
-        target: -anchor,
-        fov_y: 45f32.to_radians(),
-    };
+    let (mut r, camera, anchor) = plate_from_above();
     let settings = lit_from_x_in(pipeline, set);
     paths::frame_until_complete(&mut r, &camera, W, H, &settings);
     r.frame(&camera, W, H, &settings).expect("frame");
@@ -218,15 +224,7 @@ fn shadow_casters_outside_the_view_are_loaded_for_the_light() {
 #[test]
 fn hiding_the_caster_takes_its_shadow_away() {
     // The same renderer, so the kept shadow must be computed again when the filters change.
-    let ds = Arc::new(StreamDataset::open_path(plate_over_ground()).expect("dataset opens"));
-    let ctx = Arc::new(GpuContext::new(ProjectionPath::Auto).expect("GPU adapter"));
-    let mut r = Renderer::new(ctx, ds.clone(), 1 << 30, 1).expect("renderer");
-    let anchor = ds.anchor().as_vec3();
-    let camera = Camera {
-        eye: glam::Vec3::new(0.0, -0.5, 4.0) - anchor,
-        target: -anchor,
-        fov_y: 45f32.to_radians(),
-    };
+    let (mut r, camera, anchor) = plate_from_above();
     let mut settings = lit_from_x(&["shadows=1"]);
     let at = pixel_of(&camera, anchor, [-0.6, 0.0]);
     let mut grey_at = |settings: &Settings| {
@@ -247,15 +245,7 @@ fn hiding_the_caster_takes_its_shadow_away() {
 
 #[test]
 fn shadows_are_kept_while_nothing_they_depend_on_changes() {
-    let ds = Arc::new(StreamDataset::open_path(plate_over_ground()).expect("dataset opens"));
-    let ctx = Arc::new(GpuContext::new(ProjectionPath::Auto).expect("GPU adapter"));
-    let mut r = Renderer::new(ctx, ds.clone(), 1 << 30, 1).expect("renderer");
-    let anchor = ds.anchor().as_vec3();
-    let camera = Camera {
-        eye: glam::Vec3::new(0.0, -0.5, 4.0) - anchor,
-        target: -anchor,
-        fov_y: 45f32.to_radians(),
-    };
+    let (mut r, camera, _) = plate_from_above();
     let mut settings = lit_from_x(&["shadows=2", "shadow_samples=8"]);
     settings.pass_clock = strata_viewer::gpu::timing::PassClock::Wall;
     paths::frame_until_complete(&mut r, &camera, W, H, &settings);

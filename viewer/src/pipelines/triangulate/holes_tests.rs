@@ -5,11 +5,11 @@
 use super::passes::shaders;
 use super::targets::{COUNT_WORDS, Counts, counts_from};
 use crate::gpu::{GpuContext, ProjectionPath};
-use crate::pipelines::projection::{FrameUniforms, pixel_groups};
+use crate::pipelines::filters::bind;
+use crate::pipelines::projection::{EMPTY, FrameUniforms, pixel_groups};
 use bytemuck::Zeroable;
 use wgpu::util::DeviceExt;
 
-const EMPTY: u32 = u32::MAX;
 const REACH: i64 = 16;
 
 fn expected(covered: &[bool], width: usize, height: usize) -> Counts {
@@ -72,24 +72,16 @@ fn gpu_counts(ctx: &GpuContext, covered: &[bool], width: u32, height: u32) -> Co
         contents: &[0u8; COUNT_WORDS as usize * 4],
         usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
     });
-    let group = device.create_bind_group(&wgpu::BindGroupDescriptor {
-        label: None,
-        layout: &pipe.get_bind_group_layout(0),
-        entries: &[
-            wgpu::BindGroupEntry {
-                binding: 0,
-                resource: uniforms.as_entire_binding(),
-            },
-            wgpu::BindGroupEntry {
-                binding: 1,
-                resource: reconstructed.as_entire_binding(),
-            },
-            wgpu::BindGroupEntry {
-                binding: 2,
-                resource: counts.as_entire_binding(),
-            },
+    let group = bind(
+        device,
+        &pipe,
+        0,
+        &[
+            (0, uniforms.as_entire_binding()),
+            (1, reconstructed.as_entire_binding()),
+            (2, counts.as_entire_binding()),
         ],
-    });
+    );
     let mut encoder = device.create_command_encoder(&Default::default());
     {
         let mut pass = encoder.begin_compute_pass(&Default::default());
