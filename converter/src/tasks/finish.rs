@@ -224,9 +224,7 @@ impl<'a> NodeCheck<'a> {
                         part,
                         format!(
                             "task {task}'s journal puts node {} of chunk {} at bytes {start}+{}, outside the nodes or over another's; run the task again after making the plan again",
-                            node_name(&key),
-                            e.chunk,
-                            r.size
+                            key, e.chunk, r.size
                         ),
                     ));
                 };
@@ -290,17 +288,8 @@ impl<'a> NodeCheck<'a> {
             self.part,
             format!(
                 "node {} of chunk {} (bytes {}..{}) does not match the checksum task {}'s journal records: the task's result was damaged since it ran; make the plan again and run its tasks",
-                node_name(&n.key),
-                n.chunk,
-                n.start,
-                n.end,
-                self.task
+                n.key, n.chunk, n.start, n.end, self.task
             ),
         )
     }
-}
-
-/// A node as messages name it: level, then x, y, z.
-fn node_name(key: &NodeKey) -> String {
-    format!("{}-{}-{}-{}", key.level, key.x, key.y, key.z)
 }
