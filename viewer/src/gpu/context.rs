@@ -32,6 +32,9 @@ pub struct GpuContext {
     pub queue: wgpu::Queue,
     /// The device was created with 64-bit atomic min/max.
     pub int64_atomics: bool,
+    /// And with the other 64-bit atomic operations (add): Vulkan and DX12 have both or
+    /// neither, Metal min/max alone.
+    pub int64_sums: bool,
     pub timestamps: bool,
     pub adapter_name: String,
     /// The first GPU fault no error scope caught (validation, out of memory, internal), or the
@@ -73,7 +76,9 @@ impl GpuContext {
         path: ProjectionPath,
     ) -> Result<GpuContext, ViewerError> {
         let available = adapter.features();
-        let int64 = wgpu::Features::SHADER_INT64 | wgpu::Features::SHADER_INT64_ATOMIC_MIN_MAX;
+        let int64 = wgpu::Features::SHADER_INT64
+            | wgpu::Features::SHADER_INT64_ATOMIC_MIN_MAX
+            | wgpu::Features::SHADER_INT64_ATOMIC_ALL_OPS;
         let has_int64 = available.contains(int64);
         let int64_atomics = match path {
             ProjectionPath::Auto => has_int64,
@@ -86,10 +91,15 @@ impl GpuContext {
                 )));
             }
         };
+        let all_ops = wgpu::Features::SHADER_INT64_ATOMIC_ALL_OPS;
+        let int64_sums = int64_atomics && available.contains(all_ops);
         let timestamps = available.contains(wgpu::Features::TIMESTAMP_QUERY);
         let mut features = wgpu::Features::empty();
         if int64_atomics {
             features |= int64;
+        }
+        if int64_sums {
+            features |= all_ops;
         }
         if timestamps {
             features |= wgpu::Features::TIMESTAMP_QUERY;
@@ -130,6 +140,7 @@ impl GpuContext {
             device,
             queue,
             int64_atomics,
+            int64_sums,
             timestamps,
             adapter_name: format!("{} ({:?})", info.name, info.backend),
         })

@@ -60,13 +60,16 @@ fn validate(s: &ShaderSource, module: &naga::Module, caps: Capabilities) {
 pub(crate) fn parse_and_validate(s: &ShaderSource) {
     let caps = Capabilities::default()
         | Capabilities::SHADER_INT64
-        | Capabilities::SHADER_INT64_ATOMIC_MIN_MAX;
+        | Capabilities::SHADER_INT64_ATOMIC_MIN_MAX
+        | Capabilities::SHADER_INT64_ATOMIC_ALL_OPS;
     validate(s, &parse(s), caps);
 }
 
 #[test]
 fn every_shader_module_parses_and_validates() {
-    let int64_caps = Capabilities::SHADER_INT64 | Capabilities::SHADER_INT64_ATOMIC_MIN_MAX;
+    let int64_caps = Capabilities::SHADER_INT64
+        | Capabilities::SHADER_INT64_ATOMIC_MIN_MAX
+        | Capabilities::SHADER_INT64_ATOMIC_ALL_OPS;
     for int64 in [false, true] {
         let caps = if int64 {
             Capabilities::default() | int64_caps
@@ -295,7 +298,9 @@ fn a_pipeline_that_binds_the_colour_plane_declares_it_reads_it() {
 #[test]
 fn no_large_value_array_is_indexed_by_a_variable() {
     const LARGEST_COPIED: u32 = 64;
-    let caps = Capabilities::SHADER_INT64 | Capabilities::SHADER_INT64_ATOMIC_MIN_MAX;
+    let caps = Capabilities::SHADER_INT64
+        | Capabilities::SHADER_INT64_ATOMIC_MIN_MAX
+        | Capabilities::SHADER_INT64_ATOMIC_ALL_OPS;
     for s in all_shaders(true) {
         let module = parse(&s);
         let info = Validator::new(ValidationFlags::all(), caps)

@@ -107,6 +107,8 @@ struct Triangulate {
     counts: Option<Counts>,
     /// The device has 64-bit atomics: the sector search is one pass.
     int64: bool,
+    /// And 64-bit atomic adds: the blend sums are 64-bit.
+    sums64: bool,
 }
 
 fn create(ctx: &GpuContext) -> Result<Box<dyn Pipeline>, ViewerError> {
@@ -115,6 +117,7 @@ fn create(ctx: &GpuContext) -> Result<Box<dyn Pipeline>, ViewerError> {
         targets: None,
         counts: None,
         int64: ctx.int64_atomics,
+        sums64: ctx.int64_sums,
     }))
 }
 
@@ -184,6 +187,7 @@ impl Pipeline for Triangulate {
             screen.width,
             screen.height,
             self.int64,
+            self.sums64,
         ));
     }
 
@@ -247,5 +251,7 @@ impl Pipeline for Triangulate {
 mod holes_tests;
 #[cfg(test)]
 mod sector_tests;
+#[cfg(test)]
+mod sums_tests;
 #[cfg(test)]
 mod tests;

@@ -26,8 +26,12 @@ const SEARCH_INT64_WGSL: &str = include_str!("search_int64.wgsl");
 const FAN_WGSL: &str = include_str!("fan.wgsl");
 const NORMALS_WGSL: &str = include_str!("normals.wgsl");
 const RASTER_WGSL: &str = include_str!("raster.wgsl");
+const RASTER_SUMS32_WGSL: &str = include_str!("raster_sums32.wgsl");
+const RASTER_SUMS64_WGSL: &str = include_str!("raster_sums64.wgsl");
 const RADII_WGSL: &str = include_str!("radii.wgsl");
 const SHADE_WGSL: &str = include_str!("shade.wgsl");
+const SHADE_SUMS32_WGSL: &str = include_str!("shade_sums32.wgsl");
+const SHADE_SUMS64_WGSL: &str = include_str!("shade_sums64.wgsl");
 const HOLES_WGSL: &str = include_str!("holes.wgsl");
 
 /// Each point's kept value: its search radius and the last feedback distance (two f32).
@@ -57,9 +61,16 @@ pub struct TriangulateUniforms {
     pub max_search_px: u32,
 }
 
-/// Every module the triangulation compiles; `int64`: the device has 64-bit atomics, and the
-/// sector search takes one pass instead of two, whose keys the fans read in place.
+/// Every module the triangulation compiles on a device with 64-bit atomics (`int64`) or
+/// without: the registry's list, for validation.
 pub fn shaders(int64: bool) -> Vec<ShaderSource> {
+    shaders_for(int64, int64)
+}
+
+/// Every module the triangulation compiles; `int64`: the device has 64-bit atomic min/max, and
+/// the sector search takes one pass instead of two, whose keys the fans read in place;
+/// `sums64`: it adds 64-bit atomics too, and the blend sums are two of them a fragment.
+pub fn shaders_for(int64: bool, sums64: bool) -> Vec<ShaderSource> {
     let own = |label, parts: &[&'static str]| {
         let mut all = vec![UNIFORMS_WGSL, COUNTS_WGSL];
         all.extend_from_slice(parts);
@@ -67,6 +78,11 @@ pub fn shaders(int64: bool) -> Vec<ShaderSource> {
     };
     // Words per sector of what the fans read: the ids, or the 64-bit keys.
     let neighbour_stride = if int64 { 2.0 } else { 1.0 };
+    let (raster_sums, shade_sums) = if sums64 {
+        (RASTER_SUMS64_WGSL, SHADE_SUMS64_WGSL)
+    } else {
+        (RASTER_SUMS32_WGSL, SHADE_SUMS32_WGSL)
+    };
     let mut v = vec![
         own("triangulate reproject", &[REPROJECT_WGSL, RAYS_WGSL]),
         own(
@@ -83,13 +99,13 @@ pub fn shaders(int64: bool) -> Vec<ShaderSource> {
         ),
         own("triangulate normals", &[NORMALS_WGSL, FAN_WGSL])
             .with_constant("NEIGHBOUR_STRIDE", neighbour_stride),
-        own("triangulate raster", &[RASTER_WGSL, FAN_WGSL])
+        own("triangulate raster", &[RASTER_WGSL, FAN_WGSL, raster_sums])
             .with_constant("NEIGHBOUR_STRIDE", neighbour_stride),
         own(
             "triangulate radii",
             &[RADII_WGSL, RAYS_WGSL, RANGE_SEARCH_WGSL],
         ),
-        own("triangulate shade", &[LIGHTING_WGSL, SHADE_WGSL]),
+        own("triangulate shade", &[LIGHTING_WGSL, SHADE_WGSL, shade_sums]),
         own("triangulate holes", &[HOLES_WGSL]),
     ];
     if int64 {
@@ -140,7 +156,8 @@ impl TriangulatePasses {
     pub fn new(ctx: &GpuContext) -> Result<TriangulatePasses, ViewerError> {
         ctx.require_storage_buffers("triangulate", STORAGE_BUFFERS)?;
         let int64 = ctx.int64_atomics;
-        let mut compiled: std::collections::HashMap<&str, wgpu::ComputePipeline> = shaders(int64)
+        let mut compiled: std::collections::HashMap<&str, wgpu::ComputePipeline> =
+            shaders_for(int64, ctx.int64_sums)
             .into_iter()
             .map(|s| (s.label, s.compute(&ctx.device, None)))
             .collect();

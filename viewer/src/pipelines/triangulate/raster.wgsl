@@ -5,8 +5,8 @@
 // kept out by culling its points against the previous frame's depth (gather.wgsl), so for the
 // frames after a jump or a disocclusion the colours behind show through until the depth is
 // there. A compute rasterizer: fixed-point atomic sums make the picture independent of the
-// order triangles arrive in, and it runs on every adapter the projection runs on. A triangle
-// in the fans of two or three of its corners is drawn each time, as in the paper: finding the
+// order triangles arrive in (on the 64-bit sums, for a pixel's first 512 fragments), and it
+// runs on every adapter the projection runs on. A triangle in the fans of two or three of its corners is drawn each time, as in the paper: finding the
 // one fan to draw it from (reading the other corners' fans) took longer on lavapipe than the
 // repeated drawing. Each point also covers its own pixel, so that a point without neighbours
 // is still drawn.
@@ -16,7 +16,7 @@
 @group(0) @binding(3) var<storage, read> normals: array<vec4<f32>>;
 // The projection's resolved colour per pixel (RGBA8).
 @group(0) @binding(4) var<storage, read> colours: array<u32>;
-@group(0) @binding(5) var<storage, read_write> sums: array<atomic<u32>>;
+// Binding 5, the blend sums: raster_sums32.wgsl or raster_sums64.wgsl, with add_sums.
 // Per pixel: the complement of the least depth's bits (0: nothing drawn).
 @group(0) @binding(6) var<storage, read_write> front: array<atomic<u32>>;
 @group(0) @binding(7) var<storage, read_write> counts: array<atomic<u32>>;
@@ -42,16 +42,9 @@ fn vertex(q: u32) -> Vertex {
 
 fn add_fragment(pixel: u32, depth: f32, colour: vec3<f32>, normal: vec3<f32>) {
     atomicMax(&front[pixel], ~bitcast<u32>(depth));
-    let i = pixel * SUM_WORDS;
-    let c = vec3<u32>(clamp(colour, vec3<f32>(0.0), vec3<f32>(1.0)) * f32(255u * FRAGMENT_WEIGHT) + 0.5);
-    let n = vec3<u32>(clamp(normal * 0.5 + 0.5, vec3<f32>(0.0), vec3<f32>(1.0)) * f32(1023u * FRAGMENT_WEIGHT) + 0.5);
-    atomicAdd(&sums[i], FRAGMENT_WEIGHT);
-    atomicAdd(&sums[i + 1u], c.x);
-    atomicAdd(&sums[i + 2u], c.y);
-    atomicAdd(&sums[i + 3u], c.z);
-    atomicAdd(&sums[i + 4u], n.x);
-    atomicAdd(&sums[i + 5u], n.y);
-    atomicAdd(&sums[i + 6u], n.z);
+    let zero = vec3<f32>(0.0);
+    let one = vec3<f32>(1.0);
+    add_sums(pixel, clamp(colour, zero, one), clamp(normal * 0.5 + 0.5, zero, one));
 }
 
 fn edge(a: vec2<f32>, b: vec2<f32>, c: vec2<f32>) -> f32 {

@@ -3,7 +3,7 @@
 // plane is what the next frame reprojects; the surface and the albedo are kept for the harness.
 @group(0) @binding(0) var<uniform> frame: Frame;
 @group(0) @binding(1) var<uniform> tri: Triangulate;
-@group(0) @binding(2) var<storage, read> sums: array<u32>;
+// Binding 2, the blend sums: shade_sums32.wgsl or shade_sums64.wgsl, with blend_at.
 @group(0) @binding(3) var<storage, read> front: array<u32>;
 // Linear depth bits per pixel, EMPTY on background.
 @group(0) @binding(4) var<storage, read_write> reconstructed: array<u32>;
@@ -19,17 +19,16 @@ fn main(@builtin(global_invocation_id) id: vec3<u32>) {
         return;
     }
     let p = id.y * frame.width + id.x;
-    let i = p * SUM_WORDS;
-    let w = f32(sums[i]);
-    if w <= 0.0 || front[p] == 0u {
+    let blend = blend_at(p);
+    if blend.fragments == 0u || front[p] == 0u {
         reconstructed[p] = EMPTY;
         surface[p] = vec4<f32>(0.0, 0.0, 0.0, -1.0);
         albedo[p] = 0u;
         textureStore(output, id.xy, unpack4x8unorm(frame.background));
         return;
     }
-    let rgb = vec3<f32>(f32(sums[i + 1u]), f32(sums[i + 2u]), f32(sums[i + 3u])) / (255.0 * w);
-    let blended = vec3<f32>(f32(sums[i + 4u]), f32(sums[i + 5u]), f32(sums[i + 6u])) / (1023.0 * w) * 2.0 - 1.0;
+    let rgb = blend.colour;
+    let blended = blend.normal * 2.0 - 1.0;
     let depth = bitcast<f32>(~front[p]);
     let nx = (f32(id.x) + 0.5) / f32(frame.width) * 2.0 - 1.0;
     let ny = 1.0 - (f32(id.y) + 0.5) / f32(frame.height) * 2.0;

@@ -11,8 +11,10 @@ use crate::renderer::SurfacePixel;
 
 /// Sectors per point (`SECTORS` in uniforms.wgsl).
 pub const SECTORS: u64 = 8;
-/// Words per pixel of the blend sums (`SUM_WORDS` in uniforms.wgsl).
+/// Words per pixel of the 32-bit blend sums (`SUM_WORDS` in uniforms.wgsl).
 pub const SUM_WORDS: u64 = 7;
+/// Bytes per pixel of the 64-bit blend sums (two words).
+pub const SUM64_BYTES: u64 = 16;
 /// Counter words (`COUNT_WORDS` in counts.wgsl): culled points, triangles, holes, covered.
 pub const COUNT_WORDS: u64 = 4;
 
@@ -116,7 +118,14 @@ impl TriangulateTargets {
         b
     }
 
-    pub fn new(device: &wgpu::Device, width: u32, height: u32, int64: bool) -> TriangulateTargets {
+    /// `int64`: the one-pass sector search's keys; `sums64`: the 64-bit blend sums.
+    pub fn new(
+        device: &wgpu::Device,
+        width: u32,
+        height: u32,
+        int64: bool,
+        sums64: bool,
+    ) -> TriangulateTargets {
         let pixels = width as u64 * height as u64;
         let plane = |k: usize| plane_buffer(device, PLANES[k].0, pixels * PLANES[k].1);
         TriangulateTargets {
@@ -145,7 +154,11 @@ impl TriangulateTargets {
             },
             normals: plane(4),
             feedback: plane(5),
-            sums: plane(6),
+            sums: if sums64 {
+                plane_buffer(device, PLANES[6].0, pixels * SUM64_BYTES)
+            } else {
+                plane(6)
+            },
             front: plane(7),
             reconstructed: plane(8),
             surface: plane(9),

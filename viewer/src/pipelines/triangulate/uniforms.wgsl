@@ -24,10 +24,30 @@ struct Triangulate {
 
 // Sectors around a point (Figure 3), in circular order.
 const SECTORS: u32 = 8u;
-// Words per pixel of the blend sums: weight, r, g, b, nx, ny, nz.
+// The blend sums of colour and normal over a pixel's fragments (raster_sums*.wgsl adds, and
+// shade_sums*.wgsl reads, one of two layouts). 32-bit: SUM_WORDS words a pixel (fragment
+// weight, r, g, b, nx, ny, nz), each fragment weighing FRAGMENT_WEIGHT.
 const SUM_WORDS: u32 = 7u;
-// A fragment's weight in the blend sums (fixed point).
 const FRAGMENT_WEIGHT: u32 = 16u;
+// 64-bit: two words a pixel, r, g, b of SUM64_COLOUR_BITS each and the fragment count above
+// them, then nx, ny, nz of SUM64_NORMAL_BITS each; a fragment adds colour and normal in
+// units of 1 / SUM64_COLOUR_SCALE and 1 / SUM64_NORMAL_SCALE. A pixel keeps its first
+// SUM64_KEPT fragments, so no field can overflow into the next: 512 x 255 < 2^17 and
+// 512 x 4095 < 2^21.
+const SUM64_COLOUR_BITS: u32 = 17u;
+const SUM64_COUNT_SHIFT: u32 = 51u;
+const SUM64_NORMAL_BITS: u32 = 21u;
+const SUM64_COLOUR_SCALE: f32 = 255.0;
+const SUM64_NORMAL_SCALE: f32 = 4095.0;
+const SUM64_KEPT: u32 = 512u;
+
+// A pixel's blend of the fragments drawn on it: their count, and the means of their colour
+// and of their normal mapped from [-1, 1] to [0, 1].
+struct Blend {
+    fragments: u32,
+    colour: vec3<f32>,
+    normal: vec3<f32>,
+}
 // A triangle wider or taller than this many pixels is not drawn: its corners are a point and
 // two of its neighbours, each within the point's search splat (at most 47 pixels either side),
 // so only a triangle seen edge-on across a depth gap, or behind the eye, exceeds it.
