@@ -4,6 +4,8 @@
 //! fused finish with the pipeline's shading or the resolved depth and colour planes that the
 //! pipeline's own passes read.
 
+#[cfg(test)]
+mod box_walk_tests;
 pub mod params;
 mod pixel_shading;
 pub mod projection;
@@ -48,6 +50,9 @@ registry! {
 /// The shared headlight Blinn-Phong (`headlight(albedo, n, v)`), so that two pipelines and the
 /// quality harness's reference meshes shade the same surface the same way.
 pub const LIGHTING_WGSL: &str = include_str!("lighting.wgsl");
+
+/// A thread's walk over a pixel box in one loop (`box_pixels`, `box_next`).
+pub const BOX_WALK_WGSL: &str = include_str!("box_walk.wgsl");
 
 /// The pipeline a viewer starts with.
 pub const DEFAULT_PIPELINE: &str = "edl";

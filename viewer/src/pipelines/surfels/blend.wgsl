@@ -20,31 +20,34 @@ fn main(
     // Normals blended as seen: each turned towards the eye first.
     let n = select(s.n, -s.n, dot(s.n, s.p - surf.eye.xyz) > 0.0);
     let b = pixel_box(s);
-    for (var y = b.y; y <= b.w; y++) {
-        for (var x = b.x; x <= b.z; x++) {
-            let hit = hit_pixel(s, x, y);
-            if hit.x < 0.0 {
-                continue;
-            }
-            let depth = hit.x;
-            let p = y * frame.width + x;
-            let front = bitcast<f32>(~planes[2u * p]);
-            if depth > front {
-                continue;
-            }
-            let nearest = bitcast<f32>(~planes[2u * p + 1u]);
-            let layer = clamp((depth - nearest) / max(front - nearest, 1e-30), 0.0, 1.0);
-            // At least one unit: every pixel the depth pass covered is covered here too.
-            let w = max(surfel_weight(hit.y) * WEIGHT_ONE, 1.0);
-            let i = SUM_WORDS * p;
-            atomicAdd(&sums[i], u32(w + 0.5));
-            atomicAdd(&sums[i + 1u], u32(w * rgb.r + 0.5));
-            atomicAdd(&sums[i + 2u], u32(w * rgb.g + 0.5));
-            atomicAdd(&sums[i + 3u], u32(w * rgb.b + 0.5));
-            atomicAdd(&sums[i + 4u], u32(w * (0.5 * n.x + 0.5) + 0.5));
-            atomicAdd(&sums[i + 5u], u32(w * (0.5 * n.y + 0.5) + 0.5));
-            atomicAdd(&sums[i + 6u], u32(w * (0.5 * n.z + 0.5) + 0.5));
-            atomicAdd(&sums[i + 7u], u32(w * layer + 0.5));
+    let pixels = box_pixels(b);
+    var next = b.xy;
+    for (var k = 0u; k < pixels; k++) {
+        let x = next.x;
+        let y = next.y;
+        next = box_next(b, next);
+        let hit = hit_pixel(s, x, y);
+        if hit.x < 0.0 {
+            continue;
         }
+        let depth = hit.x;
+        let p = y * frame.width + x;
+        let front = bitcast<f32>(~planes[2u * p]);
+        if depth > front {
+            continue;
+        }
+        let nearest = bitcast<f32>(~planes[2u * p + 1u]);
+        let layer = clamp((depth - nearest) / max(front - nearest, 1e-30), 0.0, 1.0);
+        // At least one unit: every pixel the depth pass covered is covered here too.
+        let w = max(surfel_weight(hit.y) * WEIGHT_ONE, 1.0);
+        let i = SUM_WORDS * p;
+        atomicAdd(&sums[i], u32(w + 0.5));
+        atomicAdd(&sums[i + 1u], u32(w * rgb.r + 0.5));
+        atomicAdd(&sums[i + 2u], u32(w * rgb.g + 0.5));
+        atomicAdd(&sums[i + 3u], u32(w * rgb.b + 0.5));
+        atomicAdd(&sums[i + 4u], u32(w * (0.5 * n.x + 0.5) + 0.5));
+        atomicAdd(&sums[i + 5u], u32(w * (0.5 * n.y + 0.5) + 0.5));
+        atomicAdd(&sums[i + 6u], u32(w * (0.5 * n.z + 0.5) + 0.5));
+        atomicAdd(&sums[i + 7u], u32(w * layer + 0.5));
     }
 }

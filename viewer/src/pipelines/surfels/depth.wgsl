@@ -19,15 +19,18 @@ fn main(
     atomicAdd(&counts[select(0u, 1u, s.curved)], 1u);
     let offset = surf.depth_offset * s.radius;
     let b = pixel_box(s);
-    for (var y = b.y; y <= b.w; y++) {
-        for (var x = b.x; x <= b.z; x++) {
-            let hit = hit_pixel(s, x, y);
-            if hit.x < 0.0 {
-                continue;
-            }
-            let i = 2u * (y * frame.width + x);
-            atomicMax(&planes[i], ~bitcast<u32>(hit.x + offset));
-            atomicMax(&planes[i + 1u], ~bitcast<u32>(hit.x));
+    let pixels = box_pixels(b);
+    var next = b.xy;
+    for (var k = 0u; k < pixels; k++) {
+        let x = next.x;
+        let y = next.y;
+        next = box_next(b, next);
+        let hit = hit_pixel(s, x, y);
+        if hit.x < 0.0 {
+            continue;
         }
+        let i = 2u * (y * frame.width + x);
+        atomicMax(&planes[i], ~bitcast<u32>(hit.x + offset));
+        atomicMax(&planes[i + 1u], ~bitcast<u32>(hit.x));
     }
 }

@@ -14,7 +14,9 @@ use crate::pipelines::projection::{
     plane_buffer, range_table, split_groups,
 };
 use crate::pipelines::shader::{ShaderSource, Variants};
-use crate::pipelines::{LIGHTING_WGSL, PipelineFrame, PointStream, ScreenBuffer, ViewFrame};
+use crate::pipelines::{
+    BOX_WALK_WGSL, LIGHTING_WGSL, PipelineFrame, PointStream, ScreenBuffer, ViewFrame,
+};
 use crate::renderer::SurfacePixel;
 use bytemuck::{Pod, Zeroable};
 use wgpu::util::DeviceExt;
@@ -143,6 +145,7 @@ fn sided_shaders(sides: u32) -> [ShaderSource; 5] {
                 RANGE_SEARCH_WGSL,
                 OCT16_WGSL,
                 SURFEL_WGSL,
+                BOX_WALK_WGSL,
                 shape,
                 thread,
                 DEPTH_WGSL,
@@ -161,6 +164,7 @@ fn sided_shaders(sides: u32) -> [ShaderSource; 5] {
                 SUMS_WGSL,
                 OCT16_WGSL,
                 SURFEL_WGSL,
+                BOX_WALK_WGSL,
                 shape,
                 thread,
                 BLEND_WGSL,

@@ -10,7 +10,7 @@ use crate::gpu::GpuContext;
 use crate::gpu::timing::Timer;
 use crate::pipelines::projection::{GpuRange, RANGE_SEARCH_WGSL, pixel_groups};
 use crate::pipelines::shader::ShaderSource;
-use crate::pipelines::{LIGHTING_WGSL, PipelineFrame, PointStream};
+use crate::pipelines::{BOX_WALK_WGSL, LIGHTING_WGSL, PipelineFrame, PointStream};
 use bytemuck::{Pod, Zeroable};
 use wgpu::util::DeviceExt;
 
@@ -99,7 +99,10 @@ pub fn shaders_for(int64: bool, sums64: bool) -> Vec<ShaderSource> {
         ),
         own("triangulate normals", &[NORMALS_WGSL, FAN_WGSL])
             .with_constant("NEIGHBOUR_STRIDE", neighbour_stride),
-        own("triangulate raster", &[RASTER_WGSL, FAN_WGSL, raster_sums])
+        own(
+            "triangulate raster",
+            &[RASTER_WGSL, FAN_WGSL, BOX_WALK_WGSL, raster_sums],
+        )
             .with_constant("NEIGHBOUR_STRIDE", neighbour_stride),
         own(
             "triangulate radii",

@@ -65,25 +65,32 @@ fn rasterize(a: Vertex, b: Vertex, c: Vertex) {
     let y0 = u32(max(lo.y, 0.0));
     let x1 = u32(clamp(hi.x, 0.0, f32(frame.width)));
     let y1 = u32(clamp(hi.y, 0.0, f32(frame.height)));
-    for (var y = y0; y < y1; y++) {
-        for (var x = x0; x < x1; x++) {
-            let centre = vec2<f32>(f32(x) + 0.5, f32(y) + 0.5);
-            // Barycentric weights, positive inside whichever way the triangle winds.
-            let wa = edge(b.xy, c.xy, centre) / area;
-            let wb = edge(c.xy, a.xy, centre) / area;
-            let wc = 1.0 - wa - wb;
-            if wa < 0.0 || wb < 0.0 || wc < 0.0 {
-                continue;
-            }
-            // Perspective-correct: the weights over depth, normalised.
-            let pa = wa * a.inv_w;
-            let pb = wb * b.inv_w;
-            let pc = wc * c.inv_w;
-            let inv = pa + pb + pc;
-            let colour = (pa * a.colour + pb * b.colour + pc * c.colour) / inv;
-            let normal = (pa * a.normal + pb * b.normal + pc * c.normal) / inv;
-            add_fragment(y * frame.width + x, 1.0 / inv, colour, normal);
+    if x1 <= x0 || y1 <= y0 {
+        return;
+    }
+    let pixel_box = vec4<u32>(x0, y0, x1 - 1u, y1 - 1u);
+    let pixels = box_pixels(pixel_box);
+    var next = pixel_box.xy;
+    for (var k = 0u; k < pixels; k++) {
+        let x = next.x;
+        let y = next.y;
+        next = box_next(pixel_box, next);
+        let centre = vec2<f32>(f32(x) + 0.5, f32(y) + 0.5);
+        // Barycentric weights, positive inside whichever way the triangle winds.
+        let wa = edge(b.xy, c.xy, centre) / area;
+        let wb = edge(c.xy, a.xy, centre) / area;
+        let wc = 1.0 - wa - wb;
+        if wa < 0.0 || wb < 0.0 || wc < 0.0 {
+            continue;
         }
+        // Perspective-correct: the weights over depth, normalised.
+        let pa = wa * a.inv_w;
+        let pb = wb * b.inv_w;
+        let pc = wc * c.inv_w;
+        let inv = pa + pb + pc;
+        let colour = (pa * a.colour + pb * b.colour + pc * c.colour) / inv;
+        let normal = (pa * a.normal + pb * b.normal + pc * c.normal) / inv;
+        add_fragment(y * frame.width + x, 1.0 / inv, colour, normal);
     }
 }
 
