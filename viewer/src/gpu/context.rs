@@ -25,6 +25,49 @@ pub enum ProjectionPath {
     Int32,
 }
 
+/// The 64-bit atomics a device is opened with.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+struct Int64Atomics {
+    /// Min and max (the projection's keys, the one-pass searches).
+    min_max: bool,
+    /// Add and the rest as well (the triangulation's blend sums).
+    add: bool,
+}
+
+impl Int64Atomics {
+    const MIN_MAX: wgpu::Features =
+        wgpu::Features::SHADER_INT64.union(wgpu::Features::SHADER_INT64_ATOMIC_MIN_MAX);
+    const ALL_OPS: wgpu::Features = wgpu::Features::SHADER_INT64_ATOMIC_ALL_OPS;
+
+    /// What the adapter's features allow on the path asked for; None where the 64-bit path is
+    /// asked of an adapter without 64-bit min/max. Add needs min/max too: Vulkan and DX12 have
+    /// both or neither, Metal min/max alone, GL neither.
+    fn choose(available: wgpu::Features, path: ProjectionPath) -> Option<Int64Atomics> {
+        let has = available.contains(Self::MIN_MAX);
+        let min_max = match path {
+            ProjectionPath::Auto => has,
+            ProjectionPath::Int32 => false,
+            ProjectionPath::Int64 if has => true,
+            ProjectionPath::Int64 => return None,
+        };
+        Some(Int64Atomics {
+            min_max,
+            add: min_max && available.contains(Self::ALL_OPS),
+        })
+    }
+
+    fn features(self) -> wgpu::Features {
+        let mut f = wgpu::Features::empty();
+        if self.min_max {
+            f |= Self::MIN_MAX;
+        }
+        if self.add {
+            f |= Self::ALL_OPS;
+        }
+        f
+    }
+}
+
 pub struct GpuContext {
     pub instance: wgpu::Instance,
     pub adapter: wgpu::Adapter,
@@ -76,31 +119,14 @@ impl GpuContext {
         path: ProjectionPath,
     ) -> Result<GpuContext, ViewerError> {
         let available = adapter.features();
-        let int64 = wgpu::Features::SHADER_INT64
-            | wgpu::Features::SHADER_INT64_ATOMIC_MIN_MAX
-            | wgpu::Features::SHADER_INT64_ATOMIC_ALL_OPS;
-        let has_int64 = available.contains(int64);
-        let int64_atomics = match path {
-            ProjectionPath::Auto => has_int64,
-            ProjectionPath::Int32 => false,
-            ProjectionPath::Int64 if has_int64 => true,
-            ProjectionPath::Int64 => {
-                return Err(ViewerError::Gpu(format!(
-                    "adapter {} has no 64-bit atomic min/max; use the 32-bit projection path",
-                    adapter.get_info().name
-                )));
-            }
+        let Some(int64) = Int64Atomics::choose(available, path) else {
+            return Err(ViewerError::Gpu(format!(
+                "adapter {} has no 64-bit atomic min/max; use the 32-bit projection path",
+                adapter.get_info().name
+            )));
         };
-        let all_ops = wgpu::Features::SHADER_INT64_ATOMIC_ALL_OPS;
-        let int64_sums = int64_atomics && available.contains(all_ops);
         let timestamps = available.contains(wgpu::Features::TIMESTAMP_QUERY);
-        let mut features = wgpu::Features::empty();
-        if int64_atomics {
-            features |= int64;
-        }
-        if int64_sums {
-            features |= all_ops;
-        }
+        let mut features = int64.features();
         if timestamps {
             features |= wgpu::Features::TIMESTAMP_QUERY;
         }
@@ -139,8 +165,8 @@ impl GpuContext {
             adapter,
             device,
             queue,
-            int64_atomics,
-            int64_sums,
+            int64_atomics: int64.min_max,
+            int64_sums: int64.add,
             timestamps,
             adapter_name: format!("{} ({:?})", info.name, info.backend),
         })
@@ -232,6 +258,44 @@ fn describe(e: &wgpu::Error) -> String {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn each_backends_64_bit_atomics_are_used_as_far_as_they_go() {
+        let min_max = Int64Atomics::MIN_MAX;
+        let vulkan = min_max | Int64Atomics::ALL_OPS;
+        let gl = wgpu::Features::empty();
+        let both = Int64Atomics {
+            min_max: true,
+            add: true,
+        };
+        let neither = Int64Atomics {
+            min_max: false,
+            add: false,
+        };
+        use ProjectionPath::*;
+        assert_eq!(Int64Atomics::choose(vulkan, Auto), Some(both));
+        assert_eq!(Int64Atomics::choose(vulkan, Int64), Some(both));
+        assert_eq!(Int64Atomics::choose(vulkan, Int32), Some(neither));
+        // Metal: min/max alone keeps the 64-bit projection and searches, and 32-bit sums.
+        let metal = Some(Int64Atomics {
+            min_max: true,
+            add: false,
+        });
+        assert_eq!(Int64Atomics::choose(min_max, Auto), metal);
+        assert_eq!(Int64Atomics::choose(min_max, Int64), metal);
+        assert_eq!(Int64Atomics::choose(gl, Auto), Some(neither));
+        assert_eq!(Int64Atomics::choose(gl, Int64), None);
+        // Add without min/max is not used.
+        assert_eq!(
+            Int64Atomics::choose(Int64Atomics::ALL_OPS, Auto),
+            Some(neither)
+        );
+        assert_eq!(both.features(), vulkan);
+        assert_eq!(
+            Int64Atomics::choose(min_max, Auto).map(|c| c.features()),
+            Some(min_max)
+        );
+    }
 
     /// A buffer wgpu refuses: mappable for reading and storage at once needs a feature the
     /// device was not opened with.

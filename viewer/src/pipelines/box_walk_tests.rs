@@ -12,6 +12,7 @@ const WIDTH: u32 = 13;
 const HEIGHT: u32 = 11;
 
 const WALK_MAIN: &str = "
+override WIDTH: u32;
 @group(0) @binding(0) var<storage, read> boxes: array<vec4<u32>>;
 @group(0) @binding(1) var<storage, read_write> visits: array<atomic<u32>>;
 
@@ -24,7 +25,7 @@ fn main(@builtin(global_invocation_id) id: vec3<u32>) {
     let pixels = box_pixels(b);
     var next = b.xy;
     for (var k = 0u; k < pixels; k++) {
-        atomicAdd(&visits[next.y * 13u + next.x], 1u);
+        atomicAdd(&visits[next.y * WIDTH + next.x], 1u);
         next = box_next(b, next);
     }
 }
@@ -64,8 +65,9 @@ fn a_walk_visits_every_pixel_of_its_box_once() {
         contents: &vec![0u8; want.len() * 4],
         usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
     });
-    let pipe =
-        ShaderSource::new("box walk test", &[BOX_WALK_WGSL, WALK_MAIN]).compute(device, None);
+    let pipe = ShaderSource::new("box walk test", &[BOX_WALK_WGSL, WALK_MAIN])
+        .with_constant("WIDTH", WIDTH as f64)
+        .compute(device, None);
     let group = bind(
         device,
         &pipe,

@@ -29,7 +29,7 @@ fn all_shaders(int64: bool) -> Vec<ShaderSource> {
     all
 }
 
-fn parse(s: &ShaderSource) -> naga::Module {
+pub(crate) fn parse(s: &ShaderSource) -> naga::Module {
     match naga::front::wgsl::parse_str(&s.compose()) {
         Ok(m) => m,
         Err(e) => panic!("{}: {}", s.label, e.emit_to_string(&s.compose())),
@@ -56,20 +56,23 @@ fn validate(s: &ShaderSource, module: &naga::Module, caps: Capabilities) {
     }
 }
 
-/// Parses and validates `s` as a device with 64-bit atomics gets it.
+/// Parses and validates `s` as a device with the capabilities `caps` gets it.
+pub(crate) fn parse_and_validate_with(s: &ShaderSource, caps: Capabilities) {
+    validate(s, &parse(s), caps);
+}
+
+/// Parses and validates `s` as a device with 64-bit atomic min/max gets it (the pipelines'
+/// 64-bit paths need no more: Metal has no other 64-bit atomics).
 pub(crate) fn parse_and_validate(s: &ShaderSource) {
     let caps = Capabilities::default()
         | Capabilities::SHADER_INT64
-        | Capabilities::SHADER_INT64_ATOMIC_MIN_MAX
-        | Capabilities::SHADER_INT64_ATOMIC_ALL_OPS;
+        | Capabilities::SHADER_INT64_ATOMIC_MIN_MAX;
     validate(s, &parse(s), caps);
 }
 
 #[test]
 fn every_shader_module_parses_and_validates() {
-    let int64_caps = Capabilities::SHADER_INT64
-        | Capabilities::SHADER_INT64_ATOMIC_MIN_MAX
-        | Capabilities::SHADER_INT64_ATOMIC_ALL_OPS;
+    let int64_caps = Capabilities::SHADER_INT64 | Capabilities::SHADER_INT64_ATOMIC_MIN_MAX;
     for int64 in [false, true] {
         let caps = if int64 {
             Capabilities::default() | int64_caps
@@ -298,9 +301,7 @@ fn a_pipeline_that_binds_the_colour_plane_declares_it_reads_it() {
 #[test]
 fn no_large_value_array_is_indexed_by_a_variable() {
     const LARGEST_COPIED: u32 = 64;
-    let caps = Capabilities::SHADER_INT64
-        | Capabilities::SHADER_INT64_ATOMIC_MIN_MAX
-        | Capabilities::SHADER_INT64_ATOMIC_ALL_OPS;
+    let caps = Capabilities::SHADER_INT64 | Capabilities::SHADER_INT64_ATOMIC_MIN_MAX;
     for s in all_shaders(true) {
         let module = parse(&s);
         let info = Validator::new(ValidationFlags::all(), caps)

@@ -26,12 +26,12 @@ const SEARCH_INT64_WGSL: &str = include_str!("search_int64.wgsl");
 const FAN_WGSL: &str = include_str!("fan.wgsl");
 const NORMALS_WGSL: &str = include_str!("normals.wgsl");
 const RASTER_WGSL: &str = include_str!("raster.wgsl");
-const RASTER_SUMS32_WGSL: &str = include_str!("raster_sums32.wgsl");
-const RASTER_SUMS64_WGSL: &str = include_str!("raster_sums64.wgsl");
+pub(super) const RASTER_SUMS32_WGSL: &str = include_str!("raster_sums32.wgsl");
+pub(super) const RASTER_SUMS64_WGSL: &str = include_str!("raster_sums64.wgsl");
 const RADII_WGSL: &str = include_str!("radii.wgsl");
 const SHADE_WGSL: &str = include_str!("shade.wgsl");
-const SHADE_SUMS32_WGSL: &str = include_str!("shade_sums32.wgsl");
-const SHADE_SUMS64_WGSL: &str = include_str!("shade_sums64.wgsl");
+pub(super) const SHADE_SUMS32_WGSL: &str = include_str!("shade_sums32.wgsl");
+pub(super) const SHADE_SUMS64_WGSL: &str = include_str!("shade_sums64.wgsl");
 const HOLES_WGSL: &str = include_str!("holes.wgsl");
 
 /// Each point's kept value: its search radius and the last feedback distance (two f32).
@@ -61,10 +61,11 @@ pub struct TriangulateUniforms {
     pub max_search_px: u32,
 }
 
-/// Every module the triangulation compiles on a device with 64-bit atomics (`int64`) or
-/// without: the registry's list, for validation.
+/// Every module the triangulation compiles on a device with 64-bit atomic min/max (`int64`)
+/// or without: the registry's list, for validation. The 64-bit sums' modules, which need the
+/// other 64-bit atomics too, are validated apart (tests.rs).
 pub fn shaders(int64: bool) -> Vec<ShaderSource> {
-    shaders_for(int64, int64)
+    shaders_for(int64, false)
 }
 
 /// Every module the triangulation compiles; `int64`: the device has 64-bit atomic min/max, and

@@ -6,9 +6,9 @@
 // frames after a jump or a disocclusion the colours behind show through until the depth is
 // there. A compute rasterizer: fixed-point atomic sums make the picture independent of the
 // order triangles arrive in (on the 64-bit sums, for a pixel's first 512 fragments), and it
-// runs on every adapter the projection runs on. A triangle in the fans of two or three of its corners is drawn each time, as in the paper: finding the
-// one fan to draw it from (reading the other corners' fans) took longer on lavapipe than the
-// repeated drawing. Each point also covers its own pixel, so that a point without neighbours
+// runs on every adapter the projection runs on. A triangle in the fans of two or three of its
+// corners is drawn each time, as in the paper: finding the one fan to draw it from (reading the
+// other corners' fans) took longer on lavapipe than the repeated drawing. Each point also covers its own pixel, so that a point without neighbours
 // is still drawn.
 @group(0) @binding(0) var<uniform> frame: Frame;
 @group(0) @binding(1) var<storage, read> pts: array<vec4<f32>>;

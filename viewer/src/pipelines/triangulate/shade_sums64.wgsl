@@ -15,8 +15,8 @@ fn field(w: vec2<u32>, offset: u32, count: u32) -> u32 {
 }
 
 fn blend_at(p: u32) -> Blend {
-    let c = sums[2u * p];
-    let n = sums[2u * p + 1u];
+    let c = sums[SUM64_WORDS * p];
+    let n = sums[SUM64_WORDS * p + 1u];
     var b: Blend;
     b.fragments = c.y >> (SUM64_COUNT_SHIFT - 32u);
     let w = f32(b.fragments);

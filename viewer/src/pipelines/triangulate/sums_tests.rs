@@ -3,7 +3,9 @@
 //! fragments than the 64-bit sums keep reads back the mean of those it kept, no field having
 //! overflowed into the next.
 
-use super::passes::UNIFORMS_WGSL;
+use super::passes::{
+    RASTER_SUMS32_WGSL, RASTER_SUMS64_WGSL, SHADE_SUMS32_WGSL, SHADE_SUMS64_WGSL, UNIFORMS_WGSL,
+};
 use super::targets::{SUM_WORDS, SUM64_BYTES};
 use crate::gpu::readback::read_buffer;
 use crate::gpu::{GpuContext, ProjectionPath};
@@ -43,14 +45,14 @@ struct Layout {
 }
 
 const SUMS32: Layout = Layout {
-    add: include_str!("raster_sums32.wgsl"),
-    read: include_str!("shade_sums32.wgsl"),
+    add: RASTER_SUMS32_WGSL,
+    read: SHADE_SUMS32_WGSL,
     bytes_per_pixel: 4 * SUM_WORDS,
 };
 
 const SUMS64: Layout = Layout {
-    add: include_str!("raster_sums64.wgsl"),
-    read: include_str!("shade_sums64.wgsl"),
+    add: RASTER_SUMS64_WGSL,
+    read: SHADE_SUMS64_WGSL,
     bytes_per_pixel: SUM64_BYTES,
 };
 
@@ -176,7 +178,7 @@ fn the_32_bit_sums_blend_every_fragment() {
 }
 
 #[test]
-fn the_64_bit_sums_keep_a_pixels_first_fragments_and_overflow_nothing() {
+fn the_64_bit_sums_keep_512_fragments_a_pixel_and_overflow_nothing() {
     let ctx = GpuContext::new(ProjectionPath::Auto).expect("GPU adapter");
     if !ctx.int64_sums {
         eprintln!("skipped: the adapter has no 64-bit atomic adds");

@@ -1,11 +1,14 @@
 //! The triangulation's Rust structs and constants against its WGSL, its counters' reading, and
 //! the warm-up a still waits for.
 
-use super::passes::{RADIUS_STREAM, TriangulateUniforms};
-use super::targets::{COUNT_WORDS, Counts, SECTORS, SUM_WORDS, counts_from};
+use super::passes::{RADIUS_STREAM, TriangulateUniforms, shaders_for};
+use super::targets::{COUNT_WORDS, Counts, SECTORS, SUM_WORDS, SUM64_BYTES, counts_from};
 use super::{INFO, uniforms};
 use crate::pipelines::params::{ParamValues, ResolvedParams};
-use crate::pipelines::shader_tests::{module_named, rust_layout, wgsl_const, wgsl_layout};
+use crate::pipelines::shader_tests::{
+    module_named, parse, parse_and_validate_with, rust_layout, wgsl_const, wgsl_layout,
+};
+use naga::valid::{Capabilities, ValidationFlags, Validator};
 use crate::pipelines::{PointStream, ViewFrame};
 
 #[test]
@@ -43,9 +46,34 @@ fn uniforms_and_constants_match_their_wgsl() {
     let raster = module_named("triangulate raster");
     assert_eq!(wgsl_const(&raster, "SECTORS"), SECTORS);
     assert_eq!(wgsl_const(&raster, "SUM_WORDS"), SUM_WORDS);
+    assert_eq!(8 * wgsl_const(&raster, "SUM64_WORDS"), SUM64_BYTES);
     assert_eq!(wgsl_const(&raster, "COUNT_WORDS"), COUNT_WORDS);
     // The kept value per point is the radius and the last feedback: two f32.
     assert!(matches!(RADIUS_STREAM, PointStream::Kept { bytes: 8, .. }));
+}
+
+/// The 64-bit sums add with 64-bit atomics, which a device with 64-bit min/max alone (Metal)
+/// lacks: their modules validate with all 64-bit atomic operations, and the raster's not
+/// without, which is why the device's `int64_sums` chooses them and not `int64_atomics`.
+#[test]
+fn the_64_bit_sums_need_every_64_bit_atomic() {
+    let min_max = Capabilities::default()
+        | Capabilities::SHADER_INT64
+        | Capabilities::SHADER_INT64_ATOMIC_MIN_MAX;
+    let all = min_max | Capabilities::SHADER_INT64_ATOMIC_ALL_OPS;
+    let modules = shaders_for(true, true);
+    for s in &modules {
+        parse_and_validate_with(s, all);
+    }
+    let raster = modules
+        .iter()
+        .find(|s| s.label == "triangulate raster")
+        .expect("the raster module");
+    assert!(
+        Validator::new(ValidationFlags::all(), min_max)
+            .validate(&parse(raster))
+            .is_err()
+    );
 }
 
 #[test]

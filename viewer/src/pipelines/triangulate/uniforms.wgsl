@@ -29,11 +29,12 @@ const SECTORS: u32 = 8u;
 // weight, r, g, b, nx, ny, nz), each fragment weighing FRAGMENT_WEIGHT.
 const SUM_WORDS: u32 = 7u;
 const FRAGMENT_WEIGHT: u32 = 16u;
-// 64-bit: two words a pixel, r, g, b of SUM64_COLOUR_BITS each and the fragment count above
-// them, then nx, ny, nz of SUM64_NORMAL_BITS each; a fragment adds colour and normal in
+// 64-bit: SUM64_WORDS words a pixel, r, g, b of SUM64_COLOUR_BITS each and the fragment count
+// above them, then nx, ny, nz of SUM64_NORMAL_BITS each; a fragment adds colour and normal in
 // units of 1 / SUM64_COLOUR_SCALE and 1 / SUM64_NORMAL_SCALE. A pixel keeps its first
 // SUM64_KEPT fragments, so no field can overflow into the next: 512 x 255 < 2^17 and
 // 512 x 4095 < 2^21.
+const SUM64_WORDS: u32 = 2u;
 const SUM64_COLOUR_BITS: u32 = 17u;
 const SUM64_COUNT_SHIFT: u32 = 51u;
 const SUM64_NORMAL_BITS: u32 = 21u;
