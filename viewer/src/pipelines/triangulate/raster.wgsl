@@ -68,6 +68,7 @@ fn rasterize(a: Vertex, b: Vertex, c: Vertex) {
     if x1 <= x0 || y1 <= y0 {
         return;
     }
+    let inv_area = 1.0 / area;
     let pixel_box = vec4<u32>(x0, y0, x1 - 1u, y1 - 1u);
     let pixels = box_pixels(pixel_box);
     var next = pixel_box.xy;
@@ -77,8 +78,8 @@ fn rasterize(a: Vertex, b: Vertex, c: Vertex) {
         next = box_next(pixel_box, next);
         let centre = vec2<f32>(f32(x) + 0.5, f32(y) + 0.5);
         // Barycentric weights, positive inside whichever way the triangle winds.
-        let wa = edge(b.xy, c.xy, centre) / area;
-        let wb = edge(c.xy, a.xy, centre) / area;
+        let wa = edge(b.xy, c.xy, centre) * inv_area;
+        let wb = edge(c.xy, a.xy, centre) * inv_area;
         let wc = 1.0 - wa - wb;
         if wa < 0.0 || wb < 0.0 || wc < 0.0 {
             continue;
@@ -87,10 +88,10 @@ fn rasterize(a: Vertex, b: Vertex, c: Vertex) {
         let pa = wa * a.inv_w;
         let pb = wb * b.inv_w;
         let pc = wc * c.inv_w;
-        let inv = pa + pb + pc;
-        let colour = (pa * a.colour + pb * b.colour + pc * c.colour) / inv;
-        let normal = (pa * a.normal + pb * b.normal + pc * c.normal) / inv;
-        add_fragment(y * frame.width + x, 1.0 / inv, colour, normal);
+        let depth = 1.0 / (pa + pb + pc);
+        let colour = (pa * a.colour + pb * b.colour + pc * c.colour) * depth;
+        let normal = (pa * a.normal + pb * b.normal + pc * c.normal) * depth;
+        add_fragment(y * frame.width + x, depth, colour, normal);
     }
 }
 
