@@ -2,6 +2,7 @@
 //! pixel it visits, so that every pixel of every box is visited once and no other.
 
 use super::BOX_WALK_WGSL;
+use super::dispatch_tests_support::run_passes;
 use super::filters::bind;
 use super::shader::ShaderSource;
 use crate::gpu::readback::read_buffer;
@@ -77,14 +78,7 @@ fn a_walk_visits_every_pixel_of_its_box_once() {
             (1, visits.as_entire_binding()),
         ],
     );
-    let mut encoder = device.create_command_encoder(&Default::default());
-    {
-        let mut pass = encoder.begin_compute_pass(&Default::default());
-        pass.set_pipeline(&pipe);
-        pass.set_bind_group(0, &group, &[]);
-        pass.dispatch_workgroups(1, 1, 1);
-    }
-    ctx.queue.submit([encoder.finish()]);
+    run_passes(&ctx, &[(&pipe, &group, (1, 1))]);
     let bytes = read_buffer(&ctx, &visits, want.len() as u64 * 4).expect("visits readback");
     let got: &[u32] = bytemuck::cast_slice(&bytes);
     assert_eq!(got, want.as_slice());

@@ -6,6 +6,8 @@
 
 #[cfg(test)]
 mod box_walk_tests;
+#[cfg(test)]
+mod dispatch_tests_support;
 pub mod params;
 mod pixel_shading;
 pub mod projection;

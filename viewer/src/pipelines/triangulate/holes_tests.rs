@@ -5,6 +5,7 @@
 use super::passes::shaders;
 use super::targets::{COUNT_WORDS, Counts, counts_from};
 use crate::gpu::{GpuContext, ProjectionPath};
+use crate::pipelines::dispatch_tests_support::run_passes;
 use crate::pipelines::filters::bind;
 use crate::pipelines::projection::{EMPTY, FrameUniforms, pixel_groups};
 use bytemuck::Zeroable;
@@ -82,16 +83,8 @@ fn gpu_counts(ctx: &GpuContext, covered: &[bool], width: u32, height: u32) -> Co
             (2, counts.as_entire_binding()),
         ],
     );
-    let mut encoder = device.create_command_encoder(&Default::default());
-    {
-        let mut pass = encoder.begin_compute_pass(&Default::default());
-        pass.set_pipeline(&pipe);
-        pass.set_bind_group(0, &group, &[]);
-        // The dispatch the frame gives it (passes.rs): one workgroup a 16 x 16 tile.
-        let (gx, gy) = pixel_groups(width, height);
-        pass.dispatch_workgroups(gx, gy, 1);
-    }
-    ctx.queue.submit([encoder.finish()]);
+    // The dispatch the frame gives it (passes.rs): one workgroup a 16 x 16 tile.
+    run_passes(ctx, &[(&pipe, &group, pixel_groups(width, height))]);
     let bytes =
         crate::gpu::readback::read_buffer(ctx, &counts, COUNT_WORDS * 4).expect("counts readback");
     counts_from(&bytes).expect("four words")

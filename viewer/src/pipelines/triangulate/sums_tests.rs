@@ -9,6 +9,7 @@ use super::passes::{
 use super::targets::{SUM_WORDS, SUM64_BYTES};
 use crate::gpu::readback::read_buffer;
 use crate::gpu::{GpuContext, ProjectionPath};
+use crate::pipelines::dispatch_tests_support::run_passes;
 use crate::pipelines::filters::bind;
 use crate::pipelines::shader::ShaderSource;
 use wgpu::util::DeviceExt;
@@ -113,17 +114,13 @@ fn blends(
         0,
         &[(0, out.as_entire_binding()), (2, sums.as_entire_binding())],
     );
-    let mut encoder = device.create_command_encoder(&Default::default());
-    {
-        let mut pass = encoder.begin_compute_pass(&Default::default());
-        pass.set_pipeline(&add);
-        pass.set_bind_group(0, &add_group, &[]);
-        pass.dispatch_workgroups((fragments.len() as u32).div_ceil(64), 1, 1);
-        pass.set_pipeline(&read);
-        pass.set_bind_group(0, &read_group, &[]);
-        pass.dispatch_workgroups((pixels as u32).div_ceil(64), 1, 1);
-    }
-    ctx.queue.submit([encoder.finish()]);
+    run_passes(
+        ctx,
+        &[
+            (&add, &add_group, ((fragments.len() as u32).div_ceil(64), 1)),
+            (&read, &read_group, ((pixels as u32).div_ceil(64), 1)),
+        ],
+    );
     let bytes = read_buffer(ctx, &out, pixels * 32).expect("blends readback");
     let v: &[[f32; 8]] = bytemuck::cast_slice(&bytes);
     v.iter()
