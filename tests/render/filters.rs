@@ -335,3 +335,118 @@ fn each_shade_mode_draws_its_own_image() {
         "near the outline {rim:.0}, at the centre {centre:.0}"
     );
 }
+
+const TREE: [u8; 3] = [40, 200, 60];
+const WALL: [u8; 3] = [200, 200, 200];
+const FAR: [u8; 3] = [40, 80, 200];
+// The tree's half-width, and the depths (along +y, the view) of the tree, the wall and the far
+// plane.
+const TREE_HALF: f64 = 0.15;
+const PLANE_Y: [f64; 3] = [-0.5, 0.0, 0.5];
+
+/// Three planes facing the camera of `shot`, their normals towards it: a small dense square
+/// (the tree) in front of a wide wall with half its points missing at random, one pixel
+/// each, so that a far plane shows through its holes.
+fn tree_before_a_sparse_wall() -> &'static Path {
+    static CELL: OnceLock<PathBuf> = OnceLock::new();
+    CELL.get_or_init(|| {
+        let dir = Path::new(env!("CARGO_TARGET_TMPDIR")).join("render-filters-wall");
+        let _ = std::fs::remove_dir_all(&dir);
+        std::fs::create_dir_all(&dir).expect("fixture dir");
+        let mut points: Vec<([f64; 3], [u8; 3])> = Vec::new();
+        let mut grid = |half: f64, spacing: f64, y: f64, rgb: [u8; 3], keep: &dyn Fn(u64) -> bool| {
+            let n = (2.0 * half / spacing) as i64;
+            for i in 0..=n {
+                for j in 0..=n {
+                    let index = (i * (n + 1) + j) as u64;
+                    if keep(index) {
+                        let at = |k: i64| -half + k as f64 * spacing;
+                        points.push(([at(i), y, at(j)], rgb));
+                    }
+                }
+            }
+        };
+        // A pixel is 0.0065 units at the tree and 0.0078 at the wall.
+        grid(TREE_HALF, 0.004, PLANE_Y[0], TREE, &|_| true);
+        let hash = |k: u64| k.wrapping_mul(0x9e37_79b9_7f4a_7c15).rotate_left(29) % 2;
+        grid(0.8, 0.0075, PLANE_Y[1], WALL, &|k| hash(k) != 0);
+        grid(0.9, 0.008, PLANE_Y[2], FAR, &|_| true);
+        let ply = dir.join("wall.ply");
+        let mut out = std::io::BufWriter::new(std::fs::File::create(&ply).expect("ply"));
+        write!(
+            out,
+            "ply\nformat binary_little_endian 1.0\nelement vertex {}\nproperty float x\nproperty float y\nproperty float z\nproperty uchar red\nproperty uchar green\nproperty uchar blue\nproperty float nx\nproperty float ny\nproperty float nz\nend_header\n",
+            points.len()
+        )
+        .expect("header");
+        for (p, rgb) in &points {
+            for v in p {
+                out.write_all(&(*v as f32).to_le_bytes()).expect("write");
+            }
+            out.write_all(rgb).expect("write");
+            for v in [0f32, -1.0, 0.0] {
+                out.write_all(&v.to_le_bytes()).expect("write");
+            }
+        }
+        drop(out);
+        let ds = dir.join("wall.strata");
+        common::run_ok(&["convert", s(&ply), "-o", s(&ds), "--quiet"]);
+        ds
+    })
+}
+
+/// Which of the three planes' colours a pixel is nearest to.
+fn plane_of(rgb: [u8; 3]) -> usize {
+    let lit = [TREE, WALL, FAR].map(head_on);
+    let distance = |want: [f32; 3]| {
+        rgb.iter()
+            .zip(want)
+            .map(|(g, w)| (*g as f32 - w).powi(2))
+            .sum::<f32>()
+    };
+    (0..3)
+        .min_by(|&a, &b| distance(lit[a]).total_cmp(&distance(lit[b])))
+        .unwrap_or(0)
+}
+
+/// The occluded fill takes the surface that occludes the pixel. The paper takes the nearest
+/// neighbour's texel; iterated, that carries a front surface through the holes of the one behind
+/// it, one hole an iteration, and the tree grows over the wall.
+#[test]
+fn the_occluded_fill_closes_a_wall_s_holes_with_the_wall_not_what_stands_before_it() {
+    let filled = shot(tree_before_a_sparse_wall(), "filters", &["splat=0"]);
+    // The tree's square seen from the camera, in pixels.
+    let pixel =
+        2.0 * (DISTANCE as f64 + PLANE_Y[0]) * (FOV_DEG as f64 / 2.0).to_radians().tan() / H as f64;
+    let side = 2.0 * TREE_HALF / pixel;
+    let mut counts = [0usize; 3];
+    let mut tree_outside = 0;
+    for (k, rgb) in filled.rgb.iter().enumerate() {
+        if !filled.covered[k] {
+            continue;
+        }
+        let plane = plane_of(*rgb);
+        counts[plane] += 1;
+        let (x, y) = ((k as u32 % W) as f64 + 0.5, (k as u32 / W) as f64 + 0.5);
+        let off = (x - W as f64 / 2.0).abs().max((y - H as f64 / 2.0).abs());
+        if plane == 0 && off > side / 2.0 + 1.5 {
+            tree_outside += 1;
+        }
+    }
+    // Within 1.5 px of its square: the rim anti-aliased (the paper's nearest neighbour grew it
+    // 26 pixels beyond that here).
+    let tree = counts[0] as f64;
+    assert!(
+        tree > 0.95 * side * side && tree_outside <= 3,
+        "the tree covers {tree} pixels ({tree_outside} beyond its outline), its square {:.0}",
+        side * side
+    );
+    // The wall's holes show the far plane until filled: the wall is the surface the camera
+    // sees everywhere but behind the tree and beyond its edges.
+    let far = counts[2] as f64;
+    let all = (W * H) as f64;
+    assert!(
+        far < 0.01 * all,
+        "{far} pixels show the far plane through the wall"
+    );
+}

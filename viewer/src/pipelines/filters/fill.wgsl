@@ -108,8 +108,8 @@ fn background(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_id
     finish(i, t, n.background != 0xffu && !some_mask_white(n.background), n, tile);
 }
 
-// Section 3.3: a pixel showing a surface more than d~ behind its neighbours is filled with the
-// nearest of them unless it lies beyond the border of that front surface. Cells at the
+// Section 3.3: a pixel showing a surface more than d~ behind its neighbours is filled with one
+// of them (see `occluder`) unless it lies beyond the border of that front surface. Cells at the
 // candidate's depth or behind (within d~) are white, and so is background: nothing occludes
 // beyond a silhouette (taking background as depth 0, in front, as a literal reading would, lets
 // the pixels along a silhouette take each other's texels iteration after iteration).
@@ -130,13 +130,27 @@ fn occluded(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_id) 
         dst[i] = t;
         return;
     }
-    let n = neighbours(vec2<i32>(id.xy));
+    var n = neighbours(vec2<i32>(id.xy));
     let limit = bitcast<f32>(t.x) - fil.dtilde;
     var white = 0u;
-    for (var k = 0u; k < 8u; k++) {
-        if n.depth[k] > limit || (n.background & (1u << k)) != 0u {
-            white |= 1u << k;
+    // The occluder: the farthest of the neighbours in front. The paper takes the nearest, but
+    // iterated, that carries the front-most surface through the holes of the one behind it (a
+    // tree's texels climbing a sparse wall behind it, one hole an iteration), where the hole is
+    // the wall's.
+    var occluder = -1;
+    var occluder_depth = 0.0;
+    for (var k = 0; k < 8; k++) {
+        if n.depth[k] > limit || (n.background & (1u << u32(k))) != 0u {
+            white |= 1u << u32(k);
+        } else if n.depth[k] > occluder_depth {
+            occluder = k;
+            occluder_depth = n.depth[k];
         }
+    }
+    if occluder >= 0 {
+        let q = vec2<i32>(id.xy) + OFFSETS[occluder];
+        n.nearest = u32(q.y) * frame.width + u32(q.x);
+        n.nearest_depth = occluder_depth;
     }
     finish(i, t, !some_mask_white(white), n, tile);
 }
