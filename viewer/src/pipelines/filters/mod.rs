@@ -153,7 +153,6 @@ pub static INFO: PipelineInfo = PipelineInfo {
         "shadows",
         "filters resolve",
         "fill",
-        "smooth",
         "filters shade",
         "peel",
     ],

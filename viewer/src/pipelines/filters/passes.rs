@@ -1,7 +1,7 @@
 //! The filters pipeline's GPU passes, per layer: peel (layers after the first, which is the
 //! projection's own, culled by the normals), resolve into texels, fill background and occluded
 //! pixels (iterated, each iteration skipped by an indirect dispatch once one changed nothing),
-//! smooth, and shade with anti-aliasing and front-to-back blending.
+//! then smooth and shade in one pass, with anti-aliasing and front-to-back blending.
 
 use super::peel::{PeelFrame, Peels};
 use super::shade::{ShadePipelines, ShadeVariant};
@@ -23,7 +23,6 @@ const RESOLVE_KEYS_WGSL: &str = include_str!("resolve_keys.wgsl");
 const FILL_WGSL: &str = include_str!("fill.wgsl");
 /// The hole filling's 3x3 masks, shared with the light map's fill.
 pub(crate) const MASKS_WGSL: &str = include_str!("masks.wgsl");
-const SMOOTH_WGSL: &str = include_str!("smooth.wgsl");
 const ARGS_WGSL: &str = include_str!("args.wgsl");
 const TILES_WGSL: &str = include_str!("tiles.wgsl");
 
@@ -104,7 +103,6 @@ pub fn shaders(int64: bool) -> Vec<ShaderSource> {
             .with_entry("background"),
         ShaderSource::new("fill occluded", &[UNIFORMS_WGSL, MASKS_WGSL, FILL_WGSL])
             .with_entry("occluded"),
-        ShaderSource::new("smooth", &[UNIFORMS_WGSL, OCT16_WGSL, SMOOTH_WGSL]),
         ShadeVariant::default().source(),
         ShaderSource::new("filters args", &[UNIFORMS_WGSL, ARGS_WGSL]),
         ShaderSource::new("filters tiles", &[UNIFORMS_WGSL, TILES_WGSL]),
@@ -131,7 +129,6 @@ pub struct FiltersPasses {
     resolve_keys: Option<wgpu::ComputePipeline>,
     background: wgpu::ComputePipeline,
     occluded: wgpu::ComputePipeline,
-    smooth: wgpu::ComputePipeline,
     shades: ShadePipelines,
     args: wgpu::ComputePipeline,
     tiles: wgpu::ComputePipeline,
@@ -182,8 +179,7 @@ impl FiltersPasses {
                 .ok_or_else(|| ViewerError::Gpu("a filters shader is missing".into()))
         };
         let peels = Peels::new(&mut next, ctx.int64_atomics)?;
-        let (resolve, background, occluded, smooth, shade, args, tiles) = (
-            next()?,
+        let (resolve, background, occluded, shade, args, tiles) = (
             next()?,
             next()?,
             next()?,
@@ -202,7 +198,6 @@ impl FiltersPasses {
             resolve_keys,
             background,
             occluded,
-            smooth,
             shades: ShadePipelines::new(ShadeVariant::default(), shade),
             args,
             tiles,
@@ -459,30 +454,8 @@ impl FiltersPasses {
                 kind: ARGS_LAYER,
                 complemented: 0,
             };
-            // Smooth into the other buffer, which becomes the layer's final texels.
-            {
-                let fb = bind(
-                    device,
-                    &self.smooth,
-                    0,
-                    &[
-                        frame_entry(),
-                        fil_entry(),
-                        (2, targets.texels[current].as_entire_binding()),
-                        (3, targets.texels[1 - current].as_entire_binding()),
-                    ],
-                );
-                let timestamp_writes = timer.pass(encoder, "smooth");
-                let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
-                    label: Some("smooth"),
-                    timestamp_writes,
-                });
-                // Always: the next layer's peel reads what it writes.
-                pass.set_pipeline(&self.smooth);
-                pass.set_bind_group(0, &fb, &[]);
-                pass.dispatch_workgroups(gx, gy, 1);
-                current = 1 - current;
-            }
+            // The shade smooths the filled texels as it reads them; the next layer's peel reads
+            // their depth, which smoothing keeps.
             {
                 let args_step = step_bind(&self.args, 1, layer_step);
                 let shade_step = step_bind(shade, 1, layer_step);

@@ -8,6 +8,7 @@ use crate::pipelines::LIGHTING_WGSL;
 use crate::pipelines::projection::OCT16_WGSL;
 use crate::pipelines::shader::{ShaderSource, Variants};
 
+const SMOOTH_WGSL: &str = include_str!("smooth.wgsl");
 const SHADE_WGSL: &str = include_str!("shade.wgsl");
 
 /// The mode one shade pipeline is compiled for.
@@ -38,7 +39,13 @@ impl ShadeVariant {
     pub fn source(self) -> ShaderSource {
         ShaderSource::new(
             "filters shade",
-            &[UNIFORMS_WGSL, OCT16_WGSL, LIGHTING_WGSL, SHADE_WGSL],
+            &[
+                UNIFORMS_WGSL,
+                OCT16_WGSL,
+                LIGHTING_WGSL,
+                SHADE_WGSL,
+                SMOOTH_WGSL,
+            ],
         )
         .with_constant("ANTIALIAS", self.antialias as f64)
         .with_constant("ESTIMATE_NORMALS", self.estimate_normals as u32 as f64)

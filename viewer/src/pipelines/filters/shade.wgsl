@@ -1,6 +1,6 @@
-// A layer's shading, anti-aliasing and blending (sections 3.5 and 5): each texel lit by the
-// shared light with its smoothed normal (or one estimated from the filled depth where the
-// points carry none); edge pixels found by the Laplace filter on depth blended with their
+// A layer's smoothing, shading, anti-aliasing and blending (sections 3.4, 3.5 and 5): each
+// filled texel smoothed as it is read (smooth.wgsl), lit by the shared light with its smoothed
+// normal (or one estimated from the filled depth where the points carry none); edge pixels found by the Laplace filter on depth blended with their
 // neighbours, a silhouette's background share taken off the pixel's coverage; then blended
 // front to back under the layers before it, and the image so far written out. The first layer
 // also leaves its surface and unlit colour for the quality harness.
@@ -104,7 +104,7 @@ fn main(@builtin(global_invocation_id) id: vec3<u32>) {
     }
     let i = id.y * frame.width + id.x;
     let q = vec2<i32>(id.xy);
-    let t = texels[i];
+    let t = smoothed(q, texels[i]);
     // The first layer starts the blend (and writes every pixel of it); later ones add to it.
     var sum = vec4<f32>(0.0);
     if step.layer > 0u {
@@ -134,8 +134,9 @@ fn main(@builtin(global_invocation_id) id: vec3<u32>) {
                     let o = q + AXES[k];
                     let u = texel_at(o);
                     if u.x != 0u {
+                        let s = smoothed(o, u);
                         let u_eye = eye_dir(o);
-                        around += lit_colour(u, normal_of(u, o, u_eye), u_eye);
+                        around += lit_colour(s, normal_of(s, o, u_eye), u_eye);
                         covered += 1.0;
                     }
                 }

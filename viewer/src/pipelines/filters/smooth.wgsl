@@ -2,21 +2,13 @@
 // the non-background pixels, renormalised over the neighbours it takes. Beyond the paper it
 // takes only neighbours within d~ of the centre's depth, so that a front surface does not
 // bleed into the one behind it. Colour, opacity, normal and the light's share are smoothed;
-// depth is kept.
-@group(0) @binding(0) var<uniform> frame: Frame;
-@group(0) @binding(2) var<storage, read> src: array<Texel>;
-@group(0) @binding(3) var<storage, read_write> dst: array<Texel>;
+// depth is kept. Taken by the shade as it reads each texel, where a pass of its own wrote every
+// texel out and read it back (a full-screen pass, on lavapipe a tenth of the frame).
 
-@compute @workgroup_size(16, 16)
-fn main(@builtin(global_invocation_id) id: vec3<u32>) {
-    if id.x >= frame.width || id.y >= frame.height {
-        return;
-    }
-    let i = id.y * frame.width + id.x;
-    let t = src[i];
+// Texel `t`, at `q` of the filled `texels`, smoothed; background stays background.
+fn smoothed(q: vec2<i32>, t: Texel) -> Texel {
     if t.x == 0u {
-        dst[i] = t;
-        return;
+        return t;
     }
     let d = bitcast<f32>(t.x);
     var colour = vec4<f32>(0.0);
@@ -25,11 +17,11 @@ fn main(@builtin(global_invocation_id) id: vec3<u32>) {
     var lit = 0.0;
     for (var dy = -1; dy <= 1; dy++) {
         for (var dx = -1; dx <= 1; dx++) {
-            let q = vec2<i32>(id.xy) + vec2<i32>(dx, dy);
-            if q.x < 0 || q.y < 0 || q.x >= i32(frame.width) || q.y >= i32(frame.height) {
+            let o = q + vec2<i32>(dx, dy);
+            if o.x < 0 || o.y < 0 || o.x >= i32(frame.width) || o.y >= i32(frame.height) {
                 continue;
             }
-            let n = src[u32(q.y) * frame.width + u32(q.x)];
+            let n = texels[u32(o.y) * frame.width + u32(o.x)];
             if n.x == 0u || abs(bitcast<f32>(n.x) - d) > fil.dtilde {
                 continue;
             }
@@ -51,5 +43,5 @@ fn main(@builtin(global_invocation_id) id: vec3<u32>) {
     if (t.w & 1u) != 0u && dot(normal, normal) > 1e-12 {
         out.z = encode_oct16(normalize(normal));
     }
-    dst[i] = out;
+    return out;
 }
