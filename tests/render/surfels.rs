@@ -18,22 +18,25 @@ pub(super) const H: u32 = 360;
 pub(super) const DISTANCE: f32 = 3.0;
 pub(super) const FOV_DEG: f32 = 50.0;
 
-/// The sphere's flavours: sparse with normals, sparse without, dense (several levels deep).
+/// The sphere's flavours: sparse with normals, sparse without, dense (several levels deep),
+/// and sparse at random without normals.
 #[derive(Clone, Copy, PartialEq)]
 pub(super) enum Sphere {
     Sparse,
     SparseWithoutNormals,
     Dense,
+    RandomWithoutNormals,
 }
 
-/// A unit sphere sampled evenly (a Fibonacci lattice, like a scan), with its outward normals
-/// unless without; converted once per flavour.
+/// A unit sphere sampled evenly (a Fibonacci lattice, like a scan) or at random (like a mesh
+/// sampled by area), with its outward normals unless without; converted once per flavour.
 pub(super) fn sphere(flavour: Sphere) -> &'static Path {
-    static CELLS: [OnceLock<PathBuf>; 3] = [OnceLock::new(), OnceLock::new(), OnceLock::new()];
+    static CELLS: [OnceLock<PathBuf>; 4] = [const { OnceLock::new() }; 4];
     let (k, n, normals) = match flavour {
         Sphere::Sparse => (0, 40_000, true),
         Sphere::SparseWithoutNormals => (1, 40_000, false),
         Sphere::Dense => (2, 400_000, true),
+        Sphere::RandomWithoutNormals => (3, 40_000, false),
     };
     CELLS[k].get_or_init(|| {
         let dir = Path::new(env!("CARGO_TARGET_TMPDIR")).join(format!("render-surfels-{k}"));
@@ -52,10 +55,21 @@ pub(super) fn sphere(flavour: Sphere) -> &'static Path {
         )
         .expect("header");
         let golden = std::f64::consts::PI * (3.0 - 5f64.sqrt());
+        // Two uniform numbers in [0, 1) from a point's index (a fixed hash: the fixture is the
+        // same on every run).
+        let uniform = |i: u64, salt: u64| {
+            let h = (i ^ salt).wrapping_mul(0x9e37_79b9_7f4a_7c15);
+            ((h ^ (h >> 31)).wrapping_mul(0xbf58_476d_1ce4_e5b9) >> 11) as f64 / (1u64 << 53) as f64
+        };
         for i in 0..n {
-            let z = 1.0 - 2.0 * (i as f64 + 0.5) / n as f64;
+            let (z, a) = if flavour == Sphere::RandomWithoutNormals {
+                let u = uniform(i as u64, 0x51);
+                let v = uniform(i as u64, 0xa7);
+                (1.0 - 2.0 * u, std::f64::consts::TAU * v)
+            } else {
+                (1.0 - 2.0 * (i as f64 + 0.5) / n as f64, golden * i as f64)
+            };
             let r = (1.0 - z * z).sqrt();
-            let a = golden * i as f64;
             let p = [r * a.cos(), r * a.sin(), z].map(|v| v as f32);
             for v in p {
                 out.write_all(&v.to_le_bytes()).expect("write");

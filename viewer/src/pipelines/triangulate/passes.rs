@@ -366,6 +366,7 @@ impl TriangulatePasses {
                 &t.sums,
                 &t.front,
                 &t.counts,
+                &t.uniforms,
             ],
             None,
             None,

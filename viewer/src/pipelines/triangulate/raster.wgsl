@@ -9,7 +9,7 @@
 // runs on every adapter the projection runs on. A triangle in the fans of two or three of its
 // corners is drawn each time, as in the paper: finding the one fan to draw it from (reading the
 // other corners' fans) took longer on lavapipe than the repeated drawing. Each point also covers its own pixel, so that a point without neighbours
-// is still drawn.
+// is still drawn (adding no normal where its fan has none: see shade.wgsl).
 @group(0) @binding(0) var<uniform> frame: Frame;
 @group(0) @binding(1) var<storage, read> pts: array<vec4<f32>>;
 @group(0) @binding(2) var<storage, read> neighbours: array<u32>;
@@ -20,13 +20,16 @@
 // Per pixel: the complement of the least depth's bits (0: nothing drawn).
 @group(0) @binding(6) var<storage, read_write> front: array<atomic<u32>>;
 @group(0) @binding(7) var<storage, read_write> counts: array<atomic<u32>>;
+@group(0) @binding(8) var<uniform> tri: Triangulate;
 
 struct Vertex {
     // Screen position in pixels (y down) and 1 / linear depth.
     xy: vec2<f32>,
     inv_w: f32,
     colour: vec3<f32>,
+    // The fan's normal; 0 where the point's fan has no triangle.
     normal: vec3<f32>,
+    pos: vec3<f32>,
 }
 
 fn vertex(q: u32) -> Vertex {
@@ -36,7 +39,9 @@ fn vertex(q: u32) -> Vertex {
     v.xy = vec2<f32>((clip.x / w * 0.5 + 0.5) * f32(frame.width), (0.5 - clip.y / w * 0.5) * f32(frame.height));
     v.inv_w = 1.0 / w;
     v.colour = unpack4x8unorm(colours[q]).rgb;
-    v.normal = normals[q].xyz;
+    let n = normals[q];
+    v.normal = select(vec3<f32>(0.0), n.xyz, n.w > 0.0);
+    v.pos = pts[q].xyz;
     return v;
 }
 
@@ -69,6 +74,22 @@ fn rasterize(a: Vertex, b: Vertex, c: Vertex) {
         return;
     }
     let inv_area = 1.0 / area;
+    // A corner whose own fan has no triangle (a point at a silhouette, or with one neighbour)
+    // takes this triangle's normal, turned towards the eye: the eye's direction would light it
+    // as if it faced the viewer, a bright speck along the outline.
+    var na = a.normal;
+    var nb = b.normal;
+    var nc = c.normal;
+    if any(vec3<bool>(dot(na, na) == 0.0, dot(nb, nb) == 0.0, dot(nc, nc) == 0.0)) {
+        var face = cross(b.pos - a.pos, c.pos - a.pos);
+        let len = length(face);
+        if len > 0.0 {
+            face = select(face, -face, dot(face, tri.eye.xyz - a.pos) < 0.0) / len;
+        }
+        na = select(na, face, dot(na, na) == 0.0);
+        nb = select(nb, face, dot(nb, nb) == 0.0);
+        nc = select(nc, face, dot(nc, nc) == 0.0);
+    }
     let pixel_box = vec4<u32>(x0, y0, x1 - 1u, y1 - 1u);
     let pixels = box_pixels(pixel_box);
     var next = pixel_box.xy;
@@ -90,7 +111,7 @@ fn rasterize(a: Vertex, b: Vertex, c: Vertex) {
         let pc = wc * c.inv_w;
         let depth = 1.0 / (pa + pb + pc);
         let colour = (pa * a.colour + pb * b.colour + pc * c.colour) * depth;
-        let normal = (pa * a.normal + pb * b.normal + pc * c.normal) * depth;
+        let normal = (pa * na + pb * nb + pc * nc) * depth;
         add_fragment(y * frame.width + x, depth, colour, normal);
     }
 }
