@@ -1,7 +1,8 @@
 // Hole filling (sections 3.2 and 3.3), one iteration per dispatch, from `src` into `dst`.
 // A candidate keeps its texel where one of eight 3x3 masks finds all its cells
 // "white": it then lies beyond a silhouette (background fill) or beyond the border of a front
-// surface (occluded fill). Else it takes the texel of its nearest neighbour. Every texel is
+// surface (occluded fill). Else it takes the texel of its nearest neighbour (background fill)
+// or of the farthest neighbour in front of it (occluded fill, see `occluder`). Every texel is
 // written, so that an iteration that changed nothing leaves `dst` equal to `src`. A workgroup
 // is one 16x16 tile of the iteration's list, which tiles.wgsl made (its count is the
 // dispatch's workgroup count): after the first iteration only tiles that changed, or lie
@@ -25,7 +26,8 @@ struct Neighbours {
     background: u32,
     // Depths (0 for background).
     depth: array<f32, 8>,
-    // The pixel of the nearest non-background neighbour; none where `nearest_depth` is 0.
+    // The pixel of the nearest non-background neighbour (the occluded fill puts its occluder
+    // here); none where `nearest_depth` is 0.
     nearest: u32,
     nearest_depth: f32,
 }

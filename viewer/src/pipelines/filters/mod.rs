@@ -1,7 +1,7 @@
 //! `filters` (paper 004, Dobrev, Rosenthal, Linsen): surfaces from the projected points by
 //! image filters alone. The projection culls back faces by the normals; background pixels
-//! inside the silhouette and pixels showing an occluded surface are filled from their nearest
-//! neighbour (3x3 masks, iterated), the layer is smoothed by the alleviated Gaussian, lit by
+//! inside the silhouette are filled from their nearest neighbour, pixels showing an occluded
+//! surface from the farthest neighbour in front of them (3x3 masks, iterated), the layer is smoothed by the alleviated Gaussian, lit by
 //! the shared light and anti-aliased by a Laplace filter on depth. Depth peeling with the
 //! minimum layer distance d~ extracts further layers, each filtered the same way and blended
 //! front to back with per-class opacities.

@@ -1,9 +1,10 @@
 // A layer's smoothing, shading, anti-aliasing and blending (sections 3.4, 3.5 and 5): each
 // filled texel smoothed as it is read (smooth.wgsl), lit by the shared light with its smoothed
-// normal (or one estimated from the filled depth where the points carry none); edge pixels found by the Laplace filter on depth blended with their
-// neighbours, a silhouette's background share taken off the pixel's coverage; then blended
-// front to back under the layers before it, and the image so far written out. The first layer
-// also leaves its surface and unlit colour for the quality harness.
+// normal (or one estimated from the filled depth where the points carry none); edge pixels
+// found by the Laplace filter on depth blended with their neighbours, a silhouette's
+// background share taken off the pixel's coverage; then blended front to back under the layers
+// before it, and the image so far written out. The first layer also leaves its surface and
+// unlit colour for the quality harness.
 @group(0) @binding(0) var<uniform> frame: Frame;
 @group(0) @binding(2) var<storage, read> texels: array<Texel>;
 @group(0) @binding(3) var<storage, read_write> accum: array<vec4<f32>>;

@@ -47,7 +47,7 @@ pub struct FiltersTargets {
     /// A peeled layer's depth and index planes (complements; 0 is empty).
     pub peel_depths: wgpu::Buffer,
     pub peel_indices: wgpu::Buffer,
-    /// Two texel buffers the fill and smoothing passes ping-pong between.
+    /// Two texel buffers the resolve and the fill iterations ping-pong between.
     pub texels: [wgpu::Buffer; 2],
     /// Premultiplied colour and coverage of the layers blended so far.
     pub accum: wgpu::Buffer,

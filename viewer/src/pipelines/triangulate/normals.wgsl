@@ -6,7 +6,7 @@
 @group(0) @binding(1) var<uniform> tri: Triangulate;
 @group(0) @binding(2) var<storage, read> pts: array<vec4<f32>>;
 @group(0) @binding(3) var<storage, read> neighbours: array<u32>;
-// Per pixel: the unit normal in world space; w 0 where the fan has no triangle.
+// Per pixel: the unit normal in world space; 0 where the fan has no triangle.
 @group(0) @binding(4) var<storage, read_write> normals: array<vec4<f32>>;
 @group(0) @binding(5) var<storage, read_write> feedback: array<atomic<u32>>;
 
@@ -51,6 +51,8 @@ fn main(@builtin(global_invocation_id) id: vec3<u32>) {
     if len > 0.0 {
         normals[p] = vec4<f32>(sum / len, 1.0);
     } else {
-        normals[p] = vec4<f32>(normalize(to_eye), 0.0);
+        // No triangle: the raster lends the triangles this point is a corner of their own
+        // normal, and the shade lights a pixel that only such points drew.
+        normals[p] = vec4<f32>(0.0);
     }
 }

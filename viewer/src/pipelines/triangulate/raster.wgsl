@@ -39,8 +39,7 @@ fn vertex(q: u32) -> Vertex {
     v.xy = vec2<f32>((clip.x / w * 0.5 + 0.5) * f32(frame.width), (0.5 - clip.y / w * 0.5) * f32(frame.height));
     v.inv_w = 1.0 / w;
     v.colour = unpack4x8unorm(colours[q]).rgb;
-    let n = normals[q];
-    v.normal = select(vec3<f32>(0.0), n.xyz, n.w > 0.0);
+    v.normal = normals[q].xyz;
     v.pos = pts[q].xyz;
     return v;
 }
