@@ -330,3 +330,38 @@ pub fn attribute_names(doc: &serde_json::Value) -> Vec<&str> {
         .map(|a| a["name"].as_str().expect("an attribute name"))
         .collect()
 }
+
+/// Writes a binary PLY of points with colours, and with normals where `normals` is given (one
+/// per point).
+pub fn write_coloured_ply(
+    path: &Path,
+    points: &[([f64; 3], [u8; 3])],
+    normals: Option<&[[f32; 3]]>,
+) {
+    use std::io::Write;
+    let extra = if normals.is_some() {
+        "property float nx\nproperty float ny\nproperty float nz\n"
+    } else {
+        ""
+    };
+    let mut out = std::io::BufWriter::new(std::fs::File::create(path).expect("create the PLY"));
+    write!(
+        out,
+        "ply\nformat binary_little_endian 1.0\nelement vertex {}\nproperty float x\nproperty float y\nproperty float z\nproperty uchar red\nproperty uchar green\nproperty uchar blue\n{extra}end_header\n",
+        points.len()
+    )
+    .expect("PLY header");
+    for (k, (p, rgb)) in points.iter().enumerate() {
+        for v in p {
+            out.write_all(&(*v as f32).to_le_bytes())
+                .expect("write the PLY");
+        }
+        out.write_all(rgb).expect("write the PLY");
+        if let Some(n) = normals {
+            for v in n[k] {
+                out.write_all(&v.to_le_bytes()).expect("write the PLY");
+            }
+        }
+    }
+    out.flush().expect("write the PLY");
+}

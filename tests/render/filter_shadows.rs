@@ -3,7 +3,6 @@
 //! and the lit stream kept while nothing it depends on changes.
 
 use super::*;
-use std::io::Write;
 use std::sync::Arc;
 use strata_viewer::gpu::{GpuContext, ProjectionPath};
 use strata_viewer::{Camera, Renderer, Settings};
@@ -29,23 +28,8 @@ fn plate_over_ground() -> &'static Path {
             }
         }
         let ply = dir.join("plate.ply");
-        let mut out = std::io::BufWriter::new(std::fs::File::create(&ply).expect("ply"));
-        write!(
-            out,
-            "ply\nformat binary_little_endian 1.0\nelement vertex {}\nproperty float x\nproperty float y\nproperty float z\nproperty uchar red\nproperty uchar green\nproperty uchar blue\nproperty float nx\nproperty float ny\nproperty float nz\nend_header\n",
-            pts.len()
-        )
-        .expect("header");
-        for p in &pts {
-            for v in p {
-                out.write_all(&(*v as f32).to_le_bytes()).expect("write");
-            }
-            out.write_all(&[180, 180, 180]).expect("write");
-            for v in [0.0f32, 0.0, 1.0] {
-                out.write_all(&v.to_le_bytes()).expect("write");
-            }
-        }
-        drop(out);
+        let grey: Vec<([f64; 3], [u8; 3])> = pts.iter().map(|p| (*p, [180, 180, 180])).collect();
+        common::write_coloured_ply(&ply, &grey, Some(&vec![[0.0, 0.0, 1.0]; pts.len()]));
         let ds = dir.join("plate.strata");
         common::run_ok(&["convert", s(&ply), "-o", s(&ds), "--quiet"]);
         ds

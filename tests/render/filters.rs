@@ -4,7 +4,6 @@
 //! (per class too), and without normals it says so and peels back faces as layers.
 
 use super::*;
-use std::io::Write;
 use std::sync::Arc;
 use strata_viewer::gpu::{GpuContext, ProjectionPath};
 use strata_viewer::pipelines::filters::{LAYERS_USED, NO_NORMALS};
@@ -39,33 +38,32 @@ pub(super) fn nested(normals: bool) -> &'static Path {
         let spheres = [(1.0, 60_000, OUTER, 2u8), (0.5, 15_000, INNER, 6u8)];
         let input = if normals {
             let ply = dir.join("nested.ply");
-            let mut out = std::io::BufWriter::new(std::fs::File::create(&ply).expect("ply"));
-            write!(
-                out,
-                "ply\nformat binary_little_endian 1.0\nelement vertex 75000\nproperty float x\nproperty float y\nproperty float z\nproperty uchar red\nproperty uchar green\nproperty uchar blue\nproperty float nx\nproperty float ny\nproperty float nz\nend_header\n"
-            )
-            .expect("header");
+            let (mut points, mut normals) = (Vec::new(), Vec::new());
             for (radius, n, rgb, _) in spheres {
                 for p in lattice(n, radius) {
-                    for v in p {
-                        out.write_all(&(v as f32).to_le_bytes()).expect("write");
-                    }
-                    out.write_all(&rgb).expect("write");
-                    for v in p {
-                        out.write_all(&((v / radius) as f32).to_le_bytes()).expect("write");
-                    }
+                    points.push((p, rgb));
+                    normals.push(p.map(|v| (v / radius) as f32));
                 }
             }
-            drop(out);
+            common::write_coloured_ply(&ply, &points, Some(&normals));
             ply
         } else {
             let path = dir.join("nested.las");
             let mut builder = las::Builder::from((1, 2));
             builder.point_format = las::point::Format::new(2).expect("format 2");
             builder.transforms = las::Vector {
-                x: las::Transform { scale: 1e-4, offset: 0.0 },
-                y: las::Transform { scale: 1e-4, offset: 0.0 },
-                z: las::Transform { scale: 1e-4, offset: 0.0 },
+                x: las::Transform {
+                    scale: 1e-4,
+                    offset: 0.0,
+                },
+                y: las::Transform {
+                    scale: 1e-4,
+                    offset: 0.0,
+                },
+                z: las::Transform {
+                    scale: 1e-4,
+                    offset: 0.0,
+                },
             };
             let header = builder.into_header().expect("header");
             let mut writer = las::Writer::from_path(&path, header).expect("las");
@@ -354,41 +352,27 @@ fn tree_before_a_sparse_wall() -> &'static Path {
         let _ = std::fs::remove_dir_all(&dir);
         std::fs::create_dir_all(&dir).expect("fixture dir");
         let mut points: Vec<([f64; 3], [u8; 3])> = Vec::new();
-        let mut grid = |half: f64, spacing: f64, y: f64, rgb: [u8; 3], keep: &dyn Fn(u64) -> bool| {
-            let n = (2.0 * half / spacing) as i64;
-            for i in 0..=n {
-                for j in 0..=n {
-                    let index = (i * (n + 1) + j) as u64;
-                    if keep(index) {
-                        let at = |k: i64| -half + k as f64 * spacing;
-                        points.push(([at(i), y, at(j)], rgb));
+        let mut grid =
+            |half: f64, spacing: f64, y: f64, rgb: [u8; 3], keep: &dyn Fn(u64) -> bool| {
+                let n = (2.0 * half / spacing) as i64;
+                for i in 0..=n {
+                    for j in 0..=n {
+                        let index = (i * (n + 1) + j) as u64;
+                        if keep(index) {
+                            let at = |k: i64| -half + k as f64 * spacing;
+                            points.push(([at(i), y, at(j)], rgb));
+                        }
                     }
                 }
-            }
-        };
+            };
         // A pixel is 0.0065 units at the tree and 0.0078 at the wall.
         grid(TREE_HALF, 0.004, PLANE_Y[0], TREE, &|_| true);
         let hash = |k: u64| k.wrapping_mul(0x9e37_79b9_7f4a_7c15).rotate_left(29) % 2;
         grid(0.8, 0.0075, PLANE_Y[1], WALL, &|k| hash(k) != 0);
         grid(0.9, 0.008, PLANE_Y[2], FAR, &|_| true);
         let ply = dir.join("wall.ply");
-        let mut out = std::io::BufWriter::new(std::fs::File::create(&ply).expect("ply"));
-        write!(
-            out,
-            "ply\nformat binary_little_endian 1.0\nelement vertex {}\nproperty float x\nproperty float y\nproperty float z\nproperty uchar red\nproperty uchar green\nproperty uchar blue\nproperty float nx\nproperty float ny\nproperty float nz\nend_header\n",
-            points.len()
-        )
-        .expect("header");
-        for (p, rgb) in &points {
-            for v in p {
-                out.write_all(&(*v as f32).to_le_bytes()).expect("write");
-            }
-            out.write_all(rgb).expect("write");
-            for v in [0f32, -1.0, 0.0] {
-                out.write_all(&v.to_le_bytes()).expect("write");
-            }
-        }
-        drop(out);
+        let towards_camera = vec![[0f32, -1.0, 0.0]; points.len()];
+        common::write_coloured_ply(&ply, &points, Some(&towards_camera));
         let ds = dir.join("wall.strata");
         common::run_ok(&["convert", s(&ply), "-o", s(&ds), "--quiet"]);
         ds
