@@ -94,9 +94,7 @@ fn convert(input: &str, out: &Path, extra: &[&str]) {
 
 #[test]
 fn every_pipeline_matches_its_golden_images() {
-    let dir = Path::new(env!("CARGO_TARGET_TMPDIR")).join("golden");
-    let _ = std::fs::remove_dir_all(&dir);
-    std::fs::create_dir_all(&dir).expect("work dir");
+    let dir = common::fresh_dir("golden");
     convert("autzen_trim.laz", &dir.join("autzen.strata"), &[]);
     convert(
         "bunny_range_scans_merged.ply",

@@ -137,12 +137,7 @@ fn serve(stream: TcpStream, root: &Path, gate: &(Mutex<Gate>, Condvar)) {
 }
 
 fn scratch(name: &str) -> PathBuf {
-    let dir = Path::new(env!("CARGO_TARGET_TMPDIR"))
-        .join("rounds")
-        .join(name);
-    let _ = std::fs::remove_dir_all(&dir);
-    std::fs::create_dir_all(&dir).expect("dir");
-    dir
+    common::fresh_dir(&format!("rounds/{name}"))
 }
 
 #[test]

@@ -102,9 +102,7 @@ impl Potree2 {
 }
 
 fn converted_city(tag: &str, normals: bool) -> PathBuf {
-    let dir = Path::new(env!("CARGO_TARGET_TMPDIR")).join(tag);
-    let _ = std::fs::remove_dir_all(&dir);
-    std::fs::create_dir_all(&dir).expect("dir");
+    let dir = common::fresh_dir(tag);
     let las = dir.join("city.las");
     common::run_ok(&["synth", "--points", "60000", "-o", s(&las)]);
     let out = dir.join("city.strata");

@@ -36,10 +36,7 @@ const BACKGROUND: [u8; 3] = [24, 26, 32];
 fn fixtures() -> &'static Path {
     static DIR: OnceLock<PathBuf> = OnceLock::new();
     DIR.get_or_init(|| {
-        let dir = Path::new(env!("CARGO_TARGET_TMPDIR")).join("render-fixtures");
-        // Left over from an earlier run: rebuilt so every run starts from the same files.
-        let _ = std::fs::remove_dir_all(&dir);
-        std::fs::create_dir_all(&dir).expect("fixture dir");
+        let dir = common::fresh_dir("render-fixtures");
         let autzen = dir.join("autzen.strata");
         common::run_ok(&[
             "convert",

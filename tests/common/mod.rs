@@ -111,6 +111,15 @@ pub fn read_png(path: &Path) -> (u32, u32, Vec<u8>) {
     (info.width, info.height, rgba)
 }
 
+/// `target/tmp/TAG`, emptied: left over from an earlier run, it is rebuilt so every run
+/// starts from the same files.
+pub fn fresh_dir(tag: &str) -> PathBuf {
+    let dir = Path::new(env!("CARGO_TARGET_TMPDIR")).join(tag);
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).expect("fixture dir");
+    dir
+}
+
 /// `input` (a file of ../shared/data) converted once per test binary, fresh each run, into
 /// `target/tmp/TAG/NAME.strata`.
 pub fn converted(tag: &str, input: &str, name: &str) -> PathBuf {

@@ -12,10 +12,7 @@ use strata_viewer::{Camera, ColourMode, Renderer, Settings};
 fn normals_city() -> &'static Path {
     static DIR: OnceLock<PathBuf> = OnceLock::new();
     DIR.get_or_init(|| {
-        let dir = Path::new(env!("CARGO_TARGET_TMPDIR")).join("render-normals");
-        // Left over from an earlier run: rebuilt so every run starts from the same files.
-        let _ = std::fs::remove_dir_all(&dir);
-        std::fs::create_dir_all(&dir).expect("fixture dir");
+        let dir = common::fresh_dir("render-normals");
         let las = dir.join("city.las");
         common::run_ok(&["synth", "--points", "50000", "-o", s(&las), "--seed", "3"]);
         let ds = dir.join("city.strata");

@@ -14,9 +14,7 @@ use super::surfels::{H, W};
 fn plate_over_ground() -> &'static Path {
     static CELL: OnceLock<PathBuf> = OnceLock::new();
     CELL.get_or_init(|| {
-        let dir = Path::new(env!("CARGO_TARGET_TMPDIR")).join("render-filters-shadow");
-        let _ = std::fs::remove_dir_all(&dir);
-        std::fs::create_dir_all(&dir).expect("fixture dir");
+        let dir = common::fresh_dir("render-filters-shadow");
         let mut pts = Vec::new();
         let step = 0.01;
         for (half, z) in [(1.5, 0.0), (0.3, 0.6)] {

@@ -32,9 +32,7 @@ fn lattice(n: usize, radius: f64) -> impl Iterator<Item = [f64; 3]> {
 pub(super) fn nested(normals: bool) -> &'static Path {
     static CELLS: [OnceLock<PathBuf>; 2] = [OnceLock::new(), OnceLock::new()];
     CELLS[normals as usize].get_or_init(|| {
-        let dir = Path::new(env!("CARGO_TARGET_TMPDIR")).join(format!("render-filters-{normals}"));
-        let _ = std::fs::remove_dir_all(&dir);
-        std::fs::create_dir_all(&dir).expect("fixture dir");
+        let dir = common::fresh_dir(&format!("render-filters-{normals}"));
         let spheres = [(1.0, 60_000, OUTER, 2u8), (0.5, 15_000, INNER, 6u8)];
         let input = if normals {
             let ply = dir.join("nested.ply");
@@ -348,9 +346,7 @@ const PLANE_Y: [f64; 3] = [-0.5, 0.0, 0.5];
 fn tree_before_a_sparse_wall() -> &'static Path {
     static CELL: OnceLock<PathBuf> = OnceLock::new();
     CELL.get_or_init(|| {
-        let dir = Path::new(env!("CARGO_TARGET_TMPDIR")).join("render-filters-wall");
-        let _ = std::fs::remove_dir_all(&dir);
-        std::fs::create_dir_all(&dir).expect("fixture dir");
+        let dir = common::fresh_dir("render-filters-wall");
         let mut points: Vec<([f64; 3], [u8; 3])> = Vec::new();
         let mut grid =
             |half: f64, spacing: f64, y: f64, rgb: [u8; 3], keep: &dyn Fn(u64) -> bool| {

@@ -5,9 +5,7 @@ use super::*;
 
 /// An ASCII PLY of `points` (x y z), converted, in a folder of its own.
 pub(super) fn converted_points(name: &str, points: &[[f64; 3]], normals: bool) -> PathBuf {
-    let dir = Path::new(env!("CARGO_TARGET_TMPDIR")).join(format!("render-near-{name}"));
-    let _ = std::fs::remove_dir_all(&dir);
-    std::fs::create_dir_all(&dir).expect("fixture dir");
+    let dir = common::fresh_dir(&format!("render-near-{name}"));
     let mut ply = format!(
         "ply\nformat ascii 1.0\nelement vertex {}\nproperty double x\nproperty double y\n\
          property double z\nend_header\n",

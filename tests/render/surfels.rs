@@ -39,9 +39,7 @@ pub(super) fn sphere(flavour: Sphere) -> &'static Path {
         Sphere::RandomWithoutNormals => (3, 40_000, false),
     };
     CELLS[k].get_or_init(|| {
-        let dir = Path::new(env!("CARGO_TARGET_TMPDIR")).join(format!("render-surfels-{k}"));
-        let _ = std::fs::remove_dir_all(&dir);
-        std::fs::create_dir_all(&dir).expect("fixture dir");
+        let dir = common::fresh_dir(&format!("render-surfels-{k}"));
         let ply = dir.join("sphere.ply");
         let mut out = std::io::BufWriter::new(std::fs::File::create(&ply).expect("ply"));
         let extra = if normals {
@@ -340,9 +338,7 @@ fn the_curvature_the_c_surfels_bend_by_is_the_unit_spheres() {
 fn plane() -> &'static Path {
     static CELL: OnceLock<PathBuf> = OnceLock::new();
     CELL.get_or_init(|| {
-        let dir = Path::new(env!("CARGO_TARGET_TMPDIR")).join("render-surfels-plane");
-        let _ = std::fs::remove_dir_all(&dir);
-        std::fs::create_dir_all(&dir).expect("fixture dir");
+        let dir = common::fresh_dir("render-surfels-plane");
         let ply = dir.join("plane.ply");
         let n = 200;
         let mut out = std::io::BufWriter::new(std::fs::File::create(&ply).expect("ply"));

@@ -215,9 +215,7 @@ fn the_64_bit_search_and_sums_and_the_32_bit_ones_agree() {
 
 #[test]
 fn a_still_reports_the_hole_rate_of_every_warmup_frame() {
-    let dir = Path::new(env!("CARGO_TARGET_TMPDIR")).join("render-triangulate-cli");
-    let _ = std::fs::remove_dir_all(&dir);
-    std::fs::create_dir_all(&dir).expect("dir");
+    let dir = common::fresh_dir("render-triangulate-cli");
     let (png, stats) = (dir.join("still.png"), dir.join("stats.json"));
     let dataset = sphere(Sphere::SparseWithoutNormals);
     gpu_ok(&[
