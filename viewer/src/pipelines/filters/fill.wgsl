@@ -26,10 +26,6 @@ struct Neighbours {
     background: u32,
     // Depths (0 for background).
     depth: array<f32, 8>,
-    // The pixel of the nearest non-background neighbour (the occluded fill puts its occluder
-    // here); none where `nearest_depth` is 0.
-    nearest: u32,
-    nearest_depth: f32,
 }
 
 // Reads the neighbours' depths only (a quarter of their texels); the caller fetches the one
@@ -37,25 +33,15 @@ struct Neighbours {
 fn neighbours(c: vec2<i32>) -> Neighbours {
     var n: Neighbours;
     n.background = 0u;
-    n.nearest = 0u;
-    n.nearest_depth = 0.0;
-    var best = 3.4e38;
     for (var k = 0; k < 8; k++) {
         let q = c + OFFSETS[k];
         var bits = 0u;
-        var at = 0u;
         if q.x >= 0 && q.y >= 0 && q.x < i32(frame.width) && q.y < i32(frame.height) {
-            at = u32(q.y) * frame.width + u32(q.x);
-            bits = src[at].x;
+            bits = src[u32(q.y) * frame.width + u32(q.x)].x;
         }
-        let d = bitcast<f32>(bits);
-        n.depth[k] = d;
+        n.depth[k] = bitcast<f32>(bits);
         if bits == 0u {
             n.background |= 1u << u32(k);
-        } else if d < best {
-            best = d;
-            n.nearest = at;
-            n.nearest_depth = d;
         }
     }
     return n;
@@ -78,9 +64,12 @@ fn listed_tile(wg: vec2<u32>) -> Listed {
     return Listed(true, vec2<u32>(packed & 0xffffu, packed >> 16u));
 }
 
-fn finish(i: u32, keep: Texel, fill: bool, n: Neighbours, tile: vec2<u32>) {
-    if fill && n.nearest_depth > 0.0 {
-        dst[i] = src[n.nearest];
+// Writes the texel of pixel `id` (index `i`): where `fill`, a copy of its neighbour `source`
+// (an index into OFFSETS), else `keep`.
+fn finish(id: vec2<u32>, i: u32, keep: Texel, fill: bool, source: i32, tile: vec2<u32>) {
+    if fill {
+        let q = vec2<i32>(id) + OFFSETS[source];
+        dst[i] = src[u32(q.y) * frame.width + u32(q.x)];
         counters[changed_slot(step.layer, step.kind, step.iteration)] = 1u;
         tiles[tile_slot(step.kind, step.iteration, tile)] = 1u;
     } else {
@@ -107,7 +96,15 @@ fn background(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_id
         return;
     }
     let n = neighbours(vec2<i32>(id.xy));
-    finish(i, t, n.background != 0xffu && !some_mask_white(n.background), n, tile);
+    var nearest = 0;
+    for (var k = 1; k < 8; k++) {
+        let d = n.depth[k];
+        let best = n.depth[nearest];
+        if d != 0.0 && (best == 0.0 || d < best) {
+            nearest = k;
+        }
+    }
+    finish(id, i, t, n.background != 0xffu && !some_mask_white(n.background), nearest, tile);
 }
 
 // Section 3.3: a pixel showing a surface more than d~ behind its neighbours is filled with one
@@ -132,7 +129,7 @@ fn occluded(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_id) 
         dst[i] = t;
         return;
     }
-    var n = neighbours(vec2<i32>(id.xy));
+    let n = neighbours(vec2<i32>(id.xy));
     let limit = bitcast<f32>(t.x) - fil.dtilde;
     var white = 0u;
     // The occluder: the farthest of the neighbours in front. The paper takes the nearest, but
@@ -149,10 +146,5 @@ fn occluded(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_id) 
             occluder_depth = n.depth[k];
         }
     }
-    if occluder >= 0 {
-        let q = vec2<i32>(id.xy) + OFFSETS[occluder];
-        n.nearest = u32(q.y) * frame.width + u32(q.x);
-        n.nearest_depth = occluder_depth;
-    }
-    finish(i, t, !some_mask_white(white), n, tile);
+    finish(id, i, t, occluder >= 0 && !some_mask_white(white), occluder, tile);
 }
