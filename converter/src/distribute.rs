@@ -4,7 +4,7 @@
 //! in shares (`Share`): share s of n takes the s-th n-th of each worker's part and writes part
 //! files numbered so that, read in order, they are the same rows in the same order.
 
-use crate::error::{ConvertError, Result, panic_message};
+use crate::error::{ConvertError, Result, panic_message, spawn_worker};
 use crate::plan::{grid_cell_checked, grid_shape};
 use crate::rowfile::{Scratch, append_block};
 use crate::rows::RowInput;
@@ -121,11 +121,13 @@ pub(crate) fn in_parts(
 ) -> Result<ClassCounts> {
     let part = &part;
     let results: Vec<Result<ClassCounts>> = std::thread::scope(|scope| {
-        let workers: Vec<_> = (0..parts).map(|k| scope.spawn(move || part(k))).collect();
+        let workers: Vec<_> = (0..parts)
+            .map(|k| spawn_worker(scope, what, k, move || part(k)))
+            .collect();
         workers
             .into_iter()
             .map(|w| {
-                w.join().unwrap_or_else(|p| {
+                w?.join().unwrap_or_else(|p| {
                     Err(ConvertError::internal(what, panic_message(p.as_ref())))
                 })
             })

@@ -37,6 +37,14 @@ pub enum ConvertError {
     /// A bug in the converter, not a fault of the inputs or the options: a worker panicked.
     #[error("internal fault while {during}: {message}; please report this")]
     Internal { during: String, message: String },
+    /// The system would not start another worker thread (too many asked for with
+    /// `--threads`, or no memory left for a thread's stack).
+    #[error("cannot start worker thread {index} while {during} ({cause}); give fewer --threads")]
+    Threads {
+        during: String,
+        index: usize,
+        cause: std::io::Error,
+    },
     /// A LAS point lies outside the bounds its header declares. The conversion catches this
     /// and measures the bounds itself, so a user never sees it.
     #[error("{}: point {record} lies outside the bounds the header declares", path.display())]
@@ -106,6 +114,23 @@ pub(crate) fn panic_message(payload: &(dyn std::any::Any + Send)) -> String {
     } else {
         "a worker panicked".to_string()
     }
+}
+
+/// Starts worker `index` of `scope` on `f`; a thread the system refuses is an error naming
+/// `during`, not the panic of `Scope::spawn`.
+pub(crate) fn spawn_worker<'scope, T: Send + 'scope>(
+    scope: &'scope std::thread::Scope<'scope, '_>,
+    during: &str,
+    index: usize,
+    f: impl FnOnce() -> T + Send + 'scope,
+) -> Result<std::thread::ScopedJoinHandle<'scope, T>> {
+    std::thread::Builder::new()
+        .spawn_scoped(scope, f)
+        .map_err(|cause| ConvertError::Threads {
+            during: during.to_string(),
+            index,
+            cause,
+        })
 }
 
 pub type Result<T> = std::result::Result<T, ConvertError>;

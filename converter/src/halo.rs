@@ -5,7 +5,7 @@
 //! outlive the chunk files, which indexing deletes as it commits.
 
 use crate::chunk_step::{GridBox, Halo, row_in};
-use crate::error::{ConvertError, Result, io_err, panic_message};
+use crate::error::{ConvertError, Result, io_err, panic_message, spawn_worker};
 use crate::prepare::Plan;
 use crate::rowfile::{RowWriter, for_each_block};
 use crate::workdir::WorkDir;
@@ -127,8 +127,8 @@ impl Halos {
         let next = AtomicUsize::new(0);
         let results: Vec<Result<()>> = std::thread::scope(|scope| {
             let workers: Vec<_> = (0..threads.max(1))
-                .map(|_| {
-                    scope.spawn(|| {
+                .map(|k| {
+                    spawn_worker(scope, "writing chunk bands", k, || {
                         loop {
                             let Some(&i) = chunks.get(next.fetch_add(1, Ordering::SeqCst)) else {
                                 return Ok(());
@@ -142,7 +142,7 @@ impl Halos {
             workers
                 .into_iter()
                 .map(|w| {
-                    w.join().unwrap_or_else(|p| {
+                    w?.join().unwrap_or_else(|p| {
                         Err(ConvertError::internal(
                             "writing chunk bands",
                             panic_message(p.as_ref()),

@@ -3,7 +3,7 @@
 //! file is the same whatever the timing.
 
 use crate::chunk_step::{ChunkRows, ChunkStep, GridBox, Halo};
-use crate::error::{ConvertError, Result, panic_message};
+use crate::error::{ConvertError, Result, panic_message, spawn_worker};
 use crate::halo::Halos;
 use crate::journal::{BuiltChunk, Committer, JournalEntry};
 use crate::prepare::Plan;
@@ -77,8 +77,8 @@ pub fn index_chunks(
         turn.notify_all();
     };
     std::thread::scope(|scope| {
-        for _ in 0..threads {
-            scope.spawn(|| {
+        for k in 0..threads {
+            let started = spawn_worker(scope, "indexing chunks", k, || {
                 let mut memory: Option<ChunkMemory> = None;
                 let mut halo = Halo::default();
                 loop {
@@ -119,6 +119,10 @@ pub fn index_chunks(
                     commit_ready(ix, s, &state, &turn, &abort, bar);
                 }
             });
+            if let Err(e) = started {
+                fail(e);
+                break;
+            }
         }
     });
     let s = state.into_inner().map_err(|_| {

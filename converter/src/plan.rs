@@ -1,6 +1,6 @@
 //! Phase 2: count points on a coarse grid and cut the cube into chunks that fit in memory.
 
-use crate::error::{ConvertError, Result, panic_message};
+use crate::error::{ConvertError, Result, panic_message, spawn_worker};
 use crate::quantize::Quantization;
 use crate::rows::RowInput;
 use indicatif::ProgressBar;
@@ -148,7 +148,7 @@ pub fn count(
     let parts: Vec<Result<Counts>> = std::thread::scope(|scope| {
         let workers: Vec<_> = (0..threads)
             .map(|t| {
-                scope.spawn(move || {
+                spawn_worker(scope, "counting points", t, move || {
                     let mut c = Counts::new(&cube);
                     for input in inputs {
                         input.for_each_raw(input.part(t, threads), |raw, first| {
@@ -170,7 +170,7 @@ pub fn count(
         workers
             .into_iter()
             .map(|w| {
-                w.join().unwrap_or_else(|p| {
+                w?.join().unwrap_or_else(|p| {
                     Err(ConvertError::internal(
                         "counting points",
                         panic_message(p.as_ref()),

@@ -1,7 +1,7 @@
 //! Staging files of dataset rows, for inputs the distribute phase cannot read in place: LAZ
 //! (decoded once) and, on the general path, the f64 staging file once the scale is known.
 
-use crate::error::{ConvertError, Result, panic_message};
+use crate::error::{ConvertError, Result, panic_message, spawn_worker};
 use crate::input::las::LasSource;
 use crate::plan::Counts;
 use crate::quantize::Quantization;
@@ -44,23 +44,28 @@ pub fn decode_to_rows(
     let (full_tx, full_rx) = std::sync::mpsc::sync_channel::<(Vec<u8>, u64)>(1);
     let (empty_tx, empty_rx) = std::sync::mpsc::channel::<Vec<u8>>();
     std::thread::scope(|scope| {
-        let writer = scope.spawn(move || -> Result<(RowWriter, u64)> {
-            let mut out = out;
-            let mut rows = Vec::new();
-            let mut done = 0u64;
-            for (records, first) in full_rx {
-                conv.convert(&records, record_len, first, &mut rows, stride)?;
-                for row in rows.chunks_exact(stride) {
-                    counts.add(row_position(row));
+        let writer = spawn_worker(
+            scope,
+            "writing staging rows",
+            0,
+            move || -> Result<(RowWriter, u64)> {
+                let mut out = out;
+                let mut rows = Vec::new();
+                let mut done = 0u64;
+                for (records, first) in full_rx {
+                    conv.convert(&records, record_len, first, &mut rows, stride)?;
+                    for row in rows.chunks_exact(stride) {
+                        counts.add(row_position(row));
+                    }
+                    out.write(&rows)?;
+                    let n = (records.len() / record_len) as u64;
+                    done += n;
+                    bar.inc(n);
+                    let _ = empty_tx.send(records);
                 }
-                out.write(&rows)?;
-                let n = (records.len() / record_len) as u64;
-                done += n;
-                bar.inc(n);
-                let _ = empty_tx.send(records);
-            }
-            Ok((out, done))
-        });
+                Ok((out, done))
+            },
+        )?;
         let mut decoded = 0u64;
         let read = loop {
             let records = match src.read_records(batch_records(record_len, 1 << 18)) {
