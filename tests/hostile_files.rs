@@ -1,5 +1,6 @@
-//! Files that are not what they seem: a device or a pipe where a small text file is named, and
-//! a disk that fills while a file is written.
+//! Files that are not what they seem: a device or a pipe where a small text file is named, a
+//! disk that fills while a file is written, a header built to be slow, points too close to
+//! store apart, and dataset metadata that points outside the dataset.
 
 mod common;
 use common::*;
@@ -64,4 +65,117 @@ fn an_output_under_a_file_is_named_as_such() {
         err.contains("afile/ds") && err.contains("a part of its path is a file"),
         "{err}"
     );
+}
+
+#[test]
+fn a_ply_header_of_a_hundred_thousand_lines_is_read_at_once() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let xyz = "property float x\nproperty float y\nproperty float z\n";
+    // Each line was compared with every line before it: this header took minutes.
+    let props: String = (0..100_000)
+        .map(|i| format!("property float p{i}\n"))
+        .collect();
+    let many_props = dir.path().join("props.ply");
+    let mut bytes =
+        format!("ply\nformat binary_little_endian 1.0\nelement vertex 1\n{xyz}{props}end_header\n")
+            .into_bytes();
+    bytes.extend(vec![0u8; 4 * 100_003]);
+    std::fs::write(&many_props, bytes).expect("write");
+    let out = dir.path().join("props.strata");
+    let o = run_bounded(&["convert", s(&many_props), "-o", s(&out), "-q"]);
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(1), "{err}");
+    assert!(
+        err.contains("props.ply: its points have 100000 attributes; a dataset holds at most 1024"),
+        "{err}"
+    );
+    assert!(!out.exists());
+    // As many empty elements after the vertices: read, skipped, and the point converted.
+    let elements: String = (0..100_000)
+        .map(|i| format!("element e{i} 0\nproperty float v\n"))
+        .collect();
+    let many_elements = dir.path().join("elements.ply");
+    let mut bytes = format!(
+        "ply\nformat binary_little_endian 1.0\nelement vertex 1\n{xyz}{elements}end_header\n"
+    )
+    .into_bytes();
+    bytes.extend(vec![0u8; 12]);
+    std::fs::write(&many_elements, bytes).expect("write");
+    let out = dir.path().join("elements.strata");
+    let o = run_bounded(&["convert", s(&many_elements), "-o", s(&out), "-q"]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+}
+
+#[test]
+fn points_that_would_all_become_one_position_are_refused() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let ply = dir.path().join("tiny.ply");
+    let mut bytes = b"ply\nformat binary_little_endian 1.0\nelement vertex 100\nproperty double x\nproperty double y\nproperty double z\nend_header\n".to_vec();
+    for i in 0..300 {
+        bytes.extend((i as f64 * 1e-302).to_le_bytes());
+    }
+    std::fs::write(&ply, bytes).expect("write");
+    let out = dir.path().join("tiny.strata");
+    let o = run(&["convert", s(&ply), "-o", s(&out), "-q"]);
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(1), "{err}");
+    assert!(
+        err.contains("tiny.ply") && err.contains("would all become one position"),
+        "{err}"
+    );
+    assert!(!out.exists());
+}
+
+/// A copy of a converted dataset whose metadata.json `edit` changed.
+fn edited_dataset(
+    dir: &std::path::Path,
+    edit: impl Fn(&mut serde_json::Value),
+) -> std::path::PathBuf {
+    let ds = converted("hostile-meta", "autzen_trim.las", "ds");
+    let copy = dir.join("ds.strata");
+    std::fs::create_dir_all(&copy).expect("dir");
+    for f in ["metadata.json", "hierarchy.bin", "octree.bin"] {
+        std::fs::copy(ds.join(f), copy.join(f)).expect("copy");
+    }
+    let text = std::fs::read_to_string(copy.join("metadata.json")).expect("read");
+    let mut meta: serde_json::Value = serde_json::from_str(&text).expect("json");
+    edit(&mut meta);
+    std::fs::write(copy.join("metadata.json"), meta.to_string()).expect("write");
+    copy
+}
+
+#[test]
+fn metadata_naming_files_outside_the_dataset_or_overflowing_its_coordinates_is_refused() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let other = converted("hostile-meta", "autzen_trim.las", "ds").join("octree.bin");
+    let outside = edited_dataset(dir.path(), |m| {
+        m["files"]["octree"]["name"] = s(&other).into();
+    });
+    for cmd in ["info", "verify"] {
+        let o = run(&[cmd, s(&outside)]);
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert_eq!(o.status.code(), Some(1), "{cmd}: {err}");
+        assert!(
+            err.contains("files.octree.name") && err.contains("not a path"),
+            "{cmd}: {err}"
+        );
+    }
+    std::fs::remove_dir_all(&outside).expect("remove");
+    // Every coordinate came out infinite, and verify said ok.
+    let huge = edited_dataset(dir.path(), |m| {
+        m["scale"] = serde_json::json!([1e308, 1e308, 1e308]);
+    });
+    let o = run(&["verify", s(&huge)]);
+    let said = String::from_utf8_lossy(&o.stdout).to_string() + &String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(1), "{said}");
+    assert!(said.contains("but the points span [inf"), "{said}");
+    let ply = dir.path().join("out.ply");
+    let o = run(&["export", s(&huge), "-o", s(&ply)]);
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(1), "{err}");
+    assert!(
+        err.contains("metadata.json: its scale 1e308") && err.contains("not a finite number"),
+        "{err}"
+    );
+    assert!(!ply.exists());
 }

@@ -3,7 +3,9 @@
 use crate::error::{ConvertError, Result};
 use crate::writers::{RowWriter, open_writer, write_then_finish};
 use std::path::Path;
-use strata_format::{AttrType, Attribute, Crs, DatasetFile, LocalDataset, RowLayout, oct16_decode};
+use strata_format::{
+    AttrType, Attribute, Crs, DatasetFile, LocalDataset, RowLayout, oct16_decode, row_position,
+};
 
 /// Whether `output` names a COPC file (`.copc.laz`).
 pub fn is_copc(output: &Path) -> bool {
@@ -41,6 +43,26 @@ pub fn export(dataset: &Path, output: &Path, overwrite: bool) -> Result<u64> {
             }
             let cols = ds.read_node(&node)?;
             let rows = cols.to_rows(&layout);
+            // A scale that passes every check of its own may still overflow the coordinates
+            // it multiplies (1e308): written out, they would all read infinite.
+            for row in rows.chunks_exact(layout.stride) {
+                let p = row_position(row);
+                if let Some(a) = (0..3)
+                    .find(|&a| !(meta.offset[a] + meta.scale[a] * f64::from(p[a])).is_finite())
+                {
+                    return Err(ConvertError::input(
+                        dataset.join(DatasetFile::Metadata.name()),
+                        format!(
+                            "its scale {:e} and offset {:e} on axis {} give node {} a point \
+                             whose coordinate is not a finite number",
+                            meta.scale[a],
+                            meta.offset[a],
+                            ["x", "y", "z"][a],
+                            node.key
+                        ),
+                    ));
+                }
+            }
             if wide.is_identity() {
                 writer.write_rows(&rows)?;
             } else {

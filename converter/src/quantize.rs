@@ -164,6 +164,17 @@ pub fn choose(
             return Err(too_far());
         }
     }
+    // Points apart from each other that all fall on one position (spans far below the finest
+    // step a float can ask, 1e-46 and less) would be one point: refused, not quietly merged.
+    let span = |a: usize| max[a] - min[a];
+    if (0..3).any(|a| span(a) > 0.0) && (0..3).all(|a| span(a) < scale[a] / 2.0) {
+        let widest = (0..3).map(span).fold(0.0, f64::max);
+        return Err(format!(
+            "the points lie within {widest:e} of each other on every axis, below the finest step \
+             a dataset stores them in ({:e}): they would all become one position",
+            scale.iter().copied().fold(f64::INFINITY, f64::min)
+        ));
+    }
     let asked = (0..3).filter(|&a| !unasked[a]).map(|a| scale[a]);
     let step = asked.fold(f64::INFINITY, f64::min);
     for a in (0..3).filter(|&a| unasked[a] && step.is_finite()) {
@@ -301,6 +312,24 @@ mod tests {
         let q = choose(&[s], [-12.34567; 3], [20.0; 3]).expect("fits");
         assert_eq!(q.scale, [1e-4; 3]);
         assert!(!q.coarsened && q.offset[0] <= -12.34567);
+    }
+
+    #[test]
+    fn points_that_would_all_become_one_position_are_refused() {
+        let tiny = SourceExtent {
+            precision: Precision::Float64,
+            min: [1e-300; 3],
+            max: [9e-300; 3],
+        };
+        let err =
+            choose(std::slice::from_ref(&tiny), tiny.min, tiny.max).expect_err("one position");
+        assert!(err.contains("would all become one position"), "{err}");
+        // One point, or points that are truly the same, are kept as they are.
+        let same = SourceExtent {
+            max: tiny.min,
+            ..tiny
+        };
+        assert!(choose(std::slice::from_ref(&same), same.min, same.max).is_ok());
     }
 
     #[test]

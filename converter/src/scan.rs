@@ -9,7 +9,7 @@ use crate::rowfile::RowWriter;
 use crate::rows::batch_records;
 use indicatif::ProgressBar;
 use std::path::{Path, PathBuf};
-use strata_format::{AttrType, Attribute};
+use strata_format::{AttrType, Attribute, MAX_ATTRIBUTES};
 
 pub const BATCH: usize = 1 << 18;
 
@@ -66,6 +66,15 @@ pub fn union_attributes(inputs: &[PathBuf], warnings: &mut Vec<String>) -> Resul
         // Saturating: E57 point counts are the file's word, not yet checked against its data.
         summary.points = summary.points.saturating_add(src.info().points);
         warnings.extend(src.info().warnings.iter().cloned());
+        if src.info().attributes.len() > MAX_ATTRIBUTES {
+            return Err(ConvertError::input(
+                path,
+                format!(
+                    "its points have {} attributes; a dataset holds at most {MAX_ATTRIBUTES}",
+                    src.info().attributes.len()
+                ),
+            ));
+        }
         for a in &src.info().attributes {
             match union.iter().find(|(u, _)| u.name == a.name) {
                 Some((u, first)) if u.ty != a.ty || u.count != a.count => {
@@ -109,6 +118,15 @@ pub fn union_attributes(inputs: &[PathBuf], warnings: &mut Vec<String>) -> Resul
                 }
                 None => union.push((a.clone(), path.clone())),
             }
+        }
+        if union.len() > MAX_ATTRIBUTES {
+            return Err(ConvertError::input(
+                path,
+                format!(
+                    "its attributes bring the inputs' attributes to {}; a dataset holds at most {MAX_ATTRIBUTES}",
+                    union.len()
+                ),
+            ));
         }
         let scanners = &src.info().scanners;
         if summary.scanners.len() + scanners.len() > NO_SCANNER as usize {

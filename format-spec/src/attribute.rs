@@ -130,6 +130,10 @@ impl Attribute {
     }
 }
 
+/// Attributes a dataset holds at most: far more than any scanner records, few enough that
+/// per-attribute lookups stay cheap on a hostile file declaring thousands.
+pub const MAX_ATTRIBUTES: usize = 1024;
+
 /// The encoding name of octahedral unit vectors in two u16.
 pub const OCT16: &str = "oct16";
 

@@ -1,5 +1,6 @@
 use crate::{
-    Attribute, DatasetId, FormatError, Layout, NodeKey, PageRef, ROOT_PAGE_OFFSET, RowLayout,
+    Attribute, DatasetId, FormatError, Layout, MAX_ATTRIBUTES, NodeKey, PageRef, ROOT_PAGE_OFFSET,
+    RowLayout,
 };
 use serde::{Deserialize, Serialize};
 use std::path::Path;
@@ -284,6 +285,29 @@ impl Metadata {
         if self.offset.iter().any(|o| !o.is_finite()) {
             return bad("offset must be finite");
         }
+        // The binary files lie in the dataset's own directory: a name that is a path could
+        // make a reader open any file on the machine.
+        for (what, file) in [
+            ("files.hierarchy.name", &self.files.hierarchy),
+            ("files.octree.name", &self.files.octree),
+        ] {
+            let name = file.name.as_str();
+            if name.is_empty()
+                || name == "."
+                || name == ".."
+                || name.contains(['/', '\\', '\0', ':'])
+            {
+                return bad(&format!(
+                    "{what} is {name:?}; it must be a file name in the dataset's directory, not a path"
+                ));
+            }
+        }
+        if self.attributes.len() > MAX_ATTRIBUTES {
+            return bad(&format!(
+                "it lists {} attributes; a dataset has at most {MAX_ATTRIBUTES}",
+                self.attributes.len()
+            ));
+        }
         // A reader sizes splats and picks levels by the spacing.
         if !(self.spacing.is_finite() && self.spacing > 0.0) {
             return bad("spacing must be finite and positive");
@@ -447,6 +471,38 @@ mod tests {
         );
         m["attributes"][1]["scale"] = serde_json::json!([0.5, 0.25]);
         assert!(parse(&m).is_ok(), "{:?}", parse(&m).err());
+    }
+
+    #[test]
+    fn the_binary_files_must_be_named_inside_the_dataset() {
+        for name in ["/etc/passwd", "../other/octree.bin", "..", "", "a\\b"] {
+            let mut m = meta_1_1();
+            m["files"]["octree"]["name"] = name.into();
+            let err = parse(&m).err().unwrap_or_default();
+            assert!(
+                err.contains("files.octree.name") && err.contains("not a path"),
+                "{name}: {err}"
+            );
+        }
+        let mut m = meta_1_1();
+        m["files"]["hierarchy"]["name"] = "sub/hierarchy.bin".into();
+        assert!(
+            parse(&m)
+                .err()
+                .unwrap_or_default()
+                .contains("files.hierarchy.name")
+        );
+    }
+
+    #[test]
+    fn a_dataset_lists_at_most_max_attributes() {
+        let mut m = meta_1_1();
+        let many: Vec<serde_json::Value> = (0..=MAX_ATTRIBUTES)
+            .map(|i| serde_json::json!({"name": format!("a{i}"), "type": "u8", "count": 1}))
+            .collect();
+        m["attributes"] = serde_json::Value::Array(many);
+        let err = parse(&m).err().unwrap_or_default();
+        assert!(err.contains("1025 attributes"), "{err}");
     }
 
     #[test]

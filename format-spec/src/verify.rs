@@ -97,9 +97,12 @@ pub fn verify_dataset(dir: &Path) -> VerifyReport {
         // The bounds are the stored points' own (a reader frames and culls by them).
         if let Some((lo, hi)) = extent {
             let real = |a: usize, v: i32| meta.offset[a] + meta.scale[a] * v as f64;
+            // A point whose coordinate is not a finite number (a scale that overflows them)
+            // is off any bounds.
             let off = |stated: f64, a: usize, v: i32| {
                 let want = real(a, v);
-                (stated - want).abs() > 0.5 * meta.scale[a].abs() + 1e-9 * want.abs()
+                !want.is_finite()
+                    || (stated - want).abs() > 0.5 * meta.scale[a].abs() + 1e-9 * want.abs()
             };
             if (0..3)
                 .any(|a| off(meta.bounds.min[a], a, lo[a]) || off(meta.bounds.max[a], a, hi[a]))

@@ -217,7 +217,7 @@ pub fn las_header(s: &Seeds, r: &mut Rng) -> Case {
     let len = b.len();
     let (what, expect): (String, Expect) = match r.below(12) {
         0 => {
-            let v = r.pick(&[5e-324, 0.0, f64::NAN, f64::INFINITY, 1e-310, -0.0]);
+            let v = r.pick(&[5e-324, 0.0, f64::NAN, f64::INFINITY, 1e-310, -0.0, 1e300]);
             put_f64(&mut b, 131 + 8 * r.below(3), v);
             (format!("scale {v}"), Expect::Refuse)
         }

@@ -93,11 +93,11 @@ impl E57Source {
             .ok_or_else(|| bad("the scans' point counts add up to more than 2^64".into()))?;
         if points == 0 {
             return Err(bad(format!(
-                "the E57 file's {} hold no points",
+                "the E57 file's {} no points",
                 if n == 1 {
-                    "only scan".to_string()
+                    "only scan holds".to_string()
                 } else {
-                    format!("{n} scans")
+                    format!("{n} scans hold")
                 }
             )));
         }

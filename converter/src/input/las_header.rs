@@ -167,6 +167,13 @@ impl LasHeader {
                 ));
             }
             // Every record integer must give a finite coordinate.
+            if o.is_finite() && !(s.abs() * 2f64.powi(31)).is_finite() {
+                return Err(format!(
+                    "header field \"{} scale factor\" is {}, which puts coordinates beyond any number that can be stored",
+                    AXES[a],
+                    number(s)
+                ));
+            }
             if !o.is_finite() || !(o.abs() + s.abs() * 2f64.powi(31)).is_finite() {
                 return Err(format!(
                     "header field \"{} offset\" is {}, which puts coordinates beyond any number that can be stored",

@@ -3,6 +3,7 @@
 //! a library quietly accepts (a property declared twice, two elements of one name, an unknown
 //! format version) and must say on which line, in words, without echoing control characters.
 
+use std::collections::HashSet;
 use std::io::BufRead;
 use strata_format::AttrType;
 
@@ -86,6 +87,10 @@ pub fn read_header<R: BufRead>(input: &mut R) -> Result<PlyHeader, String> {
     let mut len = 0u64;
     let mut encoding = None;
     let mut elements: Vec<ElementDef> = Vec::new();
+    // Names seen so far, of the elements and of the last element's properties: looked up per
+    // line, so that a header of many thousands of lines is read in linear time.
+    let mut element_names: HashSet<String> = HashSet::new();
+    let mut property_names: HashSet<String> = HashSet::new();
     let mut raw = Vec::new();
     let mut n = 0usize;
     loop {
@@ -166,12 +171,13 @@ pub fn read_header<R: BufRead>(input: &mut R) -> Result<PlyHeader, String> {
                         shown(count)
                     ));
                 };
-                if elements.iter().any(|e| e.name == *name) {
+                if !element_names.insert(name.to_string()) {
                     return at(format!(
                         "a second element named \"{}\" (element names must differ)",
                         shown(name)
                     ));
                 }
+                property_names.clear();
                 elements.push(ElementDef {
                     name: name.to_string(),
                     count,
@@ -209,7 +215,7 @@ pub fn read_header<R: BufRead>(input: &mut R) -> Result<PlyHeader, String> {
                     },
                     _ => return at("a property line must be \"property TYPE NAME\"".into()),
                 };
-                if element.properties.iter().any(|p| p.name == name) {
+                if !property_names.insert(name.to_string()) {
                     return at(format!(
                         "property \"{}\" is declared twice in element \"{}\"",
                         shown(name),
