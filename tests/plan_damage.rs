@@ -169,3 +169,17 @@ fn a_damaged_chunk_root_stops_the_finish() {
         &["tasks/0/work/roots/c0.bin", "does not match its checksum"],
     );
 }
+
+/// A task's chunk roots deleted after it ran: the finish said "internal error".
+#[test]
+fn a_task_whose_work_was_removed_stops_the_finish_naming_the_work_folder() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let plan = plan(dir.path());
+    task(&plan, 0);
+    task(&plan, 1);
+    std::fs::remove_dir_all(plan.join("tasks/0/work/roots")).expect("remove");
+    finish_fails(
+        &plan,
+        &["work files are damaged or missing", "run its tasks again"],
+    );
+}

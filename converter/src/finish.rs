@@ -108,7 +108,8 @@ pub fn finish(
         return Err(ConvertError::output(
             wd.root(),
             format!(
-                "internal error: {} points read but {points} stored",
+                "{} points were read but the work folder's chunks hold {points}: its work files \
+                 are damaged or missing (convert again, or with --plan run its tasks again)",
                 plan.points
             ),
         ));
