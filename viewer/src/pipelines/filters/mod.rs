@@ -95,7 +95,7 @@ static PARAMS: [ParamSpec; OWN + CLASSES] = {
         param(
             "splat",
             "points drawn at least this many stored radii across, so that sparse ones leave gaps the masks can close (0: one pixel each, as in the paper)",
-            1.0,
+            1.25,
             0.0,
             2.0,
             Scale::Linear,
