@@ -198,22 +198,38 @@ pub(super) fn holes_and_overshoot(covered: &[bool]) -> (f64, f64) {
     )
 }
 
+/// Empty pixels inside the outline (by two pixels) between drawn ones: left and right or
+/// above and below (`Gap::Crack`), or all four (`Gap::Pinhole`).
+pub(super) fn gaps(covered: &[bool], gap: Gap) -> usize {
+    let ([cx, cy], r) = outline();
+    let at = |x: u32, y: u32| covered[(y * W + x) as usize];
+    let mut n = 0;
+    for y in 1..H - 1 {
+        for x in 1..W - 1 {
+            let d = ((x as f32 + 0.5 - cx).powi(2) + (y as f32 + 0.5 - cy).powi(2)).sqrt();
+            let across = at(x - 1, y) && at(x + 1, y);
+            let along = at(x, y - 1) && at(x, y + 1);
+            let between = match gap {
+                Gap::Crack => across || along,
+                Gap::Pinhole => across && along,
+            };
+            n += usize::from(d < r - 2.0 && !at(x, y) && between);
+        }
+    }
+    n
+}
+
+#[derive(Clone, Copy)]
+pub(super) enum Gap {
+    Crack,
+    Pinhole,
+}
+
 #[test]
 fn on_a_randomly_sampled_surface_surfels_leave_no_cracks() {
     let shot = shot(Sphere::Random, "surfels", &[], Lod::Full);
     let (holes, _) = holes_and_overshoot(&shot.covered);
-    let ([cx, cy], r) = outline();
-    let at = |x: u32, y: u32| shot.covered[(y * W + x) as usize];
-    let mut cracks = 0;
-    for y in 1..H - 1 {
-        for x in 1..W - 1 {
-            let d = ((x as f32 + 0.5 - cx).powi(2) + (y as f32 + 0.5 - cy).powi(2)).sqrt();
-            let between = (at(x - 1, y) && at(x + 1, y)) || (at(x, y - 1) && at(x, y + 1));
-            if d < r - 2.0 && !at(x, y) && between {
-                cracks += 1;
-            }
-        }
-    }
+    let cracks = gaps(&shot.covered, Gap::Crack);
     // The radius rule leaves about 1 % of a random sample uncovered; at this density most
     // gaps are a pixel wide (before the shade closed them: 11 such pixels, 0.019 % of the
     // sphere).

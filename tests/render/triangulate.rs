@@ -6,7 +6,7 @@
 //! from the command line reports the hole rate of every warm-up frame.
 
 use super::filters::{INNER, OUTER, nested};
-use super::surfels::{DISTANCE, FOV_DEG, H, Sphere, W, holes_and_overshoot, sphere};
+use super::surfels::{DISTANCE, FOV_DEG, Gap, H, Sphere, W, gaps, holes_and_overshoot, sphere};
 use super::*;
 use std::collections::BTreeMap;
 use std::sync::Arc;
@@ -135,6 +135,18 @@ fn triangulation_closes_the_holes_points_leave_from_positions_alone() {
     // Its own count of the holes inside the silhouette agrees.
     assert!(shot.measures[HOLE_RATE] < 0.01, "{:?}", shot.measures);
     assert!(shot.measures[TRIANGLES] > 10_000.0, "{:?}", shot.measures);
+}
+
+#[test]
+fn the_shade_closes_the_pinholes_the_fans_leave() {
+    let dataset = sphere(Sphere::RandomWithoutNormals);
+    let mut tri = Session::new(ProjectionPath::Auto, dataset, "triangulate");
+    let camera = tri.camera(FRONT);
+    tri.load(&camera);
+    let shot = tri.settled(&camera);
+    // Before the shade closed them: 25 on this sphere sampled at random.
+    let pinholes = gaps(&shot.covered, Gap::Pinhole);
+    assert_eq!(pinholes, 0, "{pinholes} empty pixels amid drawn ones");
 }
 
 #[test]

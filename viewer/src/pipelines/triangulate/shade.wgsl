@@ -24,23 +24,66 @@ fn drawn_beside(c: vec2<u32>) -> vec4<bool> {
     );
 }
 
+// What a pixel shows: the sums of its colour, normal (as blend_at gives them) and depth over
+// `weight` pixels (1, or the four about a pinhole); weight 0: nothing.
+struct Drawn {
+    weight: f32,
+    colour: vec3<f32>,
+    normal: vec3<f32>,
+    depth: f32,
+}
+
+fn drawn_at(p: u32) -> Drawn {
+    let blend = blend_at(p);
+    if blend.fragments == 0u || front[p] == 0u {
+        return Drawn(0.0, vec3<f32>(0.0), vec3<f32>(0.0), 0.0);
+    }
+    return Drawn(1.0, blend.colour, blend.normal, bitcast<f32>(~front[p]));
+}
+
+// An empty pixel whose four neighbours are all drawn is a pinhole the fans left (a triangle
+// skipped for its opening angle, a radius that has not yet grown): it takes their mean, so
+// that the next frame's reprojected depth has no hole there either. Any other empty pixel
+// stays empty (weight 0). Closing the cracks between two drawn pixels as well, as surfels
+// does, gained more on sparse scenes but also filled one-pixel gaps in outlines (quality:
+// the bunny scans' albedo SSIM 0.888 -> 0.887, two planes' PSNR 33.4 -> 32.8 dB).
+fn pinhole(c: vec2<u32>) -> Drawn {
+    var d = Drawn(0.0, vec3<f32>(0.0), vec3<f32>(0.0), 0.0);
+    if !all(drawn_beside(c)) {
+        return d;
+    }
+    let p = c.y * frame.width + c.x;
+    let around = array<u32, 4>(p - 1u, p + 1u, p - frame.width, p + frame.width);
+    for (var k = 0; k < 4; k++) {
+        let n = drawn_at(around[k]);
+        d.weight += n.weight;
+        d.colour += n.colour;
+        d.normal += n.normal;
+        d.depth += n.depth;
+    }
+    return d;
+}
+
 @compute @workgroup_size(16, 16)
 fn main(@builtin(global_invocation_id) id: vec3<u32>) {
     if id.x >= frame.width || id.y >= frame.height {
         return;
     }
     let p = id.y * frame.width + id.x;
-    let blend = blend_at(p);
-    if blend.fragments == 0u || front[p] == 0u {
+    var drawn = drawn_at(p);
+    if drawn.weight == 0.0 {
+        drawn = pinhole(id.xy);
+    }
+    if drawn.weight == 0.0 {
         reconstructed[p] = EMPTY;
         surface[p] = vec4<f32>(0.0, 0.0, 0.0, -1.0);
         albedo[p] = 0u;
         textureStore(output, id.xy, unpack4x8unorm(frame.background));
         return;
     }
-    let rgb = blend.colour;
-    let blended = blend.normal * 2.0 - 1.0;
-    let depth = bitcast<f32>(~front[p]);
+    let rgb = drawn.colour / drawn.weight;
+    let blended = drawn.normal / drawn.weight * 2.0 - 1.0;
+    let depth = drawn.depth / drawn.weight;
     let nx = (f32(id.x) + 0.5) / f32(frame.width) * 2.0 - 1.0;
     let ny = 1.0 - (f32(id.y) + 0.5) / f32(frame.height) * 2.0;
     let to_eye = -normalize(tri.forward.xyz + nx * tri.right.xyz + ny * tri.up.xyz);
