@@ -512,11 +512,27 @@ fn render_replaces_only_what_it_wrote() {
     std::fs::copy(ds.join("metadata.json"), &meta).expect("copy");
     let png = dir.path().join("a.png");
     let st = dir.path().join("a.json");
+    let missing = dir.path().join("missing").join("a.json");
     for (args, expect) in [
         (vec!["-o", s(&las)], "in.las: exists and is not a PNG image"),
         (
             vec!["-o", s(&png), "--stats", s(&meta)],
             "metadata.json: exists and is not render statistics",
+        ),
+        // The statistics written over the image they describe.
+        (
+            vec!["-o", s(&png), "--stats", s(&png)],
+            "a.png: is both an image this render writes and its --stats file",
+        ),
+        // Found unwritable only once the image was written.
+        (
+            vec!["-o", s(&png), "--stats", s(&missing)],
+            "cannot write the --stats file",
+        ),
+        // A finite number of seconds beyond what a duration holds panicked.
+        (
+            vec!["-o", s(&png), "--timeout", "1e300"],
+            "--timeout 1e300 is not a number of seconds",
         ),
     ] {
         let mut all = vec!["render", s(&ds), "--size", "64x64"];

@@ -154,7 +154,7 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
             "--tasks N needs --plan-only PLAN (a conversion as tasks starts with a plan)"
         );
     }
-    check_stats_path(&a.stats, a.output.as_deref())?;
+    super::check_stats_path(&a.stats, a.output.as_deref())?;
     if let Some(plan) = &a.plan {
         return run_plan(plan, &a);
     }
@@ -313,32 +313,6 @@ fn report(
         print_summary(summary);
     }
     write_stats(stats, serde_json::to_string_pretty(summary))
-}
-
-/// Refuses a `--stats` file that cannot be written before the conversion rather than after
-/// it, by opening it to append (and removing it again if it was not there). A file inside the
-/// output, which exists only once the conversion is done, is left to then.
-fn check_stats_path(stats: &Option<PathBuf>, output: Option<&Path>) -> anyhow::Result<()> {
-    let Some(path) = stats else {
-        return Ok(());
-    };
-    let inside = |out: &Path| match (std::path::absolute(path), std::path::absolute(out)) {
-        (Ok(p), Ok(o)) => p.starts_with(o),
-        _ => false,
-    };
-    if output.is_some_and(inside) {
-        return Ok(());
-    }
-    let existed = std::fs::symlink_metadata(path).is_ok();
-    std::fs::OpenOptions::new()
-        .append(true)
-        .create(true)
-        .open(path)
-        .with_context(|| format!("{}: cannot write the --stats file", path.display()))?;
-    if !existed {
-        let _ = std::fs::remove_file(path);
-    }
-    Ok(())
 }
 
 /// Writes `json` (a summary) to `--stats`, if given.

@@ -14,7 +14,9 @@ mod verify;
 mod view;
 mod view_args;
 
+use anyhow::Context;
 use clap::{Parser, Subcommand};
+use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 
 /// Strata: billion-point laser scans on ordinary hardware.
@@ -91,4 +93,33 @@ pub fn run(cli: Cli) -> anyhow::Result<ExitCode> {
         Command::Pipelines(a) => pipelines::run(a),
         Command::Demo(a) => demo::run(a),
     }
+}
+
+/// Refuses a `--stats` file that cannot be written before the work rather than after
+/// it, by opening it to append (and removing it again if it was not there). A file inside the
+/// output (a dataset), which exists only once the conversion is done, is left to then.
+pub(crate) fn check_stats_path(
+    stats: &Option<PathBuf>,
+    output: Option<&Path>,
+) -> anyhow::Result<()> {
+    let Some(path) = stats else {
+        return Ok(());
+    };
+    let inside = |out: &Path| match (std::path::absolute(path), std::path::absolute(out)) {
+        (Ok(p), Ok(o)) => p.starts_with(o),
+        _ => false,
+    };
+    if output.is_some_and(inside) {
+        return Ok(());
+    }
+    let existed = std::fs::symlink_metadata(path).is_ok();
+    std::fs::OpenOptions::new()
+        .append(true)
+        .create(true)
+        .open(path)
+        .with_context(|| format!("{}: cannot write the --stats file", path.display()))?;
+    if !existed {
+        let _ = std::fs::remove_file(path);
+    }
+    Ok(())
 }

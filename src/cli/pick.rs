@@ -6,7 +6,6 @@ use super::view_args::ViewArgs;
 use anyhow::Context;
 use std::path::PathBuf;
 use std::process::ExitCode;
-use std::time::Duration;
 use strata_viewer::headless::{RenderOptions, pick};
 
 /// The view a pick is made in: dataset, camera, size, settings; shared with `strata measure`.
@@ -33,9 +32,7 @@ impl PickView {
     /// The options of the view the pixels are picked in.
     pub fn options(&self) -> anyhow::Result<RenderOptions> {
         let (width, height) = parse_size_wh(&self.size)?;
-        if !(self.timeout.is_finite() && self.timeout >= 0.0) {
-            anyhow::bail!("--timeout {} is not a number of seconds", self.timeout);
-        }
+        let timeout = super::render::timeout_of(self.timeout)?;
         Ok(RenderOptions {
             output: PathBuf::new(),
             camera: self.camera.spec(&self.dataset)?,
@@ -43,7 +40,7 @@ impl PickView {
             height,
             settings: self.view.settings()?,
             wait_complete: true,
-            timeout: Duration::from_secs_f64(self.timeout),
+            timeout,
             path: None,
             frames: 1,
             fps: 0.0,

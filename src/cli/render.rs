@@ -49,6 +49,18 @@ pub struct Args {
     view: ViewArgs,
 }
 
+/// `--timeout` as a duration: a number of seconds, not negative, within what a duration holds
+/// (a finite 1e300 panicked converting).
+pub fn timeout_of(seconds: f64) -> anyhow::Result<Duration> {
+    match Duration::try_from_secs_f64(seconds) {
+        Ok(d) => Ok(d),
+        Err(_) => anyhow::bail!(
+            "--timeout {seconds:e} is not a number of seconds from 0 to {:e}",
+            Duration::MAX.as_secs_f64()
+        ),
+    }
+}
+
 pub fn parse_size_wh(s: &str) -> anyhow::Result<(u32, u32)> {
     let parsed = s
         .split_once(['x', 'X'])
@@ -90,10 +102,10 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
             b.starts_with(b"{") && b.windows(9).any(|w| w == b"\"adapter\"")
         })?;
     }
+    // Before the images are written, not after.
+    super::check_stats_path(&a.stats, None)?;
     let (width, height) = parse_size_wh(&a.size)?;
-    if !(a.timeout.is_finite() && a.timeout >= 0.0) {
-        anyhow::bail!("--timeout {} is not a number of seconds", a.timeout);
-    }
+    let timeout = timeout_of(a.timeout)?;
     // 0: from the path's times at --fps.
     let frames = match (a.path.is_some(), a.frames) {
         (true, None) => 0,
@@ -106,7 +118,7 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
         height,
         settings: a.view.settings()?,
         wait_complete: a.wait_complete,
-        timeout: Duration::from_secs_f64(a.timeout),
+        timeout,
         path: a.path,
         frames,
         fps: a.fps,

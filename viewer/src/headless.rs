@@ -115,13 +115,27 @@ pub fn render_with(
 ) -> Result<RenderReport, ViewerError> {
     ds.check_colour(opts.settings.colour)?;
     let cameras = cameras(&ds, opts)?;
-    // Before anything is drawn: the named image, or a fly-through's frames beside it.
-    if cameras.len() > 1 {
-        for i in 0..cameras.len() {
-            check_png_replaceable(&numbered(&opts.output, i))?;
-        }
+    // Before anything is drawn: the named image, or a fly-through's frames beside it; none
+    // of them the --stats file, which would be written over the image it describes.
+    let images: Vec<PathBuf> = if cameras.len() > 1 {
+        (0..cameras.len())
+            .map(|i| numbered(&opts.output, i))
+            .collect()
     } else {
-        check_png_replaceable(&opts.output)?;
+        vec![opts.output.clone()]
+    };
+    let stats = opts
+        .stats
+        .as_deref()
+        .and_then(|s| std::path::absolute(s).ok());
+    for image in &images {
+        check_png_replaceable(image)?;
+        if stats.is_some() && std::path::absolute(image).ok() == stats {
+            return Err(ViewerError::output(
+                image,
+                "is both an image this render writes and its --stats file; give --stats another name",
+            ));
+        }
     }
     let mut renderer = Renderer::new(
         ctx.clone(),
