@@ -139,3 +139,25 @@ fn an_empty_demo_is_refused_before_its_folder_is_made() {
     );
     assert!(!demo.exists(), "the refused demo left {}", demo.display());
 }
+
+/// A user's own files where the demo writes its own are left alone: the demo overwrote a
+/// city.laz, then failed on a city.png that was not an image.
+#[test]
+fn the_demo_replaces_only_its_own_files() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    for name in ["city.laz", "city.png"] {
+        let demo = dir.path().join(name.replace('.', "_"));
+        std::fs::create_dir_all(&demo).expect("dir");
+        std::fs::write(demo.join(name), b"precious").expect("write");
+        let o = run(&["demo", "--points", "1000", "--dir", s(&demo), "--png"]);
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert!(!o.status.success(), "{name}: {err}");
+        assert!(
+            err.contains(name) && err.contains("exists and is not"),
+            "{err}"
+        );
+        assert_eq!(std::fs::read(demo.join(name)).expect("read"), b"precious");
+        let made: Vec<_> = std::fs::read_dir(&demo).expect("dir").flatten().collect();
+        assert_eq!(made.len(), 1, "{name}: the refused demo made {made:?}");
+    }
+}

@@ -1,6 +1,7 @@
 use super::convert::print_summary;
 use anyhow::Context;
-use std::path::PathBuf;
+use std::io::Read;
+use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 use std::time::Duration;
 use strata_converter::synth::{Scene, synth};
@@ -8,7 +9,7 @@ use strata_converter::{ConvertOptions, Sampling, convert};
 use strata_viewer::Settings;
 use strata_viewer::app::{WindowOptions, run_window};
 use strata_viewer::gpu::ProjectionPath;
-use strata_viewer::headless::{RenderOptions, render};
+use strata_viewer::headless::{RenderOptions, check_png_replaceable, render};
 use strata_viewer::renderer::DEFAULT_GPU_CACHE;
 
 #[derive(Debug, clap::Args)]
@@ -36,6 +37,8 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
         .with_context(|| format!("{}: cannot create the demo's folder", dir.display()))?;
     let las = dir.join("city.laz");
     let dataset = dir.join("city.strata");
+    let png = dir.join("city.png");
+    check_demo_files(&las, &dataset, &png)?;
     println!("1/4 synthesizing {} points -> {}", a.points, las.display());
     synth(&las, a.points, Scene::City, 1, 0.0, true)?;
     println!("2/4 converting -> {}", dataset.display());
@@ -87,7 +90,6 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
         )?;
         return Ok(ExitCode::SUCCESS);
     }
-    let png = dir.join("city.png");
     println!("4/4 no display: rendering {}", png.display());
     let report = render(
         &dataset.to_string_lossy(),
@@ -119,4 +121,32 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
         dataset.display()
     );
     Ok(ExitCode::SUCCESS)
+}
+
+/// The demo replaces its own files from an earlier run, and nothing else: checked before it
+/// writes any (a user's city.laz in --dir was overwritten, then the run failed on city.png).
+fn check_demo_files(las: &Path, dataset: &Path, png: &Path) -> anyhow::Result<()> {
+    let refuse = |path: &Path, what: &str| {
+        anyhow::anyhow!(
+            "{}: exists and is not {what} an earlier demo wrote; remove it or give another --dir",
+            path.display()
+        )
+    };
+    if std::fs::symlink_metadata(las).is_ok() {
+        // A LAS header's generating software, bytes 58 to 90: the synthesizer signs it.
+        let mut head = [0u8; 90];
+        let ours = std::fs::File::open(las)
+            .and_then(|mut f| f.read_exact(&mut head))
+            .is_ok()
+            && head.starts_with(b"LASF")
+            && head[58..].starts_with(b"strata ");
+        if !ours {
+            return Err(refuse(las, "the LAZ scene"));
+        }
+    }
+    if std::fs::symlink_metadata(dataset).is_ok() && !dataset.join("metadata.json").is_file() {
+        return Err(refuse(dataset, "the dataset"));
+    }
+    check_png_replaceable(png)?;
+    Ok(())
 }
