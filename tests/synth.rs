@@ -161,3 +161,21 @@ fn the_demo_replaces_only_its_own_files() {
         assert_eq!(made.len(), 1, "{name}: the refused demo made {made:?}");
     }
 }
+
+/// A scene no disk here holds is refused before a byte is written (it ran on for hours).
+#[test]
+fn a_scene_larger_than_the_free_disk_is_refused_up_front() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    for ext in ["las", "laz", "ply"] {
+        let out = dir.path().join(format!("huge.{ext}"));
+        let o = run(&["synth", "--points", "1e14", "-o", s(&out)]);
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert_eq!(o.status.code(), Some(1), "{ext}: {err}");
+        assert!(err.contains("of free disk there"), "{ext}: {err}");
+        let left: Vec<_> = std::fs::read_dir(dir.path())
+            .expect("dir")
+            .flatten()
+            .collect();
+        assert!(left.is_empty(), "{ext}: {left:?}");
+    }
+}
