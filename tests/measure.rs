@@ -198,3 +198,46 @@ fn a_distance_between_picked_points_is_their_distance_in_the_exported_points() {
     );
     assert!(!saved.exists());
 }
+
+/// A measurement added to a GIS's GeoJSON keeps what the file held: its name and CRS, a
+/// feature's id and properties (a rewrite from what measure reads dropped them).
+#[test]
+fn a_measurement_added_to_a_file_keeps_what_the_file_held() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let dataset = common::converted("measure-fixture", "autzen_trim.laz", "autzen");
+    let file = dir.path().join("gis.geojson");
+    let before = serde_json::json!({
+        "type": "FeatureCollection",
+        "name": "survey",
+        "crs": {"type": "name", "properties": {"name": "EPSG:2992"}},
+        "features": [{
+            "type": "Feature",
+            "id": 7,
+            "properties": {"owner": "bob", "note": "keep", "measure": "distance"},
+            "geometry": {"type": "LineString", "coordinates": [[0.0, 0.0, 0.0], [3.0, 4.0, 0.0]]}
+        }]
+    });
+    std::fs::write(&file, before.to_string()).expect("write");
+    let o = gpu_run(&[
+        "measure",
+        s(&dataset),
+        "--size",
+        "320x240",
+        "--kind",
+        "distance",
+        "--pixel",
+        A,
+        "--pixel",
+        B,
+        "-o",
+        s(&file),
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let after: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&file).expect("read")).expect("GeoJSON");
+    assert_eq!(after["name"], before["name"]);
+    assert_eq!(after["crs"], before["crs"]);
+    assert_eq!(after["features"][0], before["features"][0]);
+    assert_eq!(after["features"].as_array().map(Vec::len), Some(2));
+    assert_eq!(after["features"][1]["properties"]["measure"], "distance");
+}

@@ -37,7 +37,7 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
         .iter()
         .map(|p| parse_pixel(p))
         .collect::<anyhow::Result<_>>()?;
-    let mut all = match &a.output {
+    let all = match &a.output {
         Some(f) => Measurements::load(f)?,
         None => Measurements::default(),
     };
@@ -98,8 +98,7 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
         }
     }
     if let Some(f) = &a.output {
-        all.items.push(m);
-        all.save(f)?;
+        Measurements::append(f, &m)?;
     }
     Ok(ExitCode::SUCCESS)
 }

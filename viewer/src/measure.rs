@@ -330,6 +330,42 @@ impl Measurements {
         crate::headless::write_atomic(path, json.as_bytes())
     }
 
+    /// Adds `m` to the GeoJSON file at `path` (made if absent) as one more feature, keeping
+    /// everything else the file holds as it is: members and properties it does not know, a
+    /// GIS's ids and styles (a rewrite from what it reads dropped them).
+    pub fn append(path: &Path, m: &Measurement) -> Result<(), ViewerError> {
+        let text = match strata_format::read_side_file(path) {
+            Ok(t) => Some(t),
+            Err(e) if e.kind() == std::io::ErrorKind::NotFound => None,
+            Err(e) => return Err(ViewerError::output(path, format!("cannot read ({e})"))),
+        };
+        let mut root = match text {
+            None => Measurements::default().to_geojson(),
+            Some(text) => {
+                // Refused as `load` refuses it: what is not measurements is not written over.
+                Measurements::from_geojson(&text, &path.display().to_string())?;
+                let mut root: Value = serde_json::from_str(&text)
+                    .map_err(|e| ViewerError::output(path, format!("not JSON ({e})")))?;
+                if root["type"] == "Feature" {
+                    root = json!({"type": "FeatureCollection", "features": [root]});
+                }
+                root
+            }
+        };
+        match root["features"].as_array_mut() {
+            Some(features) => features.push(m.to_feature()),
+            None => {
+                return Err(ViewerError::output(
+                    path,
+                    "the FeatureCollection has no features array",
+                ));
+            }
+        }
+        let json = serde_json::to_string_pretty(&root)
+            .map_err(|e| ViewerError::output(path, format!("cannot encode ({e})")))?;
+        crate::headless::write_atomic(path, json.as_bytes())
+    }
+
     /// A name not yet taken, `KIND N`.
     pub fn next_name(&self, kind: MeasureKind) -> String {
         let n = self.items.iter().filter(|m| m.kind == kind).count();
