@@ -78,6 +78,21 @@ fn a_bookmark_renders_what_its_camera_renders_and_the_file_is_a_path() {
         "{t}"
     );
     assert_eq!(t.trim().lines().count(), 1, "{t}");
+    // A --camera-file that does not exist is said to be missing, not to hold no bookmark.
+    let missing = dir.path().join("nope.json");
+    let o = gpu_run(&[
+        "render",
+        s(&dataset),
+        "-o",
+        "x.png",
+        "--camera-file",
+        s(&missing),
+    ]);
+    let t = String::from_utf8_lossy(&o.stderr);
+    assert!(
+        !o.status.success() && t.contains("nope.json: cannot read the --camera-file: no such file"),
+        "{t}"
+    );
 }
 
 #[test]

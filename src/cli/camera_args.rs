@@ -32,6 +32,19 @@ impl CameraArgs {
                 .context("--bookmark without --camera-file needs a local dataset")?,
             (None, None) => return Ok(None),
         };
+        // A file named on the command line must exist (absent, `load` reads it as empty).
+        if std::fs::symlink_metadata(&file).is_err() {
+            match &self.camera_file {
+                Some(f) => anyhow::bail!(
+                    "{}: cannot read the --camera-file: no such file",
+                    f.display()
+                ),
+                None => anyhow::bail!(
+                    "{}: no bookmarks are saved for this dataset, so --bookmark names none",
+                    file.display()
+                ),
+            }
+        }
         let marks = Bookmarks::load(&file)?;
         let mark = marks.find(self.bookmark.as_deref(), &file)?;
         Ok(Some(mark.spec(DEFAULT_FOV_DEG)))
