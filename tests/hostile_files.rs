@@ -106,6 +106,34 @@ fn a_ply_header_of_a_hundred_thousand_lines_is_read_at_once() {
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
 }
 
+/// Inputs just under the cap, with what --normals adds, would have made a dataset no reader
+/// opens.
+#[test]
+fn the_attributes_normals_adds_count_towards_the_cap() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let props: String = (0..1023)
+        .map(|i| format!("property uchar p{i}\n"))
+        .collect();
+    let ply = dir.path().join("wide.ply");
+    let mut bytes = format!(
+        "ply\nformat binary_little_endian 1.0\nelement vertex 2\nproperty float x\nproperty float y\nproperty float z\n{props}end_header\n"
+    )
+    .into_bytes();
+    for x in [0f32, 1.0] {
+        for v in [x, 0.0, 0.0] {
+            bytes.extend(v.to_le_bytes());
+        }
+        bytes.extend(vec![0u8; 1023]);
+    }
+    std::fs::write(&ply, bytes).expect("write");
+    let out = dir.path().join("wide.strata");
+    let o = run(&["convert", s(&ply), "-o", s(&out), "-q", "--normals"]);
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(1), "{err}");
+    assert!(err.contains("those --normals adds come to 1026"), "{err}");
+    assert!(!out.exists());
+}
+
 #[test]
 fn points_that_would_all_become_one_position_are_refused() {
     let dir = tempfile::tempdir().expect("tempdir");

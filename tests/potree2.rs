@@ -456,9 +456,7 @@ fn potree_core_in_chromium_loads_every_point_from_strata_serve_and_nginx() {
         return;
     };
     let dataset = common::converted("potree2-fixture", "autzen_trim.laz", "autzen");
-    let root = Path::new(env!("CARGO_TARGET_TMPDIR")).join("potree2-root");
-    let _ = std::fs::remove_dir_all(&root);
-    std::fs::create_dir_all(&root).expect("root");
+    let root = common::fresh_dir("potree2-root");
     let served = root.join("autzen");
     common::run_ok(&[
         "export",

@@ -522,7 +522,7 @@ fn render_replaces_only_what_it_wrote() {
         // The statistics written over the image they describe.
         (
             vec!["-o", s(&png), "--stats", s(&png)],
-            "a.png: is both an image this render writes and its --stats file",
+            "a.png: is both the image and the --stats file",
         ),
         // Found unwritable only once the image was written.
         (

@@ -19,7 +19,7 @@ use crate::workdir::WorkDir;
 use serde::{Deserialize, Serialize};
 use std::fs;
 use std::path::{Path, PathBuf};
-use strata_format::{AttrType, Attribute, Cube, RowLayout};
+use strata_format::{AttrType, Attribute, Cube, MAX_ATTRIBUTES, RowLayout};
 
 /// What the work directory must hold for `--resume`: the result of everything before indexing.
 #[derive(Debug, Clone, Serialize, Deserialize, PartialEq)]
@@ -175,6 +175,14 @@ pub fn count_and_plan(
     let (mut attributes, declared) = (summary.attributes, summary.points);
     let added = step.attributes(&attributes)?;
     attributes.extend(added);
+    // The inputs were held to the cap each; what --normals adds must fit under it too, or the
+    // dataset written would be one no reader opens.
+    if attributes.len() > MAX_ATTRIBUTES {
+        return Err(ConvertError::Usage(format!(
+            "the inputs' attributes and those --normals adds come to {}; a dataset holds at most {MAX_ATTRIBUTES}",
+            attributes.len()
+        )));
+    }
     let layout = RowLayout::new(attributes.clone());
     check_conversion(wd.work(), wd.root(), declared, layout.stride, disk)?;
     let staged = match stage_from_headers(opts, &layout, wd, threads, phases) {

@@ -164,8 +164,8 @@ pub fn choose(
             return Err(too_far());
         }
     }
-    // Points apart from each other that all fall on one position (spans far below the finest
-    // step a float can ask, 1e-46 and less) would be one point: refused, not quietly merged.
+    // Points apart from each other that all fall on one position would be one point: refused,
+    // not quietly merged (floats spanning 1e-300, far below the finest step a float asks).
     let span = |a: usize| max[a] - min[a];
     if (0..3).any(|a| span(a) > 0.0) && (0..3).all(|a| span(a) < scale[a] / 2.0) {
         let widest = (0..3).map(span).fold(0.0, f64::max);

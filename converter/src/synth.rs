@@ -252,15 +252,7 @@ fn check_room(output: &Path, points: u64, stride: usize) -> Result<()> {
     } else {
         stride as f64
     };
-    let needed = (points as f64 * per_point) as u64;
-    match crate::disk::free_space(output) {
-        Some((free, _)) if needed > free => Err(ConvertError::NoSpace {
-            path: output.to_path_buf(),
-            needed,
-            free,
-        }),
-        _ => Ok(()),
-    }
+    crate::disk::check_space(&[(output, (points as f64 * per_point) as u64)])
 }
 
 /// Writes `points` points of `scene` to `output` (.las, .laz or .ply), each moved by isotropic

@@ -37,7 +37,7 @@ pub use hierarchy::{
 };
 pub use metadata::{
     Bounds, Crs, Cube, FORMAT_NAME, FileInfo, Files, GeoTiffKeys, HierarchyInfo, MAX_PAGE_LEVELS,
-    Metadata, NormalsInfo, Scanner, VERSION_MAJOR, VERSION_MINOR,
+    Metadata, NormalsInfo, Scanner, VERSION_MAJOR, VERSION_MINOR, plain_file_name,
 };
 pub use node_codec::{
     NodeColumns, NodeDecodeError, decode_node, encode_node, encode_node_rows, payload_checksum,

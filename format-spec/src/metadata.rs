@@ -27,6 +27,16 @@ pub struct Cube {
     pub bits: u32,
 }
 
+/// A name metadata.json may give one of the dataset's files: one plain, visible segment in
+/// the dataset's directory (not a path, which could make a reader open any file on the
+/// machine, and not metadata.json itself). Readers and the server hold names to it alike.
+pub fn plain_file_name(name: &str) -> bool {
+    !name.is_empty()
+        && !name.starts_with('.')
+        && !name.contains(['/', '\\', '\0', ':'])
+        && name != crate::DatasetFile::Metadata.name()
+}
+
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct FileInfo {
     pub name: String,
@@ -291,14 +301,11 @@ impl Metadata {
             ("files.hierarchy.name", &self.files.hierarchy),
             ("files.octree.name", &self.files.octree),
         ] {
-            let name = file.name.as_str();
-            if name.is_empty()
-                || name == "."
-                || name == ".."
-                || name.contains(['/', '\\', '\0', ':'])
-            {
+            if !plain_file_name(&file.name) {
                 return bad(&format!(
-                    "{what} is {name:?}; it must be a file name in the dataset's directory, not a path"
+                    "{what} is {:?}; it must be a plain file name in the dataset's directory, \
+                     not a path",
+                    file.name
                 ));
             }
         }

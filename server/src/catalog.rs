@@ -8,7 +8,7 @@ use std::collections::HashMap;
 use std::os::unix::fs::MetadataExt;
 use std::path::{Path, PathBuf};
 use std::sync::Mutex;
-use strata_format::{DatasetFile, Metadata};
+use strata_format::{DatasetFile, Metadata, plain_file_name};
 
 /// `metadata.json` larger than this is not a dataset's (a real one is a few KiB).
 const METADATA_MAX: u64 = strata_format::METADATA_MAX_BYTES;
@@ -60,14 +60,6 @@ pub struct Catalog {
     root: PathBuf,
     /// By dataset name.
     known: Mutex<HashMap<String, Known>>,
-}
-
-/// A name a dataset's metadata may give for one of its files: one plain, visible segment.
-fn plain_name(name: &str) -> bool {
-    !name.is_empty()
-        && !name.starts_with('.')
-        && !name.contains(['/', '\\', '\0', ':'])
-        && name != DatasetFile::Metadata.name()
 }
 
 /// The files of a Potree 2.0 dataset besides `metadata.json`.
@@ -160,7 +152,7 @@ impl Catalog {
                 },
                 files: [&m.files.hierarchy.name, &m.files.octree.name]
                     .into_iter()
-                    .filter(|n| plain_name(n))
+                    .filter(|n| plain_file_name(n))
                     .cloned()
                     .collect(),
             },

@@ -33,7 +33,8 @@ impl CameraArgs {
             (None, None) => return Ok(None),
         };
         // A file named on the command line must exist (absent, `load` reads it as empty).
-        if std::fs::symlink_metadata(&file).is_err() {
+        if std::fs::symlink_metadata(&file).is_err_and(|e| e.kind() == std::io::ErrorKind::NotFound)
+        {
             match &self.camera_file {
                 Some(f) => anyhow::bail!(
                     "{}: cannot read the --camera-file: no such file",

@@ -4,6 +4,7 @@ use std::io::Read;
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 use std::time::Duration;
+use strata_converter::replace::{Folder, check_output};
 use strata_converter::synth::{Scene, synth};
 use strata_converter::{ConvertOptions, Sampling, convert};
 use strata_viewer::Settings;
@@ -144,9 +145,8 @@ fn check_demo_files(las: &Path, dataset: &Path, png: &Path) -> anyhow::Result<()
             return Err(refuse(las, "the LAZ scene"));
         }
     }
-    if std::fs::symlink_metadata(dataset).is_ok() && !dataset.join("metadata.json").is_file() {
-        return Err(refuse(dataset, "the dataset"));
-    }
+    // The rule convert replaces an output by, applied before the scene is made.
+    check_output(dataset, true, Folder::Dataset)?;
     check_png_replaceable(png)?;
     Ok(())
 }

@@ -102,7 +102,16 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
             b.starts_with(b"{") && b.windows(9).any(|w| w == b"\"adapter\"")
         })?;
     }
-    // Before the images are written, not after.
+    // Before the images are written, not after; and not over the image (the renderer checks a
+    // fly-through's frames too, once it knows how many).
+    if a.stats.as_deref().map(std::path::absolute).transpose()?
+        == Some(std::path::absolute(&a.output)?)
+    {
+        anyhow::bail!(
+            "{}: is both the image and the --stats file; give --stats another name",
+            a.output.display()
+        );
+    }
     super::check_stats_path(&a.stats, None)?;
     let (width, height) = parse_size_wh(&a.size)?;
     let timeout = timeout_of(a.timeout)?;
