@@ -200,7 +200,8 @@ fn a_distance_between_picked_points_is_their_distance_in_the_exported_points() {
 }
 
 /// A measurement added to a GIS's GeoJSON keeps what the file held: its name and CRS, a
-/// feature's id and properties (a rewrite from what measure reads dropped them).
+/// feature's id and properties (a rewrite from what measure understands dropped them; the
+/// window saves the same way).
 #[test]
 fn a_measurement_added_to_a_file_keeps_what_the_file_held() {
     let dir = tempfile::tempdir().expect("tempdir");
@@ -237,7 +238,14 @@ fn a_measurement_added_to_a_file_keeps_what_the_file_held() {
         serde_json::from_str(&std::fs::read_to_string(&file).expect("read")).expect("GeoJSON");
     assert_eq!(after["name"], before["name"]);
     assert_eq!(after["crs"], before["crs"]);
-    assert_eq!(after["features"][0], before["features"][0]);
+    // The feature keeps its id, geometry and properties; the measure adds its results.
+    let (was, is) = (&before["features"][0], &after["features"][0]);
+    assert_eq!(is["id"], was["id"]);
+    assert_eq!(is["geometry"], was["geometry"]);
+    for key in ["owner", "note", "measure"] {
+        assert_eq!(is["properties"][key], was["properties"][key], "{key}");
+    }
+    assert_eq!(is["properties"]["total_length"], serde_json::json!(5.0));
     assert_eq!(after["features"].as_array().map(Vec::len), Some(2));
     assert_eq!(after["features"][1]["properties"]["measure"], "distance");
 }

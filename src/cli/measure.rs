@@ -37,7 +37,7 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
         .iter()
         .map(|p| parse_pixel(p))
         .collect::<anyhow::Result<_>>()?;
-    let all = match &a.output {
+    let mut all = match &a.output {
         Some(f) => Measurements::load(f)?,
         None => Measurements::default(),
     };
@@ -45,6 +45,7 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
         kind,
         name: String::new(),
         points: vec![[0.0; 3]; pixels.len()],
+        source: None,
     };
     if !probe.is_complete() {
         anyhow::bail!(
@@ -71,6 +72,7 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
         kind,
         name: a.name.unwrap_or_else(|| all.next_name(kind)),
         points,
+        source: None,
     };
     // Points that coincide measure no angle: said, not saved as a measurement without a value.
     if m.values().is_empty() {
@@ -87,6 +89,7 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
     if a.json {
         let one = Measurements {
             items: vec![m.clone()],
+            ..Measurements::default()
         };
         println!(
             "{}",
@@ -98,7 +101,8 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
         }
     }
     if let Some(f) = &a.output {
-        Measurements::append(f, &m)?;
+        all.items.push(m);
+        all.save(f)?;
     }
     Ok(ExitCode::SUCCESS)
 }

@@ -86,6 +86,9 @@ pub struct Measurement {
     pub kind: MeasureKind,
     pub name: String,
     pub points: Vec<[f64; 3]>,
+    /// The GeoJSON feature it was read from, if any: written back with its geometry and this
+    /// project's properties replaced and the rest (a GIS's id, style, properties) as it was.
+    pub source: Option<Value>,
 }
 
 fn sub(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
@@ -258,7 +261,19 @@ impl Measurement {
         if self.kind == MeasureKind::Distance {
             props.insert("segment_lengths".into(), json!(self.segment_lengths()));
         }
-        json!({"type": "Feature", "geometry": geometry, "properties": props})
+        let mut feature = match &self.source {
+            Some(Value::Object(f)) => f.clone(),
+            _ => serde_json::Map::new(),
+        };
+        if let Some(Value::Object(kept)) = feature.get("properties") {
+            for (k, v) in kept {
+                props.entry(k.clone()).or_insert_with(|| v.clone());
+            }
+        }
+        feature.insert("type".into(), json!("Feature"));
+        feature.insert("geometry".into(), geometry);
+        feature.insert("properties".into(), Value::Object(props));
+        Value::Object(feature)
     }
 }
 
@@ -266,13 +281,19 @@ impl Measurement {
 #[derive(Debug, Clone, Default, PartialEq)]
 pub struct Measurements {
     pub items: Vec<Measurement>,
+    /// The members of the FeatureCollection it was read from besides its features (a GIS's
+    /// name and CRS), written back as they were.
+    pub members: serde_json::Map<String, Value>,
 }
 
 impl Measurements {
     /// A GeoJSON FeatureCollection, coordinates in the dataset's own coordinate system.
     pub fn to_geojson(&self) -> Value {
         let features: Vec<Value> = self.items.iter().map(Measurement::to_feature).collect();
-        json!({"type": "FeatureCollection", "features": features})
+        let mut root = self.members.clone();
+        root.insert("type".into(), json!("FeatureCollection"));
+        root.insert("features".into(), Value::Array(features));
+        Value::Object(root)
     }
 
     /// Reads a FeatureCollection (or one Feature) written by [`Measurements::to_geojson`] or by
@@ -282,6 +303,7 @@ impl Measurements {
         let fail = |what: String| ViewerError::source(place, what);
         let root: Value =
             serde_json::from_str(text).map_err(|e| fail(format!("not JSON ({e})")))?;
+        let root_is_collection = root["type"] == "FeatureCollection";
         let features = match root["type"].as_str() {
             Some("FeatureCollection") => root["features"]
                 .as_array()
@@ -301,7 +323,12 @@ impl Measurements {
                 feature_measurement(f, i).map_err(|what| fail(format!("feature {i}: {what}")))
             })
             .collect::<Result<_, _>>()?;
-        Ok(Measurements { items })
+        let mut members = match root {
+            Value::Object(m) if root_is_collection => m,
+            _ => serde_json::Map::new(),
+        };
+        members.remove("features");
+        Ok(Measurements { items, members })
     }
 
     /// Reads `path`; a file that does not exist holds none.
@@ -326,42 +353,6 @@ impl Measurements {
     /// Writes through a temporary name, so a failed write leaves the old file.
     pub fn save(&self, path: &Path) -> Result<(), ViewerError> {
         let json = serde_json::to_string_pretty(&self.to_geojson())
-            .map_err(|e| ViewerError::output(path, format!("cannot encode ({e})")))?;
-        crate::headless::write_atomic(path, json.as_bytes())
-    }
-
-    /// Adds `m` to the GeoJSON file at `path` (made if absent) as one more feature, keeping
-    /// everything else the file holds as it is: members and properties it does not know, a
-    /// GIS's ids and styles (a rewrite from what it reads dropped them).
-    pub fn append(path: &Path, m: &Measurement) -> Result<(), ViewerError> {
-        let text = match strata_format::read_side_file(path) {
-            Ok(t) => Some(t),
-            Err(e) if e.kind() == std::io::ErrorKind::NotFound => None,
-            Err(e) => return Err(ViewerError::output(path, format!("cannot read ({e})"))),
-        };
-        let mut root = match text {
-            None => Measurements::default().to_geojson(),
-            Some(text) => {
-                // Refused as `load` refuses it: what is not measurements is not written over.
-                Measurements::from_geojson(&text, &path.display().to_string())?;
-                let mut root: Value = serde_json::from_str(&text)
-                    .map_err(|e| ViewerError::output(path, format!("not JSON ({e})")))?;
-                if root["type"] == "Feature" {
-                    root = json!({"type": "FeatureCollection", "features": [root]});
-                }
-                root
-            }
-        };
-        match root["features"].as_array_mut() {
-            Some(features) => features.push(m.to_feature()),
-            None => {
-                return Err(ViewerError::output(
-                    path,
-                    "the FeatureCollection has no features array",
-                ));
-            }
-        }
-        let json = serde_json::to_string_pretty(&root)
             .map_err(|e| ViewerError::output(path, format!("cannot encode ({e})")))?;
         crate::headless::write_atomic(path, json.as_bytes())
     }
@@ -424,7 +415,12 @@ fn feature_measurement(f: &Value, index: usize) -> Result<Measurement, String> {
         .as_str()
         .map(str::to_string)
         .unwrap_or_else(|| format!("{} {}", kind.name(), index + 1));
-    let m = Measurement { kind, name, points };
+    let m = Measurement {
+        kind,
+        name,
+        points,
+        source: Some(f.clone()),
+    };
     if !m.is_complete() {
         return Err(format!(
             "{} needs {} points, it has {}",
@@ -453,6 +449,7 @@ mod tests {
             kind,
             name: kind.name().into(),
             points: points.to_vec(),
+            source: None,
         }
     }
 
@@ -530,6 +527,7 @@ mod tests {
                     &[at(1.0, 0.0, 0.0), O, at(0.0, 1.0, 0.0)],
                 ),
             ],
+            ..Measurements::default()
         };
         let dir = tempfile::tempdir().expect("tempdir");
         let path = dir.path().join(FILE_NAME);
@@ -545,7 +543,28 @@ mod tests {
             json["features"][0]["properties"]["total_length"],
             json!(1.5)
         );
-        assert_eq!(Measurements::load(&path).expect("loads"), all);
+        let back = Measurements::load(&path).expect("loads");
+        let plain = |a: &Measurements| -> Vec<(MeasureKind, String, Vec<[f64; 3]>)> {
+            a.items
+                .iter()
+                .map(|m| (m.kind, m.name.clone(), m.points.clone()))
+                .collect()
+        };
+        assert_eq!(plain(&back), plain(&all));
+        // What a GIS put in the file is written back as it was, beside a new measurement.
+        let gis = r#"{"type":"FeatureCollection","name":"survey","crs":{"type":"name","properties":{"name":"EPSG:2992"}},"features":[{"type":"Feature","id":7,"geometry":{"type":"LineString","coordinates":[[0,0,0],[3,4,0]]},"properties":{"owner":"bob","name":"fence"}}]}"#;
+        let mut read = Measurements::from_geojson(gis, "gis.geojson").expect("reads");
+        read.items
+            .push(m(MeasureKind::Height, &[O, at(0.0, 0.0, 2.0)]));
+        let out = read.to_geojson();
+        let before: Value = serde_json::from_str(gis).expect("json");
+        assert_eq!(out["name"], before["name"]);
+        assert_eq!(out["crs"], before["crs"]);
+        assert_eq!(out["features"][0]["id"], json!(7));
+        assert_eq!(out["features"][0]["properties"]["owner"], json!("bob"));
+        assert_eq!(out["features"][0]["properties"]["name"], json!("fence"));
+        assert_eq!(out["features"][0]["properties"]["total_length"], json!(5.0));
+        assert_eq!(out["features"][1]["properties"]["height"], json!(2.0));
         // A GIS's LineString without our properties is a distance.
         let plain = r#"{"type":"Feature","geometry":{"type":"LineString","coordinates":[[0,0],[3,4]]},"properties":null}"#;
         let p = Measurements::from_geojson(plain, "plain.geojson").expect("reads");

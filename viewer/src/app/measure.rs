@@ -60,6 +60,7 @@ impl Measuring {
             kind,
             name: self.all.next_name(kind),
             points: Vec::new(),
+            source: None,
         });
         current.points.push(point.position);
         if !current.takes_more() {
