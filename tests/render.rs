@@ -513,8 +513,14 @@ fn render_replaces_only_what_it_wrote() {
     let png = dir.path().join("a.png");
     let st = dir.path().join("a.json");
     let missing = dir.path().join("missing").join("a.json");
+    let fake = dir.path().join("fake.png");
+    std::fs::write(&fake, b"not an image").expect("write");
     for (args, expect) in [
-        (vec!["-o", s(&las)], "in.las: exists and is not a PNG image"),
+        (vec!["-o", s(&las)], "in.las: render writes PNG images"),
+        (
+            vec!["-o", s(&fake)],
+            "fake.png: exists and is not a PNG image",
+        ),
         (
             vec!["-o", s(&png), "--stats", s(&meta)],
             "metadata.json: exists and is not render statistics",
@@ -528,6 +534,11 @@ fn render_replaces_only_what_it_wrote() {
         (
             vec!["-o", s(&png), "--stats", s(&missing)],
             "cannot write the --stats file",
+        ),
+        // PNG bytes under a JPEG's name.
+        (
+            vec!["-o", s(&dir.path().join("a.jpg"))],
+            "a.jpg: render writes PNG images",
         ),
         // A finite number of seconds beyond what a duration holds panicked.
         (

@@ -95,6 +95,17 @@ fn check_replaceable(path: &Path, what: &str, ours: impl Fn(&[u8]) -> bool) -> a
 }
 
 pub fn run(a: Args) -> anyhow::Result<ExitCode> {
+    // PNG bytes under another name (x.jpg) would be taken for what the name says.
+    if !a
+        .output
+        .extension()
+        .is_some_and(|e| e.eq_ignore_ascii_case("png"))
+    {
+        anyhow::bail!(
+            "{}: render writes PNG images; give the output a .png name",
+            a.output.display()
+        );
+    }
     // Checked again by the renderer with the frames' names; here before the dataset opens.
     check_png_replaceable(&a.output)?;
     if let Some(stats) = &a.stats {
