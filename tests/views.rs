@@ -78,6 +78,22 @@ fn a_bookmark_renders_what_its_camera_renders_and_the_file_is_a_path() {
         "{t}"
     );
     assert_eq!(t.trim().lines().count(), 1, "{t}");
+    // A fly-through's keyframes are its views: a camera beside them was silently ignored.
+    let o = gpu_run(&[
+        "render",
+        s(&dataset),
+        "-o",
+        "x.png",
+        "--path",
+        s(&dataset.join("bookmarks.json")),
+        "--bookmark",
+        "close",
+    ]);
+    let t = String::from_utf8_lossy(&o.stderr);
+    assert!(
+        !o.status.success() && t.contains("'--path <PATH>' cannot be used with '--bookmark"),
+        "{t}"
+    );
     // A --camera-file that does not exist is said to be missing, not to hold no bookmark.
     let missing = dir.path().join("nope.json");
     let o = gpu_run(&[

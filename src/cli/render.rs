@@ -28,7 +28,9 @@ pub struct Args {
     timeout: f64,
     /// A fly-through: {"keyframes": [{"eye": [x,y,z], "target": [x,y,z], "fov": deg,
     /// "seconds": from the keyframe before (default 3)}, ...]}; the window's bookmarks.json is one.
-    #[arg(long)]
+    /// Its keyframes are the views: a --camera, --camera-file or --bookmark beside it would be
+    /// ignored, so it is refused.
+    #[arg(long, conflicts_with_all = ["camera", "camera_file", "bookmark"])]
     path: Option<PathBuf>,
     /// Frames of the fly-through, spread over the keyframes' times (default: the times at
     /// --fps).
