@@ -67,20 +67,26 @@ fn an_output_under_a_file_is_named_as_such() {
     );
 }
 
+/// A binary PLY of `vertices` float x, y, z vertices and then the header lines `more`,
+/// followed by `body`.
+fn write_ply(path: &std::path::Path, vertices: usize, more: &str, body: &[u8]) {
+    let mut bytes = format!(
+        "ply\nformat binary_little_endian 1.0\nelement vertex {vertices}\nproperty float x\nproperty float y\nproperty float z\n{more}end_header\n"
+    )
+    .into_bytes();
+    bytes.extend_from_slice(body);
+    std::fs::write(path, bytes).expect("write");
+}
+
 #[test]
 fn a_ply_header_of_a_hundred_thousand_lines_is_read_at_once() {
     let dir = tempfile::tempdir().expect("tempdir");
-    let xyz = "property float x\nproperty float y\nproperty float z\n";
     // Each line was compared with every line before it: this header took minutes.
     let props: String = (0..100_000)
         .map(|i| format!("property float p{i}\n"))
         .collect();
     let many_props = dir.path().join("props.ply");
-    let mut bytes =
-        format!("ply\nformat binary_little_endian 1.0\nelement vertex 1\n{xyz}{props}end_header\n")
-            .into_bytes();
-    bytes.extend(vec![0u8; 4 * 100_003]);
-    std::fs::write(&many_props, bytes).expect("write");
+    write_ply(&many_props, 1, &props, &vec![0u8; 4 * 100_003]);
     let out = dir.path().join("props.strata");
     let o = run_bounded(&["convert", s(&many_props), "-o", s(&out), "-q"]);
     let err = String::from_utf8_lossy(&o.stderr);
@@ -95,12 +101,7 @@ fn a_ply_header_of_a_hundred_thousand_lines_is_read_at_once() {
         .map(|i| format!("element e{i} 0\nproperty float v\n"))
         .collect();
     let many_elements = dir.path().join("elements.ply");
-    let mut bytes = format!(
-        "ply\nformat binary_little_endian 1.0\nelement vertex 1\n{xyz}{elements}end_header\n"
-    )
-    .into_bytes();
-    bytes.extend(vec![0u8; 12]);
-    std::fs::write(&many_elements, bytes).expect("write");
+    write_ply(&many_elements, 1, &elements, &[0u8; 12]);
     let out = dir.path().join("elements.strata");
     let o = run_bounded(&["convert", s(&many_elements), "-o", s(&out), "-q"]);
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
@@ -115,17 +116,14 @@ fn the_attributes_normals_adds_count_towards_the_cap() {
         .map(|i| format!("property uchar p{i}\n"))
         .collect();
     let ply = dir.path().join("wide.ply");
-    let mut bytes = format!(
-        "ply\nformat binary_little_endian 1.0\nelement vertex 2\nproperty float x\nproperty float y\nproperty float z\n{props}end_header\n"
-    )
-    .into_bytes();
+    let mut body = Vec::new();
     for x in [0f32, 1.0] {
         for v in [x, 0.0, 0.0] {
-            bytes.extend(v.to_le_bytes());
+            body.extend(v.to_le_bytes());
         }
-        bytes.extend(vec![0u8; 1023]);
+        body.extend(vec![0u8; 1023]);
     }
-    std::fs::write(&ply, bytes).expect("write");
+    write_ply(&ply, 2, &props, &body);
     let out = dir.path().join("wide.strata");
     let o = run(&["convert", s(&ply), "-o", s(&out), "-q", "--normals"]);
     let err = String::from_utf8_lossy(&o.stderr);

@@ -19,6 +19,16 @@ fn position(v: &serde_json::Value) -> [f64; 3] {
 const A: &str = "100,120";
 const B: &str = "230,140";
 
+/// `strata measure DATASET --size 320x240 --kind KIND --pixel P... -o OUT`.
+fn measure_into(dataset: &Path, kind: &str, pixels: &[&str], out: &Path) -> std::process::Output {
+    let mut args = vec!["measure", s(dataset), "--size", "320x240", "--kind", kind];
+    for p in pixels {
+        args.extend(["--pixel", p]);
+    }
+    args.extend(["-o", s(out)]);
+    gpu_run(&args)
+}
+
 #[test]
 fn a_distance_between_picked_points_is_their_distance_in_the_exported_points() {
     let dir = tempfile::tempdir().expect("tempdir");
@@ -175,22 +185,7 @@ fn a_distance_between_picked_points_is_their_distance_in_the_exported_points() {
     );
     // Three picks of one point measure no angle: refused, and nothing saved.
     let saved = dir.path().join("angle.geojson");
-    let o = gpu_run(&[
-        "measure",
-        s(&dataset),
-        "--size",
-        "320x240",
-        "--kind",
-        "angle",
-        "--pixel",
-        A,
-        "--pixel",
-        A,
-        "--pixel",
-        A,
-        "-o",
-        s(&saved),
-    ]);
+    let o = measure_into(&dataset, "angle", &[A, A, A], &saved);
     let text = String::from_utf8_lossy(&o.stderr);
     assert!(
         !o.status.success() && text.contains("measure no angle"),
@@ -219,20 +214,7 @@ fn a_measurement_added_to_a_file_keeps_what_the_file_held() {
         }]
     });
     std::fs::write(&file, before.to_string()).expect("write");
-    let o = gpu_run(&[
-        "measure",
-        s(&dataset),
-        "--size",
-        "320x240",
-        "--kind",
-        "distance",
-        "--pixel",
-        A,
-        "--pixel",
-        B,
-        "-o",
-        s(&file),
-    ]);
+    let o = measure_into(&dataset, "distance", &[A, B], &file);
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     let after: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(&file).expect("read")).expect("GeoJSON");

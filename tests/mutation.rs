@@ -5,6 +5,8 @@
 //! with no dataset left, or an exact conversion. `STRATA_MUTATION_CASES` raises the count (300 by
 //! default) and `STRATA_MUTATION_SEED` changes the seed.
 
+#[path = "mutation/bytes.rs"]
+mod bytes;
 #[path = "mutation/cases.rs"]
 mod cases;
 mod common;

@@ -33,6 +33,14 @@ fn task(plan: &Path, k: usize) {
     run_ok(&["convert", "--plan", s(plan), "--task", &k.to_string(), "-q"]);
 }
 
+/// A plan whose two tasks have both run.
+fn plan_run(dir: &Path) -> PathBuf {
+    let plan = plan(dir);
+    task(&plan, 0);
+    task(&plan, 1);
+    plan
+}
+
 /// `--finish` must fail naming `expect`, and leave neither the dataset nor its work folder.
 fn finish_fails(plan: &Path, expect: &[&str]) {
     let out = plan.with_file_name("out.strata");
@@ -133,9 +141,7 @@ fn an_edited_plan_is_refused_naming_plan_json_and_the_field() {
 #[test]
 fn a_damaged_task_payload_stops_the_finish() {
     let dir = tempfile::tempdir().expect("tempdir");
-    let plan = plan(dir.path());
-    task(&plan, 0);
-    task(&plan, 1);
+    let plan = plan_run(dir.path());
     // Past the file head: in a node's payload.
     flip(&plan.join("tasks/0/octree.bin"), 64);
     finish_fails(
@@ -152,9 +158,7 @@ fn a_damaged_task_payload_stops_the_finish() {
 #[test]
 fn a_damaged_chunk_root_stops_the_finish() {
     let dir = tempfile::tempdir().expect("tempdir");
-    let plan = plan(dir.path());
-    task(&plan, 0);
-    task(&plan, 1);
+    let plan = plan_run(dir.path());
     // One bit of its last byte: lz4 ends a block with literal bytes, so it decodes into other
     // rows without a fault (this very flip passed into the dataset before blocks had
     // checksums).
@@ -174,9 +178,7 @@ fn a_damaged_chunk_root_stops_the_finish() {
 #[test]
 fn a_task_whose_work_was_removed_stops_the_finish_naming_the_work_folder() {
     let dir = tempfile::tempdir().expect("tempdir");
-    let plan = plan(dir.path());
-    task(&plan, 0);
-    task(&plan, 1);
+    let plan = plan_run(dir.path());
     std::fs::remove_dir_all(plan.join("tasks/0/work/roots")).expect("remove");
     finish_fails(
         &plan,
