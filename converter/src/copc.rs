@@ -219,6 +219,7 @@ fn write_points(
         for source in &node.sources {
             let cols = ds.read_node(source)?;
             let mut rows = cols.to_rows(layout);
+            crate::export::check_finite(ds.dir(), meta, &source.key, &rows, layout.stride)?;
             let mut kept = 0;
             for i in 0..cols.count {
                 if grid.key_of(level, cols.position(i)) == node.key {

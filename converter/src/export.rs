@@ -4,7 +4,8 @@ use crate::error::{ConvertError, Result};
 use crate::writers::{RowWriter, open_writer, write_then_finish};
 use std::path::Path;
 use strata_format::{
-    AttrType, Attribute, Crs, DatasetFile, LocalDataset, RowLayout, oct16_decode, row_position,
+    AttrType, Attribute, Crs, DatasetFile, LocalDataset, Metadata, NodeKey, RowLayout,
+    oct16_decode, row_position,
 };
 
 /// Whether `output` names a COPC file (`.copc.laz`).
@@ -43,26 +44,7 @@ pub fn export(dataset: &Path, output: &Path, overwrite: bool) -> Result<u64> {
             }
             let cols = ds.read_node(&node)?;
             let rows = cols.to_rows(&layout);
-            // A scale that passes every check of its own may still overflow the coordinates
-            // it multiplies (1e308): written out, they would all read infinite.
-            for row in rows.chunks_exact(layout.stride) {
-                let p = row_position(row);
-                if let Some(a) = (0..3)
-                    .find(|&a| !(meta.offset[a] + meta.scale[a] * f64::from(p[a])).is_finite())
-                {
-                    return Err(ConvertError::input(
-                        dataset.join(DatasetFile::Metadata.name()),
-                        format!(
-                            "its scale {:e} and offset {:e} on axis {} give node {} a point \
-                             whose coordinate is not a finite number",
-                            meta.scale[a],
-                            meta.offset[a],
-                            ["x", "y", "z"][a],
-                            node.key
-                        ),
-                    ));
-                }
-            }
+            check_finite(dataset, meta, &node.key, &rows, layout.stride)?;
             if wide.is_identity() {
                 writer.write_rows(&rows)?;
             } else {
@@ -84,6 +66,37 @@ pub fn export(dataset: &Path, output: &Path, overwrite: bool) -> Result<u64> {
         Ok(written)
     };
     write_then_finish(writer, output, write_all)
+}
+
+/// Refuses a node whose coordinates the metadata's scale and offset make non-finite: a scale
+/// that passes every check of its own may still overflow the coordinates it multiplies (1e308),
+/// and written out they would all read infinite.
+pub(crate) fn check_finite(
+    dataset: &Path,
+    meta: &Metadata,
+    node: &NodeKey,
+    rows: &[u8],
+    stride: usize,
+) -> Result<()> {
+    for row in rows.chunks_exact(stride) {
+        let p = row_position(row);
+        if let Some(a) =
+            (0..3).find(|&a| !(meta.offset[a] + meta.scale[a] * f64::from(p[a])).is_finite())
+        {
+            return Err(ConvertError::input(
+                dataset.join(DatasetFile::Metadata.name()),
+                format!(
+                    "its scale {:e} and offset {:e} on axis {} give node {} a point \
+                     whose coordinate is not a finite number",
+                    meta.scale[a],
+                    meta.offset[a],
+                    ["x", "y", "z"][a],
+                    node
+                ),
+            ));
+        }
+    }
+    Ok(())
 }
 
 /// Writes `rows` of a dataset's `layout` (a selection of its points, such as a profile) to

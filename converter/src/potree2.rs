@@ -247,6 +247,7 @@ fn node_records(
         ));
     }
     let stored = cols_read.to_rows(ds.layout());
+    crate::export::check_finite(ds.dir(), meta, &node.key, &stored, ds.layout().stride)?;
     let mut rows = if wide.is_identity() {
         stored
     } else {

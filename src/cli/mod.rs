@@ -29,13 +29,13 @@ pub struct Cli {
 
 #[derive(Debug, Subcommand)]
 enum Command {
-    /// Build a dataset from LAS, LAZ and PLY files.
+    /// Build a dataset from LAS, LAZ, PLY and E57 files.
     Convert(convert::Args),
     /// Print a dataset's summary: points, nodes, depth, bounds, attributes, sizes.
     Info(info::Args),
     /// Check a dataset's structure and every checksum; exit 1 on any fault.
     Verify(verify::Args),
-    /// Write every point of a dataset back out as LAS, LAZ or PLY.
+    /// Write every point of a dataset back out as LAS, LAZ, COPC, PLY or Potree 2.0.
     Export(export::Args),
     /// Write a deterministic procedural scene of any size as LAS, LAZ or PLY.
     Synth(synth::Args),
