@@ -61,4 +61,20 @@ fn fly_through_writes_numbered_frames_with_stats() {
     );
     assert_eq!(std::fs::read(&taken).expect("read"), b"field notes");
     std::fs::remove_file(&taken).expect("remove");
+    // A frame that cannot be written part way (as on a full disk): the frames written before
+    // it, and those left from the run before, are removed: no sequence is left that looks
+    // complete.
+    let blocked = dir.join("fly_0002.png.part");
+    std::fs::create_dir_all(&blocked).expect("dir");
+    let o = gpu_run(&args.iter().map(String::as_str).collect::<Vec<_>>());
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(1), "{err}");
+    assert!(err.contains("fly_0002.png: cannot write"), "{err}");
+    for i in 0..4 {
+        assert!(
+            !dir.join(format!("fly_{i:04}.png")).exists(),
+            "frame {i} left"
+        );
+    }
+    std::fs::remove_dir(&blocked).expect("remove");
 }

@@ -163,92 +163,106 @@ pub fn render_with(
         fetch_error: None,
     };
     let fly_through = cameras.len() > 1;
-    for (i, camera) in cameras.iter().enumerate() {
-        let frame_start = Instant::now();
-        let mut last_progress = Instant::now();
-        let mut drawn_before = 0;
-        let stats = loop {
-            let mut stats = renderer.frame(camera, opts.width, opts.height, &opts.settings)?;
-            renderer.wait_gpu()?;
-            stats.passes = renderer.pass_times();
-            stats.points_drawn = renderer
-                .counted_points_drawn()
-                .unwrap_or(stats.points_drawn);
-            stats.frame_ms = frame_start.elapsed().as_secs_f64() * 1e3;
-            if report.time_to_first_image_ms.is_none() && stats.points_drawn > 0 {
-                report.time_to_first_image_ms = Some(t0.elapsed().as_secs_f64() * 1e3);
-            }
-            if stats.bytes_loaded > 0 || stats.points_drawn != drawn_before {
-                last_progress = Instant::now();
-            }
-            drawn_before = stats.points_drawn;
-            // Waiting for completeness ends early only when nothing arrives for `timeout`
-            // (a server that went away): the image shows what there is.
-            let done = if opts.wait_complete {
-                stats.complete || last_progress.elapsed() > opts.timeout
-            } else if fly_through {
-                true
-            } else {
-                stats.complete || frame_start.elapsed() > opts.timeout
-            };
-            if done {
-                break stats;
-            }
-            renderer.wait_for_loads(Duration::from_millis(20));
-        };
-        // One more frame after the last load so the timestamps describe the final picture; a
-        // pipeline that builds on the previous frame converges over `warmup` more of the same
-        // view first (each one's measures are kept, so that convergence can be read).
-        let stats = if opts.wait_complete || !fly_through {
-            let warmup = opts.settings.pipeline.warmup_frames(&opts.settings.params);
-            for _ in 0..warmup {
-                let s = renderer.frame(camera, opts.width, opts.height, &opts.settings)?;
+    // A fly-through that fails part way removes every frame of its sequence (each one checked
+    // above as an image it may replace): with some frames new and the rest left from an
+    // earlier run, the sequence would look complete.
+    let mut draw_all = |report: &mut RenderReport| -> Result<(), ViewerError> {
+        for (i, camera) in cameras.iter().enumerate() {
+            let frame_start = Instant::now();
+            let mut last_progress = Instant::now();
+            let mut drawn_before = 0;
+            let stats = loop {
+                let mut stats = renderer.frame(camera, opts.width, opts.height, &opts.settings)?;
                 renderer.wait_gpu()?;
-                let points_drawn = renderer.counted_points_drawn().unwrap_or(s.points_drawn);
-                report.warmup.push(FrameStats {
-                    points_drawn,
-                    measures: renderer.read_measures()?,
-                    passes: renderer.pass_times(),
-                    ..s
-                });
-            }
-            let mut s = renderer.frame(camera, opts.width, opts.height, &opts.settings)?;
-            renderer.wait_gpu()?;
-            s.passes = renderer.pass_times();
-            s.points_drawn = renderer.counted_points_drawn().unwrap_or(s.points_drawn);
-            s.bytes_loaded += stats.bytes_loaded;
-            s
-        } else {
-            stats
-        };
-        let stats = FrameStats {
-            measures: renderer.read_measures()?,
-            ..stats
-        };
-        let out = if fly_through {
-            numbered(&opts.output, i)
-        } else {
-            opts.output.clone()
-        };
-        let (w, h, mut rgba) = renderer.read_image()?;
-        if !opts.measurements.items.is_empty() {
-            let proj = ScreenProjector::new(&ds, camera, w, h);
-            let mut canvas = Canvas {
-                rgba: &mut rgba,
-                width: w,
-                height: h,
+                stats.passes = renderer.pass_times();
+                stats.points_drawn = renderer
+                    .counted_points_drawn()
+                    .unwrap_or(stats.points_drawn);
+                stats.frame_ms = frame_start.elapsed().as_secs_f64() * 1e3;
+                if report.time_to_first_image_ms.is_none() && stats.points_drawn > 0 {
+                    report.time_to_first_image_ms = Some(t0.elapsed().as_secs_f64() * 1e3);
+                }
+                if stats.bytes_loaded > 0 || stats.points_drawn != drawn_before {
+                    last_progress = Instant::now();
+                }
+                drawn_before = stats.points_drawn;
+                // Waiting for completeness ends early only when nothing arrives for `timeout`
+                // (a server that went away): the image shows what there is.
+                let done = if opts.wait_complete {
+                    stats.complete || last_progress.elapsed() > opts.timeout
+                } else if fly_through {
+                    true
+                } else {
+                    stats.complete || frame_start.elapsed() > opts.timeout
+                };
+                if done {
+                    break stats;
+                }
+                renderer.wait_for_loads(Duration::from_millis(20));
             };
-            draw_measurements(&mut canvas, &proj, &opts.measurements);
-        }
-        write_png(&out, w, h, &rgba)?;
-        report.images.push(out.display().to_string());
-        report.frames.push(stats);
-        if fly_through && !opts.wait_complete && opts.fps > 0.0 {
-            let period = Duration::from_secs_f32(1.0 / opts.fps);
-            if let Some(rest) = period.checked_sub(frame_start.elapsed()) {
-                std::thread::sleep(rest);
+            // One more frame after the last load so the timestamps describe the final picture; a
+            // pipeline that builds on the previous frame converges over `warmup` more of the same
+            // view first (each one's measures are kept, so that convergence can be read).
+            let stats = if opts.wait_complete || !fly_through {
+                let warmup = opts.settings.pipeline.warmup_frames(&opts.settings.params);
+                for _ in 0..warmup {
+                    let s = renderer.frame(camera, opts.width, opts.height, &opts.settings)?;
+                    renderer.wait_gpu()?;
+                    let points_drawn = renderer.counted_points_drawn().unwrap_or(s.points_drawn);
+                    report.warmup.push(FrameStats {
+                        points_drawn,
+                        measures: renderer.read_measures()?,
+                        passes: renderer.pass_times(),
+                        ..s
+                    });
+                }
+                let mut s = renderer.frame(camera, opts.width, opts.height, &opts.settings)?;
+                renderer.wait_gpu()?;
+                s.passes = renderer.pass_times();
+                s.points_drawn = renderer.counted_points_drawn().unwrap_or(s.points_drawn);
+                s.bytes_loaded += stats.bytes_loaded;
+                s
+            } else {
+                stats
+            };
+            let stats = FrameStats {
+                measures: renderer.read_measures()?,
+                ..stats
+            };
+            let out = if fly_through {
+                numbered(&opts.output, i)
+            } else {
+                opts.output.clone()
+            };
+            let (w, h, mut rgba) = renderer.read_image()?;
+            if !opts.measurements.items.is_empty() {
+                let proj = ScreenProjector::new(&ds, camera, w, h);
+                let mut canvas = Canvas {
+                    rgba: &mut rgba,
+                    width: w,
+                    height: h,
+                };
+                draw_measurements(&mut canvas, &proj, &opts.measurements);
+            }
+            write_png(&out, w, h, &rgba)?;
+            report.images.push(out.display().to_string());
+            report.frames.push(stats);
+            if fly_through && !opts.wait_complete && opts.fps > 0.0 {
+                let period = Duration::from_secs_f32(1.0 / opts.fps);
+                if let Some(rest) = period.checked_sub(frame_start.elapsed()) {
+                    std::thread::sleep(rest);
+                }
             }
         }
+        Ok(())
+    };
+    if let Err(e) = draw_all(&mut report) {
+        if fly_through {
+            for image in &images {
+                let _ = std::fs::remove_file(image);
+            }
+        }
+        return Err(e);
     }
     report.errors = renderer.errors().to_vec();
     report.fetch_error = renderer.last_fetch_error().map(str::to_string);
