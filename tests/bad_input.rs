@@ -330,6 +330,21 @@ fn existing_output_needs_overwrite() {
             .expect("stats")
             .contains("\"points\"")
     );
+    // An input, or one of the dataset's own files, was written over and the run said ok.
+    let input = dir.path().join("in.las");
+    std::fs::copy(data("autzen_trim.las"), &input).expect("copy");
+    let again = dir.path().join("again");
+    for stats in [input.clone(), again.join("metadata.json")] {
+        common::refused(
+            &["convert", s(&input), "-o", s(&again), "--stats", s(&stats)],
+            &["the --stats file would be written over"],
+        );
+        assert!(!again.exists());
+    }
+    assert_eq!(
+        std::fs::read(&input).expect("read"),
+        std::fs::read(data("autzen_trim.las")).expect("read")
+    );
 }
 
 #[test]

@@ -185,3 +185,57 @@ fn a_task_whose_work_was_removed_stops_the_finish_naming_the_work_folder() {
         &["work files are damaged or missing", "run its tasks again"],
     );
 }
+
+/// A finish into the plan folder removed the dataset with the plan; two finishes of one plan
+/// at once cleared each other's work and one said it had succeeded; a --stats file wrote over
+/// the plan. Each is refused before any work, and the plan is left to finish.
+#[test]
+fn a_finish_that_would_destroy_its_own_work_is_refused() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let plan = plan_run(dir.path());
+    let plan_json = std::fs::read(plan.join("plan.json")).expect("read");
+    refused(
+        &[
+            "convert",
+            "--plan",
+            s(&plan),
+            "--finish",
+            "-o",
+            s(&plan.join("mine")),
+        ],
+        &["lies inside the plan folder"],
+    );
+    refused(
+        &[
+            "convert",
+            "--plan",
+            s(&plan),
+            "--task",
+            "0",
+            "--stats",
+            s(&plan.join("plan.json")),
+        ],
+        &["plan.json: the --stats file would be written over the plan folder"],
+    );
+    // Another process finishing: it holds the plan folder's lock.
+    let held = std::fs::File::open(&plan).expect("open");
+    held.try_lock().expect("lock");
+    finish_fails(&plan, &["is being finished by another process"]);
+    drop(held);
+    assert_eq!(
+        std::fs::read(plan.join("plan.json")).expect("read"),
+        plan_json
+    );
+    let out = dir.path().join("out.strata");
+    run_ok(&[
+        "convert",
+        "--plan",
+        s(&plan),
+        "--finish",
+        "-o",
+        s(&out),
+        "-q",
+    ]);
+    run_ok(&["verify", s(&out)]);
+    assert!(!plan.exists());
+}

@@ -525,10 +525,14 @@ fn render_replaces_only_what_it_wrote() {
             vec!["-o", s(&png), "--stats", s(&meta)],
             "metadata.json: exists and is not render statistics",
         ),
-        // The statistics written over the image they describe.
+        // The statistics written over the image they describe, or the dataset they read.
+        (
+            vec!["-o", s(&png), "--stats", s(&ds.join("metadata.json"))],
+            "metadata.json: exists and is not render statistics",
+        ),
         (
             vec!["-o", s(&png), "--stats", s(&png)],
-            "a.png: is both the image and the --stats file",
+            "a.png: the --stats file would be written over",
         ),
         // Found unwritable only once the image was written.
         (

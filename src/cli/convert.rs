@@ -154,7 +154,9 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
             "--tasks N needs --plan-only PLAN (a conversion as tasks starts with a plan)"
         );
     }
-    super::check_stats_path(&a.stats, a.output.as_deref())?;
+    let plan = a.plan.as_deref().or(a.plan_only.as_deref());
+    let owned: Vec<&Path> = plan.into_iter().collect();
+    super::check_stats_path(&a.stats, a.output.as_deref(), &a.inputs, &owned)?;
     if let Some(plan) = &a.plan {
         return run_plan(plan, &a);
     }
@@ -321,7 +323,7 @@ fn write_stats(
     json: serde_json::Result<String>,
 ) -> anyhow::Result<ExitCode> {
     if let Some(path) = stats {
-        std::fs::write(path, json?).with_context(|| format!("cannot write {}", path.display()))?;
+        super::write_whole(path, json?.as_bytes())?;
     }
     Ok(ExitCode::SUCCESS)
 }

@@ -18,6 +18,7 @@ use anyhow::Context;
 use clap::{Parser, Subcommand};
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
+use strata_format::DatasetFile;
 
 /// Strata: billion-point laser scans on ordinary hardware.
 #[derive(Debug, Parser)]
@@ -96,20 +97,58 @@ pub fn run(cli: Cli) -> anyhow::Result<ExitCode> {
 }
 
 /// Refuses a `--stats` file that cannot be written before the work rather than after
-/// it, by opening it to append (and removing it again if it was not there). A file inside the
-/// output (a dataset), which exists only once the conversion is done, is left to then.
+/// it, by opening it to append (and removing it again if it was not there), or that would be
+/// written over what the command reads or writes: one of the `taken` files (its inputs, its
+/// image), anything inside the `owned` folders (a plan, removed at its finish), or one of the
+/// dataset's own files inside the `output`. Any other file inside the output (a dataset),
+/// which exists only once the conversion is done, is left to then.
 pub(crate) fn check_stats_path(
     stats: &Option<PathBuf>,
     output: Option<&Path>,
+    taken: &[PathBuf],
+    owned: &[&Path],
 ) -> anyhow::Result<()> {
     let Some(path) = stats else {
         return Ok(());
     };
-    let inside = |out: &Path| match (std::path::absolute(path), std::path::absolute(out)) {
-        (Ok(p), Ok(o)) => p.starts_with(o),
-        _ => false,
+    let absolute = |p: &Path| std::path::absolute(p).unwrap_or_else(|_| p.to_path_buf());
+    let inside = |dir: &Path| absolute(path).starts_with(absolute(dir));
+    let refuse = |what: &str| {
+        anyhow::bail!(
+            "{}: the --stats file would be written over {what}; give --stats another name",
+            path.display()
+        )
     };
-    if output.is_some_and(inside) {
+    if let Some(t) = taken.iter().find(|t| same_file(path, t)) {
+        return refuse(&format!(
+            "{}, which this command reads or writes",
+            t.display()
+        ));
+    }
+    if let Some(dir) = owned.iter().find(|d| inside(d)) {
+        return refuse(&format!(
+            "the plan folder {} (removed once the dataset is finished)",
+            dir.display()
+        ));
+    }
+    if let Some(out) = output
+        && inside(out)
+    {
+        let name = path
+            .file_name()
+            .and_then(|n| n.to_str())
+            .unwrap_or_default();
+        let dataset_files = [
+            DatasetFile::Metadata,
+            DatasetFile::Hierarchy,
+            DatasetFile::Octree,
+        ];
+        if absolute(path) == absolute(out) || dataset_files.iter().any(|f| f.name() == name) {
+            return refuse(&format!(
+                "the output {} or one of its own files",
+                out.display()
+            ));
+        }
         return Ok(());
     }
     let existed = std::fs::symlink_metadata(path).is_ok();
@@ -120,6 +159,33 @@ pub(crate) fn check_stats_path(
         .with_context(|| format!("{}: cannot write the --stats file", path.display()))?;
     if !existed {
         let _ = std::fs::remove_file(path);
+    }
+    Ok(())
+}
+
+/// Whether `a` and `b` name the same file: the same path, or (both existing) the same inode
+/// through links.
+fn same_file(a: &Path, b: &Path) -> bool {
+    use std::os::unix::fs::MetadataExt;
+    if std::path::absolute(a).ok() == std::path::absolute(b).ok() {
+        return true;
+    }
+    match (std::fs::metadata(a), std::fs::metadata(b)) {
+        (Ok(x), Ok(y)) => x.dev() == y.dev() && x.ino() == y.ino(),
+        _ => false,
+    }
+}
+
+/// Writes `bytes` to `path` through a temporary name, so that a failed write (a full disk)
+/// leaves no file under the name that looks whole.
+pub(crate) fn write_whole(path: &Path, bytes: &[u8]) -> anyhow::Result<()> {
+    let mut part = path.as_os_str().to_owned();
+    part.push(".part");
+    let part = PathBuf::from(part);
+    let written = std::fs::write(&part, bytes).and_then(|()| std::fs::rename(&part, path));
+    if let Err(e) = written {
+        let _ = std::fs::remove_file(&part);
+        return Err(e).with_context(|| format!("cannot write {}", path.display()));
     }
     Ok(())
 }

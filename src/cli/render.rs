@@ -4,6 +4,7 @@ use std::io::Read;
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 use std::time::Duration;
+use strata_format::DatasetFile;
 use strata_viewer::headless::{RenderOptions, check_png_replaceable, render};
 use strata_viewer::measure::Measurements;
 
@@ -117,15 +118,20 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
     }
     // Before the images are written, not after; and not over the image (the renderer checks a
     // fly-through's frames too, once it knows how many).
-    if a.stats.as_deref().map(std::path::absolute).transpose()?
-        == Some(std::path::absolute(&a.output)?)
-    {
-        anyhow::bail!(
-            "{}: is both the image and the --stats file; give --stats another name",
-            a.output.display()
+    // Neither the image nor the dataset read (a local one) may be written over.
+    let mut taken = vec![a.output.clone()];
+    if !a.dataset.contains("://") {
+        let dir = Path::new(&a.dataset);
+        taken.extend(
+            [
+                DatasetFile::Metadata,
+                DatasetFile::Hierarchy,
+                DatasetFile::Octree,
+            ]
+            .map(|f| dir.join(f.name())),
         );
     }
-    super::check_stats_path(&a.stats, None)?;
+    super::check_stats_path(&a.stats, None, &taken, &[])?;
     let (width, height) = parse_size_wh(&a.size)?;
     let timeout = timeout_of(a.timeout)?;
     // 0: from the path's times at --fps.

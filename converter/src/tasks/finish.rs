@@ -16,7 +16,7 @@ use crate::replace::{Folder, check_output};
 use crate::sys::peak_rss_bytes;
 use crate::uncached::UncachedWriter;
 use crate::workdir::WorkDir;
-use std::fs;
+use std::fs::{self, File, TryLockError};
 use std::ops::Range;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
@@ -31,6 +31,33 @@ pub fn finish_tasks(
     quiet: bool,
 ) -> Result<ConvertSummary> {
     let start = Instant::now();
+    // The plan folder is removed at the end, with anything inside it.
+    let absolute = |p: &Path| std::path::absolute(p).unwrap_or_else(|_| p.to_path_buf());
+    if absolute(output).starts_with(absolute(plan_dir)) {
+        return Err(ConvertError::output(
+            output,
+            format!(
+                "lies inside the plan folder {}, which is removed once the dataset is \
+                 finished; give -o a place outside it",
+                plan_dir.display()
+            ),
+        ));
+    }
+    // Two finishes of one plan would build in the same temporary folder, each clearing what
+    // the other wrote: the second refuses. The lock is on the plan folder itself, held until
+    // the folder is gone, and taken before the plan is read, so a finish that waited finds
+    // no plan rather than half of one.
+    let lock = File::open(plan_dir).map_err(io_err(plan_dir, "cannot open"))?;
+    match lock.try_lock() {
+        Ok(()) => {}
+        Err(TryLockError::WouldBlock) => {
+            return Err(ConvertError::output(
+                plan_dir,
+                "is being finished by another process (it holds the plan's lock)",
+            ));
+        }
+        Err(TryLockError::Error(e)) => return Err(ConvertError::io(plan_dir, "cannot lock", e)),
+    }
     let tp = TaskPlan::load(plan_dir)?;
     let missing: Vec<usize> = (0..tp.tasks.len())
         .filter(|&k| !task_dirs(plan_dir, k).1.is_dir())
@@ -109,6 +136,7 @@ pub fn finish_tasks(
     };
     let plan_bytes = tree_bytes(plan_dir);
     fs::remove_dir_all(plan_dir).map_err(io_err(plan_dir, "cannot remove the finished plan"))?;
+    drop(lock);
     let seconds = start.elapsed().as_secs_f64();
     Ok(ConvertSummary {
         output: output.to_path_buf(),
