@@ -61,6 +61,41 @@ fn classes_and_returns_beyond_the_legacy_bits_export_whole() {
     assert_eq!(got, want);
 }
 
+/// Points of an input without returns, merged with one that has them, were stored as return 0
+/// of 0, which formats 6 and up forbid; alone they export as single returns, and merged too.
+#[test]
+fn points_without_returns_merged_with_returns_are_single_returns() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let (with, without, ds, las) = (
+        dir.path().join("with.ply"),
+        dir.path().join("without.ply"),
+        dir.path().join("ds"),
+        dir.path().join("out.las"),
+    );
+    classed_ply(&with, &[(0.0, 2, 3), (1.0, 2, 2)]);
+    let mut bytes = b"ply\nformat binary_little_endian 1.0\nelement vertex 2\nproperty float x\nproperty float y\nproperty float z\nend_header\n".to_vec();
+    for x in [10.0f32, 11.0] {
+        for v in [x, 0.0, 0.0] {
+            bytes.extend_from_slice(&v.to_le_bytes());
+        }
+    }
+    std::fs::write(&without, bytes).expect("write ply");
+    run_ok(&["convert", s(&with), s(&without), "-o", s(&ds), "-q"]);
+    run_ok(&["export", s(&ds), "-o", s(&las)]);
+    let mut reader = las::Reader::from_path(&las).expect("read export");
+    let mut got: Vec<(i64, u8, u8)> = reader
+        .read_all()
+        .expect("all points")
+        .points()
+        .map(|p| {
+            let p = p.expect("point");
+            (p.x.round() as i64, p.return_number, p.number_of_returns)
+        })
+        .collect();
+    got.sort_unstable();
+    assert_eq!(got, [(0, 3, 3), (1, 2, 2), (10, 1, 1), (11, 1, 1)]);
+}
+
 #[test]
 fn a_class_the_legacy_format_cannot_hold_is_refused_not_cut() {
     // A legacy LAS beside a PLY: the union carries the legacy scan angle rank, so the export

@@ -3,7 +3,7 @@
 //! measuring extents.
 
 use crate::error::{ConvertError, Result};
-use crate::input::{NO_SCANNER, SCANNER, open_source};
+use crate::input::{NO_SCANNER, SCANNER, SourceInfo, open_source};
 use crate::quantize::SourceExtent;
 use crate::rowfile::RowWriter;
 use crate::rows::batch_records;
@@ -180,12 +180,7 @@ pub fn scan(
         // `union_attributes` checked that the indices fit.
         src.set_scanner_base(scanner_base.min(NO_SCANNER as usize) as u16);
         scanner_base += src.info().scanners.len();
-        // Points of an input without scanners say so in a dataset that has them.
-        let no_scanner = if src.info().attributes.iter().any(|a| a.name == SCANNER) {
-            None
-        } else {
-            scanner_at(attributes)
-        };
+        let defaults = defaults_for(src.info(), attributes);
         // (source row offset, staging offset, length) for each attribute this input has.
         let mut copies = Vec::new();
         let mut src_off = 0usize;
@@ -216,9 +211,9 @@ pub fn scan(
             }
             records.clear();
             records.resize(n * stride, 0);
-            if let Some(at) = no_scanner {
+            for (at, bytes) in &defaults {
                 for rec in records.chunks_exact_mut(stride) {
-                    rec[at..at + 2].copy_from_slice(&NO_SCANNER.to_le_bytes());
+                    rec[*at..*at + bytes.len()].copy_from_slice(bytes);
                 }
             }
             for (i, (p, rec)) in xyz.iter().zip(records.chunks_exact_mut(stride)).enumerate() {
@@ -258,16 +253,29 @@ pub fn scan(
     Ok(result)
 }
 
-/// Where a staging record holds the u16 `scanner` attribute, if `attributes` have one.
-fn scanner_at(attributes: &[Attribute]) -> Option<usize> {
+/// The values (staging offset, bytes) that the points of an input without some of the
+/// dataset's attributes take for them where 0 would say something false: no scanner, not
+/// scanner 0; a single return (1 of 1), not return 0, which LAS formats 6 and up forbid, as
+/// an input without returns (a PLY, an E57) converted alone is exported. Every other missing
+/// attribute is 0.
+fn defaults_for(input: &SourceInfo, attributes: &[Attribute]) -> Vec<(usize, Vec<u8>)> {
+    let mut out = Vec::new();
     let mut at = 24;
     for a in attributes {
-        if a.name == SCANNER {
-            return (a.ty == AttrType::U16 && a.count == 1).then_some(at);
+        let missing = !input.attributes.iter().any(|i| i.name == a.name);
+        let single = a.count == 1;
+        match a.name.as_str() {
+            SCANNER if missing && single && a.ty == AttrType::U16 => {
+                out.push((at, NO_SCANNER.to_le_bytes().to_vec()));
+            }
+            "return_number" | "number_of_returns" if missing && single && a.ty == AttrType::U8 => {
+                out.push((at, vec![1]));
+            }
+            _ => {}
         }
         at += a.size();
     }
-    None
+    out
 }
 
 #[inline]
