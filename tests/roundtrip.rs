@@ -291,3 +291,97 @@ fn a_reader_that_stops_early_ends_info_quietly() {
     let stderr = String::from_utf8_lossy(&out.stderr);
     assert!(!stderr.contains("panicked"), "{stderr}");
 }
+
+/// A LAS file of one point in format 1 whose GPS times are `time` (global encoding bit 0).
+fn timed_las(path: &std::path::Path, time: las::GpsTimeType, t: f64) {
+    let mut builder = las::Builder::from((1, 4));
+    builder.point_format = las::point::Format::new(1).expect("format");
+    builder.gps_time_type = time;
+    let header = builder.into_header().expect("header");
+    let mut writer = las::Writer::from_path(path, header).expect("writer");
+    writer
+        .write_point(las::Point {
+            gps_time: Some(t),
+            ..Default::default()
+        })
+        .expect("write");
+    writer.close().expect("close");
+}
+
+/// Adjusted standard GPS times came back labelled GPS week time (global encoding bit 0 was
+/// dropped), and a merge mixed the two time bases without a word.
+#[test]
+fn the_gps_time_base_survives_and_two_are_never_merged() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let (adjusted, week, ds) = (
+        dir.path().join("adjusted.las"),
+        dir.path().join("week.las"),
+        dir.path().join("ds"),
+    );
+    timed_las(&adjusted, las::GpsTimeType::Standard, 3e8);
+    timed_las(&week, las::GpsTimeType::Week, 86400.5);
+    run_ok(&["convert", s(&adjusted), "-o", s(&ds), "-q"]);
+    let info = String::from_utf8_lossy(&run_ok(&["info", s(&ds)]).stdout).to_string();
+    assert!(info.contains("adjusted standard GPS time"), "{info}");
+    for name in ["out.las", "out.laz", "out.copc.laz"] {
+        let out = dir.path().join(name);
+        run_ok(&["export", s(&ds), "-o", s(&out)]);
+        let reader = las::Reader::from_path(&out).expect("read export");
+        assert_eq!(
+            reader.header().gps_time_type(),
+            las::GpsTimeType::Standard,
+            "{name}"
+        );
+    }
+    let week_ds = dir.path().join("week_ds");
+    run_ok(&["convert", s(&week), "-o", s(&week_ds), "-q"]);
+    let out = dir.path().join("week_out.las");
+    run_ok(&["export", s(&week_ds), "-o", s(&out)]);
+    let reader = las::Reader::from_path(&out).expect("read export");
+    assert_eq!(reader.header().gps_time_type(), las::GpsTimeType::Week);
+    refused(
+        &[
+            "convert",
+            s(&adjusted),
+            s(&week),
+            "-o",
+            s(&dir.path().join("mixed")),
+        ],
+        &["week.las: its \"gps_time\" is GPS week time but adjusted standard GPS time in"],
+    );
+}
+
+/// Waveform packets (their descriptors and data) are not kept: said, as the points keep wave
+/// packet fields that then refer to nothing.
+#[test]
+fn waveform_packets_left_behind_are_said() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let (input, ds) = (dir.path().join("wave.las"), dir.path().join("ds"));
+    let mut builder = las::Builder::from((1, 4));
+    builder.point_format = las::point::Format::new(4).expect("format");
+    builder.vlrs.push(las::Vlr {
+        user_id: "LASF_Spec".into(),
+        record_id: 100,
+        description: "wave packet descriptor".into(),
+        data: vec![0; 26],
+    });
+    let header = builder.into_header().expect("header");
+    let mut writer = las::Writer::from_path(&input, header).expect("writer");
+    writer
+        .write_point(las::Point {
+            gps_time: Some(1.0),
+            waveform: Some(las::raw::point::Waveform {
+                wave_packet_descriptor_index: 1,
+                ..Default::default()
+            }),
+            ..Default::default()
+        })
+        .expect("write");
+    writer.close().expect("close");
+    let o = run_ok(&["convert", s(&input), "-o", s(&ds), "-q"]);
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(
+        err.contains("wave.las: its waveform data is not kept"),
+        "{err}"
+    );
+}

@@ -411,7 +411,10 @@ fn finish(
     let mut h = Vec::with_capacity(HEADER_SIZE as usize);
     h.extend_from_slice(b"LASF");
     h.extend_from_slice(&0u16.to_le_bytes()); // file source id
-    h.extend_from_slice(&16u16.to_le_bytes()); // global encoding: WKT, as formats 6+ require
+    // Global encoding: WKT, as formats 6+ require; bit 0 where the GPS times are adjusted
+    // standard time.
+    let adjusted = crate::writers::gps_time_adjusted(&meta.attributes);
+    h.extend_from_slice(&(16u16 | u16::from(adjusted)).to_le_bytes());
     h.extend_from_slice(&[0u8; 16]); // project id
     h.extend_from_slice(&[1, 4]);
     let text = |t: &str| {

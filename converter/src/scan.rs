@@ -9,7 +9,7 @@ use crate::rowfile::RowWriter;
 use crate::rows::batch_records;
 use indicatif::ProgressBar;
 use std::path::{Path, PathBuf};
-use strata_format::{AttrType, Attribute, MAX_ATTRIBUTES};
+use strata_format::{AttrType, Attribute, MAX_ATTRIBUTES, TimeBase};
 
 pub const BATCH: usize = 1 << 18;
 
@@ -76,7 +76,7 @@ pub fn union_attributes(inputs: &[PathBuf], warnings: &mut Vec<String>) -> Resul
             ));
         }
         for a in &src.info().attributes {
-            match union.iter().find(|(u, _)| u.name == a.name) {
+            match union.iter_mut().find(|(u, _)| u.name == a.name) {
                 Some((u, first)) if u.ty != a.ty || u.count != a.count => {
                     return Err(ConvertError::input(
                         path,
@@ -91,7 +91,27 @@ pub fn union_attributes(inputs: &[PathBuf], warnings: &mut Vec<String>) -> Resul
                         ),
                     ));
                 }
+                Some((u, first))
+                    if u.time_base.is_some()
+                        && a.time_base.is_some()
+                        && u.time_base != a.time_base =>
+                {
+                    let name = |t: Option<TimeBase>| t.map_or("", TimeBase::name);
+                    return Err(ConvertError::input(
+                        path,
+                        format!(
+                            "its \"{}\" is {} but {} in {}; one dataset holds one time base, so \
+                             convert them apart or bring their times to one base first",
+                            a.name,
+                            name(a.time_base),
+                            name(u.time_base),
+                            first.display()
+                        ),
+                    ));
+                }
                 Some((u, first)) => {
+                    // An input that does not say (a PLY) takes the others' time base.
+                    u.time_base = u.time_base.or(a.time_base);
                     // The rows keep the raw integers: one scale must hold for every input.
                     let differs = (0..a.count as usize).find(|&c| u.scaling(c) != a.scaling(c));
                     if let Some(c) = differs {

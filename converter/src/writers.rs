@@ -7,7 +7,7 @@ use las::{PointDataBuilder, Transform, Vector, Vlr, Writer};
 use std::fs::File;
 use std::io::{BufWriter, Write};
 use std::path::{Path, PathBuf};
-use strata_format::{AttrType, Crs, RowLayout, row_position};
+use strata_format::{AttrType, Attribute, Crs, RowLayout, TimeBase, row_position};
 
 /// A sink for rows of one layout.
 pub trait RowWriter {
@@ -170,6 +170,13 @@ struct LasRowWriter {
     offset: [f64; 3],
 }
 
+/// Whether `attributes`' `gps_time` is adjusted standard GPS time (LAS global encoding bit 0).
+pub(crate) fn gps_time_adjusted(attributes: &[Attribute]) -> bool {
+    attributes
+        .iter()
+        .any(|a| a.name == "gps_time" && a.time_base == Some(TimeBase::GpsAdjustedStandard))
+}
+
 impl LasRowWriter {
     fn create(
         path: &Path,
@@ -207,6 +214,9 @@ impl LasRowWriter {
             },
         };
         builder.generating_software = format!("strata {}", env!("CARGO_PKG_VERSION"));
+        if gps_time_adjusted(&layout.attributes) {
+            builder.gps_time_type = las::GpsTimeType::Standard;
+        }
         // The CRS where the dataset has one (the point formats 6 to 10 call for WKT; GeoTIFF
         // keys go out as the inputs gave them, there being no conversion here). The global
         // encoding's WKT bit says which a reader takes: the WKT where there is one.

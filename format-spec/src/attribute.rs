@@ -87,6 +87,29 @@ pub struct Attribute {
     /// does not know.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub encoding: Option<String>,
+    /// What a time counts from, where the input said (`gps_time` of a LAS file: its global
+    /// encoding's bit 0). Two time bases never meet in one attribute.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub time_base: Option<TimeBase>,
+}
+
+/// What the values of a time attribute count from (SPEC.md section 4).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum TimeBase {
+    /// Seconds into the GPS week (LAS global encoding bit 0 clear).
+    GpsWeek,
+    /// GPS seconds minus 1e9 (LAS global encoding bit 0 set).
+    GpsAdjustedStandard,
+}
+
+impl TimeBase {
+    pub fn name(self) -> &'static str {
+        match self {
+            TimeBase::GpsWeek => "GPS week time",
+            TimeBase::GpsAdjustedStandard => "adjusted standard GPS time",
+        }
+    }
 }
 
 impl Attribute {
@@ -99,6 +122,7 @@ impl Attribute {
             offset: None,
             description: String::new(),
             encoding: None,
+            time_base: None,
         }
     }
 

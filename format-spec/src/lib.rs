@@ -20,7 +20,8 @@ pub mod v1_0;
 mod verify;
 
 pub use attribute::{
-    AttrType, Attribute, MAX_ATTRIBUTES, OCT16, RowLayout, oct16_decode, oct16_encode, row_position,
+    AttrType, Attribute, MAX_ATTRIBUTES, OCT16, RowLayout, TimeBase, oct16_decode, oct16_encode,
+    row_position,
 };
 pub use dataset::{
     DatasetFile, LocalDataset, METADATA_MAX_BYTES, open_regular, read_metadata_file,

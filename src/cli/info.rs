@@ -29,6 +29,9 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
                 if let Some(e) = &at.encoding {
                     v["encoding"] = e.as_str().into();
                 }
+                if let Some(t) = at.time_base {
+                    v["time_base"] = serde_json::to_value(t).unwrap_or_default();
+                }
                 v
             })
             .collect();
@@ -92,6 +95,9 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
         };
         if let Some(e) = &at.encoding {
             shape.push_str(&format!(" ({e})"));
+        }
+        if let Some(t) = at.time_base {
+            shape.push_str(&format!(" ({})", t.name()));
         }
         println!("  {:<30} {shape}", at.name);
     }

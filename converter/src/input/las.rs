@@ -7,6 +7,7 @@ use las::{PointData, PointDataBuilder, Reader};
 use std::fs::File;
 use std::io::BufReader;
 use std::path::Path;
+use strata_format::TimeBase;
 
 /// LAS 1.0-1.4, point formats 0-10, plain or LAZ-compressed (decompressed in parallel).
 pub struct LasSource {
@@ -71,11 +72,31 @@ impl LasSource {
             .map(|v| v.data.as_slice());
         let mut extra = parse_extra_bytes(eb_vlr, format.extra_bytes as usize)
             .map_err(|e| ConvertError::input(path, e))?;
-        let warnings = rename_clashes(format_number, &mut extra)
+        let mut warnings: Vec<String> = rename_clashes(format_number, &mut extra)
             .into_iter()
             .map(|w| format!("{}: {w}", path.display()))
             .collect();
-        let (attributes, ops, std_len) = las_fields(format_number, &extra);
+        let (mut attributes, ops, std_len) = las_fields(format_number, &extra);
+        // GPS times count from one of two origins, said once for the file.
+        let time_base = if header.gps_time_type().is_standard() {
+            TimeBase::GpsAdjustedStandard
+        } else {
+            TimeBase::GpsWeek
+        };
+        for a in attributes.iter_mut().filter(|a| a.name == "gps_time") {
+            a.time_base = Some(time_base);
+        }
+        // The waveforms themselves (descriptor VLRs, the data record or file) are not read.
+        let waveforms = header.vlrs().iter().chain(header.evlrs()).any(|v| {
+            v.user_id == "LASF_Spec" && ((100..355).contains(&v.record_id) || v.record_id == 65535)
+        });
+        if matches!(format_number, 4 | 5 | 9 | 10) && waveforms {
+            warnings.push(format!(
+                "{}: its waveform data is not kept (the points keep their wave packet fields, \
+                 which then refer to waveforms the output does not hold)",
+                path.display()
+            ));
+        }
         if std_len != record_len {
             return Err(ConvertError::input(
                 path,
