@@ -518,3 +518,61 @@ fn the_inputs_crs_goes_back_out_with_every_export() {
     let wkt = String::from_utf8_lossy(&trimmed(&stated)[0].1).into_owned();
     assert_eq!(meta["projection"], wkt.as_str());
 }
+
+/// A u64 extra attribute went out to PLY as a double, rounded without a word (2^53 + 1 read
+/// back as 2^53); it is refused there, naming the value, and kept whole in LAS.
+#[test]
+fn a_64_bit_integer_a_ply_double_cannot_hold_is_refused() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let (input, ds) = (dir.path().join("serial.las"), dir.path().join("ds"));
+    let mut eb = vec![0u8; 192];
+    eb[2] = 7; // data type: u64
+    eb[4..10].copy_from_slice(b"serial");
+    let mut builder = las::Builder::from((1, 4));
+    builder.point_format = las::point::Format::new(1).expect("format");
+    builder.point_format.extra_bytes = 8;
+    builder.vlrs.push(las::Vlr {
+        user_id: "LASF_Spec".into(),
+        record_id: 4,
+        description: "Extra Bytes Record".into(),
+        data: eb,
+    });
+    let header = builder.into_header().expect("header");
+    let mut writer = las::Writer::from_path(&input, header).expect("writer");
+    let big = (1u64 << 53) + 1;
+    for (i, serial) in [12345u64, big].into_iter().enumerate() {
+        writer
+            .write_point(las::Point {
+                x: i as f64,
+                gps_time: Some(0.0),
+                extra_bytes: serial.to_le_bytes().to_vec(),
+                ..Default::default()
+            })
+            .expect("write");
+    }
+    writer.close().expect("close");
+    run_ok(&["convert", s(&input), "-o", s(&ds), "-q"]);
+    let ply = dir.path().join("out.ply");
+    refused(
+        &["export", s(&ds), "-o", s(&ply)],
+        &[
+            "attribute \"serial\" holds 9007199254740993",
+            "export to .las",
+        ],
+    );
+    assert!(!ply.exists());
+    let las_out = dir.path().join("out.las");
+    run_ok(&["export", s(&ds), "-o", s(&las_out)]);
+    let mut reader = las::Reader::from_path(&las_out).expect("read export");
+    let mut serials: Vec<u64> = reader
+        .read_all()
+        .expect("all points")
+        .points()
+        .map(|p| {
+            let e = p.expect("point").extra_bytes;
+            u64::from_le_bytes(e[..8].try_into().expect("8 bytes"))
+        })
+        .collect();
+    serials.sort_unstable();
+    assert_eq!(serials, [12345, big]);
+}
