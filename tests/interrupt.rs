@@ -41,24 +41,9 @@ fn kill_9_then_resume(extra: &[&str]) {
     run_ok(&args(&clean).iter().map(String::as_str).collect::<Vec<_>>());
 
     let out = dir.path().join("ds");
-    let journal = dir.path().join("ds.strata-tmp/work/journal.jsonl");
-    let mut child = strata().args(args(&out)).spawn().expect("spawn");
-    let start = Instant::now();
-    // Kill once at least one chunk has been committed.
-    loop {
-        let lines = std::fs::read_to_string(&journal)
-            .map(|t| t.lines().count())
-            .unwrap_or(0);
-        if lines >= 1 || start.elapsed() > Duration::from_secs(60) {
-            break;
-        }
-        std::thread::sleep(Duration::from_millis(2));
-    }
-    child.kill().expect("kill -9");
-    let status = child.wait().expect("wait");
-    assert!(
-        !status.success(),
-        "the run was meant to be interrupted before it finished"
+    kill_after_a_chunk(
+        &args(&out),
+        &dir.path().join("ds.strata-tmp/work/journal.jsonl"),
     );
     assert!(
         !out.exists(),
@@ -85,4 +70,71 @@ fn kill_9_then_resume(extra: &[&str]) {
             "{f} differs from the clean run"
         );
     }
+}
+
+/// Runs strata with `args` and kills it (SIGKILL) once `journal` lists a committed chunk.
+fn kill_after_a_chunk(args: &[String], journal: &std::path::Path) {
+    let mut child = strata().args(args).spawn().expect("spawn");
+    let start = Instant::now();
+    loop {
+        let lines = std::fs::read_to_string(journal)
+            .map(|t| t.lines().count())
+            .unwrap_or(0);
+        if lines >= 1 || start.elapsed() > Duration::from_secs(60) {
+            break;
+        }
+        std::thread::sleep(Duration::from_millis(2));
+    }
+    child.kill().expect("kill -9");
+    let status = child.wait().expect("wait");
+    assert!(
+        !status.success(),
+        "the run was meant to be interrupted before it finished"
+    );
+}
+
+/// `--format potree2` killed in its export (the Strata dataset on the way whole), run again and
+/// killed in its conversion: --resume refused, naming the hidden dataset as an existing
+/// output, however often it was run.
+#[test]
+fn a_potree2_conversion_killed_twice_resumes() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let las = dir.path().join("city.las");
+    run_ok(&["synth", "--points", "1500000", "-o", s(&las)]);
+    let args = |out: &std::path::Path, more: &[&str]| -> Vec<String> {
+        [
+            "convert",
+            s(&las),
+            "-o",
+            s(out),
+            "--memory-limit",
+            "64MiB",
+            "--threads",
+            "1",
+            "-q",
+        ]
+        .iter()
+        .chain(more)
+        .map(|a| a.to_string())
+        .collect()
+    };
+    let run_owned = |v: Vec<String>| run_ok(&v.iter().map(String::as_str).collect::<Vec<_>>());
+    let clean = dir.path().join("clean");
+    run_owned(args(&clean, &["--format", "potree2"]));
+    let out = dir.path().join("pt");
+    let hidden = dir.path().join(".pt.strata-for-potree2");
+    run_owned(args(&hidden, &[]));
+    kill_after_a_chunk(
+        &args(&out, &["--format", "potree2"]),
+        &dir.path()
+            .join(".pt.strata-for-potree2.strata-tmp/work/journal.jsonl"),
+    );
+    run_owned(args(&out, &["--format", "potree2", "--resume"]));
+    for f in ["octree.bin", "hierarchy.bin"] {
+        assert!(
+            std::fs::read(out.join(f)).ok() == std::fs::read(clean.join(f)).ok(),
+            "{f} differs from the clean run"
+        );
+    }
+    assert!(!hidden.exists());
 }

@@ -227,7 +227,10 @@ fn convert_to_potree2(
     // was interrupted) is built again, as there is nothing to resume.
     let work = strata_converter::workdir::WorkDir::new(&source, opts.temp_dir.as_deref());
     opts.resume &= work.plan().exists();
-    opts.overwrite = !opts.resume;
+    // The hidden source is this command's own: one left by an earlier run, whole or not, is
+    // replaced (a resumed run replaces it at its end too; refusing it left a run killed twice
+    // that no --resume could continue).
+    opts.overwrite = true;
     let summary = convert_with(&opts, step)?;
     let exported = strata_converter::potree2::export_potree2(&source, &output, replace);
     std::fs::remove_dir_all(&source)
