@@ -109,6 +109,20 @@ fn an_edited_plan_is_refused_naming_plan_json_and_the_field() {
             Box::new(|v| v["threads"] = json!(1u64 << 40)),
             vec!["\"threads\" is 1099511627776"],
         ),
+        // Attributes cut short, of no size, or of another type: two panics, and rows read as
+        // another type without a word.
+        (
+            Box::new(|v| v["plan"]["attributes"] = json!([v["plan"]["attributes"][0].clone()])),
+            vec!["its \"attributes\" are not those its inputs"],
+        ),
+        (
+            Box::new(|v| v["plan"]["attributes"][0]["count"] = json!(0)),
+            vec!["its \"attributes\" are not those its inputs"],
+        ),
+        (
+            Box::new(|v| v["plan"]["attributes"][0]["type"] = json!("i16")),
+            vec!["its \"attributes\" are not those its inputs"],
+        ),
     ];
     for (edit, expect) in &cases {
         edited(edit.as_ref());
@@ -238,4 +252,19 @@ fn a_finish_that_would_destroy_its_own_work_is_refused() {
     ]);
     run_ok(&["verify", s(&out)]);
     assert!(!plan.exists());
+}
+
+/// A share's class counts edited after it ran: the finish said ok and the dataset stated
+/// classes its points do not have.
+#[test]
+fn class_counts_that_do_not_add_up_stop_the_finish() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let plan = plan_run(dir.path());
+    let counts = plan.join("shares/0/counts.json");
+    let mut v: Value =
+        serde_json::from_slice(&std::fs::read(&counts).expect("read")).expect("JSON");
+    let first = v["classes"][0].as_u64().expect("count");
+    v["classes"][0] = json!(first + 7);
+    std::fs::write(&counts, serde_json::to_vec(&v).expect("JSON")).expect("write");
+    finish_fails(&plan, &["class counts add up to", "not the plan's 300000"]);
 }

@@ -270,6 +270,18 @@ impl TaskPlan {
                 ),
             });
         }
+        // The rows are read by these attributes, the inputs' own and the step's: edited, the
+        // inputs' bytes would be cut wrongly or read as another type.
+        let mut expected = crate::scan::union_attributes(&self.inputs, &mut Vec::new())?.attributes;
+        let added = step.attributes(&expected)?;
+        expected.extend(added);
+        if expected != self.plan.attributes {
+            return Err(ConvertError::input(
+                plan_file(plan_dir),
+                "its \"attributes\" are not those its inputs and options give (the plan was \
+                 edited); make the plan again",
+            ));
+        }
         Ok(step)
     }
 

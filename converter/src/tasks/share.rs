@@ -232,9 +232,28 @@ pub(crate) fn share_classes(tp: &TaskPlan, plan_dir: &Path) -> Result<[u64; 256]
         let counts: ShareCounts = serde_json::from_slice(&bytes).map_err(|e| {
             ConvertError::input(&path, format!("the share's counts do not parse ({e})"))
         })?;
-        for (t, c) in total.iter_mut().zip(&counts.classes) {
-            *t += c;
+        if counts.classes.len() > total.len() {
+            return Err(ConvertError::input(
+                &path,
+                format!("counts {} classes; there are 256", counts.classes.len()),
+            ));
         }
+        for (t, c) in total.iter_mut().zip(&counts.classes) {
+            *t = t.saturating_add(*c);
+        }
+    }
+    // Each point is counted in one class: counts that do not add up to the plan's points were
+    // edited or damaged, and the dataset would state them.
+    let sum = total.iter().fold(0u64, |a, &c| a.saturating_add(c));
+    if tp.class_at.is_some() && sum != tp.plan.points {
+        return Err(ConvertError::input(
+            shares_dir(plan_dir),
+            format!(
+                "the shares' class counts add up to {sum} points, not the plan's {}; make the \
+                 plan again",
+                tp.plan.points
+            ),
+        ));
     }
     Ok(total)
 }
