@@ -5,7 +5,7 @@
 
 mod common;
 
-use common::{las_points, s};
+use common::{las_points, run_ok, s};
 
 #[test]
 fn the_las_crate_reads_every_point_of_the_copc_file_back() {
@@ -303,4 +303,40 @@ fn a_laz_whose_chunk_table_ends_with_an_empty_chunk_converts() {
                 .expect("json");
         assert_eq!(meta["points"], n);
     }
+}
+
+/// A CRS given only as GeoTIFF keys vanished from COPC (which states a CRS as WKT) without a
+/// word; a legacy LAS keeps the keys and says nothing.
+#[test]
+fn a_crs_copc_cannot_state_is_said() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let (input, ds) = (dir.path().join("geotiff.las"), dir.path().join("ds"));
+    // GeoKeyDirectory 1.1.0 with one key: ProjectedCSTypeGeoKey (3072) = EPSG 2994.
+    let keys: Vec<u8> = [1u16, 1, 0, 1, 3072, 0, 1, 2994]
+        .iter()
+        .flat_map(|k| k.to_le_bytes())
+        .collect();
+    let mut builder = las::Builder::from((1, 2));
+    builder.vlrs.push(las::Vlr {
+        user_id: "LASF_Projection".into(),
+        record_id: 34735,
+        description: "GeoKeyDirectoryTag".into(),
+        data: keys,
+    });
+    let header = builder.into_header().expect("header");
+    let mut writer = las::Writer::from_path(&input, header).expect("writer");
+    writer.write_point(las::Point::default()).expect("write");
+    writer.close().expect("close");
+    run_ok(&["convert", s(&input), "-o", s(&ds), "-q"]);
+    let said = |out: &str| {
+        let o = run_ok(&["export", s(&ds), "-o", s(&dir.path().join(out))]);
+        String::from_utf8_lossy(&o.stderr).to_string()
+    };
+    let copc = said("out.copc.laz");
+    assert!(
+        copc.contains("GeoTIFF keys only, and COPC states one as WKT"),
+        "{copc}"
+    );
+    let las = said("out.las");
+    assert!(!las.contains("warning"), "{las}");
 }

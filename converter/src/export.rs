@@ -68,6 +68,47 @@ pub fn export(dataset: &Path, output: &Path, overwrite: bool) -> Result<u64> {
     write_then_finish(writer, output, write_all)
 }
 
+/// What the output cannot state of the dataset's coordinate reference system, to be said: one
+/// given as GeoTIFF keys only, where the output states a CRS as WKT alone (COPC, Potree 2.0,
+/// LAS point formats 6 to 10). Strata does not translate GeoTIFF keys into WKT.
+pub fn crs_loss(dataset: &Path, output: &Path, potree2: bool) -> Result<Option<String>> {
+    let ds = LocalDataset::open(dataset)?;
+    let meta = ds.metadata();
+    if !meta
+        .crs
+        .as_ref()
+        .is_some_and(|c| c.wkt.is_none() && c.geotiff.is_some())
+    {
+        return Ok(None);
+    }
+    let ext = output
+        .extension()
+        .and_then(|e| e.to_str())
+        .map(str::to_ascii_lowercase);
+    let lost = if potree2 {
+        Some("Potree 2.0 states one as WKT, so the output states none".to_string())
+    } else if is_copc(output) {
+        Some("COPC states one as WKT, so the output states none".to_string())
+    } else if matches!(ext.as_deref(), Some("las" | "laz")) {
+        let format = crate::writers::las_format_for(&widened(ds.layout()).layout);
+        (format >= 6).then(|| {
+            format!(
+                "point format {format} states one as WKT; the output carries the GeoTIFF keys, \
+                 which readers that follow the format ignore"
+            )
+        })
+    } else {
+        None
+    };
+    Ok(lost.map(|lost| {
+        format!(
+            "{}: the dataset's coordinate reference system is given as GeoTIFF keys only, and \
+             {lost} (strata does not translate GeoTIFF keys into WKT)",
+            output.display()
+        )
+    }))
+}
+
 /// Refuses a node whose coordinates the metadata's scale and offset make non-finite: a scale
 /// that passes every check of its own may still overflow the coordinates it multiplies (1e308),
 /// and written out they would all read infinite.

@@ -123,7 +123,7 @@ pub fn open_writer(
 }
 
 /// The LAS point format that holds a layout's attributes best.
-fn las_format_for(layout: &RowLayout) -> u8 {
+pub(crate) fn las_format_for(layout: &RowLayout) -> u8 {
     let has = |n: &str| layout.index_of(n).is_some();
     let rgb = layout
         .index_of("rgb")

@@ -25,6 +25,10 @@ pub enum ExportFormat {
 }
 
 pub fn run(a: Args) -> anyhow::Result<ExitCode> {
+    let potree2 = a.format == Some(ExportFormat::Potree2);
+    if let Some(w) = strata_converter::export::crs_loss(&a.dataset, &a.output, potree2)? {
+        eprintln!("warning: {w}");
+    }
     match a.format {
         Some(ExportFormat::Potree2) => {
             let s = strata_converter::potree2::export_potree2(&a.dataset, &a.output, a.overwrite)?;
