@@ -1,6 +1,7 @@
 //! The `filters` pipeline (paper 004) on spheres whose outline and layers are known exactly:
 //! it closes the holes `points` leaves without growing past the outline, back faces are culled
-//! in the projection and in every peel, the layers blend front to back with the opacities
+//! in the projection (past a margin, as fitted normals lean off a face at its edges) and
+//! strictly in every peel, the layers blend front to back with the opacities
 //! (per class too), and without normals it says so and peels back faces as layers.
 
 use super::*;
@@ -429,4 +430,61 @@ fn the_occluded_fill_closes_a_wall_s_holes_with_the_wall_not_what_stands_before_
         far < 0.01 * all,
         "{far} pixels show the far plane through the wall"
     );
+}
+
+/// Two squares facing the camera, their points' normals leaning away: the left one's 15° past
+/// grazing (as a normal fitted across an edge, or a mesh's interpolated at a sharp corner,
+/// leans off a visible face), the right one's straight away.
+fn leaning() -> &'static Path {
+    static CELL: OnceLock<PathBuf> = OnceLock::new();
+    CELL.get_or_init(|| {
+        let dir = common::fresh_dir("render-filters-leaning");
+        let ply = dir.join("leaning.ply");
+        let (mut points, mut normals) = (Vec::new(), Vec::new());
+        let tilt = 15f32.to_radians();
+        for (x0, normal) in [
+            (-0.9, [0.0, tilt.sin(), tilt.cos()]),
+            (0.1, [0.0, 1.0, 0.0]),
+        ] {
+            for i in 0..200 {
+                for k in 0..200 {
+                    let x = x0 + 0.8 * (i as f64 + 0.5) / 200.0;
+                    let z = -0.4 + 0.8 * (k as f64 + 0.5) / 200.0;
+                    points.push(([x, 0.0, z], OUTER));
+                    normals.push(normal);
+                }
+            }
+        }
+        common::write_coloured_ply(&ply, &points, Some(&normals));
+        let ds = dir.join("leaning.strata");
+        common::run_ok(&["convert", s(&ply), "-o", s(&ds), "--quiet"]);
+        ds
+    })
+}
+
+/// A visible face whose normals lean a little past grazing was culled whole (a strip along
+/// every sharp edge of a building or a box); one that turns clearly away still is, and the
+/// peels still cull strictly.
+#[test]
+fn points_leaning_a_little_past_grazing_are_drawn_and_back_faces_are_not() {
+    let opaque = shot(leaning(), "filters", &[]);
+    let share = |x0: u32, x1: u32| {
+        let (mut n, mut covered) = (0, 0);
+        for y in H / 2 - 20..H / 2 + 20 {
+            for x in x0..x1 {
+                n += 1;
+                covered += usize::from(opaque.covered[(y * W + x) as usize]);
+            }
+        }
+        covered as f64 / n as f64
+    };
+    // The squares' middles: a third and two thirds across.
+    let (left, right) = (
+        share(W / 3 - 20, W / 3 + 20),
+        share(2 * W / 3 - 20, 2 * W / 3 + 20),
+    );
+    assert!(left > 0.99, "the leaning face is {left:.3} covered");
+    assert!(right < 0.01, "the face turned away is {right:.3} covered");
+    let peeled = shot(leaning(), "filters", &["layers=2"]);
+    assert_eq!(peeled.measures[LAYERS_USED], 1.0, "{:?}", peeled.measures);
 }

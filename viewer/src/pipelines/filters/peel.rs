@@ -33,7 +33,13 @@ pub fn shaders(int64: bool) -> Vec<ShaderSource> {
             parts.extend(reach.then_some(REACH_FLAT_WGSL));
         }
         parts.push(PROJECT_WGSL);
-        ShaderSource::new(label, &parts)
+        let source = ShaderSource::new(label, &parts);
+        // A back face spared at the margin would come back as a layer of its own.
+        if cull {
+            source.with_constant("BACK_FACE_MARGIN", 0.0)
+        } else {
+            source
+        }
     };
     let mut v = vec![
         peel("peel depth", PEEL_DEPTH_WGSL, false),
