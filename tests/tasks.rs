@@ -439,3 +439,45 @@ fn contradictory_options_are_refused_in_one_sentence() {
     );
     assert!(!plan.join("tasks/1").exists());
 }
+
+/// A `--plan-only` killed part way left a folder no rerun could replace, with or without
+/// `--overwrite` (it held no plan.json, so it was not taken for a plan): a batch engine's
+/// retry failed every time. The same command now replaces it.
+#[test]
+fn a_plan_only_killed_part_way_is_replaced_by_its_retry() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let inputs = [synth(dir.path(), "a.las", "1000000", "3")];
+    let plan = dir.path().join("plan");
+    let cmd = args(
+        &["convert", "--plan-only", s(&plan), "--tasks", "2"],
+        &inputs,
+        &[],
+    );
+    let mut child = strata().args(&cmd).spawn().expect("spawn");
+    let start = Instant::now();
+    while !plan.join("plan.unfinished").exists()
+        && child.try_wait().ok().flatten().is_none()
+        && start.elapsed() < Duration::from_secs(60)
+    {
+        std::thread::sleep(Duration::from_millis(1));
+    }
+    child.kill().expect("kill -9");
+    let _ = child.wait();
+    if !plan.join("plan.json").exists() {
+        assert!(plan.join("plan.unfinished").exists());
+    }
+    run_ok(&cmd);
+    assert!(plan.join("plan.json").is_file() && !plan.join("plan.unfinished").exists());
+    // A folder of anything else is still refused, --overwrite or not.
+    let other = dir.path().join("other");
+    std::fs::create_dir_all(other.join("staging")).expect("dir");
+    std::fs::write(other.join("notes.txt"), b"mine").expect("write");
+    refused(
+        &args(
+            &["convert", "--plan-only", s(&other), "--tasks", "2"],
+            &inputs,
+            &["--overwrite"],
+        ),
+        &["notes.txt"],
+    );
+}

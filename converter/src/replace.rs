@@ -7,6 +7,11 @@ use crate::error::{ConvertError, Result};
 use std::fs;
 use std::path::Path;
 
+/// The file a `--plan-only` writes into its folder before anything else and removes once its
+/// `plan.json` is written: a plan folder holding it and no `plan.json` is one whose making
+/// stopped part way, of no use to anyone.
+pub const UNFINISHED_PLAN: &str = "plan.unfinished";
+
 /// The kind of folder an output is.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Folder {
@@ -36,7 +41,7 @@ impl Folder {
                 is_file && (FILES.contains(&base) || CLUTTER.contains(&name))
             }
             Folder::Plan => match name {
-                "plan.json" => is_file,
+                "plan.json" | UNFINISHED_PLAN => is_file,
                 "shares" | "staging" | "tasks" => !is_file,
                 _ => false,
             },
@@ -49,6 +54,12 @@ impl Folder {
             Folder::Dataset => "metadata.json",
             Folder::Plan => "plan.json",
         }
+    }
+
+    /// Whether `name` marks a folder of the kind as Strata's: its marker, or for a plan the
+    /// file a `--plan-only` writes first and removes once `plan.json` is there.
+    fn is_marker(self, name: &str) -> bool {
+        name == self.marker() || (self == Folder::Plan && name == UNFINISHED_PLAN)
     }
 
     fn name(self) -> &'static str {
@@ -133,7 +144,7 @@ pub fn check_output(output: &Path, overwrite: bool, kind: Folder) -> Result<()> 
                 kind.name()
             )));
         }
-        marked |= name == kind.marker();
+        marked |= kind.is_marker(&name.to_string_lossy());
         empty = false;
     }
     if !empty && !marked {

@@ -33,7 +33,7 @@ use crate::normals::{NormalOptions, NormalStep};
 use crate::plan::check_chunks;
 use crate::prepare::{Plan, count_and_plan};
 use crate::progress::{Phases, Progress};
-use crate::replace::{Folder, check_output};
+use crate::replace::{Folder, UNFINISHED_PLAN, check_output};
 use crate::rows::{RecordToRow, RowInput};
 use crate::sampling::Sampling;
 use crate::workdir::WorkDir;
@@ -371,7 +371,10 @@ pub fn plan_tasks(
     }
     let plan_dir = std::path::absolute(&opts.output)
         .map_err(io_err(&opts.output, "cannot resolve the plan folder"))?;
-    check_output(&plan_dir, opts.overwrite, Folder::Plan)?;
+    // A plan whose making stopped part way (killed, a full disk) holds nothing of use: a
+    // batch engine's retry of the same command replaces it.
+    let unfinished = plan_dir.join(UNFINISHED_PLAN).is_file() && !plan_file(&plan_dir).exists();
+    check_output(&plan_dir, opts.overwrite || unfinished, Folder::Plan)?;
     let mut inputs = Vec::new();
     for input in &opts.inputs {
         if !input.is_file() {
@@ -419,6 +422,9 @@ fn write_plan(
 ) -> Result<(Plan, Vec<u64>)> {
     let step = step_for(&normals)?;
     let wd = WorkDir::at(plan_dir.to_path_buf(), plan_dir.join("staging"));
+    fs::create_dir_all(plan_dir).map_err(io_err(plan_dir, "cannot create the plan folder"))?;
+    let unfinished = plan_dir.join(UNFINISHED_PLAN);
+    fs::write(&unfinished, b"").map_err(io_err(&unfinished, "cannot write"))?;
     for dir in [wd.work().to_path_buf(), plan_dir.join("tasks")] {
         fs::create_dir_all(&dir).map_err(io_err(&dir, "cannot create the plan folder"))?;
     }
@@ -478,6 +484,7 @@ fn write_plan(
         .map_err(|e| ConvertError::internal("writing the plan", e.to_string()))?;
     fs::write(&part, text).map_err(io_err(&part, "cannot write"))?;
     fs::rename(&part, &path).map_err(io_err(&path, "cannot write"))?;
+    fs::remove_file(&unfinished).map_err(io_err(&unfinished, "cannot remove"))?;
     Ok((tp.plan, per_task))
 }
 
