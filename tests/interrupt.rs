@@ -118,18 +118,17 @@ fn a_potree2_conversion_killed_twice_resumes() {
         .map(|a| a.to_string())
         .collect()
     };
-    let run_owned = |v: Vec<String>| run_ok(&v.iter().map(String::as_str).collect::<Vec<_>>());
     let clean = dir.path().join("clean");
-    run_owned(args(&clean, &["--format", "potree2"]));
+    run_ok(&strs(&args(&clean, &["--format", "potree2"])));
     let out = dir.path().join("pt");
     let hidden = dir.path().join(".pt.strata-for-potree2");
-    run_owned(args(&hidden, &[]));
+    run_ok(&strs(&args(&hidden, &[])));
     kill_after_a_chunk(
         &args(&out, &["--format", "potree2"]),
         &dir.path()
             .join(".pt.strata-for-potree2.strata-tmp/work/journal.jsonl"),
     );
-    run_owned(args(&out, &["--format", "potree2", "--resume"]));
+    run_ok(&strs(&args(&out, &["--format", "potree2", "--resume"])));
     for f in ["octree.bin", "hierarchy.bin"] {
         assert!(
             std::fs::read(out.join(f)).ok() == std::fs::read(clean.join(f)).ok(),
@@ -137,4 +136,63 @@ fn a_potree2_conversion_killed_twice_resumes() {
         );
     }
     assert!(!hidden.exists());
+}
+
+/// A run killed with its work files under --temp-dir, resumed without it: it started over
+/// without a word and left the work files behind; it now says where they are, and the resume
+/// given the same --temp-dir continues, to the same bytes.
+#[test]
+fn a_resume_without_the_temp_dir_it_needs_says_where_the_work_is() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let las = dir.path().join("city.las");
+    run_ok(&["synth", "--points", "1500000", "-o", s(&las)]);
+    let temp = dir.path().join("scratch");
+    std::fs::create_dir_all(&temp).expect("dir");
+    let args = |out: &std::path::Path, more: &[&str]| -> Vec<String> {
+        [
+            "convert",
+            s(&las),
+            "-o",
+            s(out),
+            "--memory-limit",
+            "64MiB",
+            "--threads",
+            "1",
+            "-q",
+        ]
+        .iter()
+        .chain(more)
+        .map(|a| a.to_string())
+        .collect()
+    };
+    let clean = dir.path().join("clean");
+    run_ok(&strs(&args(&clean, &[])));
+    let out = dir.path().join("ds");
+    kill_after_a_chunk(
+        &args(&out, &["--temp-dir", s(&temp)]),
+        &temp.join("ds.strata-work/journal.jsonl"),
+    );
+    common::refused(
+        &strs(&args(&out, &["--resume"])),
+        &[
+            "the interrupted run kept its work files in",
+            "ds.strata-work",
+        ],
+    );
+    let stats = dir.path().join("stats.json");
+    run_ok(&strs(&args(
+        &out,
+        &["--resume", "--temp-dir", s(&temp), "--stats", s(&stats)],
+    )));
+    let st: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(&stats).expect("stats")).expect("json");
+    assert!(st["resumed_chunks"].as_u64().unwrap_or(0) >= 1, "{st}");
+    assert!(
+        std::fs::read(out.join("octree.bin")).ok() == std::fs::read(clean.join("octree.bin")).ok()
+    );
+    assert!(!temp.join("ds.strata-work").exists());
+}
+
+fn strs(v: &[String]) -> Vec<&str> {
+    v.iter().map(String::as_str).collect()
 }

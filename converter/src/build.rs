@@ -87,8 +87,9 @@ pub fn convert_with(opts: &ConvertOptions, step: &dyn ChunkStep) -> Result<Conve
     }
     let watch = PeakWatch::start(watched);
     let result = run(opts, &wd, threads, step, &watch);
-    // Once the plan is saved the work directory is worth keeping for --resume.
-    if result.is_err() && !wd.plan().exists() {
+    // Once the plan is saved the work directory is worth keeping for --resume (this run's,
+    // or an earlier one's under another --temp-dir).
+    if result.is_err() && !wd.plan().exists() && wd.plan_elsewhere().is_none() {
         wd.remove_all();
     }
     result

@@ -134,6 +134,21 @@ pub fn resumable_plan(opts: &ConvertOptions, wd: &WorkDir, fp: &str) -> Result<O
         .ok()
         .and_then(|b| serde_json::from_slice::<Plan>(&b).ok())
     else {
+        // Starting over would clear the output's folder and leave the work files behind.
+        if let Some(work) = wd.plan_elsewhere() {
+            return Err(ConvertError::Usage(format!(
+                "the interrupted run kept its work files in {}: resume with the --temp-dir it \
+                 was given ({}), or run without --resume to start over",
+                work.display(),
+                work.parent().map_or("none".into(), |p| {
+                    if p == wd.root() {
+                        "none".to_string()
+                    } else {
+                        p.display().to_string()
+                    }
+                })
+            )));
+        }
         return Ok(None);
     };
     // Written by the run, but a file on disk all the same: what sizes tables is checked.

@@ -182,6 +182,18 @@ impl WorkDir {
 
     /// An empty work directory, clearing what an earlier run left.
     pub fn create_fresh(&self) -> Result<()> {
+        // An earlier run's work files under another --temp-dir go too: nothing would resume
+        // them once the root is cleared. Only a folder named as this writes them is removed.
+        if let Ok(named) = fs::read(self.work_note()) {
+            let old = PathBuf::from(String::from_utf8_lossy(&named).into_owned());
+            let ours = old
+                .file_name()
+                .is_some_and(|n| n.to_string_lossy().ends_with(".strata-work"));
+            if ours && old != self.work && old.is_dir() {
+                fs::remove_dir_all(&old)
+                    .map_err(io_err(&old, "cannot clear old work directory"))?;
+            }
+        }
         for dir in [&self.root, &self.work] {
             if dir.exists() {
                 fs::remove_dir_all(dir).map_err(io_err(dir, "cannot clear old work directory"))?;
@@ -192,7 +204,32 @@ impl WorkDir {
         for dir in [self.chunks(), self.roots()] {
             fs::create_dir_all(&dir).map_err(io_err(&dir, "cannot create work directory"))?;
         }
+        // Where the work files went, so that a --resume given another --temp-dir (or none)
+        // is told where they are rather than starting over beside them.
+        if self.separate() {
+            let note = self.work_note();
+            fs::write(&note, self.work.as_os_str().as_encoded_bytes())
+                .map_err(io_err(&note, "cannot write"))?;
+        }
         Ok(())
+    }
+
+    /// The file in the root naming a separate work folder (`--temp-dir`).
+    fn work_note(&self) -> PathBuf {
+        self.root.join("work-folder")
+    }
+
+    /// Where an earlier run of this output kept a plan it can resume from, other than this
+    /// run's work folder: the root's own (no `--temp-dir`) or the one the root names.
+    pub fn plan_elsewhere(&self) -> Option<PathBuf> {
+        let mut places = vec![self.root.join("work")];
+        if let Ok(named) = fs::read(self.work_note()) {
+            places.push(PathBuf::from(String::from_utf8_lossy(&named).into_owned()));
+        }
+        places
+            .into_iter()
+            .filter(|w| *w != self.work)
+            .find(|w| w.join("plan.json").is_file())
     }
 
     /// Removes the files decoded from the first `inputs` inputs, those that exist.
