@@ -39,6 +39,9 @@ fn classes_and_returns_beyond_the_legacy_bits_export_whole() {
         reader.header().point_format().is_extended,
         "formats 0 to 5 cannot hold class 200"
     );
+    // Formats 6 to 10 keep no legacy compatibility: the legacy counts are 0 (LAS 1.4).
+    let bytes = std::fs::read(&las).expect("read");
+    assert_eq!(bytes[107..131], [0u8; 24], "legacy counts");
     let mut got: Vec<(i64, u8, u8, u8)> = reader
         .read_all()
         .expect("all points")

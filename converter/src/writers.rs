@@ -168,6 +168,8 @@ struct LasRowWriter {
     max: [i32; 3],
     scale: [f64; 3],
     offset: [f64; 3],
+    /// Point formats 6 to 10, which keep no legacy compatibility: the legacy counts are 0.
+    extended: bool,
 }
 
 /// Whether `attributes`' `gps_time` is adjusted standard GPS time (LAS global encoding bit 0).
@@ -265,6 +267,7 @@ impl LasRowWriter {
             max: [i32::MIN; 3],
             scale,
             offset,
+            extended: format_number >= 6,
         })
     }
 }
@@ -326,7 +329,18 @@ impl LasRowWriter {
             .map_err(|e| ConvertError::io(&self.part, "cannot reopen", e))?;
         file.seek(SeekFrom::Start(179))
             .and_then(|_| file.write_all(&bytes))
-            .map_err(|e| ConvertError::io(&self.part, "cannot write the header's bounds in", e))
+            .map_err(|e| ConvertError::io(&self.part, "cannot write the header's bounds in", e))?;
+        // LAS 1.4: the legacy point count and counts by return (bytes 107 to 130) are 0 where
+        // the point format is 6 or higher, as COPC's writer, PDAL and laspy leave them; the
+        // `las` crate fills them in.
+        if self.extended {
+            file.seek(SeekFrom::Start(107))
+                .and_then(|_| file.write_all(&[0u8; 24]))
+                .map_err(|e| {
+                    ConvertError::io(&self.part, "cannot write the header's counts in", e)
+                })?;
+        }
+        Ok(())
     }
 }
 
