@@ -80,16 +80,31 @@ pub fn finish_tasks(
         .enumerate()
         .map(|(k, range)| task_journal(plan_dir, k, range))
         .collect::<Result<Vec<_>>>()?;
+    // So are the chunk roots the merge reads; and the dataset takes about what the tasks'
+    // nodes and roots take, copied before they go: refuse now, not once the disk is full.
+    let mut bytes = 0u64;
+    for (k, range) in tp.tasks.iter().enumerate() {
+        let twd = task_workdir(plan_dir, k, true);
+        let part = twd.dataset_file(DatasetFile::Octree);
+        bytes += fs::metadata(part).map_or(0, |m| m.len());
+        for chunk in range.clone() {
+            let root = twd.chunk_root(chunk);
+            let len = fs::metadata(&root).map(|m| m.len()).map_err(|_| {
+                ConvertError::input(
+                    &root,
+                    format!(
+                        "is missing: task {k}'s work files are damaged; remove {} and run \
+                         --plan {} --task {k} again, then finish",
+                        task_dirs(plan_dir, k).1.display(),
+                        plan_dir.display()
+                    ),
+                )
+            })?;
+            bytes += len;
+        }
+    }
+    check_space(&[(output, bytes)])?;
     remove_chunk_files(&tp, plan_dir)?;
-    // The dataset takes about what the tasks' nodes take, copied before they go: refuse now,
-    // not once the disk is full.
-    let nodes: u64 = (0..tp.tasks.len())
-        .filter_map(|k| {
-            let part = task_workdir(plan_dir, k, true).dataset_file(DatasetFile::Octree);
-            fs::metadata(part).ok().map(|m| m.len())
-        })
-        .sum();
-    check_space(&[(output, nodes)])?;
     let wd = WorkDir::new(output, None);
     wd.create_fresh()?;
     let mut phases = Phases::new(Progress::new(quiet));
