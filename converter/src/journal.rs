@@ -87,14 +87,17 @@ pub fn record_of(n: &FinishedNode, offset: u64) -> NodeRecord {
 pub fn fingerprint(opts: &ConvertOptions) -> String {
     let mut parts = Vec::new();
     for p in &opts.inputs {
+        use std::os::unix::fs::MetadataExt;
         let meta = fs::metadata(p).ok();
         let len = meta.as_ref().map_or(0, |m| m.len());
-        let mtime = meta
-            .and_then(|m| m.modified().ok())
-            .and_then(|t| t.duration_since(std::time::UNIX_EPOCH).ok())
-            .map_or(0, |d| d.as_secs());
+        // Both times to the nanosecond: a file rewritten within the second had the same
+        // mtime, and one replaced with its old mtime put back (`touch -r`) still has a new
+        // status-change time.
+        let times = meta.map_or((0, 0, 0, 0), |m| {
+            (m.mtime(), m.mtime_nsec(), m.ctime(), m.ctime_nsec())
+        });
         let abs = fs::canonicalize(p).unwrap_or_else(|_| p.clone());
-        parts.push(format!("{}:{len}:{mtime}", abs.display()));
+        parts.push(format!("{}:{len}:{times:?}", abs.display()));
     }
     // A work directory of another format version has another octree head.
     parts.push(format!(

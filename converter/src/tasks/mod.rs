@@ -257,7 +257,7 @@ impl TaskPlan {
                     format!(
                         "{} since the plan was made ({}); make the plan again",
                         if input.is_file() {
-                            "changed (size or modification time)"
+                            "changed (its size, or the time it was last written or changed)"
                         } else {
                             "is gone"
                         },
