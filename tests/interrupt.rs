@@ -22,23 +22,8 @@ fn kill_9_then_resume(extra: &[&str]) {
     let las = dir.path().join("city.las");
     run_ok(&["synth", "--points", "1500000", "-o", s(&las)]);
     let clean = dir.path().join("clean");
-    let args = |out: &std::path::Path| {
-        vec![
-            "convert".to_string(),
-            s(&las).into(),
-            "-o".into(),
-            s(out).into(),
-            "--memory-limit".into(),
-            "64MiB".into(),
-            "--threads".into(),
-            "1".into(),
-            "-q".into(),
-        ]
-        .into_iter()
-        .chain(extra.iter().map(|e| e.to_string()))
-        .collect::<Vec<String>>()
-    };
-    run_ok(&args(&clean).iter().map(String::as_str).collect::<Vec<_>>());
+    let args = |out: &std::path::Path| small_chunks(&las, out, extra);
+    run_ok(&strs(&args(&clean)));
 
     let out = dir.path().join("ds");
     kill_after_a_chunk(
@@ -59,7 +44,7 @@ fn kill_9_then_resume(extra: &[&str]) {
     let stats = dir.path().join("stats.json");
     let mut resume = args(&out);
     resume.extend(["--resume".to_string(), "--stats".into(), s(&stats).into()]);
-    run_ok(&resume.iter().map(String::as_str).collect::<Vec<_>>());
+    run_ok(&strs(&resume));
     let st: serde_json::Value =
         serde_json::from_slice(&std::fs::read(&stats).expect("stats")).expect("json");
     assert!(st["resumed_chunks"].as_u64().unwrap_or(0) >= 1, "{st}");
@@ -101,23 +86,7 @@ fn a_potree2_conversion_killed_twice_resumes() {
     let dir = tempfile::tempdir().expect("tempdir");
     let las = dir.path().join("city.las");
     run_ok(&["synth", "--points", "1500000", "-o", s(&las)]);
-    let args = |out: &std::path::Path, more: &[&str]| -> Vec<String> {
-        [
-            "convert",
-            s(&las),
-            "-o",
-            s(out),
-            "--memory-limit",
-            "64MiB",
-            "--threads",
-            "1",
-            "-q",
-        ]
-        .iter()
-        .chain(more)
-        .map(|a| a.to_string())
-        .collect()
-    };
+    let args = |out: &std::path::Path, more: &[&str]| small_chunks(&las, out, more);
     let clean = dir.path().join("clean");
     run_ok(&strs(&args(&clean, &["--format", "potree2"])));
     let out = dir.path().join("pt");
@@ -148,23 +117,7 @@ fn a_resume_without_the_temp_dir_it_needs_says_where_the_work_is() {
     run_ok(&["synth", "--points", "1500000", "-o", s(&las)]);
     let temp = dir.path().join("scratch");
     std::fs::create_dir_all(&temp).expect("dir");
-    let args = |out: &std::path::Path, more: &[&str]| -> Vec<String> {
-        [
-            "convert",
-            s(&las),
-            "-o",
-            s(out),
-            "--memory-limit",
-            "64MiB",
-            "--threads",
-            "1",
-            "-q",
-        ]
-        .iter()
-        .chain(more)
-        .map(|a| a.to_string())
-        .collect()
-    };
+    let args = |out: &std::path::Path, more: &[&str]| small_chunks(&las, out, more);
     let clean = dir.path().join("clean");
     run_ok(&strs(&args(&clean, &[])));
     let out = dir.path().join("ds");
@@ -195,4 +148,15 @@ fn a_resume_without_the_temp_dir_it_needs_says_where_the_work_is() {
 
 fn strs(v: &[String]) -> Vec<&str> {
     v.iter().map(String::as_str).collect()
+}
+
+/// `convert LAS -o OUT` in small chunks on one thread (many chunks, each committed on its own),
+/// then `more`.
+fn small_chunks(las: &std::path::Path, out: &std::path::Path, more: &[&str]) -> Vec<String> {
+    let head = ["convert", s(las), "-o", s(out), "--memory-limit", "64MiB"];
+    head.iter()
+        .chain(&["--threads", "1", "-q"])
+        .chain(more)
+        .map(|a| a.to_string())
+        .collect()
 }

@@ -55,6 +55,12 @@ fn finish_fails(plan: &Path, expect: &[&str]) {
     );
 }
 
+/// `--finish` of `plan` into `out`, which must succeed and verify.
+fn finish_verified(plan: &Path, out: &Path) {
+    run_ok(&["convert", "--plan", s(plan), "--finish", "-o", s(out), "-q"]);
+    run_ok(&["verify", s(out)]);
+}
+
 /// Flips a few bits in the middle of `path`, past its first `skip` bytes.
 fn flip(path: &Path, skip: usize) {
     let mut b = std::fs::read(path).expect("read");
@@ -205,17 +211,7 @@ fn a_task_whose_work_was_removed_stops_the_finish_before_it_is_too_late() {
     );
     std::fs::remove_dir_all(plan.join("tasks/0")).expect("remove");
     task(&plan, 0);
-    let out = dir.path().join("out.strata");
-    run_ok(&[
-        "convert",
-        "--plan",
-        s(&plan),
-        "--finish",
-        "-o",
-        s(&out),
-        "-q",
-    ]);
-    run_ok(&["verify", s(&out)]);
+    finish_verified(&plan, &dir.path().join("out.strata"));
 }
 
 /// A finish into the plan folder removed the dataset with the plan; two finishes of one plan
@@ -258,17 +254,7 @@ fn a_finish_that_would_destroy_its_own_work_is_refused() {
         std::fs::read(plan.join("plan.json")).expect("read"),
         plan_json
     );
-    let out = dir.path().join("out.strata");
-    run_ok(&[
-        "convert",
-        "--plan",
-        s(&plan),
-        "--finish",
-        "-o",
-        s(&out),
-        "-q",
-    ]);
-    run_ok(&["verify", s(&out)]);
+    finish_verified(&plan, &dir.path().join("out.strata"));
     assert!(!plan.exists());
 }
 
