@@ -385,3 +385,56 @@ fn waveform_packets_left_behind_are_said() {
         "{err}"
     );
 }
+
+/// A legacy input's scan angle (whole degrees) merged with a format 6 input's (steps of
+/// 0.006°): the legacy points came out of a format 6 export with a scan angle of 0, their real
+/// one in an extra field. Each point now has both forms.
+#[test]
+fn scan_angles_of_legacy_and_extended_inputs_merge_into_one_field() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let write = |name: &str, format: u8, x: f64, angle: f32| {
+        let path = dir.path().join(name);
+        let mut builder = las::Builder::from((1, 4));
+        builder.point_format = las::point::Format::new(format).expect("format");
+        let header = builder.into_header().expect("header");
+        let mut writer = las::Writer::from_path(&path, header).expect("writer");
+        writer
+            .write_point(las::Point {
+                x,
+                scan_angle: angle,
+                gps_time: Some(0.0),
+                return_number: 1,
+                number_of_returns: 1,
+                ..Default::default()
+            })
+            .expect("write");
+        writer.close().expect("close");
+        path
+    };
+    let legacy = write("legacy.las", 1, 0.0, 52.0);
+    let extended = write("extended.las", 6, 1.0, -30.0);
+    let ds = dir.path().join("ds");
+    run_ok(&["convert", s(&legacy), s(&extended), "-o", s(&ds), "-q"]);
+    let out = dir.path().join("out.las");
+    run_ok(&["export", s(&ds), "-o", s(&out)]);
+    let mut reader = las::Reader::from_path(&out).expect("read export");
+    let mut got: Vec<(i64, f32)> = reader
+        .read_all()
+        .expect("all points")
+        .points()
+        .map(|p| {
+            let p = p.expect("point");
+            (p.x.round() as i64, p.scan_angle)
+        })
+        .collect();
+    got.sort_by_key(|g| g.0);
+    assert_eq!(got.len(), 2);
+    assert!(
+        (got[0].1 - 52.0).abs() < 0.01,
+        "the legacy point's angle: {got:?}"
+    );
+    assert!(
+        (got[1].1 + 30.0).abs() < 0.01,
+        "the extended point's angle: {got:?}"
+    );
+}

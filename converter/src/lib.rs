@@ -33,6 +33,7 @@ pub mod rowfile;
 pub mod rows;
 pub mod sampling;
 pub mod scan;
+pub mod scan_angle;
 pub mod staging;
 pub mod synth;
 pub mod sys;

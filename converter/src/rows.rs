@@ -6,6 +6,7 @@ use crate::input::PointSource;
 use crate::input::las::LasSource;
 use crate::input::las_layout::{FieldOp, record_to_row};
 use crate::quantize::Quantization;
+use crate::scan_angle::ScanAngleFill;
 use std::fs::File;
 use std::ops::Range;
 use std::os::unix::fs::FileExt;
@@ -25,6 +26,8 @@ pub struct RecordToRow {
     base: [f64; 3],
     lo: [i64; 3],
     hi: [i64; 3],
+    /// The scan angle's other form, where the dataset holds both and the input one.
+    scan_angle: Option<ScanAngleFill>,
 }
 
 impl RecordToRow {
@@ -92,6 +95,11 @@ impl RecordToRow {
             base,
             lo: cube.min,
             hi: cube.min.map(|m| m + edge - 1),
+            scan_angle: ScanAngleFill::for_input(
+                attributes,
+                &layout.attributes,
+                RowLayout::POSITION_BYTES,
+            ),
         }
     }
 
@@ -140,6 +148,9 @@ impl RecordToRow {
                 row[4 * a..4 * a + 4].copy_from_slice(&p[a].to_le_bytes());
             }
             record_to_row(&self.ops, rec, &mut row[RowLayout::POSITION_BYTES..]);
+            if let Some(fill) = &self.scan_angle {
+                fill.apply(row);
+            }
         }
         Ok(())
     }

@@ -7,6 +7,7 @@ use crate::input::{NO_SCANNER, SCANNER, SourceInfo, open_source};
 use crate::quantize::SourceExtent;
 use crate::rowfile::RowWriter;
 use crate::rows::batch_records;
+use crate::scan_angle::ScanAngleFill;
 use indicatif::ProgressBar;
 use std::path::{Path, PathBuf};
 use strata_format::{AttrType, Attribute, MAX_ATTRIBUTES, TimeBase};
@@ -201,6 +202,7 @@ pub fn scan(
         src.set_scanner_base(scanner_base.min(NO_SCANNER as usize) as u16);
         scanner_base += src.info().scanners.len();
         let defaults = defaults_for(src.info(), attributes);
+        let scan_angle = ScanAngleFill::for_input(&src.info().attributes, attributes, 24);
         // (source row offset, staging offset, length) for each attribute this input has.
         let mut copies = Vec::new();
         let mut src_off = 0usize;
@@ -256,6 +258,9 @@ pub fn scan(
                 let row = &rows[i * row_len..(i + 1) * row_len];
                 for &(s, d, len) in &copies {
                     rec[d..d + len].copy_from_slice(&row[s..s + len]);
+                }
+                if let Some(fill) = &scan_angle {
+                    fill.apply(rec);
                 }
             }
             out.write(&records)?;
