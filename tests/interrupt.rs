@@ -144,6 +144,8 @@ fn a_resume_without_the_temp_dir_it_needs_says_where_the_work_is() {
         std::fs::read(out.join("octree.bin")).ok() == std::fs::read(clean.join("octree.bin")).ok()
     );
     assert!(!temp.join("ds.strata-work").exists());
+    // The note of where the work went is not left in the dataset.
+    assert_eq!(std::fs::read_dir(&out).expect("dataset").count(), 3);
 }
 
 fn strs(v: &[String]) -> Vec<&str> {

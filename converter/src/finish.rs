@@ -195,6 +195,7 @@ pub fn finish(
     let metadata_part = crate::writers::part_path(&metadata);
     write_synced(&metadata_part, meta.to_json().as_bytes())?;
     fs::remove_dir_all(wd.work()).map_err(io_err(wd.work(), "cannot remove work directory"))?;
+    wd.forget_work_folder()?;
     fs::rename(&metadata_part, &metadata).map_err(io_err(&metadata, "cannot move into place"))?;
     let old = wd.replaced();
     let replacing = opts.output.exists();

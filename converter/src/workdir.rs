@@ -4,7 +4,7 @@
 //! with `--temp-dir DIR` that folder is `DIR/OUTPUT.strata-work` instead, on another disk.
 
 use crate::distribute::chunk_path;
-use crate::error::{Result, io_err};
+use crate::error::{ConvertError, Result, io_err};
 use std::fs;
 use std::path::{Path, PathBuf};
 use strata_format::DatasetFile;
@@ -217,6 +217,18 @@ impl WorkDir {
     /// The file in the root naming a separate work folder (`--temp-dir`).
     fn work_note(&self) -> PathBuf {
         self.root.join("work-folder")
+    }
+
+    /// Removes the note of a separate work folder, once that folder is gone: the root becomes
+    /// the dataset, which holds its own files only.
+    pub fn forget_work_folder(&self) -> Result<()> {
+        let note = self.work_note();
+        match fs::remove_file(&note) {
+            Err(e) if e.kind() != std::io::ErrorKind::NotFound => {
+                Err(ConvertError::io(&note, "cannot remove", e))
+            }
+            _ => Ok(()),
+        }
     }
 
     /// Where an earlier run of this output kept a plan it can resume from, other than this
