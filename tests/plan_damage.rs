@@ -256,6 +256,17 @@ fn a_finish_that_would_destroy_its_own_work_is_refused() {
     );
     finish_verified(&plan, &dir.path().join("out.strata"));
     assert!(!plan.exists());
+    // Run again, as a batch engine retries a finish it saw stopped while removing the plan:
+    // the dataset is named, and with none, the plan's absence.
+    let again = |out: &str, expect: &[&str]| {
+        let out = dir.path().join(out);
+        refused(
+            &["convert", "--plan", s(&plan), "--finish", "-o", s(&out)],
+            expect,
+        );
+    };
+    again("out.strata", &["holds a dataset", "strata verify"]);
+    again("other.strata", &["no conversion plan here"]);
 }
 
 /// A share's class counts edited after it ran: the finish said ok and the dataset stated

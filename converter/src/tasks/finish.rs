@@ -43,6 +43,21 @@ pub fn finish_tasks(
             ),
         ));
     }
+    if !super::plan_file(plan_dir).is_file() {
+        // A finish stopped while it removed the plan folder has put the dataset in place.
+        if output.join(DatasetFile::Metadata.name()).is_file() {
+            return Err(ConvertError::input(
+                super::plan_file(plan_dir),
+                format!(
+                    "no conversion plan here, and {} holds a dataset: a finish stopped while it \
+                     removed the plan folder leaves the dataset whole (check it with `strata \
+                     verify`), and what is left of the folder may be removed",
+                    output.display()
+                ),
+            ));
+        }
+        TaskPlan::load(plan_dir)?;
+    }
     // Two finishes of one plan would build in the same temporary folder, each clearing what
     // the other wrote: the second refuses. The lock is on the plan folder itself, held until
     // the folder is gone, and taken before the plan is read, so a finish that waited finds
