@@ -528,32 +528,8 @@ fn the_inputs_crs_goes_back_out_with_every_export() {
 fn a_64_bit_integer_a_ply_double_cannot_hold_is_refused() {
     let dir = tempfile::tempdir().expect("tempdir");
     let (input, ds) = (dir.path().join("serial.las"), dir.path().join("ds"));
-    let mut eb = vec![0u8; 192];
-    eb[2] = 7; // data type: u64
-    eb[4..10].copy_from_slice(b"serial");
-    let mut builder = las::Builder::from((1, 4));
-    builder.point_format = las::point::Format::new(1).expect("format");
-    builder.point_format.extra_bytes = 8;
-    builder.vlrs.push(las::Vlr {
-        user_id: "LASF_Spec".into(),
-        record_id: 4,
-        description: "Extra Bytes Record".into(),
-        data: eb,
-    });
-    let header = builder.into_header().expect("header");
-    let mut writer = las::Writer::from_path(&input, header).expect("writer");
     let big = (1u64 << 53) + 1;
-    for (i, serial) in [12345u64, big].into_iter().enumerate() {
-        writer
-            .write_point(las::Point {
-                x: i as f64,
-                gps_time: Some(0.0),
-                extra_bytes: serial.to_le_bytes().to_vec(),
-                ..Default::default()
-            })
-            .expect("write");
-    }
-    writer.close().expect("close");
+    serial_las(&input, &[([0.0; 3], 12345), ([1.0, 0.0, 0.0], big)]);
     run_ok(&["convert", s(&input), "-o", s(&ds), "-q"]);
     let ply = dir.path().join("out.ply");
     refused(

@@ -118,3 +118,32 @@ fn a_picked_point_is_a_stored_point_with_every_attribute() {
         "{text}"
     );
 }
+
+/// A u64 attribute was printed as the nearest double (2^53 + 1 as 9007199254740992): it is
+/// printed whole, and the JSON carries it exactly in `integers`.
+#[test]
+fn a_64_bit_attribute_is_picked_whole() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let (las, ds) = (dir.path().join("serial.las"), dir.path().join("ds"));
+    let big = (1u64 << 53) + 1;
+    let mut points = Vec::new();
+    for i in 0..100 {
+        for k in 0..100 {
+            points.push(([f64::from(i) * 0.01, 0.0, f64::from(k) * 0.01], big));
+        }
+    }
+    common::serial_las(&las, &points);
+    common::run_ok(&["convert", s(&las), "-o", s(&ds), "-q"]);
+    let p = picked(&ds, "160,120", "points").expect("a point under the centre");
+    let serial = p["attributes"]
+        .as_array()
+        .expect("attributes")
+        .iter()
+        .find(|a| a["name"] == "serial")
+        .expect("serial")
+        .clone();
+    assert_eq!(serial["integers"][0].as_u64(), Some(big), "{serial}");
+    let o = gpu_run(&["pick", s(&ds), "--size", "320x240", "--pixel", "160,120"]);
+    let text = String::from_utf8_lossy(&o.stdout);
+    assert!(text.contains("serial 9007199254740993"), "{text}");
+}

@@ -374,3 +374,35 @@ pub fn write_coloured_ply(
     }
     out.flush().expect("write the PLY");
 }
+
+/// A LAS file (format 1) of `points`, each (x, y, z) with a u64 extra attribute "serial"
+/// described in an Extra Bytes VLR.
+pub fn serial_las(path: &Path, points: &[([f64; 3], u64)]) {
+    let mut eb = vec![0u8; 192];
+    eb[2] = 7; // data type: u64
+    eb[4..10].copy_from_slice(b"serial");
+    let mut builder = las::Builder::from((1, 4));
+    builder.point_format = las::point::Format::new(1).expect("format");
+    builder.point_format.extra_bytes = 8;
+    builder.vlrs.push(las::Vlr {
+        user_id: "LASF_Spec".into(),
+        record_id: 4,
+        description: "Extra Bytes Record".into(),
+        data: eb,
+    });
+    let header = builder.into_header().expect("header");
+    let mut writer = las::Writer::from_path(path, header).expect("writer");
+    for &([x, y, z], serial) in points {
+        writer
+            .write_point(las::Point {
+                x,
+                y,
+                z,
+                gps_time: Some(0.0),
+                extra_bytes: serial.to_le_bytes().to_vec(),
+                ..Default::default()
+            })
+            .expect("write");
+    }
+    writer.close().expect("close");
+}

@@ -30,6 +30,10 @@ pub struct PickedAttribute {
     /// What the value means, where it has a name (ASPRS classes).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub meaning: Option<&'static str>,
+    /// The components exactly, where the attribute stores unscaled 64-bit integers, which
+    /// `values` rounds (a double keeps 53 bits).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub integers: Option<Vec<serde_json::Number>>,
 }
 
 impl PickedPoint {
@@ -39,7 +43,10 @@ impl PickedPoint {
         // Every digit the stored position has (rounded to its scale already).
         let mut out = vec![format!("x {x}"), format!("y {y}"), format!("z {z}")];
         for a in &self.attributes {
-            let values: Vec<String> = a.values.iter().map(|v| format_value(*v)).collect();
+            let values: Vec<String> = match &a.integers {
+                Some(exact) => exact.iter().map(ToString::to_string).collect(),
+                None => a.values.iter().map(|v| format_value(*v)).collect(),
+            };
             let mut line = format!("{} {}", a.name, values.join(" "));
             if let Some(m) = a.meaning {
                 line.push_str(&format!(" ({m})"));
@@ -141,6 +148,7 @@ impl StreamDataset {
                     name: a.name.clone(),
                     values,
                     meaning,
+                    integers: exact_integers(a, raw),
                 }
             })
             .collect();
@@ -153,6 +161,28 @@ impl StreamDataset {
             attributes,
         })
     }
+}
+
+/// The components of one stored value of attribute `a` exactly, where they are unscaled
+/// 64-bit integers.
+pub fn exact_integers(a: &strata_format::Attribute, raw: &[u8]) -> Option<Vec<serde_json::Number>> {
+    use strata_format::AttrType;
+    if !matches!(a.ty, AttrType::U64 | AttrType::I64) || a.scale.is_some() || a.offset.is_some() {
+        return None;
+    }
+    let word = |b: &[u8]| {
+        let mut w = [0u8; 8];
+        w.copy_from_slice(&b[..8]);
+        w
+    };
+    Some(
+        raw.chunks_exact(8)
+            .map(|b| match a.ty {
+                AttrType::I64 => serde_json::Number::from(i64::from_le_bytes(word(b))),
+                _ => serde_json::Number::from(u64::from_le_bytes(word(b))),
+            })
+            .collect(),
+    )
 }
 
 /// The components of one stored value of attribute `a` (its `a.size()` bytes), scaled where
