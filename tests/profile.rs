@@ -262,3 +262,34 @@ fn a_copc_name_is_refused_before_anything_is_read() {
     assert!(err.contains("not COPC"), "{err}");
     assert!(!out.exists());
 }
+
+/// A u64 attribute went into the CSV as the nearest double (2^53 + 1 as 9007199254740992):
+/// it is written whole.
+#[test]
+fn a_64_bit_attribute_goes_into_the_csv_whole() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let (las, ds) = (dir.path().join("serial.las"), dir.path().join("ds"));
+    let big = (1u64 << 53) + 1;
+    let points: Vec<([f64; 3], u64)> = (0..50).map(|i| ([f64::from(i), 0.0, 0.0], big)).collect();
+    common::serial_las(&las, &points);
+    common::run_ok(&["convert", s(&las), "-o", s(&ds), "-q"]);
+    let csv = dir.path().join("p.csv");
+    common::run_ok(&[
+        "profile",
+        s(&ds),
+        "--line",
+        "0,0;49,0",
+        "--width",
+        "1",
+        "-o",
+        s(&csv),
+    ]);
+    let text = std::fs::read_to_string(&csv).expect("csv");
+    assert_eq!(text.lines().count(), 51, "{text}");
+    assert!(
+        text.lines()
+            .skip(1)
+            .all(|l| l.ends_with(",9007199254740993")),
+        "{text}"
+    );
+}

@@ -6,7 +6,7 @@
 use crate::ViewerError;
 use crate::dataset::StreamDataset;
 use crate::lod::Tree;
-use crate::pick::{attribute_values, to_decimals};
+use crate::pick::{attribute_values, exact_integers, to_decimals};
 use std::io::Write;
 use std::path::Path;
 use strata_format::{NodeInfo, NodeKey, RowLayout};
@@ -350,8 +350,13 @@ impl Profile {
                 let row = &self.rows[i * stride..(i + 1) * stride];
                 for (k, a) in self.layout.attributes.iter().enumerate() {
                     let at = self.layout.offsets[k];
-                    for v in attribute_values(a, &row[at..at + a.size()]) {
-                        write!(w, ",{v}")?;
+                    let raw = &row[at..at + a.size()];
+                    // A 64-bit integer whole; a double would round it.
+                    match exact_integers(a, raw) {
+                        Some(exact) => exact.iter().try_for_each(|v| write!(w, ",{v}"))?,
+                        None => attribute_values(a, raw)
+                            .iter()
+                            .try_for_each(|v| write!(w, ",{v}"))?,
                     }
                 }
                 writeln!(w)?;
