@@ -380,28 +380,6 @@ impl PlyValue {
     }
 }
 
-/// Whether the 64-bit integer in `bytes` (of type `ty`) is exactly `d`, the double it becomes.
-fn exact_as_double(ty: AttrType, bytes: &[u8], d: f64) -> bool {
-    let mut b = [0u8; 8];
-    b.copy_from_slice(&bytes[..8]);
-    // 2^64 and 2^63 themselves are past the types' ends: `as` would saturate back.
-    match ty {
-        AttrType::U64 => d < 18_446_744_073_709_551_616.0 && d as u64 == u64::from_le_bytes(b),
-        AttrType::I64 => d < 9_223_372_036_854_775_808.0 && d as i64 == i64::from_le_bytes(b),
-        _ => true,
-    }
-}
-
-/// The 64-bit integer in `bytes` as text, in full.
-fn integer_text(ty: AttrType, bytes: &[u8]) -> String {
-    let mut b = [0u8; 8];
-    b.copy_from_slice(&bytes[..8]);
-    match ty {
-        AttrType::I64 => i64::from_le_bytes(b).to_string(),
-        _ => u64::from_le_bytes(b).to_string(),
-    }
-}
-
 fn ply_type(t: AttrType) -> &'static str {
     match t {
         AttrType::I8 => "char",
@@ -529,7 +507,10 @@ impl RowWriter for PlyRowWriter {
                     PlyValue::Double => {
                         for c in values {
                             let d = a.ty.read_f64(c);
-                            if !exact_as_double(a.ty, c, d) {
+                            // Compared in i128, which holds both types and the double's
+                            // rounding past them (u64::MAX becomes 2^64) without saturating.
+                            let exact = a.ty.read_wide_integer(c);
+                            if let Some(v) = exact.filter(|&v| d as i128 != v) {
                                 return Err(ConvertError::output(
                                     &self.path,
                                     format!(
@@ -537,8 +518,7 @@ impl RowWriter for PlyRowWriter {
                                          holds exactly (PLY has no 64-bit integers, and a \
                                          double keeps 53 bits); export to .las or .laz, whose \
                                          extra bytes keep it",
-                                        a.name,
-                                        integer_text(a.ty, c)
+                                        a.name, v
                                     ),
                                 ));
                             }

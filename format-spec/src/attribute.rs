@@ -64,6 +64,17 @@ impl AttrType {
             AttrType::F64 => f64::from_le_bytes(b[..8].try_into().unwrap_or_default()),
         }
     }
+
+    /// One component of a 64-bit integer type exactly (`read_f64` rounds past 2^53); `None`
+    /// for every other type, which a double holds whole.
+    pub fn read_wide_integer(self, b: &[u8]) -> Option<i128> {
+        let word = b.get(..8)?.try_into().ok()?;
+        match self {
+            AttrType::U64 => Some(i128::from(u64::from_le_bytes(word))),
+            AttrType::I64 => Some(i128::from(i64::from_le_bytes(word))),
+            _ => None,
+        }
+    }
 }
 
 /// One named per-point attribute: `count` components of type `ty`.
@@ -286,6 +297,23 @@ pub fn row_position(row: &[u8]) -> [i32; 3] {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn wide_integers_read_whole_to_their_ends() {
+        let read = |ty: AttrType, b: [u8; 8]| ty.read_wide_integer(&b);
+        assert_eq!(
+            read(AttrType::U64, u64::MAX.to_le_bytes()),
+            Some(i128::from(u64::MAX))
+        );
+        assert_eq!(
+            read(AttrType::I64, i64::MIN.to_le_bytes()),
+            Some(i128::from(i64::MIN))
+        );
+        // The double they become is not them: 2^64 and 2^53 + 1 round.
+        assert_ne!(u64::MAX as f64 as i128, i128::from(u64::MAX));
+        assert_eq!(read(AttrType::F64, 1.5f64.to_le_bytes()), None);
+        assert_eq!(AttrType::U64.read_wide_integer(&[0; 4]), None);
+    }
 
     fn angle(a: [f64; 3], b: [f64; 3]) -> f64 {
         let d = a[0] * b[0] + a[1] * b[1] + a[2] * b[2];

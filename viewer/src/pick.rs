@@ -166,23 +166,18 @@ impl StreamDataset {
 /// The components of one stored value of attribute `a` exactly, where they are unscaled
 /// 64-bit integers.
 pub fn exact_integers(a: &strata_format::Attribute, raw: &[u8]) -> Option<Vec<serde_json::Number>> {
-    use strata_format::AttrType;
-    if !matches!(a.ty, AttrType::U64 | AttrType::I64) || a.scale.is_some() || a.offset.is_some() {
+    if a.scale.is_some() || a.offset.is_some() {
         return None;
     }
-    let word = |b: &[u8]| {
-        let mut w = [0u8; 8];
-        w.copy_from_slice(&b[..8]);
-        w
-    };
-    Some(
-        raw.chunks_exact(8)
-            .map(|b| match a.ty {
-                AttrType::I64 => serde_json::Number::from(i64::from_le_bytes(word(b))),
-                _ => serde_json::Number::from(u64::from_le_bytes(word(b))),
-            })
-            .collect(),
-    )
+    raw.chunks_exact(a.ty.size())
+        .map(|b| {
+            let v = a.ty.read_wide_integer(b)?;
+            u64::try_from(v)
+                .map(serde_json::Number::from)
+                .or_else(|_| i64::try_from(v).map(serde_json::Number::from))
+                .ok()
+        })
+        .collect()
 }
 
 /// The components of one stored value of attribute `a` (its `a.size()` bytes), scaled where
