@@ -233,28 +233,10 @@ fn height_las(path: &Path, scale: f64, offset: f64, raw: i32) {
     eb[4..10].copy_from_slice(b"height");
     eb[112..120].copy_from_slice(&scale.to_le_bytes());
     eb[136..144].copy_from_slice(&offset.to_le_bytes());
-    let mut builder = las::Builder::from((1, 4));
-    builder.point_format = las::point::Format::new(1).expect("format");
-    builder.point_format.extra_bytes = 4;
-    builder.evlrs.push(las::Vlr {
-        user_id: "LASF_Spec".into(),
-        record_id: 4,
-        description: "Extra Bytes Record".into(),
-        data: eb,
-    });
-    let header = builder.into_header().expect("header");
-    let mut writer = las::Writer::from_path(path, header).expect("writer");
-    for i in 0..3 {
-        writer
-            .write_point(las::Point {
-                x: f64::from(i),
-                gps_time: Some(0.0),
-                extra_bytes: raw.to_le_bytes().to_vec(),
-                ..Default::default()
-            })
-            .expect("write");
-    }
-    writer.close().expect("close");
+    let points: Vec<_> = (0..3)
+        .map(|i| ([f64::from(i), 0.0, 0.0], raw.to_le_bytes().to_vec()))
+        .collect();
+    extra_bytes_las(path, eb, true, &points);
 }
 
 #[test]

@@ -375,34 +375,54 @@ pub fn write_coloured_ply(
     out.flush().expect("write the PLY");
 }
 
-/// A LAS file (format 1) of `points`, each (x, y, z) with a u64 extra attribute "serial"
-/// described in an Extra Bytes VLR.
-pub fn serial_las(path: &Path, points: &[([f64; 3], u64)]) {
-    let mut eb = vec![0u8; 192];
-    eb[2] = 7; // data type: u64
-    eb[4..10].copy_from_slice(b"serial");
+/// A LAS 1.4 file (format 1) of `points`, each (x, y, z) with its extra bytes, described by
+/// the Extra Bytes `descriptor` (192 bytes a field, LAS 1.4 R15 table 24) in a VLR, or in an
+/// extended VLR where `extended`.
+pub fn extra_bytes_las(
+    path: &Path,
+    descriptor: Vec<u8>,
+    extended: bool,
+    points: &[([f64; 3], Vec<u8>)],
+) {
     let mut builder = las::Builder::from((1, 4));
     builder.point_format = las::point::Format::new(1).expect("format");
-    builder.point_format.extra_bytes = 8;
-    builder.vlrs.push(las::Vlr {
+    builder.point_format.extra_bytes = points.first().map_or(0, |p| p.1.len() as u16);
+    let vlr = las::Vlr {
         user_id: "LASF_Spec".into(),
         record_id: 4,
         description: "Extra Bytes Record".into(),
-        data: eb,
-    });
+        data: descriptor,
+    };
+    if extended {
+        builder.evlrs.push(vlr);
+    } else {
+        builder.vlrs.push(vlr);
+    }
     let header = builder.into_header().expect("header");
     let mut writer = las::Writer::from_path(path, header).expect("writer");
-    for &([x, y, z], serial) in points {
+    for ([x, y, z], extra) in points {
         writer
             .write_point(las::Point {
-                x,
-                y,
-                z,
+                x: *x,
+                y: *y,
+                z: *z,
                 gps_time: Some(0.0),
-                extra_bytes: serial.to_le_bytes().to_vec(),
+                extra_bytes: extra.clone(),
                 ..Default::default()
             })
             .expect("write");
     }
     writer.close().expect("close");
+}
+
+/// A LAS file of `points`, each (x, y, z) with a u64 extra attribute "serial".
+pub fn serial_las(path: &Path, points: &[([f64; 3], u64)]) {
+    let mut eb = vec![0u8; 192];
+    eb[2] = 7; // data type: u64
+    eb[4..10].copy_from_slice(b"serial");
+    let rows: Vec<_> = points
+        .iter()
+        .map(|&(p, serial)| (p, serial.to_le_bytes().to_vec()))
+        .collect();
+    extra_bytes_las(path, eb, false, &rows);
 }
