@@ -4,6 +4,7 @@
 //! Decoding runs on a thread of its own (`e57_decode`), started by the first `read`.
 
 use super::e57_decode::{self, Batch, Job, Msg, Pose, QUEUED, RowShape};
+use super::e57_limits::{OwnRanges, own_ranges};
 use super::laz_check::guarded;
 use super::{NO_SCANNER, PointSource, Precision, SourceInfo};
 use crate::error::{ConvertError, Result};
@@ -126,12 +127,13 @@ impl E57Source {
         let rgb = clouds.iter().any(PointCloud::has_color);
         let intensity = clouds.iter().any(PointCloud::has_intensity);
         let (shape, attributes) = RowShape::new(rgb, intensity);
+        let ranges = own_ranges(reader.xml(), &clouds);
         let info = SourceInfo {
             path: path.to_path_buf(),
             points,
             attributes,
             precision: precision(&clouds),
-            warnings: Vec::new(),
+            warnings: unstated_ranges(path, &clouds, &ranges),
             scanners: poses.iter().map(|p| p.translation).collect(),
             crs: None,
         };
@@ -141,6 +143,7 @@ impl E57Source {
                 reader,
                 clouds,
                 poses,
+                ranges,
                 shape,
                 first: 0,
             }),
@@ -229,6 +232,29 @@ impl PointSource for E57Source {
             job.first = first;
         }
     }
+}
+
+/// A warning for each scan whose colour or intensity has no range stated (a float field
+/// without limits, limits of zero width), so that its values are scaled by their own.
+fn unstated_ranges(path: &Path, clouds: &[PointCloud], ranges: &[OwnRanges]) -> Vec<String> {
+    let n = clouds.len();
+    let mut warnings = Vec::new();
+    for (i, (pc, r)) in clouds.iter().zip(ranges).enumerate() {
+        for (field, unstated) in [
+            ("colour", pc.has_color() && r.rgb.is_none()),
+            ("intensity", pc.has_intensity() && r.intensity.is_none()),
+        ] {
+            if unstated {
+                warnings.push(format!(
+                    "{}: scan {i} of {n} states no range for its {field} (a float field \
+                     without limits, or limits of zero width): its values are scaled by their \
+                     own, those within 0..1, 0..255 or 0..65535 on that scale",
+                    path.display()
+                ));
+            }
+        }
+    }
+    warnings
 }
 
 /// How finely the file stores positions: any scan in doubles makes it `Float64`, else the

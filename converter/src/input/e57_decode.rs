@@ -5,7 +5,7 @@
 //! because the crate's point reader borrows the file reader: one owner for both, and bounded
 //! batches over a channel, keep memory flat whatever the file's size.
 
-use super::e57_limits::{OwnRanges, normalised, own_ranges};
+use super::e57_limits::{OwnRanges, from_values, normalised};
 use super::laz_check::guarded;
 use e57::{CartesianCoordinate, E57Reader, PointCloud};
 use std::fs::File;
@@ -142,6 +142,8 @@ pub struct Job {
     pub reader: E57Reader<BufReader<File>>,
     pub clouds: Vec<PointCloud>,
     pub poses: Vec<Pose>,
+    /// Each scan's colour and intensity ranges, as its limits state them.
+    pub ranges: Vec<OwnRanges>,
     pub shape: RowShape,
     /// The global index of the first scan.
     pub first: u16,
@@ -154,22 +156,23 @@ pub fn run(job: Job, tx: &SyncSender<Msg>) {
         mut reader,
         clouds,
         poses,
+        ranges,
         shape,
         first,
     } = job;
     let n = clouds.len();
     let mut valid = 0u64;
-    let ranges = own_ranges(reader.xml(), &clouds);
     for (i, ((pc, pose), own)) in clouds.iter().zip(&poses).zip(&ranges).enumerate() {
         let scan = format!("scan {i} of {n}");
         let scanner = (first as usize + i) as u16;
-        let at = Place {
-            pose,
-            own,
-            scanner,
-            scan: &scan,
-        };
         let sent = guarded(&format!("the point data of {scan}"), || {
+            let own = with_value_ranges(&mut reader, pc, own, &scan)?;
+            let at = Place {
+                pose,
+                own: &own,
+                scanner,
+                scan: &scan,
+            };
             decode_scan(&mut reader, pc, &at, shape, tx, &mut valid)
         });
         match sent {
@@ -184,10 +187,65 @@ pub fn run(job: Job, tx: &SyncSender<Msg>) {
     let _ = tx.send(Msg::Done { valid });
 }
 
+/// `own` with the ranges it lacks for the scan's colour and intensity made from the scan's
+/// values (`from_values`): a pass over the scan of its own, only where one is missing.
+fn with_value_ranges(
+    reader: &mut E57Reader<BufReader<File>>,
+    pc: &PointCloud,
+    own: &OwnRanges,
+    scan: &str,
+) -> Result<OwnRanges, String> {
+    let rgb = pc.has_color() && own.rgb.is_none();
+    let intensity = pc.has_intensity() && own.intensity.is_none();
+    if !rgb && !intensity {
+        return Ok(own.clone());
+    }
+    let mut points = reader
+        .pointcloud_simple(pc)
+        .map_err(|e| format!("{scan} cannot be read ({})", plain(&e)))?;
+    points.normalize_intensity(false);
+    points.normalize_color(false);
+    let widen = |span: &mut (f64, f64), v: f32| {
+        if v.is_finite() {
+            *span = (span.0.min(f64::from(v)), span.1.max(f64::from(v)));
+        }
+    };
+    let mut colours = (f64::INFINITY, f64::NEG_INFINITY);
+    let mut intensities = colours;
+    for (k, p) in points.enumerate() {
+        let p = p.map_err(|e| {
+            format!(
+                "{scan} is corrupt or truncated at point {k} ({})",
+                plain(&e)
+            )
+        })?;
+        if let Some(c) = &p.color {
+            for v in [c.red, c.green, c.blue] {
+                widen(&mut colours, v);
+            }
+        }
+        if let Some(v) = p.intensity {
+            widen(&mut intensities, v);
+        }
+    }
+    // A field whose every value is invalid: any range will do.
+    let span = |(least, greatest): (f64, f64)| {
+        if least <= greatest {
+            from_values(least, greatest)
+        } else {
+            (0.0, 1.0)
+        }
+    };
+    Ok(OwnRanges {
+        rgb: own.rgb.or_else(|| Some([span(colours); 3])),
+        intensity: own.intensity.or_else(|| Some(span(intensities))),
+    })
+}
+
 /// What a scan's points are placed and scaled by.
 struct Place<'a> {
     pose: &'a Pose,
-    /// Ranges the crate cannot normalise by (see `e57_limits`).
+    /// The ranges colour and intensity are normalised by (see `e57_limits`).
     own: &'a OwnRanges,
     scanner: u16,
     scan: &'a str,
@@ -216,8 +274,8 @@ fn decode_scan(
     points.apply_pose(false);
     points.intensity_to_color(false);
     points.spherical_to_cartesian(true);
-    points.normalize_intensity(own.intensity.is_none());
-    points.normalize_color(own.rgb.is_none());
+    points.normalize_intensity(false);
+    points.normalize_color(false);
     let mut batch = Batch::default();
     for (k, p) in points.enumerate() {
         let p = p.map_err(|e| {
@@ -243,12 +301,12 @@ fn decode_scan(
         let row = &mut batch.rows[at..];
         if let (Some(o), Some(c)) = (shape.rgb, &p.color) {
             for (k, v) in [c.red, c.green, c.blue].into_iter().enumerate() {
-                let v = own.rgb.map_or(v, |r| normalised(v, r[k]));
+                let v = own.rgb.map_or(0.0, |r| normalised(v, r[k]));
                 row[o + 2 * k..o + 2 * k + 2].copy_from_slice(&unit_to_u16(v).to_le_bytes());
             }
         }
         if let (Some(o), Some(v)) = (shape.intensity, p.intensity) {
-            let v = own.intensity.map_or(v, |r| normalised(v, r));
+            let v = own.intensity.map_or(0.0, |r| normalised(v, r));
             row[o..o + 2].copy_from_slice(&unit_to_u16(v).to_le_bytes());
         }
         row[shape.scanner..shape.scanner + 2].copy_from_slice(&scanner.to_le_bytes());

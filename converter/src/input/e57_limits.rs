@@ -1,29 +1,32 @@
-//! Intensity and colour limits stored as scaled integers. The `e57` crate reads such a limit
-//! as its raw integer without the element's scale and offset, cannot use it, and normalises
-//! by the field's type range instead (a 0..20 limit on a 0..40 field halves every value). Here
-//! the limits are read from the file's XML with their scale and offset, and where one is a
-//! scaled integer the scan's values are normalised by them.
+//! The ranges a scan's intensity and colour are normalised by. The `e57` crate reads a limit
+//! stored as a scaled integer as its raw integer without the element's scale and offset (a
+//! 0..20 limit on a 0..40 field would halve every value), and gives zero for every value of a
+//! float field without limits or of limits of zero width. Here the limits are read from the
+//! file's XML with their scale and offset, the field's type range stands in where they are
+//! missing or empty, and where neither is a range the values are scaled by their own
+//! (`from_values`).
 
 use e57::{PointCloud, RecordDataType, RecordName};
 
-/// A scan's ranges (minimum, maximum in real units) for Strata to normalise by, where the
-/// crate cannot: `None` where the crate's own normalisation is right.
+/// A scan's ranges (minimum, maximum in real units) to normalise by; `None` where the file
+/// states no usable one (then the scan's own values give it).
 #[derive(Debug, Clone, Default, PartialEq)]
 pub struct OwnRanges {
     pub intensity: Option<(f64, f64)>,
     pub rgb: Option<[(f64, f64); 3]>,
 }
 
-/// One `OwnRanges` per scan (`data3D` child, in order) of the file's XML; the default for all
-/// where the XML cannot be read (the crate has read it already, so it can).
+/// One `OwnRanges` per scan (`data3D` child, in order) of the file's XML; from the fields'
+/// types alone where the XML cannot be read (the crate has read it already, so it can).
 pub fn own_ranges(xml: &str, clouds: &[PointCloud]) -> Vec<OwnRanges> {
-    let Ok(doc) = roxmltree::Document::parse(xml) else {
-        return vec![OwnRanges::default(); clouds.len()];
-    };
+    let doc = roxmltree::Document::parse(xml).ok();
     let scans: Vec<roxmltree::Node> = doc
-        .root_element()
-        .children()
-        .find(|n| n.has_tag_name("data3D"))
+        .as_ref()
+        .and_then(|d| {
+            d.root_element()
+                .children()
+                .find(|n| n.has_tag_name("data3D"))
+        })
         .map(|d| {
             d.children()
                 .filter(|n| n.has_tag_name("vectorChild"))
@@ -33,21 +36,22 @@ pub fn own_ranges(xml: &str, clouds: &[PointCloud]) -> Vec<OwnRanges> {
     clouds
         .iter()
         .enumerate()
-        .map(|(i, pc)| {
-            scans
-                .get(i)
-                .map_or_else(OwnRanges::default, |s| of_scan(*s, pc))
-        })
+        .map(|(i, pc)| of_scan(scans.get(i).copied(), pc))
         .collect()
 }
 
-fn of_scan(scan: roxmltree::Node, pc: &PointCloud) -> OwnRanges {
-    let group = |tag: &str| scan.children().find(|n| n.has_tag_name(tag));
-    let intensity = group("intensityLimits").and_then(|g| {
-        let (lo, hi) = (limit(g, "intensityMinimum"), limit(g, "intensityMaximum"));
-        scaled(&[lo, hi]).then(|| range(lo, hi, pc, RecordName::Intensity))
-    });
-    let rgb = group("colorLimits").and_then(|g| {
+fn of_scan(scan: Option<roxmltree::Node>, pc: &PointCloud) -> OwnRanges {
+    let group = |tag: &str| scan?.children().find(|n| n.has_tag_name(tag));
+    let intensity = {
+        let g = group("intensityLimits");
+        let (lo, hi) = (
+            g.and_then(|g| limit(g, "intensityMinimum")),
+            g.and_then(|g| limit(g, "intensityMaximum")),
+        );
+        range(lo, hi, pc, RecordName::Intensity)
+    };
+    let rgb = {
+        let g = group("colorLimits");
         let channels = [
             ("colorRedMinimum", "colorRedMaximum", RecordName::ColorRed),
             (
@@ -61,45 +65,47 @@ fn of_scan(scan: roxmltree::Node, pc: &PointCloud) -> OwnRanges {
                 RecordName::ColorBlue,
             ),
         ];
-        let limits: [(Option<Limit>, Option<Limit>); 3] =
-            std::array::from_fn(|c| (limit(g, channels[c].0), limit(g, channels[c].1)));
-        let all: Vec<Option<Limit>> = limits.iter().flat_map(|&(lo, hi)| [lo, hi]).collect();
-        scaled(&all).then(|| {
-            std::array::from_fn(|c| range(limits[c].0, limits[c].1, pc, channels[c].2.clone()))
-        })
-    });
+        let stated = |tag: &str| g.and_then(|g| limit(g, tag));
+        let ranges: [Option<(f64, f64)>; 3] = std::array::from_fn(|c| {
+            let (lo, hi, field) = &channels[c];
+            range(stated(lo), stated(hi), pc, field.clone())
+        });
+        // One channel without a range: all three from the values, on one scale.
+        match ranges {
+            [Some(r), Some(g), Some(b)] => Some([r, g, b]),
+            _ => None,
+        }
+    };
     OwnRanges { intensity, rgb }
-}
-
-/// A limit's real value, and whether it was a scaled integer.
-type Limit = (f64, bool);
-
-fn scaled(limits: &[Option<Limit>]) -> bool {
-    limits.iter().flatten().any(|l| l.1)
 }
 
 /// The limit element `tag` under `group`: a scaled integer's raw value times its scale plus
 /// its offset, an integer's or a float's value.
-fn limit(group: roxmltree::Node, tag: &str) -> Option<Limit> {
+fn limit(group: roxmltree::Node, tag: &str) -> Option<f64> {
     let n = group.children().find(|n| n.has_tag_name(tag))?;
     let text = n.text().unwrap_or("0").trim();
     let number = |name: &str, default: f64| {
         n.attribute(name)
             .map_or(Some(default), |v| v.trim().parse::<f64>().ok())
     };
-    let (value, is_scaled) = match n.attribute("type")? {
+    let value = match n.attribute("type")? {
         "ScaledInteger" => {
             let raw = text.parse::<i64>().ok()? as f64;
-            (raw * number("scale", 1.0)? + number("offset", 0.0)?, true)
+            raw * number("scale", 1.0)? + number("offset", 0.0)?
         }
-        _ => (text.parse::<f64>().ok()?, false),
+        _ => text.parse::<f64>().ok()?,
     };
-    value.is_finite().then_some((value, is_scaled))
+    value.is_finite().then_some(value)
 }
 
-/// The range from the limits, each missing one from the field's type range, as the crate
-/// falls back to.
-fn range(lo: Option<Limit>, hi: Option<Limit>, pc: &PointCloud, field: RecordName) -> (f64, f64) {
+/// The range from the limits, each missing one from the field's type range; the type range
+/// alone where that is no range (limits of zero width); `None` where neither is.
+fn range(
+    lo: Option<f64>,
+    hi: Option<f64>,
+    pc: &PointCloud,
+    field: RecordName,
+) -> Option<(f64, f64)> {
     let (type_lo, type_hi) =
         pc.prototype
             .iter()
@@ -120,7 +126,35 @@ fn range(lo: Option<Limit>, hi: Option<Limit>, pc: &PointCloud, field: RecordNam
                     (min.unwrap_or(f64::MIN), max.unwrap_or(f64::MAX))
                 }
             });
-    (lo.map_or(type_lo, |l| l.0), hi.map_or(type_hi, |h| h.0))
+    [
+        (lo.unwrap_or(type_lo), hi.unwrap_or(type_hi)),
+        (type_lo, type_hi),
+    ]
+    .into_iter()
+    .find(|&r| is_range(r))
+}
+
+/// Bounds no sensor's values come near (a float field's type range, ±f32::MAX or
+/// ±f64::MAX, says nothing) and a width above zero.
+fn is_range((lo, hi): (f64, f64)) -> bool {
+    const SAID: f64 = 1e30;
+    lo.abs() < SAID && hi.abs() < SAID && hi > lo
+}
+
+/// The range of a field without one stated, from its values' least and greatest: values
+/// within 0..1, 0..255 or 0..65535 are taken on that scale (the first that holds them: raw
+/// 16-bit values are kept as they are), any others spread over 0..65535 by their own span.
+pub fn from_values(least: f64, greatest: f64) -> (f64, f64) {
+    if least >= 0.0
+        && let Some(top) = [1.0, 255.0, 65535.0].into_iter().find(|&t| greatest <= t)
+    {
+        return (0.0, top);
+    }
+    if greatest > least {
+        (least, greatest)
+    } else {
+        (least, least + 1.0)
+    }
 }
 
 /// `v` (real units) as 0..1 of `range`; 0 where the range is empty.
