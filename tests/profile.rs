@@ -115,6 +115,14 @@ fn a_full_profile_is_every_stored_point_in_its_corridor_with_every_attribute() {
         - 1;
     assert!(n > 0 && n < want.len(), "{n} of {}: {said}", want.len());
 
+    // The root's spacing as `info` gives it in decimals asks for the root level alone (node
+    // spacings are single precision: compared as they were, it read one level more).
+    let info = common::run_ok(&["info", s(&dataset), "--json"]);
+    let info: serde_json::Value = serde_json::from_slice(&info.stdout).expect("info JSON");
+    let root = info["spacing"].as_f64().expect("spacing").to_string();
+    let said = profile(&dataset, &coarse, &["--spacing", &root, "--overwrite"]);
+    assert!(said.contains("levels 0 to 0"), "--spacing {root}: {said}");
+
     // Bad input: one sentence, no output.
     for (args, says) in [
         (

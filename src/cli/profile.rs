@@ -82,10 +82,11 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
         write_points(&ds, &profile, &a.output, a.overwrite)?;
     }
     println!(
-        "{} points within {} of a {:.3} long line (levels 0 to {}, spacing {:.4}, {} points read){} -> {}",
+        "{} points within {} of a {:.3} long line (a corridor {} wide; levels 0 to {}, spacing {:.4}, {} points read){} -> {}",
         profile.points.len(),
-        a.width,
+        a.width / 2.0,
         corridor.length(),
+        a.width,
         profile.level,
         profile.spacing,
         profile.points_read,

@@ -58,7 +58,10 @@ impl Corridor {
             return Err("a profile line needs at least two points".into());
         }
         if !(self.width.is_finite() && self.width > 0.0) {
-            return Err(format!("the profile width {} is not above 0", self.width));
+            return Err(format!(
+                "the profile width {} is not a finite distance above 0",
+                self.width
+            ));
         }
         let length = self.length();
         if length == 0.0 {
@@ -94,12 +97,15 @@ impl Corridor {
                 let (px, py) = (x - a[0], y - a[1]);
                 let t = px * ux + py * uy;
                 let off = ux * py - uy * px;
-                if (0.0..=len).contains(&t)
-                    && off.abs() <= half
+                // A point on the end vertex or the band's edge lies on it to rounding: through
+                // the unit vector, t there can come out a few ulps past the segment's length.
+                let ulps = 8.0 * f64::EPSILON * (a[0].abs() + a[1].abs() + len + half);
+                if (-ulps..=len + ulps).contains(&t)
+                    && off.abs() <= half + ulps
                     && best.is_none_or(|b| off.abs() < b.offset.abs())
                 {
                     best = Some(Place {
-                        along: before + t,
+                        along: before + t.clamp(0.0, len),
                         offset: off,
                     });
                 }
@@ -226,13 +232,19 @@ pub fn extract(
         }
         out.level = depth;
         out.spacing = ds.node_spacing(NodeKey::ROOT) as f64 / (1u64 << depth) as f64;
-        if !on_level(&out) || out.spacing <= detail.spacing {
+        if !on_level(&out) || fine_enough(out.spacing, detail.spacing) {
             break;
         }
         level = children(ds, &mut tree, &level, corridor)?;
         depth += 1;
     }
     Ok(out)
+}
+
+/// Whether a level of point spacing `level` (from single-precision node spacings) is as fine
+/// as `asked`: a level's own spacing, given in decimals, asks for that level, not one finer.
+fn fine_enough(level: f64, asked: f64) -> bool {
+    level <= asked * (1.0 + f64::from(f32::EPSILON))
 }
 
 /// The real-world horizontal rectangle of node `key`'s cube.
@@ -375,6 +387,33 @@ impl Profile {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_levels_spacing_in_decimals_asks_for_that_level() {
+        // 1.024 as a single is 1.0240000486...
+        assert!(fine_enough(f64::from(1.024f32), 1.024));
+        assert!(fine_enough(f64::from(0.512f32), 1.024));
+        assert!(!fine_enough(f64::from(1.024f32), 1.0239));
+    }
+
+    #[test]
+    fn points_on_the_end_vertex_and_on_the_band_edge_are_in_the_corridor() {
+        // Through the unit vector, t at these end vertices came out past the segment's length.
+        for (line, end) in [
+            ("500001,4000001;500019,4000019", [500019.0, 4000019.0]),
+            ("10,10;10.25,40", [10.25, 40.0]),
+            ("5,5;25,25;5,25.5", [5.0, 25.5]),
+        ] {
+            let c = Corridor::parse(line, 1.0).expect("parses");
+            let place = c.place(end[0], end[1]);
+            let along = place.map(|p| p.along);
+            assert_eq!(along, Some(c.length()), "{line}: {place:?}");
+        }
+        // A point half the width off a diagonal segment's middle is on the band's edge.
+        let c = Corridor::parse("0,0;10,10", 2.0 * 2f64.sqrt()).expect("parses");
+        assert!(c.place(4.0, 6.0).is_some());
+        assert!(c.place(3.9, 6.1).is_none());
+    }
 
     #[test]
     fn the_csv_keeps_fine_distances_and_writes_a_normal_as_a_vector() {
