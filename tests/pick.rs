@@ -147,3 +147,52 @@ fn a_64_bit_attribute_is_picked_whole() {
     let text = String::from_utf8_lossy(&o.stdout);
     assert!(text.contains("serial 9007199254740993"), "{text}");
 }
+
+/// A view that draws nothing because the budget is below the root node's points is not
+/// "only background" (exit 3): it is an error naming the budget, for pick and measure alike.
+#[test]
+fn a_budget_below_the_root_node_is_said_not_answered_as_background() {
+    // 300 k points at random in a cube: the root keeps most of them (about 250 k).
+    let dir = tempfile::tempdir().expect("tempdir");
+    let ply = dir.path().join("cube.ply");
+    let mut seed = 5u64;
+    let mut unit = || {
+        seed = seed
+            .wrapping_mul(6364136223846793005)
+            .wrapping_add(1442695040888963407);
+        (seed >> 11) as f64 / (1u64 << 53) as f64
+    };
+    let points: Vec<([f64; 3], [u8; 3])> = (0..300_000)
+        .map(|_| {
+            (
+                [unit() * 10.0, unit() * 10.0, unit() * 10.0],
+                [200, 200, 200],
+            )
+        })
+        .collect();
+    common::write_coloured_ply(&ply, &points, None);
+    let dataset = dir.path().join("cube.strata");
+    common::run_ok(&["convert", s(&ply), "-o", s(&dataset), "--quiet"]);
+    for command in ["pick", "measure"] {
+        let mut args = vec![
+            command,
+            s(&dataset),
+            "--size",
+            "160x120",
+            "--budget",
+            "100k",
+        ];
+        if command == "pick" {
+            args.extend(["--pixel", "80,60"]);
+        } else {
+            args.extend(["--pixel", "80,60", "--pixel", "90,60"]);
+        }
+        let o = gpu_run(&args);
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert_eq!(o.status.code(), Some(1), "{command}: {err}");
+        assert!(
+            err.contains("root node alone holds") && err.contains("--budget 100000"),
+            "{command}: {err}"
+        );
+    }
+}

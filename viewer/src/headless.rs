@@ -319,12 +319,15 @@ pub fn pick_all(
             ),
         ));
     }
-    let mut renderer = Renderer::new(ctx, ds, opts.gpu_cache_bytes, opts.loader_threads)?;
+    let mut renderer = Renderer::new(ctx, ds.clone(), opts.gpu_cache_bytes, opts.loader_threads)?;
     renderer.check_size(opts.settings.pipeline, opts.width, opts.height)?;
     let start = Instant::now();
     loop {
         let stats = renderer.frame(&camera, opts.width, opts.height, &opts.settings)?;
         renderer.wait_gpu()?;
+        if stats.points_drawn == 0 {
+            nothing_drawn(&ds, opts, &stats, start.elapsed() > opts.timeout)?;
+        }
         if stats.complete || start.elapsed() > opts.timeout {
             break;
         }
@@ -334,6 +337,40 @@ pub fn pick_all(
         .iter()
         .map(|&(x, y)| renderer.pick(x, y, radius))
         .collect()
+}
+
+/// Why a view that drew no point cannot be picked from, where the answer "only background"
+/// would be wrong: the budget is below the root node's points, so nothing can be drawn, or
+/// the time ran out before anything was. A complete view of nothing (the data lies outside
+/// it) is background.
+fn nothing_drawn(
+    ds: &StreamDataset,
+    opts: &RenderOptions,
+    stats: &FrameStats,
+    timed_out: bool,
+) -> Result<(), ViewerError> {
+    let mut tree = crate::lod::Tree::default();
+    tree.add_page(ds.root_hierarchy_page());
+    let root = tree
+        .node(strata_format::NodeKey::ROOT)
+        .map_or(0, |n| u64::from(n.point_count));
+    let budget = opts.settings.budget;
+    if root > budget {
+        return Err(ViewerError::argument(
+            format!("--budget {budget}"),
+            format!(
+                "nothing is drawn: the dataset's root node alone holds {root} points, more \
+                 than the point budget"
+            ),
+        ));
+    }
+    if timed_out && !stats.complete {
+        return Err(ViewerError::argument(
+            format!("--timeout {}", opts.timeout.as_secs_f64()),
+            "nothing was drawn before the time ran out",
+        ));
+    }
+    Ok(())
 }
 
 fn cameras(ds: &StreamDataset, opts: &RenderOptions) -> Result<Vec<Camera>, ViewerError> {

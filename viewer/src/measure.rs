@@ -357,10 +357,14 @@ impl Measurements {
         crate::headless::write_atomic(path, json.as_bytes())
     }
 
-    /// A name not yet taken, `KIND N`.
+    /// A name not yet taken, `KIND N`: N one more than the kind's count, or past any name
+    /// of that form already given (by hand, or read from a file).
     pub fn next_name(&self, kind: MeasureKind) -> String {
         let n = self.items.iter().filter(|m| m.kind == kind).count();
-        format!("{} {}", kind.name(), n + 1)
+        (n + 1..)
+            .map(|k| format!("{} {k}", kind.name()))
+            .find(|name| self.items.iter().all(|m| &m.name != name))
+            .unwrap_or_default()
     }
 }
 
@@ -454,6 +458,21 @@ mod tests {
     }
 
     const O: [f64; 3] = [500_000.0, 4_600_000.0, 100.0];
+
+    #[test]
+    fn a_default_name_is_never_one_already_given() {
+        let mut all = Measurements {
+            items: Vec::new(),
+            members: Default::default(),
+        };
+        assert_eq!(all.next_name(MeasureKind::Distance), "distance 1");
+        let mut given = m(MeasureKind::Distance, &[O, O]);
+        given.name = "distance 2".into();
+        all.items.push(given);
+        // One distance: "distance 2" would be next, and is taken.
+        assert_eq!(all.next_name(MeasureKind::Distance), "distance 3");
+        assert_eq!(all.next_name(MeasureKind::Height), "height 1");
+    }
 
     fn at(x: f64, y: f64, z: f64) -> [f64; 3] {
         [O[0] + x, O[1] + y, O[2] + z]
