@@ -3,6 +3,8 @@
 //! own reading of the file. Malformed files are refused in one sentence.
 
 mod common;
+#[path = "e57/extras.rs"]
+mod extras;
 #[path = "e57/ranges.rs"]
 mod ranges;
 #[path = "e57/write.rs"]

@@ -1,9 +1,11 @@
 //! E57 (ASTM E2807) files from terrestrial scanners, read with the `e57` crate: every scan
 //! (data3D entry), in world coordinates, with the position its scanner stood at. Rows hold
-//! `rgb` and `intensity` when a scan has them and always `scanner`, the scan's global index.
+//! `rgb`, `intensity`, returns and `gps_time` when a scan has them (`e57_extras`) and always
+//! `scanner`, the scan's global index.
 //! Decoding runs on a thread of its own (`e57_decode`), started by the first `read`.
 
 use super::e57_decode::{self, Batch, Job, Msg, Pose, QUEUED, RowShape};
+use super::e57_extras::FileExtras;
 use super::e57_limits::{OwnRanges, own_ranges};
 use super::laz_check::guarded;
 use super::{NO_SCANNER, PointSource, Precision, SourceInfo};
@@ -126,14 +128,16 @@ impl E57Source {
         }
         let rgb = clouds.iter().any(PointCloud::has_color);
         let intensity = clouds.iter().any(PointCloud::has_intensity);
-        let (shape, attributes) = RowShape::new(rgb, intensity);
+        let (shape, attributes) = RowShape::new(rgb, intensity, FileExtras::of(&clouds));
         let ranges = own_ranges(reader.xml(), &clouds);
+        let mut warnings = unstated_ranges(path, &clouds, &ranges);
+        warnings.extend(FileExtras::warnings(path, &clouds));
         let info = SourceInfo {
             path: path.to_path_buf(),
             points,
             attributes,
             precision: precision(&clouds),
-            warnings: unstated_ranges(path, &clouds, &ranges),
+            warnings,
             scanners: poses.iter().map(|p| p.translation).collect(),
             crs: None,
         };
@@ -145,6 +149,7 @@ impl E57Source {
                 poses,
                 ranges,
                 shape,
+                path: path.to_path_buf(),
                 first: 0,
             }),
             feed: None,

@@ -5,6 +5,7 @@
 //! because the crate's point reader borrows the file reader: one owner for both, and bounded
 //! batches over a channel, keep memory flat whatever the file's size.
 
+use super::e57_extras::{FileExtras, ScanExtras};
 use super::e57_limits::{OwnRanges, from_values, normalised};
 use super::laz_check::guarded;
 use e57::{CartesianCoordinate, E57Reader, PointCloud};
@@ -27,15 +28,20 @@ pub struct RowShape {
     pub rgb: Option<usize>,
     /// `intensity`, u16, 0..65535 from the scan's intensity limits.
     pub intensity: Option<usize>,
+    /// `return_number` and `number_of_returns`, u8 each, one after the other.
+    pub returns: Option<usize>,
+    /// `gps_time`, f64.
+    pub time: Option<usize>,
     /// `scanner`, u16: the scan's global index.
     pub scanner: usize,
     pub len: usize,
 }
 
 impl RowShape {
-    /// The row for a file whose scans have colour and intensity as given (if any scan has
-    /// them, every row has them; points without them get zero), and its attributes in order.
-    pub fn new(rgb: bool, intensity: bool) -> (RowShape, Vec<Attribute>) {
+    /// The row for a file whose scans have colour, intensity and the extra fields as given
+    /// (if any scan has one, every row has it; points without it get zero, or a single
+    /// return), and its attributes in order.
+    pub fn new(rgb: bool, intensity: bool, extras: FileExtras) -> (RowShape, Vec<Attribute>) {
         let mut attributes = Vec::new();
         let mut len = 0;
         let mut add = |a: Attribute| {
@@ -46,10 +52,22 @@ impl RowShape {
         };
         let rgb = rgb.then(|| add(Attribute::new("rgb", AttrType::U16, 3)));
         let intensity = intensity.then(|| add(Attribute::new("intensity", AttrType::U16, 1)));
+        let returns = extras.returns.then(|| {
+            let at = add(Attribute::new("return_number", AttrType::U8, 1));
+            add(Attribute::new("number_of_returns", AttrType::U8, 1));
+            at
+        });
+        let time = extras.time.map(|base| {
+            let mut a = Attribute::new("gps_time", AttrType::F64, 1);
+            a.time_base = base;
+            add(a)
+        });
         let scanner = add(Attribute::new(super::SCANNER, AttrType::U16, 1));
         let shape = RowShape {
             rgb,
             intensity,
+            returns,
+            time,
             scanner,
             len,
         };
@@ -145,6 +163,8 @@ pub struct Job {
     /// Each scan's colour and intensity ranges, as its limits state them.
     pub ranges: Vec<OwnRanges>,
     pub shape: RowShape,
+    /// The file, opened again for the fields the simple reader does not give.
+    pub path: std::path::PathBuf,
     /// The global index of the first scan.
     pub first: u16,
 }
@@ -158,6 +178,7 @@ pub fn run(job: Job, tx: &SyncSender<Msg>) {
         poses,
         ranges,
         shape,
+        path,
         first,
     } = job;
     let n = clouds.len();
@@ -172,6 +193,7 @@ pub fn run(job: Job, tx: &SyncSender<Msg>) {
                 own: &own,
                 scanner,
                 scan: &scan,
+                path: &path,
             };
             decode_scan(&mut reader, pc, &at, shape, tx, &mut valid)
         });
@@ -249,6 +271,7 @@ struct Place<'a> {
     own: &'a OwnRanges,
     scanner: u16,
     scan: &'a str,
+    path: &'a std::path::Path,
 }
 
 /// One scan; `Ok(false)` when the reading side has gone.
@@ -265,7 +288,21 @@ fn decode_scan(
         own,
         scanner,
         scan,
+        path,
     } = *at;
+    // The extra fields, from raw records read in step on a reader of their own.
+    let extras = ScanExtras::of(pc);
+    let mut raw_reader = match &extras {
+        Some(_) => Some(ScanExtras::open(path).map_err(|e| format!("{scan}: {e}"))?),
+        None => None,
+    };
+    let mut raw = match &mut raw_reader {
+        Some(r) => Some(
+            r.pointcloud_raw(pc)
+                .map_err(|e| format!("{scan} cannot be read ({})", plain(&e)))?,
+        ),
+        None => None,
+    };
     let mut points = reader
         .pointcloud_simple(pc)
         .map_err(|e| format!("{scan} cannot be read ({})", plain(&e)))?;
@@ -284,6 +321,24 @@ fn decode_scan(
                 plain(&e)
             )
         })?;
+        let extra = match (&extras, &mut raw) {
+            (Some(e), Some(raw)) => {
+                let values = raw
+                    .next()
+                    .ok_or_else(|| format!("{scan} ends early at point {k}"))?
+                    .map_err(|e| {
+                        format!(
+                            "{scan} is corrupt or truncated at point {k} ({})",
+                            plain(&e)
+                        )
+                    })?;
+                Some(
+                    e.read(pc, &values)
+                        .map_err(|e| format!("{scan} point {k}: {e}"))?,
+                )
+            }
+            _ => None,
+        };
         let CartesianCoordinate::Valid { x, y, z } = p.cartesian else {
             continue;
         };
@@ -308,6 +363,14 @@ fn decode_scan(
         if let (Some(o), Some(v)) = (shape.intensity, p.intensity) {
             let v = own.intensity.map_or(0.0, |r| normalised(v, r));
             row[o..o + 2].copy_from_slice(&unit_to_u16(v).to_le_bytes());
+        }
+        if let Some(o) = shape.returns {
+            let (number, count) = extra.map_or((1, 1), |e| (e.return_number, e.number_of_returns));
+            row[o] = number;
+            row[o + 1] = count;
+        }
+        if let (Some(o), Some(e)) = (shape.time, extra) {
+            row[o..o + 8].copy_from_slice(&e.time.to_le_bytes());
         }
         row[shape.scanner..shape.scanner + 2].copy_from_slice(&scanner.to_le_bytes());
         if batch.xyz.len() == BATCH_POINTS {

@@ -2,6 +2,7 @@
 
 pub mod e57;
 pub mod e57_decode;
+mod e57_extras;
 mod e57_limits;
 pub mod las;
 pub mod las_header;

@@ -1,0 +1,119 @@
+//! Return index and count and time stamps, which the crate's simple reader does not give:
+//! they are kept as `return_number`, `number_of_returns` and `gps_time`.
+
+use super::*;
+
+/// Per stored point, by x: (scanner, return number, number of returns, time).
+fn extras_by_x(ds: &Path) -> Vec<(i32, u16, u8, u8, f64)> {
+    let d = LocalDataset::open(ds).expect("dataset opens");
+    let layout = d.layout().clone();
+    let at = |name: &str| {
+        let i = layout.index_of(name).expect(name);
+        layout.offsets[i]
+    };
+    let (scanner, number, count, time) = (
+        at("scanner"),
+        at("return_number"),
+        at("number_of_returns"),
+        at("gps_time"),
+    );
+    let mut out = Vec::new();
+    for node in d.all_nodes().expect("nodes") {
+        let rows = d.read_node(&node).expect("node").to_rows(&layout);
+        for r in rows.chunks_exact(layout.stride) {
+            let word = |o: usize, n: usize| r[o..o + n].to_vec();
+            out.push((
+                i32::from_le_bytes(word(0, 4).try_into().expect("x")),
+                u16::from_le_bytes(word(scanner, 2).try_into().expect("scanner")),
+                r[number],
+                r[count],
+                f64::from_le_bytes(word(time, 8).try_into().expect("time")),
+            ));
+        }
+    }
+    out.sort_by_key(|p| p.0);
+    out
+}
+
+#[test]
+fn return_numbers_and_time_stamps_are_kept() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let input = dir.path().join("extras.e57");
+    let mut w = e57::E57Writer::from_file(&input, "strata-test-extras").expect("writer");
+    let mut prototype = vec![
+        e57::Record::CARTESIAN_X_F64,
+        e57::Record::CARTESIAN_Y_F64,
+        e57::Record::CARTESIAN_Z_F64,
+    ];
+    prototype.extend(
+        [
+            (e57::RecordName::ReturnIndex, 0, 3),
+            (e57::RecordName::ReturnCount, 0, 4),
+            (e57::RecordName::IsTimeStampInvalid, 0, 1),
+        ]
+        .map(|(name, min, max)| e57::Record {
+            name,
+            data_type: e57::RecordDataType::Integer { min, max },
+        }),
+    );
+    prototype.push(e57::Record {
+        name: e57::RecordName::TimeStamp,
+        data_type: e57::RecordDataType::Double {
+            min: None,
+            max: None,
+        },
+    });
+    let mut pc = w.add_pointcloud("timed", prototype).expect("scan");
+    pc.set_acquisition_start(Some(e57::DateTime {
+        gps_time: 1.3e9,
+        atomic_reference: true,
+    }));
+    for k in 0..8i64 {
+        let mut values: Vec<e57::RecordValue> =
+            [k as f64, 0.0, 0.0].map(e57::RecordValue::Double).to_vec();
+        values.extend([k % 3, 2, i64::from(k == 5)].map(e57::RecordValue::Integer));
+        values.push(e57::RecordValue::Double(0.25 * k as f64));
+        pc.add_point(values).expect("point");
+    }
+    pc.finalize().expect("scan written");
+    // A scan with none of the fields: single returns, time 0.
+    let mut pc = w
+        .add_pointcloud(
+            "plain",
+            vec![
+                e57::Record::CARTESIAN_X_F64,
+                e57::Record::CARTESIAN_Y_F64,
+                e57::Record::CARTESIAN_Z_F64,
+            ],
+        )
+        .expect("scan");
+    pc.add_point([100.0, 0.0, 0.0].map(e57::RecordValue::Double).to_vec())
+        .expect("point");
+    pc.finalize().expect("scan written");
+    w.finalize().expect("file written");
+
+    let ds = convert(dir.path(), &[&input]);
+    let (meta, _) = stored(&ds);
+    let time = meta
+        .attributes
+        .iter()
+        .find(|a| a.name == "gps_time")
+        .expect("gps_time");
+    assert_eq!(
+        time.time_base,
+        Some(strata_format::TimeBase::GpsAdjustedStandard)
+    );
+    let got = extras_by_x(&ds);
+    assert_eq!(got.len(), 9);
+    for (k, &(_, scanner, number, count, t)) in got.iter().enumerate() {
+        let want = if k < 8 {
+            // Index k % 3 of 3 returns (the count is raised to the index where it is
+            // smaller); 0.3e9 + 0.25 k seconds of adjusted standard time, 0 where invalid.
+            let time = if k == 5 { 0.0 } else { 0.3e9 + 0.25 * k as f64 };
+            (0, (k % 3 + 1) as u8, 2.max((k % 3 + 1) as u8), time)
+        } else {
+            (1, 1, 1, 0.0)
+        };
+        assert_eq!((scanner, number, count, t), want, "point {k}");
+    }
+}
