@@ -120,11 +120,16 @@ impl ParamValues {
                     .iter()
                     .any(|p| p.name == a && p.min == -1.0 && p.max == 1.0)
             });
-            let numbers: Vec<f32> = parts.iter().filter_map(|p| p.trim().parse().ok()).collect();
-            let length = numbers.iter().map(|v| v * v).sum::<f32>().sqrt();
-            if unit && numbers.len() == 3 && length > 0.0 && length.is_finite() {
-                for (axis, v) in axes.iter().zip(numbers) {
-                    self.set_text(pipeline, axis, &(v / length).to_string())?;
+            // In doubles, scaled by the largest component first, so that neither a tiny nor a
+            // huge direction rounds out of -1..1 or to no length.
+            let numbers: Vec<f64> = parts.iter().filter_map(|p| p.trim().parse().ok()).collect();
+            let largest = numbers.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+            if unit && numbers.len() == 3 && largest > 0.0 && largest.is_finite() {
+                let scaled: Vec<f64> = numbers.iter().map(|v| v / largest).collect();
+                let length = scaled.iter().map(|v| v * v).sum::<f64>().sqrt();
+                for (axis, v) in axes.iter().zip(scaled) {
+                    let unit = ((v / length) as f32).clamp(-1.0, 1.0);
+                    self.set_text(pipeline, axis, &unit.to_string())?;
                 }
                 return Ok(());
             }
@@ -208,7 +213,9 @@ impl ResolvedParams {
                             Auto::DrawnSpacings(n) => n as f32,
                             _ => 1.0,
                         };
-                        spacing_value.map(|s| s * times)
+                        // Within the parameter's range, as a value set by hand must be: the
+                        // spacing of a dataset of one point (or of one position) is nearly 0.
+                        spacing_value.map(|s| (s * times).clamp(spec.min, spec.max))
                     }
                     None => Some(spec.default),
                 },

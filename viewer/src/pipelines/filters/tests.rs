@@ -221,6 +221,13 @@ fn the_parameter_table_names_every_class_once() {
         values.set_text(&INFO, "light", "1,2").is_err(),
         "a light takes three numbers"
     );
+    // A direction of any finite length, however short or long, is normalised.
+    for (text, x) in [("1e-20,0,0", 1.0), ("-1e-20,0,0", -1.0), ("1e20,0,0", 1.0)] {
+        let u = uniforms(&view(), &resolved(&[("light", text)]), true);
+        assert_eq!(u.light[..3], [x, 0.0, 0.0], "light={text}");
+    }
+    let u = uniforms(&view(), &resolved(&[("light", "1e-30,0,1e-30")]), true);
+    assert!((u.light[0] - 0.5f32.sqrt()).abs() < 1e-6, "{:?}", u.light);
 }
 
 /// The adapter check in `FiltersPasses::new` names the most storage buffers any filters module

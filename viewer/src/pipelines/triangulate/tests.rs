@@ -141,6 +141,11 @@ fn a_still_waits_the_warmup_and_the_first_frame_reprojects_nothing() {
         &ResolvedParams::resolve(&set, &INFO, || Some(0.3)),
     );
     assert_eq!((fixed.max_connection, fixed.spacing_factor), (0.5, 0.0));
+    // A dataset of one point draws a spacing of nearly 0: the automatic value stays within
+    // the parameter's range.
+    let tiny = ResolvedParams::resolve(&ParamValues::default(), &INFO, || Some(2e-15));
+    let spec = INFO.param("max_connection").expect("max_connection");
+    assert_eq!(tiny.get("max_connection"), Some(spec.min));
     let mut moved = view;
     moved.view = glam::Mat4::from_translation(glam::Vec3::X);
     let next = uniforms(&view, Some(&moved), &params);
