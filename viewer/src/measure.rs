@@ -167,6 +167,52 @@ impl Measurement {
         length(s) / 2.0
     }
 
+    /// For an area, the first two edges (numbered from 1, the closing edge last) that cross
+    /// each other, seen across the plane the polygon spreads over most (of xy, yz and zx):
+    /// a polygon that crosses itself counts its loops with opposite signs, so its area is
+    /// not the one a user meant.
+    pub fn crossing_edges(&self) -> Option<(usize, usize)> {
+        let n = self.points.len();
+        if self.kind != MeasureKind::Area || n < 4 {
+            return None;
+        }
+        let o = self.points[0];
+        let rel: Vec<[f64; 3]> = self.points.iter().map(|p| sub(*p, o)).collect();
+        let spread = |a: usize, b: usize| {
+            let (mut lo, mut hi) = ([f64::MAX; 2], [f64::MIN; 2]);
+            for p in &rel {
+                for (k, axis) in [a, b].into_iter().enumerate() {
+                    lo[k] = lo[k].min(p[axis]);
+                    hi[k] = hi[k].max(p[axis]);
+                }
+            }
+            (hi[0] - lo[0]) * (hi[1] - lo[1])
+        };
+        let (a, b) = [(0, 1), (1, 2), (2, 0)]
+            .into_iter()
+            .max_by(|x, y| spread(x.0, x.1).total_cmp(&spread(y.0, y.1)))?;
+        let flat: Vec<[f64; 2]> = rel.iter().map(|p| [p[a], p[b]]).collect();
+        let side = |p: [f64; 2], q: [f64; 2], r: [f64; 2]| {
+            ((q[0] - p[0]) * (r[1] - p[1]) - (q[1] - p[1]) * (r[0] - p[0])).signum()
+        };
+        let edge = |i: usize| (flat[i], flat[(i + 1) % n]);
+        for i in 0..n {
+            // Edges that share a corner with edge i meet it there; they do not cross it.
+            for j in i + 2..n {
+                if i == 0 && j == n - 1 {
+                    continue;
+                }
+                let ((p, q), (r, s)) = (edge(i), edge(j));
+                let (d1, d2) = (side(p, q, r), side(p, q, s));
+                let (d3, d4) = (side(r, s, p), side(r, s, q));
+                if d1 * d2 < 0.0 && d3 * d4 < 0.0 {
+                    return Some((i + 1, j + 1));
+                }
+            }
+        }
+        None
+    }
+
     /// The angle at the second point between the rays to the first and the third, in degrees.
     pub fn angle_deg(&self) -> Option<f64> {
         let [a, v, b] = self.points.get(..3)?.try_into().ok()?;
@@ -229,6 +275,12 @@ impl Measurement {
         }
         for (name, v) in self.values() {
             out.push(format!("  {} {v:.3}", name.replace('_', " ")));
+        }
+        if let Some((i, j)) = self.crossing_edges() {
+            out.push(format!(
+                "  the polygon crosses itself (edges {i} and {j}): its area subtracts one loop \
+                 from the other; pick the corners in order around it"
+            ));
         }
         if !self.is_complete() {
             out.push(format!(
@@ -458,6 +510,55 @@ mod tests {
     }
 
     const O: [f64; 3] = [500_000.0, 4_600_000.0, 100.0];
+
+    #[test]
+    fn a_polygon_that_crosses_itself_is_said() {
+        // A bowtie seen from above, and the same square with its corners in order.
+        let bowtie = m(
+            MeasureKind::Area,
+            &[
+                at(0.0, 0.0, 0.0),
+                at(2.0, 2.0, 0.0),
+                at(2.0, 0.0, 0.0),
+                at(0.0, 2.0, 0.0),
+            ],
+        );
+        assert_eq!(bowtie.crossing_edges(), Some((1, 3)));
+        assert!(bowtie.lines().iter().any(|l| l.contains("crosses itself")));
+        let square = m(
+            MeasureKind::Area,
+            &[
+                at(0.0, 0.0, 0.0),
+                at(2.0, 0.0, 0.0),
+                at(2.0, 2.0, 0.0),
+                at(0.0, 2.0, 0.0),
+            ],
+        );
+        assert_eq!(square.crossing_edges(), None);
+        // On a wall (x fixed), seen across it.
+        let wall = m(
+            MeasureKind::Area,
+            &[
+                at(1.0, 0.0, 0.0),
+                at(1.0, 2.0, 2.0),
+                at(1.0, 2.0, 0.0),
+                at(1.0, 0.0, 2.0),
+            ],
+        );
+        assert_eq!(wall.crossing_edges(), Some((1, 3)));
+        // A non-convex polygon that does not cross itself.
+        let notch = m(
+            MeasureKind::Area,
+            &[
+                at(0.0, 0.0, 0.0),
+                at(4.0, 0.0, 0.0),
+                at(4.0, 4.0, 0.0),
+                at(2.0, 1.0, 0.0),
+                at(0.0, 4.0, 0.0),
+            ],
+        );
+        assert_eq!(notch.crossing_edges(), None);
+    }
 
     #[test]
     fn a_default_name_is_never_one_already_given() {
