@@ -467,3 +467,31 @@ fn c_surfels_on_a_plane_seen_grazing_stay_flat() {
         );
     }
 }
+
+/// Pixels inside the outline (by two pixels) that show the sphere's far half: seen from
+/// `DISTANCE` on -y, the near cap ends where the tangent cone touches it, at y = -1 / DISTANCE,
+/// so no pixel of it lies deeper than DISTANCE - 1 / DISTANCE.
+fn far_half_pixels(shot: &Shot) -> usize {
+    let ([cx, cy], r) = outline();
+    let deepest = DISTANCE - 1.0 / DISTANCE;
+    shot.depth
+        .iter()
+        .enumerate()
+        .filter(|(i, d)| {
+            let (x, y) = ((*i as u32 % W) as f32 + 0.5, (*i as u32 / W) as f32 + 0.5);
+            let inside = ((x - cx).powi(2) + (y - cy).powi(2)).sqrt() < r - 2.0;
+            inside && d.is_some_and(|d| d > deepest + 0.05)
+        })
+        .count()
+}
+
+/// A closed surface's far side, its normals turned away from the eye, won the depth test
+/// through the near side's pinholes and showed there in its own colours (and depth).
+#[test]
+fn the_far_side_of_a_closed_surface_does_not_show_through_pinholes() {
+    let shot = shot(Sphere::Random, "surfels", &[], Lod::Full);
+    let far = far_half_pixels(&shot);
+    assert_eq!(far, 0, "{far} pixels show the sphere's far half");
+    let (holes, _) = holes_and_overshoot(&shot.covered);
+    assert!(holes < 1e-4, "{holes:.5} of the sphere empty");
+}

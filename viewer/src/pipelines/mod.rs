@@ -265,6 +265,9 @@ pub struct PipelineFrame<'a> {
     pub has_normals: bool,
     /// Its normals face the outside of the surfaces (`StreamDataset::normals_face_outward`).
     pub normals_outward: bool,
+    /// Its normals point out of every surface, so that one facing away from the eye marks a
+    /// back face (`StreamDataset::normals_mark_back_faces`).
+    pub normals_mark_back_faces: bool,
     /// The projection culled back faces (the pipeline declared `cull_back_faces` and the
     /// dataset's normals mark them: `StreamDataset::normals_mark_back_faces`).
     pub back_faces_culled: bool,

@@ -231,6 +231,7 @@ impl Renderer {
                     int64,
                     has_normals,
                     normals_outward,
+                    normals_mark_back_faces: self.ds.normals_mark_back_faces(),
                     back_faces_culled: cull,
                     curvature_scale: self.ds.curvature_scale().map(|c| c as f32),
                     bounds: [bmin, bmax],

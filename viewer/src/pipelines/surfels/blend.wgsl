@@ -2,7 +2,8 @@
 // z_o of the front surface adds its colour, normal and depth weighted by its alpha texture.
 // Sums are fixed point, so that the image does not depend on the order threads run in.
 @group(0) @binding(2) var<storage, read> planes: array<u32>;
-// Per pixel: w, then w * (r, g, b), w * (normal / 2 + 1/2), w * (where in the blended layer).
+// Per pixel: w, then w * (r, g, b), w * (normal / 2 + 1/2), w * (where in the blended layer),
+// and the w of surfels whose normal was turned away from the eye (back faces).
 @group(0) @binding(3) var<storage, read_write> sums: array<atomic<u32>>;
 
 @compute @workgroup_size(256)
@@ -17,8 +18,11 @@ fn main(
         return;
     }
     let rgb = point_colour(points[s.idx], attributes[s.idx]);
-    // Normals blended as seen: each turned towards the eye first.
-    let n = select(s.n, -s.n, dot(s.n, s.p - surf.eye.xyz) > 0.0);
+    // Normals blended as seen: each turned towards the eye first. Which were turned is kept
+    // apart where that marks a back face, for the shade to tell a closed surface's far side.
+    let turned = dot(s.n, s.p - surf.eye.xyz) > 0.0;
+    let back = turned && surf.back_faces != 0u;
+    let n = select(s.n, -s.n, turned);
     let b = pixel_box(s);
     let pixels = box_pixels(b);
     var next = b.xy;
@@ -49,5 +53,8 @@ fn main(
         atomicAdd(&sums[i + 5u], u32(w * (0.5 * n.y + 0.5) + 0.5));
         atomicAdd(&sums[i + 6u], u32(w * (0.5 * n.z + 0.5) + 0.5));
         atomicAdd(&sums[i + 7u], u32(w * layer + 0.5));
+        if back {
+            atomicAdd(&sums[i + 8u], u32(w + 0.5));
+        }
     }
 }

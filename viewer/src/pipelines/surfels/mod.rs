@@ -194,8 +194,13 @@ impl Pipeline for Surfels {
             (true, true) => passes::Normals::Outward,
             (true, false) => passes::Normals::FacingEye,
         };
-        let uniforms =
-            SurfelUniforms::new(frame.view, frame.params, normals, frame.curvature_scale);
+        let uniforms = SurfelUniforms::new(
+            frame.view,
+            frame.params,
+            normals,
+            frame.curvature_scale,
+            frame.normals_mark_back_faces,
+        );
         let sides = param(frame.params, "sides") as u32;
         self.passes
             .encode(frame, encoder, targets, &uniforms, sides, timer)

@@ -36,7 +36,7 @@ const SHADE_WGSL: &str = include_str!("shade.wgsl");
 /// `mode` of the planar surfels (`MODE_PLANAR` in uniforms.wgsl).
 pub const MODE_PLANAR: u32 = 0;
 /// Words per pixel of the blend sums (`SUM_WORDS` in sums.wgsl).
-pub const SUM_WORDS: u64 = 8;
+pub const SUM_WORDS: u64 = 9;
 /// Storage buffers the depth and blend passes bind in one stage.
 pub const STORAGE_BUFFERS: u32 = 8;
 /// Words before the slots in a list of curved surfels (`LIST_HEADER` in surfel.wgsl): the
@@ -63,7 +63,7 @@ pub struct SurfelUniforms {
     pub forward: [f32; 4],
     pub right: [f32; 4],
     pub up: [f32; 4],
-    pub pad0: u32,
+    pub back_faces: u32,
     pub rings: u32,
     pub mode: u32,
     pub normals: u32,
@@ -79,12 +79,14 @@ pub struct SurfelUniforms {
 }
 
 impl SurfelUniforms {
-    /// `curvature`: the dataset's `curvature_scale`, where it has one.
+    /// `curvature`: the dataset's `curvature_scale`, where it has one; `back_faces`: whether
+    /// its normals mark back faces (`StreamDataset::normals_mark_back_faces`).
     pub fn new(
         view: &ViewFrame,
         params: &ResolvedParams,
         normals: Normals,
         curvature: Option<f32>,
+        back_faces: bool,
     ) -> SurfelUniforms {
         let rays = view.pixel_rays();
         SurfelUniforms {
@@ -92,7 +94,7 @@ impl SurfelUniforms {
             forward: rays.forward,
             right: rays.right,
             up: rays.up,
-            pad0: 0,
+            back_faces: u32::from(back_faces),
             rings: param(params, "rings") as u32,
             mode: param(params, "mode") as u32,
             normals: normals as u32,
@@ -129,7 +131,7 @@ impl SurfelUniforms {
 /// and the curved modules run over that list alone.
 pub fn shaders(sides: u32) -> Vec<ShaderSource> {
     let mut v = sided_shaders(sides).to_vec();
-    v.push(shade_shader());
+    v.extend([shade_shader(false), shade_shader(true)]);
     v
 }
 
@@ -181,11 +183,19 @@ fn sided_shaders(sides: u32) -> [ShaderSource; 5] {
     ]
 }
 
-fn shade_shader() -> ShaderSource {
-    ShaderSource::new(
-        "surfel shade",
+/// The shading, with the far-side rule (`FAR_SIDE` in shade.wgsl) for datasets whose normals
+/// mark back faces, or without it: on a software rasterizer its code costs a third of the
+/// pass even where no pixel takes it.
+fn shade_shader(far_side: bool) -> ShaderSource {
+    let source = ShaderSource::new(
+        if far_side {
+            "surfel shade far side"
+        } else {
+            "surfel shade"
+        },
         &[UNIFORMS_WGSL, SUMS_WGSL, LIGHTING_WGSL, SHADE_WGSL],
-    )
+    );
+    source.with_constant("FAR_SIDE", if far_side { 1.0 } else { 0.0 })
 }
 
 /// A pass's modules: for planar surfels, for planar ones listing the curved (the depth pass
@@ -205,6 +215,7 @@ struct Sided {
 pub struct SurfelPasses {
     sided: Variants<u32, Sided>,
     shade: wgpu::ComputePipeline,
+    shade_far_side: wgpu::ComputePipeline,
 }
 
 /// The `sides` a pipeline is made with before a frame asks for others.
@@ -238,7 +249,8 @@ impl SurfelPasses {
         ctx.require_storage_buffers("surfels", STORAGE_BUFFERS)?;
         Ok(SurfelPasses {
             sided: Variants::new(DEFAULT_SIDES, compile_sided(&ctx.device, DEFAULT_SIDES)),
-            shade: shade_shader().compute(&ctx.device, None),
+            shade: shade_shader(false).compute(&ctx.device, None),
+            shade_far_side: shade_shader(true).compute(&ctx.device, None),
         })
     }
 
@@ -411,9 +423,14 @@ impl SurfelPasses {
             binding: 6,
             resource: wgpu::BindingResource::TextureView(&view),
         });
+        let shade = if uniforms.back_faces != 0 {
+            &self.shade_far_side
+        } else {
+            &self.shade
+        };
         let bg = device.create_bind_group(&wgpu::BindGroupDescriptor {
             label: Some("surfel shade"),
-            layout: &self.shade.get_bind_group_layout(0),
+            layout: &shade.get_bind_group_layout(0),
             entries: &entries,
         });
         {
@@ -422,7 +439,7 @@ impl SurfelPasses {
                 label: Some("surfel shade"),
                 timestamp_writes,
             });
-            pass.set_pipeline(&self.shade);
+            pass.set_pipeline(shade);
             pass.set_bind_group(0, &bg, &[]);
             let (gx, gy) = pixel_groups(screen.width, screen.height);
             pass.dispatch_workgroups(gx, gy, 1);

@@ -17,17 +17,94 @@ struct Blend {
     rgb: vec3<f32>,
     normal: vec3<f32>,
     depth: f32,
+    // The w of back faces, and z_o of the surfel nearest the eye.
+    back: f32,
+    offset: f32,
+}
+
+fn empty_blend() -> Blend {
+    return Blend(0.0, vec3<f32>(0.0), vec3<f32>(0.0), 0.0, 0.0, 0.0);
 }
 
 fn blend_at(p: u32) -> Blend {
     let i = SUM_WORDS * p;
     let w = f32(sums[i]);
     var b = Blend(w, vec3<f32>(f32(sums[i + 1u]), f32(sums[i + 2u]), f32(sums[i + 3u])),
-        vec3<f32>(f32(sums[i + 4u]), f32(sums[i + 5u]), f32(sums[i + 6u])), 0.0);
+        vec3<f32>(f32(sums[i + 4u]), f32(sums[i + 5u]), f32(sums[i + 6u])), 0.0,
+        f32(sums[i + 8u]), 0.0);
     if w > 0.0 {
         let front = bitcast<f32>(~planes[2u * p]);
         let nearest = bitcast<f32>(~planes[2u * p + 1u]);
         b.depth = nearest + (front - nearest) * f32(sums[i + 7u]) / w;
+        b.offset = front - nearest;
+    }
+    return b;
+}
+
+// The sum of two blends, their depths weighted by their w.
+fn add_blends(a: Blend, b: Blend) -> Blend {
+    var s = Blend(a.w + b.w, a.rgb + b.rgb, a.normal + b.normal, 0.0, a.back + b.back, 0.0);
+    s.depth = (a.depth * a.w + b.depth * b.w) / max(s.w, 1e-30);
+    return s;
+}
+
+// The far-side rule below, compiled in only for datasets whose normals mark back faces (a
+// software rasterizer runs a branch's code for every pixel, the others masked).
+override FAR_SIDE: bool = true;
+
+// Pixels searched each way for the near surface about a pinhole.
+const FAR_REACH: i32 = 2;
+
+// The first pixel from `id` along `step` that is mostly front faces, where it lies in front
+// of `depth` by more than twice its z_o; empty where the search meets background, the
+// border, or front faces about as deep (the same surface, its normals leaning).
+fn near_side_towards(id: vec2<u32>, step: vec2<i32>, depth: f32) -> Blend {
+    for (var k = 1; k <= FAR_REACH; k++) {
+        let q = vec2<i32>(id) + step * k;
+        if q.x < 0 || q.y < 0 || q.x >= i32(frame.width) || q.y >= i32(frame.height) {
+            break;
+        }
+        let n = blend_at(u32(q.y) * frame.width + u32(q.x));
+        if n.w <= 0.0 {
+            break;
+        }
+        if 2.0 * n.back > n.w {
+            continue;
+        }
+        if depth - n.depth > 2.0 * n.offset {
+            return n;
+        }
+        break;
+    }
+    return empty_blend();
+}
+
+// A pixel drawn mostly by back faces (normals, as stored outward, turned away from the eye)
+// with the near surface in front of it on two opposite sides is the far side of a closed
+// surface seen through a pinhole of the near one, which the depth pass let win: it takes the
+// blend of those near pixels. A back face with nothing in front about it (a thin plate seen
+// from behind, the inside of an open object) stays.
+fn near_side(id: vec2<u32>, depth: f32) -> Blend {
+    var b = empty_blend();
+    let steps = array<vec2<i32>, 4>(vec2<i32>(1, 0), vec2<i32>(0, 1), vec2<i32>(1, 1), vec2<i32>(1, -1));
+    for (var d = 0; d < 4; d++) {
+        let ahead = near_side_towards(id, steps[d], depth);
+        let behind = near_side_towards(id, -steps[d], depth);
+        if ahead.w > 0.0 && behind.w > 0.0 {
+            b = add_blends(b, add_blends(ahead, behind));
+        }
+    }
+    return b;
+}
+
+// A pixel's blend, or where it is the far side seen through a pinhole, the near side's.
+fn seen_at(id: vec2<u32>) -> Blend {
+    var b = blend_at(id.y * frame.width + id.x);
+    if FAR_SIDE && 2.0 * b.back > b.w {
+        let near = near_side(id, b.depth);
+        if near.w > 0.0 {
+            b = near;
+        }
     }
     return b;
 }
@@ -38,15 +115,15 @@ fn blend_at(p: u32) -> Blend {
 // costs far more. It takes the blend of the pairs about it that are drawn; any other empty
 // pixel stays empty (w 0).
 fn crack(id: vec2<u32>) -> Blend {
-    var b = Blend(0.0, vec3<f32>(0.0), vec3<f32>(0.0), 0.0);
+    var b = empty_blend();
     if id.x == 0u || id.y == 0u || id.x + 1u >= frame.width || id.y + 1u >= frame.height {
         return b;
     }
-    let p = id.y * frame.width + id.x;
-    let around = array<u32, 4>(p - 1u, p + 1u, p - frame.width, p + frame.width);
+    let around = array<vec2<u32>, 4>(id - vec2<u32>(1u, 0u), id + vec2<u32>(1u, 0u),
+        id - vec2<u32>(0u, 1u), id + vec2<u32>(0u, 1u));
     var covered = array<bool, 4>(false, false, false, false);
     for (var k = 0; k < 4; k++) {
-        covered[k] = sums[SUM_WORDS * around[k]] != 0u;
+        covered[k] = sums[SUM_WORDS * (around[k].y * frame.width + around[k].x)] != 0u;
     }
     let across = covered[0] && covered[1];
     let along = covered[2] && covered[3];
@@ -57,13 +134,8 @@ fn crack(id: vec2<u32>) -> Blend {
         if (k < 2 && !across) || (k >= 2 && !along) {
             continue;
         }
-        let n = blend_at(around[k]);
-        b.w += n.w;
-        b.rgb += n.rgb;
-        b.normal += n.normal;
-        b.depth += n.depth * n.w;
+        b = add_blends(b, seen_at(around[k]));
     }
-    b.depth /= b.w;
     return b;
 }
 
@@ -73,7 +145,7 @@ fn main(@builtin(global_invocation_id) id: vec3<u32>) {
         return;
     }
     let p = id.y * frame.width + id.x;
-    var b = blend_at(p);
+    var b = seen_at(id.xy);
     if b.w <= 0.0 {
         b = crack(id.xy);
     }

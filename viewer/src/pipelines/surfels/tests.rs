@@ -24,7 +24,7 @@ fn uniforms_and_ranges_match_their_wgsl() {
                 forward,
                 right,
                 up,
-                pad0,
+                back_faces,
                 rings,
                 mode,
                 normals,

@@ -7,7 +7,10 @@ struct Surfels {
     forward: vec4<f32>,
     right: vec4<f32>,
     up: vec4<f32>,
-    pad0: u32,
+    // 1: the normals point out of every surface, so one turned away from the eye marks a
+    // back face (the far side of a closed surface, which the shade keeps from showing
+    // through the near side's pinholes).
+    back_faces: u32,
     // Rings of the c-surfel's mesh: its profile is linear between them.
     rings: u32,
     // MODE_*.
