@@ -95,7 +95,8 @@ impl Mesh {
         }
     }
 
-    /// A PLY mesh (vertex x, y, z; face vertex_indices) in one colour.
+    /// A PLY mesh (vertex x, y, z; face vertex_indices), in its vertex colours (red, green,
+    /// blue: bytes, or floats in 0..1) where it has them, else in `colour`.
     pub fn load_ply(path: &Path, colour: Vec3) -> anyhow::Result<Mesh> {
         let mut file = std::fs::File::open(path).with_context(|| format!("{}", path.display()))?;
         let ply = Parser::<DefaultElement>::new()
@@ -113,7 +114,16 @@ impl Mesh {
             else {
                 bail!("{}: a vertex lacks float x, y, z", path.display());
             };
-            mesh.push_vertex(Vec3::new(x, y, z), Vec2::ZERO, colour);
+            let channel = |name: &str| match v.get(name) {
+                Some(Property::UChar(c)) => Some(f32::from(*c) / 255.0),
+                Some(Property::UShort(c)) => Some(f32::from(*c) / 65535.0),
+                p => scalar(p),
+            };
+            let rgb = match (channel("red"), channel("green"), channel("blue")) {
+                (Some(r), Some(g), Some(b)) => Vec3::new(r, g, b).clamp(Vec3::ZERO, Vec3::ONE),
+                _ => colour,
+            };
+            mesh.push_vertex(Vec3::new(x, y, z), Vec2::ZERO, rgb);
         }
         let n = mesh.positions.len() as u64;
         for f in ply.payload.get("face").into_iter().flatten() {
@@ -269,4 +279,51 @@ pub fn triangle_area([a, b, c]: [Vec3; 3]) -> f32 {
 /// Scanned models are y-up; Strata's world is z-up.
 pub fn y_up_to_z_up(p: Vec3) -> Vec3 {
     Vec3::new(p.x, -p.z, p.y)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn ply(dir: &Path, name: &str, colour: &str, values: [&str; 3]) -> std::path::PathBuf {
+        let path = dir.join(name);
+        let vertex = |x: &str| {
+            format!(
+                "{x}{}\n",
+                if colour.is_empty() {
+                    String::new()
+                } else {
+                    format!(" {}", values.join(" "))
+                }
+            )
+        };
+        let text = format!(
+            "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\nproperty float z\n{colour}element face 1\nproperty list uchar int vertex_indices\nend_header\n{}{}{}3 0 1 2\n",
+            vertex("0 0 0"),
+            vertex("1 0 0"),
+            vertex("0 1 0"),
+        );
+        std::fs::write(&path, text).expect("write");
+        path
+    }
+
+    #[test]
+    fn a_ply_mesh_keeps_its_vertex_colours() {
+        let dir = tempfile::tempdir().expect("tempdir");
+        let bytes = "property uchar red\nproperty uchar green\nproperty uchar blue\n";
+        let floats = "property float red\nproperty float green\nproperty float blue\n";
+        let clay = Vec3::new(0.8, 0.7, 0.6);
+        let red = Mesh::load_ply(&ply(dir.path(), "b.ply", bytes, ["255", "0", "51"]), clay)
+            .expect("loads");
+        assert_eq!(red.colours, vec![Vec3::new(1.0, 0.0, 0.2); 3]);
+        let half = Mesh::load_ply(
+            &ply(dir.path(), "f.ply", floats, ["0.5", "0.5", "0.5"]),
+            clay,
+        )
+        .expect("loads");
+        assert_eq!(half.colours, vec![Vec3::splat(0.5); 3]);
+        let plain =
+            Mesh::load_ply(&ply(dir.path(), "p.ply", "", ["", "", ""]), clay).expect("loads");
+        assert_eq!(plain.colours, vec![clay; 3]);
+    }
 }
