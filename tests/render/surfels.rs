@@ -379,30 +379,45 @@ fn the_curvature_the_c_surfels_bend_by_is_the_unit_spheres() {
 /// A flat square, two units wide at z = 0, sampled on a 200 x 200 grid with its normal +z.
 fn plane() -> &'static Path {
     static CELL: OnceLock<PathBuf> = OnceLock::new();
-    CELL.get_or_init(|| {
-        let dir = common::fresh_dir("render-surfels-plane");
-        let ply = dir.join("plane.ply");
-        let n = 200;
-        let mut out = std::io::BufWriter::new(std::fs::File::create(&ply).expect("ply"));
-        write!(
-            out,
-            "ply\nformat binary_little_endian 1.0\nelement vertex {}\nproperty float x\nproperty float y\nproperty float z\nproperty float nx\nproperty float ny\nproperty float nz\nend_header\n",
-            n * n
-        )
-        .expect("header");
-        for i in 0..n {
-            for j in 0..n {
-                let at = |k: usize| (k as f32 + 0.5) / n as f32 * 2.0 - 1.0;
-                for v in [at(i), at(j), 0.0, 0.0, 0.0, 1.0] {
-                    out.write_all(&v.to_le_bytes()).expect("write");
-                }
+    CELL.get_or_init(|| square(200, false, "render-surfels-plane"))
+}
+
+/// The square sampled on an `n` x `n` grid, or at `n` x `n` random places, converted with
+/// `--normals` in `tag`'s folder.
+fn square(n: usize, random: bool, tag: &str) -> PathBuf {
+    let dir = common::fresh_dir(tag);
+    let ply = dir.join("plane.ply");
+    let mut out = std::io::BufWriter::new(std::fs::File::create(&ply).expect("ply"));
+    write!(
+        out,
+        "ply\nformat binary_little_endian 1.0\nelement vertex {}\nproperty float x\nproperty float y\nproperty float z\nproperty float nx\nproperty float ny\nproperty float nz\nend_header\n",
+        n * n
+    )
+    .expect("header");
+    let mut seed = 7u64;
+    let mut unit = || {
+        seed = seed
+            .wrapping_mul(6364136223846793005)
+            .wrapping_add(1442695040888963407);
+        (seed >> 40) as f32 / (1u64 << 24) as f32
+    };
+    for i in 0..n {
+        for j in 0..n {
+            let at = |k: usize| (k as f32 + 0.5) / n as f32 * 2.0 - 1.0;
+            let (x, y) = if random {
+                (unit() * 2.0 - 1.0, unit() * 2.0 - 1.0)
+            } else {
+                (at(i), at(j))
+            };
+            for v in [x, y, 0.0, 0.0, 0.0, 1.0] {
+                out.write_all(&v.to_le_bytes()).expect("write");
             }
         }
-        drop(out);
-        let ds = dir.join("plane.strata");
-        common::run_ok(&["convert", s(&ply), "-o", s(&ds), "--quiet", "--normals"]);
-        ds
-    })
+    }
+    drop(out);
+    let ds = dir.join("plane.strata");
+    common::run_ok(&["convert", s(&ply), "-o", s(&ds), "--quiet", "--normals"]);
+    ds
 }
 
 /// `sides` is compiled into the depth and blend passes: a triangle covers less of its disc
@@ -494,4 +509,40 @@ fn the_far_side_of_a_closed_surface_does_not_show_through_pinholes() {
     assert_eq!(far, 0, "{far} pixels show the sphere's far half");
     let (holes, _) = holes_and_overshoot(&shot.covered);
     assert!(holes < 1e-4, "{holes:.5} of the sphere empty");
+}
+
+/// Where every node is drawn, down to the leaves, each point takes its stored radius: the
+/// square's edges stay straight. Points of inner nodes whose children were drawn but not
+/// their children took half their node's spacing, and stood out past the edges as scallops.
+#[test]
+fn with_every_node_drawn_surfels_stay_within_the_edges() {
+    // 360 k random points: three levels, so the root's children have children.
+    let ds = square(600, true, "render-surfels-fine-plane");
+    let distance = 2.5;
+    let shot = shot_of(
+        &ds,
+        glam::Vec3::new(0.0, 0.0, distance),
+        "surfels",
+        &[],
+        Lod::Full,
+    );
+    // The square seen along its normal: half its width is one unit.
+    let focal = H as f32 * 0.5 / (FOV_DEG.to_radians() * 0.5).tan();
+    let half = focal / distance;
+    let (cx, cy) = (W as f32 * 0.5, H as f32 * 0.5);
+    let beyond = shot
+        .covered
+        .iter()
+        .enumerate()
+        .filter(|(i, c)| {
+            let (x, y) = ((*i as u32 % W) as f32 + 0.5, (*i as u32 / W) as f32 + 0.5);
+            **c && ((x - cx).abs() > half + 1.0 || (y - cy).abs() > half + 1.0)
+        })
+        .count();
+    let inside = shot.covered.iter().filter(|c| **c).count();
+    assert!(inside > 50_000, "{inside} pixels drawn");
+    assert_eq!(
+        beyond, 0,
+        "{beyond} pixels drawn more than a pixel past the edges"
+    );
 }

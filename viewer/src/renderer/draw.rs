@@ -5,12 +5,12 @@
 use super::Renderer;
 use crate::ViewerError;
 use crate::camera::Camera;
-use crate::lod::{Selection, clip_range};
+use crate::lod::{Selection, Tree, clip_range};
 use crate::pipelines::params::ResolvedParams;
 use crate::pipelines::projection::{ArenaDraw, FINISH_SLOTS, FrameDraw, FrameUniforms, GpuRange};
 use crate::pipelines::{PipelineFrame, PipelineInfo, PointStream, ViewFrame};
 use crate::settings::{Settings, SizeMode};
-use std::collections::{BTreeMap, HashSet};
+use std::collections::{BTreeMap, HashMap, HashSet};
 use strata_format::NodeKey;
 
 impl Renderer {
@@ -71,6 +71,7 @@ impl Renderer {
     /// The drawn ranges of `keys` per arena, each with what the LOD drew below its node.
     fn arena_draws(&self, keys: &[NodeKey]) -> Vec<ArenaDraw> {
         let drawn: HashSet<NodeKey> = keys.iter().copied().collect();
+        let mut complete = HashMap::new();
         let mut per_arena: BTreeMap<u32, ArenaDraw> = BTreeMap::new();
         for key in keys {
             let (min, edge) = self.ds.node_cube(*key);
@@ -80,9 +81,9 @@ impl Renderer {
             let exist = self.tree.node(*key).map_or(0xff, |n| n.child_mask as u32);
             let children = (0..8u8).fold(exist << 8, |mask, c| {
                 let child = key.child(c);
-                let drawn = u32::from(drawn.contains(&child));
-                let leaf = self.tree.node(child).is_some_and(|n| n.child_mask == 0);
-                mask | drawn << c | u32::from(leaf) << (16 + c)
+                let is_drawn = u32::from(drawn.contains(&child));
+                let whole = drawn_to_the_leaves(&self.tree, &drawn, child, &mut complete);
+                mask | is_drawn << c | u32::from(whole) << (16 + c)
             });
             for p in self.cache.pieces(*key).unwrap_or_default() {
                 let d = per_arena.entry(p.arena).or_insert_with(|| ArenaDraw {
@@ -325,4 +326,26 @@ fn set_filter(u: &mut FrameUniforms, filter: &crate::settings::PointFilter, anch
     if !filter.attributes.is_empty() {
         u.filters |= crate::pipelines::projection::FILTER_MARKED;
     }
+}
+
+/// Whether `key` is drawn and so is every node below it, down to the leaves: then every point
+/// the dataset has there is drawn, and its points need no more than their stored radii.
+/// Memoised in `known`, since a frame asks of each node's children.
+fn drawn_to_the_leaves(
+    tree: &Tree,
+    drawn: &HashSet<NodeKey>,
+    key: NodeKey,
+    known: &mut HashMap<NodeKey, bool>,
+) -> bool {
+    if let Some(&w) = known.get(&key) {
+        return w;
+    }
+    let whole = drawn.contains(&key)
+        && tree.node(key).is_some_and(|n| {
+            (0..8u8)
+                .filter(|c| n.child_mask & (1 << c) != 0)
+                .all(|c| drawn_to_the_leaves(tree, drawn, key.child(c), known))
+        });
+    known.insert(key, whole);
+    whole
 }

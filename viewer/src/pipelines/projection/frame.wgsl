@@ -63,7 +63,7 @@ struct Range {
     // The node's centre, relative to the anchor.
     centre: vec3<f32>,
     // Bit k: the child in octant k (x 4, y 2, z 1) is drawn too; bit 8 + k: the dataset has
-    // it; bit 16 + k: it has no children of its own.
+    // it; bit 16 + k: it and every node below it are drawn, down to the leaves.
     children: u32,
 }
 
@@ -72,16 +72,17 @@ struct Range {
 // points its descendants would add: at least its node's spacing wide, so that stopping leaves
 // no hole. Where the node's child in the point's octant is drawn, the point fills the cell of
 // the child's grid it was taken from: at least the child's spacing. Where every point the
-// dataset has there is drawn (no child there, or a drawn child without children), the stored
-// radius measures the sampling around the point (often far finer than the level's spacing);
-// the spacing stands in where none is stored.
+// dataset has there is drawn (no child there, or the child's whole subtree drawn), the stored
+// radius measures the sampling around the point (often far finer than the level's spacing,
+// which spilled past a surface's edges as scallops); the spacing stands in where none is
+// stored.
 fn drawn_radius(r: Range, p: vec3<f32>, stored: f32) -> f32 {
     let rel = p - r.centre;
     let octant = select(0u, 4u, rel.x >= 0.0) | select(0u, 2u, rel.y >= 0.0) | select(0u, 1u, rel.z >= 0.0);
     let below = (r.children & (1u << octant)) != 0u;
     let exists = (r.children & (256u << octant)) != 0u;
-    let leaf_below = (r.children & (65536u << octant)) != 0u;
-    if stored > 0.0 && (!exists || (below && leaf_below)) {
+    let all_below = (r.children & (65536u << octant)) != 0u;
+    if stored > 0.0 && (!exists || (below && all_below)) {
         return stored;
     }
     return max(stored, select(r.spacing, 0.5 * r.spacing, below));

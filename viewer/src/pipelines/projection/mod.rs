@@ -115,8 +115,9 @@ pub struct GpuRange {
     /// The node's centre, relative to the anchor.
     pub centre: [f32; 3],
     /// Bit k: the node's child in octant k (`NodeKey::child`) is drawn too; bit 8 + k: the
-    /// dataset has that child; bit 16 + k: that child has no children (what sizes each point
-    /// by what the LOD drew where it lies reads them, `drawn_radius` in frame.wgsl).
+    /// dataset has that child; bit 16 + k: that child and every node below it are drawn, down
+    /// to the leaves (what sizes each point by what the LOD drew where it lies reads them,
+    /// `drawn_radius` in frame.wgsl).
     pub children: u32,
 }
 
