@@ -429,7 +429,7 @@ fn a_small_gpu_cache_evicts_and_still_completes_every_frame() {
     std::fs::write(&path, json.to_string()).expect("path");
     let st = dir.join("stats.json");
     let cache = 4u64 << 20;
-    gpu_ok(&[
+    let out = gpu_ok(&[
         "render",
         s(&dataset),
         "-o",
@@ -465,14 +465,22 @@ fn a_small_gpu_cache_evicts_and_still_completes_every_frame() {
     }
     // The later views needed nodes again or anew: the cache evicted and reloaded.
     assert!(loaded_after_first > 0);
-    // The budget (1M) was capped to what the cache holds: 4 MiB at 20 bytes a point.
+    // The budget (1M) was capped to what the cache holds: 4 MiB at 20 bytes a point; the
+    // stats and a warning say so.
     for f in frames {
         let drawn_points = f["points_drawn"].as_u64().unwrap_or(u64::MAX);
         assert!(
             drawn_points * 20 <= cache,
             "{drawn_points} points drawn from a 4 MiB cache"
         );
+        let budget = f["budget_drawn"].as_u64().unwrap_or(u64::MAX);
+        assert!(budget * 20 <= cache && drawn_points <= budget, "{f}");
     }
+    let said = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        said.contains("holds fewer points than the budget of 1000000"),
+        "{said}"
+    );
 }
 
 #[test]

@@ -177,6 +177,13 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
     if let Some(e) = &report.fetch_error {
         eprintln!("warning: {e}");
     }
+    if let Some(f) = last.filter(|f| f.budget_drawn < report.budget) {
+        eprintln!(
+            "warning: the GPU cache (--gpu-cache) holds fewer points than the budget of {}: \
+             each frame drew at most {}",
+            report.budget, f.budget_drawn
+        );
+    }
     if let Some(f) = last.filter(|f| !f.complete) {
         eprintln!(
             "warning: the image was written with {} wanted node(s) missing ({} unavailable)",

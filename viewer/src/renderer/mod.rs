@@ -391,6 +391,7 @@ impl Renderer {
         Ok(FrameStats {
             frame: self.frame,
             points_drawn,
+            budget_drawn: params.budget,
             nodes_drawn: sel.draw.len(),
             frame_ms: start.elapsed().as_secs_f64() * 1e3,
             pipeline: info.name,

@@ -9,6 +9,9 @@ use std::collections::BTreeMap;
 pub struct FrameStats {
     pub frame: u64,
     pub points_drawn: u64,
+    /// The points the frame could draw: the settings' budget, or fewer where the GPU cache
+    /// (`--gpu-cache`) holds fewer.
+    pub budget_drawn: u64,
     pub nodes_drawn: usize,
     /// CPU time of the frame, including waiting for the GPU where the caller waited.
     pub frame_ms: f64,
