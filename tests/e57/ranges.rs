@@ -5,19 +5,20 @@
 use super::*;
 
 /// A scan of ten points along x with the given colour and intensity fields, limits and
-/// values (the point's index k gives each value).
+/// values (the point's index k gives each value), and its colour marked invalid at point
+/// `invalid` where given.
 fn scan_of(
     w: &mut e57::E57Writer<std::fs::File>,
     field: e57::RecordDataType,
     limits: Option<(e57::RecordValue, e57::RecordValue)>,
     value: impl Fn(usize) -> ([e57::RecordValue; 3], e57::RecordValue),
-    offset: f64,
+    (offset, invalid): (f64, Option<usize>),
 ) {
     let record = |name| e57::Record {
         name,
         data_type: field.clone(),
     };
-    let prototype = vec![
+    let mut prototype = vec![
         e57::Record::CARTESIAN_X_F64,
         e57::Record::CARTESIAN_Y_F64,
         e57::Record::CARTESIAN_Z_F64,
@@ -26,6 +27,12 @@ fn scan_of(
         record(e57::RecordName::ColorBlue),
         record(e57::RecordName::Intensity),
     ];
+    if invalid.is_some() {
+        prototype.push(e57::Record {
+            name: e57::RecordName::IsColorInvalid,
+            data_type: e57::RecordDataType::Integer { min: 0, max: 1 },
+        });
+    }
     let mut pc = w.add_pointcloud("scan", prototype).expect("scan");
     if let Some((lo, hi)) = limits {
         pc.set_color_limits(Some(e57::ColorLimits {
@@ -48,6 +55,9 @@ fn scan_of(
         let (rgb, intensity) = value(k);
         values.extend(rgb);
         values.push(intensity);
+        if let Some(i) = invalid {
+            values.push(e57::RecordValue::Integer(i64::from(k == i)));
+        }
         pc.add_point(values).expect("point");
     }
     pc.finalize().expect("scan written");
@@ -58,7 +68,8 @@ fn colour_and_intensity_without_a_stated_range_are_scaled_by_their_own() {
     let dir = tempfile::tempdir().expect("tempdir");
     let input = dir.path().join("ranges.e57");
     let mut w = e57::E57Writer::from_file(&input, "strata-test-ranges").expect("writer");
-    // Doubles without limits: colour in 0..1, intensity in 0..255 (taken as 8 bits).
+    // Doubles without limits: colour in 0..1, intensity in 0..255 (taken as 8 bits). Point
+    // 3's colour is invalid: its intensity must not count as a colour.
     let double = e57::RecordDataType::Double {
         min: None,
         max: None,
@@ -71,7 +82,7 @@ fn colour_and_intensity_without_a_stated_range_are_scaled_by_their_own() {
             let c = [k as f64 / 9.0, 0.5, 1.0].map(e57::RecordValue::Double);
             (c, e57::RecordValue::Double(k as f64 * 20.0))
         },
-        0.0,
+        (0.0, Some(3)),
     );
     // Bytes whose limits are 7..7: the field's type range, 0..255, stands in.
     let byte = e57::RecordDataType::Integer { min: 0, max: 255 };
@@ -81,7 +92,7 @@ fn colour_and_intensity_without_a_stated_range_are_scaled_by_their_own() {
         byte,
         Some((seven.clone(), seven.clone())),
         |_| ([0; 3].map(|_| seven.clone()), seven.clone()),
-        100.0,
+        (100.0, None),
     );
     w.finalize().expect("file written");
 
@@ -103,7 +114,9 @@ fn colour_and_intensity_without_a_stated_range_are_scaled_by_their_own() {
     let unit = |v: f64| (v * 65535.0).round() as u16;
     for (k, (_, tags)) in by_x.iter().enumerate() {
         // Tags: scanner, r, g, b, intensity.
-        let want = if k < 10 {
+        let want = if k == 3 {
+            vec![0, 0, 0, 0, (k * 20 * 257) as u16]
+        } else if k < 10 {
             vec![
                 0,
                 unit(k as f64 / 9.0),

@@ -518,6 +518,13 @@ fn the_far_side_of_a_closed_surface_does_not_show_through_pinholes() {
 fn with_every_node_drawn_surfels_stay_within_the_edges() {
     // 360 k random points: three levels, so the root's children have children.
     let ds = square(600, true, "render-surfels-fine-plane");
+    let info = common::run_ok(&["info", s(&ds), "--json"]);
+    let info: serde_json::Value = serde_json::from_slice(&info.stdout).expect("info JSON");
+    assert!(
+        info["depth"].as_u64().unwrap_or(0) >= 2,
+        "{}",
+        info["depth"]
+    );
     let distance = 2.5;
     let shot = shot_of(
         &ds,

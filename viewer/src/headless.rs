@@ -349,10 +349,9 @@ fn nothing_drawn(
     stats: &FrameStats,
     timed_out: bool,
 ) -> Result<(), ViewerError> {
-    let mut tree = crate::lod::Tree::default();
-    tree.add_page(ds.root_hierarchy_page());
-    let root = tree
-        .node(strata_format::NodeKey::ROOT)
+    let root = ds
+        .root_hierarchy_page()
+        .root_node()
         .map_or(0, |n| u64::from(n.point_count));
     let budget = opts.settings.budget;
     if root > budget {

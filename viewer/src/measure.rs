@@ -168,9 +168,10 @@ impl Measurement {
     }
 
     /// For an area, the first two edges (numbered from 1, the closing edge last) that cross
-    /// each other, seen across the plane the polygon spreads over most (of xy, yz and zx):
-    /// a polygon that crosses itself counts its loops with opposite signs, so its area is
-    /// not the one a user meant.
+    /// each other, seen across the polygon's plane (that of the largest triangle its first
+    /// corner makes with two others: a bowtie's loops cancel in its vector area): a polygon
+    /// that crosses itself counts its loops with opposite signs, so its area is not the one a
+    /// user meant.
     pub fn crossing_edges(&self) -> Option<(usize, usize)> {
         let n = self.points.len();
         if self.kind != MeasureKind::Area || n < 4 {
@@ -178,20 +179,31 @@ impl Measurement {
         }
         let o = self.points[0];
         let rel: Vec<[f64; 3]> = self.points.iter().map(|p| sub(*p, o)).collect();
-        let spread = |a: usize, b: usize| {
-            let (mut lo, mut hi) = ([f64::MAX; 2], [f64::MIN; 2]);
-            for p in &rel {
-                for (k, axis) in [a, b].into_iter().enumerate() {
-                    lo[k] = lo[k].min(p[axis]);
-                    hi[k] = hi[k].max(p[axis]);
+        let mut normal = [0.0; 3];
+        for i in 1..n {
+            for j in i + 1..n {
+                let c = cross(rel[i], rel[j]);
+                if length(c) > length(normal) {
+                    normal = c;
                 }
             }
-            (hi[0] - lo[0]) * (hi[1] - lo[1])
-        };
-        let (a, b) = [(0, 1), (1, 2), (2, 0)]
-            .into_iter()
-            .max_by(|x, y| spread(x.0, x.1).total_cmp(&spread(y.0, y.1)))?;
-        let flat: Vec<[f64; 2]> = rel.iter().map(|p| [p[a], p[b]]).collect();
+        }
+        let l = length(normal);
+        if l == 0.0 {
+            return None;
+        }
+        let normal = normal.map(|v| v / l);
+        // Two axes across the plane: the normal crossed with the axis least along it, then
+        // the normal crossed with that.
+        let least = (0..3)
+            .min_by(|&a, &b| normal[a].abs().total_cmp(&normal[b].abs()))
+            .unwrap_or(0);
+        let mut axis = [0.0; 3];
+        axis[least] = 1.0;
+        let u = cross(normal, axis);
+        let v = cross(normal, u);
+        let dot = |a: [f64; 3], b: [f64; 3]| a[0] * b[0] + a[1] * b[1] + a[2] * b[2];
+        let flat: Vec<[f64; 2]> = rel.iter().map(|p| [dot(*p, u), dot(*p, v)]).collect();
         let side = |p: [f64; 2], q: [f64; 2], r: [f64; 2]| {
             ((q[0] - p[0]) * (r[1] - p[1]) - (q[1] - p[1]) * (r[0] - p[0])).signum()
         };
@@ -546,6 +558,28 @@ mod tests {
             ],
         );
         assert_eq!(wall.crossing_edges(), Some((1, 3)));
+        // On a wall at 45 degrees, wider than tall: seen from above it is a line.
+        let slanted = m(
+            MeasureKind::Area,
+            &[
+                at(0.0, 0.0, 0.0),
+                at(10.0, 10.0, 2.0),
+                at(10.0, 10.0, 0.0),
+                at(0.0, 0.0, 2.0),
+            ],
+        );
+        assert_eq!(slanted.crossing_edges(), Some((1, 3)));
+        // The same wall's corners in order, picked a centimetre off: no crossing.
+        let picked = m(
+            MeasureKind::Area,
+            &[
+                at(0.0, 0.0, 0.0),
+                at(10.0, 10.01, 0.0),
+                at(10.01, 10.0, 2.0),
+                at(0.0, 0.01, 2.0),
+            ],
+        );
+        assert_eq!(picked.crossing_edges(), None);
         // A non-convex polygon that does not cross itself.
         let notch = m(
             MeasureKind::Area,

@@ -32,6 +32,8 @@ pub struct RowShape {
     pub returns: Option<usize>,
     /// `gps_time`, f64.
     pub time: Option<usize>,
+    /// The stamps become GPS time from each scan's start (`FileExtras::absolute_time`).
+    pub absolute_time: bool,
     /// `scanner`, u16: the scan's global index.
     pub scanner: usize,
     pub len: usize,
@@ -68,6 +70,7 @@ impl RowShape {
             intensity,
             returns,
             time,
+            absolute_time: extras.absolute_time(),
             scanner,
             len,
         };
@@ -225,6 +228,8 @@ fn with_value_ranges(
     let mut points = reader
         .pointcloud_simple(pc)
         .map_err(|e| format!("{scan} cannot be read ({})", plain(&e)))?;
+    // As the decoding pass reads them: no grey from intensity where a colour is invalid.
+    points.intensity_to_color(false);
     points.normalize_intensity(false);
     points.normalize_color(false);
     let widen = |span: &mut (f64, f64), v: f32| {
@@ -291,7 +296,7 @@ fn decode_scan(
         path,
     } = *at;
     // The extra fields, from raw records read in step on a reader of their own.
-    let extras = ScanExtras::of(pc);
+    let extras = ScanExtras::of(pc, shape.absolute_time);
     let mut raw_reader = match &extras {
         Some(_) => Some(ScanExtras::open(path).map_err(|e| format!("{scan}: {e}"))?),
         None => None,

@@ -40,7 +40,14 @@ impl FileExtras {
         }
     }
 
-    /// Warnings for scans whose time stamps count from a start the file does not give.
+    /// Whether the time stamps become GPS time: only where every timed scan states its
+    /// start, so that one column never holds two kinds of time.
+    pub fn absolute_time(&self) -> bool {
+        self.time == Some(Some(TimeBase::GpsAdjustedStandard))
+    }
+
+    /// Warnings for scans whose time stamps count from a start the file does not give (then
+    /// every scan's stamps are kept as stored).
     pub fn warnings(path: &Path, clouds: &[PointCloud]) -> Vec<String> {
         let n = clouds.len();
         clouds
@@ -49,9 +56,9 @@ impl FileExtras {
             .filter(|(_, pc)| has(pc, RecordName::TimeStamp) && pc.acquisition_start.is_none())
             .map(|(i, _)| {
                 format!(
-                    "{}: scan {i} of {n} has time stamps but no acquisitionStart: its times are \
-                     seconds from a start the file does not give, kept as they are, and \
-                     gps_time states no time base",
+                    "{}: scan {i} of {n} has time stamps but no acquisitionStart: they are \
+                     seconds from a start the file does not give, so every scan's stamps are \
+                     kept as stored, and gps_time states no time base",
                     path.display()
                 )
             })
@@ -70,8 +77,8 @@ pub struct PointExtras {
     /// has neither.
     pub return_number: u8,
     pub number_of_returns: u8,
-    /// Adjusted standard GPS time where the scan states its start; else seconds from its
-    /// start; 0 where the scan has no time stamps or this one is invalid.
+    /// Adjusted standard GPS time where every timed scan states its start; else the stamp as
+    /// stored; 0 where the scan has no time stamps or this one is invalid.
     pub time: f64,
 }
 
@@ -85,8 +92,9 @@ pub struct ScanExtras {
 }
 
 impl ScanExtras {
-    /// `None` where the scan has none of the fields.
-    pub fn of(pc: &PointCloud) -> Option<ScanExtras> {
+    /// `None` where the scan has none of the fields. `absolute`: whether its stamps become
+    /// GPS time from its start (`FileExtras::absolute_time`).
+    pub fn of(pc: &PointCloud, absolute: bool) -> Option<ScanExtras> {
         let at = |name: RecordName| pc.prototype.iter().position(|r| r.name == name);
         let e = ScanExtras {
             return_index: at(RecordName::ReturnIndex),
@@ -96,6 +104,7 @@ impl ScanExtras {
             start: pc
                 .acquisition_start
                 .as_ref()
+                .filter(|_| absolute)
                 .map_or(0.0, |s| s.gps_time - ADJUSTED_STANDARD),
         };
         (e.return_index.is_some() || e.return_count.is_some() || e.time.is_some()).then_some(e)

@@ -134,10 +134,10 @@ fn range(
     .find(|&r| is_range(r))
 }
 
-/// Bounds no sensor's values come near (a float field's type range, ±f32::MAX or
-/// ±f64::MAX, says nothing) and a width above zero.
+/// Bounds no sensor's values come near (a field's type range without limits, ±f32::MAX,
+/// ±f64::MAX or an integer's ±2^63, says nothing) and a width above zero.
 fn is_range((lo, hi): (f64, f64)) -> bool {
-    const SAID: f64 = 1e30;
+    const SAID: f64 = 9_007_199_254_740_992.0;
     lo.abs() < SAID && hi.abs() < SAID && hi > lo
 }
 

@@ -184,7 +184,7 @@ fn sided_shaders(sides: u32) -> [ShaderSource; 5] {
 }
 
 /// The shading, with the far-side rule (`FAR_SIDE` in shade.wgsl) for datasets whose normals
-/// mark back faces, or without it: on a software rasterizer its code costs a third of the
+/// mark back faces, or without it: on a software rasterizer its code costs two fifths of the
 /// pass even where no pixel takes it.
 fn shade_shader(far_side: bool) -> ShaderSource {
     let source = ShaderSource::new(

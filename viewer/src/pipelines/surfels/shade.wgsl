@@ -17,7 +17,8 @@ struct Blend {
     rgb: vec3<f32>,
     normal: vec3<f32>,
     depth: f32,
-    // The w of back faces, and z_o of the surfel nearest the eye.
+    // The w of back faces, and the depth of the blended layer (the least depth plus z_o,
+    // less the least depth: at most the z_o of the surfel nearest the eye).
     back: f32,
     offset: f32,
 }
