@@ -16,6 +16,7 @@ pub mod measure;
 pub mod overlay;
 pub mod pick;
 pub mod pipelines;
+pub mod polygon;
 pub mod profile;
 pub mod renderer;
 pub mod settings;
