@@ -155,13 +155,7 @@ fn a_budget_below_the_root_node_is_said_not_answered_as_background() {
     // 300 k points at random in a cube: the root keeps most of them (about 250 k).
     let dir = tempfile::tempdir().expect("tempdir");
     let ply = dir.path().join("cube.ply");
-    let mut seed = 5u64;
-    let mut unit = || {
-        seed = seed
-            .wrapping_mul(6364136223846793005)
-            .wrapping_add(1442695040888963407);
-        (seed >> 11) as f64 / (1u64 << 53) as f64
-    };
+    let mut unit = common::unit_randoms(5);
     let points: Vec<([f64; 3], [u8; 3])> = (0..300_000)
         .map(|_| {
             (

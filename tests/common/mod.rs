@@ -426,3 +426,13 @@ pub fn serial_las(path: &Path, points: &[([f64; 3], u64)]) {
         .collect();
     extra_bytes_las(path, eb, false, &rows);
 }
+
+/// Uniform numbers in [0, 1) from `seed`, the same on every run (a 64-bit LCG's top bits).
+pub fn unit_randoms(mut seed: u64) -> impl FnMut() -> f64 {
+    move || {
+        seed = seed
+            .wrapping_mul(6364136223846793005)
+            .wrapping_add(1442695040888963407);
+        (seed >> 11) as f64 / (1u64 << 53) as f64
+    }
+}

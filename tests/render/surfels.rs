@@ -394,13 +394,8 @@ fn square(n: usize, random: bool, tag: &str) -> PathBuf {
         n * n
     )
     .expect("header");
-    let mut seed = 7u64;
-    let mut unit = || {
-        seed = seed
-            .wrapping_mul(6364136223846793005)
-            .wrapping_add(1442695040888963407);
-        (seed >> 40) as f32 / (1u64 << 24) as f32
-    };
+    let mut uniform = common::unit_randoms(7);
+    let mut unit = || uniform() as f32;
     for i in 0..n {
         for j in 0..n {
             let at = |k: usize| (k as f32 + 0.5) / n as f32 * 2.0 - 1.0;

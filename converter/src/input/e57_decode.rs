@@ -225,13 +225,7 @@ fn with_value_ranges(
     if !rgb && !intensity {
         return Ok(own.clone());
     }
-    let mut points = reader
-        .pointcloud_simple(pc)
-        .map_err(|e| format!("{scan} cannot be read ({})", plain(&e)))?;
-    // As the decoding pass reads them: no grey from intensity where a colour is invalid.
-    points.intensity_to_color(false);
-    points.normalize_intensity(false);
-    points.normalize_color(false);
+    let points = simple_points(reader, pc, scan)?;
     let widen = |span: &mut (f64, f64), v: f32| {
         if v.is_finite() {
             *span = (span.0.min(f64::from(v)), span.1.max(f64::from(v)));
@@ -267,6 +261,26 @@ fn with_value_ranges(
         rgb: own.rgb.or_else(|| Some([span(colours); 3])),
         intensity: own.intensity.or_else(|| Some(span(intensities))),
     })
+}
+
+/// The crate's simple reading of a scan, as both passes over it read it: local Cartesian
+/// coordinates (the pose is applied here, with a normalised quaternion), colour and
+/// intensity raw (normalised here), and no grey from intensity, which would be a colour the
+/// file does not have.
+fn simple_points<'r>(
+    reader: &'r mut E57Reader<BufReader<File>>,
+    pc: &PointCloud,
+    scan: &str,
+) -> Result<e57::PointCloudReaderSimple<'r, BufReader<File>>, String> {
+    let mut points = reader
+        .pointcloud_simple(pc)
+        .map_err(|e| format!("{scan} cannot be read ({})", plain(&e)))?;
+    points.apply_pose(false);
+    points.intensity_to_color(false);
+    points.spherical_to_cartesian(true);
+    points.normalize_intensity(false);
+    points.normalize_color(false);
+    Ok(points)
 }
 
 /// What a scan's points are placed and scaled by.
@@ -308,16 +322,7 @@ fn decode_scan(
         ),
         None => None,
     };
-    let mut points = reader
-        .pointcloud_simple(pc)
-        .map_err(|e| format!("{scan} cannot be read ({})", plain(&e)))?;
-    // The pose is applied below, with a normalised quaternion; grey from intensity would be a
-    // colour the file does not have.
-    points.apply_pose(false);
-    points.intensity_to_color(false);
-    points.spherical_to_cartesian(true);
-    points.normalize_intensity(false);
-    points.normalize_color(false);
+    let points = simple_points(reader, pc, scan)?;
     let mut batch = Batch::default();
     for (k, p) in points.enumerate() {
         let p = p.map_err(|e| {
