@@ -215,7 +215,7 @@ impl PointFilter {
             .filter(|(l, h)| l.is_finite() && h.is_finite() && l <= h)
             .ok_or_else(|| {
                 fail(format!(
-                    "{name} needs a range LOW..HIGH with LOW at most HIGH"
+                    "{name} needs a range LOW..HIGH of finite numbers with LOW at most HIGH"
                 ))
             })?;
         match name.trim() {
