@@ -301,3 +301,46 @@ fn a_64_bit_attribute_goes_into_the_csv_whole() {
         "{text}"
     );
 }
+
+/// A level's spacing as `info` prints it asks for that level alone. 1.024 (0.001 steps,
+/// 2^17 to the cube) is a hair above itself in single precision, and the profile, which
+/// compared the nodes' single-precision spacing, read one level more.
+#[test]
+fn a_levels_spacing_in_decimals_reads_that_level() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let las = dir.path().join("grid.las");
+    let points: Vec<([f64; 3], u64)> = (0..200 * 200)
+        .map(|i| {
+            (
+                [(i % 200) as f64 * 0.5, (i / 200) as f64 * 0.5, 0.0],
+                i as u64,
+            )
+        })
+        .collect();
+    common::serial_las(&las, &points);
+    let dataset = dir.path().join("grid.strata");
+    common::run_ok(&["convert", s(&las), "-o", s(&dataset), "--quiet"]);
+    let info = common::run_ok(&["info", s(&dataset), "--json"]);
+    let info: serde_json::Value = serde_json::from_slice(&info.stdout).expect("info JSON");
+    assert_eq!(info["spacing"].as_f64(), Some(1.024));
+    assert!(
+        info["depth"].as_u64().unwrap_or(0) >= 1,
+        "{}",
+        info["depth"]
+    );
+    let csv = dir.path().join("p.csv");
+    let o = common::run_ok(&[
+        "profile",
+        s(&dataset),
+        "--line",
+        "1,50;99,50",
+        "--width",
+        "4",
+        "--spacing",
+        "1.024",
+        "-o",
+        s(&csv),
+    ]);
+    let said = String::from_utf8_lossy(&o.stdout);
+    assert!(said.contains("levels 0 to 0"), "{said}");
+}

@@ -23,9 +23,12 @@ pub struct ScanResult {
     pub extents: Vec<SourceExtent>,
 }
 
+/// Bytes of a staging record's position (three f64) before its attributes.
+const STAGED_POSITION_BYTES: usize = 24;
+
 /// Bytes of one staging record for `attributes`.
 pub fn staging_stride(attributes: &[Attribute]) -> usize {
-    24 + attributes.iter().map(|a| a.size()).sum::<usize>()
+    STAGED_POSITION_BYTES + attributes.iter().map(|a| a.size()).sum::<usize>()
 }
 
 /// What opening every input tells before any point is read.
@@ -202,12 +205,13 @@ pub fn scan(
         src.set_scanner_base(scanner_base.min(NO_SCANNER as usize) as u16);
         scanner_base += src.info().scanners.len();
         let defaults = defaults_for(src.info(), attributes);
-        let scan_angle = ScanAngleFill::for_input(&src.info().attributes, attributes, 24);
+        let scan_angle =
+            ScanAngleFill::for_input(&src.info().attributes, attributes, STAGED_POSITION_BYTES);
         // (source row offset, staging offset, length) for each attribute this input has.
         let mut copies = Vec::new();
         let mut src_off = 0usize;
         for a in &src.info().attributes {
-            let mut dst = 24usize;
+            let mut dst = STAGED_POSITION_BYTES;
             for u in attributes {
                 if u.name == a.name {
                     break;
@@ -285,7 +289,7 @@ pub fn scan(
 /// attribute is 0.
 fn defaults_for(input: &SourceInfo, attributes: &[Attribute]) -> Vec<(usize, Vec<u8>)> {
     let mut out = Vec::new();
-    let mut at = 24;
+    let mut at = STAGED_POSITION_BYTES;
     for a in attributes {
         let missing = !input.attributes.iter().any(|i| i.name == a.name);
         let single = a.count == 1;

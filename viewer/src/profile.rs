@@ -231,20 +231,17 @@ pub fn extract(
             }
         }
         out.level = depth;
-        out.spacing = ds.node_spacing(NodeKey::ROOT) as f64 / (1u64 << depth) as f64;
-        if !on_level(&out) || fine_enough(out.spacing, detail.spacing) {
+        // The metadata's spacing, in doubles: a level's spacing given in decimals (as `info`
+        // prints it) then asks for that level, where the single-precision node spacing could
+        // come out a hair above it and read one level more.
+        out.spacing = m.spacing / (1u64 << depth) as f64;
+        if !on_level(&out) || out.spacing <= detail.spacing {
             break;
         }
         level = children(ds, &mut tree, &level, corridor)?;
         depth += 1;
     }
     Ok(out)
-}
-
-/// Whether a level of point spacing `level` (from single-precision node spacings) is as fine
-/// as `asked`: a level's own spacing, given in decimals, asks for that level, not one finer.
-fn fine_enough(level: f64, asked: f64) -> bool {
-    level <= asked * (1.0 + f64::from(f32::EPSILON))
 }
 
 /// The real-world horizontal rectangle of node `key`'s cube.
@@ -387,14 +384,6 @@ impl Profile {
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    #[test]
-    fn a_levels_spacing_in_decimals_asks_for_that_level() {
-        // 1.024 as a single is 1.0240000486...
-        assert!(fine_enough(f64::from(1.024f32), 1.024));
-        assert!(fine_enough(f64::from(0.512f32), 1.024));
-        assert!(!fine_enough(f64::from(1.024f32), 1.0239));
-    }
 
     #[test]
     fn points_on_the_end_vertex_and_on_the_band_edge_are_in_the_corridor() {

@@ -234,12 +234,7 @@ fn with_value_ranges(
     let mut colours = (f64::INFINITY, f64::NEG_INFINITY);
     let mut intensities = colours;
     for (k, p) in points.enumerate() {
-        let p = p.map_err(|e| {
-            format!(
-                "{scan} is corrupt or truncated at point {k} ({})",
-                plain(&e)
-            )
-        })?;
+        let p = p.map_err(|e| corrupt(scan, k, &e))?;
         if let Some(c) = &p.color {
             for v in [c.red, c.green, c.blue] {
                 widen(&mut colours, v);
@@ -261,6 +256,11 @@ fn with_value_ranges(
         rgb: own.rgb.or_else(|| Some([span(colours); 3])),
         intensity: own.intensity.or_else(|| Some(span(intensities))),
     })
+}
+
+/// The fault of a scan's point `k` that the crate could not read.
+fn corrupt(scan: &str, k: usize, e: &e57::Error) -> String {
+    format!("{scan} is corrupt or truncated at point {k} ({})", plain(e))
 }
 
 /// The crate's simple reading of a scan, as both passes over it read it: local Cartesian
@@ -325,23 +325,13 @@ fn decode_scan(
     let points = simple_points(reader, pc, scan)?;
     let mut batch = Batch::default();
     for (k, p) in points.enumerate() {
-        let p = p.map_err(|e| {
-            format!(
-                "{scan} is corrupt or truncated at point {k} ({})",
-                plain(&e)
-            )
-        })?;
+        let p = p.map_err(|e| corrupt(scan, k, &e))?;
         let extra = match (&extras, &mut raw) {
             (Some(e), Some(raw)) => {
                 let values = raw
                     .next()
                     .ok_or_else(|| format!("{scan} ends early at point {k}"))?
-                    .map_err(|e| {
-                        format!(
-                            "{scan} is corrupt or truncated at point {k} ({})",
-                            plain(&e)
-                        )
-                    })?;
+                    .map_err(|e| corrupt(scan, k, &e))?;
                 Some(
                     e.read(pc, &values)
                         .map_err(|e| format!("{scan} point {k}: {e}"))?,
