@@ -152,7 +152,7 @@ fn an_airborne_scan_gets_normals_facing_up() {
     assert!(info.surfel_radius > 0.0 && info.mean_radius > 0.0);
     let layout = ds.layout().clone();
     let at = layout.index_of("normal").expect("normal");
-    let (mut up, mut total) = (0, 0);
+    let (mut up, mut total, mut none) = (0, 0, 0);
     for node in ds.all_nodes().expect("nodes") {
         if node.point_count == 0 {
             continue;
@@ -160,14 +160,58 @@ fn an_airborne_scan_gets_normals_facing_up() {
         let cols = ds.read_node(&node).expect("node");
         let c = cols.attribute(&layout, at);
         for i in 0..node.point_count as usize {
-            let n = oct16_decode([
+            let Some(n) = oct16_decode([
                 u16::from_le_bytes([c[4 * i], c[4 * i + 1]]),
                 u16::from_le_bytes([c[4 * i + 2], c[4 * i + 3]]),
-            ])
-            .expect("a normal");
+            ]) else {
+                none += 1;
+                continue;
+            };
             total += 1;
             up += (n[2] >= 0.0) as usize;
         }
     }
     assert_eq!(up, total, "every normal faces up");
+    // Isolated returns (birds, wires) fit no plane: few, and counted.
+    assert_eq!(none, info.no_normal);
+    assert!(none < 200, "{none} points without a normal");
+}
+
+/// An ASCII PLY of `points`.
+fn write_ply(path: &Path, points: &[[f64; 3]]) {
+    let mut text = format!(
+        "ply\nformat ascii 1.0\nelement vertex {}\nproperty double x\nproperty double y\nproperty double z\nend_header\n",
+        points.len()
+    );
+    for p in points {
+        text.push_str(&format!("{} {} {}\n", p[0], p[1], p[2]));
+    }
+    std::fs::write(path, text).expect("ply written");
+}
+
+#[test]
+fn a_surface_too_sparse_for_the_search_is_said() {
+    // A dense 10 m square (92 % of the points) beside a square 100 m wide sampled 30 times
+    // more sparsely: its points find none within the search radius the dense part sets, and
+    // their discs are cut to it.
+    let dir = tempfile::tempdir().expect("tempdir");
+    let mut rng = common::unit_randoms(17);
+    let mut points: Vec<[f64; 3]> = (0..46_000)
+        .map(|_| [rng() * 10.0, rng() * 10.0, 0.0])
+        .collect();
+    let dense_only = dir.path().join("dense.ply");
+    write_ply(&dense_only, &points);
+    points.extend((0..4_000).map(|_| [20.0 + rng() * 100.0, rng() * 100.0, 0.0]));
+    let both = dir.path().join("both.ply");
+    write_ply(&both, &points);
+    let warned = |ply: &Path, name: &str| {
+        let out = dir.path().join(name);
+        let o = run_ok(&["convert", s(ply), "-o", s(&out), "--normals", "-q"]);
+        String::from_utf8_lossy(&o.stderr).contains("their discs are cut to that radius")
+    };
+    assert!(warned(&both, "both"), "the sparse square is said");
+    assert!(
+        !warned(&dense_only, "dense"),
+        "nothing to say of the dense one"
+    );
 }

@@ -115,7 +115,7 @@ fn run(
         }
     };
     // A resumed run says again what the first run said.
-    let warnings = plan.warnings.clone();
+    let mut warnings = plan.warnings.clone();
     let layout = RowLayout::new(plan.attributes.clone());
     let mut journal = read_journal(wd, plan.chunks.len())?;
     let resumed = journal.len();
@@ -162,6 +162,7 @@ fn run(
         watch.sample();
         finish(opts, wd, &plan, merged, &|meta| step.record(&totals, meta))
     })?;
+    warnings.extend(step.warnings(&totals));
     let seconds = start.elapsed().as_secs_f64();
     Ok(ConvertSummary {
         output: opts.output.clone(),

@@ -44,6 +44,11 @@ pub trait ChunkStep: Sync {
 
     /// Records what the step did, from the totals over every chunk, in the metadata.
     fn record(&self, _totals: &[f64], _meta: &mut Metadata) {}
+
+    /// What the user should know of the result, from the same totals: one sentence each.
+    fn warnings(&self, _totals: &[f64]) -> Vec<String> {
+        Vec::new()
+    }
 }
 
 /// The step of a plain conversion: nothing.

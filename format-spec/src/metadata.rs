@@ -152,6 +152,11 @@ pub struct NormalsInfo {
     /// used the n they had; their radius is `search_radius * sqrt(ln 100 / n)`, at most
     /// `search_radius`).
     pub partial: u64,
+    /// Points given no normal (stored as none): fewer than three distinct positions within
+    /// `search_radius`, the point's own included, or all of them on one line, through which
+    /// no plane is better than another.
+    #[serde(default)]
+    pub no_normal: u64,
     /// Neighbours farther than this (real units) were not used.
     #[serde(default)]
     pub search_radius: f64,

@@ -125,8 +125,8 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
     }
     if let Some(n) = &m.normals {
         println!(
-            "normals   k {}, oriented {}: {} computed, {} kept, {} with fewer than k neighbours in reach",
-            n.k, n.orient, n.computed, n.kept, n.partial
+            "normals   k {}, oriented {}: {} computed, {} kept, {} with fewer than k neighbours in reach, {} without a normal",
+            n.k, n.orient, n.computed, n.kept, n.partial, n.no_normal
         );
         println!(
             "          mean radius {:.6}, surfel radius {:.6} ({} triangles)",

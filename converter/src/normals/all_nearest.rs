@@ -56,6 +56,8 @@ impl KdTree {
         let mut taken = Taken::default();
         let mut outside: Vec<f64> = Vec::with_capacity(k);
         let mut group: (usize, Vec<Candidate>) = (usize::MAX, Vec::new());
+        // The position `found` holds the neighbours of.
+        let mut searched_from: Option<[f64; 3]> = None;
         for (li, leaf) in leaves.iter().enumerate() {
             if !(leaf.lo..leaf.hi).any(&wanted) {
                 continue;
@@ -65,7 +67,10 @@ impl KdTree {
                 // No bound on the search (a cloud without a density estimate): one point at a
                 // time.
                 for t in (leaf.lo..leaf.hi).filter(|&t| wanted(t)) {
-                    self.nearest(t, k, within, &mut found, &mut stack);
+                    if searched_from != Some(self.points[t]) {
+                        self.nearest(t, k, within, &mut found, &mut stack);
+                        searched_from = Some(self.points[t]);
+                    }
                     each(t, &found);
                 }
                 continue;
@@ -91,62 +96,67 @@ impl KdTree {
             done_found.clear();
             for t in (leaf.lo..leaf.hi).filter(|&t| wanted(t)) {
                 let q = self.points[t];
-                let own = leaf_distances(self, q, leaf.lo, leaf.hi);
-                // The leaf's point nearest to q whose k neighbours are known: they are k
-                // points, so q's k-th nearest is no farther than the farthest of them.
-                let mut nearest_done = (f64::INFINITY, usize::MAX);
-                // Points are done in tree order: those done lie before q in its leaf.
-                let before = t - leaf.lo;
-                for (&d, &s) in own[..before].iter().zip(&slot[..before]) {
-                    let d = if s == usize::MAX { f64::INFINITY } else { d };
-                    nearest_done = if d < nearest_done.0 {
-                        (d, s)
+                // A repeat of the position just searched has its neighbours: searching
+                // again would meet every repeat at distance 0 (a heap of n points, n² work).
+                if searched_from != Some(q) {
+                    let own = leaf_distances(self, q, leaf.lo, leaf.hi);
+                    // The leaf's point nearest to q whose k neighbours are known: they are k
+                    // points, so q's k-th nearest is no farther than the farthest of them.
+                    let mut nearest_done = (f64::INFINITY, usize::MAX);
+                    // Points are done in tree order: those done lie before q in its leaf.
+                    let before = t - leaf.lo;
+                    for (&d, &s) in own[..before].iter().zip(&slot[..before]) {
+                        let d = if s == usize::MAX { f64::INFINITY } else { d };
+                        nearest_done = if d < nearest_done.0 {
+                            (d, s)
+                        } else {
+                            nearest_done
+                        };
+                    }
+                    // With none done yet in this leaf, the last point done before it (in the leaf
+                    // before, a neighbour in space) gives the bound.
+                    let hint = match nearest_done.1 {
+                        usize::MAX if last_done.len() == k => Some(&last_done[..]),
+                        usize::MAX => None,
+                        s => Some(&done_found[s * k..(s + 1) * k]),
+                    };
+                    if let Some(hint) = hint {
+                        // The hint's points outside the leaf, by distance (those inside are in
+                        // `own`): with the leaf's, a tighter bound where k of them are nearer.
+                        outside.resize(k, 0.0);
+                        for (o, &j) in outside.iter_mut().zip(hint) {
+                            *o = self.distance2(q, j as usize);
+                        }
+                        let bound = farthest(&outside);
+                        for (o, &j) in outside.iter_mut().zip(hint) {
+                            if (leaf.lo..leaf.hi).contains(&(j as usize)) {
+                                *o = f64::INFINITY;
+                            }
+                        }
+                        let bound = tighter(bound.min(within2), k, &own, &outside);
+                        let scope = Scope {
+                            leaf: li,
+                            own: &own,
+                            candidates: &candidates,
+                            leaves: &leaves,
+                        };
+                        self.within_bound(q, k, bound, &scope, &mut taken, &mut found);
                     } else {
-                        nearest_done
-                    };
-                }
-                // With none done yet in this leaf, the last point done before it (in the leaf
-                // before, a neighbour in space) gives the bound.
-                let hint = match nearest_done.1 {
-                    usize::MAX if last_done.len() == k => Some(&last_done[..]),
-                    usize::MAX => None,
-                    s => Some(&done_found[s * k..(s + 1) * k]),
-                };
-                if let Some(hint) = hint {
-                    // The hint's points outside the leaf, by distance (those inside are in
-                    // `own`): with the leaf's, a tighter bound where k of them are nearer.
-                    outside.resize(k, 0.0);
-                    for (o, &j) in outside.iter_mut().zip(hint) {
-                        *o = self.distance2(q, j as usize);
-                    }
-                    let bound = farthest(&outside);
-                    for (o, &j) in outside.iter_mut().zip(hint) {
-                        if (leaf.lo..leaf.hi).contains(&(j as usize)) {
-                            *o = f64::INFINITY;
+                        let mut best = Best::new(self, k, &mut found, within2);
+                        best.scan(q, leaf.lo, leaf.hi);
+                        for &(gap, c) in &candidates {
+                            if gap > best.bound() {
+                                break;
+                            }
+                            let other = &leaves[c];
+                            // Equal distances still enter (ties are broken by position), so a
+                            // leaf at the bound is searched.
+                            if c != li && self.box_gap2(q, other) <= best.bound() {
+                                best.scan(q, other.lo, other.hi);
+                            }
                         }
                     }
-                    let bound = tighter(bound.min(within2), k, &own, &outside);
-                    let scope = Scope {
-                        leaf: li,
-                        own: &own,
-                        candidates: &candidates,
-                        leaves: &leaves,
-                    };
-                    self.within_bound(q, k, bound, &scope, &mut taken, &mut found);
-                } else {
-                    let mut best = Best::new(self, k, &mut found, within2);
-                    best.scan(q, leaf.lo, leaf.hi);
-                    for &(gap, c) in &candidates {
-                        if gap > best.bound() {
-                            break;
-                        }
-                        let other = &leaves[c];
-                        // Equal distances still enter (ties are broken by position), so a
-                        // leaf at the bound is searched.
-                        if c != li && self.box_gap2(q, other) <= best.bound() {
-                            best.scan(q, other.lo, other.hi);
-                        }
-                    }
+                    searched_from = Some(q);
                 }
                 each(t, &found);
                 if found.len() == k {

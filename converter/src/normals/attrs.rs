@@ -94,14 +94,19 @@ impl Targets {
         })
     }
 
-    /// Whether the row has a normal (one not all zero).
-    pub fn has_normal(&self, row: &[u8]) -> bool {
+    /// The bytes of the row's normal.
+    fn normal_bytes(&self) -> std::ops::Range<usize> {
         let (at, kind) = self.normal;
         let len = match kind {
             Kind::Oct16 => 4,
             Kind::Floats(ty) => 3 * ty.size(),
         };
-        row[at..at + len].iter().any(|b| *b != 0) && self.normal(row).is_some()
+        at..at + len
+    }
+
+    /// Whether the row has a normal (one not all zero).
+    pub fn has_normal(&self, row: &[u8]) -> bool {
+        row[self.normal_bytes()].iter().any(|b| *b != 0) && self.normal(row).is_some()
     }
 
     /// The row's normal; `None` where it has none (all zero).
@@ -118,6 +123,11 @@ impl Targets {
                 (n != [0.0; 3] && n.iter().all(|c| c.is_finite())).then_some(n)
             }
         }
+    }
+
+    /// Marks the row as having no normal: all zero, in either encoding (SPEC.md).
+    pub fn put_no_normal(&self, row: &mut [u8]) {
+        row[self.normal_bytes()].fill(0);
     }
 
     pub fn put_normal(&self, row: &mut [u8], n: [f64; 3]) {

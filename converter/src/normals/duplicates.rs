@@ -4,19 +4,18 @@
 
 use super::kdtree::{Found, KdTree, Pending};
 
-/// The most neighbours a search takes to find k distinct positions among repeats: a point
-/// with more repeats than this near it gets fewer than k (counted in `normals.partial`).
-const MAX_SEARCHED: usize = 4096;
-
 /// Neighbourhoods up to this size are checked for equal distances pair by pair.
 const SHORT: usize = 32;
 
 /// Room for the searches that skip repeats.
 #[derive(Default)]
 pub struct Distinct {
-    all: Found,
     stack: Vec<Pending>,
     pub found: Found,
+    /// The position `found` was searched from: its other repeats, which the search meets one
+    /// after another in tree order, take the same neighbours without a search (a heap of a
+    /// million points at one position would otherwise search the heap a million times).
+    from: Option<[f64; 3]>,
 }
 
 impl Distinct {
@@ -41,29 +40,12 @@ impl Distinct {
     }
 
     /// Into `self.found`, the `k` nearest distinct positions to tree point `t` within
-    /// `within` (fewer where fewer are that near), each as the first of its repeats in tree
-    /// order: nearest first.
+    /// `within` (fewer where fewer are that near), one point for each: nearest first.
     pub fn nearest(&mut self, tree: &KdTree, t: usize, k: usize, within: f64) {
-        let mut searched = 2 * k;
-        loop {
-            tree.nearest(t, searched, within, &mut self.all, &mut self.stack);
-            // `nearest` orders equal distances by position, so repeats lie side by side.
-            self.found.dist.clear();
-            self.found.index.clear();
-            let mut last: Option<[f64; 3]> = None;
-            for (&d, &j) in self.all.dist.iter().zip(&self.all.index) {
-                let p = tree.points[j as usize];
-                if last != Some(p) && self.found.len() < k {
-                    self.found.dist.push(d);
-                    self.found.index.push(j);
-                }
-                last = Some(p);
-            }
-            let exhausted = self.all.len() < searched;
-            if self.found.len() == k || exhausted || searched >= MAX_SEARCHED {
-                return;
-            }
-            searched = (searched * 4).min(MAX_SEARCHED);
+        let at = tree.points[t];
+        if self.from != Some(at) {
+            tree.nearest_distinct(t, k, within, &mut self.found, &mut self.stack);
+            self.from = Some(at);
         }
     }
 }

@@ -104,6 +104,23 @@ impl KdTree {
         self.search(q, at, &mut best, stack);
     }
 
+    /// As `nearest`, but each position counts once: of points repeated at one position, one
+    /// is taken. However many repeats lie near, the search finds the `k` nearest distinct
+    /// positions (repeats share a distance, so the search meets them together).
+    pub fn nearest_distinct(
+        &self,
+        at: usize,
+        k: usize,
+        within: f64,
+        out: &mut Found,
+        stack: &mut Vec<Pending>,
+    ) {
+        let q = self.points[at];
+        let mut best = Best::new(self, k, out, within * within);
+        best.distinct = true;
+        self.search(q, at, &mut best, stack);
+    }
+
     /// Inner node `node`'s split: axis and value.
     pub(super) fn split(&self, node: usize) -> (usize, f64) {
         let (axis, value) = self.splits[node];
@@ -334,6 +351,8 @@ pub(super) struct Best<'a> {
     out: &'a mut Found,
     /// The squared distance within which a point may still enter.
     bound: f64,
+    /// A point whose position one already taken has does not enter.
+    distinct: bool,
 }
 
 impl<'a> Best<'a> {
@@ -360,6 +379,7 @@ impl<'a> Best<'a> {
             k,
             out,
             bound,
+            distinct: false,
         }
     }
 
@@ -379,9 +399,16 @@ impl<'a> Best<'a> {
         }
         let mut at = out.dist.iter().map(|&x| usize::from(x < d)).sum::<usize>();
         // Equal distances sit together from `at` on; the candidate goes after those placed
-        // first by position.
-        while at < n && out.dist[at] == d && tree.position_before(out.index[at], j) {
-            at += 1;
+        // first by position. (Repeats of one position sit side by side among them.)
+        while at < n && out.dist[at] == d {
+            let placed = out.index[at];
+            if tree.position_before(placed, j) {
+                at += 1;
+            } else if self.distinct && tree.points[placed as usize] == tree.points[j as usize] {
+                return;
+            } else {
+                break;
+            }
         }
         if n < k {
             out.dist.push(d);

@@ -81,6 +81,14 @@ const COVER: f64 = 2.145_966_026_289_347; // √(ln 100)
 /// points are sparser than 90% of them.
 const SEARCH_FACTOR: f64 = 2.0;
 
+/// The surface variation of a point with no normal: the most any neighbourhood has (an
+/// isotropic one), since none of its planes fits.
+const NO_PLANE_VARIATION: f64 = 1.0 / 3.0;
+
+/// Warn when more than this share of the points have their radius cut to the search radius:
+/// those are too sparse for the search to see how sparse, and their discs leave gaps.
+const CAPPED_WARNING: f64 = 0.02;
+
 /// Indices into the step's totals.
 mod total {
     pub const COMPUTED: usize = 0;
@@ -89,7 +97,9 @@ mod total {
     pub const RADIUS_SUM: usize = 3;
     pub const TRIANGLE_RADIUS_SUM: usize = 4;
     pub const TRIANGLES: usize = 5;
-    pub const LEN: usize = 6;
+    pub const NO_NORMAL: usize = 6;
+    pub const CAPPED: usize = 7;
+    pub const LEN: usize = 8;
 }
 
 pub struct NormalStep {
@@ -231,7 +241,11 @@ impl ChunkStep for NormalStep {
                     totals[total::PARTIAL] += 1.0;
                     let n = (near.len() as f64).max(1.0);
                     if search.is_finite() {
-                        (search * COVER / n.sqrt()).min(search)
+                        let r = search * COVER / n.sqrt();
+                        if r >= search {
+                            totals[total::CAPPED] += 1.0;
+                        }
+                        r.min(search)
                     } else {
                         // No bound on the search (no density estimate): every point was
                         // found, and the farthest of them gives the density.
@@ -247,12 +261,27 @@ impl ChunkStep for NormalStep {
                 let row = &mut rows[i * stride..(i + 1) * stride];
                 totals[total::RADIUS_SUM] += radius;
                 targets.put_radius(row, radius);
-                targets.put_variation(row, pc.surface_variation());
+                let plane = near.len() >= 3 && pc.spans_a_plane();
+                targets.put_variation(
+                    row,
+                    if plane {
+                        pc.surface_variation()
+                    } else {
+                        NO_PLANE_VARIATION
+                    },
+                );
                 if opts.mode == NormalMode::Keep && targets.has_normal(row) {
                     totals[total::KEPT] += 1.0;
                     return;
                 }
                 totals[total::COMPUTED] += 1.0;
+                if !plane {
+                    // No plane fits better than another: the honest value is none, not a
+                    // made-up direction that renderers would light and cull by.
+                    totals[total::NO_NORMAL] += 1.0;
+                    targets.put_no_normal(row);
+                    return;
+                }
                 let normal = self.orient(pc.normal, q, targets.scanner(row), &at);
                 targets.put_normal(row, normal);
             },
@@ -292,6 +321,7 @@ impl ChunkStep for NormalStep {
             computed: t(total::COMPUTED) as u64,
             kept: t(total::KEPT) as u64,
             partial: t(total::PARTIAL) as u64,
+            no_normal: t(total::NO_NORMAL) as u64,
             search_radius: self
                 .search
                 .get()
@@ -306,6 +336,32 @@ impl ChunkStep for NormalStep {
             },
             triangles: triangles as u64,
         });
+    }
+
+    fn warnings(&self, totals: &[f64]) -> Vec<String> {
+        let t = |i: usize| totals.get(i).copied().unwrap_or(0.0);
+        let points = t(total::COMPUTED) + t(total::KEPT);
+        let share = |n: f64| 100.0 * n / points.max(1.0);
+        let r = self.search.get().copied().unwrap_or(f64::INFINITY);
+        let mut out = Vec::new();
+        if t(total::CAPPED) > CAPPED_WARNING * points {
+            out.push(format!(
+                "{:.1} % of the points had four or fewer (themselves included) within the normals' search \
+                 radius {r:.6}: their discs are cut to that radius, which leaves gaps where a \
+                 surface is sampled that sparsely; a --normal-radius of {:.1} times the point \
+                 spacing there finds their neighbours",
+                share(t(total::CAPPED)),
+                2.0 * (self.opts.k as f64 / std::f64::consts::PI).sqrt(),
+            ));
+        }
+        if t(total::NO_NORMAL) > 0.01 * points {
+            out.push(format!(
+                "{:.1} % of the points have no normal: fewer than three distinct positions \
+                 within the search radius {r:.6}, or all on one line",
+                share(t(total::NO_NORMAL)),
+            ));
+        }
+        out
     }
 }
 

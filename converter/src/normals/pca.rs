@@ -22,6 +22,14 @@ impl Principal {
         eigenvector(self.unit, self.unit_l2).unwrap_or_else(|| any_perpendicular(self.normal))
     }
 
+    /// Whether the points span a plane: not all on one line (or at one position), up to the
+    /// solver's rounding. Across a line every direction fits equally, so its normal says
+    /// nothing.
+    pub fn spans_a_plane(&self) -> bool {
+        let [_, middle, largest] = self.eigenvalues;
+        middle > 1e-9 * largest
+    }
+
     pub fn surface_variation(&self) -> f64 {
         let sum: f64 = self.eigenvalues.iter().sum();
         if sum > 0.0 {

@@ -140,17 +140,21 @@ fn normals_do_not_change_at_chunk_borders() {
     .expect("convert in one chunk");
     assert!(many.chunks >= 4, "{} chunks", many.chunks);
     assert_eq!(one.chunks, 1);
-    type Values = ([f64; 3], f64, f64);
+    type Values = (Option<[f64; 3]>, f64, f64);
     let whole: HashMap<[i32; 3], Values> = read_normals(&dir.path().join("one"))
         .into_iter()
-        .map(|(q, _, n, r, s)| (q, (n.expect("a normal"), r, s)))
+        .map(|(q, _, n, r, s)| (q, (n, r, s)))
         .collect();
     let mut worst: f64 = 0.0;
     let cut = read_normals(&dir.path().join("many"));
     assert_eq!(cut.len(), 300_000);
     for (q, _, n, r, s) in &cut {
         let (n1, r1, s1) = whole[q];
-        worst = worst.max(angle(n.expect("a normal"), n1));
+        match (n, n1) {
+            (Some(n), Some(n1)) => worst = worst.max(angle(*n, n1)),
+            (None, None) => {}
+            _ => panic!("a normal in one chunking only at {q:?}: {n:?} against {n1:?}"),
+        }
         // The same neighbours: the same radius and variation, to the bit.
         assert_eq!((*r, *s), (r1, s1), "radius and variation at {q:?}");
     }
@@ -404,6 +408,26 @@ fn radii_hold_where_neighbours_are_few_or_distances_tiny() {
     // One found: no farther than the search looked.
     let lone = radius_at(pts[4005]);
     assert!((lone / r - 1.0).abs() < 1e-3, "{lone} against {r}");
+    // Five on a line and one alone fit no plane: no normal, and the most variation there is;
+    // the plane's points have theirs.
+    let far = |p: &[f64; 3]| p[0] > 2e-5 || p[0] < 0.0;
+    for (_, p, n, _, s) in &got {
+        if far(p) {
+            assert!(
+                n.is_none() && (s - 1.0 / 3.0).abs() < 1e-3,
+                "{p:?} fits no plane"
+            );
+        } else {
+            assert!(n.is_some(), "{p:?} on the plane has a normal");
+        }
+    }
+    let info = LocalDataset::open(&out)
+        .expect("open")
+        .metadata()
+        .normals
+        .clone()
+        .expect("normals recorded");
+    assert_eq!(info.no_normal, 6);
 }
 
 #[test]
@@ -440,12 +464,13 @@ fn upward_normals_of_a_wall_never_face_down() {
 
 #[test]
 fn repeated_positions_count_once() {
-    // Every point three times, one of them forty times more: the same normals and radii as
-    // the cloud without repeats.
+    // Every point three times, one of them five thousand times more (more than a search of
+    // a few thousand neighbours sees past): the same normals and radii as the cloud without
+    // repeats.
     let dir = tempfile::tempdir().expect("tempdir");
     let base = sphere(4000, [0.0; 3], 1.0, 21);
     let mut repeated: Vec<[f64; 3]> = base.iter().flat_map(|&p| [p; 3]).collect();
-    repeated.extend([base[7]; 40]);
+    repeated.extend([base[7]; 5000]);
     let (mut normals, mut sizes) = (Vec::new(), Vec::new());
     for (name, pts) in [("once", &base), ("repeated", &repeated)] {
         let ply = dir.path().join(format!("{name}.ply"));

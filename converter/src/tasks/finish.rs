@@ -150,13 +150,15 @@ pub fn finish_tasks(
         }
         // The step's metadata (the normals' search radius) comes from the plan, as in a run.
         step.halo_margin(&plan);
-        phases.timed("finish", None, |_| {
-            finish(&opts, &wd, &plan, merged, &|meta| {
-                step.record(&totals, meta)
+        phases
+            .timed("finish", None, |_| {
+                finish(&opts, &wd, &plan, merged, &|meta| {
+                    step.record(&totals, meta)
+                })
             })
-        })
+            .map(|done| (done, step.warnings(&totals)))
     })();
-    let done = match result {
+    let (done, step_warnings) = match result {
         Ok(done) => done,
         Err(e) => {
             // The tasks' results are untouched: --finish can run again.
@@ -181,7 +183,13 @@ pub fn finish_tasks(
         peak_disk_bytes: plan_bytes + done.dataset_bytes,
         resumed_chunks: 0,
         phases: phases.into_times(),
-        warnings: tp.plan.warnings.clone(),
+        warnings: tp
+            .plan
+            .warnings
+            .iter()
+            .cloned()
+            .chain(step_warnings)
+            .collect(),
     })
 }
 
