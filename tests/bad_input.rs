@@ -532,6 +532,8 @@ fn absurd_counts_are_refused_in_one_sentence() {
         &["--frames", "4294967295"],
         "4294967295 is more than the 100000 frames a fly-through may take: \"--frames\"",
     );
+    // 0 was taken as the default (frames from the keyframes' times).
+    fly(&["--frames", "0"], "'--frames <FRAMES>'");
     // A pace so slow that the run would not end (a frame every 30 years), or whose period
     // is no number of seconds at all.
     for fps in ["1e-9", "1e-39"] {

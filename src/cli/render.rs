@@ -34,8 +34,8 @@ pub struct Args {
     #[arg(long, conflicts_with_all = ["camera", "camera_file", "bookmark"])]
     path: Option<PathBuf>,
     /// Frames of the fly-through, spread over the keyframes' times (default: the times at
-    /// --fps).
-    #[arg(long, requires = "path")]
+    /// --fps). At least 1: the default, not 0, stands for "from the times".
+    #[arg(long, requires = "path", value_parser = clap::value_parser!(u32).range(1..))]
     frames: Option<u32>,
     /// Pace of a fly-through that does not wait for completeness (frames per second, 0.1 to
     /// 1000; 0: unpaced).
