@@ -81,6 +81,8 @@ pub fn convert_with(opts: &ConvertOptions, step: &dyn ChunkStep) -> Result<Conve
         .num_threads(threads)
         .build_global();
     let wd = WorkDir::new(&opts.output, opts.temp_dir.as_deref());
+    // Refused here, before the run whose failure would clear the folder the other run owns.
+    let _lock = wd.lock(&opts.output)?;
     let mut watched = vec![wd.root().to_path_buf()];
     if wd.separate() {
         watched.push(wd.work().to_path_buf());
@@ -297,6 +299,30 @@ pub(crate) mod tests {
         assert!(with_halo >= 2, "{with_halo} chunks had a halo");
         // A step that changes nothing changes nothing in the output.
         assert_same_dataset(&plain.output, &summary.output);
+    }
+
+    #[test]
+    fn a_second_conversion_into_one_output_is_refused_and_clears_nothing() {
+        let dir = tempfile::tempdir().expect("tempdir");
+        let opts = city(dir.path(), "ds");
+        // The first conversion, as far as the second can see: it holds the folder and has
+        // written into it.
+        let wd = WorkDir::for_output(&opts.output);
+        let first = wd.lock(&opts.output).expect("first lock");
+        let theirs = wd.root().join("theirs.bin");
+        fs::write(&theirs, b"the first run's").expect("write");
+        let err = convert(&opts).expect_err("a second conversion must be refused");
+        assert!(
+            err.to_string()
+                .contains("is being written by another conversion"),
+            "{err}"
+        );
+        assert!(theirs.exists(), "the first run's files are left alone");
+        assert!(!opts.output.exists());
+        // Once the first is gone, a conversion clears what it left and runs.
+        drop(first);
+        convert(&opts).expect("convert");
+        assert!(!wd.root().exists() && opts.output.is_dir());
     }
 
     #[test]

@@ -9,6 +9,12 @@ use std::fs;
 use std::path::{Path, PathBuf};
 use strata_format::DatasetFile;
 
+/// The lock `WorkDir::lock` takes, held while the value lives.
+#[derive(Debug)]
+pub struct OutputLock {
+    _folder: fs::File,
+}
+
 #[derive(Debug, Clone)]
 pub struct WorkDir {
     root: PathBuf,
@@ -180,7 +186,29 @@ impl WorkDir {
         self.root.with_extension("old")
     }
 
-    /// An empty work directory, clearing what an earlier run left.
+    /// Takes the folder that becomes the dataset for this process, creating it where it is
+    /// missing: two conversions into one output would each clear and fill what the other
+    /// writes. The second is refused while the first runs (its lock goes with the process, a
+    /// crash included), before it touches anything. `output` names the fault.
+    pub fn lock(&self, output: &Path) -> Result<OutputLock> {
+        fs::create_dir_all(&self.root)
+            .map_err(io_err(&self.root, "cannot create work directory"))?;
+        let folder = fs::File::open(&self.root).map_err(io_err(&self.root, "cannot open"))?;
+        match folder.try_lock() {
+            Ok(()) => Ok(OutputLock { _folder: folder }),
+            Err(fs::TryLockError::WouldBlock) => Err(ConvertError::output(
+                output,
+                format!(
+                    "is being written by another conversion (it holds {}); wait for it to end",
+                    self.root.display()
+                ),
+            )),
+            Err(fs::TryLockError::Error(e)) => Err(ConvertError::io(&self.root, "cannot lock", e)),
+        }
+    }
+
+    /// An empty work directory, clearing what an earlier run left. The folder that becomes
+    /// the dataset is emptied in place, not replaced, so that its lock holds.
     pub fn create_fresh(&self) -> Result<()> {
         // An earlier run's work files under another --temp-dir go too: nothing would resume
         // them once the root is cleared. Only a folder named as this writes them is removed.
@@ -194,13 +222,22 @@ impl WorkDir {
                     .map_err(io_err(&old, "cannot clear old work directory"))?;
             }
         }
-        for dir in [&self.root, &self.work] {
-            if dir.exists() {
-                fs::remove_dir_all(dir).map_err(io_err(dir, "cannot clear old work directory"))?;
-            }
+        if self.separate() && self.work.exists() {
+            fs::remove_dir_all(&self.work)
+                .map_err(io_err(&self.work, "cannot clear old work directory"))?;
         }
         fs::create_dir_all(&self.root)
             .map_err(io_err(&self.root, "cannot create work directory"))?;
+        let entries = fs::read_dir(&self.root).map_err(io_err(&self.root, "cannot list"))?;
+        for entry in entries {
+            let path = entry.map_err(io_err(&self.root, "cannot list"))?.path();
+            let cleared = if path.is_dir() && !path.is_symlink() {
+                fs::remove_dir_all(&path)
+            } else {
+                fs::remove_file(&path)
+            };
+            cleared.map_err(io_err(&path, "cannot clear old work directory"))?;
+        }
         for dir in [self.chunks(), self.roots()] {
             fs::create_dir_all(&dir).map_err(io_err(&dir, "cannot create work directory"))?;
         }

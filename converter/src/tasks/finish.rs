@@ -119,8 +119,10 @@ pub fn finish_tasks(
         }
     }
     check_space(&[(output, bytes)])?;
-    remove_chunk_files(&tp, plan_dir)?;
     let wd = WorkDir::new(output, None);
+    // Before anything is removed: another conversion may be writing into this output.
+    let _lock = wd.lock(output)?;
+    remove_chunk_files(&tp, plan_dir)?;
     wd.create_fresh()?;
     let mut phases = Phases::new(Progress::new(quiet));
     let result = (|| {
