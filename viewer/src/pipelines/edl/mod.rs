@@ -22,7 +22,7 @@ pub const STRENGTH: ParamSpec = ParamSpec {
 };
 pub const RADIUS: ParamSpec = ParamSpec {
     name: "edl_radius",
-    help: "distance in pixels of the eight neighbours compared",
+    help: "distance in pixels of the eight neighbours compared, each taken at the pixel nearest its direction (as Potree's nearest-filtered lookups do): the image changes where a neighbour moves to another pixel",
     default: 1.4,
     min: 1.0,
     max: 4.0,
