@@ -192,8 +192,9 @@ fn write_ply(path: &Path, points: &[[f64; 3]]) {
 #[test]
 fn a_surface_too_sparse_for_the_search_is_said() {
     // A dense 10 m square (92 % of the points) beside a square 100 m wide sampled 30 times
-    // more sparsely: its points find none within the search radius the dense part sets, and
-    // their discs are cut to it.
+    // more sparsely: its points find none within the search radius the dense part sets, so
+    // they fit no plane; and with a third of that sampling, a few, and their discs are cut to
+    // the search radius.
     let dir = tempfile::tempdir().expect("tempdir");
     let mut rng = common::unit_randoms(17);
     let mut points: Vec<[f64; 3]> = (0..46_000)
@@ -201,17 +202,31 @@ fn a_surface_too_sparse_for_the_search_is_said() {
         .collect();
     let dense_only = dir.path().join("dense.ply");
     write_ply(&dense_only, &points);
+    let mut sparser = points.clone();
     points.extend((0..4_000).map(|_| [20.0 + rng() * 100.0, rng() * 100.0, 0.0]));
     let both = dir.path().join("both.ply");
     write_ply(&both, &points);
-    let warned = |ply: &Path, name: &str| {
+    sparser.extend((0..4_000).map(|_| [20.0 + rng() * 14.0, rng() * 14.0, 0.0]));
+    let few = dir.path().join("few.ply");
+    write_ply(&few, &sparser);
+    let warnings = |ply: &Path, name: &str| {
         let out = dir.path().join(name);
         let o = run_ok(&["convert", s(ply), "-o", s(&out), "--normals", "-q"]);
-        String::from_utf8_lossy(&o.stderr).contains("their discs are cut to that radius")
+        String::from_utf8_lossy(&o.stderr).into_owned()
     };
-    assert!(warned(&both, "both"), "the sparse square is said");
+    let said = warnings(&both, "both");
     assert!(
-        !warned(&dense_only, "dense"),
+        said.contains("have no normal, and small discs") && said.contains("--normal-radius"),
+        "the sparse square is said: {said}"
+    );
+    let said = warnings(&few, "few");
+    assert!(
+        said.contains("their discs are cut to that radius") && said.contains("--normal-radius"),
+        "the sparser square is said: {said}"
+    );
+    assert_eq!(
+        warnings(&dense_only, "dense"),
+        "",
         "nothing to say of the dense one"
     );
 }

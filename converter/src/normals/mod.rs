@@ -234,12 +234,34 @@ impl ChunkStep for NormalStep {
                 } else {
                     near
                 };
-                let radius = if near.len() < k {
+                let steps = near.index.iter().map(|&j| tree.steps(t, j as usize));
+                let pc = principal(covariance_of_steps(steps, scale));
+                let plane = near.len() >= 3 && pc.spans_a_plane();
+                if near.len() < k {
+                    totals[total::PARTIAL] += 1.0;
+                }
+                let radius = if !plane {
+                    // No surface to cover: a disc as wide as the gap to its nearest neighbour
+                    // (a wire's points touch), and a point alone within the search radius (a
+                    // bird, a stray return) the disc of the density the search radius was made
+                    // for, not one as wide as the search (which the density formula gives).
+                    let nearest = near
+                        .dist
+                        .iter()
+                        .filter(|&&d| d > 0.0)
+                        .fold(f64::INFINITY, |m, &d| m.min(d));
+                    if nearest.is_finite() {
+                        nearest.sqrt()
+                    } else if search.is_finite() {
+                        search * COVER / ((k as f64).sqrt() * SEARCH_FACTOR)
+                    } else {
+                        0.0
+                    }
+                } else if near.len() < k {
                     // Fewer than k within the search radius: the k-th is beyond it, and the
                     // density is what the n found within it give, ρπR² = n; no farther than
                     // the search looked.
-                    totals[total::PARTIAL] += 1.0;
-                    let n = (near.len() as f64).max(1.0);
+                    let n = near.len() as f64;
                     if search.is_finite() {
                         let r = search * COVER / n.sqrt();
                         if r >= search {
@@ -254,14 +276,11 @@ impl ChunkStep for NormalStep {
                 } else {
                     near.farthest().sqrt() * COVER / (k as f64).sqrt()
                 };
-                let steps = near.index.iter().map(|&j| tree.steps(t, j as usize));
-                let pc = principal(covariance_of_steps(steps, scale));
                 let p = tree.points[t];
                 let q = [0, 1, 2].map(|a| (p[a] + origin[a] as f64) * scale[a]);
                 let row = &mut rows[i * stride..(i + 1) * stride];
                 totals[total::RADIUS_SUM] += radius;
                 targets.put_radius(row, radius);
-                let plane = near.len() >= 3 && pc.spans_a_plane();
                 targets.put_variation(
                     row,
                     if plane {
@@ -356,9 +375,12 @@ impl ChunkStep for NormalStep {
         }
         if t(total::NO_NORMAL) > 0.01 * points {
             out.push(format!(
-                "{:.1} % of the points have no normal: fewer than three distinct positions \
-                 within the search radius {r:.6}, or all on one line",
+                "{:.1} % of the points have no normal, and small discs: fewer than three \
+                 distinct positions within the search radius {r:.6}, or all on one line; where \
+                 they are a surface sampled that sparsely, a --normal-radius of {:.1} times its \
+                 point spacing finds their neighbours",
                 share(t(total::NO_NORMAL)),
+                2.0 * (self.opts.k as f64 / std::f64::consts::PI).sqrt(),
             ));
         }
         out
