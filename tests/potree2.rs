@@ -123,7 +123,8 @@ fn assert_holds_the_dataset(p: &Potree2, dataset: &Path) {
     assert_eq!(p.meta["encoding"], "DEFAULT");
     assert_eq!(p.meta["points"].as_u64(), Some(meta.points));
     let record = p.record();
-    let wide = strata_converter::export::widened(ds.layout());
+    let wide =
+        strata_converter::export::widened(ds.layout(), strata_converter::export::Target::Potree2);
     assert_eq!(record, wide.layout.stride, "a record is an export row");
     assert_eq!(p.octree.len(), meta.points as usize * record);
     let (scale, offset) = (meta.scale, meta.offset);
@@ -154,7 +155,8 @@ fn assert_holds_the_dataset(p: &Potree2, dataset: &Path) {
         if node.point_count > 0 {
             let rows = ds.read_node(&node).expect("node").to_rows(ds.layout());
             let mut out = Vec::new();
-            wide.convert(&rows, &mut out);
+            wide.convert(&rows, &mut out, Path::new("p2"))
+                .expect("the dataset's values fit Potree 2.0");
             want.extend(out.chunks_exact(record).map(<[u8]>::to_vec));
         }
     }

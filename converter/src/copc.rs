@@ -6,7 +6,7 @@
 
 use crate::copc_nodes::{Grid, plan};
 use crate::error::{ConvertError, Result};
-use crate::export::widened;
+use crate::export::{Target, widened};
 use crate::las_records::LasRecords;
 use crate::writers::part_path;
 use laz::{LasZipCompressor, LazVlrBuilder};
@@ -67,7 +67,7 @@ pub fn export_copc(dataset: &Path, output: &Path, overwrite: bool) -> Result<u64
     let ds = LocalDataset::open(dataset)?;
     let meta = ds.metadata().clone();
     let layout = ds.layout().clone();
-    let wide = widened(&layout);
+    let wide = widened(&layout, Target::Las);
     let format = copc_format(&wide.layout);
     let records = LasRecords::new(output, &wide.layout, format)?.single_returns_where_missing();
     let fail = |what: String| ConvertError::output(output, what);
@@ -196,7 +196,7 @@ fn write_points(
         max: [i32::MIN; 3],
         ..Totals::default()
     };
-    let (mut rows_wide, mut recs) = (Vec::new(), Vec::new());
+    let (mut rows_wide, mut recs, mut kept) = (Vec::new(), Vec::new(), Vec::new());
     let with_points = ds
         .all_nodes()?
         .into_iter()
@@ -220,27 +220,33 @@ fn write_points(
             let cols = ds.read_node(source)?;
             let mut rows = cols.to_rows(layout);
             crate::export::check_finite(ds.dir(), meta, &source.key, &rows, layout.stride)?;
-            let mut kept = 0;
+            // The source node's points this node keeps, by index, to say where a value the
+            // output cannot hold is.
+            kept.clear();
             for i in 0..cols.count {
                 if grid.key_of(level, cols.position(i)) == node.key {
                     rows.copy_within(
                         i * layout.stride..(i + 1) * layout.stride,
-                        kept * layout.stride,
+                        kept.len() * layout.stride,
                     );
-                    kept += 1;
+                    kept.push(i);
                 }
             }
-            rows.truncate(kept * layout.stride);
-            if kept == 0 {
+            rows.truncate(kept.len() * layout.stride);
+            if kept.is_empty() {
                 continue;
             }
+            let placed = |e: ConvertError| {
+                e.placed(ds.dir(), &source.key, |r| kept.get(r).copied().unwrap_or(r))
+            };
             let rows = if wide.is_identity() {
                 &rows
             } else {
-                wide.convert(&rows, &mut rows_wide);
+                wide.convert(&rows, &mut rows_wide, output)
+                    .map_err(placed)?;
                 &rows_wide
             };
-            records.check_fits(output, rows)?;
+            records.check_fits(output, rows).map_err(placed)?;
             records.fill(rows, &mut recs);
             for rec in recs.chunks_exact(records.record_len) {
                 totals.add(rec);
@@ -264,7 +270,7 @@ fn write_points(
                 });
             }
             compressor.compress_many(&recs).map_err(io)?;
-            count += kept as u64;
+            count += kept.len() as u64;
         }
         match entries.last_mut() {
             Some(e) if started => e.points = count,

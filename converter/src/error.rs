@@ -16,6 +16,10 @@ pub enum ConvertError {
     },
     #[error("{}: {what}", path.display())]
     Output { path: PathBuf, what: String },
+    /// A point's value that the output's format cannot hold (boxed: the details would make
+    /// every `Result` of the crate larger).
+    #[error("{0}")]
+    Unfit(Box<Unfit>),
     /// Checked before any work: the conversion would not fit on the disk.
     #[error("{}: this needs about {} of free disk there, but only {} is free", path.display(), crate::sys::format_bytes(*needed), crate::sys::format_bytes(*free))]
     NoSpace {
@@ -74,11 +78,93 @@ impl ConvertError {
         }
     }
 
+    /// A value (as `shown` writes it) of `field` that the output `path` cannot hold, at row
+    /// `row` of the rows written, and `why`.
+    pub fn unfit(
+        path: &Path,
+        field: &str,
+        value: String,
+        row: usize,
+        why: impl Into<String>,
+    ) -> Self {
+        ConvertError::Unfit(Box::new(Unfit {
+            path: path.to_path_buf(),
+            field: field.to_string(),
+            value,
+            why: why.into(),
+            row,
+            place: None,
+        }))
+    }
+
+    /// Says where an `Unfit` value is: point `point(row)` of `node` of `dataset` (`point`
+    /// maps the rows written to the node's points). Other errors pass unchanged.
+    pub fn placed(
+        self,
+        dataset: &Path,
+        node: &strata_format::NodeKey,
+        point: impl FnOnce(usize) -> usize,
+    ) -> Self {
+        match self {
+            ConvertError::Unfit(mut u) if u.place.is_none() => {
+                u.place = Some(format!(
+                    "point {} of node {node} of the dataset {}",
+                    point(u.row),
+                    dataset.display()
+                ));
+                ConvertError::Unfit(u)
+            }
+            other => other,
+        }
+    }
+
     pub fn internal(during: impl Into<String>, message: impl Into<String>) -> Self {
         ConvertError::Internal {
             during: during.into(),
             message: message.into(),
         }
+    }
+}
+
+/// A point's value that the output's format cannot hold (a class beyond the point format's
+/// bits, a fraction in an integer field): refused, not cut or rounded.
+#[derive(Debug)]
+pub struct Unfit {
+    /// The output.
+    pub path: PathBuf,
+    pub field: String,
+    pub value: String,
+    /// What the format holds instead, and what to do.
+    pub why: String,
+    /// The row of the rows handed to the writer.
+    pub row: usize,
+    /// Which point of which node of which dataset, filled in by the caller that knows
+    /// (`ConvertError::placed`).
+    pub place: Option<String>,
+}
+
+impl std::fmt::Display for Unfit {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(
+            f,
+            "{}: a point's {} is {}",
+            self.path.display(),
+            self.field,
+            self.value
+        )?;
+        if let Some(place) = &self.place {
+            write!(f, " ({place})")?;
+        }
+        write!(f, ", {}", self.why)
+    }
+}
+
+/// `v`, of type `ty`, in that type's own digits (an f32's -0.6, not -0.6000000238418579).
+pub(crate) fn shown(ty: strata_format::AttrType, v: f64) -> String {
+    if ty == strata_format::AttrType::F32 {
+        format!("{}", v as f32)
+    } else {
+        format!("{v}")
     }
 }
 

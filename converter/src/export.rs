@@ -1,6 +1,8 @@
-//! `strata export`: every point of a dataset back out as LAS, LAZ or PLY.
+//! `strata export`: every point of a dataset back out as LAS, LAZ or PLY (COPC in `copc.rs`,
+//! Potree 2.0 in `potree2.rs`), and the widening of stored rows every export shares.
 
 use crate::error::{ConvertError, Result};
+use crate::ply_writer::{exact_double, no_double_holds};
 use crate::writers::{RowWriter, open_writer, write_then_finish};
 use std::path::Path;
 use strata_format::{
@@ -19,13 +21,14 @@ pub fn is_copc(output: &Path) -> bool {
 /// Writes all points of `dataset` to `output` (LAS, LAZ, PLY, or COPC for `.copc.laz`);
 /// returns the number written.
 pub fn export(dataset: &Path, output: &Path, overwrite: bool) -> Result<u64> {
+    crate::replace::refuse_source(dataset, output)?;
     if is_copc(output) {
         return crate::copc::export_copc(dataset, output, overwrite);
     }
     let ds = LocalDataset::open(dataset)?;
     let meta = ds.metadata();
     let layout = ds.layout().clone();
-    let wide = widened(&layout);
+    let wide = widened(&layout, Target::of_file(output));
     let writer = open_writer(
         output,
         &wide.layout,
@@ -45,11 +48,12 @@ pub fn export(dataset: &Path, output: &Path, overwrite: bool) -> Result<u64> {
             let cols = ds.read_node(&node)?;
             let rows = cols.to_rows(&layout);
             check_finite(dataset, meta, &node.key, &rows, layout.stride)?;
+            let placed = |e: ConvertError| e.placed(dataset, &node.key, |r| r);
             if wide.is_identity() {
-                writer.write_rows(&rows)?;
+                writer.write_rows(&rows).map_err(placed)?;
             } else {
-                wide.convert(&rows, &mut out);
-                writer.write_rows(&out)?;
+                wide.convert(&rows, &mut out, output).map_err(placed)?;
+                writer.write_rows(&out).map_err(placed)?;
             }
             written += node.point_count as u64;
         }
@@ -90,7 +94,7 @@ pub fn crs_loss(dataset: &Path, output: &Path, potree2: bool) -> Result<Option<S
     } else if is_copc(output) {
         Some("COPC states one as WKT, so the output states none".to_string())
     } else if matches!(ext.as_deref(), Some("las" | "laz")) {
-        let format = crate::writers::las_format_for(&widened(ds.layout()).layout);
+        let format = crate::writers::las_format_for(&widened(ds.layout(), Target::Las).layout);
         (format >= 6).then(|| {
             format!(
                 "point format {format} states one as WKT; the output carries the GeoTIFF keys, \
@@ -151,7 +155,7 @@ pub fn export_rows(
     overwrite: bool,
     crs: Option<&Crs>,
 ) -> Result<u64> {
-    let wide = widened(layout);
+    let wide = widened(layout, Target::of_file(output));
     let n = (rows.len() / layout.stride.max(1)) as u64;
     let writer = open_writer(output, &wide.layout, scale, offset, n, overwrite, crs)?;
     write_then_finish(writer, output, |writer| {
@@ -159,16 +163,42 @@ pub fn export_rows(
             writer.write_rows(rows)?;
         } else {
             let mut out = Vec::new();
-            wide.convert(rows, &mut out);
+            wide.convert(rows, &mut out, output)?;
             writer.write_rows(&out)?;
         }
         Ok(n)
     })
 }
 
-/// A dataset's rows as the export formats can hold them: an `oct16` normal decoded to three
-/// f32 (`(0, 0)`, no normal, as `0 0 0`), f16 widened to f32 (neither LAS nor PLY has half
-/// floats); everything else as stored.
+/// The kind of output rows are widened for (`widened`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Target {
+    /// PLY keeps each type (an 8-bit colour stays 8-bit).
+    Ply,
+    /// LAS, LAZ and COPC: colour in the 16-bit RGB fields.
+    Las,
+    /// Potree 2.0: colour as 3 x uint16 (Potree's decoder reads no other), normals as three
+    /// floats, 64-bit integers as doubles.
+    Potree2,
+}
+
+impl Target {
+    /// The target a file output is (`.ply`, else LAS).
+    pub fn of_file(output: &Path) -> Target {
+        match output.extension().and_then(|e| e.to_str()) {
+            Some(e) if e.eq_ignore_ascii_case("ply") => Target::Ply,
+            _ => Target::Las,
+        }
+    }
+}
+
+/// A dataset's rows as an export format can hold them: an `oct16` normal decoded to three
+/// f32 (`(0, 0)`, no normal, as `0 0 0`), f16 widened to f32 (no export format has half
+/// floats); for LAS and Potree 2.0 a colour in 16 bits (LAS 1.4 R15: RGB "should always be
+/// normalized to 16 bit values"; Potree reads 3 x uint16): 8-bit colour times 257 (255 is
+/// 65535, and `/ 257` gives it back), a float colour taken as 0 to 1; for Potree 2.0 a normal
+/// of doubles as three f32 and 64-bit integers as doubles, refused where a double does not
+/// hold them; everything else as stored.
 pub struct Widened {
     /// The layout of the exported rows.
     pub layout: RowLayout,
@@ -182,31 +212,49 @@ enum Step {
     Copy,
     Oct16,
     F16,
+    /// 8-bit colour to 16 bits, times 257.
+    Colour8,
+    /// A float colour in 0 to 1 to 16 bits, times 65535 and rounded; refused outside 0 to 1.
+    UnitColour,
+    /// f64 to f32 (a Potree normal).
+    Narrow,
+    /// A 64-bit integer as a double (Potree 2.0), refused where the double would round it.
+    ExactDouble,
 }
 
-/// The export layout of `layout` and how its rows are converted.
-pub fn widened(layout: &RowLayout) -> Widened {
+/// The export layout of `layout` for `target`, and how its rows are converted.
+pub fn widened(layout: &RowLayout, target: Target) -> Widened {
     let mut steps = Vec::with_capacity(layout.attributes.len());
     let attributes = layout
         .attributes
         .iter()
         .map(|a| {
-            if a.is_oct16() {
+            let colour = a.name == "rgb" && a.count == 3 && target != Target::Ply;
+            let (step, ty) = if a.is_oct16() {
                 steps.push(Step::Oct16);
-                Attribute {
+                return Attribute {
                     description: "unit normal".into(),
                     ..Attribute::new(&a.name, AttrType::F32, 3)
-                }
+                };
+            } else if colour && a.ty == AttrType::U8 {
+                (Step::Colour8, AttrType::U16)
+            } else if colour && a.ty.is_float() {
+                (Step::UnitColour, AttrType::U16)
             } else if a.ty == AttrType::F16 {
-                steps.push(Step::F16);
-                Attribute {
-                    ty: AttrType::F32,
-                    ..a.clone()
-                }
+                (Step::F16, AttrType::F32)
+            } else if target == Target::Potree2
+                && a.name == "normal"
+                && a.count == 3
+                && a.ty == AttrType::F64
+            {
+                (Step::Narrow, AttrType::F32)
+            } else if target == Target::Potree2 && matches!(a.ty, AttrType::U64 | AttrType::I64) {
+                (Step::ExactDouble, AttrType::F64)
             } else {
-                steps.push(Step::Copy);
-                a.clone()
-            }
+                (Step::Copy, a.ty)
+            };
+            steps.push(step);
+            Attribute { ty, ..a.clone() }
         })
         .collect();
     Widened {
@@ -222,15 +270,18 @@ impl Widened {
         self.steps.iter().all(|s| *s == Step::Copy)
     }
 
-    /// Converts whole rows of the dataset's layout into `out` (replacing its contents).
-    pub fn convert(&self, rows: &[u8], out: &mut Vec<u8>) {
+    /// Converts whole rows of the dataset's layout into `out` (replacing its contents); a
+    /// value the output cannot hold is refused (`ConvertError::Unfit`, `output` named, rows
+    /// counted from the first of `rows`).
+    pub fn convert(&self, rows: &[u8], out: &mut Vec<u8>, output: &Path) -> Result<()> {
         let n = rows.len() / self.from.stride;
         out.clear();
         out.resize(n * self.layout.stride, 0);
         let pos = RowLayout::POSITION_BYTES;
-        for (row, dst) in rows
+        for (r, (row, dst)) in rows
             .chunks_exact(self.from.stride)
             .zip(out.chunks_exact_mut(self.layout.stride))
+            .enumerate()
         {
             dst[..pos].copy_from_slice(&row[..pos]);
             for (i, step) in self.steps.iter().enumerate() {
@@ -238,6 +289,8 @@ impl Widened {
                 let src = &row[self.from.offsets[i]..self.from.offsets[i] + a.size()];
                 let to = self.layout.offsets[i];
                 let dst = &mut dst[to..to + self.layout.attributes[i].size()];
+                let w = self.layout.attributes[i].ty.size();
+                let values = src.chunks_exact(a.ty.size()).zip(dst.chunks_exact_mut(w));
                 match step {
                     Step::Copy => dst.copy_from_slice(src),
                     Step::Oct16 => {
@@ -250,15 +303,52 @@ impl Widened {
                             dst[c * 4..c * 4 + 4].copy_from_slice(&(v as f32).to_le_bytes());
                         }
                     }
-                    Step::F16 => {
-                        for (c, h) in src.chunks_exact(2).enumerate() {
-                            let v = AttrType::F16.read_f64(h) as f32;
-                            dst[c * 4..c * 4 + 4].copy_from_slice(&v.to_le_bytes());
+                    Step::F16 | Step::Narrow => {
+                        for (v, d) in values {
+                            d.copy_from_slice(&(a.ty.read_f64(v) as f32).to_le_bytes());
+                        }
+                    }
+                    Step::Colour8 => {
+                        for (v, d) in values {
+                            d.copy_from_slice(&(u16::from(v[0]) * 257).to_le_bytes());
+                        }
+                    }
+                    Step::UnitColour => {
+                        for (v, d) in values {
+                            let v = a.ty.read_f64(v);
+                            // NaN fails the comparison too.
+                            if !(0.0..=1.0).contains(&v) {
+                                return Err(ConvertError::unfit(
+                                    output,
+                                    &a.name,
+                                    crate::error::shown(a.ty, v),
+                                    r,
+                                    "outside 0 to 1, which a float colour must lie in to go \
+                                     out as a 16-bit colour (0 to 65535); export to .ply to \
+                                     keep it",
+                                ));
+                            }
+                            d.copy_from_slice(&((v * 65535.0).round() as u16).to_le_bytes());
+                        }
+                    }
+                    Step::ExactDouble => {
+                        for (v, d) in values {
+                            let x = exact_double(a.ty, v).map_err(|v| {
+                                ConvertError::unfit(
+                                    output,
+                                    &a.name,
+                                    v.to_string(),
+                                    r,
+                                    no_double_holds("Potree 2.0 attribute"),
+                                )
+                            })?;
+                            d.copy_from_slice(&x.to_le_bytes());
                         }
                     }
                 }
             }
         }
+        Ok(())
     }
 }
 
@@ -274,7 +364,7 @@ mod tests {
             Attribute::oct16_normal(),
             Attribute::new("radius", AttrType::F16, 1),
         ]);
-        let wide = widened(&layout);
+        let wide = widened(&layout, Target::Ply);
         assert!(!wide.is_identity());
         let shapes: Vec<(&str, AttrType, u8, bool)> = wide
             .layout
@@ -300,7 +390,8 @@ mod tests {
             rows.extend_from_slice(&half::f16::from_f64(0.25).to_le_bytes());
         }
         let mut out = Vec::new();
-        wide.convert(&rows, &mut out);
+        wide.convert(&rows, &mut out, Path::new("x.ply"))
+            .expect("converted");
         assert_eq!(out.len(), 2 * wide.layout.stride);
         let f =
             |row: usize, at: usize| AttrType::F32.read_f64(&out[row * wide.layout.stride + at..]);

@@ -3,7 +3,7 @@
 //! families (a legacy `scan_angle_rank` in degrees becomes the `scan_angle` of formats 6 to 10
 //! in steps of 0.006°). Shared by the LAS/LAZ writer and the COPC export.
 
-use crate::error::{ConvertError, Result};
+use crate::error::{ConvertError, Result, shown};
 use crate::input::las_layout::{
     ExtraBytesField, FieldOp, UNDESCRIBED, eb_code, las_fields, las_fields_ungrouped, row_to_record,
 };
@@ -21,7 +21,8 @@ enum Source {
     /// A legacy scan angle rank (i8 degrees) as a scan angle (i16, 0.006°).
     RankToAngle(usize),
     /// Another type than the field's (an f32 intensity from a PLY): each component converted
-    /// and rounded (a value beyond the field's range is refused by `check_fits`).
+    /// (a value beyond the field's range, or a fraction in an integer field, is refused by
+    /// `check_fits`, so nothing is rounded).
     Cast {
         at: usize,
         from: AttrType,
@@ -45,6 +46,9 @@ struct Limit {
     max: f64,
     /// Why the bound: the point format's bit field, or the field's type.
     bits: bool,
+    /// Whether the value must be a whole number: a float going into an integer field, where a
+    /// fraction would otherwise be rounded away without a word.
+    whole: bool,
 }
 
 /// The fields LAS holds in fewer than 8 bits: name, and the largest value formats 0 to 5 and
@@ -167,6 +171,7 @@ impl LasRecords {
                     min: 0.0,
                     max: f64::from(max),
                     bits: true,
+                    whole: a.ty.is_float(),
                 })
             })
             .collect();
@@ -186,6 +191,7 @@ impl LasRecords {
                     min,
                     max,
                     bits: false,
+                    whole: from.is_float(),
                 }));
             }
         }
@@ -231,13 +237,15 @@ impl LasRecords {
     }
 
     /// Refuses `rows` where a field holds a value the point format cannot (a PLY's class 200
-    /// in format 3, return 20 in format 6); `path` names the output.
+    /// in format 3, return 20 in format 6, a float intensity of 0.25); `path` names the output.
+    /// The error counts rows from the first of `rows` (`ConvertError::placed` says where).
     pub fn check_fits(&self, path: &Path, rows: &[u8]) -> Result<()> {
-        for row in rows.chunks_exact(self.stride) {
+        for (r, row) in rows.chunks_exact(self.stride).enumerate() {
             for l in &self.limits {
                 let v = l.ty.read_f64(&row[l.at..]);
-                // Rounded as `store` rounds it.
-                if v.round() >= l.min && v.round() <= l.max {
+                // NaN fails every comparison, infinities the range.
+                let whole = !l.whole || v.fract() == 0.0;
+                if whole && v >= l.min && v <= l.max {
                     continue;
                 }
                 let holds = if l.bits {
@@ -245,21 +253,19 @@ impl LasRecords {
                 } else {
                     "LAS's field holds".to_string()
                 };
-                return Err(ConvertError::output(
-                    path,
+                let why = if v.is_finite() && v >= l.min && v <= l.max {
                     format!(
-                        "a point's {} is {}, outside what {holds} ({} to {}); export to .ply to keep it",
-                        l.name,
-                        // In its own type's digits (an f32's -0.6, not -0.6000000238418579).
-                        if l.ty == AttrType::F32 {
-                            format!("{}", v as f32)
-                        } else {
-                            format!("{v}")
-                        },
-                        l.min,
-                        l.max
-                    ),
-                ));
+                        "not a whole number, and {holds} whole numbers only ({} to {}); \
+                         export to .ply to keep it",
+                        l.min, l.max
+                    )
+                } else {
+                    format!(
+                        "outside what {holds} ({} to {}); export to .ply to keep it",
+                        l.min, l.max
+                    )
+                };
+                return Err(ConvertError::unfit(path, &l.name, shown(l.ty, v), r, why));
             }
         }
         Ok(())
@@ -450,7 +456,7 @@ mod tests {
     }
 
     #[test]
-    fn a_field_of_another_type_is_converted_or_refused_beyond_its_range() {
+    fn a_field_of_another_type_is_converted_or_refused_beyond_its_range_or_as_a_fraction() {
         // A PLY's f32 intensity into LAS's u16 field; a u16 classification into the u8 one; a
         // u16 return number into format 6's four bits.
         let layout = RowLayout::new(vec![
@@ -466,11 +472,11 @@ mod tests {
             row.extend(r.to_le_bytes());
             row
         };
-        let fits = row(1234.6, 255, 15);
+        let fits = row(1234.0, 255, 15);
         assert!(plan.check_fits(Path::new("x.las"), &fits).is_ok());
         let mut recs = Vec::new();
         plan.fill(&fits, &mut recs);
-        assert_eq!(u16::from_le_bytes([recs[12], recs[13]]), 1235);
+        assert_eq!(u16::from_le_bytes([recs[12], recs[13]]), 1234);
         assert_eq!(recs[14] & 0xF, 15, "return number");
         assert_eq!(recs[16], 255, "classification");
         for (bad, said) in [
@@ -480,6 +486,13 @@ mod tests {
             ),
             (row(1e9, 2, 1), "intensity is 1000000000, outside"),
             (row(f32::NAN, 2, 1), "intensity is NaN, outside"),
+            (row(f32::INFINITY, 2, 1), "intensity is inf, outside"),
+            // A fraction is not rounded away: the field holds whole numbers.
+            (
+                row(0.25, 2, 1),
+                "intensity is 0.25, not a whole number, and LAS's field holds whole numbers only",
+            ),
+            (row(1234.6, 2, 1), "intensity is 1234.6, not a whole number"),
             (
                 row(1.0, 300, 1),
                 "classification is 300, outside what LAS's field holds (0 to 255)",

@@ -22,6 +22,7 @@ pub mod merge;
 pub mod morton;
 pub mod normals;
 pub mod plan;
+pub mod ply_writer;
 pub mod potree2;
 pub mod potree2_hierarchy;
 pub mod prepare;

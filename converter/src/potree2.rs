@@ -7,7 +7,8 @@
 //! scale and offset) followed by each attribute's raw bytes: the export row layout already.
 
 use crate::error::{ConvertError, Result};
-use crate::export::{Widened, widened};
+use crate::export::{Target, Widened, widened};
+use crate::ply_writer::UniqueNames;
 use crate::potree2_hierarchy::{NodeData, STEP, encode};
 use crate::replace::{Folder, check_output};
 use crate::writers::part_path;
@@ -46,8 +47,8 @@ fn potree_name(name: &str) -> String {
     }
 }
 
-/// Potree's type name; 64-bit integers go out as doubles (Potree's decoder reads no 64-bit
-/// integer type), exact up to 2^53.
+/// Potree's type name. 64-bit integers never reach it: `widened` makes them doubles (Potree's
+/// decoder reads no 64-bit integer type), refusing one a double would round.
 fn potree_type(ty: AttrType) -> &'static str {
     match ty {
         AttrType::U8 => "uint8",
@@ -152,8 +153,21 @@ impl Column {
     }
 }
 
+/// Whether Potree reads `name` (a Strata name) as one of its own attributes: such names keep
+/// their Potree spelling, and another attribute that would take it (an extra-bytes field
+/// named `gps-time` beside the GPS time) is the one numbered.
+fn potree_reads(name: &str) -> bool {
+    potree_name(name) != name
+        || matches!(
+            name,
+            "rgb" | "intensity" | "classification" | "normal" | "nir"
+        )
+}
+
 /// The columns of `layout` (export rows): a three-component f32 `normal` split into
-/// NormalX, NormalY and NormalZ, the names Potree combines into its normal.
+/// NormalX, NormalY and NormalZ, the names Potree combines into its normal. Each name is
+/// given once (`UniqueNames`, as PLY export's properties): Potree keys attributes by name,
+/// so a second one of a name would be read as the first.
 fn columns(layout: &RowLayout) -> Vec<Column> {
     let mut cols = vec![Column {
         name: "position".into(),
@@ -186,30 +200,31 @@ fn columns(layout: &RowLayout) -> Vec<Column> {
             cols.push(col(potree_name(&a.name), a.count as usize, at));
         }
     }
-    cols
-}
-
-/// Rewrites 64-bit integers of `rows` as the doubles `potree_type` declares, in place.
-fn integers_as_doubles(layout: &RowLayout, rows: &mut [u8]) {
-    let wide: Vec<(usize, usize, AttrType)> = layout
-        .attributes
-        .iter()
-        .zip(&layout.offsets)
-        .filter(|(a, _)| matches!(a.ty, AttrType::U64 | AttrType::I64))
-        .map(|(a, &at)| (at, a.count as usize, a.ty))
+    // Potree's own attributes name themselves first, then the others in order. Potree reads
+    // whatever is named `rgb` as 3 x uint16: without a colour, the name is no one's.
+    let colour = cols.iter().any(|c| c.name == "rgb" && c.count == 3);
+    let mut names = UniqueNames::new(if colour {
+        &["position"]
+    } else {
+        &["position", "rgb"]
+    });
+    let own: Vec<bool> = std::iter::once(false)
+        .chain(layout.attributes.iter().flat_map(|a| {
+            let split = a.name == "normal" && a.count == 3 && a.ty == AttrType::F32;
+            std::iter::repeat_n(potree_reads(&a.name), if split { 3 } else { 1 })
+        }))
         .collect();
-    if wide.is_empty() {
-        return;
-    }
-    for row in rows.chunks_exact_mut(layout.stride) {
-        for &(at, count, ty) in &wide {
-            for c in 0..count {
-                let b = &mut row[at + 8 * c..at + 8 * c + 8];
-                let v = ty.read_f64(b);
-                b.copy_from_slice(&v.to_le_bytes());
-            }
+    for first in [true, false] {
+        for (c, _) in cols
+            .iter_mut()
+            .zip(&own)
+            .skip(1)
+            .filter(|(_, o)| **o == first)
+        {
+            c.name = names.take(std::mem::take(&mut c.name));
         }
     }
+    cols
 }
 
 /// Nodes decoded at once: enough to keep both cores busy, few enough that memory stays small.
@@ -226,6 +241,7 @@ fn node_records(
     node: &NodeInfo,
     wide: &Widened,
     cols: &[Column],
+    output: &Path,
 ) -> Result<NodeRecords> {
     if node.point_count == 0 {
         return Ok(NodeRecords {
@@ -248,29 +264,30 @@ fn node_records(
     }
     let stored = cols_read.to_rows(ds.layout());
     crate::export::check_finite(ds.dir(), meta, &node.key, &stored, ds.layout().stride)?;
-    let mut rows = if wide.is_identity() {
+    let rows = if wide.is_identity() {
         stored
     } else {
         let mut out = Vec::new();
-        wide.convert(&stored, &mut out);
+        wide.convert(&stored, &mut out, output)
+            .map_err(|e| e.placed(ds.dir(), &node.key, |r| r))?;
         out
     };
     let ranges = cols
         .iter()
         .map(|c| c.range_in(&rows, wide.layout.stride))
         .collect();
-    integers_as_doubles(&wide.layout, &mut rows);
     Ok(NodeRecords { rows, ranges })
 }
 
 /// Writes `dataset` to the folder `output` as a Potree 2.0 dataset. The folder appears
 /// whole or not at all: it is written as `OUTPUT.part` and renamed at the end.
 pub fn export_potree2(dataset: &Path, output: &Path, overwrite: bool) -> Result<Potree2Summary> {
+    crate::replace::refuse_source(dataset, output)?;
     check_output(output, overwrite, Folder::Dataset)?;
     let ds = LocalDataset::open(dataset)?;
     // octree.bin holds every export row uncompressed (the hierarchy is 22 bytes a node): refused
     // now rather than when the disk fills.
-    let records = ds.metadata().points * widened(ds.layout()).layout.stride as u64;
+    let records = ds.metadata().points * widened(ds.layout(), Target::Potree2).layout.stride as u64;
     crate::disk::check_space(&[(output, records + 22 * ds.metadata().nodes)])?;
     // Potree names a dataset after its folder.
     let name = output
@@ -280,7 +297,7 @@ pub fn export_potree2(dataset: &Path, output: &Path, overwrite: bool) -> Result<
     let part = part_path(output);
     let _ = fs::remove_dir_all(&part);
     fs::create_dir_all(&part).map_err(|e| ConvertError::io(&part, "cannot create", e))?;
-    let written = write_dataset(&ds, &part, &name).and_then(|summary| {
+    let written = write_dataset(&ds, &part, &name, output).and_then(|summary| {
         if output.exists() {
             fs::remove_dir_all(output)
                 .map_err(|e| ConvertError::io(output, "cannot replace", e))?;
@@ -295,10 +312,17 @@ pub fn export_potree2(dataset: &Path, output: &Path, overwrite: bool) -> Result<
     written
 }
 
-fn write_dataset(ds: &LocalDataset, dir: &Path, name: &str) -> Result<Potree2Summary> {
+/// Writes the Potree 2.0 files into `dir`; `output` (its final name) is named in errors about
+/// the points.
+fn write_dataset(
+    ds: &LocalDataset,
+    dir: &Path,
+    name: &str,
+    output: &Path,
+) -> Result<Potree2Summary> {
     let meta = ds.metadata();
     let layout = ds.layout();
-    let wide = widened(layout);
+    let wide = widened(layout, Target::Potree2);
     let mut cols = columns(&wide.layout);
     let octree_path = dir.join("octree.bin");
     let io = |p: &Path| {
@@ -314,7 +338,7 @@ fn write_dataset(ds: &LocalDataset, dir: &Path, name: &str) -> Result<Potree2Sum
     for batch in all.chunks(BATCH_NODES) {
         let done: Vec<Result<NodeRecords>> = batch
             .par_iter()
-            .map(|node| node_records(ds, node, &wide, &cols))
+            .map(|node| node_records(ds, node, &wide, &cols, output))
             .collect();
         for (node, records) in batch.iter().zip(done) {
             let records = records?;
@@ -403,39 +427,116 @@ mod tests {
     use super::*;
     use strata_format::Attribute;
 
+    /// Rows of `layout` from each point's position and attribute bytes.
+    fn rows_of(points: &[(i32, Vec<u8>)]) -> Vec<u8> {
+        let mut rows = Vec::new();
+        for (x, attrs) in points {
+            for _ in 0..3 {
+                rows.extend_from_slice(&x.to_le_bytes());
+            }
+            rows.extend_from_slice(attrs);
+        }
+        rows
+    }
+
     #[test]
-    fn ranges_are_typed_and_64_bit_integers_go_out_as_doubles() {
+    fn ranges_are_typed_and_64_bit_integers_go_out_as_doubles_only_where_exact() {
         let layout = RowLayout::new(vec![
             Attribute::new("intensity", AttrType::U16, 1),
             Attribute::new("ticks", AttrType::I64, 1),
             Attribute::new("gps_time", AttrType::F64, 1),
         ]);
-        let mut rows = Vec::new();
-        for (x, i, t, g) in [(-5i32, 700u16, -3i64, 2.5f64), (9, 65535, 1 << 40, -1.0)] {
-            for _ in 0..3 {
-                rows.extend_from_slice(&x.to_le_bytes());
-            }
-            rows.extend_from_slice(&i.to_le_bytes());
-            rows.extend_from_slice(&t.to_le_bytes());
-            rows.extend_from_slice(&g.to_le_bytes());
-        }
-        let cols = columns(&layout);
+        let point = |x: i32, i: u16, t: i64, g: f64| {
+            let mut b = i.to_le_bytes().to_vec();
+            b.extend_from_slice(&t.to_le_bytes());
+            b.extend_from_slice(&g.to_le_bytes());
+            (x, b)
+        };
+        let rows = rows_of(&[point(-5, 700, -3, 2.5), point(9, 65535, 1 << 40, -1.0)]);
+        let wide = widened(&layout, Target::Potree2);
+        let mut out = Vec::new();
+        wide.convert(&rows, &mut out, Path::new("p2"))
+            .expect("exact");
+        let cols = columns(&wide.layout);
         let names: Vec<&str> = cols.iter().map(|c| c.name.as_str()).collect();
         assert_eq!(names, ["position", "intensity", "ticks", "gps-time"]);
         let ranges: Vec<_> = cols
             .iter()
-            .map(|c| c.range_in(&rows, layout.stride))
+            .map(|c| c.range_in(&out, wide.layout.stride))
             .collect();
         assert_eq!(ranges[0], (vec![-5.0; 3], vec![9.0; 3]));
         assert_eq!(ranges[1], (vec![700.0], vec![65535.0]));
         assert_eq!(ranges[2], (vec![-3.0], vec![(1u64 << 40) as f64]));
         assert_eq!(ranges[3], (vec![-1.0], vec![2.5]));
         assert_eq!(cols[2].json()["type"], "double");
-        integers_as_doubles(&layout, &mut rows);
-        let at = layout.offsets[1];
-        let tick = |r: usize| AttrType::F64.read_f64(&rows[r * layout.stride + at..]);
+        let at = wide.layout.offsets[1];
+        let tick = |r: usize| AttrType::F64.read_f64(&out[r * wide.layout.stride + at..]);
         assert_eq!((tick(0), tick(1)), (-3.0, (1u64 << 40) as f64));
-        // The other bytes are untouched.
-        assert_eq!(AttrType::F64.read_f64(&rows[layout.offsets[2]..]), 2.5);
+        // One a double would round is refused, as PLY export refuses it, not rounded.
+        let big = (1i64 << 53) + 1;
+        let rows = rows_of(&[point(0, 1, 5, 0.0), point(1, 1, big, 0.0)]);
+        let e = wide
+            .convert(&rows, &mut out, Path::new("p2"))
+            .expect_err("rounded")
+            .to_string();
+        assert!(
+            e.contains("ticks is 9007199254740993")
+                && e.contains("no Potree 2.0 attribute holds exactly"),
+            "{e}"
+        );
+    }
+
+    #[test]
+    fn colour_is_16_bit_normals_are_floats_and_names_are_unique() {
+        let layout = RowLayout::new(vec![
+            Attribute::new("gps-time", AttrType::F64, 1),
+            Attribute::new("rgb", AttrType::U8, 3),
+            Attribute::new("normal", AttrType::F64, 3),
+            Attribute::new("gps_time", AttrType::F64, 1),
+        ]);
+        let mut b = 7.0f64.to_le_bytes().to_vec();
+        b.extend_from_slice(&[255, 128, 0]);
+        for n in [0.6f64, 0.8, 0.0] {
+            b.extend_from_slice(&n.to_le_bytes());
+        }
+        b.extend_from_slice(&1.5f64.to_le_bytes());
+        let rows = rows_of(&[(0, b)]);
+        let wide = widened(&layout, Target::Potree2);
+        let mut out = Vec::new();
+        wide.convert(&rows, &mut out, Path::new("p2"))
+            .expect("fits");
+        let cols = columns(&wide.layout);
+        let shapes: Vec<(&str, &str, usize)> = cols
+            .iter()
+            .map(|c| (c.name.as_str(), potree_type(c.ty), c.count))
+            .collect();
+        assert_eq!(
+            shapes,
+            [
+                ("position", "int32", 3),
+                ("gps-time_1", "double", 1),
+                ("rgb", "uint16", 3),
+                ("NormalX", "float", 1),
+                ("NormalY", "float", 1),
+                ("NormalZ", "float", 1),
+                ("gps-time", "double", 1),
+            ]
+        );
+        let rgb: Vec<u16> = (0..3)
+            .map(|c| {
+                let at = cols[2].at + 2 * c;
+                u16::from_le_bytes([out[at], out[at + 1]])
+            })
+            .collect();
+        assert_eq!(rgb, [65535, 128 * 257, 0]);
+        let normal: Vec<f64> = (3..6)
+            .map(|c| AttrType::F32.read_f64(&out[cols[c].at..]))
+            .collect();
+        assert_eq!(normal, [0.6f32 as f64, 0.8f32 as f64, 0.0]);
+        // A scalar named `rgb` (a LAS extra-bytes field) is no colour: Potree would read it
+        // as one.
+        let scalar = RowLayout::new(vec![Attribute::new("rgb", AttrType::U8, 1)]);
+        let names: Vec<String> = columns(&scalar).into_iter().map(|c| c.name).collect();
+        assert_eq!(names, ["position", "rgb_1"]);
     }
 }

@@ -1,7 +1,8 @@
 //! What `--overwrite` may replace: a folder holding only what Strata itself writes there (a
 //! dataset, a Potree 2.0 dataset, a plan), its marker file among them, or nothing. A file, an
 //! input, or a folder with anything else in it is refused before any work starts: a mistyped
-//! `-o` must never cost a user their files.
+//! `-o` must never cost a user their files. An export onto, into or around the dataset it
+//! reads is refused too (`refuse_source`).
 
 use crate::error::{ConvertError, Result};
 use std::fs;
@@ -157,6 +158,51 @@ pub fn check_output(output: &Path, overwrite: bool, kind: Folder) -> Result<()> 
     Ok(())
 }
 
+/// Refuses an export `output` that is the dataset it reads (`source`), lies inside it, or
+/// holds it: replacing it would destroy the points being read (a Potree 2.0 export onto its
+/// own dataset passes `check_output`, both being dataset folders), and a file written inside
+/// it is taken for a stranger by every later `--overwrite`. Links are followed, so that a
+/// second name for the same folder is caught.
+pub fn refuse_source(source: &Path, output: &Path) -> Result<()> {
+    let (src, out) = (resolved(source), resolved(output));
+    let how = if src == out {
+        "is the dataset being exported"
+    } else if out.starts_with(&src) {
+        "lies inside the dataset being exported"
+    } else if src.starts_with(&out) {
+        "holds the dataset being exported"
+    } else {
+        return Ok(());
+    };
+    Err(ConvertError::output(
+        output,
+        format!(
+            "{how}, {}, which writing it would destroy; give -o a place outside the dataset",
+            source.display()
+        ),
+    ))
+}
+
+/// `path` made absolute with its links followed, as far as it exists: the part that does not
+/// exist yet (an output to be made) is appended as written.
+fn resolved(path: &Path) -> std::path::PathBuf {
+    let absolute = std::path::absolute(path).unwrap_or_else(|_| path.to_path_buf());
+    let mut missing = Vec::new();
+    let mut at = absolute.as_path();
+    loop {
+        if let Ok(real) = fs::canonicalize(at) {
+            return missing.iter().rev().fold(real, |p, part| p.join(part));
+        }
+        match (at.parent(), at.file_name()) {
+            (Some(parent), Some(name)) => {
+                missing.push(name.to_os_string());
+                at = parent;
+            }
+            _ => return absolute,
+        }
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -219,6 +265,34 @@ mod tests {
         assert!(check_output(&plan, true, Folder::Plan).is_ok());
         assert!(refused(&plan, Folder::Dataset).contains("\"plan.json\""));
         assert!(refused(&ds, Folder::Plan).contains("a plan folder"));
+    }
+
+    #[test]
+    fn an_export_into_or_over_its_own_dataset_is_refused() {
+        let dir = tempfile::tempdir().unwrap();
+        let ds = dir.path().join("ds.strata");
+        fs::create_dir(&ds).unwrap();
+        fs::write(ds.join("metadata.json"), b"{}").unwrap();
+        let said = |out: &Path| match refuse_source(&ds, out) {
+            Err(e) => e.to_string(),
+            Ok(()) => panic!("{} was accepted", out.display()),
+        };
+        assert!(said(&ds).contains("is the dataset being exported"));
+        // Another spelling of the same folder.
+        fs::create_dir(dir.path().join("sub")).unwrap();
+        assert!(said(&dir.path().join("sub/../ds.strata/")).contains("is the dataset"));
+        assert!(said(&ds.join("out.las")).contains("lies inside the dataset"));
+        assert!(said(&ds.join("new/p2")).contains("lies inside the dataset"));
+        assert!(said(dir.path()).contains("holds the dataset"));
+        #[cfg(unix)]
+        {
+            let link = dir.path().join("link");
+            std::os::unix::fs::symlink(&ds, &link).unwrap();
+            assert!(said(&link).contains("is the dataset"));
+        }
+        // Beside it, or a name that merely starts with its name: accepted.
+        assert!(refuse_source(&ds, &dir.path().join("ds.strata2")).is_ok());
+        assert!(refuse_source(&ds, &dir.path().join("out.las")).is_ok());
     }
 
     #[cfg(unix)]

@@ -1,13 +1,15 @@
-//! Writing rows (12 bytes of integer position, then attributes) out as LAS, LAZ or PLY.
-//! Files are written under a temporary name and renamed when complete.
+//! Writing rows (12 bytes of integer position, then attributes) out as LAS, LAZ or PLY (the
+//! PLY writer in `ply_writer.rs`). Files are written under a temporary name and renamed when
+//! complete.
 
 use crate::error::{ConvertError, Result};
-use crate::las_records::{BIT_FIELDS, LasRecords, refuse_encoded};
+use crate::las_records::{BIT_FIELDS, LasRecords};
+use crate::ply_writer::PlyRowWriter;
 use las::{PointDataBuilder, Transform, Vector, Vlr, Writer};
 use std::fs::File;
 use std::io::{BufWriter, Write};
 use std::path::{Path, PathBuf};
-use strata_format::{AttrType, Attribute, Crs, RowLayout, TimeBase, row_position};
+use strata_format::{Attribute, Crs, RowLayout, TimeBase, row_position};
 
 /// A sink for rows of one layout.
 pub trait RowWriter {
@@ -90,6 +92,19 @@ pub fn open_writer(
              dataset by `strata export DATASET -o NAME.copc.laz`)",
         ));
     }
+    // A COPC file is LAZ, and a ".copc.las" would be taken for one: refused, not written as
+    // plain LAS under that name.
+    if path
+        .file_name()
+        .and_then(|n| n.to_str())
+        .is_some_and(|n| n.to_ascii_lowercase().ends_with(".copc.las"))
+    {
+        return Err(ConvertError::output(
+            path,
+            "a COPC file is compressed: name it NAME.copc.laz for COPC (from `strata export`), \
+             or NAME.las for plain LAS",
+        ));
+    }
     if path.exists() && !overwrite {
         return Err(ConvertError::output(
             path,
@@ -117,7 +132,8 @@ pub fn open_writer(
         )?)),
         _ => Err(ConvertError::output(
             path,
-            "unknown output type (expected a .las, .laz or .ply file)",
+            "unknown output type (expected a .las, .laz or .ply file; `strata export` also \
+             writes .copc.laz, and a Potree 2.0 folder with --format potree2)",
         )),
     }
 }
@@ -341,213 +357,6 @@ impl LasRowWriter {
                 })?;
         }
         Ok(())
-    }
-}
-
-struct PlyRowWriter {
-    path: PathBuf,
-    part: PathBuf,
-    out: BufWriter<File>,
-    layout: RowLayout,
-    scale: [f64; 3],
-    offset: [f64; 3],
-    /// How each attribute's values are written.
-    written_as: Vec<PlyValue>,
-}
-
-/// How an attribute's stored values become a PLY property's.
-#[derive(Debug, Clone, Copy, PartialEq)]
-enum PlyValue {
-    /// The stored bytes.
-    Stored,
-    /// f16 as float (PLY has no half floats).
-    Float,
-    /// 64-bit integers as double (PLY has no 64-bit integers).
-    Double,
-    /// A LAS extra attribute with a scale or offset, as the double it stands for: PLY has no
-    /// place for the scale, and a reader would take the raw integer for the value.
-    Scaled,
-}
-
-impl PlyValue {
-    fn of(a: &strata_format::Attribute) -> PlyValue {
-        match a.ty {
-            _ if a.scale.is_some() || a.offset.is_some() => PlyValue::Scaled,
-            AttrType::F16 => PlyValue::Float,
-            AttrType::U64 | AttrType::I64 => PlyValue::Double,
-            _ => PlyValue::Stored,
-        }
-    }
-}
-
-fn ply_type(t: AttrType) -> &'static str {
-    match t {
-        AttrType::I8 => "char",
-        AttrType::U8 => "uchar",
-        AttrType::I16 => "short",
-        AttrType::U16 => "ushort",
-        AttrType::I32 => "int",
-        AttrType::U32 => "uint",
-        AttrType::F32 | AttrType::F16 => "float",
-        AttrType::F64 | AttrType::U64 | AttrType::I64 => "double",
-    }
-}
-
-impl PlyRowWriter {
-    fn create(
-        path: &Path,
-        layout: &RowLayout,
-        scale: [f64; 3],
-        offset: [f64; 3],
-        points: u64,
-    ) -> Result<Self> {
-        refuse_encoded(path, layout)?;
-        let part = part_path(path);
-        let file = File::create(&part).map_err(|e| ConvertError::io(&part, "cannot create", e))?;
-        let mut out = BufWriter::with_capacity(1 << 20, file);
-        let mut h = format!(
-            "ply\nformat binary_little_endian 1.0\ncomment written by strata {}\nelement vertex {points}\nproperty double x\nproperty double y\nproperty double z\n",
-            env!("CARGO_PKG_VERSION")
-        );
-        for (a, names) in layout.attributes.iter().zip(ply_property_names(layout)) {
-            let ty = match PlyValue::of(a) {
-                PlyValue::Scaled => "double",
-                _ => ply_type(a.ty),
-            };
-            for n in names {
-                h.push_str(&format!("property {ty} {n}\n"));
-            }
-        }
-        h.push_str("end_header\n");
-        out.write_all(h.as_bytes())
-            .map_err(|e| ConvertError::io(&part, "cannot write", e))?;
-        Ok(PlyRowWriter {
-            path: path.to_path_buf(),
-            part,
-            out,
-            written_as: layout.attributes.iter().map(PlyValue::of).collect(),
-            layout: layout.clone(),
-            scale,
-            offset,
-        })
-    }
-}
-
-/// Each attribute's PLY property names: a colour as `red green blue`, a normal as `nx ny nz`,
-/// other vectors as `NAME_0`, `NAME_1`, …. A name already taken (a scalar `red` beside a
-/// colour, a LAS extra attribute named `green`) gets a number, as a PLY reader refuses a
-/// property declared twice; white space, which would end the name in the header, becomes `_`.
-fn ply_property_names(layout: &RowLayout) -> Vec<Vec<String>> {
-    let mut taken: std::collections::HashSet<String> =
-        ["x", "y", "z"].iter().map(|n| n.to_string()).collect();
-    let mut unique = |n: String| {
-        let n: String = n
-            .chars()
-            .map(|c| if c.is_whitespace() { '_' } else { c })
-            .collect();
-        let n = if n.is_empty() {
-            "attribute".to_string()
-        } else {
-            n
-        };
-        let mut name = n.clone();
-        let mut i = 1;
-        while taken.contains(&name) {
-            name = format!("{n}_{i}");
-            i += 1;
-        }
-        taken.insert(name.clone());
-        name
-    };
-    let group = |a: &strata_format::Attribute| -> Option<[&str; 3]> {
-        match (a.name.as_str(), a.count) {
-            ("rgb", 3) => Some(["red", "green", "blue"]),
-            ("normal", 3) => Some(["nx", "ny", "nz"]),
-            _ => None,
-        }
-    };
-    // A colour and a normal keep the names readers group them by.
-    let grouped: Vec<Option<Vec<String>>> = layout
-        .attributes
-        .iter()
-        .map(|a| group(a).map(|g| g.iter().map(|n| unique(n.to_string())).collect()))
-        .collect();
-    layout
-        .attributes
-        .iter()
-        .zip(grouped)
-        .map(|(a, grouped)| {
-            grouped.unwrap_or_else(|| match a.count {
-                1 => vec![unique(a.name.clone())],
-                c => (0..c).map(|i| unique(format!("{}_{i}", a.name))).collect(),
-            })
-        })
-        .collect()
-}
-
-impl RowWriter for PlyRowWriter {
-    fn write_rows(&mut self, rows: &[u8]) -> Result<()> {
-        let mut rec = Vec::with_capacity(self.layout.stride + 24);
-        for row in rows.chunks_exact(self.layout.stride) {
-            rec.clear();
-            let p = row_position(row);
-            for ((o, s), v) in self.offset.iter().zip(&self.scale).zip(p) {
-                rec.extend_from_slice(&(o + s * v as f64).to_le_bytes());
-            }
-            for (i, a) in self.layout.attributes.iter().enumerate() {
-                let v = &row[self.layout.offsets[i]..self.layout.offsets[i] + a.size()];
-                let values = v.chunks_exact(a.ty.size());
-                match self.written_as[i] {
-                    PlyValue::Stored => rec.extend_from_slice(v),
-                    PlyValue::Float => {
-                        for c in values {
-                            rec.extend_from_slice(&(a.ty.read_f64(c) as f32).to_le_bytes());
-                        }
-                    }
-                    PlyValue::Double => {
-                        for c in values {
-                            let d = a.ty.read_f64(c);
-                            // Compared in i128, which holds both types and the double's
-                            // rounding past them (u64::MAX becomes 2^64) without saturating.
-                            let exact = a.ty.read_wide_integer(c);
-                            if let Some(v) = exact.filter(|&v| d as i128 != v) {
-                                return Err(ConvertError::output(
-                                    &self.path,
-                                    format!(
-                                        "attribute \"{}\" holds {}, which no PLY property \
-                                         holds exactly (PLY has no 64-bit integers, and a \
-                                         double keeps 53 bits); export to .las or .laz, whose \
-                                         extra bytes keep it",
-                                        a.name, v
-                                    ),
-                                ));
-                            }
-                            rec.extend_from_slice(&d.to_le_bytes());
-                        }
-                    }
-                    PlyValue::Scaled => {
-                        // LAS 1.4: value = raw · scale + offset, each per component.
-                        for (c, raw) in values.enumerate() {
-                            let (scale, offset) = a.scaling(c);
-                            let value = a.ty.read_f64(raw) * scale + offset;
-                            rec.extend_from_slice(&value.to_le_bytes());
-                        }
-                    }
-                }
-            }
-            self.out
-                .write_all(&rec)
-                .map_err(|e| ConvertError::io(&self.part, "cannot write", e))?;
-        }
-        Ok(())
-    }
-
-    fn finish(mut self: Box<Self>) -> Result<()> {
-        self.out
-            .flush()
-            .map_err(|e| ConvertError::io(&self.part, "cannot write", e))?;
-        std::fs::rename(&self.part, &self.path)
-            .map_err(|e| ConvertError::io(&self.path, "cannot move into place", e))
     }
 }
 
