@@ -142,3 +142,44 @@ fn a_64_bit_integer_a_double_cannot_hold_is_refused() {
     run_ok(&["convert", s(&input), "-o", s(&ds), "-q"]);
     run_ok(&["export", s(&ds), "-o", s(&out), "--format", "potree2"]);
 }
+
+#[test]
+fn a_second_conversion_into_one_potree2_output_is_refused_through_its_export() {
+    // The first run, as the second sees it: it holds the output's lock (through its export,
+    // when it no longer holds the hidden Strata dataset's).
+    let dir = tempfile::tempdir().expect("tempdir");
+    let las = dir.path().join("city.las");
+    common::run_ok(&["synth", "--points", "20k", "-o", s(&las)]);
+    let out = dir.path().join("p2");
+    let first = strata_converter::workdir::WorkDir::for_output(&out)
+        .lock_only(&out)
+        .expect("first lock");
+    let o = common::run(&["convert", s(&las), "-o", s(&out), "--format", "potree2"]);
+    assert!(!o.status.success());
+    let said = String::from_utf8_lossy(&o.stderr);
+    assert!(
+        said.contains("is being written by another conversion"),
+        "{said}"
+    );
+    assert!(!out.exists());
+    drop(first);
+    common::run_ok(&[
+        "convert",
+        s(&las),
+        "-o",
+        s(&out),
+        "--format",
+        "potree2",
+        "-q",
+    ]);
+    assert!(out.join("metadata.json").is_file());
+    let left: Vec<_> = std::fs::read_dir(dir.path())
+        .expect("list")
+        .map(|e| e.expect("entry").file_name())
+        .collect();
+    assert_eq!(
+        left.len(),
+        2,
+        "nothing beside the input and the output: {left:?}"
+    );
+}

@@ -13,6 +13,16 @@ use strata_format::DatasetFile;
 #[derive(Debug)]
 pub struct OutputLock {
     _folder: fs::File,
+    /// The folder to remove (if empty) on release.
+    remove: Option<PathBuf>,
+}
+
+impl Drop for OutputLock {
+    fn drop(&mut self) {
+        if let Some(folder) = &self.remove {
+            let _ = fs::remove_dir(folder);
+        }
+    }
 }
 
 #[derive(Debug, Clone)]
@@ -195,7 +205,12 @@ impl WorkDir {
             .map_err(io_err(&self.root, "cannot create work directory"))?;
         let folder = fs::File::open(&self.root).map_err(io_err(&self.root, "cannot open"))?;
         match folder.try_lock() {
-            Ok(()) => Ok(OutputLock { _folder: folder }),
+            // A file system that cannot lock a folder (NFS emulates flock with locks that need
+            // a file open for writing) runs unguarded rather than refusing every conversion.
+            Ok(()) | Err(fs::TryLockError::Error(_)) => Ok(OutputLock {
+                _folder: folder,
+                remove: None,
+            }),
             Err(fs::TryLockError::WouldBlock) => Err(ConvertError::output(
                 output,
                 format!(
@@ -203,8 +218,15 @@ impl WorkDir {
                     self.root.display()
                 ),
             )),
-            Err(fs::TryLockError::Error(e)) => Err(ConvertError::io(&self.root, "cannot lock", e)),
         }
+    }
+
+    /// As `lock`, for a command that writes its output elsewhere but must not run twice into
+    /// it (`convert --format potree2`): the folder made for the lock goes when it is released.
+    pub fn lock_only(&self, output: &Path) -> Result<OutputLock> {
+        let mut lock = self.lock(output)?;
+        lock.remove = Some(self.root.clone());
+        Ok(lock)
     }
 
     /// An empty work directory, clearing what an earlier run left. The folder that becomes

@@ -62,6 +62,24 @@ impl KdTree {
             if !(leaf.lo..leaf.hi).any(&wanted) {
                 continue;
             }
+            // A leaf of repeats of the position just searched (a heap of them fills many
+            // leaves) has its neighbours already: gathering the leaves near it would walk
+            // the whole heap again.
+            let wanted_points = (leaf.lo..leaf.hi).filter(|&t| wanted(t));
+            if searched_from.is_some()
+                && wanted_points
+                    .clone()
+                    .all(|t| Some(self.points[t]) == searched_from)
+            {
+                for t in wanted_points {
+                    each(t, &found);
+                }
+                if found.len() == k {
+                    last_done.clear();
+                    last_done.extend_from_slice(&found.index);
+                }
+                continue;
+            }
             let reach2 = self.reach2(leaf, k, within2);
             if !reach2.is_finite() {
                 // No bound on the search (a cloud without a density estimate): one point at a

@@ -236,7 +236,7 @@ impl ChunkStep for NormalStep {
                 };
                 let steps = near.index.iter().map(|&j| tree.steps(t, j as usize));
                 let pc = principal(covariance_of_steps(steps, scale));
-                let plane = near.len() >= 3 && pc.spans_a_plane();
+                let plane = near.len() >= 3 && pc.spans_a_plane(scale);
                 if near.len() < k {
                     totals[total::PARTIAL] += 1.0;
                 }

@@ -13,6 +13,8 @@ pub struct Principal {
     /// eigenvalue so shifted, for `major`.
     unit: [f64; 6],
     unit_l2: f64,
+    /// The middle eigenvalue of `unit`.
+    unit_l1: f64,
 }
 
 impl Principal {
@@ -23,11 +25,26 @@ impl Principal {
     }
 
     /// Whether the points span a plane: not all on one line (or at one position), up to the
-    /// solver's rounding. Across a line every direction fits equally, so its normal says
-    /// nothing.
-    pub fn spans_a_plane(&self) -> bool {
+    /// solver's rounding and to the grid positions are stored on (`scale` per axis). Across a
+    /// line every direction fits equally, so its normal says nothing. A line's points rounded
+    /// to the grid stray from it by half a step on each axis at most: across it, along a unit
+    /// direction u, by Σ |u_a| scale_a / 2, whose square bounds their variance there; a strip
+    /// two steps wide spreads more.
+    pub fn spans_a_plane(&self, scale: [f64; 3]) -> bool {
         let [_, middle, largest] = self.eigenvalues;
-        middle > 1e-9 * largest
+        if middle <= 1e-9 * largest {
+            return false;
+        }
+        let coarsest = scale.iter().fold(0.0f64, |m, s| m.max(s.abs()));
+        // Most neighbourhoods spread far more than a step: no direction needed.
+        if middle > 0.75 * coarsest * coarsest {
+            return true;
+        }
+        let reach = |u: [f64; 3]| (0..3).map(|a| u[a].abs() * scale[a].abs()).sum::<f64>() / 2.0;
+        // Along the middle axis (across a line, the normal is another such direction where
+        // the two spreads are too alike to tell apart).
+        let across = reach(eigenvector(self.unit, self.unit_l1).unwrap_or(self.normal));
+        middle > across * across
     }
 
     pub fn surface_variation(&self) -> f64 {
@@ -166,6 +183,7 @@ pub fn principal(cov: [f64; 6]) -> Principal {
             eigenvalues: [0.0; 3],
             unit: [1.0, 0.0, 0.0, 0.0, 0.0, 0.0],
             unit_l2: 1.0,
+            unit_l1: 0.0,
         };
     }
     let inv = 1.0 / s;
@@ -192,6 +210,7 @@ pub fn principal(cov: [f64; 6]) -> Principal {
         eigenvalues: [m0, m1, m2].map(|m| (m + q).max(0.0) * s),
         unit: shifted,
         unit_l2: m2,
+        unit_l1: m1,
     }
 }
 
@@ -477,5 +496,43 @@ mod tests {
         assert!(dot(pc.normal, [1.0, 0.0, 0.0]).abs() < 1e-9);
         let point = principal(covariance([[1.0, 2.0, 3.0]; 4].into_iter()).0);
         assert!((norm2(point.normal) - 1.0).abs() < 1e-9);
+    }
+
+    #[test]
+    fn a_line_rounded_to_the_grid_spans_no_plane_and_a_strip_does() {
+        let mm = [0.001; 3];
+        let on_grid = |p: [f64; 3]| p.map(|c| (c / 0.001).round() * 0.001);
+        // 1 cm apart along a slanted direction, each rounded to the millimetre grid: off the
+        // line by up to half a millimetre on each axis.
+        let dir = [1.0, 0.37, 0.21];
+        let len = norm2(dir).sqrt();
+        let line: Vec<[f64; 3]> = (0..16)
+            .map(|i| on_grid(dir.map(|c| c / len * 0.01 * i as f64 + 0.1234)))
+            .collect();
+        let pc = principal(covariance(line.iter().copied()).0);
+        assert!(!pc.spans_a_plane(mm), "{:?}", pc.eigenvalues);
+        // Two rows of it 2 mm apart are a plane, as is a patch of the same spacing.
+        let strip: Vec<[f64; 3]> = line
+            .iter()
+            .flat_map(|&p| [p, on_grid([p[0], p[1], p[2] + 0.002])])
+            .collect();
+        assert!(principal(covariance(strip.iter().copied()).0).spans_a_plane(mm));
+        let patch: Vec<[f64; 3]> = (0..16)
+            .map(|i| {
+                on_grid([
+                    0.01 * (i % 4) as f64,
+                    0.013 * (i / 4) as f64,
+                    0.003 * i as f64,
+                ])
+            })
+            .collect();
+        assert!(principal(covariance(patch.iter().copied()).0).spans_a_plane(mm));
+        // A plane across an axis stored coarsely (an outlier far along x) is still a plane:
+        // x does not vary on it.
+        let coarse_x = [0.01, 1e-9, 1e-9];
+        let across_x: Vec<[f64; 3]> = (0..16)
+            .map(|i| [5.0, 0.001 * (i % 4) as f64, 0.001 * (i / 4) as f64])
+            .collect();
+        assert!(principal(covariance(across_x.iter().copied()).0).spans_a_plane(coarse_x));
     }
 }

@@ -71,7 +71,8 @@ pub fn finish_tasks(
                 "is being finished by another process (it holds the plan's lock)",
             ));
         }
-        Err(TryLockError::Error(e)) => return Err(ConvertError::io(plan_dir, "cannot lock", e)),
+        // A file system that cannot lock a folder (NFS): unguarded rather than refused.
+        Err(TryLockError::Error(_)) => {}
     }
     let tp = TaskPlan::load(plan_dir)?;
     let missing: Vec<usize> = (0..tp.tasks.len())
@@ -122,8 +123,10 @@ pub fn finish_tasks(
     let wd = WorkDir::new(output, None);
     // Before anything is removed: another conversion may be writing into this output.
     let _lock = wd.lock(output)?;
-    remove_chunk_files(&tp, plan_dir)?;
-    wd.create_fresh()?;
+    if let Err(e) = remove_chunk_files(&tp, plan_dir).and_then(|()| wd.create_fresh()) {
+        wd.remove_all();
+        return Err(e);
+    }
     let mut phases = Phases::new(Progress::new(quiet));
     let result = (|| {
         let (journal, classes) =
