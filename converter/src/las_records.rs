@@ -19,7 +19,7 @@ enum Source {
     /// A u8 widened to u16, per component.
     Widen(usize),
     /// A legacy scan angle rank (i8 degrees) as a scan angle (i16, 0.006°).
-    RankToAngle(usize),
+    RankToAngle { at: usize, ty: AttrType },
     /// Another type than the field's (an f32 intensity from a PLY): each component converted
     /// (a value beyond the field's range, or a fraction in an integer field, is refused by
     /// `check_fits`, so nothing is rounded).
@@ -143,7 +143,10 @@ impl LasRecords {
                 Some(i) => Source::Copy(layout.offsets[i]),
                 None if rank_as_angle && a.name == "scan_angle" => layout
                     .index_of("scan_angle_rank")
-                    .map_or(Source::Zero, |i| Source::RankToAngle(layout.offsets[i])),
+                    .map_or(Source::Zero, |i| Source::RankToAngle {
+                        at: layout.offsets[i],
+                        ty: layout.attributes[i].ty,
+                    }),
                 None => Source::Zero,
             };
             gather.push((source, at, a.size()));
@@ -176,6 +179,18 @@ impl LasRecords {
             })
             .collect();
         for (&(source, _, _), name) in gather.iter().zip(&names) {
+            // A rank beyond ±180° has no scan angle (nor does a NaN one): refused, not cut.
+            if let Source::RankToAngle { at, ty } = source {
+                limits.push(Limit {
+                    at,
+                    ty,
+                    name: "scan_angle_rank".into(),
+                    min: -180.0,
+                    max: 180.0,
+                    bits: false,
+                    whole: false,
+                });
+            }
             if let Source::Cast {
                 at,
                 from,
@@ -293,8 +308,10 @@ impl LasRecords {
                                 .copy_from_slice(&(row[s + c] as u16).to_le_bytes());
                         }
                     }
-                    Source::RankToAngle(s) => {
-                        let degrees = row[s] as i8 as f64;
+                    Source::RankToAngle { at, ty } => {
+                        // Read as the type it has (a PLY's may be a float): within
+                        // ±180° (`limits`), so the steps fit.
+                        let degrees = ty.read_f64(&row[at..]);
                         let steps = (degrees / 0.006).round() as i16;
                         to.copy_from_slice(&steps.to_le_bytes());
                     }
@@ -507,6 +524,38 @@ mod tests {
                 .expect_err(said)
                 .to_string();
             assert!(err.contains(said), "{err}");
+        }
+    }
+
+    #[test]
+    fn a_rank_of_any_type_becomes_the_scan_angle_or_is_refused() {
+        // A PLY's float scan_angle_rank into format 6's scan_angle (0.006° steps): read as
+        // the float it is, not as its first byte.
+        let layout = RowLayout::new(vec![Attribute::new("scan_angle_rank", AttrType::F32, 1)]);
+        let plan = LasRecords::new(Path::new("x.las"), &layout, 6).expect("plan");
+        let row = |deg: f32| {
+            let mut row = vec![0u8; 12];
+            row.extend(deg.to_le_bytes());
+            row
+        };
+        for (deg, steps) in [
+            (-12.5f32, -2083i16),
+            (90.0, 15000),
+            (0.0, 0),
+            (-180.0, -30000),
+        ] {
+            let r = row(deg);
+            assert!(plan.check_fits(Path::new("x.las"), &r).is_ok(), "{deg}");
+            let mut recs = Vec::new();
+            plan.fill(&r, &mut recs);
+            assert_eq!(i16::from_le_bytes([recs[18], recs[19]]), steps, "{deg}°");
+        }
+        for bad in [200.0f32, f32::NAN] {
+            let err = plan
+                .check_fits(Path::new("x.las"), &row(bad))
+                .expect_err("refused")
+                .to_string();
+            assert!(err.contains("scan_angle_rank is"), "{err}");
         }
     }
 }
