@@ -59,14 +59,7 @@ fn a_fraction_in_a_las_integer_field_is_refused_not_rounded() {
     run_ok(&["convert", s(&input), "-o", s(&ds), "-q"]);
     let las = dir.path().join("w.las");
     run_ok(&["export", s(&ds), "-o", s(&las)]);
-    let mut reader = las::Reader::from_path(&las).expect("read export");
-    let mut points: Vec<las::Point> = reader
-        .read_all()
-        .expect("points")
-        .points()
-        .map(|p| p.expect("point"))
-        .collect();
-    points.sort_by(|a, b| a.x.total_cmp(&b.x));
+    let points = las_points_by_x(&las);
     // The fields in the order of `fields`.
     let got: Vec<[i64; 8]> = points
         .iter()
@@ -121,8 +114,8 @@ fn a_fraction_in_a_las_integer_field_is_refused_not_rounded() {
     }
 }
 
-/// (red, green, blue) of each exported LAS point, by x.
-fn las_colours(path: &Path) -> Vec<(u16, u16, u16)> {
+/// An exported LAS file's points, by x.
+fn las_points_by_x(path: &Path) -> Vec<las::Point> {
     let mut reader = las::Reader::from_path(path).expect("read export");
     let mut points: Vec<las::Point> = reader
         .read_all()
@@ -131,6 +124,12 @@ fn las_colours(path: &Path) -> Vec<(u16, u16, u16)> {
         .map(|p| p.expect("point"))
         .collect();
     points.sort_by(|a, b| a.x.total_cmp(&b.x));
+    points
+}
+
+/// (red, green, blue) of each exported LAS point, by x.
+fn las_colours(path: &Path) -> Vec<(u16, u16, u16)> {
+    let points = las_points_by_x(path);
     points
         .iter()
         .map(|p| {

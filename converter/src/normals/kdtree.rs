@@ -99,9 +99,7 @@ impl KdTree {
         out: &mut Found,
         stack: &mut Vec<Pending>,
     ) {
-        let q = self.points[at];
-        let mut best = Best::new(self, k, out, within * within);
-        self.search(q, at, &mut best, stack);
+        self.nearest_of(at, k, within, out, stack, false);
     }
 
     /// As `nearest`, but each position counts once: of points repeated at one position, one
@@ -115,9 +113,21 @@ impl KdTree {
         out: &mut Found,
         stack: &mut Vec<Pending>,
     ) {
+        self.nearest_of(at, k, within, out, stack, true);
+    }
+
+    fn nearest_of(
+        &self,
+        at: usize,
+        k: usize,
+        within: f64,
+        out: &mut Found,
+        stack: &mut Vec<Pending>,
+        distinct: bool,
+    ) {
         let q = self.points[at];
         let mut best = Best::new(self, k, out, within * within);
-        best.distinct = true;
+        best.distinct = distinct;
         self.search(q, at, &mut best, stack);
     }
 
