@@ -144,9 +144,15 @@ fn las_colours(path: &Path) -> Vec<(u16, u16, u16)> {
 #[test]
 fn colour_goes_into_las_in_16_bits() {
     let dir = tempfile::tempdir().expect("tempdir");
-    let rgb = [("uchar", "red"), ("uchar", "green"), ("uchar", "blue")];
+    let rgb = [
+        ("uchar", "red"),
+        ("uchar", "green"),
+        ("uchar", "blue"),
+        ("uchar", "nir"),
+    ];
     let (input, ds) = (dir.path().join("c8.ply"), dir.path().join("c8.strata"));
-    let rows = [["255", "128", "1"], ["0", "10", "20"]].map(|r| r.map(String::from).to_vec());
+    let rows =
+        [["255", "128", "1", "255"], ["0", "10", "20", "3"]].map(|r| r.map(String::from).to_vec());
     ply(&input, &rgb, &rows);
     run_ok(&["convert", s(&input), "-o", s(&ds), "-q"]);
     for name in ["c8.las", "c8.laz", "c8.copc.laz"] {
@@ -156,6 +162,12 @@ fn colour_goes_into_las_in_16_bits() {
             las_colours(&out),
             [(65535, 128 * 257, 257), (0, 10 * 257, 20 * 257)],
             "{name}"
+        );
+        let nir: Vec<Option<u16>> = las_points_by_x(&out).iter().map(|p| p.nir).collect();
+        assert_eq!(
+            nir,
+            [Some(65535), Some(3 * 257)],
+            "{name}: the near infrared too"
         );
     }
     let back = dir.path().join("c8_out.ply");

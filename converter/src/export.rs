@@ -194,7 +194,7 @@ impl Target {
 
 /// A dataset's rows as an export format can hold them: an `oct16` normal decoded to three
 /// f32 (`(0, 0)`, no normal, as `0 0 0`), f16 widened to f32 (no export format has half
-/// floats); for LAS and Potree 2.0 a colour in 16 bits (LAS 1.4 R15: RGB "should always be
+/// floats); for LAS and Potree 2.0 a colour and a near infrared in 16 bits (LAS 1.4 R15: RGB "should always be
 /// normalized to 16 bit values"; Potree reads 3 x uint16): 8-bit colour times 257 (255 is
 /// 65535, and `/ 257` gives it back), a float colour taken as 0 to 1; for Potree 2.0 a normal
 /// of doubles as three f32 and 64-bit integers as doubles, refused where a double does not
@@ -230,13 +230,16 @@ pub fn widened(layout: &RowLayout, target: Target) -> Widened {
         .iter()
         .map(|a| {
             let colour = a.name == "rgb" && a.count == 3 && target != Target::Ply;
+            // LAS 1.4 keeps the near infrared with the colour, in 16 bits alike (a float one
+            // is a value, cast as other fields are).
+            let nir8 = a.name == "nir" && a.count == 1 && target != Target::Ply;
             let (step, ty) = if a.is_oct16() {
                 steps.push(Step::Oct16);
                 return Attribute {
                     description: "unit normal".into(),
                     ..Attribute::new(&a.name, AttrType::F32, 3)
                 };
-            } else if colour && a.ty == AttrType::U8 {
+            } else if (colour || nir8) && a.ty == AttrType::U8 {
                 (Step::Colour8, AttrType::U16)
             } else if colour && a.ty.is_float() {
                 (Step::UnitColour, AttrType::U16)

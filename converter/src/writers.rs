@@ -152,7 +152,8 @@ pub(crate) fn las_format_for(layout: &RowLayout) -> u8 {
         || !BIT_FIELDS
             .iter()
             .any(|&(n, legacy, extended)| legacy < extended && has(n));
-    if has("scan_angle") || has("scanner_channel") || !legacy_fits {
+    // Only formats 8 and 10 have a near-infrared field.
+    if has("scan_angle") || has("scanner_channel") || has("nir") || !legacy_fits {
         match (wave, has("nir"), rgb) {
             (true, true, _) => 10,
             (true, false, _) => 9,
