@@ -378,6 +378,35 @@ pub(crate) mod tests {
     }
 
     #[test]
+    fn a_normals_run_begun_by_a_build_with_other_rules_does_not_resume() {
+        let dir = tempfile::tempdir().expect("tempdir");
+        let opts = city(dir.path(), "ds");
+        convert_with(&opts, &PanicsOn(1)).expect_err("the step panics");
+        let wd = WorkDir::new(&opts.output, None);
+        let step = crate::normals::NormalStep::new(crate::normals::NormalOptions::default())
+            .expect("step");
+        // The plan as a build before the rules were named would have saved it.
+        let now = crate::journal::run_fingerprint(&opts, &step);
+        let rules = format!("normals:{}:", crate::normals::RULES);
+        assert!(now.contains(&rules), "{now}");
+        let mut plan: serde_json::Value =
+            serde_json::from_slice(&fs::read(wd.plan()).expect("plan")).expect("plan JSON");
+        plan["fingerprint"] = now.replacen(&rules, "normals:", 1).into();
+        fs::write(wd.plan(), serde_json::to_vec(&plan).expect("JSON")).expect("write");
+        let resume = ConvertOptions {
+            resume: true,
+            ..opts.clone()
+        };
+        let e = convert_with(&resume, &step)
+            .expect_err("refused")
+            .to_string();
+        assert!(
+            e.contains("begun by a build that computes them otherwise"),
+            "{e}"
+        );
+    }
+
+    #[test]
     fn a_resume_refuses_an_octree_file_damaged_since() {
         let dir = tempfile::tempdir().expect("tempdir");
         let opts = city(dir.path(), "ds");

@@ -164,7 +164,7 @@ pub fn resumable_plan(opts: &ConvertOptions, wd: &WorkDir, fp: &str) -> Result<O
     if plan.fingerprint != fp {
         return Err(ConvertError::output(
             wd.root(),
-            "cannot resume: the inputs or options differ from the interrupted run (run without --resume to start over)",
+            "cannot resume: the inputs or options differ from the interrupted run, or it was begun by a build that computes them otherwise (run without --resume to start over)",
         ));
     }
     Ok(Some(plan))

@@ -81,6 +81,10 @@ const COVER: f64 = 2.145_966_026_289_347; // √(ln 100)
 /// points are sparser than 90% of them.
 const SEARCH_FACTOR: f64 = 2.0;
 
+/// The estimate's rules, in a run's fingerprint: a run begun by a build that estimated
+/// otherwise (before points that fit no plane got none) does not resume into a mix of both.
+pub(crate) const RULES: u32 = 2;
+
 /// The surface variation of a point with no normal: the most any neighbourhood has (an
 /// isotropic one), since none of its planes fits.
 const NO_PLANE_VARIATION: f64 = 1.0 / 3.0;
@@ -148,7 +152,7 @@ impl NormalStep {
 
 impl ChunkStep for NormalStep {
     fn fingerprint(&self) -> String {
-        format!("normals:{:?}", self.opts)
+        format!("normals:{RULES}:{:?}", self.opts)
     }
 
     fn attributes(&self, inputs: &[Attribute]) -> Result<Vec<Attribute>> {
