@@ -2,7 +2,6 @@
 //! Potree 2.0 in `potree2.rs`), and the widening of stored rows every export shares.
 
 use crate::error::{ConvertError, Result};
-use crate::ply_writer::{exact_double, no_double_holds};
 use crate::writers::{RowWriter, open_writer, write_then_finish};
 use std::path::Path;
 use strata_format::{
@@ -194,16 +193,18 @@ impl Target {
 
 /// A dataset's rows as an export format can hold them: an `oct16` normal decoded to three
 /// f32 (`(0, 0)`, no normal, as `0 0 0`), f16 widened to f32 (no export format has half
-/// floats); for LAS and Potree 2.0 a colour and a near infrared in 16 bits (LAS 1.4 R15: RGB "should always be
-/// normalized to 16 bit values"; Potree reads 3 x uint16): 8-bit colour times 257 (255 is
-/// 65535, and `/ 257` gives it back), a float colour taken as 0 to 1; for Potree 2.0 a normal
-/// of doubles as three f32 and 64-bit integers as doubles, refused where a double does not
-/// hold them; everything else as stored.
+/// floats); for LAS and Potree 2.0 a colour and a near infrared in 16 bits (LAS 1.4 R15: RGB
+/// "should always be normalized to 16 bit values"; Potree reads 3 x uint16): 8-bit colour
+/// times 257 (255 is 65535, and `/ 257` gives it back), a float colour taken as 0 to 1; for
+/// PLY and Potree 2.0, which have no 64-bit integers, those as doubles, refused where a double
+/// does not hold them; for Potree 2.0 a normal of doubles as three f32; everything else as
+/// stored.
 pub struct Widened {
     /// The layout of the exported rows.
     pub layout: RowLayout,
     from: RowLayout,
     steps: Vec<Step>,
+    target: Target,
 }
 
 /// How one attribute's bytes become the exported row's.
@@ -218,7 +219,7 @@ enum Step {
     UnitColour,
     /// f64 to f32 (a Potree normal).
     Narrow,
-    /// A 64-bit integer as a double (Potree 2.0), refused where the double would round it.
+    /// A 64-bit integer as a double (PLY, Potree 2.0), refused where the double would round it.
     ExactDouble,
 }
 
@@ -251,7 +252,12 @@ pub fn widened(layout: &RowLayout, target: Target) -> Widened {
                 && a.ty == AttrType::F64
             {
                 (Step::Narrow, AttrType::F32)
-            } else if target == Target::Potree2 && matches!(a.ty, AttrType::U64 | AttrType::I64) {
+            } else if target != Target::Las
+                && matches!(a.ty, AttrType::U64 | AttrType::I64)
+                && a.scale.is_none()
+                && a.offset.is_none()
+            {
+                // (A scaled one is a real number, which PLY export writes as its double.)
                 (Step::ExactDouble, AttrType::F64)
             } else {
                 (Step::Copy, a.ty)
@@ -264,6 +270,7 @@ pub fn widened(layout: &RowLayout, target: Target) -> Widened {
         layout: RowLayout::new(attributes),
         from: layout.clone(),
         steps,
+        target,
     }
 }
 
@@ -342,7 +349,10 @@ impl Widened {
                                     &a.name,
                                     v.to_string(),
                                     r,
-                                    no_double_holds("Potree 2.0 attribute"),
+                                    no_double_holds(match self.target {
+                                        Target::Ply => "PLY property",
+                                        _ => "Potree 2.0 attribute",
+                                    }),
                                 )
                             })?;
                             d.copy_from_slice(&x.to_le_bytes());
@@ -353,6 +363,27 @@ impl Widened {
         }
         Ok(())
     }
+}
+
+/// One component of an attribute of type `ty` as a double, for formats without 64-bit
+/// integers (PLY, Potree 2.0): `Err` with the exact value where a double does not hold it (a
+/// u64 past 2^53), which is refused rather than rounded.
+pub(crate) fn exact_double(ty: AttrType, c: &[u8]) -> std::result::Result<f64, i128> {
+    let d = ty.read_f64(c);
+    // Compared in i128, which holds both types and the double's rounding past them (u64::MAX
+    // becomes 2^64) without saturating.
+    match ty.read_wide_integer(c) {
+        Some(v) if d as i128 != v => Err(v),
+        _ => Ok(d),
+    }
+}
+
+/// Why a value `exact_double` refused cannot go out as a `what` of the format.
+pub(crate) fn no_double_holds(what: &str) -> String {
+    format!(
+        "which no {what} holds exactly (the format has no 64-bit integers, and a double keeps \
+         53 bits); export to .las or .laz, whose extra bytes keep it"
+    )
 }
 
 #[cfg(test)]

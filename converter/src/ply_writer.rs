@@ -1,7 +1,6 @@
 //! Writing rows out as PLY (binary little endian): positions as doubles, each attribute as a
-//! property of its own type where PLY has one. Also the two rules PLY shares with Potree 2.0
-//! export: one name per property (`UniqueNames`) and 64-bit integers only where a double holds
-//! them exactly (`exact_double`).
+//! property of its own type where PLY has one. Also the rule PLY shares with Potree 2.0
+//! export: one name per property (`UniqueNames`).
 
 use crate::error::{ConvertError, Result};
 use crate::las_records::refuse_encoded;
@@ -22,15 +21,12 @@ pub(crate) struct PlyRowWriter {
     written_as: Vec<PlyValue>,
 }
 
-/// How an attribute's stored values become a PLY property's.
+/// How an attribute's stored values become a PLY property's. Rows come widened for PLY
+/// (`export::widened`): no half floats, and 64-bit integers already doubles.
 #[derive(Debug, Clone, Copy, PartialEq)]
 enum PlyValue {
     /// The stored bytes.
     Stored,
-    /// f16 as float (PLY has no half floats).
-    Float,
-    /// 64-bit integers as double (PLY has no 64-bit integers).
-    Double,
     /// A LAS extra attribute with a scale or offset, as the double it stands for: PLY has no
     /// place for the scale, and a reader would take the raw integer for the value.
     Scaled,
@@ -38,11 +34,10 @@ enum PlyValue {
 
 impl PlyValue {
     fn of(a: &strata_format::Attribute) -> PlyValue {
-        match a.ty {
-            _ if a.scale.is_some() || a.offset.is_some() => PlyValue::Scaled,
-            AttrType::F16 => PlyValue::Float,
-            AttrType::U64 | AttrType::I64 => PlyValue::Double,
-            _ => PlyValue::Stored,
+        if a.scale.is_some() || a.offset.is_some() {
+            PlyValue::Scaled
+        } else {
+            PlyValue::Stored
         }
     }
 }
@@ -174,7 +169,7 @@ fn ply_property_names(layout: &RowLayout) -> Vec<Vec<String>> {
 impl RowWriter for PlyRowWriter {
     fn write_rows(&mut self, rows: &[u8]) -> Result<()> {
         let mut rec = Vec::with_capacity(self.layout.stride + 24);
-        for (r, row) in rows.chunks_exact(self.layout.stride).enumerate() {
+        for row in rows.chunks_exact(self.layout.stride) {
             rec.clear();
             let p = row_position(row);
             for ((o, s), v) in self.offset.iter().zip(&self.scale).zip(p) {
@@ -185,25 +180,6 @@ impl RowWriter for PlyRowWriter {
                 let values = v.chunks_exact(a.ty.size());
                 match self.written_as[i] {
                     PlyValue::Stored => rec.extend_from_slice(v),
-                    PlyValue::Float => {
-                        for c in values {
-                            rec.extend_from_slice(&(a.ty.read_f64(c) as f32).to_le_bytes());
-                        }
-                    }
-                    PlyValue::Double => {
-                        for c in values {
-                            let d = exact_double(a.ty, c).map_err(|v| {
-                                ConvertError::unfit(
-                                    &self.path,
-                                    &a.name,
-                                    v.to_string(),
-                                    r,
-                                    no_double_holds("PLY property"),
-                                )
-                            })?;
-                            rec.extend_from_slice(&d.to_le_bytes());
-                        }
-                    }
                     PlyValue::Scaled => {
                         // LAS 1.4: value = raw · scale + offset, each per component.
                         for (c, raw) in values.enumerate() {
@@ -228,25 +204,4 @@ impl RowWriter for PlyRowWriter {
         std::fs::rename(&self.part, &self.path)
             .map_err(|e| ConvertError::io(&self.path, "cannot move into place", e))
     }
-}
-
-/// One component of an attribute of type `ty` as a double, for formats without 64-bit
-/// integers (PLY, Potree 2.0): `Err` with the exact value where a double does not hold it (a
-/// u64 past 2^53), which is refused rather than rounded.
-pub(crate) fn exact_double(ty: AttrType, c: &[u8]) -> std::result::Result<f64, i128> {
-    let d = ty.read_f64(c);
-    // Compared in i128, which holds both types and the double's rounding past them (u64::MAX
-    // becomes 2^64) without saturating.
-    match ty.read_wide_integer(c) {
-        Some(v) if d as i128 != v => Err(v),
-        _ => Ok(d),
-    }
-}
-
-/// Why a value `exact_double` refused cannot go out as a `what` of the format.
-pub(crate) fn no_double_holds(what: &str) -> String {
-    format!(
-        "which no {what} holds exactly (the format has no 64-bit integers, and a double keeps \
-         53 bits); export to .las or .laz, whose extra bytes keep it"
-    )
 }
