@@ -9,6 +9,17 @@ use std::fs;
 use std::path::{Path, PathBuf};
 use strata_format::DatasetFile;
 
+/// An exclusive lock on folder `dir`, held while the file lives; `None` where another process
+/// holds it. A file system that cannot lock a folder (NFS emulates flock with locks that need
+/// a file open for writing) gives the file unlocked: unguarded rather than refusing all work.
+pub fn lock_folder(dir: &Path) -> Result<Option<fs::File>> {
+    let folder = fs::File::open(dir).map_err(io_err(dir, "cannot open"))?;
+    match folder.try_lock() {
+        Ok(()) | Err(fs::TryLockError::Error(_)) => Ok(Some(folder)),
+        Err(fs::TryLockError::WouldBlock) => Ok(None),
+    }
+}
+
 /// The lock `WorkDir::lock` takes, held while the value lives.
 #[derive(Debug)]
 pub struct OutputLock {
@@ -203,15 +214,12 @@ impl WorkDir {
     pub fn lock(&self, output: &Path) -> Result<OutputLock> {
         fs::create_dir_all(&self.root)
             .map_err(io_err(&self.root, "cannot create work directory"))?;
-        let folder = fs::File::open(&self.root).map_err(io_err(&self.root, "cannot open"))?;
-        match folder.try_lock() {
-            // A file system that cannot lock a folder (NFS emulates flock with locks that need
-            // a file open for writing) runs unguarded rather than refusing every conversion.
-            Ok(()) | Err(fs::TryLockError::Error(_)) => Ok(OutputLock {
+        match lock_folder(&self.root)? {
+            Some(folder) => Ok(OutputLock {
                 _folder: folder,
                 remove: None,
             }),
-            Err(fs::TryLockError::WouldBlock) => Err(ConvertError::output(
+            None => Err(ConvertError::output(
                 output,
                 format!(
                     "is being written by another conversion (it holds {}); wait for it to end",

@@ -16,7 +16,7 @@ use crate::replace::{Folder, check_output};
 use crate::sys::peak_rss_bytes;
 use crate::uncached::UncachedWriter;
 use crate::workdir::WorkDir;
-use std::fs::{self, File, TryLockError};
+use std::fs;
 use std::ops::Range;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
@@ -62,18 +62,12 @@ pub fn finish_tasks(
     // the other wrote: the second refuses. The lock is on the plan folder itself, held until
     // the folder is gone, and taken before the plan is read, so a finish that waited finds
     // no plan rather than half of one.
-    let lock = File::open(plan_dir).map_err(io_err(plan_dir, "cannot open"))?;
-    match lock.try_lock() {
-        Ok(()) => {}
-        Err(TryLockError::WouldBlock) => {
-            return Err(ConvertError::output(
-                plan_dir,
-                "is being finished by another process (it holds the plan's lock)",
-            ));
-        }
-        // A file system that cannot lock a folder (NFS): unguarded rather than refused.
-        Err(TryLockError::Error(_)) => {}
-    }
+    let Some(lock) = crate::workdir::lock_folder(plan_dir)? else {
+        return Err(ConvertError::output(
+            plan_dir,
+            "is being finished by another process (it holds the plan's lock)",
+        ));
+    };
     let tp = TaskPlan::load(plan_dir)?;
     let missing: Vec<usize> = (0..tp.tasks.len())
         .filter(|&k| !task_dirs(plan_dir, k).1.is_dir())
