@@ -46,6 +46,12 @@ fn read_normals(dir: &Path) -> PointNormals {
     out
 }
 
+/// What the metadata says of a dataset's normals.
+fn normals_info(dir: &Path) -> strata_format::NormalsInfo {
+    let ds = LocalDataset::open(dir).expect("open");
+    ds.metadata().normals.clone().expect("normals recorded")
+}
+
 fn angle(a: [f64; 3], b: [f64; 3]) -> f64 {
     dot(a, b).clamp(-1.0, 1.0).acos().to_degrees()
 }
@@ -162,18 +168,9 @@ fn normals_do_not_change_at_chunk_borders() {
         worst <= 1.0,
         "a normal differs by {worst}° across chunkings"
     );
-    let meta = LocalDataset::open(&dir.path().join("many"))
-        .expect("open")
-        .metadata()
-        .clone();
-    let info = meta.normals.expect("normals recorded");
+    let info = normals_info(&dir.path().join("many"));
     assert_eq!(info.computed, 300_000);
-    let whole_info = LocalDataset::open(&dir.path().join("one"))
-        .expect("open")
-        .metadata()
-        .normals
-        .clone()
-        .expect("normals recorded");
+    let whole_info = normals_info(&dir.path().join("one"));
     assert_eq!(
         info.partial, whole_info.partial,
         "points short of k neighbours"
@@ -429,12 +426,7 @@ fn radii_hold_where_neighbours_are_few_or_distances_tiny() {
             assert!(n.is_some(), "{p:?} has a normal");
         }
     }
-    let info = LocalDataset::open(&out)
-        .expect("open")
-        .metadata()
-        .normals
-        .clone()
-        .expect("normals recorded");
+    let info = normals_info(&out);
     assert_eq!(info.no_normal, 5);
 }
 
@@ -491,12 +483,7 @@ fn repeated_positions_count_once() {
         .expect("convert");
         let got = read_normals(&out);
         assert_eq!(got.len(), pts.len());
-        let info = LocalDataset::open(&out)
-            .expect("open")
-            .metadata()
-            .normals
-            .clone()
-            .expect("normals recorded");
+        let info = normals_info(&out);
         sizes.push((info.surfel_radius, info.triangles));
         let by_position: HashMap<[i32; 3], (Option<[f64; 3]>, f64)> =
             got.iter().map(|g| (g.0, (g.2, g.3))).collect();
