@@ -438,7 +438,7 @@ fn a_coarse_step_is_said_even_with_quiet_and_recorded() {
     let out = dir.path().join("ds");
     let o = run(&["convert", s(&p), "-o", s(&out), "--quiet"]);
     assert!(o.status.success());
-    let said = "floating-point coordinates stored x in steps of 1e3";
+    let said = "floating-point coordinates stored in steps of 1e3 (the points span x 5e-1 to 1e12";
     let err = String::from_utf8_lossy(&o.stderr);
     assert!(err.contains("warning:") && err.contains(said), "{err}");
     let meta = std::fs::read_to_string(out.join("metadata.json")).expect("metadata");

@@ -24,6 +24,15 @@ pub struct Quantization {
     pub coarse_floats: Option<String>,
 }
 
+fn too_far(a: usize, min: [f64; 3], max: [f64; 3]) -> String {
+    format!(
+        "the points' {} coordinates span {} to {}, which no scale can store in 32-bit positions",
+        ["x", "y", "z"][a],
+        min[a],
+        max[a]
+    )
+}
+
 fn pow10_floor(v: f64) -> f64 {
     pow10(v.log10().floor() as i32)
 }
@@ -59,7 +68,8 @@ pub fn choose(
     min: [f64; 3],
     max: [f64; 3],
 ) -> Result<Quantization, String> {
-    let mut scale = [f64::INFINITY; 3];
+    // Per axis, the finest step an input asks.
+    let mut asked = [f64::INFINITY; 3];
     // The finest step an input declares (a LAS scale, an E57 resolution, integers): only a
     // scale coarser than that loses what an input holds. A float's own resolution depends on
     // its magnitude and is no promise of precision; its loss is `coarse_floats`.
@@ -77,93 +87,84 @@ pub fn choose(
                 Precision::Integer => (1.0, true),
                 Precision::Resolution(step) => (step[a].abs(), true),
             };
-            scale[a] = scale[a].min(sa);
+            asked[a] = asked[a].min(sa);
             if is_declared {
                 declared[a] = declared[a].min(sa);
             }
         }
     }
-    // An axis no input asks a step of (floats all zero on it) takes the others' final step.
-    let unasked = scale.map(|s| !s.is_finite());
-    for s in &mut scale {
-        if !s.is_finite() {
-            *s = 1.0;
-        }
-    }
+    // One step on every axis, the finest any axis asks: the octree's cubes are cubes in integer
+    // positions (SPEC section 3), so a step ten times finer on one axis than another makes
+    // every node, and every inner node's sampling grid, ten times longer along it (floats of
+    // magnitude 1.0 and 0.9 ask 1e-7 and 1e-8). An axis no input asks a step of (floats all
+    // zero on it) takes it too.
+    let finest = asked.iter().copied().fold(f64::INFINITY, f64::min);
+    let finest = if finest.is_finite() { finest } else { 1.0 };
     let first_scaled = sources.iter().find_map(|s| match s.precision {
         Precision::Scaled { offset, .. } => Some(offset),
         _ => None,
     });
-    let mut offset = [0.0; 3];
+    // Where every input is on one grid the step divides, its origin; else the points' minimum.
+    let mut origin = [0.0; 3];
     for a in 0..3 {
         let on_grid = |o: f64| {
-            let k = (o - first_scaled.map_or(0.0, |f| f[a])) / scale[a];
+            let k = (o - first_scaled.map_or(0.0, |f| f[a])) / finest;
             (k - k.round()).abs() < 1e-6
         };
         let all_on_grid = first_scaled.is_some()
             && sources.iter().all(|s| match s.precision {
                 Precision::Scaled { offset, scale: ss } => {
                     on_grid(offset[a]) && {
-                        let r = ss[a] / scale[a];
+                        let r = ss[a] / finest;
                         (r - r.round()).abs() < 1e-6
                     }
                 }
                 _ => false,
             });
-        offset[a] = if all_on_grid {
+        origin[a] = if all_on_grid {
             first_scaled.map_or(0.0, |f| f[a])
         } else {
-            (min[a] / scale[a]).floor() * scale[a]
+            (min[a] / finest).floor() * finest
         };
     }
-    let mut coarsened = false;
-    for a in 0..3 {
-        let fits = |off: f64, sc: f64| {
-            let lo = ((min[a] - off) / sc).round();
-            let hi = ((max[a] - off) / sc).round();
-            // NaN (an infinite span) fails both comparisons, as it must.
-            lo >= i32::MIN as f64 && hi <= i32::MAX as f64
-        };
-        let too_far = || {
-            format!(
-                "the points' {} coordinates span {} to {}, which no scale can store in 32-bit positions",
-                ["x", "y", "z"][a],
-                min[a],
-                max[a]
-            )
-        };
+    let fits = |a: usize, off: f64, sc: f64| {
+        let lo = ((min[a] - off) / sc).round();
+        let hi = ((max[a] - off) / sc).round();
+        // NaN (an infinite span) fails both comparisons, as it must.
+        lo >= i32::MIN as f64 && hi <= i32::MAX as f64
+    };
+    // The offset on an axis where the step does not fit from the grid's origin: the middle of
+    // the data in whole steps from that origin, so that positions on the grid at the step stay
+    // on it (where the step count is a number at all).
+    let offset_for = |a: usize, step: f64| {
+        if fits(a, origin[a], step) {
+            return origin[a];
+        }
         let mid = min[a] / 2.0 + max[a] / 2.0;
-        // The offset moves to the middle of the data in whole steps of the scale from where
-        // the inputs' grid starts, so that positions on that grid at the scale's steps stay
-        // on it (where the step count is a number at all).
-        let origin = offset[a];
-        let to_middle = |step: f64| {
-            let moved = origin + ((mid - origin) / step).round() * step;
-            if moved.is_finite() { moved } else { mid }
+        let moved = origin[a] + ((mid - origin[a]) / step).round() * step;
+        if moved.is_finite() { moved } else { mid }
+    };
+    // Each pass makes the step ten times the finest, as decimals (a product of repeated
+    // tenfolds drifts: 9.999999999999998e-8): from the smallest normal f64 to the largest
+    // takes about 616 passes, so the bound only stops what could never fit.
+    let mut step = finest;
+    let mut passes = 0;
+    let offset = loop {
+        let offset: [f64; 3] = std::array::from_fn(|a| offset_for(a, step));
+        let Some(a) = (0..3).find(|&a| !fits(a, offset[a], step)) else {
+            break offset;
         };
-        if !fits(offset[a], scale[a]) {
-            offset[a] = to_middle(scale[a]);
+        passes += 1;
+        step = tenfold(finest, passes);
+        if !step.is_finite() || passes > 700 {
+            return Err(too_far(a, min, max));
         }
-        // Each pass makes the scale ten times the input's, as decimals (a product of
-        // repeated tenfolds drifts: 9.999999999999998e-8): from the smallest normal f64 to
-        // the largest takes about 616 passes, so the bound only stops what could never fit.
-        let finest = scale[a];
-        let mut passes = 0;
-        while !fits(offset[a], scale[a]) {
-            passes += 1;
-            scale[a] = tenfold(finest, passes);
-            coarsened |= scale[a] > declared[a];
-            if !scale[a].is_finite() || passes > 700 {
-                return Err(too_far());
-            }
-            // On the new step's grid, not the old one's (an input whose own step this is
-            // keeps its positions exactly).
-            offset[a] = to_middle(scale[a]);
-        }
-        if !(scale[a].is_normal() && offset[a].is_finite()) {
-            return Err(too_far());
-        }
+    };
+    if let Some(a) = (0..3).find(|&a| !(step.is_normal() && offset[a].is_finite())) {
+        return Err(too_far(a, min, max));
     }
+    let coarsened = (0..3).any(|a| step > declared[a]);
+    let scale = [step; 3];
     // Points apart from each other that all fall on one position would be one point: refused,
     // not quietly merged (floats spanning 1e-300, far below the finest step a float asks).
     let span = |a: usize| max[a] - min[a];
@@ -175,32 +176,18 @@ pub fn choose(
             scale.iter().copied().fold(f64::INFINITY, f64::min)
         ));
     }
-    let asked = (0..3).filter(|&a| !unasked[a]).map(|a| scale[a]);
-    let step = asked.fold(f64::INFINITY, f64::min);
-    for a in (0..3).filter(|&a| unasked[a] && step.is_finite()) {
-        scale[a] = step;
-        offset[a] = (min[a] / step).floor() * step;
-    }
     let floats = sources
         .iter()
         .any(|s| matches!(s.precision, Precision::Float32 | Precision::Float64));
-    let coarse: Vec<String> = (0..3)
-        .filter(|&a| floats && scale[a] > 1.0)
-        .map(|a| {
-            format!(
-                "{} in steps of {:e} (the points span {:e} to {:e})",
-                ["x", "y", "z"][a],
-                scale[a],
-                min[a],
-                max[a]
-            )
-        })
-        .collect();
-    let coarse_floats = (!coarse.is_empty()).then(|| {
+    let coarse_floats = (floats && step > 1.0).then(|| {
+        let spans: Vec<String> = (0..3)
+            .map(|a| format!("{} {:e} to {:e}", ["x", "y", "z"][a], min[a], max[a]))
+            .collect();
         format!(
-            "floating-point coordinates stored {}: points nearer each other than a step become \
-             one position; a point far from all others (an outlier) makes the step that large",
-            coarse.join(", ")
+            "floating-point coordinates stored in steps of {step:e} (the points span {}): points \
+             nearer each other than a step become one position; a point far from all others (an \
+             outlier) makes the step that large",
+            spans.join(", ")
         )
     });
     Ok(Quantization {
@@ -276,10 +263,11 @@ mod tests {
         let q = choose(&[cloud(1e30)], [0.0; 3], [1e30, 100.0, 100.0]).expect("fits");
         let note = q.coarse_floats.expect("said");
         assert!(
-            note.starts_with("floating-point coordinates stored x in steps of 1e"),
+            note.starts_with("floating-point coordinates stored in steps of 1e2")
+                && note.contains("x 0e0 to 1e30"),
             "{note}"
         );
-        assert!(note.contains("outlier") && !note.contains(" y "), "{note}");
+        assert!(note.contains("outlier"), "{note}");
         // A scaled input chose its own step: nothing to say.
         let q = choose(&[las(10.0, 0.0, 0.0, 1e6)], [0.0; 3], [1e6; 3]).expect("fits");
         assert_eq!(q.coarse_floats, None);
@@ -393,5 +381,47 @@ mod tests {
         let q = choose(&[las(1e-9, 0.0, -1e3, 1e3)], [-1e3; 3], [1e3; 3]).expect("fits");
         assert!(q.coarsened);
         assert_eq!(q.scale, [1e-6; 3]);
+    }
+
+    #[test]
+    fn every_axis_takes_one_step() {
+        // Floats of magnitude 1.0 and 0.12 ask 1e-7 and 1e-8: both axes are stored in 1e-8, or
+        // the octree's cubes would be boxes ten times longer along x.
+        let floats = SourceExtent {
+            precision: Precision::Float32,
+            min: [-1.0, -0.125, -0.75],
+            max: [1.0, 0.125, 0.75],
+        };
+        let q = choose(std::slice::from_ref(&floats), floats.min, floats.max).expect("fits");
+        assert_eq!(q.scale, [1e-8; 3]);
+        assert!(!q.coarsened && q.coarse_floats.is_none(), "{q:?}");
+        // A LAS grid of centimetres across and millimetres up: millimetres on every axis, the
+        // input's offset kept, so each of its positions is stored exactly.
+        let las = SourceExtent {
+            precision: Precision::Scaled {
+                scale: [0.01, 0.01, 0.001],
+                offset: [500000.0, 4000000.0, 0.0],
+            },
+            min: [500100.0, 4000100.0, 10.0],
+            max: [501100.0, 4001100.0, 90.0],
+        };
+        let q = choose(std::slice::from_ref(&las), las.min, las.max).expect("fits");
+        assert_eq!(q.scale, [0.001; 3]);
+        assert_eq!(q.offset, [500000.0, 4000000.0, 0.0]);
+        assert!(!q.coarsened);
+        let p = [500123.45, 4000678.91, 12.345];
+        let i = q.quantize(&p);
+        for a in 0..3 {
+            assert!((q.offset[a] + q.scale[a] * i[a] as f64 - p[a]).abs() < 1e-9);
+        }
+        // Where the finest step does not fit the widest axis, every axis coarsens with it.
+        let wide = SourceExtent {
+            precision: Precision::Float64,
+            min: [0.0, 0.0, 0.0],
+            max: [1000.0, 1.0, 0.001],
+        };
+        let q = choose(std::slice::from_ref(&wide), wide.min, wide.max).expect("fits");
+        assert_eq!(q.scale[0], q.scale[2]);
+        assert!(((1000.0 - q.offset[0]) / q.scale[0]).round() <= i32::MAX as f64);
     }
 }

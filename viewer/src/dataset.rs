@@ -240,17 +240,18 @@ impl StreamDataset {
         )
     }
 
-    /// A node's cube relative to the anchor: minimum corner and edge length.
+    /// A node's cube relative to the anchor: minimum corner and edge length. A dataset whose
+    /// axes have different steps (SPEC allows it; converters before one step per axis wrote
+    /// them for float inputs) has boxes, not cubes: the cube on the longest edge holds the box,
+    /// so that culling never drops a node that is in view.
     pub fn node_cube(&self, key: NodeKey) -> (Vec3, f32) {
         let m = &self.metadata;
         let (min, edge) = key.int_bounds(m.cube.min, m.cube.bits);
         let real = DVec3::from_array(std::array::from_fn(|i| {
             m.offset[i] + m.scale[i] * min[i] as f64
         }));
-        (
-            (real - self.anchor).as_vec3(),
-            (edge as f64 * m.scale[0]) as f32,
-        )
+        let step = m.scale.iter().copied().fold(0.0, f64::max);
+        ((real - self.anchor).as_vec3(), (edge as f64 * step) as f32)
     }
 
     /// Whether the dataset stores normals (the `Normals` stream is all "none" otherwise).
