@@ -90,6 +90,11 @@ impl NodeColumns {
     pub fn to_rows(&self, layout: &RowLayout) -> Vec<u8> {
         let n = self.count;
         let mut rows = vec![0u8; n * layout.stride];
+        // An inner node may hold no point (SPEC section 3): slicing its rows at a field's
+        // offset would be out of range.
+        if n == 0 {
+            return rows;
+        }
         let mut fields: Vec<(usize, usize)> = vec![(0, 4), (4, 4), (8, 4)];
         fields.extend(
             layout
@@ -242,6 +247,8 @@ mod tests {
         assert!(payload.is_empty());
         assert_eq!(crc, 0);
         assert_eq!(decode_node(&payload, 0, crc, &l).map(|n| n.count), Ok(0));
+        let empty = decode_node(&payload, 0, crc, &l).expect("decodes");
+        assert!(empty.to_rows(&l).is_empty(), "no rows, and no panic");
         // What 1.0 writers stored for a node of no points.
         let old = lz4_flex::block::compress(&[]);
         assert_eq!(old.len(), 1);
