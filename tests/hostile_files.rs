@@ -214,3 +214,42 @@ fn metadata_naming_files_outside_the_dataset_or_overflowing_its_coordinates_is_r
     assert!(err.contains("not a finite number"), "{err}");
     assert!(!potree.exists());
 }
+
+#[test]
+fn a_las_export_the_las_crate_cannot_close_is_an_error_not_a_panic() {
+    // Autzen with x offset 1e9 and two points at the ends of the 32-bit range: the `las`
+    // crate's header bounds, floored to the grid, fall one step past 32 bits. Its writer then
+    // panicked as it was dropped.
+    let dir = tempfile::tempdir().expect("tempdir");
+    let mut b = std::fs::read(data("autzen_trim.las")).expect("autzen");
+    let offset = 1e9f64;
+    b[155..163].copy_from_slice(&offset.to_le_bytes());
+    let start = u32::from_le_bytes(b[96..100].try_into().expect("4 bytes")) as usize;
+    let len = u16::from_le_bytes(b[105..107].try_into().expect("2 bytes")) as usize;
+    for (k, x) in [i32::MIN, i32::MAX].into_iter().enumerate() {
+        b[start + k * len..start + k * len + 4].copy_from_slice(&x.to_le_bytes());
+    }
+    let (lo, hi) = (
+        offset - 0.01 * 2f64.powi(31),
+        offset + 0.01 * f64::from(i32::MAX),
+    );
+    b[179..187].copy_from_slice(&hi.to_le_bytes());
+    b[187..195].copy_from_slice(&lo.to_le_bytes());
+    let input = dir.path().join("ends.las");
+    std::fs::write(&input, &b).expect("write");
+    let ds = dir.path().join("ds");
+    run_ok(&["convert", s(&input), "-o", s(&ds), "-q"]);
+    for ext in ["las", "laz"] {
+        let out = dir.path().join(format!("back.{ext}"));
+        let o = run(&["export", s(&ds), "-o", s(&out)]);
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert_eq!(o.status.code(), Some(1), "{err}");
+        assert!(
+            err.contains("cannot finish the LAS header") && !err.contains("panicked"),
+            "{err}"
+        );
+        assert!(!out.exists(), "no output that looks valid");
+    }
+    // PLY holds them.
+    run_ok(&["export", s(&ds), "-o", s(&dir.path().join("back.ply"))]);
+}

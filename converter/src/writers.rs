@@ -176,7 +176,8 @@ pub(crate) fn las_format_for(layout: &RowLayout) -> u8 {
 struct LasRowWriter {
     path: PathBuf,
     part: PathBuf,
-    writer: Writer<Latched>,
+    /// `None` once closed (see `Drop`).
+    writer: Option<Writer<Latched>>,
     records: LasRecords,
     buf: Vec<u8>,
     stride: usize,
@@ -276,7 +277,7 @@ impl LasRowWriter {
         Ok(LasRowWriter {
             path: path.to_path_buf(),
             part,
-            writer,
+            writer: Some(writer),
             records,
             buf: Vec::new(),
             stride: layout.stride,
@@ -299,23 +300,50 @@ impl RowWriter for LasRowWriter {
             }
         }
         self.records.fill(rows, &mut self.buf);
+        let Some(writer) = self.writer.as_mut() else {
+            return Err(ConvertError::output(
+                &self.part,
+                "written after it was closed",
+            ));
+        };
         let data = PointDataBuilder::new()
-            .for_header(self.writer.header())
+            .for_header(writer.header())
             .build_from_bytes(std::mem::take(&mut self.buf))
             .map_err(|e| ConvertError::output(&self.part, format!("cannot encode points ({e})")))?;
-        self.writer
+        writer
             .write_points(&data)
             .map_err(|e| ConvertError::output(&self.part, format!("cannot write points ({e})")))?;
         Ok(())
     }
 
     fn finish(mut self: Box<Self>) -> Result<()> {
-        self.writer
-            .close()
-            .map_err(|e| ConvertError::output(&self.part, format!("cannot finish ({e})")))?;
+        close(self.writer.take()).map_err(|e| {
+            ConvertError::output(&self.path, format!("cannot finish the LAS header ({e})"))
+        })?;
         self.write_exact_bounds()?;
         std::fs::rename(&self.part, &self.path)
             .map_err(|e| ConvertError::io(&self.path, "cannot move into place", e))
+    }
+}
+
+/// Closes `writer`. The `las` Writer closes itself again when dropped and panics when that
+/// fails too (its header's bounds, floored to the grid, fall one step past 32 bits for a point
+/// at the end of the range): one whose close failed is not dropped.
+fn close(writer: Option<Writer<Latched>>) -> las::Result<()> {
+    let Some(mut writer) = writer else {
+        return Ok(());
+    };
+    let closed = writer.close();
+    if closed.is_err() {
+        std::mem::forget(writer);
+    }
+    closed
+}
+
+impl Drop for LasRowWriter {
+    /// A writer given up on (an error while writing) closes without a panic.
+    fn drop(&mut self) {
+        let _ = close(self.writer.take());
     }
 }
 
