@@ -1,5 +1,5 @@
-//! The dataset's one scale and offset: the finest input resolution, and exact integer
-//! positions whenever the inputs already share a grid.
+//! The dataset's one scale and offset: one step on every axis, the common step of the inputs'
+//! resolutions, and exact integer positions wherever the inputs share a grid.
 
 use crate::input::Precision;
 
@@ -53,6 +53,46 @@ fn pow10(e: i32) -> f64 {
     format!("1e{e}").parse().unwrap_or(f64::INFINITY)
 }
 
+/// The largest step that every one of `steps` is a whole number of, as the decimals they are
+/// written in (0.01 and 0.001: 0.001; 0.0025 and 0.003: 0.0005), so that inputs on each of
+/// those grids keep their positions exactly; the smallest of them where no decimal step is
+/// (a third). 1 where there are none.
+fn common_step(steps: impl Iterator<Item = f64> + Clone) -> f64 {
+    let smallest = steps.clone().fold(f64::INFINITY, f64::min);
+    if !smallest.is_finite() {
+        return 1.0;
+    }
+    for e in -20..=20 {
+        let unit = pow10(-e);
+        let whole: Option<Vec<u64>> = steps
+            .clone()
+            .map(|s| {
+                let k = s / unit;
+                let n = k.round();
+                // Within the rounding of the division (1e-13 of it), so that a third, or 0.01
+                // rounded through single precision, is no decimal.
+                ((k - n).abs() <= 1e-13 * n + 1e-9 && (1.0..=1e12).contains(&n)).then_some(n as u64)
+            })
+            .collect();
+        if let Some(whole) = whole {
+            let g = whole.into_iter().fold(0, gcd);
+            return tenfold(g as f64, -e);
+        }
+    }
+    smallest
+}
+
+/// Whether `coarse` is a whole number of `step`s, within the rounding of the division.
+fn whole_multiple(coarse: f64, step: f64) -> bool {
+    let k = coarse / step;
+    let n = k.round();
+    n >= 1.0 && (k - n).abs() <= 1e-9 * n
+}
+
+fn gcd(a: u64, b: u64) -> u64 {
+    if b == 0 { a } else { gcd(b, a % b) }
+}
+
 /// The scale that keeps a float coordinate of magnitude `max_abs` to within half its unit in
 /// the last place: the largest power of ten not above one ULP.
 pub(crate) fn float_scale(max_abs: f64, mantissa_bits: i32) -> f64 {
@@ -68,12 +108,12 @@ pub fn choose(
     min: [f64; 3],
     max: [f64; 3],
 ) -> Result<Quantization, String> {
-    // Per axis, the finest step an input asks.
-    let mut asked = [f64::INFINITY; 3];
-    // The finest step an input declares (a LAS scale, an E57 resolution, integers): only a
-    // scale coarser than that loses what an input holds. A float's own resolution depends on
-    // its magnitude and is no promise of precision; its loss is `coarse_floats`.
-    let mut declared = [f64::INFINITY; 3];
+    // Every step an input asks on any axis, and those it declares (a LAS scale, an E57
+    // resolution, integers): only a step of which a declared one is not a whole number loses
+    // what an input holds. A float's own resolution depends on its magnitude and is no promise
+    // of precision; its loss is `coarse_floats`.
+    let mut asked = Vec::new();
+    let mut declared = Vec::new();
     for s in sources {
         for a in 0..3 {
             let max_abs = s.min[a].abs().max(s.max[a].abs());
@@ -81,52 +121,47 @@ pub fn choose(
                 Precision::Scaled { scale, .. } => (scale[a].abs(), true),
                 // Zero on this axis everywhere: it asks no step (a tiny one would become 0
                 // in a reader's single precision).
-                Precision::Float32 | Precision::Float64 if max_abs == 0.0 => (f64::INFINITY, false),
+                Precision::Float32 | Precision::Float64 if max_abs == 0.0 => continue,
                 Precision::Float32 => (float_scale(max_abs, 23), false),
                 Precision::Float64 => (float_scale(max_abs, 52), false),
                 Precision::Integer => (1.0, true),
                 Precision::Resolution(step) => (step[a].abs(), true),
             };
-            asked[a] = asked[a].min(sa);
+            asked.push(sa);
             if is_declared {
-                declared[a] = declared[a].min(sa);
+                declared.push(sa);
             }
         }
     }
-    // One step on every axis, the finest any axis asks: the octree's cubes are cubes in integer
-    // positions (SPEC section 3), so a step ten times finer on one axis than another makes
-    // every node, and every inner node's sampling grid, ten times longer along it (floats of
-    // magnitude 1.0 and 0.9 ask 1e-7 and 1e-8). An axis no input asks a step of (floats all
-    // zero on it) takes it too.
-    let finest = asked.iter().copied().fold(f64::INFINITY, f64::min);
-    let finest = if finest.is_finite() { finest } else { 1.0 };
+    // The grid of the scaled inputs (LAS, whose records are integers on it): the first one's
+    // origin. Another's offset differs from it by a whole number of steps only if the step
+    // divides the difference too. Float inputs have no grid: the points' minimum on the step.
     let first_scaled = sources.iter().find_map(|s| match s.precision {
         Precision::Scaled { offset, .. } => Some(offset),
         _ => None,
     });
-    // Where every input is on one grid the step divides, its origin; else the points' minimum.
-    let mut origin = [0.0; 3];
-    for a in 0..3 {
-        let on_grid = |o: f64| {
-            let k = (o - first_scaled.map_or(0.0, |f| f[a])) / finest;
-            (k - k.round()).abs() < 1e-6
-        };
-        let all_on_grid = first_scaled.is_some()
-            && sources.iter().all(|s| match s.precision {
-                Precision::Scaled { offset, scale: ss } => {
-                    on_grid(offset[a]) && {
-                        let r = ss[a] / finest;
-                        (r - r.round()).abs() < 1e-6
-                    }
+    for s in sources {
+        if let (Precision::Scaled { offset, .. }, Some(first)) = (s.precision, first_scaled) {
+            for a in 0..3 {
+                let d = (offset[a] - first[a]).abs();
+                if d > 0.0 && d.is_finite() {
+                    asked.push(d);
+                    declared.push(d);
                 }
-                _ => false,
-            });
-        origin[a] = if all_on_grid {
-            first_scaled.map_or(0.0, |f| f[a])
-        } else {
-            (min[a] / finest).floor() * finest
-        };
+            }
+        }
     }
+    // One step on every axis: the octree's cubes are cubes in integer positions (SPEC section
+    // 3), so a step ten times finer on one axis than another makes every node, and every inner
+    // node's sampling grid, ten times longer along it (floats of magnitude 1.0 and 0.9 ask 1e-7
+    // and 1e-8). The finest is the common step of all asked; `grid`, of the declared ones, is
+    // the coarsest that loses nothing an input declares.
+    let finest = common_step(asked.iter().copied());
+    let grid = (!declared.is_empty()).then(|| common_step(declared.iter().copied()));
+    let origin: [f64; 3] = std::array::from_fn(|a| match first_scaled {
+        Some(o) => o[a],
+        None => (min[a] / finest).floor() * finest,
+    });
     let fits = |a: usize, off: f64, sc: f64| {
         let lo = ((min[a] - off) / sc).round();
         let hi = ((max[a] - off) / sc).round();
@@ -144,26 +179,42 @@ pub fn choose(
         let moved = origin[a] + ((mid - origin[a]) / step).round() * step;
         if moved.is_finite() { moved } else { mid }
     };
-    // Each pass makes the step ten times the finest, as decimals (a product of repeated
-    // tenfolds drifts: 9.999999999999998e-8): from the smallest normal f64 to the largest
-    // takes about 616 passes, so the bound only stops what could never fit.
-    let mut step = finest;
-    let mut passes = 0;
-    let offset = loop {
+    let fitted = |step: f64| {
         let offset: [f64; 3] = std::array::from_fn(|a| offset_for(a, step));
-        let Some(a) = (0..3).find(|&a| !fits(a, offset[a], step)) else {
-            break offset;
-        };
-        passes += 1;
-        step = tenfold(finest, passes);
-        if !step.is_finite() || passes > 700 {
-            return Err(too_far(a, min, max));
+        (0..3).all(|a| fits(a, offset[a], step)).then_some(offset)
+    };
+    // Where the finest does not fit 32 bits, coarser steps in tenfolds (as decimals: a product
+    // of repeated tenfolds drifts, 9.999999999999998e-8): first those of the finest that keep
+    // every declared grid, up to `grid` itself, then tenfolds of `grid`, which lose some. From
+    // the smallest normal f64 to the largest takes about 616 passes, so the bound only stops
+    // what could never fit.
+    let keeps_grid = |step: f64| grid.is_none_or(|g| step <= g && whole_multiple(g, step));
+    let candidates = (0..700)
+        .map(|k| tenfold(finest, k))
+        .take_while(|&step| step.is_finite() && grid.is_none_or(|g| step < g))
+        .filter(|&step| keeps_grid(step))
+        .chain(grid)
+        .chain((1..700).map(|k| tenfold(grid.unwrap_or(finest), k)));
+    let mut chosen = None;
+    for step in candidates {
+        if !step.is_finite() {
+            break;
         }
+        if let Some(offset) = fitted(step) {
+            chosen = Some((step, offset));
+            break;
+        }
+    }
+    let widest = (0..3)
+        .max_by(|&a, &b| (max[a] - min[a]).total_cmp(&(max[b] - min[b])))
+        .unwrap_or(0);
+    let Some((step, offset)) = chosen else {
+        return Err(too_far(widest, min, max));
     };
     if let Some(a) = (0..3).find(|&a| !(step.is_normal() && offset[a].is_finite())) {
         return Err(too_far(a, min, max));
     }
-    let coarsened = (0..3).any(|a| step > declared[a]);
+    let coarsened = declared.iter().any(|&d| !whole_multiple(d, step));
     let scale = [step; 3];
     // Points apart from each other that all fall on one position would be one point: refused,
     // not quietly merged (floats spanning 1e-300, far below the finest step a float asks).
@@ -263,7 +314,7 @@ mod tests {
         let q = choose(&[cloud(1e30)], [0.0; 3], [1e30, 100.0, 100.0]).expect("fits");
         let note = q.coarse_floats.expect("said");
         assert!(
-            note.starts_with("floating-point coordinates stored in steps of 1e2")
+            note.starts_with("floating-point coordinates stored in steps of 1e21 ")
                 && note.contains("x 0e0 to 1e30"),
             "{note}"
         );
@@ -421,7 +472,90 @@ mod tests {
             max: [1000.0, 1.0, 0.001],
         };
         let q = choose(std::slice::from_ref(&wide), wide.min, wide.max).expect("fits");
-        assert_eq!(q.scale[0], q.scale[2]);
-        assert!(((1000.0 - q.offset[0]) / q.scale[0]).round() <= i32::MAX as f64);
+        // Doubles ask 1e-13 (x) and 1e-19 (z); 1000 units fit 32 bits from 1e-6 up.
+        assert_eq!(q.scale, [1e-6; 3]);
+        assert!(!q.coarsened);
+    }
+
+    #[test]
+    fn inputs_on_grids_of_other_steps_keep_their_positions() {
+        let scaled = |scale: [f64; 3], offset: [f64; 3]| SourceExtent {
+            precision: Precision::Scaled { scale, offset },
+            min: [0.0; 3],
+            max: [100.0; 3],
+        };
+        let exact = |q: &Quantization, p: [f64; 3]| {
+            let i = q.quantize(&p);
+            (0..3).all(|a| (q.offset[a] + q.scale[a] * i[a] as f64 - p[a]).abs() < 1e-9)
+        };
+        // Steps of 0.0025 and 0.003 on one file: both grids are grids of 0.0005.
+        let one = scaled([0.0025, 0.0025, 0.003], [0.0; 3]);
+        let q = choose(std::slice::from_ref(&one), one.min, one.max).expect("fits");
+        assert_eq!(q.scale, [0.0005; 3]);
+        assert!(exact(&q, [0.0025 * 7.0, 0.0025 * 9.0, 0.003 * 11.0]));
+        // Millimetres from 1000 and centimetres from 0: one grid.
+        let (a, b) = (scaled([0.001; 3], [1000.0; 3]), scaled([0.01; 3], [0.0; 3]));
+        let q = choose(&[a, b], [0.0; 3], [100.0; 3]).expect("fits");
+        assert_eq!(q.scale, [0.001; 3]);
+        assert!(exact(&q, [0.002, 12.001, 99.999]) && exact(&q, [0.01, 12.34, 99.99]));
+        // A LAS beside a float input keeps its grid (floats have none to keep).
+        let las = SourceExtent {
+            min: [636000.0; 3],
+            max: [640000.0; 3],
+            ..scaled([0.01; 3], [0.0; 3])
+        };
+        let floats = SourceExtent {
+            precision: Precision::Float32,
+            min: [-0.11, 0.02, -0.07],
+            max: [0.06, 0.19, 0.06],
+        };
+        let q = choose(&[las, floats], [-0.11, 0.02, -0.07], [640000.0; 3]).expect("fits");
+        assert_eq!(q.offset, [0.0; 3]);
+        assert!(exact(&q, [637179.22, 636000.01, 639999.99]), "{q:?}");
+    }
+
+    #[test]
+    fn every_input_keeps_its_grid_where_a_step_fits() {
+        let las = |scale: f64, offset: f64, max: f64| SourceExtent {
+            precision: Precision::Scaled {
+                scale: [scale; 3],
+                offset: [offset; 3],
+            },
+            min: [0.0; 3],
+            max: [max; 3],
+        };
+        // Two files of 0.002 and 0.0025 on every axis: half millimetres, not 0.002.
+        let q = choose(
+            &[las(0.002, 0.0, 10.0), las(0.0025, 0.0, 10.0)],
+            [0.0; 3],
+            [10.0; 3],
+        )
+        .expect("fits");
+        assert_eq!(q.scale, [0.0005; 3]);
+        // Offsets 0.005 apart on centimetres: half centimetres keep both.
+        let q = choose(
+            &[las(0.01, 0.005, 10.0), las(0.01, 0.0, 10.0)],
+            [0.0; 3],
+            [10.0; 3],
+        )
+        .expect("fits");
+        assert_eq!((q.scale, q.offset), ([0.005; 3], [0.005; 3]));
+        // Quarter millimetres beside doubles over 50 km: the doubles' 1e-12 does not fit, and
+        // neither does 1e-4 keep the quarters; 0.00025 does both.
+        let doubles = SourceExtent {
+            precision: Precision::Float64,
+            min: [0.0; 3],
+            max: [5e4; 3],
+        };
+        let q = choose(&[las(0.00025, 0.0, 5e4), doubles], [0.0; 3], [5e4; 3]).expect("fits");
+        assert_eq!(q.scale, [0.00025; 3]);
+        assert!(!q.coarsened);
+        // A scale rounded through single precision is no decimal: kept as it is.
+        let odd = 0.01f32 as f64;
+        let q = choose(&[las(odd, 0.0, 100.0)], [0.0; 3], [100.0; 3]).expect("fits");
+        assert_eq!(q.scale, [odd; 3]);
+        // Where nothing keeps every grid, the step that fits is said to lose some.
+        let q = choose(&[las(0.00025, 0.0, 2e6)], [0.0; 3], [2e6; 3]).expect("fits");
+        assert!(q.coarsened && q.scale[0] > 0.00025, "{q:?}");
     }
 }

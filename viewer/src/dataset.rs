@@ -254,6 +254,17 @@ impl StreamDataset {
         ((real - self.anchor).as_vec3(), (edge as f64 * step) as f32)
     }
 
+    /// A node's centre relative to the anchor: the middle of its box on each axis (of its
+    /// cube, where every axis has the dataset's one step).
+    pub fn node_centre(&self, key: NodeKey) -> Vec3 {
+        let m = &self.metadata;
+        let (min, edge) = key.int_bounds(m.cube.min, m.cube.bits);
+        let real = DVec3::from_array(std::array::from_fn(|i| {
+            m.offset[i] + m.scale[i] * (min[i] as f64 + edge as f64 * 0.5)
+        }));
+        (real - self.anchor).as_vec3()
+    }
+
     /// Whether the dataset stores normals (the `Normals` stream is all "none" otherwise).
     pub fn has_normals(&self) -> bool {
         self.streams.has_normals()

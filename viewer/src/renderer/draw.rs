@@ -74,8 +74,7 @@ impl Renderer {
         let mut complete = HashMap::new();
         let mut per_arena: BTreeMap<u32, ArenaDraw> = BTreeMap::new();
         for key in keys {
-            let (min, edge) = self.ds.node_cube(*key);
-            let centre = (min + glam::Vec3::splat(edge * 0.5)).to_array();
+            let centre = self.ds.node_centre(*key).to_array();
             // A node the tree does not know counts as having every child, and a child it does
             // not know as having children: the points then stand for theirs.
             let exist = self.tree.node(*key).map_or(0xff, |n| n.child_mask as u32);
