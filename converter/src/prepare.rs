@@ -66,6 +66,7 @@ impl Plan {
             offset: self.offset,
             coarsened: self.coarsened,
             // Said once, when the plan was made.
+            coarse_grids: None,
             coarse_floats: None,
         }
     }
@@ -202,12 +203,7 @@ pub fn count_and_plan(
         Err(e) => return Err(e),
     };
     warnings.extend(staged.q.coarse_floats.clone());
-    if staged.q.coarsened {
-        warnings.push(format!(
-            "the inputs span too far for 32-bit positions at their own resolution; scale coarsened to {:?}, so positions are rounded to that step",
-            staged.q.scale
-        ));
-    }
+    warnings.extend(staged.q.coarse_grids.clone());
     let points: u64 = staged.inputs.iter().map(|i| i.records).sum();
     if points == 0 {
         return Err(ConvertError::input(

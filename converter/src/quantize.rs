@@ -15,9 +15,12 @@ pub struct SourceExtent {
 pub struct Quantization {
     pub scale: [f64; 3],
     pub offset: [f64; 3],
-    /// Set when the step an input declares (a LAS scale, an E57 resolution) does not fit
-    /// 32-bit positions and a coarser one was taken.
+    /// Set when a step an input declares (a LAS scale, an E57 resolution, the difference of
+    /// two LAS offsets) is no whole number of the step taken: its positions are rounded.
     pub coarsened: bool,
+    /// Why, where `coarsened`: the extent does not fit 32 bits at the inputs' own steps, or
+    /// their grids share no decimal step.
+    pub coarse_grids: Option<String>,
     /// Said where floating-point inputs are stored in steps over one unit: their magnitude
     /// set the step, and points nearer each other than it become one position (one far
     /// outlier does that to all the rest).
@@ -215,6 +218,20 @@ pub fn choose(
         return Err(too_far(a, min, max));
     }
     let coarsened = declared.iter().any(|&d| !whole_multiple(d, step));
+    let coarse_grids = coarsened.then(|| {
+        if grid.is_some_and(|g| step > g) {
+            format!(
+                "the inputs span too far for 32-bit positions at their own resolution; scale \
+                 coarsened to {step:e} on every axis, so positions are rounded to that step"
+            )
+        } else {
+            format!(
+                "the inputs' grids (their scales and offsets) share no decimal step; positions \
+                 are stored in steps of {step:e}, and those of an input off that grid are \
+                 rounded to it"
+            )
+        }
+    });
     let scale = [step; 3];
     // Points apart from each other that all fall on one position would be one point: refused,
     // not quietly merged (floats spanning 1e-300, far below the finest step a float asks).
@@ -245,6 +262,7 @@ pub fn choose(
         scale,
         offset,
         coarsened,
+        coarse_grids,
         coarse_floats,
     })
 }
@@ -557,5 +575,36 @@ mod tests {
         // Where nothing keeps every grid, the step that fits is said to lose some.
         let q = choose(&[las(0.00025, 0.0, 2e6)], [0.0; 3], [2e6; 3]).expect("fits");
         assert!(q.coarsened && q.scale[0] > 0.00025, "{q:?}");
+    }
+
+    #[test]
+    fn grids_that_share_no_step_are_said_apart_from_a_wide_span() {
+        let las = |offset: f64| SourceExtent {
+            precision: Precision::Scaled {
+                scale: [0.01; 3],
+                offset: [offset; 3],
+            },
+            min: [0.0; 3],
+            max: [100.0; 3],
+        };
+        let q = choose(&[las(0.0), las(0.123456789012345)], [0.0; 3], [100.0; 3]).expect("fits");
+        assert_eq!(q.scale, [0.01; 3]);
+        let said = q.coarse_grids.expect("said");
+        assert!(said.contains("share no decimal step"), "{said}");
+        let wide = SourceExtent {
+            min: [0.0; 3],
+            max: [1e8; 3],
+            ..las(0.0)
+        };
+        let q = choose(std::slice::from_ref(&wide), wide.min, wide.max).expect("fits");
+        let said = q.coarse_grids.expect("said");
+        assert!(
+            said.contains("span too far") && said.contains("1e-1"),
+            "{said}"
+        );
+        assert_eq!(
+            choose(&[las(0.0), las(5.0)], [0.0; 3], [100.0; 3]).map(|q| q.coarse_grids),
+            Ok(None)
+        );
     }
 }
