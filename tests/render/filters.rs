@@ -110,6 +110,17 @@ fn shot(dataset: &Path, pipeline: &str, set: &[&str]) -> Shot {
 }
 
 fn shot_on(path: ProjectionPath, dataset: &Path, pipeline: &str, set: &[&str]) -> Shot {
+    shot_at(path, dataset, pipeline, set, None)
+}
+
+/// `shot_on` with the LOD's finest drawn spacing set (0: every node drawn).
+fn shot_at(
+    path: ProjectionPath,
+    dataset: &Path,
+    pipeline: &str,
+    set: &[&str],
+    min_spacing_px: Option<f32>,
+) -> Shot {
     let ds = Arc::new(StreamDataset::open_path(dataset).expect("dataset opens"));
     let ctx = Arc::new(GpuContext::new(path).expect("GPU adapter"));
     let mut r = Renderer::new(ctx, ds.clone(), 1 << 30, 1).expect("renderer");
@@ -123,6 +134,9 @@ fn shot_on(path: ProjectionPath, dataset: &Path, pipeline: &str, set: &[&str]) -
         budget: 10_000_000,
         ..Settings::default()
     };
+    if let Some(px) = min_spacing_px {
+        settings.min_spacing_px = px;
+    }
     settings.set_pipeline(pipeline).expect("pipeline");
     // One-pixel points: what `points` leaves open at this density.
     settings.point_size = 1.0;
@@ -487,4 +501,79 @@ fn points_leaning_a_little_past_grazing_are_drawn_and_back_faces_are_not() {
     assert!(right < 0.01, "the face turned away is {right:.3} covered");
     let peeled = shot(leaning(), "filters", &["layers=2"]);
     assert_eq!(peeled.measures[LAYERS_USED], 1.0, "{:?}", peeled.measures);
+}
+
+/// The square of `SIDE` pixels at the centre of `shot`'s view, sampled 4 x 4 a pixel, with a
+/// comb along its right edge: every other pixel row sticks out one pixel further, as a scan's
+/// scattered points do along a silhouette. Normals given (towards the camera), radii from
+/// `--normals`.
+const SIDE: u32 = 120;
+
+fn combed_square() -> &'static Path {
+    static CELL: OnceLock<PathBuf> = OnceLock::new();
+    CELL.get_or_init(|| {
+        let dir = common::fresh_dir("render-filters-comb");
+        let pixel = 2.0 * DISTANCE as f64 * (FOV_DEG as f64 / 2.0).to_radians().tan() / H as f64;
+        let (x0, y0) = (W / 2 - SIDE / 2, H / 2 - SIDE / 2);
+        let mut points = Vec::new();
+        for row in y0..y0 + SIDE {
+            let teeth = u32::from((row - y0) % 2 == 0);
+            for col in x0..x0 + SIDE + teeth {
+                for (i, j) in (0..4).flat_map(|i| (0..4).map(move |j| (i, j))) {
+                    // Inside the pixel, an eighth of one from its edges.
+                    let x = (col as f64 + 0.125 + 0.25 * i as f64 - W as f64 / 2.0) * pixel;
+                    let z = (H as f64 / 2.0 - row as f64 - 0.125 - 0.25 * j as f64) * pixel;
+                    points.push(([x, 0.0, z], OUTER));
+                }
+            }
+        }
+        let ply = dir.join("comb.ply");
+        let towards_camera = vec![[0f32, -1.0, 0.0]; points.len()];
+        common::write_coloured_ply(&ply, &points, Some(&towards_camera));
+        let ds = dir.join("comb.strata");
+        common::run_ok(&["convert", s(&ply), "-o", s(&ds), "--quiet", "--normals"]);
+        ds
+    })
+}
+
+/// The background fill closes the holes a point's sampling can leave, and no wider: between
+/// the teeth of a dense comb no sampling gap can be, and filling them grew the outline by the
+/// teeth's length (the masks of Figure 3 see no outline there). Sparse points still close
+/// (`sparse_points_are_drawn_as_wide_as_their_radius_and_the_masks_close_the_rest`).
+#[test]
+fn the_fill_leaves_gaps_wider_than_the_sampling_open_between_a_dense_outline_s_teeth() {
+    let filters = shot_at(
+        ProjectionPath::Auto,
+        combed_square(),
+        "filters",
+        &[],
+        Some(0.0),
+    );
+    let (x0, y0) = (W / 2 - SIDE / 2, H / 2 - SIDE / 2);
+    let at = |x: u32, y: u32| filters.covered[(y * W + x) as usize];
+    let rows = y0 + 2..y0 + SIDE - 2;
+    let teeth = rows.clone().filter(|r| (r - y0) % 2 == 0);
+    let gaps = rows.clone().filter(|r| (r - y0) % 2 == 1);
+    let (teeth_drawn, gaps_filled) = (
+        teeth.filter(|&r| at(x0 + SIDE, r)).count(),
+        gaps.clone().filter(|&r| at(x0 + SIDE, r)).count(),
+    );
+    assert!(
+        teeth_drawn >= 55,
+        "{teeth_drawn} of the comb's 58 teeth are drawn"
+    );
+    assert!(
+        gaps_filled <= 2,
+        "{gaps_filled} of the {} gaps between the teeth are filled",
+        gaps.count()
+    );
+    let inside = (y0..y0 + SIDE)
+        .flat_map(|y| (x0..x0 + SIDE).map(move |x| (x, y)))
+        .filter(|&(x, y)| at(x, y))
+        .count();
+    assert_eq!(
+        inside,
+        (SIDE * SIDE) as usize,
+        "the square is covered whole"
+    );
 }

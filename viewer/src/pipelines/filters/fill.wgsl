@@ -65,11 +65,16 @@ fn listed_tile(wg: vec2<u32>) -> Listed {
 }
 
 // Writes the texel of pixel `id` (index `i`): where `fill`, a copy of its neighbour `source`
-// (an index into OFFSETS), else `keep`.
-fn finish(id: vec2<u32>, i: u32, keep: Texel, fill: bool, source: i32, tile: vec2<u32>) {
+// (an index into OFFSETS), else `keep`. A copy the background fill `carried` reaches a pixel
+// less far, and is marked as carried.
+fn finish(id: vec2<u32>, i: u32, keep: Texel, fill: bool, source: i32, carried: bool, tile: vec2<u32>) {
     if fill {
         let q = vec2<i32>(id) + OFFSETS[source];
-        dst[i] = src[u32(q.y) * frame.width + u32(q.x)];
+        var t = src[u32(q.y) * frame.width + u32(q.x)];
+        if carried {
+            t.w = with_reach(t.w, texel_reach(t) - 1u) | CARRIED;
+        }
+        dst[i] = t;
         counters[changed_slot(step.layer, step.kind, step.iteration)] = 1u;
         tiles[tile_slot(step.kind, step.iteration, tile)] = 1u;
     } else {
@@ -77,7 +82,11 @@ fn finish(id: vec2<u32>, i: u32, keep: Texel, fill: bool, source: i32, tile: vec
     }
 }
 
-// Section 3.2: a background pixel is filled unless it lies beyond the silhouette.
+// Section 3.2: a background pixel is filled unless it lies beyond the silhouette, or beside a
+// point whose sampling leaves no empty pixel (reach 0, `sampling_reach`): no gap of its
+// sampling can be there, as between the points scattered along a scan's outline, which the
+// masks take for a hole. Else it takes the texel of its nearest neighbour that may be carried
+// a pixel further (`texel_reach`), so that no hole wider than the sampling's closes.
 @compute @workgroup_size(16, 16)
 fn background(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_id) local: vec3<u32>) {
     let listed = listed_tile(wg.xy);
@@ -96,15 +105,21 @@ fn background(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_id
         return;
     }
     let n = neighbours(vec2<i32>(id.xy));
-    var nearest = 0;
-    for (var k = 1; k < 8; k++) {
+    var nearest = -1;
+    var dense = false;
+    for (var k = 0; k < 8; k++) {
         let d = n.depth[k];
-        let best = n.depth[nearest];
-        if d != 0.0 && (best == 0.0 || d < best) {
-            nearest = k;
+        if d != 0.0 {
+            let q = vec2<i32>(id.xy) + OFFSETS[k];
+            let u = src[u32(q.y) * frame.width + u32(q.x)];
+            let reach = texel_reach(u);
+            dense = dense || (reach == 0u && (u.w & CARRIED) == 0u);
+            if reach > 0u && (nearest < 0 || d < n.depth[nearest]) {
+                nearest = k;
+            }
         }
     }
-    finish(id, i, t, n.background != 0xffu && !some_mask_white(n.background), nearest, tile);
+    finish(id, i, t, !dense && nearest >= 0 && !some_mask_white(n.background), nearest, true, tile);
 }
 
 // Section 3.3: a pixel showing a surface more than d~ behind its neighbours is filled with one
@@ -146,5 +161,5 @@ fn occluded(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_id) 
             occluder_depth = n.depth[k];
         }
     }
-    finish(id, i, t, occluder >= 0 && !some_mask_white(white), occluder, tile);
+    finish(id, i, t, occluder >= 0 && !some_mask_white(white), occluder, false, tile);
 }

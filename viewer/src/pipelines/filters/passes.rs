@@ -9,7 +9,9 @@ use super::targets::{FiltersTargets, STEP_STRIDE};
 use crate::ViewerError;
 use crate::gpu::GpuContext;
 use crate::gpu::timing::Timer;
-use crate::pipelines::projection::{ArenaGroup, COLOUR_WGSL, GROUP_SIZE, OCT16_WGSL, pixel_groups};
+use crate::pipelines::projection::{
+    ArenaGroup, COLOUR_WGSL, GROUP_SIZE, OCT16_WGSL, RANGE_SEARCH_WGSL, pixel_groups,
+};
 use crate::pipelines::shader::ShaderSource;
 use crate::pipelines::shadows::LIT_STREAM;
 use crate::pipelines::{PipelineFrame, PointStream};
@@ -34,7 +36,7 @@ pub const MAX_ITERATIONS: u32 = 16;
 // its background fill must not carry a texel past the tile beside, one pixel an iteration.
 const _: () = assert!(MAX_ITERATIONS <= 16, "a fill tile is 16 pixels wide");
 /// Storage buffers the filters bind in one pass at most (the resolve's).
-pub const STORAGE_BUFFERS: u32 = 10;
+pub const STORAGE_BUFFERS: u32 = 11;
 /// Classes with an opacity of their own (`CLASSES`): the ASPRS standard classes 0 to 18.
 pub const CLASSES: usize = 19;
 /// Words of the counters buffer (`COUNTERS`): a flag per layer, then a flag per layer, kind
@@ -95,6 +97,7 @@ pub fn shaders(int64: bool) -> Vec<ShaderSource> {
                 UNIFORMS_WGSL,
                 COLOUR_WGSL,
                 OCT16_WGSL,
+                RANGE_SEARCH_WGSL,
                 RESOLVE_WGSL,
                 RESOLVE_PLANES_WGSL,
             ],
@@ -114,6 +117,7 @@ pub fn shaders(int64: bool) -> Vec<ShaderSource> {
                 UNIFORMS_WGSL,
                 COLOUR_WGSL,
                 OCT16_WGSL,
+                RANGE_SEARCH_WGSL,
                 RESOLVE_WGSL,
                 RESOLVE_KEYS_WGSL,
             ],
@@ -349,7 +353,7 @@ impl FiltersPasses {
                 pass.set_pipeline(resolve);
                 pass.set_bind_group(0, &fb, &[]);
                 pass.set_bind_group(2, &sb, &[]);
-                for (g, [points, attributes, normals, lit], _) in &arenas {
+                for (g, [points, attributes, normals, lit], radii) in &arenas {
                     if g.groups == 0 {
                         continue;
                     }
@@ -363,6 +367,7 @@ impl FiltersPasses {
                             (2, attributes.as_entire_binding()),
                             (3, normals.as_entire_binding()),
                             (4, lit.as_entire_binding()),
+                            (5, radii.as_entire_binding()),
                         ],
                     );
                     pass.set_bind_group(1, &ab, &[]);

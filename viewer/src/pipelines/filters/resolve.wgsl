@@ -1,7 +1,8 @@
 // A layer's texels from its depth and index planes or its 64-bit keys (resolve_planes.wgsl or
 // resolve_keys.wgsl gives `pixel_key`), once per arena: each pixel whose point lives in this
 // arena takes that point's colour, opacity (by its class), normal (turned to face the eye) and
-// share of the light. Marks the layer, and the pixel's fill tile, as holding one.
+// share of the light, and the reach of its sampling. Marks the layer, and the pixel's fill tile,
+// as holding one.
 @group(0) @binding(0) var<uniform> frame: Frame;
 @group(0) @binding(4) var<storage, read_write> texels: array<Texel>;
 @group(0) @binding(5) var<storage, read_write> counters: array<u32>;
@@ -13,7 +14,25 @@
 @group(1) @binding(3) var<storage, read> normals: array<u32>;
 // Per point: the light samples that reached it (shadow.wgsl).
 @group(1) @binding(4) var<storage, read> lit: array<f32>;
+// Per point: its stored radius (the Radius stream; zeros where the dataset has none).
+@group(1) @binding(5) var<storage, read> radii: array<f32>;
 @group(2) @binding(0) var<uniform> step: Step;
+
+// The widest hole, in pixels, the sampling around point `local` at linear depth `depth` can
+// leave: discs of the radius it is drawn with cover its surface (SPEC.md section 4), so no
+// empty disc between its samples is wider than two radii. A hole wider than that is one in the
+// data, or beyond the silhouette of a scan's scattered outline, and the fill leaves it open.
+// Without a stored radius no width is known (a leaf's spacing says nothing of the points it
+// holds): the paper's fill, as far as the iterations go.
+fn sampling_reach(local: u32, pos: vec3<f32>, depth: f32) -> u32 {
+    let stored = radii[local];
+    if stored <= 0.0 {
+        return MAX_REACH_PX;
+    }
+    let radius = drawn_radius(ranges[range_holding(local)], pos, stored);
+    let px = 2.0 * radius * frame.focal_px / max(depth, 1e-30);
+    return u32(clamp(floor(px), 0.0, f32(MAX_REACH_PX)));
+}
 
 fn point_opacity(a: u32) -> f32 {
     let c = attribute_class(a);
@@ -43,11 +62,13 @@ fn main(@builtin(global_invocation_id) id: vec3<u32>) {
     if fil.lit_scale > 0.0 {
         share = lit[local] * fil.lit_scale;
     }
-    var t = Texel(depth, pack4x8unorm(vec4<f32>(rgb, point_opacity(a))), 0u, with_lit(0u, share));
+    let pos = bitcast<vec3<f32>>(p.xyz);
+    let reach = sampling_reach(local, pos, bitcast<f32>(depth));
+    var t = Texel(depth, pack4x8unorm(vec4<f32>(rgb, point_opacity(a))), 0u, with_lit(with_reach(0u, reach), share));
     let w = normals[local];
     if fil.normals != 0u && w != 0u {
         var n = decode_oct16(w);
-        if dot(n, fil.eye.xyz - bitcast<vec3<f32>>(p.xyz)) < 0.0 {
+        if dot(n, fil.eye.xyz - pos) < 0.0 {
             n = -n;
         }
         t.z = encode_oct16(n);

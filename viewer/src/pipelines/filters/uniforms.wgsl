@@ -60,7 +60,8 @@ fn changed_slot(layer: u32, kind: u32, iteration: u32) -> u32 {
 
 // One pixel of a layer: x linear depth bits (0: background, as in the paper), y colour (RGBA8,
 // alpha the opacity), z the normal (oct16, world space, facing the eye), w: bit 0 set where z
-// holds one, bits 16 to 31 the share of the light that reaches the point (unorm16).
+// holds one, bits 1 to 5 the texel's reach (`texel_reach`), bit 6 set where the background
+// fill carried it there, bits 16 to 31 the share of the light that reaches the point (unorm16).
 alias Texel = vec4<u32>;
 
 // The fill's 16x16 tiles: per row, per column, and the flag of `tile` for a fill kind
@@ -98,6 +99,20 @@ fn list_base(list: u32) -> u32 {
 // it (the first layer's first fill iterations work only on those tiles and the ones beside).
 fn occupied_slot(tile: vec2<u32>) -> u32 {
     return 2u * MAX_ITERATIONS * tiles_x() * tiles_y() + tile.y * tiles_x() + tile.x;
+}
+
+// How many pixels further the background fill may still carry the texel: the widest hole its
+// point's sampling can leave (resolve.wgsl), less the pixels it was carried already.
+const MAX_REACH_PX: u32 = 31u;
+
+const CARRIED: u32 = 64u;
+
+fn texel_reach(t: Texel) -> u32 {
+    return (t.w >> 1u) & MAX_REACH_PX;
+}
+
+fn with_reach(w: u32, reach: u32) -> u32 {
+    return (w & ~(MAX_REACH_PX << 1u)) | (min(reach, MAX_REACH_PX) << 1u);
 }
 
 fn texel_lit(t: Texel) -> f32 {
