@@ -99,15 +99,7 @@ impl Renderer {
                 });
             }
         }
-        // In the order of their starts, so that a pass holding a point's index finds its range
-        // by a binary search (`range_holding`).
-        per_arena
-            .into_values()
-            .map(|mut d| {
-                d.ranges.sort_by_key(|r| r.start);
-                d
-            })
-            .collect()
+        per_arena.into_values().collect()
     }
 
     pub(super) fn draw(

@@ -28,8 +28,8 @@ struct Neighbours {
     depth: array<f32, 8>,
 }
 
-// Reads the neighbours' depths only (a quarter of their texels); the caller fetches the one
-// texel it copies.
+// Reads the neighbours' depths only (a quarter of their texels); the caller fetches the
+// texels it needs more of.
 fn neighbours(c: vec2<i32>) -> Neighbours {
     var n: Neighbours;
     n.background = 0u;
@@ -83,10 +83,11 @@ fn finish(id: vec2<u32>, i: u32, keep: Texel, fill: bool, source: i32, carried: 
 }
 
 // Section 3.2: a background pixel is filled unless it lies beyond the silhouette, or beside a
-// point whose sampling leaves no empty pixel (reach 0, `sampling_reach`): no gap of its
-// sampling can be there, as between the points scattered along a scan's outline, which the
-// masks take for a hole. Else it takes the texel of its nearest neighbour that may be carried
-// a pixel further (`texel_reach`), so that no hole wider than the sampling's closes.
+// point whose sampling leaves no empty pixel (reach 0, `sampling_reach`): but for the 1 % its
+// radius leaves open, no gap of its sampling can be there, as between the points scattered
+// along a scan's outline, which the masks take for a hole. Else it takes the texel of its
+// nearest neighbour that may be carried a pixel further (`texel_reach`): a texel travels no
+// farther than two radii from its point.
 @compute @workgroup_size(16, 16)
 fn background(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_id) local: vec3<u32>) {
     let listed = listed_tile(wg.xy);

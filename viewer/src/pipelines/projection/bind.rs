@@ -17,8 +17,11 @@ pub struct ArenaGroup {
 
 /// The range table of arena `arena` (a header row: start = arena, count = rows; then each range
 /// with the first workgroup of its points) and the workgroups of `group_size` all its points
-/// take.
+/// take. The rows are in the order of their starts, and so of their first workgroups: a pass
+/// finds a row by either with one binary search (range_search.wgsl).
 pub fn range_table(arena: u32, ranges: &[GpuRange], group_size: u32) -> (Vec<GpuRange>, u32) {
+    let mut sorted = ranges.to_vec();
+    sorted.sort_by_key(|r| r.start);
     let mut table = Vec::with_capacity(ranges.len() + 1);
     table.push(GpuRange {
         start: arena,
@@ -26,7 +29,7 @@ pub fn range_table(arena: u32, ranges: &[GpuRange], group_size: u32) -> (Vec<Gpu
         ..GpuRange::zeroed()
     });
     let mut groups = 0u32;
-    for r in ranges {
+    for r in &sorted {
         table.push(GpuRange {
             first_group: groups,
             ..*r

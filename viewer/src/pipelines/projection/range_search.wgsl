@@ -1,6 +1,6 @@
 // The last row of the module's `ranges` whose first group (or, `by_start`, whose start) is not
 // after `key` (row 0 is the header: start = arena, count = rows that follow; at least one).
-// The rows of an arena are in the order of both (`arena_draws`).
+// The rows of an arena are in the order of both (`range_table`).
 fn last_row_not_after(key: u32, by_start: bool) -> u32 {
     var lo = 1u;
     var hi = ranges[0].count;

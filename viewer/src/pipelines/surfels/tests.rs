@@ -69,12 +69,14 @@ fn range_tables_carry_the_lod_beside_each_range_and_count_groups() {
         centre: [1.0, 2.0, 3.0],
         children,
     };
+    // Given out of order: the rows come in the order of their starts (`range_holding`).
     let (table, groups) = range_table(
         3,
-        &[range(0, GROUP_SIZE + 1, 0b1000_0001), range(1000, 5, 0)],
+        &[range(1000, 5, 0), range(0, GROUP_SIZE + 1, 0b1000_0001)],
         GROUP_SIZE,
     );
     assert_eq!((table[0].start, table[0].count), (3, 2), "header");
+    assert_eq!((table[1].start, table[2].start), (0, 1000));
     assert_eq!(table[1].first_group, 0);
     assert_eq!(table[2].first_group, 2, "the first range takes two groups");
     assert_eq!(groups, 3);
