@@ -4,10 +4,9 @@
 //! holds it, so that it lies within the bounds any reader computes for its node. Where the
 //! dataset has one scale for x, y and z, Strata's integer cube is that cube and each Strata
 //! node is one COPC node; where the scales differ (conversions before one step per axis did so
-//! for PLY and E57 inputs), a
-//! COPC node takes the points of the Strata nodes of its level whose boxes meet it (at most
-//! two per axis). Keys without points above keyed ones are listed empty, as the hierarchy of a
-//! reader that walks it from the root needs.
+//! for PLY and E57 inputs), a COPC node takes the points of the Strata nodes of its level whose
+//! boxes meet it (at most two per axis). Keys without points above keyed ones are listed
+//! empty, as the hierarchy of a reader that walks it from the root needs.
 
 use std::collections::{BTreeMap, BTreeSet};
 use strata_format::{GRID_CELLS_LOG2, Metadata, NodeInfo};

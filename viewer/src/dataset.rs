@@ -246,21 +246,24 @@ impl StreamDataset {
     /// so that culling never drops a node that is in view.
     pub fn node_cube(&self, key: NodeKey) -> (Vec3, f32) {
         let m = &self.metadata;
-        let (min, edge) = key.int_bounds(m.cube.min, m.cube.bits);
-        let real = DVec3::from_array(std::array::from_fn(|i| {
-            m.offset[i] + m.scale[i] * min[i] as f64
-        }));
+        let (_, edge) = key.int_bounds(m.cube.min, m.cube.bits);
         let step = m.scale.iter().copied().fold(0.0, f64::max);
-        ((real - self.anchor).as_vec3(), (edge as f64 * step) as f32)
+        (self.node_point(key, 0.0), (edge as f64 * step) as f32)
     }
 
     /// A node's centre relative to the anchor: the middle of its box on each axis (of its
     /// cube, where every axis has the dataset's one step).
     pub fn node_centre(&self, key: NodeKey) -> Vec3 {
+        self.node_point(key, 0.5)
+    }
+
+    /// The point `along` the way from a node's minimum corner to its maximum one, per axis in
+    /// that axis's step, relative to the anchor.
+    fn node_point(&self, key: NodeKey, along: f64) -> Vec3 {
         let m = &self.metadata;
         let (min, edge) = key.int_bounds(m.cube.min, m.cube.bits);
         let real = DVec3::from_array(std::array::from_fn(|i| {
-            m.offset[i] + m.scale[i] * (min[i] as f64 + edge as f64 * 0.5)
+            m.offset[i] + m.scale[i] * (min[i] as f64 + edge as f64 * along)
         }));
         (real - self.anchor).as_vec3()
     }
