@@ -5,6 +5,8 @@
 //! 64-bit keys, or two: distance, then id), estimates a normal from the fan of those neighbours and rasterizes the
 //! fan, colours and normals summed and normalised, depth by minimum; each point's search radius
 //! is kept beside its arena and adapted from the distances at which neighbours took it.
+//! Where the dataset's normals tell a surface's sides apart, the search joins no two points on
+//! opposite sides (search.wgsl); it needs them nowhere else.
 //!
 //! Raster path: a compute rasterizer with fixed-point atomic sums (raster.wgsl), as the
 //! projection and the surfels are: the sums do not depend on the order triangles arrive in, and
@@ -16,7 +18,9 @@ mod targets;
 
 use super::params::{Auto, ParamSpec, ResolvedParams, Scale};
 use super::projection::FrameUniforms;
-use super::{AlbedoResult, Lighting, Pipeline, PipelineFrame, PipelineInfo, ViewFrame};
+use super::{
+    AlbedoResult, Lighting, Pipeline, PipelineFrame, PipelineInfo, PointStream, ViewFrame,
+};
 use crate::ViewerError;
 use crate::gpu::GpuContext;
 use crate::gpu::timing::Timer;
@@ -74,7 +78,7 @@ pub static INFO: PipelineInfo = PipelineInfo {
     paper: Some("002_d515157fc103e054.txt (Preiner, Wimmer 2012)"),
     lighting: Lighting::Headlight,
     params: &PARAMS,
-    streams: &[RADIUS_STREAM],
+    streams: &[RADIUS_STREAM, PointStream::Normals],
     passes: &[
         "reproject",
         "triangulate gather",

@@ -8,8 +8,8 @@ use super::targets::{COUNT_WORDS, TriangulateTargets};
 use crate::ViewerError;
 use crate::gpu::GpuContext;
 use crate::gpu::timing::Timer;
-use crate::pipelines::projection::{GpuRange, RANGE_SEARCH_WGSL, pixel_groups};
-use crate::pipelines::shader::ShaderSource;
+use crate::pipelines::projection::{GpuRange, OCT16_WGSL, RANGE_SEARCH_WGSL, pixel_groups};
+use crate::pipelines::shader::{ShaderSource, Variants};
 use crate::pipelines::{BOX_WALK_WGSL, LIGHTING_WGSL, PipelineFrame, PointStream};
 use bytemuck::{Pod, Zeroable};
 use wgpu::util::DeviceExt;
@@ -40,8 +40,8 @@ pub const RADIUS_STREAM: PointStream = PointStream::Kept {
     bytes: 8,
 };
 
-/// Storage buffers the rasterization binds in one stage.
-const STORAGE_BUFFERS: u32 = 7;
+/// Storage buffers the gather binds in one stage (the most of its passes).
+const STORAGE_BUFFERS: u32 = 10;
 
 /// The triangulation's uniforms, laid out as `Triangulate` in uniforms.wgsl.
 #[repr(C)]
@@ -72,11 +72,6 @@ pub fn shaders(int64: bool) -> Vec<ShaderSource> {
 /// the sector search takes one pass instead of two, whose keys the fans read in place;
 /// `sums64`: it adds 64-bit atomics too, and the blend sums are two of them a fragment.
 pub fn shaders_for(int64: bool, sums64: bool) -> Vec<ShaderSource> {
-    let own = |label, parts: &[&'static str]| {
-        let mut all = vec![UNIFORMS_WGSL, COUNTS_WGSL];
-        all.extend_from_slice(parts);
-        ShaderSource::new(label, &all)
-    };
     // Words per sector of what the fans read: the ids, or the 64-bit keys.
     let neighbour_stride = if int64 { 2.0 } else { 1.0 };
     let (raster_sums, shade_sums) = if sums64 {
@@ -86,18 +81,6 @@ pub fn shaders_for(int64: bool, sums64: bool) -> Vec<ShaderSource> {
     };
     let mut v = vec![
         own("triangulate reproject", &[REPROJECT_WGSL, RAYS_WGSL]),
-        own(
-            "triangulate gather",
-            &[GATHER_WGSL, RAYS_WGSL, RANGE_SEARCH_WGSL],
-        ),
-        own(
-            "triangulate search distances",
-            &[SEARCH_DISTANCES_WGSL, RAYS_WGSL, SEARCH_WGSL],
-        ),
-        own(
-            "triangulate search ids",
-            &[SEARCH_IDS_WGSL, RAYS_WGSL, SEARCH_WGSL],
-        ),
         own("triangulate normals", &[NORMALS_WGSL, FAN_WGSL])
             .with_constant("NEIGHBOUR_STRIDE", neighbour_stride),
         own(
@@ -112,13 +95,64 @@ pub fn shaders_for(int64: bool, sums64: bool) -> Vec<ShaderSource> {
         own("triangulate shade", &[LIGHTING_WGSL, SHADE_WGSL, shade_sums]),
         own("triangulate holes", &[HOLES_WGSL]),
     ];
+    let [gather, distances, ids, search64] = sided_shaders(false);
+    v.extend([gather, distances, ids]);
     if int64 {
-        v.push(own(
-            "triangulate search",
-            &[SEARCH_INT64_WGSL, RAYS_WGSL, SEARCH_WGSL],
-        ));
+        v.push(search64);
     }
     v
+}
+
+/// A triangulation module of `parts` after the uniforms and counters.
+fn own(label: &'static str, parts: &[&'static str]) -> ShaderSource {
+    let mut all = vec![UNIFORMS_WGSL, COUNTS_WGSL];
+    all.extend_from_slice(parts);
+    ShaderSource::new(label, &all)
+}
+
+/// The gather, the two searches and the 64-bit one (which only a device with 64-bit atomics
+/// compiles), telling a surface's sides apart by the normals (`SIDES`) or not.
+fn sided_shaders(sides: bool) -> [ShaderSource; 4] {
+    [
+        own(
+            "triangulate gather",
+            &[GATHER_WGSL, RAYS_WGSL, RANGE_SEARCH_WGSL, OCT16_WGSL],
+        ),
+        own(
+            "triangulate search distances",
+            &[SEARCH_DISTANCES_WGSL, RAYS_WGSL, SEARCH_WGSL],
+        ),
+        own(
+            "triangulate search ids",
+            &[SEARCH_IDS_WGSL, RAYS_WGSL, SEARCH_WGSL],
+        ),
+        own(
+            "triangulate search",
+            &[SEARCH_INT64_WGSL, RAYS_WGSL, SEARCH_WGSL],
+        ),
+    ]
+    .map(|s| s.with_constant("SIDES", sides as u32 as f64))
+}
+
+/// The passes compiled per `SIDES`: the gather and the searches.
+struct SidedPasses {
+    gather: wgpu::ComputePipeline,
+    distances: wgpu::ComputePipeline,
+    ids: wgpu::ComputePipeline,
+    /// The one-pass 64-bit search, where the device has 64-bit atomics.
+    search64: Option<wgpu::ComputePipeline>,
+}
+
+impl SidedPasses {
+    fn new(device: &wgpu::Device, int64: bool, sides: bool) -> SidedPasses {
+        let [gather, distances, ids, search64] = sided_shaders(sides);
+        SidedPasses {
+            gather: gather.compute(device, None),
+            distances: distances.compute(device, None),
+            ids: ids.compute(device, None),
+            search64: int64.then(|| search64.compute(device, None)),
+        }
+    }
 }
 
 /// An arena's drawn ranges for the projection's `range_of` (range_search.wgsl), searched by a
@@ -144,16 +178,15 @@ type ArenaGroups<'a> = dyn Fn(&wgpu::ComputePipeline) -> Vec<wgpu::BindGroup> + 
 
 pub struct TriangulatePasses {
     reproject: wgpu::ComputePipeline,
-    gather: wgpu::ComputePipeline,
-    distances: wgpu::ComputePipeline,
-    ids: wgpu::ComputePipeline,
+    /// The gather and the searches, per whether they tell a surface's sides apart.
+    sided: Variants<bool, SidedPasses>,
+    /// The device has 64-bit atomics (the sided passes then include the one-pass search).
+    int64: bool,
     normals: wgpu::ComputePipeline,
     raster: wgpu::ComputePipeline,
     radii: wgpu::ComputePipeline,
     shade: wgpu::ComputePipeline,
     holes: wgpu::ComputePipeline,
-    /// The one-pass 64-bit search, where the device has 64-bit atomics.
-    search64: Option<wgpu::ComputePipeline>,
 }
 
 impl TriangulatePasses {
@@ -170,26 +203,30 @@ impl TriangulatePasses {
                 .remove(label)
                 .ok_or_else(|| ViewerError::Gpu(format!("no triangulation shader {label}")))
         };
-        Ok(TriangulatePasses {
-            reproject: take("triangulate reproject")?,
+        let plain = SidedPasses {
             gather: take("triangulate gather")?,
             distances: take("triangulate search distances")?,
             ids: take("triangulate search ids")?,
-            normals: take("triangulate normals")?,
-            raster: take("triangulate raster")?,
-            radii: take("triangulate radii")?,
-            shade: take("triangulate shade")?,
-            holes: take("triangulate holes")?,
             search64: if int64 {
                 Some(take("triangulate search")?)
             } else {
                 None
             },
+        };
+        Ok(TriangulatePasses {
+            reproject: take("triangulate reproject")?,
+            sided: Variants::new(false, plain),
+            int64,
+            normals: take("triangulate normals")?,
+            raster: take("triangulate raster")?,
+            radii: take("triangulate radii")?,
+            shade: take("triangulate shade")?,
+            holes: take("triangulate holes")?,
         })
     }
 
     pub fn encode(
-        &self,
+        &mut self,
         frame: &PipelineFrame,
         encoder: &mut wgpu::CommandEncoder,
         t: &mut TriangulateTargets,
@@ -198,6 +235,10 @@ impl TriangulatePasses {
     ) -> Result<(), ViewerError> {
         let device = &frame.ctx.device;
         let screen = frame.screen;
+        let int64 = self.int64;
+        let sided = self.sided.get(frame.normals_mark_back_faces, |sides| {
+            SidedPasses::new(device, int64, sides)
+        });
         frame
             .ctx
             .queue
@@ -218,17 +259,19 @@ impl TriangulatePasses {
             encoder.clear_buffer(b, 0, None);
         }
         let (gx, gy) = pixel_groups(screen.width, screen.height);
-        // The arenas drawn from, each with its drawn ranges sorted by start (for `range_of`) and its
-        // kept radii.
+        // The arenas drawn from, each with its drawn ranges sorted by start (for `range_of`), its
+        // kept radii and its normals.
         let mut arenas = Vec::with_capacity(frame.arenas.len());
         for d in frame.arenas {
-            let (a, [kept]) = frame.cache.arena_streams(d.arena, [RADIUS_STREAM])?;
+            let (a, [kept, normals]) = frame
+                .cache
+                .arena_streams(d.arena, [RADIUS_STREAM, PointStream::Normals])?;
             let header = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
                 label: Some("triangulation spans"),
                 contents: bytemuck::cast_slice(&span_table(d.arena, &d.ranges)),
                 usage: wgpu::BufferUsages::STORAGE,
             });
-            arenas.push((a, header, kept));
+            arenas.push((a, header, kept, normals));
         }
         let mut pass = |name: &str,
                         pipe: &wgpu::ComputePipeline,
@@ -301,12 +344,14 @@ impl TriangulatePasses {
         let gather_groups = |pipe: &wgpu::ComputePipeline| {
             arenas
                 .iter()
-                .map(|(a, header, kept)| arena_group(pipe, &[&a.points, header, kept]))
+                .map(|(a, header, kept, normals)| {
+                    arena_group(pipe, &[&a.points, header, kept, normals])
+                })
                 .collect()
         };
         pass(
             "triangulate gather",
-            &self.gather,
+            &sided.gather,
             &[
                 &t.uniforms,
                 &screen.depths,
@@ -314,17 +359,18 @@ impl TriangulatePasses {
                 &t.reprojected,
                 &t.points,
                 &t.counts,
+                &t.point_normals,
             ],
             Some(&gather_groups),
             None,
         );
         // The sector neighbours the fans read: the 64-bit keys in place, or the ids.
-        let neighbours = match (&self.search64, &t.keys) {
+        let neighbours = match (&sided.search64, &t.keys) {
             (Some(search), Some(keys)) => {
                 pass(
                     "search",
                     search,
-                    &[&t.uniforms, &t.points, keys],
+                    &[&t.uniforms, &t.points, keys, &t.point_normals],
                     None,
                     None,
                 );
@@ -333,15 +379,21 @@ impl TriangulatePasses {
             _ => {
                 pass(
                     "search distances",
-                    &self.distances,
-                    &[&t.uniforms, &t.points, &t.distances],
+                    &sided.distances,
+                    &[&t.uniforms, &t.points, &t.distances, &t.point_normals],
                     None,
                     None,
                 );
                 pass(
                     "search ids",
-                    &self.ids,
-                    &[&t.uniforms, &t.points, &t.distances, &t.neighbours],
+                    &sided.ids,
+                    &[
+                        &t.uniforms,
+                        &t.points,
+                        &t.distances,
+                        &t.neighbours,
+                        &t.point_normals,
+                    ],
                     None,
                     None,
                 );
@@ -374,7 +426,7 @@ impl TriangulatePasses {
         let radii_groups = |pipe: &wgpu::ComputePipeline| {
             arenas
                 .iter()
-                .map(|(_, header, kept)| arena_group(pipe, &[header, kept]))
+                .map(|(_, header, kept, _)| arena_group(pipe, &[header, kept]))
                 .collect()
         };
         pass(

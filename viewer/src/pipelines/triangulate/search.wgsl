@@ -2,7 +2,11 @@
 // projected to the screen (at most `max_search_px` either side), and for each point Q there that lies within that radius in world
 // space, offers itself as Q's neighbour in the sector of Q in which P lies. The variant
 // appended before this file defines `visit`: the distance pass keeps the least distance per
-// sector, the id pass registers the point at that distance.
+// sector, the id pass registers the point at that distance. Beyond the paper, where the normals
+// tell a surface's sides apart (SIDES; `point_normals`, kept by the gather), two points on
+// opposite sides are not neighbours: a sheet thinner than the point spacing, sampled on both
+// faces, keeps both faces' points at one pixel each, and fans across them zigzag between the
+// faces.
 
 @compute @workgroup_size(16, 16)
 fn main(@builtin(global_invocation_id) id: vec3<u32>) {
@@ -25,6 +29,11 @@ fn main(@builtin(global_invocation_id) id: vec3<u32>) {
     let behind = z <= me.w || sx.x > sx.y || sy.x > sy.y;
     let lo = vec2<f32>((sx.x / tan_x * 0.5 + 0.5) * f32(frame.width), (0.5 - sy.y / tan_y * 0.5) * f32(frame.height));
     let hi = vec2<f32>((sx.y / tan_x * 0.5 + 0.5) * f32(frame.width), (0.5 - sy.x / tan_y * 0.5) * f32(frame.height));
+    var mine = 0u;
+    if SIDES {
+        mine = point_normals[p];
+    }
+    let my_normal = unpack4x8snorm(mine).xyz;
     let most = i32(tri.max_search_px);
     var x0 = -most;
     var x1 = most;
@@ -52,13 +61,23 @@ fn main(@builtin(global_invocation_id) id: vec3<u32>) {
                 continue;
             }
             let dist = distance(me.xyz, other.xyz);
-            if dist > me.w {
+            if dist > me.w || (SIDES && mine != 0u && !same_side(my_normal, point_normals[q])) {
                 continue;
             }
             // P lies at (-dx, -dy) from Q.
             visit(q * SECTORS + sector_of(f32(-dx), f32(-dy)), bitcast<u32>(dist), p);
         }
     }
+}
+
+// Normals more than 120 degrees apart lie on a surface's two sides (a sheet's faces lie 180
+// apart); a normal leaning 45 to 55 degrees off its face near an edge (cull.wgsl) stays within.
+const OPPOSITE_SIDES: f32 = -0.5;
+
+// Whether a point with normal `my_normal` and one with the word `theirs` (gather.wgsl) may
+// connect: on the same side, or the other without a normal (0).
+fn same_side(my_normal: vec3<f32>, theirs: u32) -> bool {
+    return theirs == 0u || dot(my_normal, unpack4x8snorm(theirs).xyz) >= OPPOSITE_SIDES;
 }
 
 // The tangents through the eye of a sphere of radius r whose centre lies `a` off the axis at

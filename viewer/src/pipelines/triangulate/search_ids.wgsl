@@ -5,6 +5,7 @@
 @group(0) @binding(2) var<storage, read> pts: array<vec4<f32>>;
 @group(0) @binding(3) var<storage, read> nearest: array<u32>;
 @group(0) @binding(4) var<storage, read_write> neighbours: array<atomic<u32>>;
+@group(0) @binding(5) var<storage, read> point_normals: array<u32>;
 
 // Distances within this many ulps of the least count as it: the two passes are separate
 // modules, and a driver may round the same expression differently in each.

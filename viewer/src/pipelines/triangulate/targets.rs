@@ -19,9 +19,10 @@ pub const SUM64_BYTES: u64 = 16;
 pub const COUNT_WORDS: u64 = 4;
 
 /// The per-pixel buffers of one screen size, by label and bytes per pixel.
-const PLANES: [(&str, u64); 10] = [
+const PLANES: [(&str, u64); 11] = [
     ("reprojected depth", 4),
     ("triangulation points", 16),
+    ("triangulation point normals", 4),
     ("sector distances", 4 * SECTORS),
     ("sector neighbours", 4 * SECTORS),
     ("triangulation normals", 16),
@@ -40,6 +41,8 @@ pub struct TriangulateTargets {
     pub reprojected: wgpu::Buffer,
     /// Per pixel: the kept point's position and search radius (w 0: none).
     pub points: wgpu::Buffer,
+    /// Per pixel: the kept point's normal where the normals tell the sides apart (four snorm8).
+    pub point_normals: wgpu::Buffer,
     /// Per pixel and sector: the complement of the least distance's bits.
     pub distances: wgpu::Buffer,
     /// Per pixel and sector: the complement of (distance, pixel id) of the nearest, where the
@@ -139,29 +142,30 @@ impl TriangulateTargets {
             }),
             reprojected: plane(0),
             points: plane(1),
+            point_normals: plane(2),
             // The 64-bit search needs no distance plane.
             distances: if int64 {
-                plane_buffer(device, PLANES[2].0, 16)
-            } else {
-                plane(2)
-            },
-            keys: int64.then(|| plane_buffer(device, "64-bit sector keys", pixels * 8 * SECTORS)),
-            // The 64-bit search's keys are read in place of the ids.
-            neighbours: if int64 {
                 plane_buffer(device, PLANES[3].0, 16)
             } else {
                 plane(3)
             },
-            normals: plane(4),
-            feedback: plane(5),
-            sums: if sums64 {
-                plane_buffer(device, PLANES[6].0, pixels * SUM64_BYTES)
+            keys: int64.then(|| plane_buffer(device, "64-bit sector keys", pixels * 8 * SECTORS)),
+            // The 64-bit search's keys are read in place of the ids.
+            neighbours: if int64 {
+                plane_buffer(device, PLANES[4].0, 16)
             } else {
-                plane(6)
+                plane(4)
             },
-            front: plane(7),
-            reconstructed: plane(8),
-            surface: plane(9),
+            normals: plane(5),
+            feedback: plane(6),
+            sums: if sums64 {
+                plane_buffer(device, PLANES[7].0, pixels * SUM64_BYTES)
+            } else {
+                plane(7)
+            },
+            front: plane(8),
+            reconstructed: plane(9),
+            surface: plane(10),
             albedo: plane_buffer(device, "triangulation albedo", pixels * 4),
             counts: plane_buffer(device, "triangulation counts", COUNT_WORDS * 4),
             counts_readback: AsyncReadback::new(

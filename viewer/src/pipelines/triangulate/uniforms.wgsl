@@ -22,6 +22,11 @@ struct Triangulate {
     max_search_px: u32,
 }
 
+// The dataset's normals tell a surface's two sides apart (`normals_mark_back_faces`): the
+// gather keeps each pixel's normal and the search joins no two points on opposite sides. An
+// override, so that the passes without it hold none of its code (`ShaderSource::constants`).
+override SIDES: bool = false;
+
 // Sectors around a point (Figure 3), in circular order.
 const SECTORS: u32 = 8u;
 // The blend sums of colour and normal over a pixel's fragments (raster_sums*.wgsl adds, and
