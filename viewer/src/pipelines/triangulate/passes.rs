@@ -40,8 +40,9 @@ pub const RADIUS_STREAM: PointStream = PointStream::Kept {
     bytes: 8,
 };
 
-/// Storage buffers the gather binds in one stage (the most of its passes).
-const STORAGE_BUFFERS: u32 = 10;
+/// Storage buffers the gather binds in one stage (the most of its passes). Its variant without
+/// `SIDES` binds the normals too: the bind groups are the same for both.
+pub(super) const STORAGE_BUFFERS: u32 = 10;
 
 /// The triangulation's uniforms, laid out as `Triangulate` in uniforms.wgsl.
 #[repr(C)]
@@ -112,7 +113,7 @@ fn own(label: &'static str, parts: &[&'static str]) -> ShaderSource {
 
 /// The gather, the two searches and the 64-bit one (which only a device with 64-bit atomics
 /// compiles), telling a surface's sides apart by the normals (`SIDES`) or not.
-fn sided_shaders(sides: bool) -> [ShaderSource; 4] {
+pub(super) fn sided_shaders(sides: bool) -> [ShaderSource; 4] {
     [
         own(
             "triangulate gather",

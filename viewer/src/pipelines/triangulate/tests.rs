@@ -1,12 +1,15 @@
 //! The triangulation's Rust structs and constants against its WGSL, its counters' reading, and
 //! the warm-up a still waits for.
 
-use super::passes::{RADIUS_STREAM, TriangulateUniforms, shaders_for};
+use super::passes::{
+    RADIUS_STREAM, STORAGE_BUFFERS, TriangulateUniforms, shaders_for, sided_shaders,
+};
 use super::targets::{COUNT_WORDS, Counts, SECTORS, SUM_WORDS, SUM64_BYTES, counts_from};
 use super::{INFO, uniforms};
 use crate::pipelines::params::{ParamValues, ResolvedParams};
 use crate::pipelines::shader_tests::{
-    module_named, parse, parse_and_validate_with, rust_layout, wgsl_const, wgsl_layout,
+    module_named, most_storage_buffers, parse, parse_and_validate, parse_and_validate_with,
+    rust_layout, wgsl_const, wgsl_layout,
 };
 use naga::valid::{Capabilities, ValidationFlags, Validator};
 use crate::pipelines::{PointStream, ViewFrame};
@@ -170,4 +173,23 @@ fn span_tables_sort_the_ranges_by_start_after_the_header() {
     assert_eq!(table[3].spacing, 0.5, "each range keeps its spacing");
     // range_of searches first_group: each row's is its start.
     assert!(table[1..].iter().all(|r| r.first_group == r.start));
+}
+
+/// The check of the adapter's storage buffers before compiling counts the largest pass.
+#[test]
+fn the_storage_buffer_check_counts_the_largest_pass() {
+    assert_eq!(
+        most_storage_buffers(&shaders_for(true, true)),
+        Some(STORAGE_BUFFERS)
+    );
+}
+
+/// The gather and the searches compile telling the sides apart (the registry's list holds
+/// them without): SIDES is an override of each, and each is given it.
+#[test]
+fn the_sided_modules_take_sides() {
+    for s in sided_shaders(true) {
+        parse_and_validate(&s);
+        assert_eq!(s.constants, [("SIDES", 1.0)], "{}", s.label);
+    }
 }
