@@ -111,10 +111,11 @@ fn background(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_id
     for (var k = 0; k < 8; k++) {
         let d = n.depth[k];
         if d != 0.0 {
+            // Its flags word alone, as `neighbours` reads the depth alone.
             let q = vec2<i32>(id.xy) + OFFSETS[k];
-            let u = src[u32(q.y) * frame.width + u32(q.x)];
-            let reach = texel_reach(u);
-            dense = dense || (reach == 0u && (u.w & CARRIED) == 0u);
+            let w = src[u32(q.y) * frame.width + u32(q.x)].w;
+            let reach = reach_of(w);
+            dense = dense || (reach == 0u && (w & CARRIED) == 0u);
             if reach > 0u && (nearest < 0 || d < n.depth[nearest]) {
                 nearest = k;
             }

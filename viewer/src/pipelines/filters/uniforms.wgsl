@@ -108,7 +108,12 @@ const MAX_REACH_PX: u32 = 31u;
 const CARRIED: u32 = 64u;
 
 fn texel_reach(t: Texel) -> u32 {
-    return (t.w >> 1u) & MAX_REACH_PX;
+    return reach_of(t.w);
+}
+
+// The reach in a texel's flags word (its w).
+fn reach_of(w: u32) -> u32 {
+    return (w >> 1u) & MAX_REACH_PX;
 }
 
 fn with_reach(w: u32, reach: u32) -> u32 {

@@ -36,7 +36,7 @@ fn main(@builtin(global_invocation_id) id: vec3<u32>) {
     let local = g & ((1u << frame.arena_shift) - 1u);
     let pos = bitcast<vec3<f32>>(points[local].xyz);
     let depth = bitcast<f32>(depths[p]);
-    let limit = connection_limit(depth, ranges[range_of(local)].spacing);
+    let limit = connection_limit(depth, ranges[range_holding(local)].spacing);
     let front = reprojected_at(id.xy);
     if front != 0u && depth > bitcast<f32>(~front) + limit {
         atomicAdd(&counts[COUNT_CULLED], 1u);

@@ -8,11 +8,12 @@ use super::targets::{COUNT_WORDS, TriangulateTargets};
 use crate::ViewerError;
 use crate::gpu::GpuContext;
 use crate::gpu::timing::Timer;
-use crate::pipelines::projection::{GpuRange, OCT16_WGSL, RANGE_SEARCH_WGSL, pixel_groups};
+use crate::pipelines::projection::{
+    ArenaGroup, GROUP_SIZE, OCT16_WGSL, RANGE_SEARCH_WGSL, pixel_groups,
+};
 use crate::pipelines::shader::{ShaderSource, Variants};
 use crate::pipelines::{BOX_WALK_WGSL, LIGHTING_WGSL, PipelineFrame, PointStream};
 use bytemuck::{Pod, Zeroable};
-use wgpu::util::DeviceExt;
 
 pub(super) const UNIFORMS_WGSL: &str = include_str!("uniforms.wgsl");
 const COUNTS_WGSL: &str = include_str!("counts.wgsl");
@@ -156,24 +157,6 @@ impl SidedPasses {
     }
 }
 
-/// An arena's drawn ranges for the projection's `range_of` (range_search.wgsl), searched by a
-/// point's index instead of its workgroup: a header row (start = arena, count = rows), then the
-/// ranges sorted by start, each with `first_group` set to its start.
-pub fn span_table(arena: u32, ranges: &[GpuRange]) -> Vec<GpuRange> {
-    let mut table = Vec::with_capacity(ranges.len() + 1);
-    table.push(GpuRange {
-        start: arena,
-        count: ranges.len() as u32,
-        ..GpuRange::zeroed()
-    });
-    table.extend(ranges.iter().map(|r| GpuRange {
-        first_group: r.start,
-        ..*r
-    }));
-    table[1..].sort_by_key(|r| r.start);
-    table
-}
-
 /// Makes a per-arena pass's group 1 for each arena drawn from, for its pipeline.
 type ArenaGroups<'a> = dyn Fn(&wgpu::ComputePipeline) -> Vec<wgpu::BindGroup> + 'a;
 
@@ -260,19 +243,15 @@ impl TriangulatePasses {
             encoder.clear_buffer(b, 0, None);
         }
         let (gx, gy) = pixel_groups(screen.width, screen.height);
-        // The arenas drawn from, each with its drawn ranges sorted by start (for `range_of`), its
-        // kept radii and its normals.
+        // The arenas drawn from, each with its range table (a point's range by `range_holding`),
+        // its kept radii and its normals.
         let mut arenas = Vec::with_capacity(frame.arenas.len());
         for d in frame.arenas {
             let (a, [kept, normals]) = frame
                 .cache
                 .arena_streams(d.arena, [RADIUS_STREAM, PointStream::Normals])?;
-            let header = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
-                label: Some("triangulation spans"),
-                contents: bytemuck::cast_slice(&span_table(d.arena, &d.ranges)),
-                usage: wgpu::BufferUsages::STORAGE,
-            });
-            arenas.push((a, header, kept, normals));
+            let table = ArenaGroup::new(device, d, GROUP_SIZE).ranges;
+            arenas.push((a, table, kept, normals));
         }
         let mut pass = |name: &str,
                         pipe: &wgpu::ComputePipeline,
@@ -345,8 +324,8 @@ impl TriangulatePasses {
         let gather_groups = |pipe: &wgpu::ComputePipeline| {
             arenas
                 .iter()
-                .map(|(a, header, kept, normals)| {
-                    arena_group(pipe, &[&a.points, header, kept, normals])
+                .map(|(a, table, kept, normals)| {
+                    arena_group(pipe, &[&a.points, table, kept, normals])
                 })
                 .collect()
         };
@@ -427,7 +406,7 @@ impl TriangulatePasses {
         let radii_groups = |pipe: &wgpu::ComputePipeline| {
             arenas
                 .iter()
-                .map(|(_, header, kept, _)| arena_group(pipe, &[header, kept]))
+                .map(|(_, table, kept, _)| arena_group(pipe, &[table, kept]))
                 .collect()
         };
         pass(

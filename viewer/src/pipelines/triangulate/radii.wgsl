@@ -36,7 +36,7 @@ fn main(@builtin(global_invocation_id) id: vec3<u32>) {
     let local = g & ((1u << frame.arena_shift) - 1u);
     let f = bitcast<f32>(feedback[p]);
     let last = kept[local].y;
-    let limit = connection_limit(linear_depth(me.xyz), ranges[range_of(local)].spacing);
+    let limit = connection_limit(linear_depth(me.xyz), ranges[range_holding(local)].spacing);
     var next = min(me.w * GROWTH, limit);
     if f > 0.0 && f <= last && me.w >= THRESHOLD * f {
         next = min(f * SLACK, limit);

@@ -157,24 +157,6 @@ fn a_still_waits_the_warmup_and_the_first_frame_reprojects_nothing() {
     assert_eq!(next.eye[0], 0.0);
 }
 
-#[test]
-fn span_tables_sort_the_ranges_by_start_after_the_header() {
-    use crate::pipelines::projection::GpuRange;
-    let range = |start, spacing| GpuRange {
-        start,
-        count: 10,
-        spacing,
-        ..bytemuck::Zeroable::zeroed()
-    };
-    let table = super::passes::span_table(2, &[range(500, 0.5), range(0, 2.0), range(20, 1.0)]);
-    assert_eq!((table[0].start, table[0].count), (2, 3), "header");
-    let starts: Vec<u32> = table[1..].iter().map(|r| r.start).collect();
-    assert_eq!(starts, vec![0, 20, 500]);
-    assert_eq!(table[3].spacing, 0.5, "each range keeps its spacing");
-    // range_of searches first_group: each row's is its start.
-    assert!(table[1..].iter().all(|r| r.first_group == r.start));
-}
-
 /// The check of the adapter's storage buffers before compiling counts the largest pass.
 #[test]
 fn the_storage_buffer_check_counts_the_largest_pass() {
