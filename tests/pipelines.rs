@@ -58,7 +58,12 @@ fn pipelines_lists_every_pipeline_with_its_parameters() {
     };
     assert_eq!(
         names_of(triangulate),
-        ["max_connection", "max_search_px", "warmup"]
+        [
+            "max_connection",
+            "max_search_px",
+            "stored_normals",
+            "warmup"
+        ]
     );
     assert_eq!(triangulate["params"][0]["default"], "auto");
     let filters = &list[4];

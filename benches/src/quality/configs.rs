@@ -1,6 +1,7 @@
 //! The pipeline configurations the quality harness compares: every registered pipeline at its
 //! defaults with one- and two-pixel points, the automatic parameters' sweeps, and the variants
-//! made for one scene (the filters' transparency, and the filters' and the pyramid's shadows).
+//! made for one scene (the filters' transparency, and the filters' and the pyramid's shadows)
+//! or for a method's own choice (the surfels' modes, the triangulation's fan normals).
 
 use strata_viewer::pipelines::{PipelineInfo, REGISTRY};
 
@@ -70,7 +71,8 @@ type Variant = (
 /// modes against their hybrid default (paper 001's Table 2), and hybrid with the paper's
 /// c-surfels, each bent alike rather than by its curvature; the filters' transparency, six
 /// layers at half opacity (paper 004's Figure 17); the point shadows (paper 004, section 6) in
-/// the filters and carried through the pyramid's pull-push.
+/// the filters and carried through the pyramid's pull-push; the triangulation shaded with its
+/// fans' normals (paper 002's) where its default takes the dataset's.
 const VARIANTS: &[Variant] = &[
     (
         "pyramid",
@@ -86,6 +88,12 @@ const VARIANTS: &[Variant] = &[
     ("surfels", &[("mode", 0.0)], 1.0, "mode=planar"),
     ("surfels", &[("mode", 1.0)], 1.0, "mode=curved"),
     ("surfels", &[("curvature", 0.0)], 1.0, "curvature=0"),
+    (
+        "triangulate",
+        &[("stored_normals", 0.0)],
+        1.0,
+        "stored_normals=0",
+    ),
     (
         "filters",
         &[("layers", 6.0), ("opacity", 0.5)],

@@ -2,7 +2,7 @@
 // behind the reprojected surface by more than its longest connection (the culling of the
 // point projection, section 3.2), with its position and its search radius (the kept stream,
 // or half its longest connection for a point that has none yet), and its normal where the
-// normals tell a surface's sides apart.
+// normals tell a surface's sides apart or shade it.
 @group(0) @binding(0) var<uniform> frame: Frame;
 @group(0) @binding(1) var<uniform> tri: Triangulate;
 @group(0) @binding(2) var<storage, read> depths: array<u32>;
@@ -11,8 +11,8 @@
 // Per pixel: the point's position (relative to the anchor) and search radius; w 0: none.
 @group(0) @binding(5) var<storage, read_write> pts: array<vec4<f32>>;
 @group(0) @binding(6) var<storage, read_write> counts: array<atomic<u32>>;
-// Per pixel, where SIDES: the point's normal as four snorm8 (x, y, z, 1), for the search to
-// compare without decoding; 0: none.
+// Per pixel, where SIDES or `stored_normals`: the point's normal as four snorm8 (x, y, z, 1),
+// for the search to compare without decoding; 0: none.
 @group(0) @binding(7) var<storage, read_write> point_normals: array<u32>;
 @group(1) @binding(0) var<storage, read> points: array<vec4<u32>>;
 @group(1) @binding(1) var<storage, read> ranges: array<Range>;
@@ -48,7 +48,7 @@ fn main(@builtin(global_invocation_id) id: vec3<u32>) {
         radius = 0.5 * limit;
     }
     pts[p] = vec4<f32>(pos, radius);
-    if SIDES {
+    if SIDES || tri.stored_normals != 0u {
         let w = normals[local];
         point_normals[p] = select(0u, pack4x8snorm(vec4<f32>(decode_oct16(w), 1.0)), w != 0u);
     }

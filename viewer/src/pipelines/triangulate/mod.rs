@@ -5,8 +5,9 @@
 //! 64-bit keys, or two: distance, then id), estimates a normal from the fan of those neighbours and rasterizes the
 //! fan, colours and normals summed and normalised, depth by minimum; each point's search radius
 //! is kept beside its arena and adapted from the distances at which neighbours took it.
-//! Where the dataset's normals tell a surface's sides apart, the search joins no two points on
-//! opposite sides (search.wgsl); it needs them nowhere else.
+//! Where the dataset has normals, they shade in place of the fans' (`stored_normals`); where
+//! they tell a surface's sides apart, the search joins no two points on opposite sides
+//! (search.wgsl).
 //!
 //! Raster path: a compute rasterizer with fixed-point atomic sums (raster.wgsl), as the
 //! projection and the surfels are: the sums do not depend on the order triangles arrive in, and
@@ -41,7 +42,7 @@ pub const CONNECTION_SPACINGS: u32 = 4;
 /// node, points lie at least a spacing apart and a sector's nearest within two.
 pub const NODE_SPACINGS: f32 = 2.0;
 
-static PARAMS: [ParamSpec; 3] = [
+static PARAMS: [ParamSpec; 4] = [
     ParamSpec {
         name: "max_connection",
         help: "the largest search radius, in dataset units; never under three pixels at the point (auto: four median node spacings, and two of the point's own node)",
@@ -59,6 +60,15 @@ static PARAMS: [ParamSpec; 3] = [
         // A triangle spans at most two splats: 2 x 47 + 2 = MAX_TRIANGLE_PX (uniforms.wgsl).
         max: 47.0,
         scale: Scale::Integer,
+        auto: None,
+    },
+    ParamSpec {
+        name: "stored_normals",
+        help: "shade with the dataset's normals where it has them (off: with the normals of each point's fan, the paper's, as for a dataset without)",
+        default: 1.0,
+        min: 0.0,
+        max: 1.0,
+        scale: Scale::Toggle,
         auto: None,
     },
     ParamSpec {
@@ -145,11 +155,13 @@ fn measures(counts: Option<Counts>) -> BTreeMap<&'static str, f32> {
         .unwrap_or_default()
 }
 
-/// The uniforms of one frame; `previous`: the view of the frame whose depth is kept.
+/// The uniforms of one frame; `previous`: the view of the frame whose depth is kept;
+/// `has_normals`: the dataset stores normals.
 pub fn uniforms(
     view: &ViewFrame,
     previous: Option<&ViewFrame>,
     params: &ResolvedParams,
+    has_normals: bool,
 ) -> TriangulateUniforms {
     let rays = view.pixel_rays();
     let prev = previous.map(ViewFrame::pixel_rays).unwrap_or(rays);
@@ -171,6 +183,10 @@ pub fn uniforms(
         },
         previous: previous.is_some() as u32,
         max_search_px: value(params, "max_search_px") as u32,
+        stored_normals: (has_normals && value(params, "stored_normals") != 0.0) as u32,
+        pad0: 0,
+        pad1: 0,
+        pad2: 0,
     }
 }
 
@@ -210,7 +226,12 @@ impl Pipeline for Triangulate {
             .targets
             .as_mut()
             .ok_or_else(|| ViewerError::Gpu("the triangulation's buffers were not made".into()))?;
-        let u = uniforms(frame.view, frame.previous.as_ref(), frame.params);
+        let u = uniforms(
+            frame.view,
+            frame.previous.as_ref(),
+            frame.params,
+            frame.has_normals,
+        );
         self.passes.encode(frame, encoder, targets, &u, timer)?;
         Ok(())
     }

@@ -1,5 +1,6 @@
 // Normal estimation (section 3.4): the mean of the face normals of the point's fan, each turned
-// towards the viewer; and the search-radius feedback (section 3.6): each point tells each of
+// towards the viewer, or, where `stored_normals`, the point's own normal (turned the same way)
+// where it has one; and the search-radius feedback (section 3.6): each point tells each of
 // its neighbours how far away it is, so that a neighbour learns the largest distance at which
 // some point took it as its nearest (the paper's maximum blending).
 @group(0) @binding(0) var<uniform> frame: Frame;
@@ -9,6 +10,8 @@
 // Per pixel: the unit normal in world space; 0 where the fan has no triangle.
 @group(0) @binding(4) var<storage, read_write> normals: array<vec4<f32>>;
 @group(0) @binding(5) var<storage, read_write> feedback: array<atomic<u32>>;
+// Per pixel: the point's own normal as four snorm8, where the gather kept it; 0: none.
+@group(0) @binding(6) var<storage, read> point_normals: array<u32>;
 
 @compute @workgroup_size(16, 16)
 fn main(@builtin(global_invocation_id) id: vec3<u32>) {
@@ -46,6 +49,18 @@ fn main(@builtin(global_invocation_id) id: vec3<u32>) {
         }
         previous = word;
         previous_q = q;
+    }
+    // A dataset's normal, estimated from a point's k nearest neighbours in the world (or
+    // measured), is steadier than one from the eight sector neighbours a pixel apart: scan noise
+    // and a mesh's facets tilt each fan's triangles (the bunny's and Spot's shading banded along
+    // the facets, where the reference shades the mesh smoothly).
+    if tri.stored_normals != 0u {
+        let own = point_normals[p];
+        if own != 0u {
+            let n = normalize(unpack4x8snorm(own).xyz);
+            normals[p] = vec4<f32>(select(n, -n, dot(n, to_eye) < 0.0), 1.0);
+            return;
+        }
     }
     let len = length(sum);
     if len > 0.0 {

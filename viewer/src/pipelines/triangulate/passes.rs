@@ -61,6 +61,10 @@ pub struct TriangulateUniforms {
     pub spacing_factor: f32,
     pub previous: u32,
     pub max_search_px: u32,
+    pub stored_normals: u32,
+    pub pad0: u32,
+    pub pad1: u32,
+    pub pad2: u32,
 }
 
 /// Every module the triangulation compiles on a device with 64-bit atomic min/max (`int64`)
@@ -383,7 +387,14 @@ impl TriangulatePasses {
         pass(
             "normals",
             &self.normals,
-            &[&t.uniforms, &t.points, neighbours, &t.normals, &t.feedback],
+            &[
+                &t.uniforms,
+                &t.points,
+                neighbours,
+                &t.normals,
+                &t.feedback,
+                &t.point_normals,
+            ],
             None,
             None,
         );

@@ -41,7 +41,8 @@ pub struct TriangulateTargets {
     pub reprojected: wgpu::Buffer,
     /// Per pixel: the kept point's position and search radius (w 0: none).
     pub points: wgpu::Buffer,
-    /// Per pixel: the kept point's normal where the normals tell the sides apart (four snorm8).
+    /// Per pixel: the kept point's own normal (four snorm8; 0: none), where the normals tell the
+    /// sides apart or shade (`stored_normals`).
     pub point_normals: wgpu::Buffer,
     /// Per pixel and sector: the complement of the least distance's bits.
     pub distances: wgpu::Buffer,

@@ -28,7 +28,11 @@ fn uniforms_and_constants_match_their_wgsl() {
         max_connection,
         spacing_factor,
         previous,
-        max_search_px
+        max_search_px,
+        stored_normals,
+        pad0,
+        pad1,
+        pad2
     });
     for label in [
         "triangulate reproject",
@@ -130,8 +134,16 @@ fn a_still_waits_the_warmup_and_the_first_frame_reprojects_nothing() {
         aspect: 1.5,
     };
     let params = ResolvedParams::resolve(&ParamValues::default(), &INFO, || Some(0.3));
-    let first = uniforms(&view, None, &params);
+    let first = uniforms(&view, None, &params, true);
     assert_eq!(first.previous, 0);
+    // The dataset's normals shade by default; a dataset without, or the paper's choice, the fans'.
+    assert_eq!(first.stored_normals, 1);
+    assert_eq!(uniforms(&view, None, &params, false).stored_normals, 0);
+    let mut fans = ParamValues::default();
+    fans.set_text(&INFO, "stored_normals", "0")
+        .expect("stored_normals");
+    let fans = ResolvedParams::resolve(&fans, &INFO, || Some(0.3));
+    assert_eq!(uniforms(&view, None, &fans, true).stored_normals, 0);
     // max_connection left automatic: four drawn spacings, and two of each point's own node.
     assert!((first.max_connection - 1.2).abs() < 1e-6);
     assert_eq!(first.spacing_factor, super::NODE_SPACINGS);
@@ -142,6 +154,7 @@ fn a_still_waits_the_warmup_and_the_first_frame_reprojects_nothing() {
         &view,
         None,
         &ResolvedParams::resolve(&set, &INFO, || Some(0.3)),
+        true,
     );
     assert_eq!((fixed.max_connection, fixed.spacing_factor), (0.5, 0.0));
     // A dataset of one point draws a spacing of nearly 0: the automatic value stays within
@@ -151,7 +164,7 @@ fn a_still_waits_the_warmup_and_the_first_frame_reprojects_nothing() {
     assert_eq!(tiny.get("max_connection"), Some(spec.min));
     let mut moved = view;
     moved.view = glam::Mat4::from_translation(glam::Vec3::X);
-    let next = uniforms(&view, Some(&moved), &params);
+    let next = uniforms(&view, Some(&moved), &params, true);
     assert_eq!(next.previous, 1);
     assert_eq!(next.prev_eye[0], -1.0, "the previous frame's eye");
     assert_eq!(next.eye[0], 0.0);

@@ -20,6 +20,12 @@ struct Triangulate {
     previous: u32,
     // The largest search splat, in pixels either side of the point.
     max_search_px: u32,
+    // 1: a point that has a normal of its own (the dataset's, which the gather keeps) is shaded
+    // with it; 0, or a point without one: with its fan's (the paper's, `normals.wgsl`).
+    stored_normals: u32,
+    pad0: u32,
+    pad1: u32,
+    pad2: u32,
 }
 
 // The dataset's normals tell a surface's two sides apart (`normals_mark_back_faces`): the
