@@ -7,7 +7,8 @@
 //! is kept beside its arena and adapted from the distances at which neighbours took it.
 //! Where the dataset has normals, they shade in place of the fans' (`stored_normals`); where
 //! they tell a surface's sides apart, the search joins no two points on opposite sides
-//! (search.wgsl).
+//! (search.wgsl), and the fans of the points facing away blend apart, shown only where the
+//! front faces' leave a pixel empty (raster.wgsl).
 //!
 //! Raster path: a compute rasterizer with fixed-point atomic sums (raster.wgsl), as the
 //! projection and the surfels are: the sums do not depend on the order triangles arrive in, and

@@ -78,35 +78,27 @@ pub fn shaders(int64: bool) -> Vec<ShaderSource> {
 /// the sector search takes one pass instead of two, whose keys the fans read in place;
 /// `sums64`: it adds 64-bit atomics too, and the blend sums are two of them a fragment.
 pub fn shaders_for(int64: bool, sums64: bool) -> Vec<ShaderSource> {
-    // Words per sector of what the fans read: the ids, or the 64-bit keys.
-    let neighbour_stride = if int64 { 2.0 } else { 1.0 };
-    let (raster_sums, shade_sums) = if sums64 {
-        (RASTER_SUMS64_WGSL, SHADE_SUMS64_WGSL)
-    } else {
-        (RASTER_SUMS32_WGSL, SHADE_SUMS32_WGSL)
-    };
     let mut v = vec![
         own("triangulate reproject", &[REPROJECT_WGSL, RAYS_WGSL]),
         own("triangulate normals", &[NORMALS_WGSL, FAN_WGSL])
-            .with_constant("NEIGHBOUR_STRIDE", neighbour_stride),
-        own(
-            "triangulate raster",
-            &[RASTER_WGSL, FAN_WGSL, BOX_WALK_WGSL, raster_sums],
-        )
-            .with_constant("NEIGHBOUR_STRIDE", neighbour_stride),
+            .with_constant("NEIGHBOUR_STRIDE", neighbour_stride(int64)),
         own(
             "triangulate radii",
             &[RADII_WGSL, RAYS_WGSL, RANGE_SEARCH_WGSL],
         ),
-        own("triangulate shade", &[LIGHTING_WGSL, SHADE_WGSL, shade_sums]),
         own("triangulate holes", &[HOLES_WGSL]),
     ];
-    let [gather, distances, ids, search64] = sided_shaders(false);
-    v.extend([gather, distances, ids]);
+    let [gather, distances, ids, search64, raster, shade] = sided_shaders(false, int64, sums64);
+    v.extend([gather, distances, ids, raster, shade]);
     if int64 {
         v.push(search64);
     }
     v
+}
+
+/// Words per sector of what the fans read: the ids, or the 64-bit keys.
+fn neighbour_stride(int64: bool) -> f64 {
+    if int64 { 2.0 } else { 1.0 }
 }
 
 /// A triangulation module of `parts` after the uniforms and counters.
@@ -117,8 +109,14 @@ fn own(label: &'static str, parts: &[&'static str]) -> ShaderSource {
 }
 
 /// The gather, the two searches and the 64-bit one (which only a device with 64-bit atomics
-/// compiles), telling a surface's sides apart by the normals (`SIDES`) or not.
-pub(super) fn sided_shaders(sides: bool) -> [ShaderSource; 4] {
+/// compiles), the raster and the shade, telling a surface's sides apart by the normals
+/// (`SIDES`) or not; `int64` and `sums64` as for `shaders_for`.
+pub(super) fn sided_shaders(sides: bool, int64: bool, sums64: bool) -> [ShaderSource; 6] {
+    let (raster_sums, shade_sums) = if sums64 {
+        (RASTER_SUMS64_WGSL, SHADE_SUMS64_WGSL)
+    } else {
+        (RASTER_SUMS32_WGSL, SHADE_SUMS32_WGSL)
+    };
     [
         own(
             "triangulate gather",
@@ -136,27 +134,38 @@ pub(super) fn sided_shaders(sides: bool) -> [ShaderSource; 4] {
             "triangulate search",
             &[SEARCH_INT64_WGSL, RAYS_WGSL, SEARCH_WGSL],
         ),
+        own(
+            "triangulate raster",
+            &[RASTER_WGSL, FAN_WGSL, BOX_WALK_WGSL, raster_sums],
+        )
+        .with_constant("NEIGHBOUR_STRIDE", neighbour_stride(int64)),
+        own("triangulate shade", &[LIGHTING_WGSL, SHADE_WGSL, shade_sums]),
     ]
     .map(|s| s.with_constant("SIDES", sides as u32 as f64))
 }
 
-/// The passes compiled per `SIDES`: the gather and the searches.
+/// The passes compiled per `SIDES`: the gather, the searches, the raster and the shade.
 struct SidedPasses {
     gather: wgpu::ComputePipeline,
     distances: wgpu::ComputePipeline,
     ids: wgpu::ComputePipeline,
     /// The one-pass 64-bit search, where the device has 64-bit atomics.
     search64: Option<wgpu::ComputePipeline>,
+    raster: wgpu::ComputePipeline,
+    shade: wgpu::ComputePipeline,
 }
 
 impl SidedPasses {
-    fn new(device: &wgpu::Device, int64: bool, sides: bool) -> SidedPasses {
-        let [gather, distances, ids, search64] = sided_shaders(sides);
+    fn new(device: &wgpu::Device, int64: bool, sums64: bool, sides: bool) -> SidedPasses {
+        let [gather, distances, ids, search64, raster, shade] =
+            sided_shaders(sides, int64, sums64);
         SidedPasses {
             gather: gather.compute(device, None),
             distances: distances.compute(device, None),
             ids: ids.compute(device, None),
             search64: int64.then(|| search64.compute(device, None)),
+            raster: raster.compute(device, None),
+            shade: shade.compute(device, None),
         }
     }
 }
@@ -170,10 +179,10 @@ pub struct TriangulatePasses {
     sided: Variants<bool, SidedPasses>,
     /// The device has 64-bit atomics (the sided passes then include the one-pass search).
     int64: bool,
+    /// And 64-bit atomic adds (the blend sums are 64-bit).
+    sums64: bool,
     normals: wgpu::ComputePipeline,
-    raster: wgpu::ComputePipeline,
     radii: wgpu::ComputePipeline,
-    shade: wgpu::ComputePipeline,
     holes: wgpu::ComputePipeline,
 }
 
@@ -200,15 +209,16 @@ impl TriangulatePasses {
             } else {
                 None
             },
+            raster: take("triangulate raster")?,
+            shade: take("triangulate shade")?,
         };
         Ok(TriangulatePasses {
             reproject: take("triangulate reproject")?,
             sided: Variants::new(false, plain),
             int64,
+            sums64: ctx.int64_sums,
             normals: take("triangulate normals")?,
-            raster: take("triangulate raster")?,
             radii: take("triangulate radii")?,
-            shade: take("triangulate shade")?,
             holes: take("triangulate holes")?,
         })
     }
@@ -223,14 +233,18 @@ impl TriangulatePasses {
     ) -> Result<(), ViewerError> {
         let device = &frame.ctx.device;
         let screen = frame.screen;
-        let int64 = self.int64;
+        let (int64, sums64) = (self.int64, self.sums64);
         let sided = self.sided.get(frame.normals_mark_back_faces, |sides| {
-            SidedPasses::new(device, int64, sides)
+            SidedPasses::new(device, int64, sums64, sides)
         });
         frame
             .ctx
             .queue
             .write_buffer(&t.uniforms, 0, bytemuck::bytes_of(uniforms));
+        // Only the sided passes add to and read the back faces' sums.
+        if frame.normals_mark_back_faces {
+            encoder.clear_buffer(&t.back_sums, 0, None);
+        }
         for b in [
             &t.reprojected,
             &t.points,
@@ -400,7 +414,7 @@ impl TriangulatePasses {
         );
         pass(
             "triangulate",
-            &self.raster,
+            &sided.raster,
             &[
                 &t.points,
                 neighbours,
@@ -410,6 +424,8 @@ impl TriangulatePasses {
                 &t.front,
                 &t.counts,
                 &t.uniforms,
+                &t.back_sums,
+                &t.point_normals,
             ],
             None,
             None,
@@ -430,7 +446,7 @@ impl TriangulatePasses {
         let view = screen.output.create_view(&Default::default());
         pass(
             "triangulate shade",
-            &self.shade,
+            &sided.shade,
             &[
                 &t.uniforms,
                 &t.sums,
@@ -438,6 +454,7 @@ impl TriangulatePasses {
                 &t.reconstructed,
                 &t.surface,
                 &t.albedo,
+                &t.back_sums,
             ],
             None,
             Some(&view),

@@ -10,17 +10,28 @@
 // corners is drawn each time, as in the paper: finding the one fan to draw it from (reading the
 // other corners' fans) took longer on lavapipe than the repeated drawing. Each point also covers its own pixel, so that a point without neighbours
 // is still drawn (adding no normal where its fan has none: see shade.wgsl).
+// Where the normals tell a surface's sides apart (SIDES), the fans of the points whose normal
+// faces away from the eye add to sums of their own, which the shade takes only where the
+// front faces' left a pixel empty: a closed surface's far side and a thin sheet's back face
+// fill the front's gaps without mixing their colours into it (a sign painted on one side,
+// Spot's texture showing through its own body where the cull left a point behind).
 @group(0) @binding(0) var<uniform> frame: Frame;
 @group(0) @binding(1) var<storage, read> pts: array<vec4<f32>>;
 @group(0) @binding(2) var<storage, read> neighbours: array<u32>;
 @group(0) @binding(3) var<storage, read> normals: array<vec4<f32>>;
 // The projection's resolved colour per pixel (RGBA8).
 @group(0) @binding(4) var<storage, read> colours: array<u32>;
-// Binding 5, the blend sums: raster_sums32.wgsl or raster_sums64.wgsl, with add_sums.
+// Bindings 5 and 9, the blend sums of the front and the back faces: raster_sums32.wgsl or
+// raster_sums64.wgsl, with add_sums.
 // Per pixel: the complement of the least depth's bits (0: nothing drawn).
 @group(0) @binding(6) var<storage, read_write> front: array<atomic<u32>>;
 @group(0) @binding(7) var<storage, read_write> counts: array<atomic<u32>>;
 @group(0) @binding(8) var<uniform> tri: Triangulate;
+// Per pixel: the point's own normal as four snorm8 (gather.wgsl); 0: none.
+@group(0) @binding(10) var<storage, read> point_normals: array<u32>;
+
+// Where SIDES: the fan drawn faces away from the eye (its point's own normal does).
+var<private> back_face: bool;
 
 struct Vertex {
     // Screen position in pixels (y down) and 1 / linear depth.
@@ -48,7 +59,7 @@ fn add_fragment(pixel: u32, depth: f32, colour: vec3<f32>, normal: vec3<f32>) {
     atomicMax(&front[pixel], ~bitcast<u32>(depth));
     let zero = vec3<f32>(0.0);
     let one = vec3<f32>(1.0);
-    add_sums(pixel, clamp(colour, zero, one), clamp(normal * 0.5 + 0.5, zero, one));
+    add_sums(pixel, clamp(colour, zero, one), clamp(normal * 0.5 + 0.5, zero, one), back_face);
 }
 
 fn edge(a: vec2<f32>, b: vec2<f32>, c: vec2<f32>) -> f32 {
@@ -125,6 +136,12 @@ fn main(@builtin(global_invocation_id) id: vec3<u32>) {
         return;
     }
     let centre = vertex(p);
+    back_face = false;
+    if SIDES {
+        // A point without a normal of its own counts as facing the eye.
+        let own = point_normals[p];
+        back_face = own != 0u && dot(unpack4x8snorm(own).xyz, tri.eye.xyz - centre.pos) < 0.0;
+    }
     add_fragment(p, 1.0 / centre.inv_w, centre.colour, centre.normal);
     var drawn = 0u;
     var first = 0u;

@@ -3,7 +3,8 @@
 // plane is what the next frame reprojects; the surface and the albedo are kept for the harness.
 @group(0) @binding(0) var<uniform> frame: Frame;
 @group(0) @binding(1) var<uniform> tri: Triangulate;
-// Binding 2, the blend sums: shade_sums32.wgsl or shade_sums64.wgsl, with blend_at.
+// Bindings 2 and 7, the blend sums of the front and the back faces: shade_sums32.wgsl or
+// shade_sums64.wgsl, with blend_at.
 @group(0) @binding(3) var<storage, read> front: array<u32>;
 // Linear depth bits per pixel, EMPTY on background.
 @group(0) @binding(4) var<storage, read_write> reconstructed: array<u32>;
@@ -11,7 +12,7 @@
 @group(0) @binding(5) var<storage, read_write> surface: array<vec4<f32>>;
 // Unlit colour, alpha 0 on background.
 @group(0) @binding(6) var<storage, read_write> albedo: array<u32>;
-@group(0) @binding(7) var output: texture_storage_2d<rgba8unorm, write>;
+@group(0) @binding(8) var output: texture_storage_2d<rgba8unorm, write>;
 
 // Whether something is drawn beside pixel `c`: left, right, above, below.
 fn drawn_beside(c: vec2<u32>) -> vec4<bool> {
@@ -33,8 +34,12 @@ struct Drawn {
     depth: f32,
 }
 
+// A pixel shows the back faces' blend (SIDES) only where no front face's fragment fell.
 fn drawn_at(p: u32) -> Drawn {
-    let blend = blend_at(p);
+    var blend = blend_at(p, false);
+    if SIDES && blend.fragments == 0u {
+        blend = blend_at(p, true);
+    }
     if blend.fragments == 0u || front[p] == 0u {
         return Drawn(0.0, vec3<f32>(0.0), vec3<f32>(0.0), 0.0);
     }

@@ -1,7 +1,7 @@
 //! The blend sums on the GPU, both layouts (raster_sums*.wgsl adding, shade_sums*.wgsl
 //! reading): a pixel reads back the mean colour and normal of its fragments, and one with more
 //! fragments than the 64-bit sums keep reads back the mean of those it kept, no field having
-//! overflowed into the next.
+//! overflowed into the next; the back faces' sums the same, apart from the front faces'.
 
 use super::passes::{
     RASTER_SUMS32_WGSL, RASTER_SUMS64_WGSL, SHADE_SUMS32_WGSL, SHADE_SUMS64_WGSL, UNIFORMS_WGSL,
@@ -21,7 +21,7 @@ const ADD_MAIN: &str = "
 @compute @workgroup_size(64)
 fn main(@builtin(global_invocation_id) id: vec3<u32>) {
     if id.x < arrayLength(&colours) {
-        add_sums(u32(colours[id.x].w), colours[id.x].xyz, normals[id.x].xyz);
+        add_sums(u32(colours[id.x].w), colours[id.x].xyz, normals[id.x].xyz, normals[id.x].w != 0.0);
     }
 }
 ";
@@ -31,10 +31,12 @@ const READ_MAIN: &str = "
 
 @compute @workgroup_size(64)
 fn main(@builtin(global_invocation_id) id: vec3<u32>) {
-    if id.x < arrayLength(&blends) / 2u {
-        let b = blend_at(id.x);
-        blends[2u * id.x] = vec4<f32>(f32(b.fragments), b.colour);
-        blends[2u * id.x + 1u] = vec4<f32>(b.normal, 0.0);
+    if id.x < arrayLength(&blends) / 4u {
+        for (var side = 0u; side < 2u; side++) {
+            let b = blend_at(id.x, side == 1u);
+            blends[4u * id.x + 2u * side] = vec4<f32>(f32(b.fragments), b.colour);
+            blends[4u * id.x + 2u * side + 1u] = vec4<f32>(b.normal, 0.0);
+        }
     }
 }
 ";
@@ -60,13 +62,15 @@ const SUMS64: Layout = Layout {
 /// A pixel's blend read back: fragments, colour, normal (mapped to [0, 1]).
 type Blend = (u32, [f32; 3], [f32; 3]);
 
-/// Adds `fragments` (pixel, colour, normal mapped to [0, 1]) in one dispatch, then reads back
-/// the blend of `pixels` pixels.
+/// Adds `fragments` (pixel, colour, normal mapped to [0, 1]) in one dispatch, to the back
+/// faces' sums where `back`, then reads back the blend of `pixels` pixels on that side; the
+/// other side's must hold none.
 fn blends(
     ctx: &GpuContext,
     layout: &Layout,
     fragments: &[(u32, [f32; 3], [f32; 3])],
     pixels: u64,
+    back: bool,
 ) -> Vec<Blend> {
     let device = &ctx.device;
     let storage = |contents: &[u8], usage: wgpu::BufferUsages| {
@@ -82,21 +86,25 @@ fn blends(
         .collect();
     let normals: Vec<[f32; 4]> = fragments
         .iter()
-        .map(|(_, _, n)| [n[0], n[1], n[2], 0.0])
+        .map(|(_, _, n)| [n[0], n[1], n[2], f32::from(u8::from(back))])
         .collect();
     let colours = storage(bytemuck::cast_slice(&colours), wgpu::BufferUsages::empty());
     let normals = storage(bytemuck::cast_slice(&normals), wgpu::BufferUsages::empty());
-    let sums = storage(
-        &vec![0u8; (pixels * layout.bytes_per_pixel) as usize],
-        wgpu::BufferUsages::empty(),
-    );
+    let [sums, back_sums] = [(); 2].map(|_| {
+        storage(
+            &vec![0u8; (pixels * layout.bytes_per_pixel) as usize],
+            wgpu::BufferUsages::empty(),
+        )
+    });
     let out = storage(
-        &vec![0u8; (pixels * 32) as usize],
+        &vec![0u8; (pixels * 64) as usize],
         wgpu::BufferUsages::COPY_SRC,
     );
     let add = ShaderSource::new("sums test add", &[UNIFORMS_WGSL, layout.add, ADD_MAIN])
+        .with_constant("SIDES", 1.0)
         .compute(device, None);
     let read = ShaderSource::new("sums test read", &[UNIFORMS_WGSL, layout.read, READ_MAIN])
+        .with_constant("SIDES", 1.0)
         .compute(device, None);
     let add_group = bind(
         device,
@@ -106,13 +114,18 @@ fn blends(
             (0, colours.as_entire_binding()),
             (1, normals.as_entire_binding()),
             (5, sums.as_entire_binding()),
+            (9, back_sums.as_entire_binding()),
         ],
     );
     let read_group = bind(
         device,
         &read,
         0,
-        &[(0, out.as_entire_binding()), (2, sums.as_entire_binding())],
+        &[
+            (0, out.as_entire_binding()),
+            (2, sums.as_entire_binding()),
+            (7, back_sums.as_entire_binding()),
+        ],
     );
     run_passes(
         ctx,
@@ -121,10 +134,18 @@ fn blends(
             (&read, &read_group, ((pixels as u32).div_ceil(64), 1)),
         ],
     );
-    let bytes = read_buffer(ctx, &out, pixels * 32).expect("blends readback");
-    let v: &[[f32; 8]] = bytemuck::cast_slice(&bytes);
+    let bytes = read_buffer(ctx, &out, pixels * 64).expect("blends readback");
+    let v: &[[[f32; 8]; 2]] = bytemuck::cast_slice(&bytes);
+    let (side, other) = (usize::from(back), usize::from(!back));
+    assert!(
+        v.iter().all(|b| b[other][0] == 0.0),
+        "fragments on the other side's sums"
+    );
     v.iter()
-        .map(|b| (b[0] as u32, [b[1], b[2], b[3]], [b[4], b[5], b[6]]))
+        .map(|b| {
+            let b = b[side];
+            (b[0] as u32, [b[1], b[2], b[3]], [b[4], b[5], b[6]])
+        })
         .collect()
 }
 
@@ -149,7 +170,14 @@ fn check(ctx: &GpuContext, layout: &Layout, crowd: usize, kept: u32) {
             fragments.push((1, c, n));
         }
     }
-    let got = blends(ctx, layout, &fragments, 3);
+    for back in [false, true] {
+        let got = blends(ctx, layout, &fragments, 3, back);
+        check_blends(&got, kept, &few);
+    }
+}
+
+/// The blends `check` expects: `few` the three fragments of pixel 1.
+fn check_blends(got: &[Blend], kept: u32, few: &[([f32; 3], [f32; 3]); 3]) {
     assert_eq!(got[0].0, kept, "fragments kept on the crowded pixel");
     assert!(
         close(got[0].1, [1.0; 3], 1e-6) && close(got[0].2, [1.0; 3], 1e-6),

@@ -19,7 +19,7 @@ pub const SUM64_BYTES: u64 = 16;
 pub const COUNT_WORDS: u64 = 4;
 
 /// The per-pixel buffers of one screen size, by label and bytes per pixel.
-const PLANES: [(&str, u64); 11] = [
+const PLANES: [(&str, u64); 12] = [
     ("reprojected depth", 4),
     ("triangulation points", 16),
     ("triangulation point normals", 4),
@@ -31,6 +31,7 @@ const PLANES: [(&str, u64); 11] = [
     ("triangulation front depth", 4),
     ("reconstructed depth", 4),
     ("triangulation surface", 16),
+    ("triangulation back sums", 4 * SUM_WORDS),
 ];
 
 pub struct TriangulateTargets {
@@ -56,6 +57,8 @@ pub struct TriangulateTargets {
     /// Per pixel: the largest distance at which a neighbour took the point (f32 bits).
     pub feedback: wgpu::Buffer,
     pub sums: wgpu::Buffer,
+    /// The back faces' blend sums, laid out as `sums`, where the normals tell the sides apart.
+    pub back_sums: wgpu::Buffer,
     pub front: wgpu::Buffer,
     /// Linear depth bits per pixel (`EMPTY` on background): what the next frame reprojects.
     pub reconstructed: wgpu::Buffer,
@@ -163,6 +166,11 @@ impl TriangulateTargets {
                 plane_buffer(device, PLANES[7].0, pixels * SUM64_BYTES)
             } else {
                 plane(7)
+            },
+            back_sums: if sums64 {
+                plane_buffer(device, PLANES[11].0, pixels * SUM64_BYTES)
+            } else {
+                plane(11)
             },
             front: plane(8),
             reconstructed: plane(9),

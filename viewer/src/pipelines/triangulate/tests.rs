@@ -183,8 +183,15 @@ fn the_storage_buffer_check_counts_the_largest_pass() {
 /// them without): SIDES is an override of each, and each is given it.
 #[test]
 fn the_sided_modules_take_sides() {
-    for s in sided_shaders(true) {
-        parse_and_validate(&s);
-        assert_eq!(s.constants, [("SIDES", 1.0)], "{}", s.label);
+    // On both search paths and both sums; the 64-bit sums need every 64-bit atomic.
+    for (int64, sums64) in [(false, false), (true, false), (true, true)] {
+        for s in sided_shaders(true, int64, sums64) {
+            assert!(s.constants.contains(&("SIDES", 1.0)), "{}", s.label);
+            if sums64 {
+                parse_and_validate_with(&s, Capabilities::all());
+            } else {
+                parse_and_validate(&s);
+            }
+        }
     }
 }
