@@ -427,25 +427,32 @@ fn a_dataset_s_own_normals_shade_the_surface_and_without_them_the_fans_do() {
 /// A sheet far thinner than its point spacing, sampled at random on both faces with each
 /// face's outward normal (as the harness samples a mesh, and a scanner that saw both sides
 /// records them), converted keeping the normals; red on the face towards -y, blue on the other
-/// (`FRONT_FACE`, `BACK_FACE`).
-fn sheet() -> &'static Path {
-    static CELL: OnceLock<PathBuf> = OnceLock::new();
-    CELL.get_or_init(|| {
-        let dir = common::fresh_dir("render-triangulate-sheet");
+/// (`FRONT_FACE`, `BACK_FACE`). The red face covers the whole square, or its half at x < 0.
+fn sheet(red: RedFace) -> &'static Path {
+    static CELLS: [OnceLock<PathBuf>; 2] = [const { OnceLock::new() }; 2];
+    CELLS[red as usize].get_or_init(|| {
+        let dir = common::fresh_dir(&format!("render-triangulate-sheet-{}", red as usize));
         let ply = dir.join("sheet.ply");
         let mut out = std::io::BufWriter::new(std::fs::File::create(&ply).expect("ply"));
         let per_face = 40_000;
+        let red_points = match red {
+            RedFace::Whole => per_face,
+            RedFace::LeftHalf => per_face / 2,
+        };
         write!(
             out,
             "ply\nformat binary_little_endian 1.0\nelement vertex {}\nproperty float x\nproperty float y\nproperty float z\nproperty uchar red\nproperty uchar green\nproperty uchar blue\nproperty float nx\nproperty float ny\nproperty float nz\nend_header\n",
-            2 * per_face
+            per_face + red_points
         )
         .expect("header");
         // 1.6 m square, 40,000 points a face: about 8 mm apart; the faces 2 mm apart.
         let mut uniform = common::unit_randoms(11);
-        for face in [-1.0f32, 1.0] {
-            for _ in 0..per_face {
-                let x = (uniform() as f32 - 0.5) * 1.6;
+        for (face, points) in [(-1.0f32, red_points), (1.0, per_face)] {
+            for _ in 0..points {
+                let mut x = (uniform() as f32 - 0.5) * 1.6;
+                if points < per_face {
+                    x = -x.abs();
+                }
                 let z = (uniform() as f32 - 0.5) * 1.6;
                 for v in [x, face * 0.001, z] {
                     out.write_all(&v.to_le_bytes()).expect("write");
@@ -462,6 +469,12 @@ fn sheet() -> &'static Path {
         common::run_ok(&["convert", s(&ply), "-o", s(&ds), "--quiet", "--normals"]);
         ds
     })
+}
+
+#[derive(Clone, Copy)]
+enum RedFace {
+    Whole,
+    LeftHalf,
 }
 
 const FRONT_FACE: [u8; 3] = [220, 70, 50];
@@ -505,7 +518,7 @@ fn a_sheet_sampled_on_both_faces_is_not_stitched_across_them_where_normals_tell_
     // face is triangulated on its own.
     let from = glam::Vec3::new(1.0, -1.0, 0.4);
     for path in [ProjectionPath::Auto, ProjectionPath::Int32] {
-        let mut tri = Session::new(path, sheet(), "triangulate");
+        let mut tri = Session::new(path, sheet(RedFace::Whole), "triangulate");
         // The fans' normals, which show the stitching (the stored ones would shade it flat).
         tri.settings
             .set_param("stored_normals=0")
@@ -529,31 +542,55 @@ fn a_sheet_sampled_on_both_faces_is_not_stitched_across_them_where_normals_tell_
     }
 }
 
-#[test]
-fn a_sheet_s_back_face_shows_only_where_its_front_face_leaves_a_gap() {
-    // Both faces' points survive the projection at one pixel each; their fans, each on its own
-    // face, were summed alike, and the red face seen showed purple. The back face's fans now
-    // draw only where the front's left a pixel empty. Blue's share of red and blue: 0.185 in
-    // the front face's own colour; measured here 0.196, and 0.366 with the fans summed alike.
-    let from = glam::Vec3::new(1.0, -1.0, 0.4);
-    for path in [ProjectionPath::Auto, ProjectionPath::Int32] {
-        let mut tri = Session::new(path, sheet(), "triangulate");
-        let camera = tri.camera(from);
-        tri.load(&camera);
-        let shot = tri.settled(&camera);
-        let (mut drawn, mut blue) = (0, 0.0);
-        for (i, c) in shot.rgb.iter().enumerate() {
-            let (x, y) = (i as u32 % W, i as u32 / W);
-            if shot.covered[i] && x.abs_diff(W / 2) < W / 8 && y.abs_diff(H / 2) < H / 8 {
+/// Blue's share of red and blue in the unlit colour `albedo` (the highlight of the shaded image
+/// would add to both), and the share of pixels drawn, in the band of rows about the middle
+/// between columns `from` and `to` (pixels from the middle; negative: to the left).
+fn band(albedo: &[Option<[u8; 3]>], from: i32, to: i32) -> (f64, f64) {
+    let (mut pixels, mut drawn, mut blue) = (0, 0, 0.0);
+    for (i, c) in albedo.iter().enumerate() {
+        let (x, y) = ((i as u32 % W) as i32 - (W / 2) as i32, i as u32 / W);
+        if x >= from && x < to && y.abs_diff(H / 2) < H / 8 {
+            pixels += 1;
+            if let Some(c) = c {
                 drawn += 1;
                 blue += c[2] as f64 / (c[0] as f64 + c[2] as f64).max(1.0);
             }
         }
-        let share = blue / drawn.max(1) as f64;
-        assert!(drawn > 5000, "{path:?}: {drawn} pixels drawn in the middle");
+    }
+    (
+        blue / drawn.max(1) as f64,
+        drawn as f64 / pixels.max(1) as f64,
+    )
+}
+
+#[test]
+fn a_sheet_s_back_face_shows_only_where_its_front_face_leaves_a_gap() {
+    // Seen from its red face, which covers only the sheet's left half; the blue face covers the
+    // whole. Both faces' points survive the projection at one pixel each. Their fans, each on
+    // its own face, were summed alike, and the red half showed purple. The back face's fans
+    // now draw only where the front's left a pixel empty. Blue's share of red and blue in the
+    // unlit colour on the left: 0.185 in the red face's own, measured 0.186 (0.39 with the
+    // fans summed alike); the right half is the blue face (0.815), wholly drawn (none of it
+    // with the back faces' fans dropped).
+    for path in [ProjectionPath::Auto, ProjectionPath::Int32] {
+        let mut tri = Session::new(path, sheet(RedFace::LeftHalf), "triangulate");
+        let camera = tri.camera(FRONT);
+        tri.load(&camera);
+        tri.settled(&camera);
+        let albedo = tri.r.read_albedo().expect("albedo");
+        let (left_blue, left_drawn) = band(&albedo, -(W as i32) / 6, -(W as i32) / 24);
+        let (right_blue, right_drawn) = band(&albedo, W as i32 / 24, W as i32 / 6);
         assert!(
-            share < 0.23,
-            "{path:?}: the blue face's share of the red face's pixels is {share:.2}"
+            left_drawn > 0.99 && right_drawn > 0.99,
+            "{path:?}: drawn {left_drawn:.3} of the red half, {right_drawn:.3} of the blue"
+        );
+        assert!(
+            left_blue < 0.23,
+            "{path:?}: the blue face's share of the red face's pixels is {left_blue:.2}"
+        );
+        assert!(
+            right_blue > 0.75,
+            "{path:?}: the blue face's share where only it lies is {right_blue:.2}"
         );
     }
 }

@@ -12,7 +12,7 @@
 @group(0) @binding(5) var<storage, read_write> pts: array<vec4<f32>>;
 @group(0) @binding(6) var<storage, read_write> counts: array<atomic<u32>>;
 // Per pixel, where SIDES or `stored_normals`: the point's normal as four snorm8 (x, y, z, 1),
-// for the search to compare without decoding; 0: none.
+// for the search to compare without decoding, and for the normals and the raster; 0: none.
 @group(0) @binding(7) var<storage, read_write> point_normals: array<u32>;
 @group(1) @binding(0) var<storage, read> points: array<vec4<u32>>;
 @group(1) @binding(1) var<storage, read> ranges: array<Range>;

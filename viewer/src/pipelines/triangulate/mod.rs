@@ -1,5 +1,5 @@
 //! `triangulate` (paper 002, Preiner and Wimmer 2012): closed surfaces from positions and
-//! colours alone. Each frame projects the points one pixel each, culled against the previous
+//! colours alone (and shaded with the dataset's normals where it has them). Each frame projects the points one pixel each, culled against the previous
 //! frame's reconstructed depth reprojected into this view; every point finds its nearest
 //! neighbour in each of eight screen sectors within its world-space search radius (one pass of
 //! 64-bit keys, or two: distance, then id), estimates a normal from the fan of those neighbours and rasterizes the
@@ -8,7 +8,7 @@
 //! Where the dataset has normals, they shade in place of the fans' (`stored_normals`); where
 //! they tell a surface's sides apart, the search joins no two points on opposite sides
 //! (search.wgsl), and the fans of the points facing away blend apart, shown only where the
-//! front faces' leave a pixel empty (raster.wgsl).
+//! front faces' fans leave a pixel empty (raster.wgsl).
 //!
 //! Raster path: a compute rasterizer with fixed-point atomic sums (raster.wgsl), as the
 //! projection and the surfels are: the sums do not depend on the order triangles arrive in, and

@@ -41,8 +41,9 @@ pub const RADIUS_STREAM: PointStream = PointStream::Kept {
     bytes: 8,
 };
 
-/// Storage buffers the gather binds in one stage (the most of its passes). Its variant without
-/// `SIDES` binds the normals too: the bind groups are the same for both.
+/// Storage buffers the gather binds in one stage (the most of its passes; the raster binds 9).
+/// The variants without `SIDES` bind what the sided ones use too (the normals, the back
+/// faces' sums): the bind groups are the same for both.
 pub(super) const STORAGE_BUFFERS: u32 = 10;
 
 /// The triangulation's uniforms, laid out as `Triangulate` in uniforms.wgsl.
@@ -175,7 +176,8 @@ type ArenaGroups<'a> = dyn Fn(&wgpu::ComputePipeline) -> Vec<wgpu::BindGroup> + 
 
 pub struct TriangulatePasses {
     reproject: wgpu::ComputePipeline,
-    /// The gather and the searches, per whether they tell a surface's sides apart.
+    /// The gather, the searches, the raster and the shade, per whether they tell a surface's
+    /// sides apart.
     sided: Variants<bool, SidedPasses>,
     /// The device has 64-bit atomics (the sided passes then include the one-pass search).
     int64: bool,

@@ -4,8 +4,7 @@
 // The back faces' own, where SIDES (raster.wgsl).
 @group(0) @binding(9) var<storage, read_write> back_sums: array<atomic<u64>>;
 
-// Word `i` of the front faces' sums, or of the back faces' where `back`: read, added to, or
-// taken from (returning what it held before).
+// Word `i` of the front faces' sums, or of the back faces' where `back`.
 fn sum_word(i: u32, back: bool) -> u64 {
     if SIDES && back {
         return atomicLoad(&back_sums[i]);
@@ -13,6 +12,7 @@ fn sum_word(i: u32, back: bool) -> u64 {
     return atomicLoad(&sums[i]);
 }
 
+// Adds `w` to word `i` of the sums `back` chooses; returns what the word held before.
 fn add_to_sum(i: u32, back: bool, w: u64) -> u64 {
     if SIDES && back {
         return atomicAdd(&back_sums[i], w);
@@ -20,6 +20,7 @@ fn add_to_sum(i: u32, back: bool, w: u64) -> u64 {
     return atomicAdd(&sums[i], w);
 }
 
+// Takes `w` back from word `i` of the sums `back` chooses.
 fn take_from_sum(i: u32, back: bool, w: u64) {
     if SIDES && back {
         atomicSub(&back_sums[i], w);
@@ -29,9 +30,9 @@ fn take_from_sum(i: u32, back: bool, w: u64) {
 }
 
 // Adds a fragment's colour and its normal mapped to [0, 1] (both clamped there) to pixel's
-// sums (the back faces' where `back`), unless the pixel has kept SUM64_KEPT fragments. A fragment that reads the count below
-// that adds its colour word, and finds the count it added to in what the add returns: past the
-// kept ones, it takes its add back. Sums are modulo 2^64, so what the kept fragments added
+// sums (the back faces' where `back`), unless the pixel has kept SUM64_KEPT fragments. A
+// fragment that reads the count below that adds its colour word, and finds the count it added
+// to in what the add returns: past the kept ones, it takes its add back. Sums are modulo 2^64, so what the kept fragments added
 // comes back exact whatever was added and taken back meanwhile; only fragments that read the
 // count before it filled are ever taken back, and as long as fewer than 2^13 - 512 of them are
 // on one pixel at once the count cannot wrap, so no field overflows.

@@ -135,6 +135,14 @@ impl TriangulateTargets {
     ) -> TriangulateTargets {
         let pixels = width as u64 * height as u64;
         let plane = |k: usize| plane_buffer(device, PLANES[k].0, pixels * PLANES[k].1);
+        // The 64-bit sums take two words a pixel where the 32-bit ones take seven.
+        let blend_sums = |k: usize| {
+            if sums64 {
+                plane_buffer(device, PLANES[k].0, pixels * SUM64_BYTES)
+            } else {
+                plane(k)
+            }
+        };
         TriangulateTargets {
             width,
             height,
@@ -162,16 +170,8 @@ impl TriangulateTargets {
             },
             normals: plane(5),
             feedback: plane(6),
-            sums: if sums64 {
-                plane_buffer(device, PLANES[7].0, pixels * SUM64_BYTES)
-            } else {
-                plane(7)
-            },
-            back_sums: if sums64 {
-                plane_buffer(device, PLANES[11].0, pixels * SUM64_BYTES)
-            } else {
-                plane(11)
-            },
+            sums: blend_sums(7),
+            back_sums: blend_sums(11),
             front: plane(8),
             reconstructed: plane(9),
             surface: plane(10),

@@ -41,6 +41,7 @@ fn uniforms_and_constants_match_their_wgsl() {
         "triangulate search distances",
         "triangulate search ids",
         "triangulate normals",
+        "triangulate raster",
         "triangulate radii",
         "triangulate shade",
     ] {
@@ -179,14 +180,15 @@ fn the_storage_buffer_check_counts_the_largest_pass() {
     );
 }
 
-/// The gather and the searches compile telling the sides apart (the registry's list holds
-/// them without): SIDES is an override of each, and each is given it.
+/// The gather, the searches, the raster and the shade compile telling the sides apart (the
+/// registry's list holds them without): SIDES is an override of each, and each is given it.
 #[test]
 fn the_sided_modules_take_sides() {
     // On both search paths and both sums; the 64-bit sums need every 64-bit atomic.
     for (int64, sums64) in [(false, false), (true, false), (true, true)] {
         for s in sided_shaders(true, int64, sums64) {
-            assert!(s.constants.contains(&("SIDES", 1.0)), "{}", s.label);
+            let sides: Vec<_> = s.constants.iter().filter(|c| c.0 == "SIDES").collect();
+            assert_eq!(sides, [&("SIDES", 1.0)], "{}", s.label);
             if sums64 {
                 parse_and_validate_with(&s, Capabilities::all());
             } else {

@@ -29,9 +29,10 @@ struct Triangulate {
 }
 
 // The dataset's normals tell a surface's two sides apart (`normals_mark_back_faces`): the
-// gather keeps each pixel's normal and the search joins no two points on opposite sides. An
-// override, so that the passes without it hold none of its code (`ShaderSource::constants`);
-// they bind the same buffers.
+// gather keeps each pixel's normal, the search joins no two points on opposite sides, and the
+// raster blends the fans facing away apart, which the shade shows only where no front face
+// drew. An override, so that the passes without it hold none of its code
+// (`ShaderSource::constants`); they bind the same buffers.
 override SIDES: bool = false;
 
 // Sectors around a point (Figure 3), in circular order.
