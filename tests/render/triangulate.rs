@@ -11,7 +11,6 @@ use super::filters::{INNER, OUTER, nested};
 use super::surfels::{DISTANCE, FOV_DEG, Gap, H, Sphere, W, gaps, holes_and_overshoot, sphere};
 use super::*;
 use std::collections::BTreeMap;
-use std::io::Write;
 use std::sync::Arc;
 use strata_viewer::gpu::{GpuContext, ProjectionPath};
 use strata_viewer::pipelines::triangulate::{CULLED, HOLE_RATE, TRIANGLES};
@@ -366,25 +365,20 @@ fn rough_sphere() -> &'static Path {
     CELL.get_or_init(|| {
         let dir = common::fresh_dir("render-triangulate-rough");
         let ply = dir.join("rough.ply");
-        let mut out = std::io::BufWriter::new(std::fs::File::create(&ply).expect("ply"));
-        let n = 60_000;
-        write!(
-            out,
-            "ply\nformat binary_little_endian 1.0\nelement vertex {n}\nproperty float x\nproperty float y\nproperty float z\nproperty uchar red\nproperty uchar green\nproperty uchar blue\nend_header\n"
-        )
-        .expect("header");
         let mut uniform = common::unit_randoms(5);
-        for _ in 0..n {
-            let z = 1.0 - 2.0 * uniform();
-            let a = std::f64::consts::TAU * uniform();
-            let r = (1.0 - z * z).sqrt();
-            let range = 1.0 + 0.004 * (2.0 * uniform() - 1.0);
-            for v in [r * a.cos(), r * a.sin(), z] {
-                out.write_all(&((v * range) as f32).to_le_bytes()).expect("write");
-            }
-            out.write_all(&[200, 180, 150]).expect("write");
-        }
-        drop(out);
+        let points: Vec<([f64; 3], [u8; 3])> = (0..60_000)
+            .map(|_| {
+                let z = 1.0 - 2.0 * uniform();
+                let a = std::f64::consts::TAU * uniform();
+                let r = (1.0 - z * z).sqrt();
+                let range = 1.0 + 0.004 * (2.0 * uniform() - 1.0);
+                (
+                    [r * a.cos(), r * a.sin(), z].map(|v| v * range),
+                    [200, 180, 150],
+                )
+            })
+            .collect();
+        common::write_coloured_ply(&ply, &points, None);
         let ds = dir.join("rough.strata");
         common::run_ok(&["convert", s(&ply), "-o", s(&ds), "--quiet", "--normals"]);
         ds
@@ -433,38 +427,27 @@ fn sheet(red: RedFace) -> &'static Path {
     CELLS[red as usize].get_or_init(|| {
         let dir = common::fresh_dir(&format!("render-triangulate-sheet-{}", red as usize));
         let ply = dir.join("sheet.ply");
-        let mut out = std::io::BufWriter::new(std::fs::File::create(&ply).expect("ply"));
         let per_face = 40_000;
         let red_points = match red {
             RedFace::Whole => per_face,
             RedFace::LeftHalf => per_face / 2,
         };
-        write!(
-            out,
-            "ply\nformat binary_little_endian 1.0\nelement vertex {}\nproperty float x\nproperty float y\nproperty float z\nproperty uchar red\nproperty uchar green\nproperty uchar blue\nproperty float nx\nproperty float ny\nproperty float nz\nend_header\n",
-            per_face + red_points
-        )
-        .expect("header");
         // 1.6 m square, 40,000 points a face: about 8 mm apart; the faces 2 mm apart.
         let mut uniform = common::unit_randoms(11);
-        for (face, points) in [(-1.0f32, red_points), (1.0, per_face)] {
-            for _ in 0..points {
+        let (mut points, mut normals) = (Vec::new(), Vec::new());
+        for (face, count) in [(-1.0f32, red_points), (1.0, per_face)] {
+            for _ in 0..count {
                 let mut x = (uniform() as f32 - 0.5) * 1.6;
-                if points < per_face {
+                if count < per_face {
                     x = -x.abs();
                 }
                 let z = (uniform() as f32 - 0.5) * 1.6;
-                for v in [x, face * 0.001, z] {
-                    out.write_all(&v.to_le_bytes()).expect("write");
-                }
                 let rgb = if face < 0.0 { FRONT_FACE } else { BACK_FACE };
-                out.write_all(&rgb).expect("write");
-                for v in [0.0, face, 0.0] {
-                    out.write_all(&v.to_le_bytes()).expect("write");
-                }
+                points.push(([x, face * 0.001, z].map(f64::from), rgb));
+                normals.push([0.0, face, 0.0]);
             }
         }
-        drop(out);
+        common::write_coloured_ply(&ply, &points, Some(&normals));
         let ds = dir.join("sheet.strata");
         common::run_ok(&["convert", s(&ply), "-o", s(&ds), "--quiet", "--normals"]);
         ds

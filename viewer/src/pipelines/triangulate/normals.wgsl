@@ -24,6 +24,15 @@ fn main(@builtin(global_invocation_id) id: vec3<u32>) {
         return;
     }
     let to_eye = tri.eye.xyz - me.xyz;
+    // A dataset's normal, estimated from a point's k nearest neighbours in the world (or
+    // measured), is steadier than one from the eight sector neighbours a pixel apart: scan noise
+    // and a mesh's facets tilt each fan's triangles (the bunny's and Spot's shading banded along
+    // the facets, where the reference shades the mesh smoothly). Where it is taken, the fan
+    // still runs for the feedback, but sums no face normals.
+    var own = 0u;
+    if tri.stored_normals != 0u {
+        own = point_normals[p];
+    }
     var sum = vec3<f32>(0.0);
     var first = 0u;
     var previous = 0u;
@@ -37,7 +46,7 @@ fn main(@builtin(global_invocation_id) id: vec3<u32>) {
         if s < SECTORS {
             atomicMax(&feedback[~word], bitcast<u32>(distance(me.xyz, q)));
         }
-        if previous != 0u && opens(p, ~previous, ~word) {
+        if own == 0u && previous != 0u && opens(p, ~previous, ~word) {
             let n = cross(previous_q - me.xyz, q - me.xyz);
             let len = length(n);
             if len > 0.0 {
@@ -50,17 +59,10 @@ fn main(@builtin(global_invocation_id) id: vec3<u32>) {
         previous = word;
         previous_q = q;
     }
-    // A dataset's normal, estimated from a point's k nearest neighbours in the world (or
-    // measured), is steadier than one from the eight sector neighbours a pixel apart: scan noise
-    // and a mesh's facets tilt each fan's triangles (the bunny's and Spot's shading banded along
-    // the facets, where the reference shades the mesh smoothly).
-    if tri.stored_normals != 0u {
-        let own = point_normals[p];
-        if own != 0u {
-            let n = normalize(unpack4x8snorm(own).xyz);
-            normals[p] = vec4<f32>(select(n, -n, dot(n, to_eye) < 0.0), 1.0);
-            return;
-        }
+    if own != 0u {
+        let n = normalize(unpack4x8snorm(own).xyz);
+        normals[p] = vec4<f32>(select(n, -n, dot(n, to_eye) < 0.0), 1.0);
+        return;
     }
     let len = length(sum);
     if len > 0.0 {
