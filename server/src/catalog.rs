@@ -58,6 +58,9 @@ struct Known {
 #[derive(Debug)]
 pub struct Catalog {
     root: PathBuf,
+    /// Datasets whose `metadata.json` was reported as not served, with the version reported:
+    /// each broken version is reported once, not at every request.
+    reported: Mutex<HashMap<String, Version>>,
     /// By dataset name.
     known: Mutex<HashMap<String, Known>>,
 }
@@ -107,6 +110,7 @@ impl Catalog {
         Catalog {
             root,
             known: Mutex::new(HashMap::new()),
+            reported: Mutex::new(HashMap::new()),
         }
     }
 
@@ -131,6 +135,15 @@ impl Catalog {
         }
         let (file, stat) = crate::files::open_regular(&meta_path)?;
         if stat.len() > METADATA_MAX {
+            self.report(
+                name,
+                version,
+                &meta_path,
+                &format!(
+                    "{} bytes, more than a dataset's metadata holds ({METADATA_MAX})",
+                    stat.len()
+                ),
+            );
             return None;
         }
         let bytes = crate::files::read_range(&file, 0, stat.len() as usize).ok()?;
@@ -156,12 +169,34 @@ impl Catalog {
                     .cloned()
                     .collect(),
             },
-            Err(_) => potree2(name, &bytes, dir, version)?,
+            Err(e) => match potree2(name, &bytes, dir, version) {
+                Some(k) => k,
+                None => {
+                    self.report(name, version, &meta_path, &e.to_string());
+                    return None;
+                }
+            },
         };
         if let Ok(mut cache) = self.known.lock() {
             cache.insert(name.to_string(), known.clone());
         }
         Some(known)
+    }
+
+    /// Says on stderr, once per version of its `metadata.json`, why dataset `name` is not
+    /// served: a client sees only a 404, and the listing leaves it out.
+    fn report(&self, name: &str, version: Version, path: &Path, fault: &str) {
+        let Ok(mut reported) = self.reported.lock() else {
+            return;
+        };
+        if reported.insert(name.to_string(), version) != Some(version) {
+            // The fault names the file where it comes from the parser; else name it here.
+            let fault = match fault.contains(&*path.to_string_lossy()) {
+                true => fault.to_string(),
+                false => format!("{}: {fault}", path.display()),
+            };
+            eprintln!("warning: {fault}; dataset {name:?} is not served");
+        }
     }
 
     /// The path of `file` in dataset `dataset` if the dataset's metadata names it, inside the

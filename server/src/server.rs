@@ -92,6 +92,10 @@ fn connection_builder(config: &ServerConfig) -> auto::Builder<TokioExecutor> {
         .http1()
         .timer(TokioTimer::new())
         .header_read_timeout(config.header_timeout)
+        // A client that sends its requests and then shuts its side (`nc -N`, HTTP/1.0 tools,
+        // scripts) still waits for the answers: hyper would otherwise drop the connection,
+        // and every request on it unanswered, at the first read of end-of-file.
+        .half_close(true)
         .keep_alive(true);
     builder
         .http2()

@@ -276,7 +276,12 @@ fn the_listing_and_the_files_stay_inside_the_directory() {
 
 /// A server that logs, with a thread that forwards its log lines.
 fn logging_server(extra: &[&str]) -> (Server, std::sync::mpsc::Receiver<String>) {
-    let mut server = Server::start_in(&super::root(), extra);
+    logging_server_in(&super::root(), extra)
+}
+
+/// A server of `dir` that logs, with a thread that forwards its log lines.
+fn logging_server_in(dir: &Path, extra: &[&str]) -> (Server, std::sync::mpsc::Receiver<String>) {
+    let mut server = Server::start_in(dir, extra);
     let mut log = server.log.take().expect("the server's stderr");
     let (tx, rx) = std::sync::mpsc::channel();
     std::thread::spawn(move || {
@@ -361,4 +366,56 @@ fn json_access_log_lines() {
             .is_some_and(|c| c.starts_with("127.0.0.1:"))
     );
     assert!(v["ms"].as_f64().is_some_and(|ms| ms >= 0.0));
+}
+
+#[test]
+fn requests_sent_before_the_client_shuts_its_side_are_all_answered() {
+    use std::io::{Read, Write};
+    let server = Server::start_in(&super::root(), &["--quiet"]);
+    let mut stream = std::net::TcpStream::connect(&server.addr).expect("connect");
+    stream
+        .set_read_timeout(Some(Duration::from_secs(10)))
+        .expect("timeout");
+    let mut requests = String::new();
+    for k in 0..5 {
+        requests.push_str(&format!(
+            "GET /autzen.strata/octree.bin HTTP/1.1\r\nHost: {}\r\nRange: bytes={}-{}\r\n\r\n",
+            server.addr,
+            k * 100,
+            k * 100 + 9
+        ));
+    }
+    stream.write_all(requests.as_bytes()).expect("send");
+    // As `nc -N` does once its input ends: no more requests, the answers still awaited.
+    stream
+        .shutdown(std::net::Shutdown::Write)
+        .expect("half-close");
+    let mut raw = Vec::new();
+    stream.read_to_end(&mut raw).expect("the answers");
+    let answered = raw.windows(12).filter(|w| w == b"HTTP/1.1 206").count();
+    assert_eq!(answered, 5, "{}", String::from_utf8_lossy(&raw));
+}
+
+#[test]
+fn a_dataset_whose_metadata_is_not_json_is_reported_once_and_not_served() {
+    let dir = scratch("garbage");
+    copy_autzen(&dir.path().join("good.strata"), &ALL);
+    copy_autzen(&dir.path().join("bad.strata"), &ALL);
+    std::fs::write(dir.path().join("bad.strata/metadata.json"), "{ not json").expect("write");
+    let (server, log) = logging_server_in(dir.path(), &["--quiet"]);
+    for _ in 0..3 {
+        let reply = get(&server.addr, "/bad.strata/metadata.json", &[]).expect("reply");
+        assert_eq!(reply.status, 404);
+    }
+    let listing = get(&server.addr, "/", &[]).expect("listing");
+    assert_eq!(listed(&listing), vec!["good.strata".to_string()]);
+    let line = next_line_with(&log, "bad.strata").expect("the fault reported");
+    assert!(
+        line.contains("metadata.json: not valid JSON") && line.contains("is not served"),
+        "{line}"
+    );
+    assert!(
+        next_line_with(&log, "bad.strata").is_none(),
+        "reported more than once"
+    );
 }
