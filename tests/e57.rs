@@ -328,6 +328,12 @@ fn e57_without_point_clouds_or_points_is_refused() {
         &zero,
         "scan 0 of 1: its CartesianX field is a scaled integer with a scale of zero",
     );
+    // Beside an offset of 1e300 the steps of the scale are lost: every point one x.
+    let far = dir.path().join("far.e57");
+    let mut spec = ScanSpec::new(Storage::Scaled, 10);
+    spec.offset = 1e300;
+    write_e57(&far, &[spec]);
+    convert_fails(&far, "an offset of 1e300, so large that steps of its scale");
 }
 
 #[test]

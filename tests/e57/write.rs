@@ -36,6 +36,8 @@ pub struct ScanSpec {
     /// The scale the prototype declares for `Storage::Scaled` (the values written are 0.1 mm
     /// steps whatever it says).
     pub scale: f64,
+    /// The offset it declares with that scale.
+    pub offset: f64,
 }
 
 impl ScanSpec {
@@ -49,6 +51,7 @@ impl ScanSpec {
             rotation: [1.0, 0.0, 0.0, 0.0],
             translation: [0.0; 3],
             scale: 1e-4,
+            offset: 0.0,
         }
     }
 
@@ -101,7 +104,7 @@ fn prototype(spec: &ScanSpec) -> Vec<Record> {
         min: -1_000_000,
         max: 1_000_000,
         scale: spec.scale,
-        offset: 0.0,
+        offset: spec.offset,
     };
     let mut p = match spec.storage {
         Storage::Double => vec![

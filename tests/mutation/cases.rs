@@ -89,14 +89,10 @@ pub fn las_header(s: &Seeds, r: &mut Rng) -> Case {
             (format!("scale {v}"), Expect::Refuse)
         }
         1 => {
+            // Beside an offset of 1e308 every step of the scale is lost: refused like NaN.
             let v = r.pick(&[-1e308, 1e308, f64::NAN, f64::NEG_INFINITY]);
             put_f64(&mut b, 155 + 8 * r.below(3), v);
-            let e = if v.is_finite() {
-                Expect::Either
-            } else {
-                Expect::Refuse
-            };
-            (format!("offset {v}"), e)
+            (format!("offset {v}"), Expect::Refuse)
         }
         2 => {
             let v = r.pick(&[1e9, 1e12, 1e100, 1e300, -1e300]);

@@ -120,10 +120,29 @@ impl E57Source {
                         if min != max && !scale.is_normal())
             }) {
                 return Err(bad(format!(
-                    "scan {i} of {n}: its {:?} field is a scaled integer with a scale of zero or \
-                     not a number, which cannot store values",
+                    "scan {i} of {n}: its {:?} field is a scaled integer with a scale of zero, \
+                     infinite or not a number, which cannot store values",
                     r.name
                 )));
+            }
+            // Beside an offset that large one step of the scale is lost (a double holds about
+            // 16 digits): distinct points would share a coordinate.
+            for r in pc.prototype.iter().filter(|r| READ.contains(&r.name)) {
+                if let RecordDataType::ScaledInteger {
+                    scale,
+                    offset,
+                    min,
+                    max,
+                } = r.data_type
+                    && min != max
+                    && offset.abs() * f64::EPSILON > scale.abs()
+                {
+                    return Err(bad(format!(
+                        "scan {i} of {n}: its {:?} field is a scaled integer with an offset of \
+                         {offset:e}, so large that steps of its scale {scale:e} are lost in it",
+                        r.name
+                    )));
+                }
             }
         }
         let rgb = clouds.iter().any(PointCloud::has_color);

@@ -181,6 +181,16 @@ impl LasHeader {
                     number(o)
                 ));
             }
+            // A double holds about 16 digits: beside an offset that large, one step of the scale
+            // is lost, and records that differ give the same coordinate.
+            if o.abs() * f64::EPSILON > s.abs() {
+                return Err(format!(
+                    "header field \"{} offset\" is {}, so large that steps of the scale factor {} are lost in it and distinct points would share a coordinate",
+                    AXES[a],
+                    number(o),
+                    number(s)
+                ));
+            }
         }
         let max = [0, 1, 2].map(|a| f64_at(&head, 179 + 16 * a));
         let min = [0, 1, 2].map(|a| f64_at(&head, 187 + 16 * a));

@@ -13,6 +13,11 @@ use std::panic::{AssertUnwindSafe, catch_unwind};
 use std::sync::Once;
 use std::sync::atomic::{AtomicUsize, Ordering};
 
+/// A chunk size beyond the points a file holds is refused past both of these (points, and the
+/// bytes of that many records): far beyond the 50,000 LASzip writers use.
+const MAX_CHUNK_POINTS: u64 = 1 << 20;
+const MAX_CHUNK_BYTES: u64 = 256 << 20;
+
 /// Guarded calls in progress: while there are any, a panic is not reported on stderr (it
 /// becomes the file's error instead).
 static GUARDED: AtomicUsize = AtomicUsize::new(0);
@@ -193,6 +198,20 @@ pub fn check_laz(file: &File, h: &LasHeader) -> Result<(), String> {
     }
     if chunks == 0 {
         return Ok(());
+    }
+    if let Some(size) = vlr.chunk_size {
+        // The decoder sizes the last chunk's buffer by the chunk size, not by the points left
+        // in it: a damaged size far beyond a one-chunk file's points would have it reserve
+        // gigabytes (an abort, not an error) for a few points. Writers use 50,000 whatever the
+        // file holds, so only a size beyond both the points and what a chunk may take is
+        // refused.
+        let bytes = size.saturating_mul(h.record_len);
+        if size > points && size > MAX_CHUNK_POINTS && bytes > MAX_CHUNK_BYTES {
+            return Err(format!(
+                "the laszip VLR gives chunks of {size} points, more than the {points} points the file holds (header field \"number of point records\"), and reading one would reserve {} MiB: the VLR is corrupt",
+                bytes >> 20
+            ));
+        }
     }
     let bytes = read_at(file, table_at, (table_end - table_at) as usize)?;
     let table = guarded("the chunk table", || {
