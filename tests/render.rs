@@ -253,7 +253,7 @@ fn edl_darkens_only_when_asked_and_never_lightens() {
 }
 
 #[test]
-fn a_corrupt_node_is_skipped_and_counted() {
+fn a_corrupt_node_fails_the_render_and_leaves_no_image() {
     let src = fixtures().join("autzen.strata");
     let dir = fixtures().join("corrupt-node");
     let dataset = dir.join("autzen.strata");
@@ -274,7 +274,8 @@ fn a_corrupt_node_is_skipped_and_counted() {
 
     let out = dir.join("corrupt.png");
     let st = dir.join("corrupt.json");
-    let o = gpu_ok(&[
+    let _ = std::fs::remove_file(&out);
+    let o = gpu_run(&[
         "render",
         s(&dataset),
         "-o",
@@ -294,8 +295,16 @@ fn a_corrupt_node_is_skipped_and_counted() {
         "errors {errors} do not name node {}",
         victim.key
     );
-    assert!(String::from_utf8_lossy(&o.stderr).contains("checksum"));
-    assert!(out.exists());
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(1), "{err}");
+    assert!(!err.contains("panicked"), "{err}");
+    assert!(err.contains("checksum"), "{err}");
+    assert!(
+        err.contains("1 node(s) and 0 hierarchy page(s) could not be loaded"),
+        "{err}"
+    );
+    // The image would show a hole where the node's points belong.
+    assert!(!out.exists(), "an image with a hole was kept");
 }
 
 #[test]

@@ -171,8 +171,23 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
         last.map_or(0, |f| f.nodes_drawn),
         last.map_or(0, |f| f.nodes_failed),
     );
-    for e in &report.errors {
-        eprintln!("warning: {e}");
+    // A node or hierarchy page that could not be read is a fault of the dataset, not a wait
+    // cut short: the images would show holes where its points belong, so none is kept.
+    let (failed_nodes, failed_pages) = last.map_or((0, 0), |f| (f.nodes_failed, f.pages_failed));
+    if failed_nodes + failed_pages > 0 || !report.errors.is_empty() {
+        for e in &report.errors {
+            eprintln!("error: {e}");
+        }
+        for image in &report.images {
+            std::fs::remove_file(image).map_err(|e| {
+                anyhow::anyhow!("{image}: cannot remove the incomplete image ({e})")
+            })?;
+        }
+        anyhow::bail!(
+            "{}: {failed_nodes} node(s) and {failed_pages} hierarchy page(s) could not be loaded, \
+             so no image was kept (`strata verify` on the dataset lists every fault)",
+            report.dataset
+        );
     }
     if let Some(e) = &report.fetch_error {
         eprintln!("warning: {e}");
