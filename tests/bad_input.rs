@@ -512,7 +512,12 @@ fn absurd_counts_are_refused_in_one_sentence() {
         "is more than the 1000 m",
     );
     assert!(!out.exists());
-    for flag in ["--max-connections", "--idle-timeout", "--header-timeout"] {
+    for flag in [
+        "--max-connections",
+        "--idle-timeout",
+        "--header-timeout",
+        "--blocking-threads",
+    ] {
         fails(
             &["serve", s(dir.path()), flag, "18446744073709551615"],
             flag,
@@ -535,12 +540,11 @@ fn absurd_counts_are_refused_in_one_sentence() {
     // 0 was taken as the default (frames from the keyframes' times).
     fly(&["--frames", "0"], "'--frames <FRAMES>'");
     // A pace so slow that the run would not end (a frame every 30 years), or whose period
-    // is no number of seconds at all.
-    for fps in ["1e-9", "1e-39"] {
-        fly(
-            &["--frames", "2", "--fps", fps],
-            "is outside the 0.1 to 1000 frames per second",
-        );
+    // is no number of seconds at all; refused for a still too (it was taken unread).
+    for fps in ["1e-9", "1e-39", "NaN", "inf"] {
+        let says = "is not 0 (unpaced) or a pace from 0.1 to 1000 frames per second";
+        fly(&["--frames", "2", "--fps", fps], says);
+        fails(&["render", s(&ds), "-o", s(&png), "--fps", fps], says);
     }
     // A keyframe's time that is no positive number (it was taken as the default 3 s).
     for seconds in ["0", "-1"] {
@@ -620,4 +624,26 @@ fn a_las_offset_that_swallows_the_scale_is_refused() {
         &p,
         "header field \"x offset\" is 1e308, so large that steps of the scale factor",
     );
+}
+
+#[test]
+fn a_temp_dir_that_is_a_file_is_refused_before_the_run() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let file = write(dir.path(), "not-a-folder", b"x");
+    let out = dir.path().join("ds");
+    let o = run(&[
+        "convert",
+        s(&data("autzen_trim.las")),
+        "-o",
+        s(&out),
+        "--temp-dir",
+        s(&file),
+    ]);
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(!o.status.success());
+    assert!(
+        err.contains("--temp-dir") && err.contains("is not a folder"),
+        "{err}"
+    );
+    assert!(!out.exists());
 }

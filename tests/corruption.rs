@@ -79,6 +79,12 @@ fn every_hierarchy_byte_flip_is_caught() {
         verify_fails_naming(&ds, part);
         flip(&path, at);
     }
+    // A page's fault names the file and the page once each.
+    flip(&path, strata_format::HIERARCHY_HEAD_SIZE + 1);
+    let o = run(&["verify", s(&ds)]);
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(err.matches("hierarchy page at byte").count(), 1, "{err}");
+    assert_eq!(err.matches("hierarchy.bin").count(), 1, "{err}");
 }
 
 #[test]

@@ -75,6 +75,16 @@ pub fn convert_with(opts: &ConvertOptions, step: &dyn ChunkStep) -> Result<Conve
             return Err(ConvertError::input(input, what));
         }
     }
+    // A folder that does not exist yet is made; a file in its place is a mistake.
+    if let Some(temp) = &opts.temp_dir
+        && temp.exists()
+        && !temp.is_dir()
+    {
+        return Err(ConvertError::Usage(format!(
+            "--temp-dir {} is not a folder",
+            temp.display()
+        )));
+    }
     let threads = opts.threads.max(1);
     // The LAZ decompressor runs on rayon's global pool; size it once to --threads.
     let _ = rayon::ThreadPoolBuilder::new()

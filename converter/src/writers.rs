@@ -118,6 +118,13 @@ pub fn open_writer(
             "is a folder; the output is a file",
         ));
     }
+    // `exp/x.las/` names a folder: no file can be moved there.
+    if path.as_os_str().as_encoded_bytes().ends_with(b"/") {
+        return Err(ConvertError::output(
+            path,
+            "ends with a slash, which names a folder; the output is a file",
+        ));
+    }
     let ext = path
         .extension()
         .and_then(|e| e.to_str())

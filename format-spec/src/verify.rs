@@ -1,7 +1,8 @@
 //! Whole-dataset verification: heads, structure, every checksum, every point inside its node.
 
 use crate::{
-    DatasetFile, DatasetId, Layout, LocalDataset, NodeInfo, NodeKey, PageRef, decode_node,
+    DatasetFile, DatasetId, FormatError, Layout, LocalDataset, NodeInfo, NodeKey, PageRef,
+    decode_node,
 };
 use std::collections::{BTreeMap, HashMap};
 use std::path::Path;
@@ -153,7 +154,11 @@ fn check_pages(ds: &LocalDataset, report: &mut VerifyReport) -> (Vec<NodeInfo>, 
         let page = match ds.load_page(&p) {
             Ok(page) => page,
             Err(e) => {
-                report.fault(page_part(&p), e.to_string());
+                // The reader's message names the file and the page already.
+                match e {
+                    FormatError::Corrupt { what, .. } => report.fault("hierarchy.bin", what),
+                    e => report.fault(page_part(&p), e.to_string()),
+                }
                 all_read = false;
                 continue;
             }

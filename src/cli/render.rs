@@ -5,7 +5,7 @@ use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 use std::time::Duration;
 use strata_format::DatasetFile;
-use strata_viewer::headless::{RenderOptions, check_png_replaceable, render};
+use strata_viewer::headless::{FPS_RANGE, RenderOptions, check_png_replaceable, render};
 use strata_viewer::measure::Measurements;
 
 #[derive(Debug, clap::Args)]
@@ -39,7 +39,7 @@ pub struct Args {
     frames: Option<u32>,
     /// Pace of a fly-through that does not wait for completeness (frames per second, 0.1 to
     /// 1000; 0: unpaced).
-    #[arg(long, default_value_t = 30.0)]
+    #[arg(long, default_value_t = 30.0, value_parser = parse_fps)]
     fps: f32,
     /// Write per-frame statistics as JSON.
     #[arg(long)]
@@ -61,6 +61,19 @@ pub fn timeout_of(seconds: f64) -> anyhow::Result<Duration> {
             "--timeout {seconds:e} is not a number of seconds from 0 to {:e}",
             Duration::MAX.as_secs_f64()
         ),
+    }
+}
+
+/// --fps: 0 (unpaced) or a pace in `FPS_RANGE`; refused even where no fly-through uses it,
+/// as a mistyped option should be.
+fn parse_fps(s: &str) -> Result<f32, String> {
+    match s.trim().parse::<f32>() {
+        Ok(f) if f == 0.0 || FPS_RANGE.contains(&f) => Ok(f),
+        _ => Err(format!(
+            "{s:?} is not 0 (unpaced) or a pace from {} to {} frames per second",
+            FPS_RANGE.start(),
+            FPS_RANGE.end()
+        )),
     }
 }
 

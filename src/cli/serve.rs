@@ -40,8 +40,9 @@ pub struct Args {
     header_timeout: u64,
     /// Threads for file-system calls (open, stat, read) at most. A few per core serve the
     /// queue; a call stuck on a file that never answers keeps its thread and another takes its
-    /// place, until this many.
-    #[arg(long, default_value_t = 64)]
+    /// place, until this many (1 to 4096).
+    #[arg(long, default_value_t = 64,
+          value_parser = clap::builder::RangedU64ValueParser::<usize>::new().range(1..=4096))]
     blocking_threads: usize,
     /// Access log lines as `text` or `json` (one object a line).
     #[arg(long, value_enum, default_value_t = LogFormatArg::Text)]
@@ -142,9 +143,6 @@ pub fn run_serve(a: Args) -> anyhow::Result<ExitCode> {
         LogFormatArg::Text => LogFormat::Text,
         LogFormatArg::Json => LogFormat::Json,
     };
-    if a.blocking_threads == 0 {
-        anyhow::bail!("--blocking-threads must be at least 1");
-    }
     config.blocking_threads = a.blocking_threads;
     let runtime = tokio::runtime::Builder::new_multi_thread()
         // File-system calls go to the server's own pool; tokio's serves nothing of ours.

@@ -81,7 +81,8 @@ const MAX_PATH_FRAMES: u32 = 100_000;
 /// The pace of a fly-through that does not wait for completeness (or 0, unpaced): a frame at
 /// least every ten seconds, a viewer's slowest useful pace, so that a run is bounded by its
 /// frames.
-const FPS_RANGE: std::ops::RangeInclusive<f32> = 0.1..=1000.0;
+/// The paces a fly-through may take (frames per second; 0 stands for unpaced).
+pub const FPS_RANGE: std::ops::RangeInclusive<f32> = 0.1..=1000.0;
 
 /// The whole dataset in view, for a view of `width` x `height`.
 pub fn default_camera(ds: &StreamDataset, width: u32, height: u32) -> Camera {
