@@ -604,6 +604,15 @@ fn a_one_chunk_laz_whose_chunk_size_would_take_gigabytes_is_refused() {
         let err = convert_fails(&p, "more than the 2000 points the file holds");
         assert!(err.contains("the VLR is corrupt"), "{err}");
     }
+    // 0 declares variable-size chunks (as 2^32 - 1 does): the fixed table then reads as
+    // garbage, and the message says which two disagree.
+    let mut b = orig.clone();
+    b[vlr + 12..vlr + 16].copy_from_slice(&0u32.to_le_bytes());
+    let p = write(dir.path(), "chunk0.laz", &b);
+    convert_fails(
+        &p,
+        "variable-size chunks the laszip VLR's chunk size declares",
+    );
     // Writers' 50,000 for a file of fewer points is the usual case, and reads.
     let mut b = orig.clone();
     b[vlr + 12..vlr + 16].copy_from_slice(&50_000u32.to_le_bytes());

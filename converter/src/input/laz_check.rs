@@ -216,7 +216,14 @@ pub fn check_laz(file: &File, h: &LasHeader) -> Result<(), String> {
     let bytes = read_at(file, table_at, (table_end - table_at) as usize)?;
     let table = guarded("the chunk table", || {
         ChunkTable::read(&mut Cursor::new(bytes), vlr.chunk_size.is_none())
-            .map_err(|_| format!("the chunk table at byte {table_at} is corrupt or truncated"))
+            .map_err(|_| match vlr.chunk_size {
+                Some(_) => format!("the chunk table at byte {table_at} is corrupt or truncated"),
+                // 0 and 4294967295 both declare variable-size chunks, whose table is laid
+                // out otherwise: a damaged size reads a good table as garbage.
+                None => format!(
+                    "the chunk table at byte {table_at} does not read as the table of variable-size chunks the laszip VLR's chunk size declares: one of them is corrupt, or the table is truncated"
+                ),
+            })
     })?;
     let mut entries: Vec<ChunkTableEntry> = table.as_ref().to_vec();
     let stored: u64 = entries.iter().map(|e| e.byte_count).sum();
