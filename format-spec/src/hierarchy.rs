@@ -249,6 +249,10 @@ pub fn decode_page(
         if layout != Layout::V1_0 {
             check_payload_1_1(key, &entry)?;
         }
+        // 1.0's proxies give their page's size, not a payload's.
+        if layout != Layout::V1_0 || entry.kind == EntryKind::Node {
+            check_count_fits(key, &entry)?;
+        }
         entries.push((key, entry));
     }
     if !keys.is_empty() {
@@ -304,6 +308,20 @@ pub fn decode_page(
 /// Bytes of a 1.1 page of `entries` entries, `proxies` of them proxies.
 pub fn page_size(entries: usize, proxies: usize) -> u64 {
     (8 + entries * ENTRY_SIZE + proxies * PAGE_REF_SIZE) as u64
+}
+
+/// A node's rows hold at least its 12 bytes of position, and LZ4 shrinks bytes at most about
+/// 255-fold: a count its payload cannot hold is damage (a reader that plans by the counts,
+/// such as `profile --max-read`, would stop early on it without a word).
+fn check_count_fits(key: NodeKey, e: &PageEntry) -> Result<(), String> {
+    let most = (e.size as u64).saturating_mul(256).saturating_add(4096) / 12;
+    if e.point_count as u64 > most && e.size > 0 {
+        return Err(format!(
+            "entry for {key} has {} points, more than its {}-byte payload can hold",
+            e.point_count, e.size
+        ));
+    }
+    Ok(())
 }
 
 /// 1.1: a node with no points has offset, size and checksum 0; any other has a payload.

@@ -208,3 +208,16 @@ fn unknown_kinds_and_nonzero_reserved_bytes_are_refused() {
         .unwrap_or_default();
     assert!(empty.contains("no points"), "{empty}");
 }
+
+#[test]
+fn a_count_no_payload_of_its_size_can_hold_is_refused() {
+    // The root's payload is 500 bytes: at 12 bytes a row and LZ4's 255-fold at best, some
+    // 11,000 rows at most.
+    let count = |n: u32| edited_root_page(move |e| e[4..8].copy_from_slice(&n.to_le_bytes()));
+    let huge = count(u32::MAX).err().unwrap_or_default();
+    assert!(
+        huge.contains("has 4294967295 points, more than its 500-byte payload can hold"),
+        "{huge}"
+    );
+    assert!(count(11_000).is_ok());
+}
