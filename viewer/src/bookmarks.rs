@@ -121,7 +121,7 @@ impl Bookmarks {
             Some(n) => self.keyframes.iter().find(|b| b.name.as_deref() == Some(n)),
             None => self.keyframes.first(),
         };
-        found.ok_or_else(|| {
+        let mark = found.ok_or_else(|| {
             let names: Vec<&str> = self
                 .keyframes
                 .iter()
@@ -138,7 +138,19 @@ impl Bookmarks {
                     None => "holds no bookmark".to_string(),
                 },
             )
-        })
+        })?;
+        // Refused here, where the file and the bookmark can be named, not by the camera.
+        if mark.eye == mark.target {
+            let which = match &mark.name {
+                Some(n) => format!("bookmark {n:?}"),
+                None => "its first bookmark".to_string(),
+            };
+            return Err(ViewerError::output(
+                path,
+                format!("{which} has its eye at its target, so it looks nowhere"),
+            ));
+        }
+        Ok(mark)
     }
 }
 
@@ -186,6 +198,16 @@ mod tests {
         assert!((again.eye - cam.eye).length() < 1e-3 && (again.fov_y - cam.fov_y).abs() < 1e-5);
         let e = back.find(Some("bridge"), &path).expect_err("unknown");
         assert!(e.to_string().contains("tower"), "{e}");
+        // A view that looks nowhere is refused naming the file and the bookmark.
+        let mut blind = back.clone();
+        blind.keyframes[0].target = blind.keyframes[0].eye;
+        let e = blind.find(Some("tower"), &path).expect_err("looks nowhere");
+        let said = e.to_string();
+        assert!(
+            said.contains(FILE_NAME)
+                && said.contains("bookmark \"tower\" has its eye at its target"),
+            "{said}"
+        );
     }
 
     #[test]
