@@ -283,3 +283,18 @@ fn class_counts_that_do_not_add_up_stop_the_finish() {
     std::fs::write(&counts, serde_json::to_vec(&v).expect("JSON")).expect("write");
     finish_fails(&plan, &["class counts add up to", "not the plan's 300000"]);
 }
+
+#[test]
+fn a_plan_copied_without_its_empty_tasks_folder_says_so() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let plan = plan(dir.path());
+    std::fs::remove_dir(plan.join("tasks")).expect("the plan's tasks folder is empty");
+    refused(
+        &["convert", "--plan", s(&plan), "--task", "0", "-q"],
+        &[
+            "tasks",
+            "the plan has no tasks folder",
+            "empty folders included",
+        ],
+    );
+}

@@ -67,6 +67,14 @@ pub fn run_task(plan_dir: &Path, k: usize, quiet: bool) -> Result<TaskSummary> {
         return Ok(summary(range.len(), 0, true, Vec::new()));
     }
     let step = tp.checked_step(plan_dir)?;
+    // --plan-only made it empty; a copy that drops empty folders loses it.
+    let tasks_dir = plan_dir.join("tasks");
+    if !tasks_dir.is_dir() {
+        return Err(ConvertError::input(
+            &tasks_dir,
+            "the plan has no tasks folder: copy the plan folder whole, empty folders included",
+        ));
+    }
     // Two runs of one task would write the same files: the second refuses.
     let lock_path = tmp.with_extension("lock");
     let lock = File::create(&lock_path).map_err(io_err(&lock_path, "cannot create"))?;
