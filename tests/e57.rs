@@ -333,7 +333,10 @@ fn e57_without_point_clouds_or_points_is_refused() {
     let mut spec = ScanSpec::new(Storage::Scaled, 10);
     spec.offset = 1e300;
     write_e57(&far, &[spec]);
-    convert_fails(&far, "an offset of 1e300, so large that steps of its scale");
+    convert_fails(
+        &far,
+        "an offset of 1e300, so large that the steps of its scale",
+    );
 }
 
 #[test]

@@ -154,9 +154,19 @@ fn check_pages(ds: &LocalDataset, report: &mut VerifyReport) -> (Vec<NodeInfo>, 
         let page = match ds.load_page(&p) {
             Ok(page) => page,
             Err(e) => {
-                // The reader's message names the file and the page already.
+                // The file and the page once each: a decoding fault names the page already.
                 match e {
-                    FormatError::Corrupt { what, .. } => report.fault("hierarchy.bin", what),
+                    FormatError::Corrupt { path, what } => {
+                        let file = path.file_name().map_or_else(
+                            || path.display().to_string(),
+                            |n| n.to_string_lossy().into_owned(),
+                        );
+                        let what = match what.starts_with("hierarchy page at byte") {
+                            true => what,
+                            false => format!("{}: {what}", page_part(&p)),
+                        };
+                        report.fault(file, what)
+                    }
                     e => report.fault(page_part(&p), e.to_string()),
                 }
                 all_read = false;

@@ -5,6 +5,7 @@
 use crate::files::confined;
 use serde::Serialize;
 use std::collections::HashMap;
+use std::io::Write;
 use std::os::unix::fs::MetadataExt;
 use std::path::{Path, PathBuf};
 use std::sync::Mutex;
@@ -186,16 +187,21 @@ impl Catalog {
     /// Says on stderr, once per version of its `metadata.json`, why dataset `name` is not
     /// served: a client sees only a 404, and the listing leaves it out.
     fn report(&self, name: &str, version: Version, path: &Path, fault: &str) {
-        let Ok(mut reported) = self.reported.lock() else {
-            return;
+        let first = match self.reported.lock() {
+            Ok(mut reported) => reported.insert(name.to_string(), version) != Some(version),
+            Err(_) => false,
         };
-        if reported.insert(name.to_string(), version) != Some(version) {
+        if first {
             // The fault names the file where it comes from the parser; else name it here.
             let fault = match fault.contains(&*path.to_string_lossy()) {
                 true => fault.to_string(),
                 false => format!("{}: {fault}", path.display()),
             };
-            eprintln!("warning: {fault}; dataset {name:?} is not served");
+            // Outside the lock, and never a panic: stderr may be a closed pipe.
+            let _ = writeln!(
+                std::io::stderr(),
+                "warning: {fault}; dataset {name:?} is not served"
+            );
         }
     }
 

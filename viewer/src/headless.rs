@@ -78,10 +78,9 @@ pub const DEFAULT_FOV_DEG: f32 = 50.0;
 
 /// Frames a fly-through takes at most from its keyframes' seconds.
 const MAX_PATH_FRAMES: u32 = 100_000;
-/// The pace of a fly-through that does not wait for completeness (or 0, unpaced): a frame at
-/// least every ten seconds, a viewer's slowest useful pace, so that a run is bounded by its
-/// frames.
-/// The paces a fly-through may take (frames per second; 0 stands for unpaced).
+/// The paces, in frames per second, of a fly-through that does not wait for completeness (0,
+/// outside the range, stands for unpaced): a frame at least every ten seconds, a viewer's
+/// slowest useful pace, so that a run is bounded by its frames.
 pub const FPS_RANGE: std::ops::RangeInclusive<f32> = 0.1..=1000.0;
 
 /// The whole dataset in view, for a view of `width` x `height`.

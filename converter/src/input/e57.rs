@@ -125,8 +125,8 @@ impl E57Source {
                     r.name
                 )));
             }
-            // Beside an offset that large one step of the scale is lost (a double holds about
-            // 16 digits): distinct points would share a coordinate.
+            // Beside an offset that large the field's whole range is lost (a double holds about
+            // 16 digits): every point would get the same coordinate.
             for r in pc.prototype.iter().filter(|r| READ.contains(&r.name)) {
                 if let RecordDataType::ScaledInteger {
                     scale,
@@ -135,11 +135,12 @@ impl E57Source {
                     max,
                 } = r.data_type
                     && min != max
-                    && offset.abs() * f64::EPSILON > scale.abs()
+                    && min as f64 * scale + offset == max as f64 * scale + offset
                 {
                     return Err(bad(format!(
                         "scan {i} of {n}: its {:?} field is a scaled integer with an offset of \
-                         {offset:e}, so large that steps of its scale {scale:e} are lost in it",
+                         {offset:e}, so large that the steps of its scale {scale:e} are lost in \
+                         it: every point would get the same value",
                         r.name
                     )));
                 }

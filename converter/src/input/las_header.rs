@@ -181,11 +181,13 @@ impl LasHeader {
                     number(o)
                 ));
             }
-            // A double holds about 16 digits: beside an offset that large, one step of the scale
-            // is lost, and records that differ give the same coordinate.
-            if o.abs() * f64::EPSILON > s.abs() {
+            // A double holds about 16 digits: beside an offset that large, the whole range of
+            // the records is lost, and every point gets the same coordinate. (A coarser rule,
+            // one step lost, would refuse the scale 1e-9 and offset 5e6 that a small far
+            // float cloud's export writes, whose integers are kept exactly.)
+            if o + s * 2f64.powi(31) == o - s * 2f64.powi(31) {
                 return Err(format!(
-                    "header field \"{} offset\" is {}, so large that steps of the scale factor {} are lost in it and distinct points would share a coordinate",
+                    "header field \"{} offset\" is {}, so large that the steps of the scale factor {} are lost in it: every point would get the same coordinate",
                     AXES[a],
                     number(o),
                     number(s)

@@ -13,9 +13,8 @@ use std::panic::{AssertUnwindSafe, catch_unwind};
 use std::sync::Once;
 use std::sync::atomic::{AtomicUsize, Ordering};
 
-/// A chunk size beyond the points a file holds is refused past both of these (points, and the
-/// bytes of that many records): far beyond the 50,000 LASzip writers use.
-const MAX_CHUNK_POINTS: u64 = 1 << 20;
+/// A chunk size beyond the points a file holds is refused where that many records would take
+/// more than this: the 50,000 LASzip writers use take under 4 MiB at the usual record lengths.
 const MAX_CHUNK_BYTES: u64 = 256 << 20;
 
 /// Guarded calls in progress: while there are any, a panic is not reported on stderr (it
@@ -206,9 +205,9 @@ pub fn check_laz(file: &File, h: &LasHeader) -> Result<(), String> {
         // file holds, so only a size beyond both the points and what a chunk may take is
         // refused.
         let bytes = size.saturating_mul(h.record_len);
-        if size > points && size > MAX_CHUNK_POINTS && bytes > MAX_CHUNK_BYTES {
+        if size > points && bytes > MAX_CHUNK_BYTES {
             return Err(format!(
-                "the laszip VLR gives chunks of {size} points, more than the {points} points the file holds (header field \"number of point records\"), and reading one would reserve {} MiB: the VLR is corrupt",
+                "the laszip VLR gives chunks of {size} points, more than the {points} points the file holds (header field \"number of point records\"), and the decoder would reserve {} MiB for one: the chunk size is damaged, or far beyond what a file of this size needs",
                 bytes >> 20
             ));
         }

@@ -68,10 +68,11 @@ pub fn run_task(plan_dir: &Path, k: usize, quiet: bool) -> Result<TaskSummary> {
     }
     let step = tp.checked_step(plan_dir)?;
     // --plan-only made it empty; a copy that drops empty folders loses it.
-    let tasks_dir = plan_dir.join("tasks");
-    if !tasks_dir.is_dir() {
+    if let Some(tasks_dir) = tmp.parent()
+        && !tasks_dir.is_dir()
+    {
         return Err(ConvertError::input(
-            &tasks_dir,
+            tasks_dir,
             "the plan has no tasks folder: copy the plan folder whole, empty folders included",
         ));
     }
