@@ -305,6 +305,21 @@ fn a_corrupt_node_fails_the_render_and_leaves_no_image() {
     );
     // The image would show a hole where the node's points belong.
     assert!(!out.exists(), "an image with a hole was kept");
+    // A pick in that view could answer with another node's point.
+    let o = gpu_run(&[
+        "pick",
+        s(&dataset),
+        "--pixel",
+        "100,75",
+        "--size",
+        "200x150",
+    ]);
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(1), "{err}");
+    assert!(
+        err.contains("could not be loaded, so a pick could name the wrong point"),
+        "{err}"
+    );
 }
 
 #[test]

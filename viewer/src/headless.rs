@@ -333,6 +333,17 @@ pub fn pick_all(
         }
         renderer.wait_for_loads(Duration::from_millis(20));
     }
+    // Under a node that could not be loaded, the nearest point drawn is another node's, or
+    // background: an answer that looks right and is not.
+    if let Some(first) = renderer.errors().first() {
+        return Err(ViewerError::source(
+            ds.location(),
+            format!(
+                "{} node(s) or page(s) of the view could not be loaded, so a pick could name the wrong point ({first})",
+                renderer.errors().len()
+            ),
+        ));
+    }
     pixels
         .iter()
         .map(|&(x, y)| renderer.pick(x, y, radius))
