@@ -256,6 +256,8 @@ fn a_copc_las_name_is_refused() {
     export_refused(&ds, &dir.path().join("p.copc.las"), &["NAME.copc.laz"]);
     export_refused(&ds, &dir.path().join("p.xyz"), &[".copc.laz", "potree2"]);
     // A trailing slash names a folder: refused before the export, not when it is moved there.
-    let slashed = format!("{}/", s(&dir.path().join("q.las")));
-    export_refused(&ds, Path::new(&slashed), &["ends with a slash"]);
+    for tail in ["/", "/."] {
+        let slashed = format!("{}{tail}", s(&dir.path().join("q.las")));
+        export_refused(&ds, Path::new(&slashed), &["which names a folder"]);
+    }
 }

@@ -75,9 +75,10 @@ pub fn convert_with(opts: &ConvertOptions, step: &dyn ChunkStep) -> Result<Conve
             return Err(ConvertError::input(input, what));
         }
     }
-    // A folder that does not exist yet is made; a file in its place is a mistake.
+    // A folder that does not exist yet is made; a file (or a link to nothing) in its place is a
+    // mistake.
     if let Some(temp) = &opts.temp_dir
-        && temp.exists()
+        && temp.symlink_metadata().is_ok()
         && !temp.is_dir()
     {
         return Err(ConvertError::Usage(format!(

@@ -118,11 +118,12 @@ pub fn open_writer(
             "is a folder; the output is a file",
         ));
     }
-    // `exp/x.las/` names a folder: no file can be moved there.
-    if path.as_os_str().as_encoded_bytes().ends_with(b"/") {
+    // `exp/x.las/` (or `exp/x.las/.`) names a folder: no file can be moved there.
+    let bytes = path.as_os_str().as_encoded_bytes();
+    if bytes.ends_with(b"/") || bytes.ends_with(b"/.") {
         return Err(ConvertError::output(
             path,
-            "ends with a slash, which names a folder; the output is a file",
+            "ends with / or /., which names a folder; the output is a file",
         ));
     }
     let ext = path

@@ -7,6 +7,7 @@
 
 use super::e57_extras::{FileExtras, ScanExtras};
 use super::e57_limits::{OwnRanges, from_values, normalised};
+use super::las_header::number;
 use super::laz_check::guarded;
 use e57::{CartesianCoordinate, E57Reader, PointCloud};
 use std::fs::File;
@@ -124,7 +125,10 @@ impl Pose {
         if !norm.is_normal() {
             return Err(format!(
                 "its pose's rotation quaternion ({}, {}, {}, {}) is not a rotation",
-                q.w, q.x, q.y, q.z
+                number(q.w),
+                number(q.x),
+                number(q.y),
+                number(q.z)
             ));
         }
         let [w, x, y, z] = [q.w, q.x, q.y, q.z].map(|v| v / norm);
