@@ -581,38 +581,3 @@ fn a_file_given_twice_is_said() {
         "{err}"
     );
 }
-
-#[test]
-fn a_temp_dir_that_is_a_file_is_refused_before_the_run() {
-    let dir = tempfile::tempdir().expect("tempdir");
-    let file = write(dir.path(), "not-a-folder", b"x");
-    let out = dir.path().join("ds");
-    let o = run(&[
-        "convert",
-        s(&data("autzen_trim.las")),
-        "-o",
-        s(&out),
-        "--temp-dir",
-        s(&file),
-    ]);
-    let err = String::from_utf8_lossy(&o.stderr);
-    assert!(!o.status.success());
-    assert!(
-        err.contains("--temp-dir") && err.contains("is not a folder"),
-        "{err}"
-    );
-    assert!(!out.exists());
-    // A link to nothing: `exists` is false, and the run failed on a path under it.
-    let dangling = dir.path().join("gone");
-    std::os::unix::fs::symlink(dir.path().join("nowhere"), &dangling).expect("symlink");
-    let o = run(&[
-        "convert",
-        s(&data("autzen_trim.las")),
-        "-o",
-        s(&out),
-        "--temp-dir",
-        s(&dangling),
-    ]);
-    let err = String::from_utf8_lossy(&o.stderr);
-    assert!(err.contains("is not a folder"), "{err}");
-}

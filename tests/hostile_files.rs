@@ -1,6 +1,7 @@
 //! Files that are not what they seem: a device or a pipe where a small text file is named, a
 //! disk that fills while a file is written, a header built to be slow, points too close to
-//! store apart, and dataset metadata that points outside the dataset.
+//! store apart, dataset metadata that points outside the dataset, a file or a dead link where
+//! a work folder is named, and headers whose sizes would take the memory.
 
 mod common;
 use common::*;
@@ -325,4 +326,40 @@ fn a_las_offset_that_swallows_the_scale_is_refused_and_a_fine_scale_far_away_is_
     let out = dir.path().join("fine.strata");
     let o = run(&["convert", s(&p), "-o", s(&out)]);
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+}
+
+#[test]
+fn a_temp_dir_that_is_a_file_is_refused_before_the_run() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let file = dir.path().join("not-a-folder");
+    std::fs::write(&file, b"x").expect("write");
+    let out = dir.path().join("ds");
+    let o = run(&[
+        "convert",
+        s(&data("autzen_trim.las")),
+        "-o",
+        s(&out),
+        "--temp-dir",
+        s(&file),
+    ]);
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(!o.status.success());
+    assert!(
+        err.contains("--temp-dir") && err.contains("is not a folder"),
+        "{err}"
+    );
+    assert!(!out.exists());
+    // A link to nothing: `exists` is false, and the run failed on a path under it.
+    let dangling = dir.path().join("gone");
+    std::os::unix::fs::symlink(dir.path().join("nowhere"), &dangling).expect("symlink");
+    let o = run(&[
+        "convert",
+        s(&data("autzen_trim.las")),
+        "-o",
+        s(&out),
+        "--temp-dir",
+        s(&dangling),
+    ]);
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(err.contains("is not a folder"), "{err}");
 }
