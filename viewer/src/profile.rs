@@ -85,11 +85,30 @@ impl Corridor {
     /// Where `(x, y)` lies: across the segment nearest it, within half the width; `None`
     /// outside the corridor.
     pub fn place(&self, x: f64, y: f64) -> Option<Place> {
-        let half = self.width / 2.0;
+        let segments: Vec<usize> = (0..self.line.len().saturating_sub(1)).collect();
+        self.place_among(x, y, &segments, &self.starts())
+    }
+
+    /// Distance along the polyline to the start of each segment.
+    pub fn starts(&self) -> Vec<f64> {
         let mut before = 0.0;
+        self.line
+            .windows(2)
+            .map(|w| {
+                let at = before;
+                before += (w[1][0] - w[0][0]).hypot(w[1][1] - w[0][1]);
+                at
+            })
+            .collect()
+    }
+
+    /// As [`Corridor::place`], trying only `segments` (in line order: the first of equally
+    /// near ones wins), whose starts along the line are `starts` (`Corridor::starts`).
+    pub fn place_among(&self, x: f64, y: f64, segments: &[usize], starts: &[f64]) -> Option<Place> {
+        let half = self.width / 2.0;
         let mut best: Option<Place> = None;
-        for w in self.line.windows(2) {
-            let (a, b) = (w[0], w[1]);
+        for &k in segments {
+            let (a, b) = (self.line[k], self.line[k + 1]);
             let d = [b[0] - a[0], b[1] - a[1]];
             let len = d[0].hypot(d[1]);
             if len > 0.0 {
@@ -105,43 +124,59 @@ impl Corridor {
                     && best.is_none_or(|b| off.abs() < b.offset.abs())
                 {
                     best = Some(Place {
-                        along: before + t.clamp(0.0, len),
+                        along: starts[k] + t.clamp(0.0, len),
                         offset: off,
                     });
                 }
             }
-            before += len;
         }
         best
     }
 
+    /// The segments whose bands meet the rectangle `min`-`max`, in line order: a node's points
+    /// need be tried against these alone (a line of thousands of vertices made every point try
+    /// every segment). The rectangle is widened by a hair beyond the rounding `place_among`
+    /// allows, so that no point it takes is left out.
+    pub fn segments_meeting(&self, min: [f64; 2], max: [f64; 2]) -> Vec<usize> {
+        let hair = |v: f64| 1e-9 * (v.abs() + self.width) + 1e-300;
+        let min = [min[0] - hair(min[0]), min[1] - hair(min[1])];
+        let max = [max[0] + hair(max[0]), max[1] + hair(max[1])];
+        (0..self.line.len().saturating_sub(1))
+            .filter(|&k| self.segment_meets(k, min, max))
+            .collect()
+    }
+
     /// Whether the rectangle `min`-`max` may hold a point of the corridor: it meets one
-    /// segment's band (separating axes of two rectangles).
+    /// segment's band.
     pub fn meets(&self, min: [f64; 2], max: [f64; 2]) -> bool {
+        (0..self.line.len().saturating_sub(1)).any(|k| self.segment_meets(k, min, max))
+    }
+
+    /// Whether the rectangle `min`-`max` meets segment `k`'s band (separating axes of two
+    /// rectangles).
+    fn segment_meets(&self, k: usize, min: [f64; 2], max: [f64; 2]) -> bool {
         let half = self.width / 2.0;
         let centre = [(min[0] + max[0]) / 2.0, (min[1] + max[1]) / 2.0];
         let ext = [(max[0] - min[0]) / 2.0, (max[1] - min[1]) / 2.0];
-        self.line.windows(2).any(|w| {
-            let (a, b) = (w[0], w[1]);
-            let d = [b[0] - a[0], b[1] - a[1]];
-            let len = d[0].hypot(d[1]);
-            if len == 0.0 {
-                return false;
-            }
-            let u = [d[0] / len, d[1] / len];
-            let n = [-u[1], u[0]];
-            let mid = [(a[0] + b[0]) / 2.0, (a[1] + b[1]) / 2.0];
-            let c = [mid[0] - centre[0], mid[1] - centre[1]];
-            let (bu, bn) = (len / 2.0, half);
-            // The box's axes.
-            let on_x = c[0].abs() <= ext[0] + bu * u[0].abs() + bn * n[0].abs();
-            let on_y = c[1].abs() <= ext[1] + bu * u[1].abs() + bn * n[1].abs();
-            // The band's axes.
-            let r = |v: [f64; 2]| ext[0] * v[0].abs() + ext[1] * v[1].abs();
-            let on_u = (c[0] * u[0] + c[1] * u[1]).abs() <= bu + r(u);
-            let on_n = (c[0] * n[0] + c[1] * n[1]).abs() <= bn + r(n);
-            on_x && on_y && on_u && on_n
-        })
+        let (a, b) = (self.line[k], self.line[k + 1]);
+        let d = [b[0] - a[0], b[1] - a[1]];
+        let len = d[0].hypot(d[1]);
+        if len == 0.0 {
+            return false;
+        }
+        let u = [d[0] / len, d[1] / len];
+        let n = [-u[1], u[0]];
+        let mid = [(a[0] + b[0]) / 2.0, (a[1] + b[1]) / 2.0];
+        let c = [mid[0] - centre[0], mid[1] - centre[1]];
+        let (bu, bn) = (len / 2.0, half);
+        // The box's axes.
+        let on_x = c[0].abs() <= ext[0] + bu * u[0].abs() + bn * n[0].abs();
+        let on_y = c[1].abs() <= ext[1] + bu * u[1].abs() + bn * n[1].abs();
+        // The band's axes.
+        let r = |v: [f64; 2]| ext[0] * v[0].abs() + ext[1] * v[1].abs();
+        let on_u = (c[0] * u[0] + c[1] * u[1]).abs() <= bu + r(u);
+        let on_n = (c[0] * n[0] + c[1] * n[1]).abs() <= bn + r(n);
+        on_x && on_y && on_u && on_n
     }
 }
 
@@ -305,12 +340,15 @@ fn read_node(
     out.points_read += cols.count as u64;
     let rows = cols.to_rows(&out.layout);
     let stride = out.layout.stride;
+    let (min, max) = node_rect(ds, info.key);
+    let segments = corridor.segments_meeting(min, max);
+    let starts = corridor.starts();
     for i in 0..cols.count {
         let int = cols.position(i);
         let p: [f64; 3] = std::array::from_fn(|k| {
             to_decimals(m.offset[k] + m.scale[k] * int[k] as f64, m.scale[k])
         });
-        if let Some(place) = corridor.place(p[0], p[1]) {
+        if let Some(place) = corridor.place_among(p[0], p[1], &segments, &starts) {
             out.points.push(ProfilePoint { place, position: p });
             out.rows
                 .extend_from_slice(&rows[i * stride..(i + 1) * stride]);
@@ -491,5 +529,40 @@ mod tests {
             assert!(e.contains(says), "{bad}: {e}");
         }
         assert!(Corridor::parse("0,0;1,1", 0.0).is_err());
+    }
+
+    #[test]
+    fn a_cell_tries_only_the_segments_that_reach_it_and_places_every_point_alike() {
+        // A winding line of 2,000 vertices over a 100 x 100 field, crossing itself.
+        let line: Vec<String> = (0..=2000)
+            .map(|i| {
+                let t = i as f64 / 20.0;
+                format!("{},{}", t, 50.0 + 40.0 * (t * 0.7).sin() * (t * 0.05).cos())
+            })
+            .collect();
+        let c = Corridor::parse(&line.join(";"), 3.0).expect("parses");
+        let starts = c.starts();
+        let mut tried = 0;
+        let mut placed = 0;
+        // Cells of 12.5 x 12.5, and points on a grid finer than the band, edges included.
+        for cx in 0..8 {
+            for cy in 0..8 {
+                let min = [cx as f64 * 12.5, cy as f64 * 12.5];
+                let max = [min[0] + 12.5, min[1] + 12.5];
+                let segments = c.segments_meeting(min, max);
+                tried += segments.len();
+                for i in 0..=25 {
+                    for j in 0..=25 {
+                        let (x, y) = (min[0] + i as f64 * 0.5, min[1] + j as f64 * 0.5);
+                        let all = c.place(x, y);
+                        assert_eq!(all, c.place_among(x, y, &segments, &starts), "{x},{y}");
+                        placed += all.is_some() as usize;
+                    }
+                }
+            }
+        }
+        assert!(placed > 1000, "{placed} points in the corridor");
+        // Every cell tried every segment before.
+        assert!(tried < 64 * 2000 / 8, "{tried} segment tries");
     }
 }
