@@ -259,22 +259,15 @@ fn a_las_export_the_las_crate_cannot_close_is_an_error_not_a_panic() {
 fn a_one_chunk_laz_whose_chunk_size_would_take_gigabytes_is_refused() {
     let dir = tempfile::tempdir().expect("tempdir");
     let small = dir.path().join("small.laz");
-    let o = run(&["synth", "--points", "2000", "-o", s(&small)]);
-    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    run_ok(&["synth", "--points", "2000", "-o", s(&small)]);
     let orig = std::fs::read(&small).expect("synth laz");
-    let vlr = orig
-        .windows(14)
-        .position(|w| w == b"laszip encoded")
-        .expect("laszip VLR")
-        - 2
-        + 54;
+    let vlr = laszip_vlr_body(&orig);
     // One chunk of 2,000 points: the decoder reserved chunk size x record length (an abort
     // on 2^31 points of 34 bytes).
     for size in [0x8000_0000u32, 0x00ff_c350] {
         let mut b = orig.clone();
         b[vlr + 12..vlr + 16].copy_from_slice(&size.to_le_bytes());
-        let p = dir.path().join(format!("chunk{size}.laz"));
-        std::fs::write(&p, &b).expect("write");
+        let p = written(dir.path(), &format!("chunk{size}.laz"), &b);
         let err = convert_fails(&p, "more than the 2000 points the file holds");
         assert!(err.contains("the decoder would reserve"), "{err}");
     }
@@ -282,8 +275,7 @@ fn a_one_chunk_laz_whose_chunk_size_would_take_gigabytes_is_refused() {
     // garbage, and the message says which two disagree.
     let mut b = orig.clone();
     b[vlr + 12..vlr + 16].copy_from_slice(&0u32.to_le_bytes());
-    let p = dir.path().join("chunk0.laz");
-    std::fs::write(&p, &b).expect("write");
+    let p = written(dir.path(), "chunk0.laz", &b);
     convert_fails(
         &p,
         "variable-size chunks the laszip VLR's chunk size declares",
@@ -291,11 +283,8 @@ fn a_one_chunk_laz_whose_chunk_size_would_take_gigabytes_is_refused() {
     // Writers' 50,000 for a file of fewer points is the usual case, and reads.
     let mut b = orig.clone();
     b[vlr + 12..vlr + 16].copy_from_slice(&50_000u32.to_le_bytes());
-    let p = dir.path().join("usual.laz");
-    std::fs::write(&p, &b).expect("write");
-    let out = dir.path().join("usual.strata");
-    let o = run(&["convert", s(&p), "-o", s(&out)]);
-    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let p = written(dir.path(), "usual.laz", &b);
+    run_ok(&["convert", s(&p), "-o", s(&dir.path().join("usual.strata"))]);
 }
 
 #[test]
@@ -304,8 +293,7 @@ fn a_las_offset_that_swallows_the_scale_is_refused_and_a_fine_scale_far_away_is_
     let mut b = std::fs::read(data("autzen_trim.las")).expect("autzen");
     // X offset 1e308 with a scale of 0.01: every record's x the same number.
     b[155..163].copy_from_slice(&1e308f64.to_le_bytes());
-    let p = dir.path().join("far.las");
-    std::fs::write(&p, &b).expect("write");
+    let p = written(dir.path(), "far.las", &b);
     convert_fails(
         &p,
         "header field \"x offset\" is 1e308, so large that the steps of the scale factor",
@@ -321,11 +309,8 @@ fn a_las_offset_that_swallows_the_scale_is_refused_and_a_fine_scale_far_away_is_
         b[179 + 16 * a..187 + 16 * a].copy_from_slice(&(5e6f64 + 3.0).to_le_bytes());
         b[187 + 16 * a..195 + 16 * a].copy_from_slice(&(5e6f64 - 3.0).to_le_bytes());
     }
-    let p = dir.path().join("fine.las");
-    std::fs::write(&p, &b).expect("write");
-    let out = dir.path().join("fine.strata");
-    let o = run(&["convert", s(&p), "-o", s(&out)]);
-    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let p = written(dir.path(), "fine.las", &b);
+    run_ok(&["convert", s(&p), "-o", s(&dir.path().join("fine.strata"))]);
 }
 
 #[test]
@@ -362,4 +347,11 @@ fn a_temp_dir_that_is_a_file_is_refused_before_the_run() {
     ]);
     let err = String::from_utf8_lossy(&o.stderr);
     assert!(err.contains("is not a folder"), "{err}");
+}
+
+/// `bytes` written to `dir/name`.
+fn written(dir: &std::path::Path, name: &str, bytes: &[u8]) -> std::path::PathBuf {
+    let path = dir.join(name);
+    std::fs::write(&path, bytes).expect("write");
+    path
 }

@@ -436,3 +436,13 @@ pub fn unit_randoms(mut seed: u64) -> impl FnMut() -> f64 {
         (seed >> 11) as f64 / (1u64 << 53) as f64
     }
 }
+
+/// Where the body of `laz`'s laszip VLR starts (after its 54-byte header; the user id
+/// "laszip encoded" lies 2 bytes into that header).
+pub fn laszip_vlr_body(laz: &[u8]) -> usize {
+    let id = laz
+        .windows(14)
+        .position(|w| w == b"laszip encoded")
+        .expect("a laszip VLR");
+    id - 2 + 54
+}

@@ -1,0 +1,74 @@
+//! A dataset with a damaged node: a render keeps no image with a hole in it, and a pick in
+//! that view gives no answer that could be another node's point.
+
+use super::*;
+
+#[test]
+fn a_corrupt_node_fails_the_render_and_leaves_no_image() {
+    let src = fixtures().join("autzen.strata");
+    let dir = fixtures().join("corrupt-node");
+    let dataset = dir.join("autzen.strata");
+    std::fs::create_dir_all(&dataset).expect("dir");
+    for f in ["metadata.json", "hierarchy.bin", "octree.bin"] {
+        std::fs::copy(src.join(f), dataset.join(f)).expect("copy");
+    }
+    let ds = strata_format::LocalDataset::open(&dataset).expect("opens");
+    let victim = ds
+        .all_nodes()
+        .expect("nodes")
+        .into_iter()
+        .find(|n| n.key.level == 1)
+        .expect("a level-1 node");
+    let mut octree = std::fs::read(dataset.join("octree.bin")).expect("read");
+    octree[victim.offset as usize + victim.size as usize / 2] ^= 0x5a;
+    std::fs::write(dataset.join("octree.bin"), octree).expect("write");
+
+    let out = dir.join("corrupt.png");
+    let st = dir.join("corrupt.json");
+    let _ = std::fs::remove_file(&out);
+    let o = gpu_run(&[
+        "render",
+        s(&dataset),
+        "-o",
+        s(&out),
+        "--stats",
+        s(&st),
+        "--wait-complete",
+        "--size",
+        "200x150",
+    ]);
+    let v = stats(&st);
+    assert_eq!(v["frames"][0]["nodes_failed"], 1);
+    assert!(v["frames"][0]["points_drawn"].as_u64().unwrap_or(0) > 0);
+    let errors = v["errors"].to_string();
+    assert!(
+        errors.contains(&victim.key.name()),
+        "errors {errors} do not name node {}",
+        victim.key
+    );
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(1), "{err}");
+    assert!(!err.contains("panicked"), "{err}");
+    assert!(err.contains("checksum"), "{err}");
+    assert!(
+        err.contains("1 node(s) and 0 hierarchy page(s) could not be loaded"),
+        "{err}"
+    );
+    // The image would show a hole where the node's points belong.
+    assert!(!out.exists(), "an image with a hole was kept");
+    // A pick in that view could answer with another node's point.
+    let o = gpu_run(&[
+        "pick",
+        s(&dataset),
+        "--pixel",
+        "100,75",
+        "--size",
+        "200x150",
+    ]);
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(1), "{err}");
+    assert!(
+        err.contains("could not be loaded, so a pick could name the wrong point"),
+        "{err}"
+    );
+}
