@@ -7,6 +7,8 @@ mod colours;
 mod common;
 #[path = "render/damaged.rs"]
 mod damaged;
+#[path = "render/facing.rs"]
+mod facing;
 #[path = "render/filter_shadows.rs"]
 mod filter_shadows;
 #[path = "render/filters.rs"]

@@ -92,11 +92,13 @@ pub(super) fn nested(normals: bool) -> &'static Path {
     })
 }
 
-struct Shot {
-    rgb: Vec<[u8; 3]>,
+pub(super) struct Shot {
+    pub(super) rgb: Vec<[u8; 3]>,
     covered: Vec<bool>,
     measures: std::collections::BTreeMap<&'static str, f32>,
     note: Option<&'static str>,
+    /// The facing check's verdict (`FrameStats::normal_sides`).
+    pub(super) sides: Option<&'static str>,
 }
 
 impl Shot {
@@ -105,7 +107,7 @@ impl Shot {
     }
 }
 
-fn shot(dataset: &Path, pipeline: &str, set: &[&str]) -> Shot {
+pub(super) fn shot(dataset: &Path, pipeline: &str, set: &[&str]) -> Shot {
     shot_on(ProjectionPath::Auto, dataset, pipeline, set)
 }
 
@@ -159,6 +161,7 @@ fn shot_at(
         covered,
         measures: r.read_measures().expect("measures"),
         note: stats.note,
+        sides: stats.normal_sides,
     }
 }
 

@@ -323,6 +323,9 @@ impl ViewerApp {
                 format!("{:.0} MiB", s.gpu_bytes as f64 / (1 << 20) as f64),
             );
             row("I/O", format!("{:.1} MB/s", self.io_rate / 1e6));
+            if let Some(sides) = s.normal_sides {
+                row("normals", sides.to_string());
+            }
             if !s.passes.is_empty() {
                 row("pass clock", s.pass_clock.to_string());
             }

@@ -7,7 +7,9 @@ use crate::ViewerError;
 use crate::camera::Camera;
 use crate::lod::{Selection, Tree, clip_range};
 use crate::pipelines::params::ResolvedParams;
-use crate::pipelines::projection::{ArenaDraw, FINISH_SLOTS, FrameDraw, FrameUniforms, GpuRange};
+use crate::pipelines::projection::{
+    ArenaDraw, FINISH_SLOTS, FrameDraw, FrameUniforms, GpuRange, NormalSides,
+};
 use crate::pipelines::{PipelineFrame, PipelineInfo, PointStream, ViewFrame};
 use crate::settings::{Settings, SizeMode};
 use std::collections::{BTreeMap, HashMap, HashSet};
@@ -102,6 +104,8 @@ impl Renderer {
         per_arena.into_values().collect()
     }
 
+    /// Draws the selection; returns whether the frame took the facing check of its own view,
+    /// `None` where it needs none (its normals mark no sides, or the pipeline reads none).
     pub(super) fn draw(
         &mut self,
         camera: &Camera,
@@ -110,7 +114,7 @@ impl Renderer {
         settings: &Settings,
         (sel, extra): (&Selection, Option<&Selection>),
         params: &ResolvedParams,
-    ) -> Result<(), ViewerError> {
+    ) -> Result<Option<bool>, ViewerError> {
         let info = settings.pipeline;
         self.prepare_screen(info, width, height)?;
         let draws = self.arena_draws(&sel.draw);
@@ -156,6 +160,8 @@ impl Renderer {
             class_mask: [[0; 4]; 2],
             clip_boxes: [[0.0; 4]; 8],
             eye: camera.view().inverse().w_axis.to_array(),
+            normal_sign: 1.0,
+            pad: [0.0; 3],
         };
         set_filter(&mut uniforms, &settings.filter, self.ds.anchor());
         let wall = self.wall_clock(settings);
@@ -176,17 +182,28 @@ impl Renderer {
             focal_px: camera.focal_px(height),
             aspect,
         };
-        let (has_normals, normals_outward) =
-            (self.ds.has_normals(), self.ds.normals_face_outward());
-        let cull = info.cull_back_faces
-            && self.ds.normals_mark_back_faces()
-            && info.streams.contains(&PointStream::Normals);
-        let (ctx, projection, cache, timer, count) = (
+        // Where the normals mark a surface's sides, the facing check says which side they point
+        // to; the frame takes the verdict so far.
+        let with_normals = info.streams.contains(&PointStream::Normals);
+        let checks_facing = self.ds.normals_mark_back_faces() && with_normals;
+        let sides = match checks_facing {
+            true => self.facing.sides(),
+            false => NormalSides::AsStored,
+        };
+        uniforms.normal_sign = sides.sign();
+        let key = view_key(&uniforms, &sel.draw);
+        let facing_settled = checks_facing.then(|| self.facing.settled(key));
+        let has_normals = self.ds.has_normals();
+        let normals_outward = self.ds.normals_face_outward() && sides.mark_sides();
+        let marks_back_faces = self.ds.normals_mark_back_faces() && sides.mark_sides();
+        let cull = info.cull_back_faces && marks_back_faces && with_normals;
+        let (ctx, projection, cache, timer, count, facing) = (
             &self.ctx,
             &self.projection,
             &self.cache,
             &mut self.timer,
             &mut self.drawn_count,
+            &mut self.facing,
         );
         let int64 = screen.keys.is_some() && !settings.force_int32;
         // Until this frame is drawn, no colour plane is known to be this frame's.
@@ -218,6 +235,9 @@ impl Renderer {
                 count,
                 timer,
             );
+            if checks_facing {
+                facing.encode(&ctx.device, &mut encoder, screen, cache, &draws, key, timer);
+            }
             if !finished {
                 let frame = PipelineFrame {
                     ctx,
@@ -231,7 +251,7 @@ impl Renderer {
                     int64,
                     has_normals,
                     normals_outward,
-                    normals_mark_back_faces: self.ds.normals_mark_back_faces(),
+                    normals_mark_back_faces: marks_back_faces,
                     back_faces_culled: cull,
                     curvature_scale: self.ds.curvature_scale().map(|c| c as f32),
                     bounds: [bmin, bmax],
@@ -246,6 +266,7 @@ impl Renderer {
             ctx.queue.submit([encoder.finish()]);
             timer.after_submit();
             count.after_submit();
+            facing.after_submit();
             pipeline.after_submit();
             Ok::<bool, ViewerError>(finished)
         })??;
@@ -263,8 +284,19 @@ impl Renderer {
             .device
             .poll(wgpu::PollType::Poll)
             .map_err(|e| ViewerError::Gpu(format!("polling the GPU failed: {e}")))?;
-        Ok(())
+        Ok(facing_settled)
     }
+}
+
+/// A hash of what the facing check sees: the view, the screen, the filters and the drawn nodes.
+fn view_key(u: &FrameUniforms, drawn: &[NodeKey]) -> u64 {
+    use std::hash::{Hash, Hasher};
+    let mut h = std::hash::DefaultHasher::new();
+    (filters_key(u), u.width, u.height, drawn).hash(&mut h);
+    for v in u.view_proj.iter().flatten() {
+        v.to_bits().hash(&mut h);
+    }
+    h.finish()
 }
 
 /// A hash of the frame's point filters and clip boxes as the GPU applies them.

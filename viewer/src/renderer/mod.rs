@@ -12,7 +12,7 @@ use crate::loader::{Done, Job, JobKey, Loader};
 use crate::lod::{ClipRegion, Selection, SelectionParams, Tree, drawn_spacing, select};
 use crate::marks::Marks;
 use crate::pipelines::params::ResolvedParams;
-use crate::pipelines::projection::DrawnCount;
+use crate::pipelines::projection::{DrawnCount, FacingCheck};
 use crate::pipelines::projection::{Projection, Screen, check_screen, largest_fitting};
 use crate::pipelines::{self, Pipeline, PipelineInfo, ScreenBuffer};
 use crate::settings::Settings;
@@ -37,6 +37,8 @@ pub struct Renderer {
     projection: Projection,
     /// The points that pass the filters, counted on the GPU while a filter is set.
     drawn_count: crate::pipelines::projection::DrawnCount,
+    /// Which side of the surfaces the stored normals point to, as the views show it.
+    facing: FacingCheck,
     /// Whether the last frame had a filter (its points drawn are the counted ones).
     filtered: bool,
     /// The filters the drawn count was last made for.
@@ -92,9 +94,13 @@ impl Renderer {
         tree.add_page(ds.root_hierarchy_page());
         let loader = Loader::new(ds.clone(), loader_threads);
         let cache = NodeCache::new(ctx.max_binding(), gpu_cache_bytes);
-        let (projection, drawn_count) = ctx.scoped("compiling the projection", || {
-            Projection::new(&ctx).map(|p| (p, DrawnCount::new(&ctx.device)))
-        })??;
+        let (projection, drawn_count, facing) =
+            ctx.scoped("compiling the projection", || {
+                Projection::new(&ctx).map(|p| {
+                    let device = &ctx.device;
+                    (p, DrawnCount::new(device), FacingCheck::new(device))
+                })
+            })??;
         let timer = Timer::new(
             &ctx.device,
             &ctx.queue,
@@ -111,6 +117,7 @@ impl Renderer {
             cache,
             projection,
             drawn_count,
+            facing,
             filtered: false,
             counted_filter: crate::PointFilter::default(),
             pipelines: HashMap::new(),
@@ -370,7 +377,7 @@ impl Renderer {
             self.counted_filter = settings.filter.clone();
             self.drawn_count.filters_changed();
         }
-        self.draw(
+        let facing_settled = self.draw(
             camera,
             width,
             height,
@@ -428,7 +435,9 @@ impl Renderer {
                 && extra
                     .as_ref()
                     .is_none_or(|e| e.missing_nodes.is_empty() && e.missing_pages.is_empty())
-                && self.uploads.is_empty(),
+                && self.uploads.is_empty()
+                && facing_settled.unwrap_or(true),
+            normal_sides: facing_settled.map(|_| self.facing.sides().name()),
         })
     }
 
@@ -522,6 +531,7 @@ impl Renderer {
     /// Takes what arrived of the pass times and the pipeline's measures (after polling).
     fn collect_readbacks(&mut self) {
         self.timer.collect();
+        self.facing.take();
         if let Some(p) = self.active.and_then(|n| self.pipelines.get_mut(n)) {
             self.measures = p.measures();
         }

@@ -48,6 +48,12 @@ pub struct FrameStats {
     pub nodes_in_flight: usize,
     pub nodes_queued: usize,
     pub gpu_bytes: u64,
-    /// Every node the view and budget call for is resident and drawn.
+    /// Every node the view and budget call for is resident and drawn (and, where the
+    /// normals mark a surface's sides, drawn with the facing check of this view).
     pub complete: bool,
+    /// Which side of the surfaces the stored normals point to, as the facing check found:
+    /// "as stored", "turned" (into the surfaces: each is turned before use) or "mixed" (no
+    /// side: nothing is culled); absent where the check does not run (the normals mark no
+    /// sides, or the pipeline reads none).
+    pub normal_sides: Option<&'static str>,
 }

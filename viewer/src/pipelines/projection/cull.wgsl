@@ -1,6 +1,7 @@
 // Back-face culling by the point normal (paper 004, section 3.1), for pipelines that ask for it
 // on datasets whose normals face outwards: a point whose normal turns away from the eye is not
-// drawn. A point without a normal (0) is always drawn.
+// drawn (its normal turned first where the facing check found them pointing inwards). A point
+// without a normal (0) is always drawn.
 @group(1) @binding(3) var<storage, read> normals: array<u32>;
 
 // Normals are estimates: one fitted across an edge (PCA over neighbours on both faces), or a
@@ -15,5 +16,5 @@ override BACK_FACE_MARGIN: f32 = 0.5;
 fn culled(idx: u32, pos: vec3<f32>) -> bool {
     let w = normals[idx];
     let to_eye = frame.eye.xyz - pos;
-    return w != 0u && dot(decode_oct16(w), to_eye) < -BACK_FACE_MARGIN * length(to_eye);
+    return w != 0u && dot(decode_oct16(w), to_eye) * frame.normal_sign < -BACK_FACE_MARGIN * length(to_eye);
 }

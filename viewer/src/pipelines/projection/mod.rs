@@ -5,9 +5,11 @@
 
 mod bind;
 mod count;
+mod facing;
 mod screen;
 
 pub use count::DrawnCount;
+pub use facing::{FacingCheck, NormalSides};
 pub use screen::{Screen, ScreenLimitError, check_screen, largest_fitting, plane_buffer};
 
 use super::ScreenBuffer;
@@ -45,12 +47,13 @@ const FINISH_WGSL: &str = include_str!("finish.wgsl");
 const SHADE_PLANES_WGSL: &str = include_str!("shade_planes.wgsl");
 
 /// The projection's timed passes, in the order they can run.
-pub const PASSES: [&str; 7] = [
+pub const PASSES: [&str; 8] = [
     "clear",
     "project",
     "project_depth",
     "project_index",
     "count drawn",
+    facing::FACING_PASS,
     "unpack",
     "resolve",
 ];
@@ -93,6 +96,10 @@ pub struct FrameUniforms {
     pub clip_boxes: [[f32; 4]; 8],
     /// The eye, relative to the anchor, for the back-face culling of the projection.
     pub eye: [f32; 4],
+    /// What multiplies a stored normal to point it out of its surface, as the facing check
+    /// found (`NormalSides::sign`).
+    pub normal_sign: f32,
+    pub pad: [f32; 3],
 }
 
 /// The filter bits of `FrameUniforms::filters` (`FILTER_*` in frame.wgsl).
@@ -197,6 +204,7 @@ pub fn shaders(int64: bool) -> Vec<ShaderSource> {
         s.push(ShaderSource::new("unpack", &[UNPACK_WGSL]));
     }
     s.push(count::count_source());
+    s.extend(facing::facing_sources());
     s
 }
 

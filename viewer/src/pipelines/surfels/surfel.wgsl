@@ -99,7 +99,8 @@ fn surfel_at(group: u32, lane: u32) -> Surfel {
     s.radius = drawn_radius(r, p, radii[idx]);
     let word = normals[idx];
     if surf.normals != NORMALS_NONE && word != 0u {
-        s.n = decode_oct16(word);
+        // Pointing out of its surface (the facing check's sign): a c-surfel bends away from it.
+        s.n = decode_oct16(word) * frame.normal_sign;
         if surf.normals == NORMALS_FACING_EYE && dot(s.n, v) < 0.0 {
             s.n = -s.n;
         }

@@ -1,0 +1,116 @@
+//! The facing check: a sphere whose stored normals point into it is drawn as the same sphere
+//! with outward normals by every pipeline that takes a side from them (the filters' culling,
+//! the surfels' bend and back faces, the triangulation's sides), and one whose normals point
+//! either way is culled nowhere.
+
+use super::*;
+
+use super::filters::shot;
+use super::surfels::{H, W};
+
+const NEAR_SIDE: [u8; 3] = [40, 80, 200];
+const FAR_SIDE: [u8; 3] = [200, 60, 40];
+
+#[derive(Clone, Copy, PartialEq, Eq)]
+enum Normals {
+    Outward,
+    Inward,
+    /// Every other point's inward.
+    Mixed,
+}
+
+/// A unit sphere (a Fibonacci lattice, like a scan) with the given normals: blue on the side
+/// the camera of `shot` (at -y) sees, red on the far side.
+fn sphere(normals: Normals) -> &'static Path {
+    static CELLS: [OnceLock<PathBuf>; 3] = [OnceLock::new(), OnceLock::new(), OnceLock::new()];
+    CELLS[normals as usize].get_or_init(|| {
+        let dir = common::fresh_dir(&format!("render-facing-{}", normals as u8));
+        let n = 60_000;
+        let golden = std::f64::consts::PI * (3.0 - 5f64.sqrt());
+        let (mut points, mut stored) = (Vec::new(), Vec::new());
+        for i in 0..n {
+            let z = 1.0 - 2.0 * (i as f64 + 0.5) / n as f64;
+            let r = (1.0 - z * z).sqrt();
+            let a = golden * i as f64;
+            let p = [r * a.cos(), r * a.sin(), z];
+            points.push((p, if p[1] < 0.0 { NEAR_SIDE } else { FAR_SIDE }));
+            let inward = match normals {
+                Normals::Outward => false,
+                Normals::Inward => true,
+                Normals::Mixed => i % 2 == 1,
+            };
+            let sign = if inward { -1.0 } else { 1.0 };
+            stored.push(p.map(|v| (sign * v) as f32));
+        }
+        let ply = dir.join("sphere.ply");
+        common::write_coloured_ply(&ply, &points, Some(&stored));
+        let ds = dir.join("sphere.strata");
+        common::run_ok(&["convert", s(&ply), "-o", s(&ds), "--quiet"]);
+        ds
+    })
+}
+
+/// The share of pixels of `a` and `b` that differ by more than `tolerance` in a channel.
+fn differing(a: &[[u8; 3]], b: &[[u8; 3]], tolerance: u8) -> f64 {
+    let n = a
+        .iter()
+        .zip(b)
+        .filter(|(p, q)| {
+            p.iter()
+                .zip(q.iter())
+                .any(|(x, y)| x.abs_diff(*y) > tolerance)
+        })
+        .count();
+    n as f64 / a.len() as f64
+}
+
+/// How blue the centre pixel is against how red: the near side is blue.
+fn near_side_at_centre(rgb: &[[u8; 3]]) -> bool {
+    let [r, _, b] = rgb[(H / 2 * W + W / 2) as usize];
+    b > r + 40
+}
+
+#[test]
+fn normals_pointing_into_the_surface_are_turned_and_draw_the_same_picture() {
+    // Curved surfels everywhere: each bends away from its normal.
+    let runs: [(&str, &[&str]); 3] = [
+        ("filters", &[]),
+        ("surfels", &["mode=1"]),
+        ("triangulate", &[]),
+    ];
+    for (pipeline, set) in runs {
+        let outward = shot(sphere(Normals::Outward), pipeline, set);
+        assert_eq!(
+            outward.sides,
+            Some("as stored"),
+            "{pipeline}: outward normals"
+        );
+        assert!(
+            near_side_at_centre(&outward.rgb),
+            "{pipeline}: the near side shows"
+        );
+        let inward = shot(sphere(Normals::Inward), pipeline, set);
+        assert_eq!(
+            inward.sides,
+            Some("turned"),
+            "{pipeline}: inward normals are found out"
+        );
+        // Culled as stored, the near side was lost and the far side shown from inside.
+        assert!(
+            near_side_at_centre(&inward.rgb),
+            "{pipeline}: the near side shows"
+        );
+        let share = differing(&outward.rgb, &inward.rgb, 3);
+        assert!(
+            share < 0.001,
+            "{pipeline}: {share:.4} of the pixels differ from the outward sphere's"
+        );
+    }
+}
+
+#[test]
+fn normals_pointing_either_way_mark_no_side_and_nothing_is_culled() {
+    let mixed = shot(sphere(Normals::Mixed), "filters", &[]);
+    assert_eq!(mixed.sides, Some("mixed"));
+    assert!(near_side_at_centre(&mixed.rgb), "the near side shows");
+}

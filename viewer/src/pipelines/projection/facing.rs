@@ -1,0 +1,272 @@
+//! The facing check (facing.wgsl): whether the stored normals point out of the surfaces this
+//! view shows, into them, or either way. Culling, the marks of back faces and the curved
+//! surfels' bend all take the side it finds. Normals kept from the inputs carry no guarantee:
+//! a mesh wound the other way, or a scan whose normals were turned away from its scanner,
+//! points every normal inwards. No rule about a dataset tells which (an indoor scan's normals
+//! point into the room, a statue's out of it), but a view does: the near side of a surface
+//! is the one it shows. The check runs when the view or its nodes change, on a sample of the
+//! drawn points; it is read back without stalling the frame, and its verdict changes only on
+//! clear evidence.
+
+use super::bind::frame_bind;
+use super::{
+    ArenaDraw, ArenaGroup, FILTERS_WGSL, GROUP_SIZE, OCT16_WGSL, RANGE_SEARCH_WGSL, Screen,
+    split_groups,
+};
+use crate::gpu::async_readback::AsyncReadback;
+use crate::gpu::cache::NodeCache;
+use crate::gpu::timing::Timer;
+use crate::pipelines::PointStream;
+use crate::pipelines::shader::ShaderSource;
+
+const FACING_WGSL: &str = include_str!("facing.wgsl");
+/// Every STRIDE-th point of a drawn range is sampled (`STRIDE` in facing.wgsl).
+const STRIDE: u32 = 4;
+/// Pixels on a side of a cell (`CELL` in facing.wgsl).
+const CELL: u32 = 4;
+/// The timed pass.
+pub const FACING_PASS: &str = "facing check";
+/// Cells with both sides, one clearly in front, fewer than this: the view says nothing of
+/// the normals (a terrain seen from above shows almost no side turned away).
+const MIN_CELLS: u64 = 16;
+
+/// The modules the check compiles: the sample of the drawn points, then the count of cells.
+pub fn facing_sources() -> [ShaderSource; 2] {
+    let parts = [FILTERS_WGSL, RANGE_SEARCH_WGSL, OCT16_WGSL, FACING_WGSL];
+    [
+        ShaderSource::new("facing sample", &parts)
+            .with_entry("sample")
+            .with_constant("STRIDE", STRIDE as f64),
+        ShaderSource::new("facing tally", &parts).with_entry("tally"),
+    ]
+}
+
+/// Which side of the surfaces the stored normals point to, as the views so far show it.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum NormalSides {
+    /// Out of them, as stored.
+    #[default]
+    AsStored,
+    /// Into them: each is turned before it is used.
+    Turned,
+    /// Either way: they mark no side (nothing is culled, no face is a back face).
+    Mixed,
+}
+
+impl NormalSides {
+    /// What multiplies a stored normal to point it out of its surface.
+    pub fn sign(self) -> f32 {
+        if self == NormalSides::Turned {
+            -1.0
+        } else {
+            1.0
+        }
+    }
+
+    /// The normals tell a surface's sides apart.
+    pub fn mark_sides(self) -> bool {
+        self != NormalSides::Mixed
+    }
+
+    pub fn name(self) -> &'static str {
+        match self {
+            NormalSides::AsStored => "as stored",
+            NormalSides::Turned => "turned",
+            NormalSides::Mixed => "mixed",
+        }
+    }
+}
+
+/// The verdict after a view in whose cells the side facing the eye lay in front
+/// `towards_in_front` times and the side turned away `away_in_front` times, `now` the verdict
+/// so far. Between the clear shares it stays, so that one view's noise does not flip the
+/// picture back and forth.
+pub fn verdict(now: NormalSides, towards_in_front: u32, away_in_front: u32) -> NormalSides {
+    let total = towards_in_front as u64 + away_in_front as u64;
+    if total < MIN_CELLS {
+        return now;
+    }
+    let away = away_in_front as f64 / total as f64;
+    if away <= 0.25 {
+        NormalSides::AsStored
+    } else if away >= 0.75 {
+        NormalSides::Turned
+    } else if (0.4..=0.6).contains(&away) {
+        NormalSides::Mixed
+    } else {
+        now
+    }
+}
+
+pub struct FacingCheck {
+    sample: wgpu::ComputePipeline,
+    tally: wgpu::ComputePipeline,
+    /// Two words per cell, and the screen size they were made for.
+    cells: Option<(wgpu::Buffer, u32, u32)>,
+    tallies: wgpu::Buffer,
+    readback: AsyncReadback,
+    /// The view whose check is in flight.
+    in_flight: Option<u64>,
+    /// The view whose check the verdict took in last.
+    checked: Option<u64>,
+    sides: NormalSides,
+}
+
+impl FacingCheck {
+    pub fn new(device: &wgpu::Device) -> FacingCheck {
+        use wgpu::BufferUsages as U;
+        let [sample, tally] = facing_sources().map(|s| s.compute(device, None));
+        FacingCheck {
+            sample,
+            tally,
+            cells: None,
+            tallies: device.create_buffer(&wgpu::BufferDescriptor {
+                label: Some("facing tallies"),
+                size: 8,
+                usage: U::STORAGE | U::COPY_SRC | U::COPY_DST,
+                mapped_at_creation: false,
+            }),
+            readback: AsyncReadback::new(device, "facing tallies readback", 8),
+            in_flight: None,
+            checked: None,
+            sides: NormalSides::default(),
+        }
+    }
+
+    pub fn sides(&self) -> NormalSides {
+        self.sides
+    }
+
+    /// Whether the verdict has taken in the check of view `key`.
+    pub fn settled(&self, key: u64) -> bool {
+        self.checked == Some(key)
+    }
+
+    /// Checks view `key` (the arenas `draws` seen through the frame's uniforms), unless it
+    /// was checked already or the previous check is still being read.
+    #[allow(clippy::too_many_arguments)]
+    pub fn encode(
+        &mut self,
+        device: &wgpu::Device,
+        encoder: &mut wgpu::CommandEncoder,
+        screen: &Screen,
+        cache: &NodeCache,
+        draws: &[ArenaDraw],
+        key: u64,
+        timer: &mut Timer,
+    ) {
+        if self.checked == Some(key) || !self.readback.is_idle() {
+            return;
+        }
+        let cells = self.cells_for(device, screen.width, screen.height);
+        encoder.clear_buffer(&cells, 0, None);
+        encoder.clear_buffer(&self.tallies, 0, None);
+        {
+            let timestamp_writes = timer.pass(encoder, FACING_PASS);
+            let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
+                label: Some(FACING_PASS),
+                timestamp_writes,
+            });
+            pass.set_pipeline(&self.sample);
+            pass.set_bind_group(0, &frame_bind(device, screen, &self.sample, &[&cells]), &[]);
+            for d in draws {
+                let Some(arena) = cache.arenas.get(d.arena as usize) else {
+                    continue;
+                };
+                let Some(normals) = arena.stream(PointStream::Normals) else {
+                    continue;
+                };
+                let g = ArenaGroup::new(device, d, GROUP_SIZE * STRIDE);
+                if g.groups == 0 {
+                    continue;
+                }
+                let buffers = [&arena.points, &g.ranges, &arena.attributes, normals];
+                let entries: Vec<wgpu::BindGroupEntry> = buffers
+                    .iter()
+                    .enumerate()
+                    .map(|(binding, b)| wgpu::BindGroupEntry {
+                        binding: binding as u32,
+                        resource: b.as_entire_binding(),
+                    })
+                    .collect();
+                let bound = device.create_bind_group(&wgpu::BindGroupDescriptor {
+                    label: Some("facing sample"),
+                    layout: &self.sample.get_bind_group_layout(1),
+                    entries: &entries,
+                });
+                pass.set_bind_group(1, &bound, &[]);
+                let (x, y) = split_groups(g.groups);
+                pass.dispatch_workgroups(x, y, 1);
+            }
+            pass.set_pipeline(&self.tally);
+            let fb = frame_bind(device, screen, &self.tally, &[&cells, &self.tallies]);
+            pass.set_bind_group(0, &fb, &[]);
+            let count = screen.width.div_ceil(CELL) * screen.height.div_ceil(CELL);
+            let (x, y) = split_groups(count.div_ceil(GROUP_SIZE));
+            pass.dispatch_workgroups(x, y, 1);
+        }
+        if self.readback.record(encoder, &self.tallies, 0, 8) {
+            self.in_flight = Some(key);
+        }
+    }
+
+    /// The cells of a `width` x `height` screen, made anew when the size changes.
+    fn cells_for(&mut self, device: &wgpu::Device, width: u32, height: u32) -> wgpu::Buffer {
+        if let Some((buffer, w, h)) = &self.cells
+            && (*w, *h) == (width, height)
+        {
+            return buffer.clone();
+        }
+        let count = width.div_ceil(CELL) as u64 * height.div_ceil(CELL) as u64;
+        let buffer = device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("facing cells"),
+            size: count * 8,
+            usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        });
+        self.cells = Some((buffer.clone(), width, height));
+        buffer
+    }
+
+    /// After the frame's submit: starts reading the check it recorded.
+    pub fn after_submit(&mut self) {
+        self.readback.after_submit();
+    }
+
+    /// Takes in a check that has arrived (after polling the device).
+    pub fn take(&mut self) {
+        let Some(bytes) = self.readback.take() else {
+            return;
+        };
+        let word = |k: usize| {
+            bytes
+                .get(4 * k..4 * k + 4)
+                .and_then(|b| <[u8; 4]>::try_from(b).ok())
+                .map_or(0, u32::from_le_bytes)
+        };
+        self.sides = verdict(self.sides, word(0), word(1));
+        self.checked = self.in_flight.take();
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::{NormalSides, verdict};
+
+    #[test]
+    fn the_verdict_follows_the_side_in_front_and_holds_between_clear_shares() {
+        use NormalSides::*;
+        // The near side faces the eye: as stored, whatever came before.
+        assert_eq!(verdict(Turned, 950, 50), AsStored);
+        // The near side turns away: the normals point into the surfaces.
+        assert_eq!(verdict(AsStored, 40, 960), Turned);
+        // Half and half: they mark no side.
+        assert_eq!(verdict(AsStored, 500, 500), Mixed);
+        // Between the clear shares, and with too few cells, the verdict stays.
+        assert_eq!(verdict(Turned, 350, 650), Turned);
+        assert_eq!(verdict(AsStored, 350, 650), AsStored);
+        assert_eq!(verdict(Turned, 0, 3), Turned);
+        assert_eq!(Turned.sign(), -1.0);
+        assert!(!Mixed.mark_sides());
+    }
+}

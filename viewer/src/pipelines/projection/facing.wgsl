@@ -1,0 +1,115 @@
+// The facing check (facing.rs): which side of the surfaces the stored normals point to, seen
+// from this view. Normals kept from the inputs may point into every surface (a mesh wound the
+// other way, a scan oriented away from its scanner): culled by them, the near side of every
+// surface is lost and the far side shown. A sample of the drawn points keeps, per cell of
+// CELL x CELL pixels, the nearest depth of the points whose normal clearly faces the eye and
+// that of the points whose normal clearly turns away (`sample`); `tally` then counts the
+// cells where the side turned away lies clearly in front, and those where it lies behind.
+// Where the normals point out of the surfaces, the side turned away is a surface's far side,
+// behind its near side, in nearly every cell that holds both.
+
+@group(0) @binding(0) var<uniform> frame: Frame;
+// Per cell: the nearest depth of the side facing the eye, then of the side turned away, as the
+// complement of the linear depth's bits (so that the largest is the nearest, and a cleared
+// buffer, 0, is empty).
+@group(0) @binding(1) var<storage, read_write> cells: array<atomic<u32>>;
+// The cells where the side facing the eye lies in front, then those where the side turned
+// away does.
+@group(0) @binding(2) var<storage, read_write> tallies: array<atomic<u32>, 2>;
+@group(1) @binding(0) var<storage, read> points: array<vec4<u32>>;
+@group(1) @binding(1) var<storage, read> ranges: array<Range>;
+@group(1) @binding(2) var<storage, read> attributes: array<u32>;
+@group(1) @binding(3) var<storage, read> normals: array<u32>;
+
+// Pixels on a side of a cell: coarse enough that a cell holds points of both sides of a thin
+// object, fine enough that it does not reach across to another object's.
+const CELL: u32 = 4u;
+// Every STRIDE-th point of a drawn range is sampled (the ranges' table is made for workgroups
+// of GROUP_SIZE * STRIDE points).
+override STRIDE: u32 = 4u;
+// A normal within this cosine of grazing says little about its side: its point is left out.
+const GRAZING: f32 = 0.25;
+// One side lies in front of the other where its depth is nearer by this share.
+const DEPTH_MARGIN: f32 = 0.01;
+
+fn cells_across() -> u32 {
+    return (frame.width + CELL - 1u) / CELL;
+}
+
+@compute @workgroup_size(256)
+fn sample(
+    @builtin(workgroup_id) wg: vec3<u32>,
+    @builtin(num_workgroups) groups: vec3<u32>,
+    @builtin(local_invocation_index) lane: u32,
+) {
+    let group = wg.x + wg.y * groups.x;
+    if ranges[0].count == 0u {
+        return;
+    }
+    let r = ranges[range_of(group)];
+    if group < r.first_group {
+        return;
+    }
+    let local = ((group - r.first_group) * GROUP_SIZE + lane) * STRIDE;
+    if local >= r.count {
+        return;
+    }
+    let idx = r.start + local;
+    let word = normals[idx];
+    if word == 0u {
+        return;
+    }
+    let pos = bitcast<vec3<f32>>(points[idx].xyz);
+    if frame.filters != 0u && !passes_filters(pos, attributes[idx]) {
+        return;
+    }
+    let clip = frame.view_proj * vec4<f32>(pos, 1.0);
+    if clip.w <= 0.0 || clip.z < 0.0 || clip.z > clip.w {
+        return;
+    }
+    let ndc = clip.xy / clip.w;
+    let fx = (ndc.x * 0.5 + 0.5) * f32(frame.width);
+    let fy = (0.5 - ndc.y * 0.5) * f32(frame.height);
+    if fx < 0.0 || fy < 0.0 || fx >= f32(frame.width) || fy >= f32(frame.height) {
+        return;
+    }
+    let to_eye = frame.eye.xyz - pos;
+    let facing = dot(decode_oct16(word), to_eye) / length(to_eye);
+    if abs(facing) < GRAZING {
+        return;
+    }
+    let cell = (u32(fy) / CELL) * cells_across() + u32(fx) / CELL;
+    atomicMax(&cells[2u * cell + select(0u, 1u, facing < 0.0)], ~bitcast<u32>(clip.w));
+}
+
+var<workgroup> counted: array<atomic<u32>, 2>;
+
+@compute @workgroup_size(256)
+fn tally(
+    @builtin(workgroup_id) wg: vec3<u32>,
+    @builtin(num_workgroups) groups: vec3<u32>,
+    @builtin(local_invocation_index) lane: u32,
+) {
+    let cell = (wg.x + wg.y * groups.x) * GROUP_SIZE + lane;
+    let rows = (frame.height + CELL - 1u) / CELL;
+    if cell < cells_across() * rows {
+        let towards = atomicLoad(&cells[2u * cell]);
+        let away = atomicLoad(&cells[2u * cell + 1u]);
+        if towards != 0u && away != 0u {
+            let t = bitcast<f32>(~towards);
+            let a = bitcast<f32>(~away);
+            if t < a * (1.0 - DEPTH_MARGIN) {
+                atomicAdd(&counted[0], 1u);
+            } else if a < t * (1.0 - DEPTH_MARGIN) {
+                atomicAdd(&counted[1], 1u);
+            }
+        }
+    }
+    workgroupBarrier();
+    if lane < 2u {
+        let n = atomicLoad(&counted[lane]);
+        if n != 0u {
+            atomicAdd(&tallies[lane], n);
+        }
+    }
+}
