@@ -10,6 +10,7 @@ use crate::writers::{open_writer, write_then_finish};
 use rayon::prelude::*;
 use std::path::Path;
 use strata_format::RowLayout;
+use strata_format::number;
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Scene {
@@ -270,7 +271,8 @@ pub fn synth(
     }
     if !(noise >= 0.0 && noise.is_finite()) {
         return Err(ConvertError::Usage(format!(
-            "--noise {noise} is not a deviation in metres (0 or more)"
+            "--noise {} is not a deviation in metres (0 or more)",
+            number(noise)
         )));
     }
     // No scanner is that noisy, and far larger deviations would leave the 32-bit positions
@@ -278,7 +280,8 @@ pub fn synth(
     const MAX_NOISE: f64 = 1000.0;
     if noise > MAX_NOISE {
         return Err(ConvertError::Usage(format!(
-            "--noise {noise} is more than the {MAX_NOISE} m a synthetic scan may take"
+            "--noise {} is more than the {MAX_NOISE} m a synthetic scan may take",
+            number(noise)
         )));
     }
     let layout = synth_layout();

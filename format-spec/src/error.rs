@@ -37,3 +37,12 @@ impl FormatError {
         }
     }
 }
+
+/// A number as a person writes it: plain when moderate, in exponent form when tiny or huge.
+pub fn number(v: f64) -> String {
+    if v == 0.0 || !v.is_finite() || (1e-6..1e15).contains(&v.abs()) {
+        format!("{v}")
+    } else {
+        format!("{v:e}")
+    }
+}

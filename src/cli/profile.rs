@@ -84,9 +84,9 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
     println!(
         "{} points within {} of a {:.3} long line (a corridor {} wide; levels 0 to {}, spacing {:.4}, {} points read){} -> {}",
         profile.points.len(),
-        a.width / 2.0,
+        strata_format::number(a.width / 2.0),
         corridor.length(),
-        a.width,
+        strata_format::number(a.width),
         profile.level,
         profile.spacing,
         profile.points_read,

@@ -140,14 +140,28 @@ impl Bookmarks {
             )
         })?;
         // Refused here, where the file and the bookmark can be named, not by the camera.
-        if mark.eye == mark.target {
-            let which = match &mark.name {
-                Some(n) => format!("bookmark {n:?}"),
-                None => "its first bookmark".to_string(),
-            };
+        let which = || match &mark.name {
+            Some(n) => format!("bookmark {n:?}"),
+            None => "its first bookmark".to_string(),
+        };
+        let apart = (DVec3::from_array(mark.eye) - DVec3::from_array(mark.target)).length();
+        if apart < 1e-6 {
             return Err(ViewerError::output(
                 path,
-                format!("{which} has its eye at its target, so it looks nowhere"),
+                format!("{} has its eye at its target, so it looks nowhere", which()),
+            ));
+        }
+        if let Some(fov) = mark.fov
+            && !Camera::FOV_DEG.contains(&fov)
+        {
+            return Err(ViewerError::output(
+                path,
+                format!(
+                    "{} has a field of view of {fov} degrees, outside {} to {}",
+                    which(),
+                    Camera::FOV_DEG.start(),
+                    Camera::FOV_DEG.end()
+                ),
             ));
         }
         Ok(mark)
@@ -200,12 +214,23 @@ mod tests {
         assert!(e.to_string().contains("tower"), "{e}");
         // A view that looks nowhere is refused naming the file and the bookmark.
         let mut blind = back.clone();
-        blind.keyframes[0].target = blind.keyframes[0].eye;
+        let [x, y, z] = blind.keyframes[0].eye;
+        blind.keyframes[0].target = [x, y, z + 1e-7];
         let e = blind.find(Some("tower"), &path).expect_err("looks nowhere");
         let said = e.to_string();
         assert!(
             said.contains(FILE_NAME)
                 && said.contains("bookmark \"tower\" has its eye at its target"),
+            "{said}"
+        );
+        // So is a field of view the camera cannot take.
+        let mut wide = back.clone();
+        wide.keyframes[0].fov = Some(175.0);
+        let e = wide.find(Some("tower"), &path).expect_err("too wide");
+        let said = e.to_string();
+        assert!(
+            said.contains(FILE_NAME)
+                && said.contains("\"tower\" has a field of view of 175 degrees, outside 1 to 170"),
             "{said}"
         );
     }

@@ -59,6 +59,9 @@ impl Camera {
         cam
     }
 
+    /// The vertical fields of view a camera may have, in degrees.
+    pub const FOV_DEG: std::ops::RangeInclusive<f32> = 1.0..=170.0;
+
     /// Parses `eye=X,Y,Z;target=X,Y,Z;fov=DEG` in real-world coordinates. Missing parts keep
     /// the values of `default`.
     pub fn parse(spec: &str, anchor: DVec3, default: Camera) -> Result<Camera, ViewerError> {
@@ -74,7 +77,7 @@ impl Camera {
                     let deg: f32 = value.trim().parse().map_err(|_| {
                         ViewerError::argument(spec, format!("fov {value:?} is not a number"))
                     })?;
-                    if !(1.0..=170.0).contains(&deg) {
+                    if !Camera::FOV_DEG.contains(&deg) {
                         return Err(ViewerError::argument(
                             spec,
                             format!("fov {deg} is outside 1 to 170 degrees"),

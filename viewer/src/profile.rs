@@ -60,7 +60,7 @@ impl Corridor {
         if !(self.width.is_finite() && self.width > 0.0) {
             return Err(format!(
                 "the profile width {} is not a finite distance above 0",
-                self.width
+                strata_format::number(self.width)
             ));
         }
         let length = self.length();

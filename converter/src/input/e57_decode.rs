@@ -7,12 +7,12 @@
 
 use super::e57_extras::{FileExtras, ScanExtras};
 use super::e57_limits::{OwnRanges, from_values, normalised};
-use super::las_header::number;
 use super::laz_check::guarded;
 use e57::{CartesianCoordinate, E57Reader, PointCloud};
 use std::fs::File;
 use std::io::BufReader;
 use std::sync::mpsc::SyncSender;
+use strata_format::number;
 use strata_format::{AttrType, Attribute};
 
 /// Points per batch handed to the reading side.

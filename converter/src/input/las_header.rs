@@ -4,6 +4,7 @@
 
 use std::fs::File;
 use std::os::unix::fs::FileExt;
+use strata_format::number;
 
 /// The header fields the converter relies on, checked against each other and the file.
 #[derive(Debug, Clone)]
@@ -58,15 +59,6 @@ fn u64_at(b: &[u8], o: usize) -> u64 {
 }
 fn f64_at(b: &[u8], o: usize) -> f64 {
     f64::from_bits(u64_at(b, o))
-}
-
-/// A number as a person writes it: plain when moderate, in exponent form when tiny or huge.
-pub fn number(v: f64) -> String {
-    if v == 0.0 || !v.is_finite() || (1e-6..1e15).contains(&v.abs()) {
-        format!("{v}")
-    } else {
-        format!("{v:e}")
-    }
 }
 
 /// Reads `len` bytes at `at`, which the caller has checked lie inside the file.
