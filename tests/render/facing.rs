@@ -7,6 +7,7 @@ use super::*;
 
 use super::filters::shot;
 use super::surfels::{H, W};
+use strata_viewer::pipelines::filters::NOT_OUTWARD;
 
 const NEAR_SIDE: [u8; 3] = [40, 80, 200];
 const FAR_SIDE: [u8; 3] = [200, 60, 40];
@@ -112,5 +113,6 @@ fn normals_pointing_into_the_surface_are_turned_and_draw_the_same_picture() {
 fn normals_pointing_either_way_mark_no_side_and_nothing_is_culled() {
     let mixed = shot(sphere(Normals::Mixed), "filters", &[]);
     assert_eq!(mixed.sides, Some("mixed"));
+    assert_eq!(mixed.note, Some(NOT_OUTWARD), "nothing is culled");
     assert!(near_side_at_centre(&mixed.rgb), "the near side shows");
 }

@@ -96,7 +96,7 @@ pub(super) struct Shot {
     pub(super) rgb: Vec<[u8; 3]>,
     covered: Vec<bool>,
     measures: std::collections::BTreeMap<&'static str, f32>,
-    note: Option<&'static str>,
+    pub(super) note: Option<&'static str>,
     /// The facing check's verdict (`FrameStats::normal_sides`).
     pub(super) sides: Option<&'static str>,
 }

@@ -72,6 +72,12 @@ impl AsyncReadback {
         true
     }
 
+    /// Forgets a recorded copy whose encoder was never submitted (an error on the way), so
+    /// that the next may be recorded.
+    pub fn abandon(&mut self) {
+        self.recorded = false;
+    }
+
     /// The bytes of a finished readback, once; `None` while none has arrived (call after
     /// polling the device). A mapping that fails frees the buffer for the next copy.
     pub fn take(&mut self) -> Option<Vec<u8>> {

@@ -188,7 +188,7 @@ fn rust_structs_match_their_wgsl_layouts() {
             class_mask,
             clip_boxes,
             eye,
-            normal_sign,
+            normals_turned,
         }),
         "FrameUniforms against Frame (frame.wgsl)"
     );

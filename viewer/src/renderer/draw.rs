@@ -105,7 +105,8 @@ impl Renderer {
     }
 
     /// Draws the selection; returns whether the frame took the facing check of its own view,
-    /// `None` where it needs none (its normals mark no sides, or the pipeline reads none).
+    /// and the sides it drew with; `None` where it needs none (its normals mark no sides, or
+    /// the pipeline reads none).
     pub(super) fn draw(
         &mut self,
         camera: &Camera,
@@ -114,7 +115,7 @@ impl Renderer {
         settings: &Settings,
         (sel, extra): (&Selection, Option<&Selection>),
         params: &ResolvedParams,
-    ) -> Result<Option<bool>, ViewerError> {
+    ) -> Result<Option<(bool, NormalSides)>, ViewerError> {
         let info = settings.pipeline;
         self.prepare_screen(info, width, height)?;
         let draws = self.arena_draws(&sel.draw);
@@ -160,8 +161,8 @@ impl Renderer {
             class_mask: [[0; 4]; 2],
             clip_boxes: [[0.0; 4]; 8],
             eye: camera.view().inverse().w_axis.to_array(),
-            normal_sign: 1.0,
-            pad: [0.0; 3],
+            normals_turned: 0,
+            pad: [0; 3],
         };
         set_filter(&mut uniforms, &settings.filter, self.ds.anchor());
         let wall = self.wall_clock(settings);
@@ -190,9 +191,9 @@ impl Renderer {
             true => self.facing.sides(),
             false => NormalSides::AsStored,
         };
-        uniforms.normal_sign = sides.sign();
+        uniforms.normals_turned = u32::from(sides == NormalSides::Turned);
         let key = view_key(&uniforms, &sel.draw);
-        let facing_settled = checks_facing.then(|| self.facing.settled(key));
+        let drawn_facing = checks_facing.then(|| (self.facing.settled(key), sides));
         let has_normals = self.ds.has_normals();
         let normals_outward = self.ds.normals_face_outward() && sides.mark_sides();
         let marks_back_faces = self.ds.normals_mark_back_faces() && sides.mark_sides();
@@ -269,7 +270,17 @@ impl Renderer {
             facing.after_submit();
             pipeline.after_submit();
             Ok::<bool, ViewerError>(finished)
-        })??;
+        });
+        // A frame that failed on the way was never submitted: the copies it recorded will not
+        // arrive, and must not keep the next ones from being recorded.
+        let fused = match fused {
+            Ok(Ok(finished)) => finished,
+            Ok(Err(e)) | Err(e) => {
+                self.drawn_count.abandon();
+                self.facing.abandon();
+                return Err(e);
+            }
+        };
         self.last_int64 = int64;
         self.last_fused = fused;
         self.last_colour_plane = !fused && info.reads_colour_plane;
@@ -284,7 +295,7 @@ impl Renderer {
             .device
             .poll(wgpu::PollType::Poll)
             .map_err(|e| ViewerError::Gpu(format!("polling the GPU failed: {e}")))?;
-        Ok(facing_settled)
+        Ok(drawn_facing)
     }
 }
 

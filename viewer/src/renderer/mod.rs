@@ -377,7 +377,7 @@ impl Renderer {
             self.counted_filter = settings.filter.clone();
             self.drawn_count.filters_changed();
         }
-        let facing_settled = self.draw(
+        let facing = self.draw(
             camera,
             width,
             height,
@@ -386,6 +386,10 @@ impl Renderer {
             &resolved,
         )?;
         self.collect_readbacks();
+        // Drawn with the check of its own view, and no verdict arrived since (one made for
+        // another view, still in flight).
+        let facing_settled =
+            facing.is_none_or(|(settled, sides)| settled && sides == self.facing.sides());
         self.filtered = settings.filter != crate::PointFilter::default();
         // While a filter is set, the count of the points it let through (in the window, of a
         // frame or two before: it is read back without waiting).
@@ -436,8 +440,8 @@ impl Renderer {
                     .as_ref()
                     .is_none_or(|e| e.missing_nodes.is_empty() && e.missing_pages.is_empty())
                 && self.uploads.is_empty()
-                && facing_settled.unwrap_or(true),
-            normal_sides: facing_settled.map(|_| self.facing.sides().name()),
+                && facing_settled,
+            normal_sides: facing.map(|(_, sides)| sides.name()),
         })
     }
 

@@ -172,7 +172,7 @@ pub static INFO: PipelineInfo = PipelineInfo {
 /// What the pipeline says where it cannot cull: without normals, and with normals that may
 /// face into a surface.
 pub const NO_NORMALS: &str = "the dataset has no normals (convert with --normals): no back-face culling, normals estimated from the filled depth";
-pub const NOT_OUTWARD: &str = "the dataset's normals are not known to face out of every surface (computed with --orient up or none; kept or --orient scanner normals are): no back-face culling";
+pub const NOT_OUTWARD: &str = "the dataset's normals are not known to face out of every surface (computed with --orient up or none, or pointing either way in this view; kept or --orient scanner normals are): no back-face culling";
 
 /// The measures it reports.
 pub const LAYERS_USED: &str = "layers_used";

@@ -88,6 +88,11 @@ impl DrawnCount {
         }
     }
 
+    /// The frame it recorded a count in was never submitted (an error on the way).
+    pub fn abandon(&mut self) {
+        self.readback.abandon();
+    }
+
     /// After the frame's submit: starts reading the count it recorded.
     pub fn after_submit(&mut self) {
         self.readback.after_submit();

@@ -16,5 +16,5 @@ override BACK_FACE_MARGIN: f32 = 0.5;
 fn culled(idx: u32, pos: vec3<f32>) -> bool {
     let w = normals[idx];
     let to_eye = frame.eye.xyz - pos;
-    return w != 0u && dot(decode_oct16(w), to_eye) * frame.normal_sign < -BACK_FACE_MARGIN * length(to_eye);
+    return w != 0u && dot(decode_oct16(w), to_eye) * normal_sign() < -BACK_FACE_MARGIN * length(to_eye);
 }

@@ -29,6 +29,8 @@ pub const FACING_PASS: &str = "facing check";
 /// Cells with both sides, one clearly in front, fewer than this: the view says nothing of
 /// the normals (a terrain seen from above shows almost no side turned away).
 const MIN_CELLS: u64 = 16;
+/// The tallies' words (`tallies` in facing.wgsl).
+const TALLY_BYTES: u64 = 12;
 
 /// The modules the check compiles: the sample of the drawn points, then the count of cells.
 pub fn facing_sources() -> [ShaderSource; 2] {
@@ -54,15 +56,6 @@ pub enum NormalSides {
 }
 
 impl NormalSides {
-    /// What multiplies a stored normal to point it out of its surface.
-    pub fn sign(self) -> f32 {
-        if self == NormalSides::Turned {
-            -1.0
-        } else {
-            1.0
-        }
-    }
-
     /// The normals tell a surface's sides apart.
     pub fn mark_sides(self) -> bool {
         self != NormalSides::Mixed
@@ -77,24 +70,36 @@ impl NormalSides {
     }
 }
 
-/// The verdict after a view in whose cells the side facing the eye lay in front
-/// `towards_in_front` times and the side turned away `away_in_front` times, `now` the verdict
-/// so far. Between the clear shares it stays, so that one view's noise does not flip the
-/// picture back and forth.
-pub fn verdict(now: NormalSides, towards_in_front: u32, away_in_front: u32) -> NormalSides {
-    let total = towards_in_front as u64 + away_in_front as u64;
-    if total < MIN_CELLS {
+/// What a check counted: the cells that held both sides where the side facing the eye lay in
+/// front, where the side turned away did, and where they lay at the same depth.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Tallies {
+    pub towards_in_front: u32,
+    pub away_in_front: u32,
+    pub tied: u32,
+}
+
+/// The verdict after a view that counted `t`, `now` the verdict so far. Between the clear
+/// shares it stays, so that one view's noise does not flip the picture back and forth.
+pub fn verdict(now: NormalSides, t: Tallies) -> NormalSides {
+    let clear = t.towards_in_front as u64 + t.away_in_front as u64;
+    let all = clear + t.tied as u64;
+    if all < MIN_CELLS {
         return now;
     }
-    let away = away_in_front as f64 / total as f64;
-    if away <= 0.25 {
-        NormalSides::AsStored
-    } else if away >= 0.75 {
-        NormalSides::Turned
-    } else if (0.4..=0.6).contains(&away) {
-        NormalSides::Mixed
-    } else {
-        now
+    // Normals pointing either way over one surface: both sides at its depth in most cells, or
+    // each in front about as often.
+    let tied = t.tied as f64 / all as f64;
+    let away = t.away_in_front as f64 / clear.max(1) as f64;
+    let enough = clear >= MIN_CELLS;
+    if tied >= 0.5 || (enough && (0.4..=0.6).contains(&away)) {
+        return NormalSides::Mixed;
+    }
+    // One side clearly in front, and few cells tied.
+    match (enough && tied <= 0.3, away) {
+        (true, a) if a <= 0.25 => NormalSides::AsStored,
+        (true, a) if a >= 0.75 => NormalSides::Turned,
+        _ => now,
     }
 }
 
@@ -122,11 +127,11 @@ impl FacingCheck {
             cells: None,
             tallies: device.create_buffer(&wgpu::BufferDescriptor {
                 label: Some("facing tallies"),
-                size: 8,
+                size: TALLY_BYTES,
                 usage: U::STORAGE | U::COPY_SRC | U::COPY_DST,
                 mapped_at_creation: false,
             }),
-            readback: AsyncReadback::new(device, "facing tallies readback", 8),
+            readback: AsyncReadback::new(device, "facing tallies readback", TALLY_BYTES),
             in_flight: None,
             checked: None,
             sides: NormalSides::default(),
@@ -205,7 +210,7 @@ impl FacingCheck {
             let (x, y) = split_groups(count.div_ceil(GROUP_SIZE));
             pass.dispatch_workgroups(x, y, 1);
         }
-        if self.readback.record(encoder, &self.tallies, 0, 8) {
+        if self.readback.record(encoder, &self.tallies, 0, TALLY_BYTES) {
             self.in_flight = Some(key);
         }
     }
@@ -244,29 +249,49 @@ impl FacingCheck {
                 .and_then(|b| <[u8; 4]>::try_from(b).ok())
                 .map_or(0, u32::from_le_bytes)
         };
-        self.sides = verdict(self.sides, word(0), word(1));
+        let tallies = Tallies {
+            towards_in_front: word(0),
+            away_in_front: word(1),
+            tied: word(2),
+        };
+        self.sides = verdict(self.sides, tallies);
         self.checked = self.in_flight.take();
+    }
+
+    /// The frame it recorded a check in was never submitted (an error on the way).
+    pub fn abandon(&mut self) {
+        self.readback.abandon();
+        self.in_flight = None;
     }
 }
 
 #[cfg(test)]
 mod tests {
-    use super::{NormalSides, verdict};
+    use super::{NormalSides, Tallies, verdict};
 
     #[test]
     fn the_verdict_follows_the_side_in_front_and_holds_between_clear_shares() {
         use NormalSides::*;
+        let v = |now, towards_in_front, away_in_front, tied| {
+            let t = Tallies {
+                towards_in_front,
+                away_in_front,
+                tied,
+            };
+            verdict(now, t)
+        };
         // The near side faces the eye: as stored, whatever came before.
-        assert_eq!(verdict(Turned, 950, 50), AsStored);
+        assert_eq!(v(Turned, 950, 50, 100), AsStored);
         // The near side turns away: the normals point into the surfaces.
-        assert_eq!(verdict(AsStored, 40, 960), Turned);
-        // Half and half: they mark no side.
-        assert_eq!(verdict(AsStored, 500, 500), Mixed);
+        assert_eq!(v(AsStored, 40, 960, 100), Turned);
+        // Half and half, or both sides at the same depth in most cells: they mark no side.
+        assert_eq!(v(AsStored, 500, 500, 0), Mixed);
+        assert_eq!(v(Turned, 5, 5, 900), Mixed);
         // Between the clear shares, and with too few cells, the verdict stays.
-        assert_eq!(verdict(Turned, 350, 650), Turned);
-        assert_eq!(verdict(AsStored, 350, 650), AsStored);
-        assert_eq!(verdict(Turned, 0, 3), Turned);
-        assert_eq!(Turned.sign(), -1.0);
+        assert_eq!(v(Turned, 350, 650, 0), Turned);
+        assert_eq!(v(AsStored, 350, 650, 0), AsStored);
+        assert_eq!(v(Mixed, 900, 100, 600), Mixed);
+        assert_eq!(v(Turned, 0, 3, 2), Turned);
         assert!(!Mixed.mark_sides());
     }
 }

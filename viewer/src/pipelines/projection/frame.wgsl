@@ -38,9 +38,9 @@ struct Frame {
     clip_boxes: array<vec4<f32>, 8>,
     // The eye, relative to the anchor (the projection's back-face culling and footprint).
     eye: vec4<f32>,
-    // What multiplies a stored normal to point it out of its surface: -1 where the facing
-    // check found the normals pointing into the surfaces (facing.rs), else 1.
-    normal_sign: f32,
+    // 1: the facing check found the stored normals pointing into the surfaces (facing.rs),
+    // and each is turned before use (`normal_sign`); 0: as stored.
+    normals_turned: u32,
 }
 
 const FILTER_CLASSES: u32 = 1u;

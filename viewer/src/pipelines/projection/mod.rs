@@ -53,9 +53,9 @@ pub const PASSES: [&str; 8] = [
     "project_depth",
     "project_index",
     "count drawn",
-    facing::FACING_PASS,
     "unpack",
     "resolve",
+    facing::FACING_PASS,
 ];
 
 /// The per-frame uniforms, laid out as `Frame` in frame.wgsl.
@@ -96,10 +96,10 @@ pub struct FrameUniforms {
     pub clip_boxes: [[f32; 4]; 8],
     /// The eye, relative to the anchor, for the back-face culling of the projection.
     pub eye: [f32; 4],
-    /// What multiplies a stored normal to point it out of its surface, as the facing check
-    /// found (`NormalSides::sign`).
-    pub normal_sign: f32,
-    pub pad: [f32; 3],
+    /// 1: the facing check found the stored normals pointing into the surfaces, and each is
+    /// turned before use (`NormalSides::Turned`); 0: as stored.
+    pub normals_turned: u32,
+    pub pad: [u32; 3],
 }
 
 /// The filter bits of `FrameUniforms::filters` (`FILTER_*` in frame.wgsl).

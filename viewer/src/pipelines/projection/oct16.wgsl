@@ -10,3 +10,8 @@ fn decode_oct16(w: u32) -> vec3<f32> {
     }
     return normalize(n);
 }
+
+// What multiplies a stored normal to point it out of its surface (`Frame::normals_turned`).
+fn normal_sign() -> f32 {
+    return select(1.0, -1.0, frame.normals_turned != 0u);
+}

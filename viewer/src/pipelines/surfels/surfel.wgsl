@@ -100,7 +100,7 @@ fn surfel_at(group: u32, lane: u32) -> Surfel {
     let word = normals[idx];
     if surf.normals != NORMALS_NONE && word != 0u {
         // Pointing out of its surface (the facing check's sign): a c-surfel bends away from it.
-        s.n = decode_oct16(word) * frame.normal_sign;
+        s.n = decode_oct16(word) * normal_sign();
         if surf.normals == NORMALS_FACING_EYE && dot(s.n, v) < 0.0 {
             s.n = -s.n;
         }

@@ -50,7 +50,7 @@ fn main(@builtin(global_invocation_id) id: vec3<u32>) {
     pts[p] = vec4<f32>(pos, radius);
     if SIDES || tri.stored_normals != 0u {
         let w = normals[local];
-        point_normals[p] = select(0u, pack4x8snorm(vec4<f32>(decode_oct16(w) * frame.normal_sign, 1.0)), w != 0u);
+        point_normals[p] = select(0u, pack4x8snorm(vec4<f32>(decode_oct16(w) * normal_sign(), 1.0)), w != 0u);
     }
 }
 
