@@ -5,8 +5,9 @@
 
 use super::*;
 
-use super::filters::shot;
+use super::filters::{shot, shot_on};
 use super::surfels::{H, W};
+use strata_viewer::gpu::ProjectionPath;
 use strata_viewer::pipelines::filters::NOT_OUTWARD;
 
 const NEAR_SIDE: [u8; 3] = [40, 80, 200];
@@ -107,6 +108,25 @@ fn normals_pointing_into_the_surface_are_turned_and_draw_the_same_picture() {
             "{pipeline}: {share:.4} of the pixels differ from the outward sphere's"
         );
     }
+    // The 32-bit projection (no 64-bit atomics, as on GL) culls by the same turned normals.
+    let outward = shot_on(
+        ProjectionPath::Int32,
+        sphere(Normals::Outward),
+        "filters",
+        &[],
+    );
+    let inward = shot_on(
+        ProjectionPath::Int32,
+        sphere(Normals::Inward),
+        "filters",
+        &[],
+    );
+    assert_eq!(inward.sides, Some("turned"));
+    let share = differing(&outward.rgb, &inward.rgb, 3);
+    assert!(
+        share < 0.001,
+        "32-bit path: {share:.4} of the pixels differ"
+    );
 }
 
 #[test]

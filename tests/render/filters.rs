@@ -111,7 +111,7 @@ pub(super) fn shot(dataset: &Path, pipeline: &str, set: &[&str]) -> Shot {
     shot_on(ProjectionPath::Auto, dataset, pipeline, set)
 }
 
-fn shot_on(path: ProjectionPath, dataset: &Path, pipeline: &str, set: &[&str]) -> Shot {
+pub(super) fn shot_on(path: ProjectionPath, dataset: &Path, pipeline: &str, set: &[&str]) -> Shot {
     shot_at(path, dataset, pipeline, set, None)
 }
 

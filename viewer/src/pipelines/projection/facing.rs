@@ -26,11 +26,11 @@ const STRIDE: u32 = 4;
 const CELL: u32 = 4;
 /// The timed pass.
 pub const FACING_PASS: &str = "facing check";
-/// Cells with both sides, one clearly in front, fewer than this: the view says nothing of
+/// Cells with one side clearly in front fewer than this: the view says nothing of
 /// the normals (a terrain seen from above shows almost no side turned away).
 const MIN_CELLS: u64 = 16;
 /// The tallies' words (`tallies` in facing.wgsl).
-const TALLY_BYTES: u64 = 12;
+const TALLY_BYTES: u64 = 8;
 
 /// The modules the check compiles: the sample of the drawn points, then the count of cells.
 pub fn facing_sources() -> [ShaderSource; 2] {
@@ -70,36 +70,30 @@ impl NormalSides {
     }
 }
 
-/// What a check counted: the cells that held both sides where the side facing the eye lay in
-/// front, where the side turned away did, and where they lay at the same depth.
+/// What a check counted: the cells holding both sides where the side facing the eye lay
+/// clearly in front, and where the side turned away did.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct Tallies {
     pub towards_in_front: u32,
     pub away_in_front: u32,
-    pub tied: u32,
 }
 
 /// The verdict after a view that counted `t`, `now` the verdict so far. Between the clear
 /// shares it stays, so that one view's noise does not flip the picture back and forth.
 pub fn verdict(now: NormalSides, t: Tallies) -> NormalSides {
-    let clear = t.towards_in_front as u64 + t.away_in_front as u64;
-    let all = clear + t.tied as u64;
-    if all < MIN_CELLS {
+    let both = t.towards_in_front as u64 + t.away_in_front as u64;
+    if both < MIN_CELLS {
         return now;
     }
-    // Normals pointing either way over one surface: both sides at its depth in most cells, or
-    // each in front about as often.
-    let tied = t.tied as f64 / all as f64;
-    let away = t.away_in_front as f64 / clear.max(1) as f64;
-    let enough = clear >= MIN_CELLS;
-    if tied >= 0.5 || (enough && (0.4..=0.6).contains(&away)) {
-        return NormalSides::Mixed;
-    }
-    // One side clearly in front, and few cells tied.
-    match (enough && tied <= 0.3, away) {
-        (true, a) if a <= 0.25 => NormalSides::AsStored,
-        (true, a) if a >= 0.75 => NormalSides::Turned,
-        _ => now,
+    let away = t.away_in_front as f64 / both as f64;
+    if away <= 0.25 {
+        NormalSides::AsStored
+    } else if away >= 0.75 {
+        NormalSides::Turned
+    } else if (0.4..=0.6).contains(&away) {
+        NormalSides::Mixed
+    } else {
+        now
     }
 }
 
@@ -252,7 +246,6 @@ impl FacingCheck {
         let tallies = Tallies {
             towards_in_front: word(0),
             away_in_front: word(1),
-            tied: word(2),
         };
         self.sides = verdict(self.sides, tallies);
         self.checked = self.in_flight.take();
@@ -272,26 +265,24 @@ mod tests {
     #[test]
     fn the_verdict_follows_the_side_in_front_and_holds_between_clear_shares() {
         use NormalSides::*;
-        let v = |now, towards_in_front, away_in_front, tied| {
+        let v = |now, towards_in_front, away_in_front| {
             let t = Tallies {
                 towards_in_front,
                 away_in_front,
-                tied,
             };
             verdict(now, t)
         };
         // The near side faces the eye: as stored, whatever came before.
-        assert_eq!(v(Turned, 950, 50, 100), AsStored);
+        assert_eq!(v(Turned, 950, 50), AsStored);
         // The near side turns away: the normals point into the surfaces.
-        assert_eq!(v(AsStored, 40, 960, 100), Turned);
-        // Half and half, or both sides at the same depth in most cells: they mark no side.
-        assert_eq!(v(AsStored, 500, 500, 0), Mixed);
-        assert_eq!(v(Turned, 5, 5, 900), Mixed);
+        assert_eq!(v(AsStored, 40, 960), Turned);
+        // Half and half: they mark no side.
+        assert_eq!(v(AsStored, 500, 500), Mixed);
         // Between the clear shares, and with too few cells, the verdict stays.
-        assert_eq!(v(Turned, 350, 650, 0), Turned);
-        assert_eq!(v(AsStored, 350, 650, 0), AsStored);
-        assert_eq!(v(Mixed, 900, 100, 600), Mixed);
-        assert_eq!(v(Turned, 0, 3, 2), Turned);
+        assert_eq!(v(Turned, 350, 650), Turned);
+        assert_eq!(v(AsStored, 350, 650), AsStored);
+        assert_eq!(v(Mixed, 680, 320), Mixed);
+        assert_eq!(v(Turned, 0, 3), Turned);
         assert!(!Mixed.mark_sides());
     }
 }

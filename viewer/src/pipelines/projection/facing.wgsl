@@ -4,9 +4,11 @@
 // surface is lost and the far side shown. A sample of the drawn points keeps, per cell of
 // CELL x CELL pixels, the nearest depth of the points whose normal clearly faces the eye and
 // that of the points whose normal clearly turns away (`sample`); `tally` then counts the
-// cells where the side facing the eye lies clearly in front, those where the side turned away
-// does, and those where both lie at the same depth (the same surface's points pointing either
-// way).
+// cells that hold both where the side facing the eye lies clearly in front, and those where
+// the side turned away does. A closed surface's far side lies clearly behind its near side.
+// Where both lie at about the same depth the cell says nothing: a sheet seen at a slant, its
+// two faces a hair apart, puts either in front of the other within a cell as often as normals
+// pointing either way over one surface do.
 // Where the normals point out of the surfaces, the side turned away is a surface's far side,
 // behind its near side, in nearly every cell that holds both.
 
@@ -15,9 +17,9 @@
 // complement of the linear depth's bits (so that the largest is the nearest, and a cleared
 // buffer, 0, is empty).
 @group(0) @binding(1) var<storage, read_write> cells: array<atomic<u32>>;
-// The cells where the side facing the eye lies in front, those where the side turned away
-// does, and those where neither does.
-@group(0) @binding(2) var<storage, read_write> tallies: array<atomic<u32>, 3>;
+// The cells where the side facing the eye lies in front, then those where the side turned
+// away does.
+@group(0) @binding(2) var<storage, read_write> tallies: array<atomic<u32>, 2>;
 @group(1) @binding(0) var<storage, read> points: array<vec4<u32>>;
 @group(1) @binding(1) var<storage, read> ranges: array<Range>;
 @group(1) @binding(2) var<storage, read> attributes: array<u32>;
@@ -31,7 +33,7 @@ const CELL: u32 = 4u;
 override STRIDE: u32 = 4u;
 // A normal within this cosine of grazing says little about its side: its point is left out.
 const GRAZING: f32 = 0.25;
-// One side lies in front of the other where its depth is nearer by this share.
+// One side lies clearly in front of the other where its depth is nearer by this share.
 const DEPTH_MARGIN: f32 = 0.01;
 
 fn cells_across() -> u32 {
@@ -84,7 +86,7 @@ fn sample(
     atomicMax(&cells[2u * cell + select(0u, 1u, facing < 0.0)], ~bitcast<u32>(clip.w));
 }
 
-var<workgroup> counted: array<atomic<u32>, 3>;
+var<workgroup> counted: array<atomic<u32>, 2>;
 
 @compute @workgroup_size(256)
 fn tally(
@@ -104,13 +106,11 @@ fn tally(
                 atomicAdd(&counted[0], 1u);
             } else if a < t * (1.0 - DEPTH_MARGIN) {
                 atomicAdd(&counted[1], 1u);
-            } else {
-                atomicAdd(&counted[2], 1u);
             }
         }
     }
     workgroupBarrier();
-    if lane < 3u {
+    if lane < 2u {
         let n = atomicLoad(&counted[lane]);
         if n != 0u {
             atomicAdd(&tallies[lane], n);
