@@ -9,16 +9,14 @@
 // Where both lie at about the same depth the cell says nothing: a sheet seen at a slant, its
 // two faces a hair apart, puts either in front of the other within a cell as often as normals
 // pointing either way over one surface do.
-// Where the normals point out of the surfaces, the side turned away is a surface's far side,
-// behind its near side, in nearly every cell that holds both.
 
 @group(0) @binding(0) var<uniform> frame: Frame;
 // Per cell: the nearest depth of the side facing the eye, then of the side turned away, as the
 // complement of the linear depth's bits (so that the largest is the nearest, and a cleared
 // buffer, 0, is empty).
 @group(0) @binding(1) var<storage, read_write> cells: array<atomic<u32>>;
-// The cells where the side facing the eye lies in front, then those where the side turned
-// away does.
+// The cells where the side facing the eye lies clearly in front, then those where the side
+// turned away does.
 @group(0) @binding(2) var<storage, read_write> tallies: array<atomic<u32>, 2>;
 @group(1) @binding(0) var<storage, read> points: array<vec4<u32>>;
 @group(1) @binding(1) var<storage, read> ranges: array<Range>;
