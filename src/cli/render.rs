@@ -175,38 +175,6 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
     };
     let report = render(&a.dataset, &opts)?;
     let last = report.frames.last();
-    // A node or hierarchy page that could not be loaded is a fault of the dataset (or of the
-    // GPU cache's size), not a wait cut short: the images would show holes where its points
-    // belong, so none is kept.
-    let (failed_nodes, failed_pages) = last.map_or((0, 0), |f| (f.nodes_failed, f.pages_failed));
-    if failed_nodes + failed_pages > 0 || !report.errors.is_empty() {
-        for e in &report.errors {
-            eprintln!("error: {e}");
-        }
-        let mut kept = Vec::new();
-        for image in &report.images {
-            if let Err(e) = std::fs::remove_file(image) {
-                kept.push(format!("{image} ({e})"));
-            }
-        }
-        let hint = match report.dataset.contains("://") {
-            true => "",
-            false => "; `strata verify` checks the whole dataset",
-        };
-        if !kept.is_empty() {
-            anyhow::bail!(
-                "{}: {failed_nodes} node(s) and {failed_pages} hierarchy page(s) could not be \
-                 loaded, and these incomplete images could not be removed: {}",
-                report.dataset,
-                kept.join(", ")
-            );
-        }
-        anyhow::bail!(
-            "{}: {failed_nodes} node(s) and {failed_pages} hierarchy page(s) could not be loaded \
-             (the errors above say why), so no image was kept{hint}",
-            report.dataset
-        );
-    }
     println!(
         "{} image(s) via {} ({} projection): {} points in {} nodes",
         report.images.len(),

@@ -91,7 +91,8 @@ pub fn default_camera(ds: &StreamDataset, width: u32, height: u32) -> Camera {
 }
 
 /// Opens the dataset (a directory or an http:// URL) and the GPU, renders, writes images and
-/// statistics.
+/// statistics. A node or hierarchy page of the views that could not be loaded fails it, and
+/// no image is kept.
 pub fn render(location: &str, opts: &RenderOptions) -> Result<RenderReport, ViewerError> {
     let t0 = Instant::now();
     let http = HttpOptions {
@@ -270,6 +271,31 @@ pub fn render_with(
         let json = serde_json::to_string_pretty(&report)
             .map_err(|e| ViewerError::output(path, format!("cannot encode statistics: {e}")))?;
         write_atomic(path, json.as_bytes())?;
+    }
+    // A node or hierarchy page that could not be loaded is a fault of the dataset (or of the
+    // GPU cache's size), not a wait cut short: the images would show holes where its points
+    // belong, so none is kept. The statistics, written above, list every error.
+    if let Some(first) = report.errors.first() {
+        let last = report.frames.last();
+        let (nodes, pages) = last.map_or((0, 0), |f| (f.nodes_failed, f.pages_failed));
+        let failed =
+            format!("{nodes} node(s) and {pages} hierarchy page(s) could not be loaded ({first})");
+        let kept: Vec<String> = report
+            .images
+            .iter()
+            .filter_map(|image| Some(format!("{image} ({})", std::fs::remove_file(image).err()?)))
+            .collect();
+        let what = match (kept.is_empty(), report.dataset.contains("://")) {
+            (false, _) => format!(
+                "{failed}, and these incomplete images could not be removed: {}",
+                kept.join(", ")
+            ),
+            (true, true) => format!("{failed}, so no image was kept"),
+            (true, false) => {
+                format!("{failed}, so no image was kept; `strata verify` checks the whole dataset")
+            }
+        };
+        return Err(ViewerError::source(report.dataset, what));
     }
     Ok(report)
 }

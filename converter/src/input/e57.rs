@@ -7,6 +7,7 @@
 use super::e57_decode::{self, Batch, Job, Msg, Pose, QUEUED, RowShape};
 use super::e57_extras::FileExtras;
 use super::e57_limits::{OwnRanges, own_ranges};
+use super::las_header::range_lost;
 use super::laz_check::guarded;
 use super::{NO_SCANNER, PointSource, Precision, SourceInfo};
 use crate::error::{ConvertError, Result};
@@ -134,8 +135,7 @@ impl E57Source {
                     min,
                     max,
                 } = r.data_type
-                    && min != max
-                    && min as f64 * scale + offset == max as f64 * scale + offset
+                    && range_lost(offset, scale, min as f64, max as f64)
                 {
                     return Err(bad(format!(
                         "scan {i} of {n}: its {:?} field is a scaled integer with an offset of \

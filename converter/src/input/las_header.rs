@@ -61,6 +61,12 @@ fn f64_at(b: &[u8], o: usize) -> f64 {
     f64::from_bits(u64_at(b, o))
 }
 
+/// Whether scaled integers from `lo` to `hi` all land on one value beside `offset` (a double
+/// holds about 16 digits): every point of the field would get the same coordinate.
+pub fn range_lost(offset: f64, scale: f64, lo: f64, hi: f64) -> bool {
+    lo != hi && lo * scale + offset == hi * scale + offset
+}
+
 /// Reads `len` bytes at `at`, which the caller has checked lie inside the file.
 pub fn read_at(file: &File, at: u64, len: usize) -> Result<Vec<u8>, String> {
     let mut b = vec![0u8; len];
@@ -177,7 +183,7 @@ impl LasHeader {
             // the records is lost, and every point gets the same coordinate. (A coarser rule,
             // one step lost, would refuse the scale 1e-9 and offset 5e6 that a small far
             // float cloud's export writes, whose integers are kept exactly.)
-            if o + s * 2f64.powi(31) == o - s * 2f64.powi(31) {
+            if range_lost(o, s, -(2f64.powi(31)), 2f64.powi(31)) {
                 return Err(format!(
                     "header field \"{} offset\" is {}, so large that the steps of the scale factor {} are lost in it: every point would get the same coordinate",
                     AXES[a],
