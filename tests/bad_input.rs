@@ -53,15 +53,24 @@ fn truncated_laz() {
     let b = std::fs::read(data("autzen_trim.laz")).expect("laz");
     let p = write(dir.path(), "cut.laz", &b[..b.len() * 2 / 3]);
     convert_fails(&p, "corrupt or truncated");
-    // Damaged in the middle: the fault is named by the batch decoded at once, not by its
-    // first point alone.
+    // Damaged in the middle: the chunk holding the damage is named (the second of three, of
+    // 50,000 points each).
     let mut flipped = b.clone();
     let m = flipped.len() / 2;
     flipped[m..m + 64].iter_mut().for_each(|x| *x ^= 0x5a);
     let p = write(dir.path(), "flipped.laz", &flipped);
     convert_fails(
         &p,
-        "LAZ point data is corrupt or truncated within points 0 to 109999 (counting from 0)",
+        "the compressed chunk at byte 285651 (points 50000 to 99999) is corrupt",
+    );
+    // Zeroed inside the first chunk: the decoder reads the zeros as points, millions of
+    // units off, and finishes the chunk early instead of failing.
+    let mut zeroed = b.clone();
+    zeroed[5000..9096].fill(0);
+    let p = write(dir.path(), "zeroed.laz", &zeroed);
+    convert_fails(
+        &p,
+        "the compressed chunk at byte 2152 (points 0 to 49999) is corrupt: its 50000 points decode from 4968 of its 283499 bytes",
     );
 }
 

@@ -1,6 +1,7 @@
 use super::las_header::LasHeader;
 use super::las_layout::{FieldOp, las_fields, parse_extra_bytes, record_to_row, rename_clashes};
 use super::laz_check::{check_laz, guarded};
+use super::laz_chunks::LazChunks;
 use super::{PointSource, Precision, SourceInfo};
 use crate::error::{ConvertError, Result};
 use las::{PointData, PointDataBuilder, Reader};
@@ -14,6 +15,8 @@ pub struct LasSource {
     info: SourceInfo,
     reader: Reader,
     data: PointData,
+    /// A LAZ file's chunks, decoded by us: the reader's decoder would not check them.
+    laz: Option<LazChunks>,
     ops: Vec<FieldOp>,
     record_len: usize,
     scale: [f64; 3],
@@ -34,11 +37,12 @@ impl LasSource {
             .len();
         let bad = |what: String| ConvertError::input(path, what);
         let raw = LasHeader::read(&file, file_len).map_err(bad)?;
-        if raw.compressed {
-            check_laz(&file, &raw).map_err(bad)?;
+        let laz = if raw.compressed {
+            Some(check_laz(&file, &raw).map_err(bad)?)
         } else {
             raw.check_uncompressed_records().map_err(bad)?;
-        }
+            None
+        };
         let (compressed, format_number) = (raw.compressed, raw.format);
         // Everything the reader allocates or seeks by has been checked above; what still panics
         // inside it (the LAZ decoder runs on the rayon pool) is this file's fault, not ours.
@@ -119,6 +123,7 @@ impl LasSource {
             },
             reader,
             data,
+            laz,
             ops,
             record_len,
             scale,
@@ -136,23 +141,53 @@ impl LasSource {
     /// Decodes up to `max` point records and returns their raw bytes (`record_len` each);
     /// empty at the end.
     pub fn read_records(&mut self, max: usize) -> Result<&[u8]> {
+        let range = self.fill(max)?;
+        Ok(&self.held()[range])
+    }
+
+    /// The records decoded so far and not handed on, among others (`fill` says which).
+    fn held(&self) -> &[u8] {
+        match &self.laz {
+            Some(chunks) => chunks.records(),
+            None => self.data.raw_bytes(),
+        }
+    }
+
+    /// Decodes up to `max` point records; where their bytes lie in `held`.
+    fn fill(&mut self, max: usize) -> Result<std::ops::Range<usize>> {
         let n = (max as u64).min(self.remaining);
         if n == 0 {
-            return Ok(&[]);
+            return Ok(0..0);
         }
-        let kind = if self.compressed { "LAZ" } else { "LAS" };
-        // The batch is decoded as a whole (a LAZ's chunks in parallel): the fault lies somewhere
-        // in it.
+        if let Some(chunks) = &mut self.laz {
+            let range = chunks
+                .take(n)
+                .map_err(|what| ConvertError::input(&self.info.path, what))?;
+            if range.is_empty() {
+                return Err(ConvertError::input(
+                    &self.info.path,
+                    format!(
+                        "header says {} points but the data ends after {}",
+                        self.info.points, self.read_so_far
+                    ),
+                ));
+            }
+            let got = (range.len() / self.record_len) as u64;
+            self.remaining -= got;
+            self.read_so_far += got;
+            return Ok(range);
+        }
+        // The batch is read as a whole: the fault lies somewhere in it.
         let batch = format!(
             "points {} to {} (counting from 0)",
             self.read_so_far,
             self.read_so_far + n - 1
         );
         let (reader, data) = (&mut self.reader, &mut self.data);
-        let got = guarded(&format!("{kind} point data of {batch}"), || {
+        let got = guarded(&format!("LAS point data of {batch}"), || {
             reader.fill_points(n, data).map_err(|e| {
                 format!(
-                    "{kind} point data is corrupt or truncated within {batch} ({})",
+                    "LAS point data is corrupt or truncated within {batch} ({})",
                     plain(&e)
                 )
             })
@@ -169,7 +204,7 @@ impl LasSource {
         }
         self.remaining -= got;
         self.read_so_far += got;
-        Ok(&self.data.raw_bytes()[..got as usize * self.record_len])
+        Ok(0..got as usize * self.record_len)
     }
 
     /// The field ops that turn a record into this source's attribute row.
@@ -214,12 +249,13 @@ impl PointSource for LasSource {
     }
 
     fn read(&mut self, max: usize, xyz: &mut Vec<[f64; 3]>, rows: &mut Vec<u8>) -> Result<usize> {
-        let got = self.read_records(max)?.len() / self.record_len;
+        let range = self.fill(max)?;
+        let raw = &self.held()[range];
         let row_len = self.info.row_len();
+        let got = raw.len() / self.record_len;
         let base = rows.len();
         rows.resize(base + got * row_len, 0);
         xyz.reserve(got);
-        let raw = self.data.raw_bytes();
         for (rec, row) in raw
             .chunks_exact(self.record_len)
             .zip(rows[base..].chunks_exact_mut(row_len))

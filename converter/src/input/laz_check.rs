@@ -5,6 +5,7 @@
 //! by [`guarded`] and becomes this file's error.
 
 use super::las_header::{LasHeader, read_at};
+use super::laz_chunks::{Chunk, LazChunks};
 use laz::laszip::{ChunkTable, ChunkTableEntry};
 use laz::record::{RecordDecompressor, SequentialPointRecordDecompressor};
 use std::fs::File;
@@ -145,8 +146,9 @@ fn read_laszip_vlr(file: &File, h: &LasHeader) -> Result<LaszipVlr, String> {
 }
 
 /// Checks the laszip VLR and the chunk table; on success the `laz` decoder can be given the
-/// file. The error is the fault, in words, without the file name.
-pub fn check_laz(file: &File, h: &LasHeader) -> Result<(), String> {
+/// file, and the chunks are returned for decoding. The error is the fault, in words, without
+/// the file name.
+pub fn check_laz(file: &File, h: &LasHeader) -> Result<LazChunks, String> {
     let vlr = read_laszip_vlr(file, h)?;
     let laz_vlr = guarded("the laszip VLR", || {
         laz::LazVlr::from_buffer(&vlr.data).map_err(|e| format!("laszip VLR: {e}"))
@@ -195,8 +197,15 @@ pub fn check_laz(file: &File, h: &LasHeader) -> Result<(), String> {
             ));
         }
     }
+    let record_len = h.record_len as usize;
     if chunks == 0 {
-        return Ok(());
+        return Ok(LazChunks::new(
+            own_handle(file)?,
+            laz_vlr,
+            vlr.layered,
+            record_len,
+            Vec::new(),
+        ));
     }
     if let Some(size) = vlr.chunk_size {
         // The decoder sizes the last chunk's buffer by the chunk size, not by the points left
@@ -265,7 +274,36 @@ pub fn check_laz(file: &File, h: &LasHeader) -> Result<(), String> {
     };
     let last = entries[entries.len() - 1];
     let last_at = start + 8 + used - last.byte_count;
-    check_last_chunk(file, h, &vlr, &laz_vlr, last_at, last, last_points)
+    check_last_chunk(file, h, &vlr, &laz_vlr, last_at, last, last_points)?;
+    let mut at = start + 8;
+    let mut left = points;
+    let list = entries
+        .iter()
+        .map(|e| {
+            let points = vlr.chunk_size.map_or(e.point_count, |size| size.min(left));
+            let chunk = Chunk {
+                at,
+                bytes: e.byte_count,
+                points,
+            };
+            at += e.byte_count;
+            left = left.saturating_sub(points);
+            chunk
+        })
+        .collect();
+    Ok(LazChunks::new(
+        own_handle(file)?,
+        laz_vlr,
+        vlr.layered,
+        record_len,
+        list,
+    ))
+}
+
+/// A handle of its own on the file, for the chunks' decoding.
+fn own_handle(file: &File) -> Result<File, String> {
+    file.try_clone()
+        .map_err(|e| format!("cannot open the file a second time ({})", e.kind()))
 }
 
 fn read8(file: &File, at: u64) -> Result<[u8; 8], String> {

@@ -9,6 +9,7 @@ pub mod las_header;
 pub mod las_layout;
 pub mod las_normals;
 pub mod laz_check;
+pub mod laz_chunks;
 pub mod ply;
 pub mod ply_header;
 mod ply_skip;
