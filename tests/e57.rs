@@ -559,3 +559,22 @@ fn single_precision_limits_of_the_whole_float_range_say_nothing() {
         assert_stored_finely(dir.path(), &input, &format!("at {translation:?}"));
     }
 }
+
+#[test]
+fn a_pose_so_far_away_that_the_scan_is_lost_in_it_is_refused() {
+    // Scaled integers of ±4 m placed 1e300 away: beside that translation the scan's extent is
+    // lost, and every point would get the same x (a LAS offset that large is refused too).
+    let dir = tempfile::tempdir().expect("tempdir");
+    let input = dir.path().join("lost.e57");
+    let spec = ScanSpec::new(Storage::Scaled, 500).at([1e300, 0.0, 0.0]);
+    write_e57(&input, std::slice::from_ref(&spec));
+    convert_fails(
+        &input,
+        "scan 0 of 1: its pose's translation x = 1e300 is so large that the scan's own extent",
+    );
+    // 5e6 away, as a georeferenced scan is, the same scan converts.
+    let input = dir.path().join("far.e57");
+    let spec = ScanSpec::new(Storage::Scaled, 500).at([5e6, 4e6, 100.0]);
+    write_e57(&input, std::slice::from_ref(&spec));
+    convert(dir.path(), &[&input]);
+}

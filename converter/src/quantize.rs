@@ -2,6 +2,7 @@
 //! resolutions, and exact integer positions wherever the inputs share a grid.
 
 use crate::input::Precision;
+use strata_format::number;
 
 /// What the scan learned of one input.
 #[derive(Debug, Clone)]
@@ -242,6 +243,23 @@ pub fn choose(
             "the points lie within {widest:e} of each other on every axis, below the finest step \
              a dataset stores them in ({:e}): they would all become one position",
             scale.iter().copied().fold(f64::INFINITY, f64::min)
+        ));
+    }
+    // Coarsened for the widest axis's sake beyond another axis's whole extent, a step puts
+    // every point at one position along that axis: the axis is lost, not rounded.
+    if grid.is_some_and(|g| step > g)
+        && let Some(a) = (0..3).find(|&a| span(a) > 0.0 && span(a) < scale[a] / 2.0)
+    {
+        return Err(format!(
+            "the points' {} coordinates span {}, which 32-bit positions hold only in steps of \
+             {}, more than the whole {} the {} coordinates span: every point would get the same \
+             {}",
+            ["x", "y", "z"][widest],
+            number(span(widest)),
+            number(step),
+            number(span(a)),
+            ["x", "y", "z"][a],
+            ["x", "y", "z"][a]
         ));
     }
     let floats = sources

@@ -110,6 +110,25 @@ fn points_that_would_all_become_one_position_are_refused() {
 }
 
 #[test]
+fn an_axis_whose_whole_extent_a_coarsened_step_swallows_is_refused() {
+    // x in steps of 1e300 (an E57 field's scale), y and z in tenths of a millimetre over 10 cm:
+    // 32-bit positions hold x only in steps far beyond y's and z's whole extent.
+    let wide = SourceExtent {
+        precision: Precision::Scaled {
+            scale: [1e300, 1e-4, 1e-4],
+            offset: [0.0; 3],
+        },
+        min: [-1e306, 0.0, 0.0],
+        max: [1e306, 0.1, 0.1],
+    };
+    let err = choose(std::slice::from_ref(&wide), wide.min, wide.max).expect_err("y is lost");
+    assert!(
+        err.contains("span 2e306, which 32-bit positions hold only in steps of 1e297, more than the whole 0.1 the y coordinates span"),
+        "{err}"
+    );
+}
+
+#[test]
 fn huge_extents_coarsen_rather_than_overflow() {
     let q = choose(&[las(0.0001, 0.0, -1e7, 1e7)], [-1e7; 3], [1e7; 3]).expect("fits");
     assert!(q.coarsened);

@@ -145,6 +145,21 @@ impl E57Source {
                     )));
                 }
             }
+            // Beside a translation that large the scan's own extent is lost: every point
+            // would get the same coordinate on that axis.
+            if let Some(m) = scan_extent(pc) {
+                let t = poses[i].translation;
+                if let Some(a) = (0..3).find(|&a| range_lost(t[a], 1.0, -m, m)) {
+                    return Err(bad(format!(
+                        "scan {i} of {n}: its pose's translation {} = {:e} is so large that the \
+                         scan's own extent of {m:e} about its origin is lost in it: every point \
+                         would get the same {} coordinate",
+                        ["x", "y", "z"][a],
+                        t[a],
+                        ["x", "y", "z"][a]
+                    )));
+                }
+            }
         }
         let rgb = clouds.iter().any(PointCloud::has_color);
         let intensity = clouds.iter().any(PointCloud::has_intensity);
@@ -334,6 +349,46 @@ fn precision(clouds: &[PointCloud]) -> Precision {
         // A scale of zero or not a number: the coordinates say what they are worth.
         Precision::Float64
     }
+}
+
+/// The largest magnitude a scan's positions reach in its own frame (before its pose), as its
+/// coordinate fields' types or its bounds state it; `None` where the file does not say.
+fn scan_extent(pc: &PointCloud) -> Option<f64> {
+    let names = if pc.has_cartesian() {
+        [
+            RecordName::CartesianX,
+            RecordName::CartesianY,
+            RecordName::CartesianZ,
+        ]
+        .to_vec()
+    } else {
+        vec![RecordName::SphericalRange]
+    };
+    let mut extent: Option<f64> = None;
+    for r in pc.prototype.iter().filter(|r| names.contains(&r.name)) {
+        let field = match r.data_type {
+            RecordDataType::Single { min, max } => local_extent(pc, min, max),
+            RecordDataType::Double { .. } => local_extent(pc, None, None),
+            RecordDataType::ScaledInteger {
+                scale,
+                offset,
+                min,
+                max,
+            } => Some(
+                (min as f64 * scale + offset)
+                    .abs()
+                    .max((max as f64 * scale + offset).abs()),
+            ),
+            RecordDataType::Integer { min, max } => {
+                Some((min as f64).abs().max((max as f64).abs()))
+            }
+        };
+        extent = match (extent, field) {
+            (Some(a), Some(b)) => Some(a.max(b)),
+            (a, b) => a.or(b),
+        };
+    }
+    extent.filter(|m| m.is_finite() && *m > 0.0)
 }
 
 /// The largest magnitude a scan's single-precision coordinate field holds in its own frame,
