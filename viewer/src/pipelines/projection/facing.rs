@@ -78,23 +78,38 @@ pub struct Tallies {
     pub away_in_front: u32,
 }
 
-/// The verdict after a view that counted `t`, `now` the verdict so far. Between the clear
-/// shares it stays, so that one view's noise does not flip the picture back and forth.
-pub fn verdict(now: NormalSides, t: Tallies) -> NormalSides {
+/// The shares of cells with the side turned away in front that say each verdict clearly.
+const AS_STORED: std::ops::RangeInclusive<f64> = 0.0..=0.25;
+const MIXED: std::ops::RangeInclusive<f64> = 0.4..=0.6;
+const TURNED: std::ops::RangeInclusive<f64> = 0.75..=1.0;
+
+/// The verdict after a view that counted `t`, `now` the verdict so far (none before the
+/// first view that says anything). Between the clear shares it stays, so that one view's
+/// noise does not flip the picture back and forth; with no verdict to keep, it is the one
+/// whose clear shares lie nearest.
+pub fn verdict(now: Option<NormalSides>, t: Tallies) -> Option<NormalSides> {
     let both = t.towards_in_front as u64 + t.away_in_front as u64;
     if both < MIN_CELLS {
         return now;
     }
     let away = t.away_in_front as f64 / both as f64;
-    if away <= 0.25 {
-        NormalSides::AsStored
-    } else if away >= 0.75 {
-        NormalSides::Turned
-    } else if (0.4..=0.6).contains(&away) {
-        NormalSides::Mixed
-    } else {
-        now
+    let clear = [
+        (AS_STORED, NormalSides::AsStored),
+        (MIXED, NormalSides::Mixed),
+        (TURNED, NormalSides::Turned),
+    ];
+    if let Some((_, sides)) = clear.iter().find(|(shares, _)| shares.contains(&away)) {
+        return Some(*sides);
     }
+    if now.is_some() {
+        return now;
+    }
+    let off =
+        |shares: &std::ops::RangeInclusive<f64>| (shares.start() - away).max(away - shares.end());
+    clear
+        .iter()
+        .min_by(|a, b| off(&a.0).total_cmp(&off(&b.0)))
+        .map(|(_, sides)| *sides)
 }
 
 pub struct FacingCheck {
@@ -108,7 +123,8 @@ pub struct FacingCheck {
     in_flight: Option<u64>,
     /// The view whose check the verdict took in last.
     checked: Option<u64>,
-    sides: NormalSides,
+    /// None until a view says anything (the normals are then taken as stored).
+    sides: Option<NormalSides>,
 }
 
 impl FacingCheck {
@@ -128,12 +144,12 @@ impl FacingCheck {
             readback: AsyncReadback::new(device, "facing tallies readback", TALLY_BYTES),
             in_flight: None,
             checked: None,
-            sides: NormalSides::default(),
+            sides: None,
         }
     }
 
     pub fn sides(&self) -> NormalSides {
-        self.sides
+        self.sides.unwrap_or_default()
     }
 
     /// Whether the verdict has taken in the check of view `key`.
@@ -270,7 +286,7 @@ mod tests {
                 towards_in_front,
                 away_in_front,
             };
-            verdict(now, t)
+            verdict(Some(now), t).unwrap_or(now)
         };
         // The near side faces the eye: as stored, whatever came before.
         assert_eq!(v(Turned, 950, 50), AsStored);
@@ -284,5 +300,20 @@ mod tests {
         assert_eq!(v(Mixed, 680, 320), Mixed);
         assert_eq!(v(Turned, 0, 3), Turned);
         assert!(!Mixed.mark_sides());
+        // The first view that says anything decides alone: between the clear shares, the
+        // nearest.
+        let first = |towards_in_front, away_in_front| {
+            let t = Tallies {
+                towards_in_front,
+                away_in_front,
+            };
+            verdict(None, t)
+        };
+        assert_eq!(first(0, 3), None);
+        assert_eq!(first(630, 370), Some(Mixed));
+        assert_eq!(first(700, 300), Some(AsStored));
+        assert_eq!(first(370, 630), Some(Mixed));
+        assert_eq!(first(300, 700), Some(Turned));
+        assert_eq!(first(500, 500), Some(Mixed));
     }
 }

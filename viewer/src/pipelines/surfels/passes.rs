@@ -131,7 +131,7 @@ impl SurfelUniforms {
 /// and the curved modules run over that list alone.
 pub fn shaders(sides: u32) -> Vec<ShaderSource> {
     let mut v = sided_shaders(sides).to_vec();
-    v.extend([shade_shader(false), shade_shader(true)]);
+    v.push(shade_shader());
     v
 }
 
@@ -183,19 +183,11 @@ fn sided_shaders(sides: u32) -> [ShaderSource; 5] {
     ]
 }
 
-/// The shading, with the far-side rule (`FAR_SIDE` in shade.wgsl) for datasets whose normals
-/// mark back faces, or without it: on a software rasterizer its code costs two fifths of the
-/// pass even where no pixel takes it.
-fn shade_shader(far_side: bool) -> ShaderSource {
-    let source = ShaderSource::new(
-        if far_side {
-            "surfel shade far side"
-        } else {
-            "surfel shade"
-        },
+fn shade_shader() -> ShaderSource {
+    ShaderSource::new(
+        "surfel shade",
         &[UNIFORMS_WGSL, SUMS_WGSL, LIGHTING_WGSL, SHADE_WGSL],
-    );
-    source.with_constant("FAR_SIDE", if far_side { 1.0 } else { 0.0 })
+    )
 }
 
 /// A pass's modules: for planar surfels, for planar ones listing the curved (the depth pass
@@ -215,7 +207,6 @@ struct Sided {
 pub struct SurfelPasses {
     sided: Variants<u32, Sided>,
     shade: wgpu::ComputePipeline,
-    shade_far_side: wgpu::ComputePipeline,
 }
 
 /// The `sides` a pipeline is made with before a frame asks for others.
@@ -249,8 +240,7 @@ impl SurfelPasses {
         ctx.require_storage_buffers("surfels", STORAGE_BUFFERS)?;
         Ok(SurfelPasses {
             sided: Variants::new(DEFAULT_SIDES, compile_sided(&ctx.device, DEFAULT_SIDES)),
-            shade: shade_shader(false).compute(&ctx.device, None),
-            shade_far_side: shade_shader(true).compute(&ctx.device, None),
+            shade: shade_shader().compute(&ctx.device, None),
         })
     }
 
@@ -423,11 +413,7 @@ impl SurfelPasses {
             binding: 6,
             resource: wgpu::BindingResource::TextureView(&view),
         });
-        let shade = if uniforms.back_faces != 0 {
-            &self.shade_far_side
-        } else {
-            &self.shade
-        };
+        let shade = &self.shade;
         let bg = device.create_bind_group(&wgpu::BindGroupDescriptor {
             label: Some("surfel shade"),
             layout: &shade.get_bind_group_layout(0),

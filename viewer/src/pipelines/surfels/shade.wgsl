@@ -49,50 +49,74 @@ fn add_blends(a: Blend, b: Blend) -> Blend {
     return s;
 }
 
-// The far-side rule below, compiled in only for datasets whose normals mark back faces (a
-// software rasterizer runs a branch's code for every pixel, the others masked).
-override FAR_SIDE: bool = true;
-
 // Pixels searched each way for the near surface about a pinhole.
 const FAR_REACH: i32 = 2;
 
 // The first pixel from `id` along `step` that is mostly front faces, where it lies in front
 // of `depth` by more than twice its z_o; empty where the search meets background, the
-// border, or front faces about as deep (the same surface, its normals leaning).
-fn near_side_towards(id: vec2<u32>, step: vec2<i32>, depth: f32) -> Blend {
+// border, or front faces about as deep (the same surface, its normals leaning), which
+// `enclosed` looks past instead (the hole's own pixels).
+fn near_side_towards(id: vec2<u32>, step: vec2<i32>, depth: f32, enclosed: bool) -> Blend {
     for (var k = 1; k <= FAR_REACH; k++) {
         let q = vec2<i32>(id) + step * k;
         if q.x < 0 || q.y < 0 || q.x >= i32(frame.width) || q.y >= i32(frame.height) {
             break;
         }
-        let n = blend_at(u32(q.y) * frame.width + u32(q.x));
-        if n.w <= 0.0 {
+        let p = u32(q.y) * frame.width + u32(q.x);
+        let i = SUM_WORDS * p;
+        let w = f32(sums[i]);
+        if w <= 0.0 {
             break;
         }
-        if 2.0 * n.back > n.w {
+        if surf.back_faces != 0u && 2.0 * f32(sums[i + 8u]) > w {
             continue;
         }
+        // Its blend lies no nearer than its nearest surfel, z_o (front - nearest) before its
+        // front: where even that is not far enough in front, its whole blend (eleven words)
+        // is not read. Every pixel of a surface searches, and most stop here.
+        let front = bitcast<f32>(~planes[2u * p]);
+        let nearest = bitcast<f32>(~planes[2u * p + 1u]);
+        if depth - nearest <= 2.0 * (front - nearest) {
+            if enclosed {
+                continue;
+            }
+            break;
+        }
+        let n = blend_at(p);
         if depth - n.depth > 2.0 * n.offset {
             return n;
+        }
+        if enclosed {
+            continue;
         }
         break;
     }
     return empty_blend();
 }
 
-// A pixel drawn mostly by back faces (normals, as stored outward, turned away from the eye)
-// with the near surface in front of it on two opposite sides is the far side of a closed
-// surface seen through a pinhole of the near one, which the depth pass let win: it takes the
-// blend of those near pixels. A back face with nothing in front about it (a thin plate seen
-// from behind, the inside of an open object) stays.
-fn near_side(id: vec2<u32>, depth: f32) -> Blend {
+// The far side of a closed surface seen through a pinhole of the near one, which the depth
+// pass let win, takes the blend of the near pixels about it. A pixel drawn mostly by back
+// faces is one where the near surface lies in front of it on two opposite sides, in any of
+// the four directions. A pixel that is not (a layer behind a sparse near surface faces the
+// eye, and normals pointing either way, or none, mark no back face) is one only where the
+// near surface lies in front of it in all four directions across it, looking past pixels of
+// its own surface within reach: a hole, not a slit, which shows the surface behind rightly.
+// A back face with nothing in front about it (a thin plate seen from behind, the inside of
+// an open object) stays. `enclosed`: the rule for pixels that are not back faces.
+fn near_side(id: vec2<u32>, depth: f32, enclosed: bool) -> Blend {
     var b = empty_blend();
     let steps = array<vec2<i32>, 4>(vec2<i32>(1, 0), vec2<i32>(0, 1), vec2<i32>(1, 1), vec2<i32>(1, -1));
     for (var d = 0; d < 4; d++) {
-        let ahead = near_side_towards(id, steps[d], depth);
-        let behind = near_side_towards(id, -steps[d], depth);
-        if ahead.w > 0.0 && behind.w > 0.0 {
-            b = add_blends(b, add_blends(ahead, behind));
+        let ahead = near_side_towards(id, steps[d], depth, enclosed);
+        if ahead.w > 0.0 {
+            let behind = near_side_towards(id, -steps[d], depth, enclosed);
+            if behind.w > 0.0 {
+                b = add_blends(b, add_blends(ahead, behind));
+                continue;
+            }
+        }
+        if enclosed {
+            return empty_blend();
         }
     }
     return b;
@@ -101,8 +125,8 @@ fn near_side(id: vec2<u32>, depth: f32) -> Blend {
 // A pixel's blend, or where it is the far side seen through a pinhole, the near side's.
 fn seen_at(id: vec2<u32>) -> Blend {
     var b = blend_at(id.y * frame.width + id.x);
-    if FAR_SIDE && 2.0 * b.back > b.w {
-        let near = near_side(id, b.depth);
+    if b.w > 0.0 {
+        let near = near_side(id, b.depth, 2.0 * b.back <= b.w);
         if near.w > 0.0 {
             b = near;
         }
