@@ -245,15 +245,15 @@ pub fn choose(
             scale.iter().copied().fold(f64::INFINITY, f64::min)
         ));
     }
-    // Coarsened for the widest axis's sake beyond another axis's whole extent, a step puts
-    // every point at one position along that axis: the axis is lost, not rounded.
+    // Coarsened for the widest axis's sake beyond twice another axis's whole extent, a step
+    // leaves that axis one or two positions: it is lost, not rounded.
     if grid.is_some_and(|g| step > g)
         && let Some(a) = (0..3).find(|&a| span(a) > 0.0 && span(a) < scale[a] / 2.0)
     {
         return Err(format!(
             "the points' {} coordinates span {}, which 32-bit positions hold only in steps of \
-             {}, more than the whole {} the {} coordinates span: every point would get the same \
-             {}",
+             {}, more than twice the whole {} the {} coordinates span: every point would get \
+             one of at most two {} values",
             ["x", "y", "z"][widest],
             number(span(widest)),
             number(step),

@@ -123,7 +123,7 @@ fn an_axis_whose_whole_extent_a_coarsened_step_swallows_is_refused() {
     };
     let err = choose(std::slice::from_ref(&wide), wide.min, wide.max).expect_err("y is lost");
     assert!(
-        err.contains("span 2e306, which 32-bit positions hold only in steps of 1e297, more than the whole 0.1 the y coordinates span"),
+        err.contains("span 2e306, which 32-bit positions hold only in steps of 1e297, more than twice the whole 0.1 the y coordinates span"),
         "{err}"
     );
 }

@@ -313,17 +313,7 @@ fn precision(clouds: &[PointCloud]) -> Precision {
         let moved = pc.transform.as_ref().is_some_and(|t| {
             t.translation.x != 0.0 || t.translation.y != 0.0 || t.translation.z != 0.0
         });
-        let names = if pc.has_cartesian() {
-            [
-                RecordName::CartesianX,
-                RecordName::CartesianY,
-                RecordName::CartesianZ,
-            ]
-            .to_vec()
-        } else {
-            vec![RecordName::SphericalRange]
-        };
-        for r in pc.prototype.iter().filter(|r| names.contains(&r.name)) {
+        for r in position_fields(pc) {
             match r.data_type {
                 RecordDataType::Double { .. } => return Precision::Float64,
                 RecordDataType::Single { min, max } => match local_extent(pc, min, max) {
@@ -351,21 +341,26 @@ fn precision(clouds: &[PointCloud]) -> Precision {
     }
 }
 
-/// The largest magnitude a scan's positions reach in its own frame (before its pose), as its
-/// coordinate fields' types or its bounds state it; `None` where the file does not say.
-fn scan_extent(pc: &PointCloud) -> Option<f64> {
-    let names = if pc.has_cartesian() {
-        [
+/// The fields that place a scan's points: its Cartesian coordinates, else its spherical range
+/// (the angles say nothing of the extent or of the step).
+fn position_fields(pc: &PointCloud) -> impl Iterator<Item = &e57::Record> {
+    let names: &[RecordName] = if pc.has_cartesian() {
+        &[
             RecordName::CartesianX,
             RecordName::CartesianY,
             RecordName::CartesianZ,
         ]
-        .to_vec()
     } else {
-        vec![RecordName::SphericalRange]
+        &[RecordName::SphericalRange]
     };
+    pc.prototype.iter().filter(move |r| names.contains(&r.name))
+}
+
+/// The largest magnitude a scan's positions reach in its own frame (before its pose), as its
+/// coordinate fields' types or its bounds state it; `None` where the file does not say.
+fn scan_extent(pc: &PointCloud) -> Option<f64> {
     let mut extent: Option<f64> = None;
-    for r in pc.prototype.iter().filter(|r| names.contains(&r.name)) {
+    for r in position_fields(pc) {
         let field = match r.data_type {
             RecordDataType::Single { min, max } => local_extent(pc, min, max),
             RecordDataType::Double { .. } => local_extent(pc, None, None),

@@ -45,7 +45,8 @@ impl LasSource {
         };
         let (compressed, format_number) = (raw.compressed, raw.format);
         // Everything the reader allocates or seeks by has been checked above; what still panics
-        // inside it (the LAZ decoder runs on the rayon pool) is this file's fault, not ours.
+        // inside it (for a LAZ it builds the `laz` decoder too, which sizes a buffer by the
+        // largest chunk, though `laz_chunks` decodes the points) is this file's fault, not ours.
         let reader = guarded("the point data", || {
             Reader::new(BufReader::with_capacity(1 << 20, file)).map_err(|e| {
                 if compressed {

@@ -1,9 +1,14 @@
 //! A LAZ file's point data, decoded chunk by chunk, chunks in parallel. The `las` reader's
 //! decoder trusts every chunk but the last (which `laz_check` tries whole before a run): a
-//! chunk damaged inside decodes to points that look like any others, millions of units off,
-//! and the file would convert without a word. A sound chunk's decoder ends exactly at the end
-//! of the chunk's bytes; a damaged one runs short of them or over. So each chunk is decoded
-//! from its own bytes, and must use up those bytes and no more.
+//! point-wise chunk (formats 0 to 5) damaged inside decodes to points that look like any
+//! others, millions of units off, and the file would convert without a word. A sound chunk's
+//! decoder ends exactly at the end of the chunk's bytes; a damaged one runs short of them or
+//! over. So each chunk is decoded from its own bytes, and must use up those bytes and no more.
+//!
+//! A layered chunk (formats 6 to 10) states its count and the size of each field's stream, and
+//! its decoder reads every stream whole with the first point: the count and the sizes are
+//! checked against the chunk, but damage inside one stream is caught only where its decoder
+//! runs out of bytes (the `laz` decoder does not say how much of each stream it used).
 
 use super::las_header::read_at;
 use super::laz_check::guarded;
@@ -15,6 +20,11 @@ use rayon::prelude::*;
 use std::fs::File;
 use std::io::Cursor;
 
+/// Points a chunk may hold and still be decoded whole, beside others in parallel. A larger
+/// one (a chunk size far beyond the usual 50,000, or a count a damaged table states) is
+/// decoded a batch at a time: memory follows the batch, not the count.
+const WHOLE_CHUNK_POINTS: u64 = 1 << 20;
+
 /// One compressed chunk: where its bytes lie in the file, and the points it holds.
 #[derive(Debug, Clone, Copy)]
 pub struct Chunk {
@@ -23,18 +33,37 @@ pub struct Chunk {
     pub points: u64,
 }
 
+type Decoder = Box<dyn RecordDecompressor<Cursor<Vec<u8>>> + Send>;
+
+/// A large chunk being decoded a batch at a time.
+struct OpenChunk {
+    decoder: Decoder,
+    chunk: Chunk,
+    place: String,
+    /// Its points decoded so far.
+    done: u64,
+}
+
+/// What decoding any chunk of a file takes.
+struct ChunkReader {
+    file: File,
+    vlr: LazVlr,
+    layered: bool,
+    record_len: usize,
+}
+
 /// The chunks of a file `laz_check` has checked, the next one to decode, and the records
 /// decoded and not yet handed on.
 pub struct LazChunks {
-    file: File,
-    vlr: LazVlr,
-    /// Formats 6 to 10: each chunk holds its first point, its count, then one stream per field.
-    layered: bool,
+    reader: ChunkReader,
     record_len: usize,
+    /// `WHOLE_CHUNK_POINTS`, smaller in tests.
+    whole_chunk_points: u64,
     chunks: Vec<Chunk>,
     next: usize,
     /// The index of the next chunk's first point.
     first_point: u64,
+    open: Option<OpenChunk>,
     /// Records decoded, those before byte `handed` handed on.
     decoded: Vec<u8>,
     handed: usize,
@@ -49,26 +78,31 @@ impl LazChunks {
         chunks: Vec<Chunk>,
     ) -> LazChunks {
         LazChunks {
-            file,
-            vlr,
-            layered,
+            reader: ChunkReader {
+                file,
+                vlr,
+                layered,
+                record_len,
+            },
             record_len,
+            whole_chunk_points: WHOLE_CHUNK_POINTS,
             chunks,
             next: 0,
             first_point: 0,
+            open: None,
             decoded: Vec::new(),
             handed: 0,
         }
     }
 
-    /// Hands on up to `max` records (decoding more chunks where none are left): where their
-    /// bytes lie in `records`, empty once every chunk has been handed on. The error is the
-    /// fault, in words, without the file name.
+    /// Hands on up to `max` records (decoding more where none are left): where their bytes
+    /// lie in `records`, empty once every chunk has been handed on. The error is the fault,
+    /// in words, without the file name.
     pub fn take(&mut self, max: u64) -> Result<std::ops::Range<usize>, String> {
         if self.handed == self.decoded.len() {
             self.decoded.clear();
             self.handed = 0;
-            self.decode_next(max)?;
+            self.decode_next(max.max(1))?;
         }
         let len = (max as usize * self.record_len).min(self.decoded.len() - self.handed);
         self.handed += len;
@@ -80,99 +114,189 @@ impl LazChunks {
         &self.decoded
     }
 
-    /// Decodes the next chunks, at least one and as many more as fit in `max` points.
+    /// Decodes the next batch: up to `max` points of a large chunk, or the next chunks whole,
+    /// at least one and as many more as fit in `max` points.
     fn decode_next(&mut self, max: u64) -> Result<(), String> {
+        if self.open.is_none()
+            && let Some(&c) = self.chunks.get(self.next)
+            && c.points > self.whole_chunk_points
+        {
+            let place = place(&c, self.first_point);
+            let decoder = self.reader.open_chunk(&c, &place)?;
+            self.open = Some(OpenChunk {
+                decoder,
+                chunk: c,
+                place,
+                done: 0,
+            });
+            self.next += 1;
+            self.first_point += c.points;
+        }
+        let record_len = self.record_len;
+        if let Some(open) = &mut self.open {
+            let n = (open.chunk.points - open.done).min(max);
+            self.decoded.resize(n as usize * record_len, 0);
+            let (decoded, done) = (&mut self.decoded, open.done);
+            guarded(&open.place, || {
+                decode_points(&mut *open.decoder, decoded, record_len, &open.place, done)
+            })?;
+            open.done += n;
+            if open.done == open.chunk.points {
+                let used = open.decoder.get_mut().position();
+                let result = used_up(&open.chunk, used, &open.place);
+                self.open = None;
+                result?;
+            }
+            return Ok(());
+        }
         let mut end = self.next;
         let mut points = 0;
-        while end < self.chunks.len()
-            && (end == self.next || points + self.chunks[end].points <= max)
+        while let Some(c) = self.chunks.get(end)
+            && c.points <= self.whole_chunk_points
+            && (end == self.next || points + c.points <= max)
         {
-            points += self.chunks[end].points;
+            points += c.points;
             end += 1;
         }
-        let mut firsts = Vec::with_capacity(end - self.next);
+        let batch = &self.chunks[self.next..end];
+        // Each chunk decodes straight into its own part of the batch.
+        self.decoded.resize(points as usize * record_len, 0);
+        let mut parts = Vec::with_capacity(batch.len());
+        let mut rest = &mut self.decoded[..];
         let mut first = self.first_point;
-        for c in &self.chunks[self.next..end] {
-            firsts.push(first);
+        for c in batch {
+            let (part, after) = rest.split_at_mut(c.points as usize * record_len);
+            parts.push((c, first, part));
+            rest = after;
             first += c.points;
         }
-        let (file, vlr) = (&self.file, &self.vlr);
-        let (layered, record_len) = (self.layered, self.record_len);
-        let batch = &self.chunks[self.next..end];
-        let decoded = guarded("the LAZ point data", || {
-            batch
-                .par_iter()
-                .zip(firsts.par_iter())
-                .map(|(c, &first)| decode_chunk(file, vlr, layered, record_len, c, first))
-                .collect::<Result<Vec<Vec<u8>>, String>>()
-        })?;
-        for records in &decoded {
-            self.decoded.extend_from_slice(records);
-        }
+        let reader = &self.reader;
+        // In the file's order, so that the fault named is the first chunk's whatever the
+        // threads did first.
+        let results: Vec<Result<(), String>> = parts
+            .into_par_iter()
+            .map(|(c, first, part)| {
+                let place = place(c, first);
+                guarded(&place, || reader.decode_whole(c, &place, part))
+            })
+            .collect();
+        results.into_iter().collect::<Result<(), String>>()?;
         self.next = end;
         self.first_point = first;
         Ok(())
     }
 }
 
-/// The records of chunk `c`, whose first point is the file's `first`.
-fn decode_chunk(
-    file: &File,
-    vlr: &LazVlr,
-    layered: bool,
-    record_len: usize,
-    c: &Chunk,
-    first: u64,
-) -> Result<Vec<u8>, String> {
-    let place = format!(
+/// Chunk `c`, whose first point is the file's `first`, in words.
+fn place(c: &Chunk, first: u64) -> String {
+    format!(
         "the compressed chunk at byte {} (points {first} to {})",
         c.at,
         (first + c.points).saturating_sub(1)
-    );
-    let bytes = read_at(file, c.at, c.bytes as usize)?;
-    let mut records = vec![0u8; c.points as usize * record_len];
-    let used = if layered {
-        // The count stated after the first point must be the chunk's.
-        let stated = bytes
-            .get(record_len..record_len + 4)
-            .map(|b| u32::from_le_bytes([b[0], b[1], b[2], b[3]]) as u64);
-        if stated != Some(c.points) {
-            return Err(format!(
-                "{place} states {} points, but the chunk table gives it {}",
-                stated.map_or("no number of".to_string(), |n| n.to_string()),
-                c.points
-            ));
-        }
-        let mut dec = LayeredPointRecordDecompressor::new(Cursor::new(bytes));
-        decode_all(&mut dec, vlr, &mut records, record_len, &place)?;
-        dec.get_mut().position()
-    } else {
-        let mut dec = SequentialPointRecordDecompressor::new(Cursor::new(bytes));
-        decode_all(&mut dec, vlr, &mut records, record_len, &place)?;
-        dec.get_mut().position()
-    };
-    if used != c.bytes {
-        return Err(format!(
-            "{place} is corrupt: its {} points decode from {used} of its {} bytes",
-            c.points, c.bytes
-        ));
-    }
-    Ok(records)
+    )
 }
 
-fn decode_all<R: std::io::Read>(
-    dec: &mut impl RecordDecompressor<R>,
-    vlr: &LazVlr,
-    records: &mut [u8],
+impl ChunkReader {
+    /// Chunk `c` decoded into `out`, which holds its points.
+    fn decode_whole(&self, c: &Chunk, place: &str, out: &mut [u8]) -> Result<(), String> {
+        let mut decoder = self.open_chunk(c, place)?;
+        decode_points(&mut *decoder, out, self.record_len, place, 0)?;
+        used_up(c, decoder.get_mut().position(), place)
+    }
+
+    /// The decoder of chunk `c`, over its bytes; a layered chunk's stated count checked first.
+    fn open_chunk(&self, c: &Chunk, place: &str) -> Result<Decoder, String> {
+        let bytes = read_at(&self.file, c.at, c.bytes as usize)?;
+        let mut decoder: Decoder = if self.layered {
+            let at = self.record_len;
+            let stated = bytes
+                .get(at..at + 4)
+                .map(|b| u32::from_le_bytes([b[0], b[1], b[2], b[3]]) as u64);
+            if stated != Some(c.points) {
+                return Err(format!(
+                    "{place} states {} points, but the chunk table gives it {}",
+                    stated.map_or("no number of".to_string(), |n| n.to_string()),
+                    c.points
+                ));
+            }
+            Box::new(LayeredPointRecordDecompressor::new(Cursor::new(bytes)))
+        } else {
+            Box::new(SequentialPointRecordDecompressor::new(Cursor::new(bytes)))
+        };
+        decoder
+            .set_fields_from(self.vlr.items())
+            .map_err(|e| format!("laszip VLR: {e}"))?;
+        Ok(decoder)
+    }
+}
+
+/// Decodes `out.len() / record_len` points; `done`: the chunk's points decoded before.
+fn decode_points(
+    decoder: &mut dyn RecordDecompressor<Cursor<Vec<u8>>>,
+    out: &mut [u8],
     record_len: usize,
     place: &str,
+    done: u64,
 ) -> Result<(), String> {
-    dec.set_fields_from(vlr.items())
-        .map_err(|e| format!("laszip VLR: {e}"))?;
-    for (i, point) in records.chunks_exact_mut(record_len).enumerate() {
-        dec.decompress_next(point).map_err(|_| {
-            format!("{place} is corrupt or truncated: its bytes end within point {i} of the chunk")
+    for (i, point) in out.chunks_exact_mut(record_len).enumerate() {
+        decoder.decompress_next(point).map_err(|_| {
+            format!(
+                "{place} is corrupt or truncated: its decoder fails at point {} of the chunk",
+                done + i as u64
+            )
         })?;
     }
     Ok(())
+}
+
+/// A decoded chunk must have used up its bytes exactly.
+fn used_up(c: &Chunk, used: u64, place: &str) -> Result<(), String> {
+    if used == c.bytes {
+        Ok(())
+    } else {
+        Err(format!(
+            "{place} is corrupt: its {} points decode from {used} of its {} bytes",
+            c.points, c.bytes
+        ))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::super::las_header::LasHeader;
+    use super::super::laz_check::check_laz;
+    use std::fs::File;
+
+    /// Every record of `path`, handed on `max` at a time, with chunks of more than `whole`
+    /// points decoded a batch at a time.
+    fn all_records(path: &std::path::Path, whole: u64, max: u64) -> Vec<u8> {
+        let file = File::open(path).expect("open");
+        let len = file.metadata().expect("size").len();
+        let header = LasHeader::read(&file, len).expect("header");
+        let mut chunks = check_laz(&file, &header).expect("checked");
+        chunks.whole_chunk_points = whole;
+        let mut out = Vec::new();
+        loop {
+            let range = chunks.take(max).expect("decoded");
+            if range.is_empty() {
+                return out;
+            }
+            out.extend_from_slice(&chunks.records()[range]);
+        }
+    }
+
+    #[test]
+    fn a_large_chunk_decoded_a_batch_at_a_time_gives_the_same_records() {
+        let dir = tempfile::tempdir().expect("tempdir");
+        let laz = dir.path().join("city.laz");
+        // Chunks of 50,000 points: the last holds 20,000.
+        crate::synth::synth(&laz, 120_000, crate::synth::Scene::City, 3, 0.0, false)
+            .expect("synth laz");
+        let whole = all_records(&laz, u64::MAX, 1 << 18);
+        assert_eq!(whole.len(), 120_000 * 34);
+        // Every chunk large: each decoded in batches of 7,000 points, across its end.
+        assert!(whole == all_records(&laz, 10_000, 7_000));
+        // Whole chunks handed on in smaller pieces than they decode in.
+        assert!(whole == all_records(&laz, u64::MAX, 7_000));
+    }
 }

@@ -183,6 +183,8 @@ fn sided_shaders(sides: u32) -> [ShaderSource; 5] {
     ]
 }
 
+/// The shading: the blend normalised and lit, pinholes of the near surface closed (the
+/// far-side rule, shade.wgsl) and one-pixel cracks filled.
 fn shade_shader() -> ShaderSource {
     ShaderSource::new(
         "surfel shade",
