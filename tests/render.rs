@@ -23,6 +23,8 @@ mod near;
 mod paths;
 #[path = "render/pyramid.rs"]
 mod pyramid;
+#[path = "render/slits.rs"]
+mod slits;
 #[path = "render/surfels.rs"]
 mod surfels;
 #[path = "render/triangulate.rs"]
