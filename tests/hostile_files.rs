@@ -1,7 +1,8 @@
 //! Files that are not what they seem: a device or a pipe where a small text file is named, a
 //! disk that fills while a file is written, a header built to be slow, points too close to
 //! store apart, dataset metadata that points outside the dataset, a file or a dead link where
-//! a work folder is named, and headers whose sizes would take the memory.
+//! a work folder is named, headers whose sizes would take the memory, and compressed chunks
+//! damaged inside.
 
 mod common;
 use common::*;
@@ -334,4 +335,26 @@ fn written(dir: &std::path::Path, name: &str, bytes: &[u8]) -> std::path::PathBu
     let path = dir.join(name);
     std::fs::write(&path, bytes).expect("write");
     path
+}
+
+#[test]
+fn a_layered_laz_chunk_that_runs_out_is_named() {
+    // Format 7 exported as LAZ: layered chunks, whose decoder reads every field's stream with
+    // the first point. Zeroed inside the first chunk, a stream runs out of bytes.
+    let dir = tempfile::tempdir().expect("tempdir");
+    let ds = dir.path().join("pf7.strata");
+    let laz = dir.path().join("pf7.laz");
+    run_ok(&[
+        "convert",
+        s(&data("autzen_trim_pf7.las")),
+        "-o",
+        s(&ds),
+        "--quiet",
+    ]);
+    run_ok(&["export", s(&ds), "-o", s(&laz)]);
+    let mut b = std::fs::read(&laz).expect("exported laz");
+    assert_eq!(b[104], 0x87, "format 7, compressed");
+    b[20_000..24_096].fill(0);
+    let p = written(dir.path(), "zeroed.laz", &b);
+    convert_fails(&p, "(points 0 to 49999) is corrupt or truncated");
 }
