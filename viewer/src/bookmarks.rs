@@ -213,25 +213,21 @@ mod tests {
         let e = back.find(Some("bridge"), &path).expect_err("unknown");
         assert!(e.to_string().contains("tower"), "{e}");
         // A view that looks nowhere is refused naming the file and the bookmark.
+        let refused = |marks: &Bookmarks, fault: &str| {
+            let e = marks.find(Some("tower"), &path).expect_err(fault);
+            let said = e.to_string();
+            assert!(said.contains(FILE_NAME) && said.contains(fault), "{said}");
+        };
         let mut blind = back.clone();
         let [x, y, z] = blind.keyframes[0].eye;
         blind.keyframes[0].target = [x, y, z + 1e-7];
-        let e = blind.find(Some("tower"), &path).expect_err("looks nowhere");
-        let said = e.to_string();
-        assert!(
-            said.contains(FILE_NAME)
-                && said.contains("bookmark \"tower\" has its eye at its target"),
-            "{said}"
-        );
+        refused(&blind, "bookmark \"tower\" has its eye at its target");
         // So is a field of view the camera cannot take.
         let mut wide = back.clone();
         wide.keyframes[0].fov = Some(175.0);
-        let e = wide.find(Some("tower"), &path).expect_err("too wide");
-        let said = e.to_string();
-        assert!(
-            said.contains(FILE_NAME)
-                && said.contains("\"tower\" has a field of view of 175 degrees, outside 1 to 170"),
-            "{said}"
+        refused(
+            &wide,
+            "\"tower\" has a field of view of 175 degrees, outside 1 to 170",
         );
     }
 

@@ -7,7 +7,6 @@
 use super::las_header::{LasHeader, read_at};
 use super::laz_chunks::{Chunk, LazChunks};
 use laz::laszip::{ChunkTable, ChunkTableEntry};
-use laz::record::{RecordDecompressor, SequentialPointRecordDecompressor};
 use std::fs::File;
 use std::io::Cursor;
 use std::panic::{AssertUnwindSafe, catch_unwind};
@@ -243,8 +242,6 @@ pub fn check_laz(file: &File, h: &LasHeader) -> Result<LazChunks, String> {
             entries.pop();
         }
     }
-    // Where the chunks holding points end.
-    let used: u64 = entries.iter().map(|e| e.byte_count).sum();
     if stored != data_len {
         return Err(format!(
             "the chunk table at byte {table_at} gives chunk sizes adding up to {stored} bytes, but the compressed data is {data_len} bytes"
@@ -272,9 +269,6 @@ pub fn check_laz(file: &File, h: &LasHeader) -> Result<LazChunks, String> {
             entries[entries.len() - 1].point_count
         }
     };
-    let last = entries[entries.len() - 1];
-    let last_at = start + 8 + used - last.byte_count;
-    check_last_chunk(file, h, &vlr, &laz_vlr, last_at, last, last_points)?;
     let mut at = start + 8;
     let mut left = points;
     let list = entries
@@ -291,13 +285,9 @@ pub fn check_laz(file: &File, h: &LasHeader) -> Result<LazChunks, String> {
             chunk
         })
         .collect();
-    Ok(LazChunks::new(
-        own_handle(file)?,
-        laz_vlr,
-        vlr.layered,
-        record_len,
-        list,
-    ))
+    let chunks = LazChunks::new(own_handle(file)?, laz_vlr, vlr.layered, record_len, list);
+    chunks.check_last(last_points)?;
+    Ok(chunks)
 }
 
 /// A handle of its own on the file, for the chunks' decoding.
@@ -309,57 +299,4 @@ fn own_handle(file: &File) -> Result<File, String> {
 fn read8(file: &File, at: u64) -> Result<[u8; 8], String> {
     let b = read_at(file, at, 8)?;
     Ok([b[0], b[1], b[2], b[3], b[4], b[5], b[6], b[7]])
-}
-
-/// The header's count must account for every point of the last chunk, not only some of them:
-/// a layered chunk states its count; a point-wise chunk must be used up, to its last byte, by
-/// exactly the points the header leaves it.
-fn check_last_chunk(
-    file: &File,
-    h: &LasHeader,
-    vlr: &LaszipVlr,
-    laz_vlr: &laz::LazVlr,
-    at: u64,
-    entry: ChunkTableEntry,
-    expected: u64,
-) -> Result<(), String> {
-    let mismatch = |found: String| {
-        Err(format!(
-            "the last compressed chunk (at byte {at}) holds {found} points, but the header's \"number of point records\" leaves it {expected}"
-        ))
-    };
-    if vlr.layered {
-        if entry.byte_count < h.record_len + 4 {
-            return Err(format!(
-                "the last compressed chunk (at byte {at}) is too short to hold its first point"
-            ));
-        }
-        let b = read_at(file, at + h.record_len, 4)?;
-        let count = u32::from_le_bytes([b[0], b[1], b[2], b[3]]) as u64;
-        return if count == expected {
-            Ok(())
-        } else {
-            mismatch(count.to_string())
-        };
-    }
-    let chunk = read_at(file, at, entry.byte_count as usize)?;
-    let len = chunk.len() as u64;
-    let used = guarded("the last compressed chunk", || {
-        let mut dec = SequentialPointRecordDecompressor::new(Cursor::new(chunk));
-        dec.set_fields_from(laz_vlr.items())
-            .map_err(|e| format!("laszip VLR: {e}"))?;
-        let mut point = vec![0u8; h.record_len as usize];
-        for i in 0..expected {
-            dec.decompress_next(&mut point).map_err(|_| {
-                format!(
-                    "the last compressed chunk (at byte {at}) ends after {i} of the {expected} points the header leaves it"
-                )
-            })?;
-        }
-        Ok(dec.get_mut().position())
-    })?;
-    if used < len {
-        return mismatch("more than".to_string() + &format!(" {expected}"));
-    }
-    Ok(())
 }

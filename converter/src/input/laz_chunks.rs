@@ -114,6 +114,55 @@ impl LazChunks {
         &self.decoded
     }
 
+    /// Decodes the last chunk alone, before a run, so that a header count that leaves it
+    /// `expected` points is refused at once: the count must account for every point of it,
+    /// not only some. A layered chunk states its count; a point-wise one must be used up, to
+    /// its last byte, by exactly `expected` points.
+    pub fn check_last(&self, expected: u64) -> Result<(), String> {
+        let Some(c) = self.chunks.last() else {
+            return Ok(());
+        };
+        let at = c.at;
+        let mismatch = |found: String| {
+            Err(format!(
+                "the last compressed chunk (at byte {at}) holds {found} points, but the header's \
+                 \"number of point records\" leaves it {expected}"
+            ))
+        };
+        let reader = &self.reader;
+        let record_len = reader.record_len;
+        if reader.layered {
+            let Some(b) = (c.bytes >= record_len as u64 + 4)
+                .then(|| read_at(&reader.file, at + record_len as u64, 4))
+                .transpose()?
+            else {
+                return Err(format!(
+                    "the last compressed chunk (at byte {at}) is too short to hold its first point"
+                ));
+            };
+            let count = u32::from_le_bytes([b[0], b[1], b[2], b[3]]) as u64;
+            return if count == expected {
+                Ok(())
+            } else {
+                mismatch(count.to_string())
+            };
+        }
+        let place = format!("the last compressed chunk (at byte {at})");
+        let used = guarded(&place, || {
+            let mut decoder = reader.open_chunk(c, &place)?;
+            // A point at a time: the count is the header's, not yet known to be the chunk's.
+            let mut point = vec![0u8; record_len];
+            for done in 0..expected {
+                decode_points(&mut *decoder, &mut point, record_len, &place, done)?;
+            }
+            Ok(decoder.get_mut().position())
+        })?;
+        if used < c.bytes {
+            return mismatch(format!("more than {expected}"));
+        }
+        Ok(())
+    }
+
     /// Decodes the next batch: up to `max` points of a large chunk, or the next chunks whole,
     /// at least one and as many more as fit in `max` points.
     fn decode_next(&mut self, max: u64) -> Result<(), String> {
