@@ -221,9 +221,16 @@ fn an_export_of_a_dataset_whose_count_is_wrong_leaves_nothing() {
 fn an_export_of_points_outside_their_nodes_leaves_nothing() {
     let dir = tempfile::tempdir().expect("tempdir");
     let ds = dataset(dir.path());
+    // The bounds move with the cube, as a consistent metadata.json would say: the points
+    // alone are out of place.
     edit_metadata(&ds, |meta| {
         let x = meta["cube"]["min"][0].as_i64().expect("cube min");
         meta["cube"]["min"][0] = (x + 1000).into();
+        let shift = 1000.0 * meta["scale"][0].as_f64().expect("scale");
+        for end in ["min", "max"] {
+            let b = meta["bounds"][end][0].as_f64().expect("bounds");
+            meta["bounds"][end][0] = (b + shift).into();
+        }
     });
     verify_fails_naming(&ds, "lies outside the node's cube");
     for (name, says) in [
@@ -263,4 +270,25 @@ fn bounds_other_than_the_points_extent_are_reported() {
         meta["bounds"]["max"][0] = (x - 10.0).into();
     });
     verify_fails_naming(&ds, "gives bounds");
+}
+
+/// Bounds no stored point could have (beyond the root cube): a view fitted to them would show
+/// nothing, so the dataset is refused at open, by every command.
+#[test]
+fn bounds_beyond_the_root_cube_are_refused_at_open() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let ds = dataset(dir.path());
+    edit_metadata(&ds, |meta| {
+        meta["bounds"]["max"][0] = 1e308.into();
+    });
+    let says = "x bounds";
+    for args in [vec!["info", s(&ds)], vec!["verify", s(&ds)]] {
+        let o = run(&args);
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert!(
+            !o.status.success() && err.contains(says) && err.contains("outside the root cube"),
+            "{args:?}: {err}"
+        );
+    }
+    every_export_refuses(&ds, dir.path(), "outside the root cube");
 }

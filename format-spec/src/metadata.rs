@@ -292,6 +292,20 @@ impl Metadata {
             .map_err(|e| FormatError::corrupt(path, format!("malformed metadata ({e})")))
     }
 
+    /// `offset + scale * p` on axis `a`.
+    fn real(&self, a: usize, p: f64) -> f64 {
+        self.offset[a] + self.scale[a] * p
+    }
+
+    /// Whether real bounds `lo..hi` on axis `a` lie inside the root cube's integer positions,
+    /// give or take half a step for the rounding of `real`.
+    fn cube_holds(&self, a: usize, lo: f64, hi: f64) -> bool {
+        let first = self.cube.min[a] as f64;
+        let last = first + (1u64 << self.cube.bits) as f64 - 1.0;
+        let slack = 0.5 * self.scale[a];
+        lo >= self.real(a, first) - slack && hi <= self.real(a, last) + slack
+    }
+
     fn check(&self, path: &Path) -> Result<(), FormatError> {
         let bad = |what: &str| Err(FormatError::corrupt(path, what.to_string()));
         if self.scale.iter().any(|s| !(s.is_finite() && *s > 0.0)) {
@@ -332,6 +346,24 @@ impl Metadata {
         }
         if self.cube.bits > 32 {
             return bad("cube.bits must be at most 32");
+        }
+        // Every stored position lies in the root cube, so bounds beyond it were not made from
+        // the points (a hand-edited file): a reader that fits its view to them sees nothing.
+        if self.points > 0
+            && let Some(a) = (0..3).find(|&a| !self.cube_holds(a, lo[a], hi[a]))
+        {
+            let axis = ["x", "y", "z"][a];
+            return bad(&format!(
+                "the {axis} bounds {:?} to {:?} lie outside the root cube, which spans {:?} to \
+                 {:?} in real units: no stored point can lie there",
+                lo[a],
+                hi[a],
+                self.real(a, self.cube.min[a] as f64),
+                self.real(
+                    a,
+                    self.cube.min[a] as f64 + (1u64 << self.cube.bits) as f64 - 1.0
+                ),
+            ));
         }
         // SPEC.md names the two; a reader that takes another name would take a tool's typo.
         if !["poisson", "random"].contains(&self.sampling.as_str()) {
@@ -540,6 +572,19 @@ mod tests {
         // With no points there are no bounds to speak of.
         inverted["points"] = 0.into();
         assert!(parse(&inverted).is_ok());
+        // The cube of meta_1_1 spans integer positions 0 and 1: 0 to 0.01 in real units.
+        let mut inside = meta_1_1();
+        inside["bounds"]["max"] = serde_json::json!([0.01, 0.01, 0.01]);
+        assert!(parse(&inside).is_ok());
+        for (at, value) in [("max", [0.0, 0.02, 0.0]), ("min", [0.0, 0.0, -0.01])] {
+            let mut beyond = meta_1_1();
+            beyond["bounds"][at] = serde_json::json!(value);
+            let err = parse(&beyond).err().unwrap_or_default();
+            assert!(
+                err.contains("bounds") && err.contains("outside the root cube"),
+                "{err}"
+            );
+        }
     }
 
     #[test]
