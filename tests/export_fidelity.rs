@@ -343,16 +343,21 @@ fn a_return_number_beyond_four_bits_is_refused_not_cut() {
 
 /// A standard field held in another type than LAS's (a PLY's ushort return number, float
 /// intensity) is refused where LAS cannot hold its value, as a uchar one is, not cut to its bits
-/// or clamped.
+/// or clamped; so is a scanner channel beyond the two bits of formats 6 to 10.
 #[test]
 fn standard_fields_of_other_types_beyond_las_are_refused() {
     let dir = tempfile::tempdir().expect("tempdir");
-    for (name, value, said) in [
-        ("return_number", "ushort", "return_number is 20"),
-        ("intensity", "float", "intensity is 70000"),
+    for (name, value, v, said) in [
+        ("return_number", "ushort", "20", "return_number is 20"),
+        ("intensity", "float", "70000", "intensity is 70000"),
+        (
+            "scanner_channel",
+            "uchar",
+            "7",
+            "outside what LAS point format 6 holds (0 to 3)",
+        ),
     ] {
         let ply = dir.path().join(format!("{name}.ply"));
-        let v = if value == "ushort" { "20" } else { "70000" };
         std::fs::write(
             &ply,
             format!(

@@ -53,13 +53,14 @@ struct Limit {
 
 /// The fields LAS holds in fewer than 8 bits: name, and the largest value formats 0 to 5 and
 /// formats 6 to 10 hold (255: a whole byte, or not a field of the family).
-pub const BIT_FIELDS: [(&str, u8, u8); 6] = [
+pub const BIT_FIELDS: [(&str, u8, u8); 7] = [
     ("classification", 31, 255),
     ("return_number", 7, 15),
     ("number_of_returns", 7, 15),
     ("classification_flags", 7, 15),
     ("scan_direction_flag", 1, 1),
     ("edge_of_flight_line", 1, 1),
+    ("scanner_channel", 255, 3),
 ];
 
 pub struct LasRecords {
