@@ -1,4 +1,4 @@
-//! `strata pick`: the point under a pixel is the exact stored point, whatever the pipeline drew.
+//! `strata pick`: the point under a pixel is the exact stored point of the surface the image shows.
 
 mod common;
 
@@ -98,12 +98,21 @@ fn a_picked_point_is_a_stored_point_with_every_attribute() {
             }),
             "{pixel}: the picked attributes match no stored point at {q:?}"
         );
-        // The same point under every pipeline: picking reads the projection, not the picture
-        // (the surfels, which draw from the arenas, leave its keys unpacked).
-        for pipeline in ["edl", "pyramid", "surfels"] {
-            let other = picked(&dataset, pixel, pipeline).expect("the same pixel is drawn");
-            assert_eq!(other["position"], p["position"], "{pixel} with {pipeline}");
-            assert_eq!(other["index"], p["index"], "{pixel} with {pipeline}");
+        // The same point where the pipeline draws the projection's points; a stored point
+        // where it reconstructs a surface over them (one of that surface: it may hide the
+        // point `points` shows, as a disc of the surfels in front of it does).
+        let other = picked(&dataset, pixel, "edl").expect("the same pixel is drawn");
+        assert_eq!(other["position"], p["position"], "{pixel} with edl");
+        assert_eq!(other["index"], p["index"], "{pixel} with edl");
+        for pipeline in ["pyramid", "surfels"] {
+            let other = picked(&dataset, pixel, pipeline).expect("a point near the pixel");
+            let q: [i64; 3] = std::array::from_fn(|i| {
+                (other["position"][i].as_f64().expect("coordinate") / scale[i]).round() as i64
+            });
+            assert!(
+                points.iter().any(|(xyz, _)| *xyz == q),
+                "{pixel} with {pipeline}: no stored point at {q:?}"
+            );
         }
         checked += 1;
     }
@@ -188,5 +197,50 @@ fn a_budget_below_the_root_node_is_said_not_answered_as_background() {
             err.contains("root node alone holds") && err.contains("--budget 100000"),
             "{command}: {err}"
         );
+    }
+}
+
+/// A wall sampled more sparsely than the pixels it covers, in front of a floor: the
+/// projection sees the floor through the wall's gaps, but a pipeline that closes the wall
+/// shows the wall there, and the point picked is the wall's (it was the floor's, 5 m behind).
+#[test]
+fn a_reconstructed_wall_is_picked_not_the_floor_seen_through_its_gaps() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let ply = dir.path().join("wall.ply");
+    let step = 0.05;
+    let mut points: Vec<([f64; 3], [u8; 3])> = Vec::new();
+    for i in 0..200 {
+        for j in 0..200 {
+            points.push(([i as f64 * step, j as f64 * step, 0.0], [60, 160, 60]));
+        }
+        for k in 0..60 {
+            points.push(([5.0, i as f64 * step, k as f64 * step], [200, 100, 100]));
+        }
+    }
+    common::write_coloured_ply(&ply, &points, None);
+    let dataset = dir.path().join("wall.strata");
+    common::run_ok(&["convert", s(&ply), "-o", s(&dataset), "--quiet"]);
+    for pipeline in ["triangulate", "filters", "pyramid", "surfels"] {
+        // Pixels about the centre, which the wall covers (the view's axis meets it at z 1.67).
+        for pixel in ["160,120", "164,126", "152,114", "168,118", "156,124"] {
+            let o = gpu_run(&[
+                "pick",
+                s(&dataset),
+                "--size",
+                "320x240",
+                "--camera",
+                "eye=-2,5,4;target=10,5,0;fov=50",
+                "--pixel",
+                pixel,
+                "--pipeline",
+                pipeline,
+                "--json",
+            ]);
+            let err = String::from_utf8_lossy(&o.stderr);
+            assert!(o.status.success(), "{pipeline} {pixel}: {err}");
+            let p: serde_json::Value = serde_json::from_slice(&o.stdout).expect("pick JSON");
+            let x = p["position"][0].as_f64().expect("x");
+            assert!((x - 5.0).abs() < 1e-3, "{pipeline} {pixel}: picked {p}");
+        }
     }
 }

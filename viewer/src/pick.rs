@@ -3,6 +3,7 @@
 
 use crate::ViewerError;
 use crate::dataset::StreamDataset;
+use crate::renderer::SurfacePixel;
 use serde::Serialize;
 use strata_format::{NodeInfo, NodeKey};
 
@@ -239,6 +240,43 @@ pub fn nearest_drawn(
     best.map(|(_, depth, pixel, index)| (pixel, depth, index))
 }
 
+/// Clears, in a frame's per-pixel (depth bits, global index), the points hidden behind the
+/// surface a pipeline reconstructed (`shown`, per pixel): those where it shows background, and
+/// those farther than its depth there by more than the surface's own change of depth over the
+/// pixels around (a slope seen at a grazing angle), or 1 % of the depth (a reconstruction
+/// smooths its depth). What remains is a point of the surface the image shows, not one of a
+/// surface behind it seen through the gaps of its sampling.
+pub fn hide_behind_shown(
+    pixels: &mut [Option<(u32, u32)>],
+    shown: &[Option<SurfacePixel>],
+    width: u32,
+    height: u32,
+) {
+    let (w, h) = (width as usize, height as usize);
+    let depth = |x: usize, y: usize| shown.get(y * w + x).copied().flatten().map(|s| s.depth);
+    for y in 0..h {
+        for x in 0..w {
+            let Some(Some((bits, _))) = pixels.get(y * w + x).copied() else {
+                continue;
+            };
+            let visible = depth(x, y).is_some_and(|front| {
+                let mut slack = 0.01 * front;
+                for qy in y.saturating_sub(1)..(y + 2).min(h) {
+                    for qx in x.saturating_sub(1)..(x + 2).min(w) {
+                        if let Some(d) = depth(qx, qy) {
+                            slack = slack.max((d - front).abs());
+                        }
+                    }
+                }
+                f32::from_bits(bits) <= front + slack
+            });
+            if !visible {
+                pixels[y * w + x] = None;
+            }
+        }
+    }
+}
+
 /// The node and the place in it of `local` in arena `arena`, from the node's pieces in the
 /// GPU cache (a node's points lie in its pieces in order).
 pub fn locate<'a>(
@@ -309,6 +347,47 @@ mod tests {
         let (offset, scale) = (205.00099999999998, 9.999999999999999e-9);
         let v = offset + scale * 120_400_000.0;
         assert_eq!(to_decimals(v, scale).to_string(), "206.205");
+    }
+
+    /// A wall at depth 7 sampled sparsely, the floor at 12 seen through its gaps: the floor's
+    /// points are hidden where the wall is shown, and kept where the floor itself is, even
+    /// where it falls away steeply from pixel to pixel (a grazing view).
+    #[test]
+    fn points_behind_the_shown_surface_are_not_picked() {
+        let (w, h) = (4u32, 3u32);
+        let at = |depth: f32| {
+            Some(SurfacePixel {
+                depth,
+                normal: None,
+            })
+        };
+        // Columns 0 and 1 show the wall, 2 and 3 the floor, its depth growing by 3 a row.
+        let shown: Vec<Option<SurfacePixel>> = (0..h)
+            .flat_map(|y| (0..w).map(move |x| (x, y)))
+            .map(|(x, y)| at(if x < 2 { 7.0 } else { 10.0 + 3.0 * y as f32 }))
+            .collect();
+        let bits = |d: f32| d.to_bits();
+        let mut px = vec![None; 12];
+        px[0] = Some((bits(7.02), 1)); // on the wall, within 1 %
+        px[4] = Some((bits(12.0), 2)); // the floor through the wall's gap
+        px[7] = Some((bits(13.2), 3)); // on the floor, behind its pixel's depth by 0.2
+        px[11] = Some((bits(16.0), 4)); // on the floor, at its pixel's depth
+        let mut background = shown.clone();
+        background[11] = None;
+        let mut hidden = px.clone();
+        hide_behind_shown(&mut hidden, &shown, w, h);
+        assert_eq!(hidden[0], px[0]);
+        assert_eq!(hidden[4], None);
+        assert_eq!(hidden[7], px[7]);
+        assert_eq!(hidden[11], px[11]);
+        // Where the image shows background, nothing is picked.
+        let mut on_background = px.clone();
+        hide_behind_shown(&mut on_background, &background, w, h);
+        assert_eq!(on_background[11], None);
+        assert_eq!(
+            nearest_drawn(&hidden, w, h, (0, 1), 1),
+            Some(([0, 0], bits(7.02), 1))
+        );
     }
 
     #[test]

@@ -522,7 +522,10 @@ mod tests {
         );
         assert_eq!(warnings.len(), 3);
         assert!(warnings[0].contains("a standard LAS field"), "{warnings:?}");
-        assert!(warnings[1].contains("another field of the points"), "{warnings:?}");
+        assert!(
+            warnings[1].contains("another field of the points"),
+            "{warnings:?}"
+        );
         let (attrs, _, _) = las_fields(3, &extra);
         let mut all: Vec<&str> = attrs.iter().map(|a| a.name.as_str()).collect();
         all.sort();
@@ -539,7 +542,14 @@ mod tests {
             attribute: Attribute::new(n, AttrType::U16, 1),
             len: 2,
         };
-        let names = ["scanner_channel", "scan_angle", "nir", "gps_time", "rgb", "h"];
+        let names = [
+            "scanner_channel",
+            "scan_angle",
+            "nir",
+            "gps_time",
+            "rgb",
+            "h",
+        ];
         let mut extra: Vec<ExtraBytesField> = names.iter().map(|n| field(n)).collect();
         let warnings = rename_clashes(0, &mut extra);
         let renamed: Vec<&str> = extra.iter().map(|e| e.attribute.name.as_str()).collect();

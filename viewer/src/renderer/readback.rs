@@ -5,7 +5,7 @@ use super::Renderer;
 use crate::ViewerError;
 use crate::gpu::readback::{read_buffer, read_texture};
 use crate::gpu::timing::PassTimes;
-use crate::pick::{PickedPoint, locate, nearest_drawn};
+use crate::pick::{PickedPoint, hide_behind_shown, locate, nearest_drawn};
 use std::collections::BTreeMap;
 
 impl Renderer {
@@ -73,8 +73,9 @@ impl Renderer {
     }
 
     /// The stored point nearest pixel `(x, y)` of the last frame, within `radius` pixels: read
-    /// from its node with every attribute in full precision, whatever the pipeline drew over it.
-    /// `None` where only background lies within reach.
+    /// from its node with every attribute in full precision. Where the pipeline reconstructs a
+    /// surface, a point of the surface it shows (`hide_behind_shown`). `None` where only
+    /// background lies within reach.
     pub fn pick(&self, x: u32, y: u32, radius: u32) -> Result<Option<PickedPoint>, ViewerError> {
         let screen = self
             .screen
@@ -97,6 +98,12 @@ impl Renderer {
                     .collect()
             }
         };
+        let mut planes = planes;
+        // A pipeline that reconstructs a surface draws over the points: one seen through the
+        // gaps of a nearer surface's sampling is hidden behind what the image shows there.
+        if let Some(shown) = self.pipeline_surface()? {
+            hide_behind_shown(&mut planes, &shown, screen.width, screen.height);
+        }
         let Some((pixel, depth, global)) =
             nearest_drawn(&planes, screen.width, screen.height, (x, y), radius)
         else {
@@ -134,12 +141,8 @@ impl Renderer {
             .screen
             .as_ref()
             .ok_or_else(|| ViewerError::Gpu("no frame has been rendered".into()))?;
-        if let Some(surface) = self
-            .active
-            .and_then(|n| self.pipelines.get(n))
-            .and_then(|p| p.read_surface(&self.ctx))
-        {
-            return surface;
+        if let Some(surface) = self.pipeline_surface()? {
+            return Ok(surface);
         }
         let pixels = screen.width as u64 * screen.height as u64;
         // On the int64 path the depth plane is the high word of each key (the fused finish
@@ -160,6 +163,16 @@ impl Renderer {
                 })
             })
             .collect())
+    }
+}
+
+impl Renderer {
+    /// The surface the active pipeline reconstructed in the last frame, where it keeps one.
+    fn pipeline_surface(&self) -> Result<Option<Vec<Option<SurfacePixel>>>, ViewerError> {
+        self.active
+            .and_then(|n| self.pipelines.get(n))
+            .and_then(|p| p.read_surface(&self.ctx))
+            .transpose()
     }
 }
 
