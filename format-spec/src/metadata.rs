@@ -292,18 +292,14 @@ impl Metadata {
             .map_err(|e| FormatError::corrupt(path, format!("malformed metadata ({e})")))
     }
 
-    /// `offset + scale * p` on axis `a`.
-    fn real(&self, a: usize, p: f64) -> f64 {
-        self.offset[a] + self.scale[a] * p
-    }
-
-    /// Whether real bounds `lo..hi` on axis `a` lie inside the root cube's integer positions,
-    /// give or take half a step for the rounding of `real`.
-    fn cube_holds(&self, a: usize, lo: f64, hi: f64) -> bool {
+    /// The real coordinates of the root cube's first and last integer positions on axis `a`.
+    fn cube_ends(&self, a: usize) -> (f64, f64) {
         let first = self.cube.min[a] as f64;
         let last = first + (1u64 << self.cube.bits) as f64 - 1.0;
-        let slack = 0.5 * self.scale[a];
-        lo >= self.real(a, first) - slack && hi <= self.real(a, last) + slack
+        (
+            self.offset[a] + self.scale[a] * first,
+            self.offset[a] + self.scale[a] * last,
+        )
     }
 
     fn check(&self, path: &Path) -> Result<(), FormatError> {
@@ -349,21 +345,25 @@ impl Metadata {
         }
         // Every stored position lies in the root cube, so bounds beyond it were not made from
         // the points (a hand-edited file): a reader that fits its view to them sees nothing.
-        if self.points > 0
-            && let Some(a) = (0..3).find(|&a| !self.cube_holds(a, lo[a], hi[a]))
-        {
-            let axis = ["x", "y", "z"][a];
-            return bad(&format!(
-                "the {axis} bounds {:?} to {:?} lie outside the root cube, which spans {:?} to \
-                 {:?} in real units: no stored point can lie there",
-                lo[a],
-                hi[a],
-                self.real(a, self.cube.min[a] as f64),
-                self.real(
-                    a,
-                    self.cube.min[a] as f64 + (1u64 << self.cube.bits) as f64 - 1.0
-                ),
-            ));
+        if self.points > 0 {
+            for (a, axis) in ["x", "y", "z"].into_iter().enumerate() {
+                let (first, last) = self.cube_ends(a);
+                if !(first.is_finite() && last.is_finite()) {
+                    return bad(&format!(
+                        "its scale {:e} and offset {:e} on axis {axis} put the root cube at \
+                         {first:?} to {last:?}, where a coordinate is not a finite number",
+                        self.scale[a], self.offset[a]
+                    ));
+                }
+                let slack = 0.5 * self.scale[a];
+                if lo[a] < first - slack || hi[a] > last + slack {
+                    return bad(&format!(
+                        "the {axis} bounds {:?} to {:?} lie outside the root cube, which spans \
+                         {first:?} to {last:?} in real units: no stored point can lie there",
+                        lo[a], hi[a]
+                    ));
+                }
+            }
         }
         // SPEC.md names the two; a reader that takes another name would take a tool's typo.
         if !["poisson", "random"].contains(&self.sampling.as_str()) {
