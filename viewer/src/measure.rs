@@ -277,12 +277,17 @@ impl Measurement {
         if self.kind == MeasureKind::Distance {
             props.insert("segment_lengths".into(), json!(self.segment_lengths()));
         }
+        // A GIS reading the file should see what the panel says: the area is not the one meant.
+        if let Some((i, j)) = self.crossing_edges() {
+            props.insert(CROSSING_EDGES.into(), json!([i, j]));
+        }
         let mut feature = match &self.source {
             Some(Value::Object(f)) => f.clone(),
             _ => serde_json::Map::new(),
         };
         if let Some(Value::Object(kept)) = feature.get("properties") {
-            for (k, v) in kept {
+            // Ours are written anew: a crossing the polygon no longer has is not kept.
+            for (k, v) in kept.iter().filter(|(k, _)| *k != CROSSING_EDGES) {
                 props.entry(k.clone()).or_insert_with(|| v.clone());
             }
         }
@@ -292,6 +297,9 @@ impl Measurement {
         Value::Object(feature)
     }
 }
+
+/// The GeoJSON property naming the first two edges of an area's polygon that cross.
+const CROSSING_EDGES: &str = "crossing_edges";
 
 /// The measurements of a session, in the order they were made.
 #[derive(Debug, Clone, Default, PartialEq)]

@@ -29,6 +29,21 @@ fn a_polygon_that_crosses_itself_is_said() {
     assert!(bowtie.lines().iter().any(|l| l.contains("crosses itself")));
     let path = m(MeasureKind::Distance, &bowtie.points);
     assert_eq!(path.crossing_edges(), None, "a distance has no area");
+    // The GeoJSON says it too, and a crossing undone is not kept from the file it was read from.
+    let feature = bowtie.to_feature();
+    assert_eq!(
+        feature["properties"]["crossing_edges"],
+        serde_json::json!([1, 3])
+    );
+    let mut square = bowtie.clone();
+    square.points.swap(1, 2);
+    square.source = Some(feature);
+    assert_eq!(square.crossing_edges(), None);
+    assert!(
+        square.to_feature()["properties"]
+            .get("crossing_edges")
+            .is_none()
+    );
 }
 
 #[test]
