@@ -80,3 +80,40 @@ fn a_surfel_reaching_behind_the_eye_is_drawn() {
     // The eight points under the eye, each a disc of at least 16 pixels' radius.
     assert!(covered > 8 * 500, "{covered} pixels drawn");
 }
+
+/// A patch 10 cm across, 0.1 m in front of the eye, in a scan 20 km wide: the near plane took
+/// a hundred-thousandth of the far one (0.28 m here) and cut the patch off, leaving nothing
+/// to see or pick. Depths are compared as they are (`Frame::near`), so it can lie far nearer.
+#[test]
+fn a_surface_a_hand_away_in_a_scan_kilometres_wide_is_drawn() {
+    let mut points: Vec<[f64; 3]> = (0..=20)
+        .flat_map(|i| (0..=20).map(move |j| [i as f64 * 1000.0, j as f64 * 1000.0, 0.0]))
+        .collect();
+    // In the plane y = 10 000, facing -y, 2 mm apart.
+    for i in 0..=50 {
+        for k in 0..=50 {
+            points.push([
+                10_000.0 + i as f64 * 0.002,
+                10_000.0,
+                10.0 + k as f64 * 0.002,
+            ]);
+        }
+    }
+    let dataset = converted_points("deep", &points, false);
+    let camera = "eye=10000.05,9999.9,10.05;target=10000.05,10000,10.05;fov=30";
+    let rgba = rendered_320x240(
+        &dataset,
+        &[
+            "--pipeline",
+            "points",
+            "--point-size",
+            "4",
+            "--camera",
+            camera,
+        ],
+    );
+    let covered = rgba.chunks_exact(4).filter(|px| drawn(px)).count();
+    // The patch fills the view (5.4 cm high at 0.1 m): about 27 x 36 of its points, 9 pixels
+    // apart, each a disc of 4 pixels across (12 pixels).
+    assert!(covered > 27 * 36 * 8, "{covered} pixels drawn");
+}

@@ -219,6 +219,19 @@ pub struct Frustum {
 }
 
 impl Frustum {
+    /// The frustum of `camera` in a view of `aspect`, between linear depths `near` and `far`:
+    /// its sides from the view-projection's rows, its ends from the view axis itself. The far
+    /// plane of the rows (the fourth less the third) cancels to rounding noise in f32 once far
+    /// passes about 1e5 times near, as it does with the eye close to a wall of a large scan.
+    pub fn of_view(camera: &Camera, aspect: f32, near: f32, far: f32) -> Frustum {
+        let mut f = Frustum::from_view_proj(camera.projection(aspect, near, far) * camera.view());
+        let forward = camera.forward();
+        let at_eye = forward.dot(camera.eye);
+        f.planes[4] = forward.extend(-(at_eye + near));
+        f.planes[5] = (-forward).extend(at_eye + far);
+        f
+    }
+
     /// From a D3D-style (depth 0..1) view-projection matrix.
     pub fn from_view_proj(m: Mat4) -> Frustum {
         let r0 = m.row(0);
@@ -290,5 +303,27 @@ mod tests {
         assert!(f.intersects_box(Vec3::splat(-1.0), Vec3::splat(1.0)));
         let behind = cam.eye + (cam.eye - cam.target) * 2.0;
         assert!(!f.intersects_box(behind - 0.1, behind + 0.1));
+    }
+
+    /// A wall a few millimetres from the eye in a view 30 km deep: far / near is 1e7, where
+    /// the matrix's far plane is noise. The ends come from the view axis: the wall is in, a
+    /// box beyond the far end out, and one just inside it in.
+    #[test]
+    fn a_deep_view_keeps_its_near_and_far_ends() {
+        let cam = Camera {
+            eye: Vec3::ZERO,
+            target: Vec3::new(0.0, 1.0, 0.0),
+            fov_y: 0.2,
+        };
+        let (near, far) = (0.003, 30_000.0);
+        let f = Frustum::of_view(&cam, 1.5, near, far);
+        let wall = Vec3::new(0.0, 0.005, 0.0);
+        assert!(f.intersects_box(wall - 0.0005, wall + 0.0005));
+        let nearer = Vec3::new(0.0, 0.001, 0.0);
+        assert!(!f.intersects_box(nearer - 0.0005, nearer + 0.0005));
+        let beyond = Vec3::new(0.0, 30_100.0, 0.0);
+        assert!(!f.intersects_box(beyond - 10.0, beyond + 10.0));
+        let inside = Vec3::new(0.0, 29_900.0, 0.0);
+        assert!(f.intersects_box(inside - 10.0, inside + 10.0));
     }
 }

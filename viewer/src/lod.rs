@@ -132,7 +132,7 @@ pub fn select(
 ) -> Selection {
     let aspect = params.width as f32 / params.height.max(1) as f32;
     let (near, far) = clip_range(ds, camera, aspect);
-    let frustum = Frustum::from_view_proj(camera.projection(aspect, near, far) * camera.view());
+    let frustum = Frustum::of_view(camera, aspect, near, far);
     let focal = camera.focal_px(params.height);
     let mut out = Selection::default();
     let mut heap = BinaryHeap::new();
@@ -241,8 +241,10 @@ pub fn clip_range(ds: &StreamDataset, camera: &Camera, aspect: f32) -> (f32, f32
     let half_diagonal = (camera.fov_y * 0.5).tan() * (1.0 + aspect * aspect).sqrt();
     let widest_cos = 1.0 / (1.0 + half_diagonal * half_diagonal).sqrt();
     let nearest = box_distance(camera.eye, min, max) * widest_cos;
-    // Inside the bounds the nearest surface can be close: keep the ratio far/near bounded.
-    let near = (nearest.max(nearest_depth) * 0.9).max(far * 1e-5);
+    // Inside the bounds the nearest surface can be close (a wall a hand's width away in a scan
+    // kilometres deep): the clip tests compare linear depths (`Frame::near`), exact at any
+    // ratio, so the floor is only the f32 positions' own resolution at that distance.
+    let near = (nearest.max(nearest_depth) * 0.9).max(far * 1e-7);
     (near, far)
 }
 

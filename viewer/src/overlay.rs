@@ -23,6 +23,9 @@ const NEAR_W: f32 = 1e-4;
 impl ScreenProjector {
     pub fn new(ds: &StreamDataset, camera: &Camera, width: u32, height: u32) -> ScreenProjector {
         let (near, far) = clip_range(ds, camera, width as f32 / height.max(1) as f32);
+        // `ray` unprojects through the far plane, which the f32 matrix loses beyond a ratio of
+        // about 1e5; nothing else here depends on the near plane (`NEAR_W` cuts segments).
+        let near = near.max(far * 1e-5);
         ScreenProjector::from_view(camera, ds.anchor(), width, height, near, far)
     }
 

@@ -189,6 +189,8 @@ fn rust_structs_match_their_wgsl_layouts() {
             clip_boxes,
             eye,
             normals_turned,
+            near,
+            far,
         }),
         "FrameUniforms against Frame (frame.wgsl)"
     );

@@ -162,7 +162,9 @@ impl Renderer {
             clip_boxes: [[0.0; 4]; 8],
             eye: camera.view().inverse().w_axis.to_array(),
             normals_turned: 0,
-            pad: [0; 3],
+            near,
+            far,
+            pad: [0; 1],
         };
         set_filter(&mut uniforms, &settings.filter, self.ds.anchor());
         let wall = self.wall_clock(settings);

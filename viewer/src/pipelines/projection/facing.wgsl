@@ -66,7 +66,7 @@ fn sample(
         return;
     }
     let clip = frame.view_proj * vec4<f32>(pos, 1.0);
-    if clip.w <= 0.0 || clip.z < 0.0 || clip.z > clip.w {
+    if !in_depth_range(clip, frame.near, frame.far) {
         return;
     }
     let ndc = clip.xy / clip.w;

@@ -41,6 +41,17 @@ struct Frame {
     // 1: the facing check found the stored normals pointing into the surfaces (facing.rs),
     // and each is turned before use (`normal_sign`); 0: as stored.
     normals_turned: u32,
+    // The linear depths drawn (`in_depth_range`).
+    near: f32,
+    far: f32,
+}
+
+// Whether a point whose clip position is `clip` lies between the near and far planes (the
+// frame's `near` and `far`): its linear depth (clip.w) compared with theirs, exact at any
+// ratio of far to near, where the matrix's depth (clip.z against clip.w) loses the far end
+// in f32.
+fn in_depth_range(clip: vec4<f32>, near: f32, far: f32) -> bool {
+    return clip.w >= near && clip.w <= far;
 }
 
 const FILTER_CLASSES: u32 = 1u;

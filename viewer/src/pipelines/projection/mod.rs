@@ -99,7 +99,11 @@ pub struct FrameUniforms {
     /// 1: the facing check found the stored normals pointing into the surfaces, and each is
     /// turned before use (`NormalSides::Turned`); 0: as stored.
     pub normals_turned: u32,
-    pub pad: [u32; 3],
+    /// The linear depths drawn, from `near` to `far` (`lod::clip_range`): compared as they
+    /// are, not through the matrix's depth, which loses the far end in f32 at a large ratio.
+    pub near: f32,
+    pub far: f32,
+    pub pad: [u32; 1],
 }
 
 /// The filter bits of `FrameUniforms::filters` (`FILTER_*` in frame.wgsl).

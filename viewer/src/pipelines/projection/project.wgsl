@@ -37,7 +37,7 @@ fn main(
         return;
     }
     let clip = frame.view_proj * vec4<f32>(bitcast<vec3<f32>>(p.xyz), 1.0);
-    if clip.w <= 0.0 || clip.z < 0.0 || clip.z > clip.w {
+    if !in_depth_range(clip, frame.near, frame.far) {
         return;
     }
     let ndc = clip.xy / clip.w;

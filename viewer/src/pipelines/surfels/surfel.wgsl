@@ -132,7 +132,7 @@ fn surfel_at(group: u32, lane: u32) -> Surfel {
     let reach = s.bound * s.radius;
     // Nearer than the near plane or beyond the far one: not drawn, as the projection drops
     // them.
-    if clip.z < 0.0 || clip.z > clip.w {
+    if !in_depth_range(clip, frame.near, frame.far) {
         return s;
     }
     let ndc = clip.xy / clip.w;

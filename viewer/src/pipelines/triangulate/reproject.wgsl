@@ -17,7 +17,7 @@ fn main(@builtin(global_invocation_id) id: vec3<u32>) {
     }
     let world = on_ray(tri.prev_eye, tri.prev_forward, tri.prev_right, tri.prev_up, id.x, id.y, bitcast<f32>(bits));
     let clip = frame.view_proj * vec4<f32>(world, 1.0);
-    if clip.w <= 0.0 || clip.z < 0.0 || clip.z > clip.w {
+    if !in_depth_range(clip, frame.near, frame.far) {
         return;
     }
     let ndc = clip.xy / clip.w;
