@@ -346,19 +346,11 @@ pub fn parse_extra_bytes(
 
 /// Gives every extra-bytes field a name of its own: one that clashes with a standard field of
 /// the point format (or x, y, z, or an earlier extra field) is kept as `extra_NAME` (then
-/// `extra_NAME_2`, ...), so it never overwrites the real one. So is one named like a standard
-/// field of another point format (a `scanner_channel` in format 1): an export would otherwise
-/// write it as that field, whose meaning and range it need not have, and move the format's own
-/// field (a scan angle rank) aside. Returns a warning per rename.
+/// `extra_NAME_2`, ...), so it never overwrites the real one. Returns a warning per rename.
 pub fn rename_clashes(format_number: u8, extra: &mut [ExtraBytesField]) -> Vec<String> {
-    // Format 5 has every field of formats 0 to 4, format 10 every one of formats 6 to 9.
-    let standard: Vec<String> = [format_number, 5, 10]
-        .into_iter()
-        .flat_map(|f| las_fields(f, &[]).0)
-        .map(|a| a.name)
-        .collect();
+    let (standard, _, _) = las_fields(format_number, &[]);
     let mut taken: Vec<String> = ["x", "y", "z"].iter().map(|s| s.to_string()).collect();
-    taken.extend(standard.iter().cloned());
+    taken.extend(standard.iter().map(|a| a.name.clone()));
     let mut warnings = Vec::new();
     for field in extra.iter_mut() {
         let name = field.attribute.name.clone();
@@ -371,12 +363,7 @@ pub fn rename_clashes(format_number: u8, extra: &mut [ExtraBytesField]) -> Vec<S
                 n += 1;
             }
             warnings.push(format!(
-                "extra bytes field \"{name}\" has the name of {}; kept as \"{new}\"",
-                if standard.contains(&name) {
-                    "a standard LAS field"
-                } else {
-                    "another field of the points"
-                }
+                "extra bytes field \"{name}\" has the name of another field of the points; kept as \"{new}\""
             ));
             field.attribute.name = new;
         }
@@ -521,54 +508,11 @@ mod tests {
             ["extra_intensity", "extra_x", "extra_intensity_2", "h"]
         );
         assert_eq!(warnings.len(), 3);
-        assert!(warnings[0].contains("a standard LAS field"), "{warnings:?}");
-        assert!(
-            warnings[1].contains("another field of the points"),
-            "{warnings:?}"
-        );
         let (attrs, _, _) = las_fields(3, &extra);
         let mut all: Vec<&str> = attrs.iter().map(|a| a.name.as_str()).collect();
         all.sort();
         all.dedup();
         assert_eq!(all.len(), attrs.len(), "every name once");
-    }
-
-    /// A field named like a standard field of another point format is not taken for it: an
-    /// export would write a format-1 file's `scanner_channel` as the channel of format 6 (two
-    /// bits), and its `scan_angle` in place of the file's own scan angle rank.
-    #[test]
-    fn extra_bytes_named_like_another_formats_fields_are_renamed() {
-        let field = |n: &str| ExtraBytesField {
-            attribute: Attribute::new(n, AttrType::U16, 1),
-            len: 2,
-        };
-        let names = [
-            "scanner_channel",
-            "scan_angle",
-            "nir",
-            "gps_time",
-            "rgb",
-            "h",
-        ];
-        let mut extra: Vec<ExtraBytesField> = names.iter().map(|n| field(n)).collect();
-        let warnings = rename_clashes(0, &mut extra);
-        let renamed: Vec<&str> = extra.iter().map(|e| e.attribute.name.as_str()).collect();
-        assert_eq!(
-            renamed,
-            [
-                "extra_scanner_channel",
-                "extra_scan_angle",
-                "extra_nir",
-                "extra_gps_time",
-                "extra_rgb",
-                "h"
-            ]
-        );
-        assert_eq!(warnings.len(), 5);
-        // Format 1 has a scan angle rank, which format 6 has not.
-        let mut rank = vec![field("scan_angle_rank")];
-        rename_clashes(6, &mut rank);
-        assert_eq!(rank[0].attribute.name, "extra_scan_angle_rank");
     }
 
     #[test]
