@@ -3,6 +3,7 @@
 
 use crate::ViewerError;
 use crate::dataset::StreamDataset;
+use crate::pipelines::ViewFrame;
 use crate::renderer::SurfacePixel;
 use serde::Serialize;
 use strata_format::{NodeInfo, NodeKey};
@@ -240,40 +241,84 @@ pub fn nearest_drawn(
     best.map(|(_, depth, pixel, index)| (pixel, depth, index))
 }
 
-/// Clears, in a frame's per-pixel (depth bits, global index), the points hidden behind the
-/// surface a pipeline reconstructed (`shown`, per pixel): those where it shows background, and
-/// those farther than its depth there by more than the surface's own change of depth over the
-/// pixels around (a slope seen at a grazing angle), or 1 % of the depth (a reconstruction
-/// smooths its depth). What remains is a point of the surface the image shows, not one of a
-/// surface behind it seen through the gaps of its sampling.
-pub fn hide_behind_shown(
-    pixels: &mut [Option<(u32, u32)>],
-    shown: &[Option<SurfacePixel>],
-    width: u32,
-    height: u32,
-) {
-    let (w, h) = (width as usize, height as usize);
-    let depth = |x: usize, y: usize| shown.get(y * w + x).copied().flatten().map(|s| s.depth);
-    for y in 0..h {
-        for x in 0..w {
-            let Some(Some((bits, _))) = pixels.get(y * w + x).copied() else {
-                continue;
-            };
-            let visible = depth(x, y).is_some_and(|front| {
-                let mut slack = 0.01 * front;
-                for qy in y.saturating_sub(1)..(y + 2).min(h) {
-                    for qx in x.saturating_sub(1)..(x + 2).min(w) {
-                        if let Some(d) = depth(qx, qy) {
-                            slack = slack.max((d - front).abs());
-                        }
-                    }
+/// Depth bands a reconstruction takes for one surface, in drawn point spacings: `filters`'
+/// d~ and the surfels' blending offset default to a few spacings.
+const SURFACE_SPACINGS: f32 = 4.0;
+
+/// The steepest a shown surface is taken to be: 87° from the view ray (tan 87° is about 19),
+/// where a normal seen edge-on would make any depth its own.
+const MIN_FACING_COS: f32 = 0.05;
+
+/// The surface a pipeline reconstructed in a frame, per pixel, with the view it was seen in.
+pub struct ShownSurface<'a> {
+    pub pixels: &'a [Option<SurfacePixel>],
+    pub width: u32,
+    pub height: u32,
+    pub view: ViewFrame,
+    /// The drawn points' spacing (`lod::drawn_spacing`), in dataset units.
+    pub spacing: f32,
+}
+
+impl ShownSurface<'_> {
+    /// Clears, in a frame's per-pixel (depth bits, global index) within `radius` of `at`, the
+    /// points hidden behind the shown surface: those where it shows background, and those
+    /// behind it by more than its own depth band. The band is a few drawn spacings (what a
+    /// reconstruction blends into one surface), or where the surface turns away from the eye,
+    /// the depth it falls over two pixels (a point may lie a pixel or two from the pixel that
+    /// holds it). The slope comes from the surface's normal, not from its neighbours' depths:
+    /// beside a nearer edge those jump to the surface behind, and would hide nothing there, nor
+    /// across a pole a pixel wide.
+    pub fn hide_points_behind(
+        &self,
+        pixels: &mut [Option<(u32, u32)>],
+        (x, y): (u32, u32),
+        radius: u32,
+    ) {
+        let r = radius.min(self.width + self.height);
+        let (x0, x1) = (x.saturating_sub(r), x.saturating_add(r).min(self.width - 1));
+        let (y0, y1) = (
+            y.saturating_sub(r),
+            y.saturating_add(r).min(self.height - 1),
+        );
+        for py in y0..=y1 {
+            for px in x0..=x1 {
+                let at = (py * self.width + px) as usize;
+                let Some(Some((bits, _))) = pixels.get(at).copied() else {
+                    continue;
+                };
+                let visible = self.pixels.get(at).copied().flatten().is_some_and(|front| {
+                    f32::from_bits(bits) <= front.depth + self.band(px, py, front)
+                });
+                if !visible {
+                    pixels[at] = None;
                 }
-                f32::from_bits(bits) <= front + slack
-            });
-            if !visible {
-                pixels[y * w + x] = None;
             }
         }
+    }
+
+    /// How far behind the surface shown at pixel `(x, y)` a point of it may lie.
+    fn band(&self, x: u32, y: u32, front: SurfacePixel) -> f32 {
+        let thickness = SURFACE_SPACINGS * self.spacing;
+        // A pixel's width at that depth, and how steeply the surface recedes along the ray.
+        let pixel = front.depth / self.view.focal_px.max(1e-6);
+        let slope = match front.normal {
+            Some(n) => {
+                let cos = glam::Vec3::from(n).dot(-self.ray(x, y)).abs();
+                let cos = cos.max(MIN_FACING_COS);
+                (1.0 - cos * cos).sqrt() / cos
+            }
+            None => 1.0 / MIN_FACING_COS,
+        };
+        // f32 depths carry a relative error of about 1e-7; a band of 1e-5 stays above it.
+        thickness.max(2.0 * pixel * slope).max(1e-5 * front.depth)
+    }
+
+    /// The unit ray through pixel `(x, y)` in view space (x right, y up, z towards the eye).
+    fn ray(&self, x: u32, y: u32) -> glam::Vec3 {
+        let tan_y = (self.view.fov_y * 0.5).tan();
+        let ndc_x = (x as f32 + 0.5) / self.width as f32 * 2.0 - 1.0;
+        let ndc_y = 1.0 - (y as f32 + 0.5) / self.height as f32 * 2.0;
+        glam::Vec3::new(ndc_x * tan_y * self.view.aspect, ndc_y * tan_y, -1.0).normalize()
     }
 }
 
@@ -349,45 +394,88 @@ mod tests {
         assert_eq!(to_decimals(v, scale).to_string(), "206.205");
     }
 
-    /// A wall at depth 7 sampled sparsely, the floor at 12 seen through its gaps: the floor's
-    /// points are hidden where the wall is shown, and kept where the floor itself is, even
-    /// where it falls away steeply from pixel to pixel (a grazing view).
+    /// A wall at depth 7 facing the eye, sampled sparsely, and the floor behind it at depth 12
+    /// to 18, seen through the wall's gaps and beside it at a grazing angle: the floor's points
+    /// are hidden where the wall is shown, even on the wall's edge beside the floor, and kept
+    /// where the floor itself is shown, though it falls away steeply from pixel to pixel.
     #[test]
     fn points_behind_the_shown_surface_are_not_picked() {
         let (w, h) = (4u32, 3u32);
-        let at = |depth: f32| {
-            Some(SurfacePixel {
-                depth,
-                normal: None,
-            })
+        let view = ViewFrame {
+            view: glam::Mat4::IDENTITY,
+            view_proj: glam::Mat4::IDENTITY,
+            fov_y: 0.5,
+            near: 0.1,
+            far: 100.0,
+            focal_px: 10.0,
+            aspect: 1.0,
         };
-        // Columns 0 and 1 show the wall, 2 and 3 the floor, its depth growing by 3 a row.
-        let shown: Vec<Option<SurfacePixel>> = (0..h)
+        // Columns 0 and 1 show the wall, 2 and 3 the floor, its depth growing by 3 a row
+        // (its normal nearly at right angles to the rays).
+        let floor_normal = glam::Vec3::new(0.0, 1.0, 0.1).normalize().to_array();
+        let pixels: Vec<Option<SurfacePixel>> = (0..h)
             .flat_map(|y| (0..w).map(move |x| (x, y)))
-            .map(|(x, y)| at(if x < 2 { 7.0 } else { 10.0 + 3.0 * y as f32 }))
+            .map(|(x, y)| {
+                Some(if x < 2 {
+                    SurfacePixel {
+                        depth: 7.0,
+                        normal: Some([0.0, 0.0, 1.0]),
+                    }
+                } else {
+                    SurfacePixel {
+                        depth: 12.0 + 3.0 * y as f32,
+                        normal: Some(floor_normal),
+                    }
+                })
+            })
             .collect();
+        let shown = ShownSurface {
+            pixels: &pixels,
+            width: w,
+            height: h,
+            view,
+            spacing: 0.01,
+        };
         let bits = |d: f32| d.to_bits();
         let mut px = vec![None; 12];
-        px[0] = Some((bits(7.02), 1)); // on the wall, within 1 %
+        px[0] = Some((bits(7.03), 1)); // on the wall, within its band
         px[4] = Some((bits(12.0), 2)); // the floor through the wall's gap
-        px[7] = Some((bits(13.2), 3)); // on the floor, behind its pixel's depth by 0.2
-        px[11] = Some((bits(16.0), 4)); // on the floor, at its pixel's depth
-        let mut background = shown.clone();
-        background[11] = None;
+        px[5] = Some((bits(15.0), 3)); // the same, on the wall's edge beside the floor
+        px[7] = Some((bits(16.0), 4)); // on the floor, a pixel's fall behind its pixel's depth
+        px[11] = Some((bits(18.0), 5)); // on the floor, at its pixel's depth
         let mut hidden = px.clone();
-        hide_behind_shown(&mut hidden, &shown, w, h);
+        shown.hide_points_behind(&mut hidden, (1, 1), 3);
         assert_eq!(hidden[0], px[0]);
         assert_eq!(hidden[4], None);
+        assert_eq!(hidden[5], None);
         assert_eq!(hidden[7], px[7]);
         assert_eq!(hidden[11], px[11]);
-        // Where the image shows background, nothing is picked.
-        let mut on_background = px.clone();
-        hide_behind_shown(&mut on_background, &background, w, h);
-        assert_eq!(on_background[11], None);
         assert_eq!(
-            nearest_drawn(&hidden, w, h, (0, 1), 1),
-            Some(([0, 0], bits(7.02), 1))
+            nearest_drawn(&hidden, w, h, (1, 1), 2),
+            Some(([0, 0], bits(7.03), 1))
         );
+        // Where the image shows background, nothing is picked; and only pixels within the
+        // radius are looked at.
+        let mut background = pixels.clone();
+        background[11] = None;
+        let shown = ShownSurface {
+            pixels: &background,
+            ..shown
+        };
+        let mut near_corner = px.clone();
+        shown.hide_points_behind(&mut near_corner, (3, 2), 0);
+        assert_eq!(near_corner[11], None);
+        assert_eq!(near_corner[4], px[4], "outside the radius");
+        // Sparse, rough points (2.5 apart, heights 0 to 10): a fan of neighbours drawn in front
+        // of a point by less than a few spacings is its surface, and the point is picked.
+        let rough = ShownSurface {
+            spacing: 1.0,
+            ..shown
+        };
+        let mut kept = px.clone();
+        kept[4] = Some((bits(10.5), 2));
+        rough.hide_points_behind(&mut kept, (0, 1), 0);
+        assert_eq!(kept[4], Some((bits(10.5), 2)));
     }
 
     #[test]

@@ -286,9 +286,7 @@ impl Renderer {
         self.last_int64 = int64;
         self.last_fused = fused;
         self.last_colour_plane = !fused && info.reads_colour_plane;
-        if info.previous_frame {
-            self.previous_view = Some(view);
-        }
+        self.previous_view = Some(view);
         if let Some(e) = self.timer.take_poll_error() {
             return Err(ViewerError::Gpu(format!("waiting for the GPU failed: {e}")));
         }

@@ -67,7 +67,7 @@ pub struct Renderer {
     last_fused: bool,
     /// The last frame resolved the projection's colour plane.
     last_colour_plane: bool,
-    /// The last frame's view, for pipelines that keep the previous frame.
+    /// The last frame's view: for pipelines that keep the previous frame, and for picking.
     previous_view: Option<crate::pipelines::ViewFrame>,
     frame: u64,
     bytes_total: u64,

@@ -5,7 +5,8 @@ use super::Renderer;
 use crate::ViewerError;
 use crate::gpu::readback::{read_buffer, read_texture};
 use crate::gpu::timing::PassTimes;
-use crate::pick::{PickedPoint, hide_behind_shown, locate, nearest_drawn};
+use crate::lod::drawn_spacing;
+use crate::pick::{PickedPoint, ShownSurface, locate, nearest_drawn};
 use std::collections::BTreeMap;
 
 impl Renderer {
@@ -74,8 +75,8 @@ impl Renderer {
 
     /// The stored point nearest pixel `(x, y)` of the last frame, within `radius` pixels: read
     /// from its node with every attribute in full precision. Where the pipeline reconstructs a
-    /// surface, a point of the surface it shows (`hide_behind_shown`). `None` where only
-    /// background lies within reach.
+    /// surface, a point of the surface it shows (`ShownSurface`). `None` where only background
+    /// lies within reach.
     pub fn pick(&self, x: u32, y: u32, radius: u32) -> Result<Option<PickedPoint>, ViewerError> {
         let screen = self
             .screen
@@ -101,8 +102,16 @@ impl Renderer {
         let mut planes = planes;
         // A pipeline that reconstructs a surface draws over the points: one seen through the
         // gaps of a nearer surface's sampling is hidden behind what the image shows there.
-        if let Some(shown) = self.pipeline_surface()? {
-            hide_behind_shown(&mut planes, &shown, screen.width, screen.height);
+        if let (Some(pixels), Some(view)) = (self.pipeline_surface()?, self.previous_view) {
+            let drawn: Vec<_> = self.last_drawn.iter().copied().collect();
+            let shown = ShownSurface {
+                pixels: &pixels,
+                width: screen.width,
+                height: screen.height,
+                view,
+                spacing: drawn_spacing(&self.tree, &self.ds, &drawn).unwrap_or(0.0),
+            };
+            shown.hide_points_behind(&mut planes, (x, y), radius);
         }
         let Some((pixel, depth, global)) =
             nearest_drawn(&planes, screen.width, screen.height, (x, y), radius)
