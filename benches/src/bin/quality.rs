@@ -14,14 +14,13 @@ use strata_bench::quality::cli::{Args, USAGE, parse_args};
 use strata_bench::quality::configs::{Config, configs};
 use strata_bench::quality::mesh::y_up_to_z_up;
 use strata_bench::quality::metrics::{Frame, albedo_scores, compare};
-use strata_bench::quality::reference::{ReferenceImage, ReferenceRenderer, lit_as};
+use strata_bench::quality::reference::{ReferenceImage, ReferenceRenderer, lit_as, reference_clip};
 use strata_bench::quality::report::{Row, charts, init_fonts, side_by_side, summary, write_csv};
 use strata_bench::quality::sample::{PointSet, load_scan, sample_mesh, thin_along_x, write_ply};
 use strata_bench::quality::scenes::{CLAY, Points, Scene, View, scenes, user_scene};
 use strata_bench::quality::shadows;
 use strata_bench::quality::temporal::{self, Temporal};
 use strata_viewer::gpu::{GpuContext, ProjectionPath};
-use strata_viewer::lod::clip_range;
 use strata_viewer::pipelines::edl;
 use strata_viewer::pipelines::params::ParamSpec;
 use strata_viewer::settings::SizeMode;
@@ -317,7 +316,7 @@ fn render_view(
     // Load everything the view needs.
     load_all(renderer, camera, w, h, &base)?;
     let aspect = w as f32 / h as f32;
-    let (near, far) = clip_range(renderer.dataset(), camera, aspect);
+    let (near, far) = reference_clip(renderer.dataset(), camera, aspect);
     let reference_image = reference.render(
         ctx,
         camera.view(),

@@ -143,6 +143,19 @@ const COLOUR_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Rgba8Unorm;
 const SURFACE_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Rgba32Float;
 const DEPTH_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Depth32Float;
 
+/// The near and far planes of the reference's projection for `camera`: the viewer's
+/// (`clip_range`), with far / near kept within 1e5. The reference draws into a depth buffer
+/// of f32 matrix depth, which beyond that ratio loses its far end (the viewer compares linear
+/// depths, and its near plane may lie nearer).
+pub fn reference_clip(
+    ds: &strata_viewer::StreamDataset,
+    camera: &strata_viewer::Camera,
+    aspect: f32,
+) -> (f32, f32) {
+    let (near, far) = strata_viewer::lod::clip_range(ds, camera, aspect);
+    (near.max(far * 1e-5), far)
+}
+
 impl ReferenceRenderer {
     /// `offset` is subtracted from every position: the dataset's anchor, so that the mesh and
     /// the points share coordinates.

@@ -3,10 +3,9 @@
 //! 10 % of its converged value, and how much the picture flickers during a slow orbit (the mean
 //! per-pixel change between consecutive frames) against the reference mesh lit the same way.
 
-use super::reference::{ReferenceRenderer, lit_as};
+use super::reference::{ReferenceRenderer, lit_as, reference_clip};
 use glam::Mat3;
 use strata_viewer::gpu::GpuContext;
-use strata_viewer::lod::clip_range;
 use strata_viewer::pipelines::{PipelineInfo, edl, params::ParamSpec};
 use strata_viewer::{Camera, Renderer, Settings};
 
@@ -70,7 +69,7 @@ pub fn jump_frames(
     camera: &Camera,
     (w, h): (u32, u32),
 ) -> anyhow::Result<u32> {
-    let (near, far) = clip_range(renderer.dataset(), camera, w as f32 / h as f32);
+    let (near, far) = reference_clip(renderer.dataset(), camera, w as f32 / h as f32);
     let surface = reference
         .render(
             ctx,
@@ -138,7 +137,7 @@ pub fn orbit_flicker(
         renderer.frame(&cam, w, h, settings)?;
         renderer.wait_gpu()?;
         let (_, _, rgba) = renderer.read_image()?;
-        let (near, far) = clip_range(renderer.dataset(), &cam, w as f32 / h as f32);
+        let (near, far) = reference_clip(renderer.dataset(), &cam, w as f32 / h as f32);
         let image = reference.render(
             ctx,
             cam.view(),
