@@ -81,26 +81,27 @@ fn a_surfel_reaching_behind_the_eye_is_drawn() {
     assert!(covered > 8 * 500, "{covered} pixels drawn");
 }
 
-/// A patch 10 cm across, 0.1 m in front of the eye, in a scan 20 km wide: the near plane took
-/// a hundred-thousandth of the far one (0.28 m here) and cut the patch off, leaving nothing
-/// to see or pick. Depths are compared as they are (`Frame::near`), so it can lie far nearer.
+/// A scan 20 km long, seen along its length from inside one end, with a patch a few
+/// centimetres across 0.1 m in front of the eye, below the view's axis: the near plane took a
+/// hundred-thousandth of the far one (0.2 m here) and cut the patch off. The patch is drawn,
+/// and so is the point at the far end, on the axis at 99 % of the far plane (the far plane of
+/// the f32 matrix is noise at this ratio: `Frustum::of_view`, `in_depth_range`).
 #[test]
-fn a_surface_a_hand_away_in_a_scan_kilometres_wide_is_drawn() {
-    let mut points: Vec<[f64; 3]> = (0..=20)
-        .flat_map(|i| (0..=20).map(move |j| [i as f64 * 1000.0, j as f64 * 1000.0, 0.0]))
-        .collect();
-    // In the plane y = 10 000, facing -y, 2 mm apart.
-    for i in 0..=50 {
-        for k in 0..=50 {
-            points.push([
-                10_000.0 + i as f64 * 0.002,
-                10_000.0,
-                10.0 + k as f64 * 0.002,
-            ]);
+fn a_surface_a_hand_away_in_a_scan_kilometres_long_is_drawn_with_its_far_end() {
+    // The box's corners, off the axis; the far end on it.
+    let mut points: Vec<[f64; 3]> = vec![
+        [0.0, -300.0, -300.0],
+        [20_000.0, 300.0, 300.0],
+        [20_000.0, 0.0, 0.0],
+    ];
+    // In the plane x = 5.1, facing the eye at x = 5, from 1 to 5 cm below the axis, 2 mm apart.
+    for j in 0..=50 {
+        for k in 0..=20 {
+            points.push([5.1, -0.05 + j as f64 * 0.002, -0.05 + k as f64 * 0.002]);
         }
     }
     let dataset = converted_points("deep", &points, false);
-    let camera = "eye=10000.05,9999.9,10.05;target=10000.05,10000,10.05;fov=30";
+    let camera = "eye=5,0,0;target=6,0,0;fov=30";
     let rgba = rendered_320x240(
         &dataset,
         &[
@@ -112,8 +113,16 @@ fn a_surface_a_hand_away_in_a_scan_kilometres_wide_is_drawn() {
             camera,
         ],
     );
-    let covered = rgba.chunks_exact(4).filter(|px| drawn(px)).count();
-    // The patch fills the view (5.4 cm high at 0.1 m): about 27 x 36 of its points, 9 pixels
-    // apart, each a disc of 4 pixels across (12 pixels).
-    assert!(covered > 27 * 36 * 8, "{covered} pixels drawn");
+    let (w, h) = (320usize, 240usize);
+    let at = |x: usize, y: usize| drawn(&rgba[(y * w + x) * 4..][..4]);
+    // The lower rows show the patch: about 27 x 13 of its points, 9 pixels apart, each a disc
+    // of 4 pixels across (12 pixels).
+    let patch = (h / 2 + 50..h)
+        .flat_map(|y| (0..w).map(move |x| (x, y)))
+        .filter(|&(x, y)| at(x, y))
+        .count();
+    assert!(patch > 27 * 13 * 8, "{patch} pixels of the patch drawn");
+    // The far end, at the centre of the image.
+    let centre = (h / 2 - 2..h / 2 + 2).any(|y| (w / 2 - 2..w / 2 + 2).any(|x| at(x, y)));
+    assert!(centre, "the far end is not drawn");
 }

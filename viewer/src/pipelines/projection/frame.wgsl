@@ -47,9 +47,9 @@ struct Frame {
 }
 
 // Whether a point whose clip position is `clip` lies between the near and far planes (the
-// frame's `near` and `far`): its linear depth (clip.w) compared with theirs, exact at any
-// ratio of far to near, where the matrix's depth (clip.z against clip.w) loses the far end
-// in f32.
+// frame's `near` and `far`): its linear depth (clip.w) compared with theirs. That holds at any
+// ratio of far to near (clip.w is as precise as the position it comes from), where the
+// matrix's depth (clip.z against clip.w) loses the far end in f32 beyond a ratio of about 1e5.
 fn in_depth_range(clip: vec4<f32>, near: f32, far: f32) -> bool {
     return clip.w >= near && clip.w <= far;
 }
