@@ -61,12 +61,17 @@ fn a_field_of_another_type_is_converted_or_refused_beyond_its_range_or_as_a_frac
             "return_number is 20, outside what LAS point format 6 holds (0 to 15)",
         ),
     ] {
-        let err = plan
-            .check_fits(Path::new("x.las"), &bad)
-            .expect_err(said)
-            .to_string();
-        assert!(err.contains(said), "{err}");
+        refuses(&plan, &bad, said);
     }
+}
+
+/// `plan` refuses `row`, saying `said`.
+fn refuses(plan: &LasRecords, row: &[u8], said: &str) {
+    let err = plan
+        .check_fits(Path::new("x.las"), row)
+        .expect_err(said)
+        .to_string();
+    assert!(err.contains(said), "{err}");
 }
 
 /// A scan angle is written where LAS defines one (±30000 steps of 0.006°), and a scanner
@@ -98,11 +103,7 @@ fn a_scan_angle_or_channel_beyond_las_is_refused() {
             "scanner_channel is 4, outside what LAS point format 6 holds (0 to 3)",
         ),
     ] {
-        let err = plan
-            .check_fits(Path::new("x.las"), &bad)
-            .expect_err(said)
-            .to_string();
-        assert!(err.contains(said), "{err}");
+        refuses(&plan, &bad, said);
     }
 }
 
