@@ -113,6 +113,22 @@ fn a_picked_point_is_a_stored_point_with_every_attribute() {
                 points.iter().any(|(xyz, _)| *xyz == q),
                 "{pixel} with {pipeline}: no stored point at {q:?}"
             );
+            // Of the front surface, beside the point `points` shows: a reconstruction lies at
+            // or in front of the nearest projected points, never a surface behind them.
+            let depth = |v: &serde_json::Value| v["depth"].as_f64().expect("depth");
+            let near = |v: &serde_json::Value, i: usize| v["pixel"][i].as_i64().expect("pixel");
+            assert!(
+                depth(&other) <= depth(&p) * 1.01,
+                "{pixel} with {pipeline}: depth {} behind the points' {}",
+                depth(&other),
+                depth(&p)
+            );
+            assert!(
+                (0..2).all(|i| (near(&other, i) - near(&p, i)).abs() <= 3),
+                "{pixel} with {pipeline}: picked at {} where points picked at {}",
+                other["pixel"],
+                p["pixel"]
+            );
         }
         checked += 1;
     }

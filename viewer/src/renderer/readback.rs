@@ -84,7 +84,7 @@ impl Renderer {
             .ok_or_else(|| ViewerError::Gpu("no frame has been rendered".into()))?;
         let pixels = screen.width as u64 * screen.height as u64;
         let word = |b: &[u8]| u32::from_le_bytes([b[0], b[1], b[2], b[3]]);
-        let planes: Vec<Option<(u32, u32)>> = match &screen.keys {
+        let mut planes: Vec<Option<(u32, u32)>> = match &screen.keys {
             Some(keys) if self.last_int64 => read_buffer(&self.ctx, keys, pixels * 8)?
                 .chunks_exact(8)
                 .map(|k| (word(&k[4..]) != u32::MAX).then(|| (word(&k[4..]), word(&k[..4]))))
@@ -99,7 +99,6 @@ impl Renderer {
                     .collect()
             }
         };
-        let mut planes = planes;
         // A pipeline that reconstructs a surface draws over the points: one seen through the
         // gaps of a nearer surface's sampling is hidden behind what the image shows there.
         if let (Some(pixels), Some(view)) = (self.pipeline_surface()?, self.previous_view) {
@@ -143,6 +142,14 @@ impl Renderer {
             .collect())
     }
 
+    /// The surface the active pipeline reconstructed in the last frame, where it keeps one.
+    fn pipeline_surface(&self) -> Result<Option<Vec<Option<SurfacePixel>>>, ViewerError> {
+        self.active
+            .and_then(|n| self.pipelines.get(n))
+            .and_then(|p| p.read_surface(&self.ctx))
+            .transpose()
+    }
+
     /// The surface the last frame shows, per pixel: its linear depth, and its view-space normal
     /// where the pipeline reconstructs one. `None` where the frame shows background.
     pub fn read_surface(&self) -> Result<Vec<Option<SurfacePixel>>, ViewerError> {
@@ -172,16 +179,6 @@ impl Renderer {
                 })
             })
             .collect())
-    }
-}
-
-impl Renderer {
-    /// The surface the active pipeline reconstructed in the last frame, where it keeps one.
-    fn pipeline_surface(&self) -> Result<Option<Vec<Option<SurfacePixel>>>, ViewerError> {
-        self.active
-            .and_then(|n| self.pipelines.get(n))
-            .and_then(|p| p.read_surface(&self.ctx))
-            .transpose()
     }
 }
 
