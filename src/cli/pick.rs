@@ -21,7 +21,8 @@ pub struct PickView {
     /// How far from the pixel, in pixels, a point may lie.
     #[arg(long, default_value_t = 8)]
     pub radius: u32,
-    /// Seconds to wait for the view's detail.
+    /// Seconds to wait for the view's detail; a read over HTTP that has no answer within it
+    /// (at least 1 s), retries included, fails.
     #[arg(long, default_value_t = 30.0)]
     timeout: f64,
     #[command(flatten)]

@@ -24,7 +24,8 @@ pub struct Args {
     #[arg(long)]
     wait_complete: bool,
     /// Seconds a single image waits for detail; with --wait-complete, seconds without any
-    /// progress (a server gone away) before the image is written with what there is.
+    /// progress (a server gone away) before the image is written with what there is. A read
+    /// over HTTP that has no answer within it (at least 1 s), retries included, fails.
     #[arg(long, default_value_t = 30.0)]
     timeout: f64,
     /// A fly-through: {"keyframes": [{"eye": [x,y,z], "target": [x,y,z], "fov": deg,

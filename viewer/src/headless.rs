@@ -95,17 +95,24 @@ pub fn default_camera(ds: &StreamDataset, width: u32, height: u32) -> Camera {
 /// no image is kept.
 pub fn render(location: &str, opts: &RenderOptions) -> Result<RenderReport, ViewerError> {
     let t0 = Instant::now();
-    let http = HttpOptions {
-        token: opts.token.clone(),
-        ..HttpOptions::default()
-    };
-    let ds = Arc::new(StreamDataset::open(location, http)?);
+    let ds = Arc::new(StreamDataset::open(location, http_options(opts))?);
     // Before the GPU is opened: a colouring or a filter the dataset cannot give is refused at
     // once.
     ds.check_colour(opts.settings.colour)?;
     ds.marks(&opts.settings.filter)?;
     let ctx = Arc::new(GpuContext::new(opts.projection)?);
     render_with(ds, ctx, opts, t0)
+}
+
+/// The reads of a dataset over HTTP give up within `--timeout` (the time without progress a
+/// command waits), so that a server gone silent fails the command then; at least a second,
+/// as `--timeout 0` asks not to wait for detail, not to read nothing.
+fn http_options(opts: &RenderOptions) -> HttpOptions {
+    HttpOptions {
+        token: opts.token.clone(),
+        give_up_after: Some(opts.timeout.max(Duration::from_secs(1))),
+        ..HttpOptions::default()
+    }
 }
 
 pub fn render_with(
@@ -319,11 +326,7 @@ pub fn pick_all(
     pixels: &[(u32, u32)],
     radius: u32,
 ) -> Result<Vec<Option<PickedPoint>>, ViewerError> {
-    let http = HttpOptions {
-        token: opts.token.clone(),
-        ..HttpOptions::default()
-    };
-    let ds = Arc::new(StreamDataset::open(location, http)?);
+    let ds = Arc::new(StreamDataset::open(location, http_options(opts))?);
     let ctx = Arc::new(GpuContext::new(opts.projection)?);
     let camera = match &opts.camera {
         Some(spec) => Camera::parse(

@@ -31,8 +31,13 @@ pub const HIERARCHY_PREFIX: u64 = 64 << 10;
 pub struct HttpOptions {
     pub token: Option<String>,
     pub concurrency: usize,
+    /// How long one attempt at a read waits for its answer.
     pub timeout: Duration,
     pub retries: u32,
+    /// How long one read may take, its retries included: a command given a time to wait
+    /// (`render --timeout`) fails within it when the server has gone away, not after every
+    /// retry has waited out `timeout`.
+    pub give_up_after: Option<Duration>,
     /// Bytes of hierarchy.bin to ask for at open (at least the 32-byte head).
     pub hierarchy_prefix: u64,
 }
@@ -44,6 +49,7 @@ impl Default for HttpOptions {
             concurrency: 8,
             timeout: Duration::from_secs(10),
             retries: 3,
+            give_up_after: None,
             hierarchy_prefix: HIERARCHY_PREFIX,
         }
     }
@@ -161,16 +167,35 @@ impl HttpSource {
         want: Want,
     ) -> Result<(Vec<u8>, Option<u64>), ViewerError> {
         let url = self.url(file);
+        let started = tokio::time::Instant::now();
         let mut delay = Duration::from_millis(100);
         let mut attempt = 0;
         loop {
-            match self.fetch_once(&url, want).await {
+            let left = self
+                .opts
+                .give_up_after
+                .map(|bound| bound.saturating_sub(started.elapsed()));
+            let wait = left.map_or(self.opts.timeout, |left| left.min(self.opts.timeout));
+            match self.fetch_once(&url, want, wait).await {
                 Ok(b) => return Ok(b),
                 Err(Failure::Permanent(what)) => return Err(ViewerError::source(&url, what)),
-                Err(Failure::Transient(what)) if attempt >= self.opts.retries => {
+                Err(Failure::Transient(what))
+                    if attempt >= self.opts.retries
+                        || self
+                            .opts
+                            .give_up_after
+                            .is_some_and(|bound| started.elapsed() + delay >= bound) =>
+                {
+                    let tries = match attempt {
+                        0 => "1 attempt".to_string(),
+                        n => format!("{} attempts", n + 1),
+                    };
                     return Err(ViewerError::unavailable(
                         &url,
-                        format!("{what} (after {} attempts)", attempt + 1),
+                        format!(
+                            "{what} (gave up after {tries} in {:.1} s)",
+                            started.elapsed().as_secs_f64()
+                        ),
                     ));
                 }
                 Err(Failure::Transient(_)) => {
@@ -182,7 +207,13 @@ impl HttpSource {
         }
     }
 
-    async fn fetch_once(&self, url: &str, want: Want) -> Result<(Vec<u8>, Option<u64>), Failure> {
+    /// One attempt, waiting at most `wait` for the whole answer.
+    async fn fetch_once(
+        &self,
+        url: &str,
+        want: Want,
+        wait: Duration,
+    ) -> Result<(Vec<u8>, Option<u64>), Failure> {
         let range = want.range();
         let _slot = self
             .slots
@@ -239,11 +270,10 @@ impl HttpSource {
             };
             Ok::<_, Failure>((status, Bytes::from(body), total, whole))
         };
-        let (status, body, total, whole) = tokio::time::timeout(self.opts.timeout, work)
-            .await
-            .map_err(|_| {
-            Failure::Transient(format!("no answer within {:?}", self.opts.timeout))
-        })??;
+        let (status, body, total, whole) =
+            tokio::time::timeout(wait, work).await.map_err(|_| {
+                Failure::Transient(format!("no answer within {:.1} s", wait.as_secs_f64()))
+            })??;
         let got = body.len() as u64;
         match (status, want) {
             (StatusCode::PARTIAL_CONTENT, Want::Exact(_, len)) if got == len => {
