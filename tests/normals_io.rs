@@ -354,3 +354,50 @@ fn ply_normal_x_y_z_are_one_normal_that_normals_keeps() {
         assert!(angle(n, [0.6, 0.0, 0.8]) < 0.1, "{n:?}");
     }
 }
+
+#[test]
+fn an_input_radius_is_kept_with_its_normal_and_a_named_rule_turns_kept_normals() {
+    // A plane whose given normals face down, every point with a splat radius of its own.
+    let dir = tempfile::tempdir().expect("tempdir");
+    let ply = dir.path().join("splats.ply");
+    let mut text = String::from(
+        "ply\nformat ascii 1.0\nelement vertex 1600\nproperty float x\nproperty float y\n\
+         property float z\nproperty float nx\nproperty float ny\nproperty float nz\n\
+         property float radius\nend_header\n",
+    );
+    for i in 0..40 {
+        for j in 0..40 {
+            text.push_str(&format!(
+                "{} {} 0 0.6 0 -0.8 7\n",
+                i as f32 * 0.1,
+                j as f32 * 0.1
+            ));
+        }
+    }
+    std::fs::write(&ply, text).expect("write PLY");
+    let cases: [(&str, &[&str], [f64; 3]); 3] = [
+        ("keep", &["--normals"], [0.6, 0.0, -0.8]),
+        ("up", &["--normals", "--orient", "up"], [-0.6, 0.0, 0.8]),
+        ("compute", &["--normals", "compute"], [0.0, 0.0, 1.0]),
+    ];
+    for (name, flags, want) in cases {
+        let ds = dir.path().join(name);
+        let mut args = vec!["convert", s(&ply), "-o", s(&ds)];
+        args.extend(flags);
+        let out = run_ok(&args);
+        let warned = String::from_utf8_lossy(&out.stderr)
+            .contains("replaced the inputs' radius of 1600 points");
+        assert_eq!(warned, name == "compute", "{name}");
+        let got = points(&ds, grid(&ds));
+        assert_eq!(got.len(), 1600);
+        for (q, normal, radius, _) in got {
+            let n = normal.unwrap_or_else(|| panic!("{name}: no normal at {q:?}"));
+            assert!(angle(n, want) < 0.01, "{name}: {n:?} at {q:?}");
+            if name == "compute" {
+                assert!(radius < 1.0, "{name}: the estimate, not 7: {radius}");
+            } else {
+                assert_eq!(radius, 7.0, "{name}: the given radius at {q:?}");
+            }
+        }
+    }
+}

@@ -81,8 +81,8 @@ pub struct Args {
           conflicts_with_all = ["plan_only", "plan"])]
     format: OutputFormat,
     /// Estimate per-point normals, disc radii and surface variation from the k nearest
-    /// neighbours. `keep` (the default) keeps the inputs' normals where they have them;
-    /// `compute` replaces them.
+    /// neighbours. `keep` (the default) keeps the inputs' normals and disc radii where they
+    /// have them; `compute` replaces them.
     #[arg(long, value_enum, num_args = 0..=1, default_missing_value = "keep", value_name = "MODE")]
     normals: Option<NormalsArg>,
     /// Neighbours per estimate, the point itself included.
@@ -90,7 +90,8 @@ pub struct Args {
     normal_k: usize,
     /// Which way normals face: towards the scanner where the input says where it stood (E57
     /// poses, --viewpoint), else up (the default); or always up, always the scanner, or as
-    /// estimated (none).
+    /// estimated (none). `up` and `scanner` turn kept input normals too; by default they stay
+    /// as the inputs give them.
     #[arg(long, value_enum, requires = "normals")]
     orient: Option<OrientArg>,
     /// Where a single static scanner stood, X,Y,Z in the inputs' coordinates.

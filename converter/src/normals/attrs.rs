@@ -104,11 +104,6 @@ impl Targets {
         at..at + len
     }
 
-    /// Whether the row has a normal (one not all zero).
-    pub fn has_normal(&self, row: &[u8]) -> bool {
-        row[self.normal_bytes()].iter().any(|b| *b != 0) && self.normal(row).is_some()
-    }
-
     /// The row's normal; `None` where it has none (all zero).
     pub fn normal(&self, row: &[u8]) -> Option<[f64; 3]> {
         let (at, kind) = self.normal;
@@ -144,6 +139,13 @@ impl Targets {
                 }
             }
         }
+    }
+
+    /// The row's disc radius, where it holds one (an input's: positive and finite).
+    pub fn radius(&self, row: &[u8]) -> Option<f64> {
+        let (at, ty) = self.radius;
+        let r = ty.read_f64(&row[at..]);
+        (r > 0.0 && r.is_finite()).then_some(r)
     }
 
     pub fn put_radius(&self, row: &mut [u8], r: f64) {

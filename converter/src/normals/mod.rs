@@ -11,6 +11,7 @@ mod pca;
 mod row_order;
 mod select;
 mod surfel_size;
+mod widen;
 
 use crate::chunk_step::{ChunkRows, ChunkStep, Halo, StepTotals};
 use crate::error::{ConvertError, Result};
@@ -23,6 +24,7 @@ use pca::{covariance_of_steps, dot, principal};
 use strata_format::AttrType;
 use strata_format::{Attribute, Metadata, NormalsInfo, row_position};
 use surfel_size::{REGION, SAMPLE_EVERY, TriangleSizes, cluster};
+use widen::Wider;
 
 /// Which normals the step estimates.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
@@ -82,8 +84,9 @@ const COVER: f64 = 2.145_966_026_289_347; // √(ln 100)
 const SEARCH_FACTOR: f64 = 2.0;
 
 /// The estimate's rules, in a run's fingerprint: a run begun by a build that estimated
-/// otherwise (before points that fit no plane got none) does not resume into a mix of both.
-pub(crate) const RULES: u32 = 2;
+/// otherwise (before points that fit no plane got none; before neighbourhoods on one line
+/// grew) does not resume into a mix of both.
+pub(crate) const RULES: u32 = 3;
 
 /// The surface variation of a point with no normal: the most any neighbourhood has (an
 /// isotropic one), since none of its planes fits.
@@ -103,7 +106,9 @@ mod total {
     pub const TRIANGLES: usize = 5;
     pub const NO_NORMAL: usize = 6;
     pub const CAPPED: usize = 7;
-    pub const LEN: usize = 8;
+    /// Points whose input radius `--normals compute` replaced.
+    pub const RADIUS_REPLACED: usize = 8;
+    pub const LEN: usize = 9;
 }
 
 pub struct NormalStep {
@@ -225,6 +230,7 @@ impl ChunkStep for NormalStep {
         let rows = &mut *chunk.rows;
         let opts = &self.opts;
         let mut distinct = Distinct::default();
+        let mut wider = Wider::default();
         tree.all_nearest(
             k,
             search,
@@ -240,10 +246,22 @@ impl ChunkStep for NormalStep {
                 };
                 let steps = near.index.iter().map(|&j| tree.steps(t, j as usize));
                 let pc = principal(covariance_of_steps(steps, scale));
-                let plane = near.len() >= 3 && pc.spans_a_plane(scale);
+                let mut plane = near.len() >= 3 && pc.spans_a_plane(scale);
                 if near.len() < k {
                     totals[total::PARTIAL] += 1.0;
                 }
+                // k on one line, with more within the radius: perhaps one scan line of several.
+                let grown = match plane || near.len() < k {
+                    true => None,
+                    false => wider.plane(&tree, t, (near, pc), search, scale),
+                };
+                let (near, pc, k, cover) = match grown {
+                    Some(g) => {
+                        plane = true;
+                        (&wider.found, g.pc, g.size, g.cover)
+                    }
+                    None => (near, pc, k, 0.0),
+                };
                 let radius = if !plane {
                     // No surface to cover: a disc as wide as the gap to its nearest neighbour
                     // (a wire's points touch), and a point alone within the search radius (a
@@ -279,12 +297,22 @@ impl ChunkStep for NormalStep {
                     }
                 } else {
                     near.farthest().sqrt() * COVER / (k as f64).sqrt()
-                };
+                }
+                .max(cover);
                 let p = tree.points[t];
                 let q = [0, 1, 2].map(|a| (p[a] + origin[a] as f64) * scale[a]);
                 let row = &mut rows[i * stride..(i + 1) * stride];
-                totals[total::RADIUS_SUM] += radius;
-                targets.put_radius(row, radius);
+                // An input's disc (a splat's size) is kept as its normal is.
+                match (opts.mode, targets.radius(row)) {
+                    (NormalMode::Keep, Some(given)) => totals[total::RADIUS_SUM] += given,
+                    (mode, given) => {
+                        if mode == NormalMode::Compute && given.is_some() {
+                            totals[total::RADIUS_REPLACED] += 1.0;
+                        }
+                        totals[total::RADIUS_SUM] += radius;
+                        targets.put_radius(row, radius);
+                    }
+                }
                 targets.put_variation(
                     row,
                     if plane {
@@ -293,8 +321,18 @@ impl ChunkStep for NormalStep {
                         NO_PLANE_VARIATION
                     },
                 );
-                if opts.mode == NormalMode::Keep && targets.has_normal(row) {
+                if opts.mode == NormalMode::Keep
+                    && let Some(given) = targets.normal(row)
+                {
                     totals[total::KEPT] += 1.0;
+                    // A rule the user named holds for every normal; by default the inputs'
+                    // stay as they are (a mesh's face outwards, which `up` would undo).
+                    if matches!(opts.orient, Orient::Up | Orient::Scanner) {
+                        let turned = self.orient(given, q, targets.scanner(row), &at);
+                        if turned != given {
+                            targets.put_normal(row, turned);
+                        }
+                    }
                     return;
                 }
                 totals[total::COMPUTED] += 1.0;
@@ -377,12 +415,20 @@ impl ChunkStep for NormalStep {
                 2.0 * (self.opts.k as f64 / std::f64::consts::PI).sqrt(),
             ));
         }
+        if t(total::RADIUS_REPLACED) > 0.0 {
+            out.push(format!(
+                "--normals compute replaced the inputs' radius of {} points with the estimate \
+                 (--normals keep keeps them)",
+                t(total::RADIUS_REPLACED)
+            ));
+        }
         if t(total::NO_NORMAL) > 0.01 * points {
             out.push(format!(
                 "{:.1} % of the points have no normal, and small discs: fewer than three \
                  distinct positions within the search radius {r:.6}, or all on one line; where \
                  they are a surface sampled that sparsely, a --normal-radius of {:.1} times its \
-                 point spacing finds their neighbours",
+                 point spacing finds their neighbours, and where they are scan lines, one of \
+                 twice the gap between the lines",
                 share(t(total::NO_NORMAL)),
                 2.0 * (self.opts.k as f64 / std::f64::consts::PI).sqrt(),
             ));

@@ -509,3 +509,46 @@ fn repeated_positions_count_once() {
         "surfel size {repeated} against {once}"
     );
 }
+
+#[test]
+fn scan_lines_far_apart_for_their_spacing_get_the_plane_they_lie_in() {
+    // Twenty lines 0.1 apart on a tilted plane, a point every 2 mm along each (a mobile
+    // scanner's profiles): the 16 nearest of a point lie on its own line. Beside them, far
+    // off, one line alone (a wire), which fits no plane.
+    let dir = tempfile::tempdir().expect("tempdir");
+    let (along, across) = ([1.0, 0.0, 0.0], [0.0, 0.8, 0.6]);
+    let truth = [0.0, -0.6, 0.8];
+    let mut pts: Vec<[f64; 3]> = Vec::new();
+    for line in 0..20 {
+        for i in 0..500 {
+            let (u, v) = (i as f64 * 0.002, line as f64 * 0.1);
+            pts.push([0, 1, 2].map(|a| u * along[a] + v * across[a]));
+        }
+    }
+    let wire: Vec<[f64; 3]> = (0..500).map(|i| [i as f64 * 0.002, 0.0, 5.0]).collect();
+    pts.extend(&wire);
+    let ply = dir.path().join("lines.ply");
+    write_ply(&ply, &pts, None);
+    let out = dir.path().join("lines");
+    let step = NormalStep::new(NormalOptions {
+        orient: Orient::Up,
+        radius: Some(0.3),
+        ..NormalOptions::default()
+    })
+    .expect("options");
+    convert_with(&options(&ply, out.clone(), 1 << 30), &step).expect("convert");
+    let got = read_normals(&out);
+    assert_eq!(got.len(), pts.len());
+    for (_, p, n, radius, variation) in &got {
+        if p[2] > 4.0 {
+            assert!(n.is_none(), "the wire at {p:?} has a normal {n:?}");
+            continue;
+        }
+        let n = n.unwrap_or_else(|| panic!("no normal at {p:?}"));
+        assert!(angle(n, truth) < 0.5, "{n:?} at {p:?}");
+        assert!(*variation < 1e-3, "σ {variation} at {p:?}");
+        // Discs that close the 0.1 between lines, not the density's 6 mm.
+        assert!((0.05..0.06).contains(radius), "radius {radius} at {p:?}");
+    }
+    assert_eq!(normals_info(&out).no_normal, wire.len() as u64);
+}
