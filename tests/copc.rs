@@ -353,3 +353,28 @@ fn a_crs_copc_cannot_state_is_said() {
     let las = said("out.las");
     assert!(!las.contains("warning"), "{las}");
 }
+
+/// A folder where the COPC file would go is refused before anything is written; it failed
+/// after writing the whole file, when the file could not be moved into place. The header
+/// states no creation date (day and year 0, as the LAS export): it made one up.
+#[test]
+fn a_folder_named_like_the_copc_file_is_refused_at_once() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let dataset = common::converted("copc-fixture", "autzen_trim.laz", "autzen");
+    let folder = dir.path().join("taken.copc.laz");
+    std::fs::create_dir(&folder).expect("mkdir");
+    let err = common::refused(
+        &["export", s(&dataset), "-o", s(&folder), "--overwrite"],
+        &["is a folder; the output is a file"],
+    );
+    assert!(err.contains(s(&folder)), "{err}");
+    let left: Vec<_> = std::fs::read_dir(dir.path())
+        .expect("list")
+        .map(|e| e.expect("entry").file_name())
+        .collect();
+    assert_eq!(left, ["taken.copc.laz"], "nothing beside the folder");
+    let copc = dir.path().join("dated.copc.laz");
+    run_ok(&["export", s(&dataset), "-o", s(&copc)]);
+    let head = std::fs::read(&copc).expect("read");
+    assert_eq!(&head[90..94], &[0, 0, 0, 0], "creation day and year");
+}

@@ -183,3 +183,27 @@ fn a_second_conversion_into_one_potree2_output_is_refused_through_its_export() {
         "nothing beside the input and the output: {left:?}"
     );
 }
+
+/// A float attribute's range in metadata.json is that of its finite values: Potree scales
+/// colours by it, and an infinity went out as null, which is no number. One with none finite
+/// gets 0 to 0.
+#[test]
+fn float_ranges_leave_out_nan_and_infinities() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let (meta, _) = potree_of(
+        dir.path(),
+        "nf",
+        "ply\nformat ascii 1.0\nelement vertex 4\nproperty float x\nproperty float y\nproperty float z\nproperty float quality\nproperty float unknown\nend_header\n0 0 0 1.5 nan\n1 0 0 inf nan\n0 1 0 -inf nan\n0 0 1 -2 nan\n",
+    );
+    let range = |name: &str| {
+        let a = meta["attributes"]
+            .as_array()
+            .expect("attributes")
+            .iter()
+            .find(|a| a["name"] == name)
+            .unwrap_or_else(|| panic!("{name} in {meta}"));
+        (a["min"][0].as_f64(), a["max"][0].as_f64())
+    };
+    assert_eq!(range("quality"), (Some(-2.0), Some(1.5)));
+    assert_eq!(range("unknown"), (Some(0.0), Some(0.0)));
+}

@@ -58,12 +58,7 @@ fn copc_format(layout: &RowLayout) -> u8 {
 
 /// Writes `dataset` to `output` as COPC; returns the number of points written.
 pub fn export_copc(dataset: &Path, output: &Path, overwrite: bool) -> Result<u64> {
-    if output.exists() && !overwrite {
-        return Err(ConvertError::output(
-            output,
-            "output already exists (pass --overwrite to replace it)",
-        ));
-    }
+    crate::writers::check_file_output(output, overwrite)?;
     let ds = LocalDataset::open(dataset)?;
     let meta = ds.metadata().clone();
     let layout = ds.layout().clone();
@@ -430,8 +425,10 @@ fn finish(
     };
     h.extend_from_slice(&text("strata export"));
     h.extend_from_slice(&text(&format!("strata {}", env!("CARGO_PKG_VERSION"))));
-    h.extend_from_slice(&1u16.to_le_bytes()); // creation day
-    h.extend_from_slice(&2026u16.to_le_bytes()); // creation year
+    // Creation day and year 0, unknown, as the LAS export writes them: a date of its own
+    // would differ from run to run, and the dataset keeps none of its inputs'.
+    h.extend_from_slice(&0u16.to_le_bytes());
+    h.extend_from_slice(&0u16.to_le_bytes());
     h.extend_from_slice(&(HEADER_SIZE as u16).to_le_bytes());
     h.extend_from_slice(&(point_data as u32).to_le_bytes());
     h.extend_from_slice(&(vlrs.len() as u32).to_le_bytes());

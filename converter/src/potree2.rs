@@ -132,12 +132,15 @@ impl Column {
                 AttrType::I32 => scan!(i32, 4),
                 AttrType::U64 => scan!(u64, 8),
                 AttrType::I64 => scan!(i64, 8),
-                // Floats: NaN is no value; f16 never reaches export rows (widened to f32).
+                // Floats: NaN and the infinities are no range a viewer can scale colours to
+                // (nor JSON numbers); f16 never reaches export rows (widened to f32).
                 AttrType::F16 | AttrType::F32 | AttrType::F64 => {
                     for row in rows.chunks_exact(stride) {
                         let v = self.ty.read_f64(&row[at..]);
-                        min[c] = min[c].min(v);
-                        max[c] = max[c].max(v);
+                        if v.is_finite() {
+                            min[c] = min[c].min(v);
+                            max[c] = max[c].max(v);
+                        }
                     }
                 }
             }
@@ -382,9 +385,14 @@ fn write_dataset(
     let side = 1i64 << meta.cube.bits;
     let cube_min: Vec<f64> = (0..3).map(|k| real(k, meta.cube.min[k])).collect();
     let cube_max: Vec<f64> = (0..3).map(|k| real(k, meta.cube.min[k] + side)).collect();
-    for c in cols.iter_mut().filter(|c| c.min[0] > c.max[0]) {
-        c.min.fill(0.0);
-        c.max.fill(0.0);
+    // An element with no value (no points, or none finite): 0 to 0, a range a viewer can
+    // take, where null is none.
+    for c in cols.iter_mut() {
+        for (lo, hi) in c.min.iter_mut().zip(c.max.iter_mut()) {
+            if *lo > *hi {
+                (*lo, *hi) = (0.0, 0.0);
+            }
+        }
     }
     // The position's range in the dataset's coordinates, as PotreeConverter states it.
     for k in 0..3 {

@@ -72,6 +72,32 @@ impl std::io::Seek for Latched {
     }
 }
 
+/// Refuses an output file that exists (without `overwrite`) or that names a folder: found
+/// before any point is written, not when the finished file is moved into place.
+pub fn check_file_output(path: &Path, overwrite: bool) -> Result<()> {
+    if path.exists() && !overwrite {
+        return Err(ConvertError::output(
+            path,
+            "output already exists (pass --overwrite to replace it)",
+        ));
+    }
+    if path.is_dir() {
+        return Err(ConvertError::output(
+            path,
+            "is a folder; the output is a file",
+        ));
+    }
+    // `exp/x.las/` (or `exp/x.las/.`) names a folder: no file can be moved there.
+    let bytes = path.as_os_str().as_encoded_bytes();
+    if bytes.ends_with(b"/") || bytes.ends_with(b"/.") {
+        return Err(ConvertError::output(
+            path,
+            "ends with / or /., which names a folder; the output is a file",
+        ));
+    }
+    Ok(())
+}
+
 /// Opens a writer chosen by the extension of `path`. `points` is the exact number of rows
 /// that will be written (PLY needs it up front); the file states `crs` where its format can
 /// (LAS and LAZ).
@@ -105,27 +131,7 @@ pub fn open_writer(
              or NAME.las for plain LAS",
         ));
     }
-    if path.exists() && !overwrite {
-        return Err(ConvertError::output(
-            path,
-            "output already exists (pass --overwrite to replace it)",
-        ));
-    }
-    // Found before any point is written, not when the finished file is moved into place.
-    if path.is_dir() {
-        return Err(ConvertError::output(
-            path,
-            "is a folder; the output is a file",
-        ));
-    }
-    // `exp/x.las/` (or `exp/x.las/.`) names a folder: no file can be moved there.
-    let bytes = path.as_os_str().as_encoded_bytes();
-    if bytes.ends_with(b"/") || bytes.ends_with(b"/.") {
-        return Err(ConvertError::output(
-            path,
-            "ends with / or /., which names a folder; the output is a file",
-        ));
-    }
+    check_file_output(path, overwrite)?;
     let ext = path
         .extension()
         .and_then(|e| e.to_str())
