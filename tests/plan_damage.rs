@@ -115,6 +115,11 @@ fn an_edited_plan_is_refused_naming_plan_json_and_the_field() {
             Box::new(|v| v["threads"] = json!(1u64 << 40)),
             vec!["\"threads\" is 1099511627776"],
         ),
+        // An option that shapes the dataset: was blamed on another version of strata.
+        (
+            Box::new(|v| v["memory_limit"] = json!(v["memory_limit"].as_u64().expect("limit") / 2)),
+            vec!["the plan was edited"],
+        ),
         // Attributes cut short, of no size, or of another type: two panics, and rows read as
         // another type without a word.
         (

@@ -157,7 +157,8 @@ pub struct NormalsInfo {
     /// no plane is better than another.
     #[serde(default)]
     pub no_normal: u64,
-    /// Neighbours farther than this (real units) were not used.
+    /// Neighbours farther than this (real units) were not used; 0: no bound (the inputs
+    /// gave no density to make one from, as when every point lies at one position).
     #[serde(default)]
     pub search_radius: f64,
     /// The mean of the `radius` attribute over all points.

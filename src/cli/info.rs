@@ -132,7 +132,14 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
             "          mean radius {:.6}, surfel radius {:.6} ({} triangles)",
             n.mean_radius, n.surfel_radius, n.triangles
         );
-        println!("          search radius {:.6}", n.search_radius);
+        if n.search_radius >= 1e-3 {
+            println!("          search radius {:.6}", n.search_radius);
+        } else if n.search_radius > 0.0 {
+            // Finer than a millimetre in metres: six decimals would say 0.
+            println!("          search radius {:.6e}", n.search_radius);
+        } else {
+            println!("          search radius: none (the inputs gave no density to bound it)");
+        }
     }
     if !m.classes.is_empty() {
         println!("classes:");

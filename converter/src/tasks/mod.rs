@@ -266,7 +266,8 @@ impl TaskPlan {
                 ),
                 None => ConvertError::input(
                     plan_file(plan_dir),
-                    "made by another version of strata; make the plan again",
+                    "its options or fingerprint are not those it was made with (the plan was \
+                     edited, or made by another version of strata); make the plan again",
                 ),
             });
         }
