@@ -539,3 +539,28 @@ fn a_64_bit_integer_a_ply_double_cannot_hold_is_refused() {
     serials.sort_unstable();
     assert_eq!(serials, [12345, big]);
 }
+
+/// A colour under the short names `r g b` is one colour, as under `red green blue`; it was
+/// three scalars, which no viewer colours by.
+#[test]
+fn ply_colour_named_r_g_b_is_a_colour() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let (input, ds) = (dir.path().join("in.ply"), dir.path().join("ds"));
+    let text = "ply\nformat ascii 1.0\nelement vertex 2\nproperty float x\nproperty float y\nproperty float z\nproperty uchar r\nproperty uchar g\nproperty uchar b\nend_header\n0 0 0 10 20 30\n1 0 0 40 50 60\n";
+    std::fs::write(&input, text).expect("write");
+    run_ok(&["convert", s(&input), "-o", s(&ds), "-q"]);
+    let meta: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(ds.join("metadata.json")).expect("metadata"))
+            .expect("JSON");
+    let names: Vec<&str> = meta["attributes"]
+        .as_array()
+        .expect("attributes")
+        .iter()
+        .filter_map(|a| a["name"].as_str())
+        .collect();
+    assert!(names.contains(&"rgb"), "{names:?}");
+    assert!(
+        !names.iter().any(|n| ["r", "g", "b"].contains(n)),
+        "{names:?}"
+    );
+}

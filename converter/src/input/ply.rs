@@ -48,9 +48,10 @@ pub struct PlySource {
 
 /// Properties that group into one vector attribute: (attribute name, component property names).
 /// The first of a name's groups found is taken.
-const GROUPS: [(&str, [&str; 3]); 4] = [
+const GROUPS: [(&str, [&str; 3]); 5] = [
     ("rgb", ["red", "green", "blue"]),
     ("rgb", ["diffuse_red", "diffuse_green", "diffuse_blue"]),
+    ("rgb", ["r", "g", "b"]),
     ("normal", ["nx", "ny", "nz"]),
     ("normal", ["normal_x", "normal_y", "normal_z"]),
 ];
