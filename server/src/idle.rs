@@ -3,7 +3,10 @@
 //! and HTTP/2 are told apart) has a deadline of its own, from when the connection opens:
 //! hyper's header timeout starts only after that, and a client sending nothing, or HTTP/2's
 //! preface a byte at a time, held a connection for the idle limit, and again with each byte.
+//! On HTTP/2, progress is a request or an answer's bytes (`h2_frames`), not the frames that
+//! only keep a connection open.
 
+use crate::h2_frames::{FROM_CLIENT, FROM_SERVER, FrameScan};
 use std::pin::Pin;
 use std::task::{Context, Poll};
 use std::time::Duration;
@@ -21,6 +24,8 @@ pub struct IdleTimeout<S> {
     /// Bytes of the preface still to read before the opening is over (0: over); a byte that
     /// differs from the preface, or the first write (an answer), ends it too.
     opening: usize,
+    /// Once the whole preface came: the frames read and written.
+    http2: Option<(FrameScan, FrameScan)>,
 }
 
 impl<S> IdleTimeout<S> {
@@ -32,29 +37,58 @@ impl<S> IdleTimeout<S> {
             limit,
             timer: Box::pin(tokio::time::sleep(opening.min(limit))),
             opening: PREFACE.len(),
+            http2: None,
         }
     }
 
-    /// `read` (the bytes that came in), or (`None`) some went out.
-    fn progress(&mut self, read: Option<&[u8]>) {
+    /// Bytes that came in.
+    fn came_in(&mut self, mut bytes: &[u8]) {
         if self.opening > 0 {
-            match read {
-                Some(bytes) => {
-                    let at = PREFACE.len() - self.opening;
-                    let n = bytes.len().min(self.opening);
-                    self.opening = if bytes[..n] == PREFACE[at..at + n] {
-                        self.opening - n
-                    } else {
-                        0
-                    };
-                }
-                None => self.opening = 0,
-            }
+            let at = PREFACE.len() - self.opening;
+            let n = bytes.len().min(self.opening);
+            self.opening = if bytes[..n] == PREFACE[at..at + n] {
+                self.opening - n
+            } else {
+                0
+            };
             if self.opening > 0 {
                 // Still opening: the deadline stands.
                 return;
             }
+            if bytes[..n] == PREFACE[at..at + n] {
+                self.http2 = Some((FrameScan::new(FROM_CLIENT), FrameScan::new(FROM_SERVER)));
+                bytes = &bytes[n..];
+                // The preface itself is progress: the opening is over.
+                self.moved();
+            }
         }
+        if let Some((client, _)) = &mut self.http2
+            && !client.feed(bytes)
+        {
+            return;
+        }
+        self.moved();
+    }
+
+    /// Bytes that went out: the first `written` of those in `bufs`.
+    fn wrote<'b>(&mut self, bufs: impl Iterator<Item = &'b [u8]>, written: usize) {
+        self.opening = 0;
+        if let Some((_, server)) = &mut self.http2 {
+            let mut left = written;
+            let mut moving = false;
+            for b in bufs {
+                let n = left.min(b.len());
+                moving |= server.feed(&b[..n]);
+                left -= n;
+            }
+            if !moving {
+                return;
+            }
+        }
+        self.moved();
+    }
+
+    fn moved(&mut self) {
         self.timer.as_mut().reset(Instant::now() + self.limit);
     }
 
@@ -81,7 +115,7 @@ impl<S: AsyncRead + Unpin> AsyncRead for IdleTimeout<S> {
             Poll::Ready(r) => {
                 // End of input is no progress either: it is the client leaving.
                 if buf.filled().len() > before {
-                    this.progress(Some(&buf.filled()[before..]));
+                    this.came_in(&buf.filled()[before..]);
                 }
                 Poll::Ready(r)
             }
@@ -102,7 +136,7 @@ impl<S: AsyncWrite + Unpin> AsyncWrite for IdleTimeout<S> {
         let this = self.get_mut();
         match Pin::new(&mut this.inner).poll_write(cx, buf) {
             Poll::Ready(r) => {
-                this.progress(None);
+                this.wrote(std::iter::once(buf), *r.as_ref().unwrap_or(&0));
                 Poll::Ready(r)
             }
             Poll::Pending => match this.check(cx) {
@@ -122,7 +156,7 @@ impl<S: AsyncWrite + Unpin> AsyncWrite for IdleTimeout<S> {
         let this = self.get_mut();
         match Pin::new(&mut this.inner).poll_write_vectored(cx, bufs) {
             Poll::Ready(r) => {
-                this.progress(None);
+                this.wrote(bufs.iter().map(|b| &**b), *r.as_ref().unwrap_or(&0));
                 Poll::Ready(r)
             }
             Poll::Pending => match this.check(cx) {

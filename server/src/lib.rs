@@ -10,6 +10,7 @@ mod body;
 mod catalog;
 mod error;
 mod files;
+mod h2_frames;
 mod handler;
 mod idle;
 mod path;

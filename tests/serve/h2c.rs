@@ -66,3 +66,42 @@ where
     }
     out
 }
+
+/// An h2c connection that sends only PINGs makes no progress: it is closed at the idle limit.
+/// Each PING counted as progress, so a PING a minute held a connection (and the answers
+/// buffered on it) for good.
+#[test]
+fn pings_alone_do_not_hold_an_h2c_connection() {
+    use std::io::{Read, Write};
+    let server = Server::start_in(&root(), &["--quiet", "--idle-timeout", "2"]);
+    let mut conn = std::net::TcpStream::connect(&server.addr).expect("connect");
+    conn.set_read_timeout(Some(Duration::from_millis(300)))
+        .expect("timeout");
+    let mut opening = b"PRI * HTTP/2.0\r\n\r\nSM\r\n\r\n".to_vec();
+    opening.extend_from_slice(&[0, 0, 0, 4, 0, 0, 0, 0, 0]); // SETTINGS, empty
+    conn.write_all(&opening).expect("preface");
+    let ping = [0, 0, 8, 6, 0, 0, 0, 0, 0, 1, 2, 3, 4, 5, 6, 7, 8];
+    let start = std::time::Instant::now();
+    let mut buf = [0u8; 4096];
+    let closed = loop {
+        if start.elapsed() > Duration::from_secs(10) {
+            break false;
+        }
+        if conn.write_all(&ping).is_err() {
+            break true;
+        }
+        match conn.read(&mut buf) {
+            Ok(0) => break true,
+            Ok(_) => {}
+            Err(e) if e.kind() == std::io::ErrorKind::WouldBlock => {}
+            Err(e) if e.kind() == std::io::ErrorKind::TimedOut => {}
+            Err(_) => break true,
+        }
+    };
+    assert!(closed, "a connection sending PINGs was held for 10 s");
+    assert!(
+        start.elapsed() < Duration::from_secs(6),
+        "held {:?} with an idle limit of 2 s",
+        start.elapsed()
+    );
+}
