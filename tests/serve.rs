@@ -157,6 +157,20 @@ fn head_validators_multirange_and_listing() {
         .header("Last-Modified")
         .expect("last modified")
         .to_string();
+    // If-Modified-Since (RFC 9110, 13.1.3), which If-None-Match overrides; it was ignored.
+    assert_eq!(status_with(&[("If-Modified-Since", &modified)]), 304);
+    assert_eq!(status_with(&[("If-Modified-Since", epoch)]), 200);
+    let with_both = [
+        ("If-None-Match", "\"other\""),
+        ("If-Modified-Since", &modified),
+    ];
+    assert_eq!(status_with(&with_both), 200);
+    // If-None-Match and If-Match are lists: their lines are one list (only the first line
+    // was read).
+    let lines = [("If-None-Match", "\"other\""), ("If-None-Match", &etag)];
+    assert_eq!(status_with(&lines), 304);
+    let lines = [("If-Match", "\"other\""), ("If-Match", &etag)];
+    assert_eq!(status_with(&lines), 200);
     assert_eq!(
         status_with(&[("Range", "bytes=0-9"), ("If-Range", &modified)]),
         206

@@ -9,11 +9,15 @@ use crate::catalog::Catalog;
 use crate::path::{Refusal, segments};
 use crate::serve_file::{self, Conditions, Failure};
 use crate::server::ServerConfig;
-use hyper::body::Body;
+use bytes::Bytes;
+use http_body_util::BodyExt;
+use hyper::body::{Body, Frame, SizeHint};
 use hyper::header::{self, HeaderValue};
 use hyper::{Method, Request, Response, StatusCode, Version};
 use std::net::SocketAddr;
+use std::pin::Pin;
 use std::sync::Arc;
+use std::task::{Context, Poll};
 use std::time::Instant;
 
 /// What every request shares.
@@ -51,15 +55,70 @@ pub async fn handle<B>(
             h.insert(header::VARY, HeaderValue::from_static("Origin"));
         }
     }
-    if let Some(log) = &shared.log {
-        let bytes = resp.body().size_hint().exact().unwrap_or(0);
-        let mut entry = Entry::new(peer, resp.status().as_u16(), bytes, start.elapsed());
-        entry.method = req.method().to_string();
-        entry.path = req.uri().path().to_string();
-        entry.version = version_name(req.version());
-        log.log(&entry);
+    if shared.log.is_none() {
+        return Ok(resp);
     }
-    Ok(resp)
+    let mut entry = Entry::new(peer, resp.status().as_u16(), 0, start.elapsed());
+    entry.method = req.method().to_string();
+    entry.path = req.uri().path().to_string();
+    entry.version = version_name(req.version());
+    let shared = shared.clone();
+    Ok(resp.map(|body| {
+        LoggedBody {
+            inner: body,
+            entry,
+            start,
+            shared,
+        }
+        .boxed_unsync()
+    }))
+}
+
+/// An answer's body that logs its request when it ends or is dropped: with the bytes that went
+/// out and the time until then. Logged when the headers were ready, a download the client left,
+/// or a file cut short while it was read, showed the bytes the answer promised, and a download
+/// of minutes the milliseconds its headers took.
+struct LoggedBody {
+    inner: ResponseBody,
+    entry: Entry,
+    start: Instant,
+    shared: Arc<Shared>,
+}
+
+impl Body for LoggedBody {
+    type Data = Bytes;
+    type Error = std::io::Error;
+
+    fn poll_frame(
+        self: Pin<&mut Self>,
+        cx: &mut Context<'_>,
+    ) -> Poll<Option<Result<Frame<Bytes>, std::io::Error>>> {
+        let this = self.get_mut();
+        let frame = std::task::ready!(Pin::new(&mut this.inner).poll_frame(cx));
+        if let Some(Ok(f)) = &frame
+            && let Some(data) = f.data_ref()
+        {
+            this.entry.bytes += data.len() as u64;
+        }
+        Poll::Ready(frame)
+    }
+
+    fn is_end_stream(&self) -> bool {
+        self.inner.is_end_stream()
+    }
+
+    fn size_hint(&self) -> SizeHint {
+        self.inner.size_hint()
+    }
+}
+
+impl Drop for LoggedBody {
+    fn drop(&mut self) {
+        if let Some(log) = &self.shared.log {
+            self.entry.ms = self.start.elapsed().as_secs_f64() * 1e3;
+            log.log(&self.entry);
+        }
+    }
 }
 
 fn version_name(v: Version) -> &'static str {
@@ -125,6 +184,7 @@ async fn respond<B>(req: &Request<B>, shared: &Shared) -> Response<ResponseBody>
             header::ACCESS_CONTROL_ALLOW_HEADERS,
             HeaderValue::from_static(
                 "Range, If-Range, Authorization, If-None-Match, If-Match, If-Unmodified-Since, \
+                 If-Modified-Since, \
                  Content-Type",
             ),
         );

@@ -25,6 +25,7 @@ pub struct Conditions {
     if_none_match: Option<String>,
     if_match: Option<String>,
     if_unmodified_since: Option<String>,
+    if_modified_since: Option<String>,
     head: bool,
     /// Answers only for those who hold the token: no shared cache may keep them.
     private: bool,
@@ -32,19 +33,31 @@ pub struct Conditions {
 
 impl Conditions {
     pub fn of(headers: &HeaderMap, head: bool, private: bool) -> Conditions {
+        // A field given once; twice, it is no valid value (RFC 9110, 5.3), and is ignored.
         let get = |name| {
-            headers
-                .get(name)
-                .and_then(|v| v.to_str().ok())
-                .map(str::to_string)
+            let mut lines = headers.get_all(name).iter();
+            match (lines.next(), lines.next()) {
+                (Some(v), None) => v.to_str().ok().map(str::to_string),
+                _ => None,
+            }
+        };
+        // A list field (RFC 9110, 5.3): its lines are one list, joined by commas.
+        let list = |name| {
+            let lines: Option<Vec<&str>> = headers
+                .get_all(name)
+                .iter()
+                .map(|v| v.to_str().ok())
+                .collect();
+            lines.filter(|l| !l.is_empty()).map(|l| l.join(", "))
         };
         Conditions {
             // RFC 9110, 14.2: Range applies to GET alone; HEAD answers as for the whole.
             range: get(header::RANGE).filter(|_| !head),
             if_range: get(header::IF_RANGE),
-            if_none_match: get(header::IF_NONE_MATCH),
-            if_match: get(header::IF_MATCH),
+            if_none_match: list(header::IF_NONE_MATCH),
+            if_match: list(header::IF_MATCH),
             if_unmodified_since: get(header::IF_UNMODIFIED_SINCE),
+            if_modified_since: get(header::IF_MODIFIED_SINCE),
             head,
             private,
         }
@@ -82,6 +95,11 @@ pub enum Failure {
     Io,
 }
 
+/// Whole seconds since the epoch: HTTP dates hold no finer time.
+fn seconds(t: std::time::SystemTime) -> Option<u64> {
+    t.duration_since(UNIX_EPOCH).ok().map(|d| d.as_secs())
+}
+
 fn prepare(
     catalog: &Catalog,
     dataset: &str,
@@ -108,24 +126,30 @@ fn prepare(
     };
     let last_modified = modified.map(httpdate::fmt_http_date);
     // RFC 9110, 13.2.2: If-Match (strong comparison), else If-Unmodified-Since, then
-    // If-None-Match, then If-Range.
+    // If-None-Match, else If-Modified-Since, then If-Range.
     let strong = |v: &str| v.split(',').map(str::trim).any(|t| t == "*" || t == etag);
     let precondition_failed = match (&c.if_match, &c.if_unmodified_since) {
         (Some(m), _) => !strong(m),
         (None, Some(since)) => match (httpdate::parse_http_date(since.trim()), modified) {
-            (Ok(since), Some(m)) => m
-                .duration_since(UNIX_EPOCH)
-                .ok()
-                .zip(since.duration_since(UNIX_EPOCH).ok())
-                .is_some_and(|(m, s)| m.as_secs() > s.as_secs()),
+            (Ok(since), Some(m)) => seconds(m).zip(seconds(since)).is_some_and(|(m, s)| m > s),
             // An invalid date is ignored.
+            _ => false,
+        },
+        (None, None) => false,
+    };
+    // If-None-Match, else If-Modified-Since: not modified since the date the client holds
+    // (an invalid date is ignored).
+    let not_modified = match (&c.if_none_match, &c.if_modified_since) {
+        (Some(tags), _) => matches_etag(tags),
+        (None, Some(since)) => match (httpdate::parse_http_date(since.trim()), modified) {
+            (Ok(since), Some(m)) => seconds(m).zip(seconds(since)).is_some_and(|(m, s)| m <= s),
             _ => false,
         },
         (None, None) => false,
     };
     let outcome = if precondition_failed {
         Outcome::PreconditionFailed
-    } else if c.if_none_match.as_deref().is_some_and(matches_etag) {
+    } else if not_modified {
         Outcome::NotModified
     } else {
         // A range applies only while the representation is the one the client saw: the

@@ -419,3 +419,32 @@ fn a_dataset_whose_metadata_is_not_json_is_reported_once_and_not_served() {
         "reported more than once"
     );
 }
+
+/// A download the client leaves is logged with the bytes that went out, not those the answer
+/// promised (the log said the whole file, and the milliseconds its headers took).
+#[test]
+fn a_download_the_client_leaves_is_logged_with_what_was_sent() {
+    use std::io::{Read, Write};
+    let (server, log) = logging_server(&["--log-format", "json"]);
+    let path = "/city.strata/octree.bin";
+    let len = std::fs::metadata(root().join("city.strata/octree.bin"))
+        .expect("octree")
+        .len();
+    let mut stream = std::net::TcpStream::connect(&server.addr).expect("connect");
+    write!(
+        stream,
+        "GET {path} HTTP/1.1\r\nHost: x\r\nConnection: close\r\n\r\n"
+    )
+    .expect("request");
+    let mut first = vec![0u8; 64 << 10];
+    stream.read_exact(&mut first).expect("the answer's start");
+    drop(stream);
+    let line = next_line_with(&log, path).expect("logged");
+    let v: serde_json::Value = serde_json::from_str(&line).expect("a JSON line");
+    assert_eq!(v["status"], 200);
+    let sent = v["bytes"].as_u64().expect("bytes");
+    assert!(
+        sent < len,
+        "{sent} of {len} bytes logged for a download left after 64 KiB"
+    );
+}
