@@ -51,12 +51,13 @@ impl Entry {
     fn line(&self, format: LogFormat) -> String {
         match format {
             // A quote or a backslash in the path is escaped, so that the quoted request ends
-            // where it seems to.
+            // where it seems to, and any character but printable ASCII (an HTTP/2 path may
+            // carry raw UTF-8: a right-to-left mark turns the line around on a terminal).
             LogFormat::Text => format!(
                 "{} \"{} {} {}\" {} {} {:.1}ms\n",
                 self.client,
                 self.method,
-                self.path.replace('\\', "\\\\").replace('"', "\\\""),
+                escaped(&self.path),
                 self.version,
                 self.status,
                 self.bytes,
@@ -109,6 +110,23 @@ impl AccessLog {
     }
 }
 
+/// `path` with `"` and `\` escaped by a backslash, and characters other than printable ASCII
+/// as `\u{..}`.
+fn escaped(path: &str) -> String {
+    let mut out = String::with_capacity(path.len());
+    for c in path.chars() {
+        match c {
+            '"' | '\\' => {
+                out.push('\\');
+                out.push(c);
+            }
+            ' '..='~' => out.push(c),
+            _ => out.push_str(&format!("\\u{{{:x}}}", c as u32)),
+        }
+    }
+    out
+}
+
 fn write_lines(lines: Receiver<String>) {
     let mut err = std::io::BufWriter::with_capacity(64 * 1024, std::io::stderr());
     while let Ok(first) = lines.recv() {
@@ -135,5 +153,8 @@ mod tests {
             line.starts_with("127.0.0.1:9 \"GET /x\\\" HTTP/1.1\\\\ -\" 404 0"),
             "{line}"
         );
+        e.path = "/a\u{202e}b\u{7f}é".into();
+        let line = e.line(LogFormat::Text);
+        assert!(line.contains("/a\\u{202e}b\\u{7f}\\u{e9} -"), "{line}");
     }
 }
