@@ -453,62 +453,6 @@ fn an_empty_las_has_finite_bounds() {
     }
 }
 
-/// The records of the `LASF_Projection` user in a LAS file, by record id.
-fn crs_records(path: &Path) -> Vec<(u16, Vec<u8>)> {
-    let reader = las::Reader::from_path(path).expect("read LAS");
-    let h = reader.header();
-    let mut out: Vec<(u16, Vec<u8>)> = h
-        .vlrs()
-        .iter()
-        .chain(h.evlrs())
-        .filter(|v| v.user_id == "LASF_Projection")
-        .map(|v| (v.record_id, v.data.clone()))
-        .collect();
-    out.sort();
-    out
-}
-
-#[test]
-fn the_inputs_crs_goes_back_out_with_every_export() {
-    let dir = tempfile::tempdir().expect("tempdir");
-    let input = data("autzen_trim.las");
-    let ds = dir.path().join("ds");
-    run_ok(&["convert", s(&input), "-o", s(&ds), "-q"]);
-    let stated = crs_records(&input);
-    assert_eq!(
-        stated.iter().map(|r| r.0).collect::<Vec<_>>(),
-        [2112, 34735, 34736, 34737],
-        "the input states its CRS both ways"
-    );
-    // LAS: every record as the input had it (a trailing NUL of the text records aside).
-    let las_out = dir.path().join("out.las");
-    run_ok(&["export", s(&ds), "-o", s(&las_out)]);
-    let trimmed = |r: &[(u16, Vec<u8>)]| -> Vec<(u16, Vec<u8>)> {
-        r.iter()
-            .map(|(id, d)| {
-                let end = d.iter().rposition(|&b| b != 0).map_or(0, |i| i + 1);
-                (*id, d[..end].to_vec())
-            })
-            .collect()
-    };
-    assert_eq!(trimmed(&crs_records(&las_out)), trimmed(&stated));
-    // Format 3 here: the global encoding's WKT bit says to take the WKT.
-    let reader = las::Reader::from_path(&las_out).expect("read LAS");
-    assert!(reader.header().has_wkt_crs());
-    // COPC: the WKT alone, as COPC calls for.
-    let copc = dir.path().join("out.copc.laz");
-    run_ok(&["export", s(&ds), "-o", s(&copc)]);
-    assert_eq!(trimmed(&crs_records(&copc)), trimmed(&stated[..1]));
-    // Potree 2: the WKT as its projection.
-    let potree = dir.path().join("potree");
-    run_ok(&["export", s(&ds), "-o", s(&potree), "--format", "potree2"]);
-    let meta: serde_json::Value =
-        serde_json::from_slice(&std::fs::read(potree.join("metadata.json")).expect("metadata"))
-            .expect("json");
-    let wkt = String::from_utf8_lossy(&trimmed(&stated)[0].1).into_owned();
-    assert_eq!(meta["projection"], wkt.as_str());
-}
-
 /// A u64 extra attribute went out to PLY as a double, rounded without a word (2^53 + 1 read
 /// back as 2^53); it is refused there, naming the value, and kept whole in LAS.
 #[test]

@@ -1,6 +1,7 @@
 //! The coordinate reference system LAS files state (LAS 1.4 R15, section 2.5: records of the
 //! `LASF_Projection` user), read from the inputs and written again on export, as given.
 
+use crate::crs_identity::{codes, looks_like_wkt};
 use strata_format::{Crs, GeoTiffKeys};
 
 const USER: &str = "LASF_Projection";
@@ -9,8 +10,54 @@ const GEO_KEYS: u16 = 34735;
 const GEO_DOUBLES: u16 = 34736;
 const GEO_ASCII: u16 = 34737;
 
-/// The CRS of a file with these (extended) VLRs, where it states one.
-pub fn crs_of<'a>(vlrs: impl Iterator<Item = &'a las::Vlr> + Clone) -> Option<Crs> {
+/// The CRS of a file with these (extended) VLRs, where it states one, and what a user should
+/// hear of it. A WKT record that is no WKT is no CRS. Where the WKT and the GeoTIFF keys name
+/// two systems, the one the global encoding's WKT bit names (`wkt_bit`) is the file's (LAS 1.4
+/// R15, 2.5); where they name the same, or it cannot be told, both are kept.
+pub fn crs_of<'a>(
+    vlrs: impl Iterator<Item = &'a las::Vlr> + Clone,
+    wkt_bit: bool,
+) -> (Option<Crs>, Vec<String>) {
+    let mut notes = Vec::new();
+    let Some(mut crs) = stated(vlrs) else {
+        return (None, notes);
+    };
+    if let Some(wkt) = crs.wkt.take_if(|w| !looks_like_wkt(w)) {
+        notes.push(format!(
+            "its WKT record holds no WKT ({:?}...): it states no coordinate reference system",
+            wkt.chars().take(24).collect::<String>()
+        ));
+    }
+    if let (Some(wkt), Some(keys)) = codes(&crs)
+        && wkt != keys
+    {
+        let (kept, dropped) = if wkt_bit {
+            (&wkt, crs.geotiff.take().map(|_| &keys))
+        } else {
+            (&keys, crs.wkt.take().map(|_| &wkt))
+        };
+        notes.push(format!(
+            "its WKT ({}) and its GeoTIFF keys ({}) name two systems; the global encoding's WKT \
+             bit ({}) makes {} the file's, and {} is ignored",
+            epsg(&wkt),
+            epsg(&keys),
+            u8::from(wkt_bit),
+            epsg(kept),
+            dropped.map_or_else(String::new, |d| epsg(d)),
+        ));
+    }
+    let some = crs.wkt.is_some() || crs.geotiff.is_some();
+    (some.then_some(crs), notes)
+}
+
+/// `EPSG:32610`, or `EPSG:32610+5703` for a compound system.
+pub fn epsg(codes: &[u32]) -> String {
+    let codes: Vec<String> = codes.iter().map(u32::to_string).collect();
+    format!("EPSG:{}", codes.join("+"))
+}
+
+/// The CRS records of a file, as they are.
+fn stated<'a>(vlrs: impl Iterator<Item = &'a las::Vlr> + Clone) -> Option<Crs> {
     let find = |id: u16| {
         vlrs.clone()
             .find(|v| v.user_id == USER && v.record_id == id)
@@ -98,8 +145,8 @@ mod tests {
                 data,
             })
             .collect();
-        assert_eq!(crs_of(vlrs.iter()), Some(crs.clone()));
-        assert_eq!(crs_of([].iter()), None);
+        assert_eq!(crs_of(vlrs.iter(), true).0, Some(crs.clone()));
+        assert_eq!(crs_of([].iter(), true).0, None);
         // A double JSON cannot hold drops the keys, not the dataset.
         let mut nan = vlrs.clone();
         for v in nan.iter_mut().filter(|v| v.record_id == GEO_DOUBLES) {
@@ -109,6 +156,6 @@ mod tests {
             geotiff: None,
             ..crs
         };
-        assert_eq!(crs_of(nan.iter()), Some(wkt_only));
+        assert_eq!(crs_of(nan.iter(), true).0, Some(wkt_only));
     }
 }

@@ -5,6 +5,7 @@ pub mod chunk_step;
 pub mod copc;
 pub mod copc_describe;
 pub mod copc_nodes;
+pub mod crs_identity;
 pub mod disk;
 #[cfg(test)]
 mod disk_tests;

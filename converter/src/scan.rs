@@ -10,7 +10,7 @@ use crate::rows::batch_records;
 use crate::scan_angle::ScanAngleFill;
 use indicatif::ProgressBar;
 use std::path::{Path, PathBuf};
-use strata_format::{AttrType, Attribute, MAX_ATTRIBUTES, TimeBase};
+use strata_format::{AttrType, Attribute, Crs, MAX_ATTRIBUTES, TimeBase};
 
 pub const BATCH: usize = 1 << 18;
 
@@ -166,15 +166,48 @@ pub fn union_attributes(inputs: &[PathBuf], warnings: &mut Vec<String>) -> Resul
         summary.scanner_inputs.extend(scanners.iter().map(|_| i));
         match (&summary.crs, &src.info().crs) {
             (None, Some(crs)) => summary.crs = Some(crs.clone()),
-            (Some(kept), Some(crs)) if kept != crs => warnings.push(format!(
-                "{}: states another coordinate reference system than the inputs before it; the first one stated is kept",
-                path.display()
-            )),
+            (Some(kept), Some(crs)) if kept != crs => {
+                summary.crs = Some(merged_crs(kept, crs, path, warnings)?);
+            }
             _ => {}
         }
     }
     summary.attributes = union.into_iter().map(|(a, _)| a).collect();
     Ok(summary)
+}
+
+/// One system for inputs that state `kept` and then `crs`: the same EPSG codes, however
+/// written (WKT 1 or 2, GeoTIFF keys), are one system, stated every way the inputs did;
+/// different codes are refused, as points in two systems make no dataset; where the codes
+/// cannot be told, the first is kept, and said.
+fn merged_crs(kept: &Crs, crs: &Crs, path: &Path, warnings: &mut Vec<String>) -> Result<Crs> {
+    use crate::crs_identity::agreed_codes;
+    use crate::las_crs::epsg;
+    match (agreed_codes(kept), agreed_codes(crs)) {
+        (Some(a), Some(b)) if a == b => Ok(Crs {
+            wkt: kept.wkt.clone().or_else(|| crs.wkt.clone()),
+            geotiff: kept.geotiff.clone().or_else(|| crs.geotiff.clone()),
+        }),
+        (Some(a), Some(b)) => Err(ConvertError::input(
+            path,
+            format!(
+                "states the coordinate reference system {}, but the inputs before it {}: points \
+                 in two systems make no dataset; bring them into one first (PDAL's \
+                 filters.reprojection, for one)",
+                epsg(&b),
+                epsg(&a)
+            ),
+        )),
+        _ => {
+            warnings.push(format!(
+                "{}: states another coordinate reference system than the inputs before it (one \
+                 that names no EPSG code, so that they cannot be compared); the first one \
+                 stated is kept",
+                path.display()
+            ));
+            Ok(kept.clone())
+        }
+    }
 }
 
 pub fn scan(

@@ -251,12 +251,27 @@ impl LasRowWriter {
         if gps_time_adjusted(&layout.attributes) {
             builder.gps_time_type = las::GpsTimeType::Standard;
         }
-        // The CRS where the dataset has one (the point formats 6 to 10 call for WKT; GeoTIFF
-        // keys go out as the inputs gave them, there being no conversion here). The global
-        // encoding's WKT bit says which a reader takes: the WKT where there is one.
-        builder.has_wkt_crs = crs.is_some_and(|c| c.wkt.is_some());
-        for (user_id, record_id, description, data) in
-            crs.map(crate::las_crs::crs_records).unwrap_or_default()
+        // The CRS where the dataset has one, one way (LAS 1.4 R15, 2.5: formats 0 to 5 state
+        // it as GeoTIFF keys or WKT, not both; 6 to 10 as WKT). Where the dataset has both
+        // (they name one system), the legacy formats take the keys, which their readers know,
+        // and the others the WKT; keys alone go out as the inputs gave them, there being no
+        // conversion here. The global encoding's WKT bit says which a reader takes.
+        let stated = crs.map(|c| match (format_number < 6, &c.wkt, &c.geotiff) {
+            (true, _, Some(keys)) => Crs {
+                wkt: None,
+                geotiff: Some(keys.clone()),
+            },
+            (false, Some(wkt), _) => Crs {
+                wkt: Some(wkt.clone()),
+                geotiff: None,
+            },
+            _ => c.clone(),
+        });
+        builder.has_wkt_crs = stated.as_ref().is_some_and(|c| c.wkt.is_some());
+        for (user_id, record_id, description, data) in stated
+            .as_ref()
+            .map(crate::las_crs::crs_records)
+            .unwrap_or_default()
         {
             builder.vlrs.push(Vlr {
                 user_id: user_id.into(),

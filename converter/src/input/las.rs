@@ -110,6 +110,11 @@ impl LasSource {
                 ),
             ));
         }
+        let (crs, crs_notes) = crate::las_crs::crs_of(
+            header.vlrs().iter().chain(header.evlrs()),
+            header.has_wkt_crs(),
+        );
+        warnings.extend(crs_notes.iter().map(|n| format!("{}: {n}", path.display())));
         let data = PointDataBuilder::new().for_header(&header).build();
         let header_bounds = (raw.min, raw.max);
         Ok(LasSource {
@@ -120,7 +125,7 @@ impl LasSource {
                 precision: Precision::Scaled { scale, offset },
                 warnings,
                 scanners: Vec::new(),
-                crs: crate::las_crs::crs_of(header.vlrs().iter().chain(header.evlrs())),
+                crs,
             },
             reader,
             data,
