@@ -167,3 +167,33 @@ fn the_inputs_crs_goes_back_out_with_every_export() {
     let wkt = String::from_utf8_lossy(&trimmed(&stated)[0].1).into_owned();
     assert_eq!(meta["projection"], wkt.as_str());
 }
+
+/// An E57 file's coordinateMetadata is its CRS where it holds WKT (it was ignored without a
+/// word); other text states none, and is said.
+#[test]
+fn an_e57_states_its_crs_in_its_coordinate_metadata() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    for (name, text, want) in [("wkt", UTM10, true), ("code", "EPSG:32610", false)] {
+        let path = dir.path().join(format!("{name}.e57"));
+        let mut w = e57::E57Writer::from_file(&path, "strata-test-file").expect("e57 writer");
+        w.set_coordinate_metadata(Some(text.to_string()));
+        let prototype = vec![
+            e57::Record::CARTESIAN_X_F64,
+            e57::Record::CARTESIAN_Y_F64,
+            e57::Record::CARTESIAN_Z_F64,
+        ];
+        let mut pc = w.add_pointcloud("scan", prototype).expect("scan writer");
+        for i in 0..10 {
+            let p = [i as f64, 0.0, 0.0].map(e57::RecordValue::Double);
+            pc.add_point(p.to_vec()).expect("point");
+        }
+        pc.finalize().expect("scan written");
+        w.finalize().expect("file written");
+        let ds = dir.path().join(name);
+        let out = run_ok(&["convert", s(&path), "-o", s(&ds)]);
+        let crs = dataset_crs(&ds);
+        assert_eq!(crs["wkt"].as_str(), want.then_some(UTM10), "{name}: {crs}");
+        let said = String::from_utf8_lossy(&out.stderr).contains("is no WKT");
+        assert_eq!(said, !want, "{name}");
+    }
+}

@@ -10,6 +10,7 @@ use super::e57_limits::{OwnRanges, own_ranges};
 use super::las_header::range_lost;
 use super::laz_check::guarded;
 use super::{NO_SCANNER, PointSource, Precision, SourceInfo};
+use crate::crs_identity::looks_like_wkt;
 use crate::error::{ConvertError, Result};
 use crate::quantize::float_scale;
 use e57::{E57Reader, PointCloud, RecordDataType, RecordName};
@@ -17,6 +18,7 @@ use std::fs::File;
 use std::io::BufReader;
 use std::path::Path;
 use std::sync::mpsc::{Receiver, sync_channel};
+use strata_format::Crs;
 
 /// Bytes of the E57 file header.
 const HEADER_LEN: u64 = 48;
@@ -167,6 +169,23 @@ impl E57Source {
         let ranges = own_ranges(reader.xml(), &clouds);
         let mut warnings = unstated_ranges(path, &clouds, &ranges);
         warnings.extend(FileExtras::warnings(path, &clouds));
+        // The file's coordinateMetadata (ASTM E2807: the CRS of its world frame), as WKT.
+        let stated = reader
+            .coordinate_metadata()
+            .map(str::trim)
+            .filter(|t| !t.is_empty());
+        let crs = stated.filter(|t| looks_like_wkt(t)).map(|wkt| Crs {
+            wkt: Some(wkt.to_string()),
+            geotiff: None,
+        });
+        if let (Some(text), None) = (stated, &crs) {
+            warnings.push(format!(
+                "{}: its coordinateMetadata ({:?}...) is no WKT: it states no coordinate \
+                 reference system",
+                path.display(),
+                text.chars().take(24).collect::<String>()
+            ));
+        }
         let info = SourceInfo {
             path: path.to_path_buf(),
             points,
@@ -174,7 +193,7 @@ impl E57Source {
             precision: precision(&clouds),
             warnings,
             scanners: poses.iter().map(|p| p.translation).collect(),
-            crs: None,
+            crs,
         };
         Ok(E57Source {
             info,
