@@ -356,7 +356,8 @@ fn a_crs_copc_cannot_state_is_said() {
 
 /// A folder where the COPC file would go is refused before anything is written; it failed
 /// after writing the whole file, when the file could not be moved into place. The header
-/// states no creation date (day and year 0, as the LAS export): it made one up.
+/// states the day it was written, as the LAS export's does (it said 1 January 2026, and the
+/// LAS export day 0 of year 0, which is no date).
 #[test]
 fn a_folder_named_like_the_copc_file_is_refused_at_once() {
     let dir = tempfile::tempdir().expect("tempdir");
@@ -373,8 +374,22 @@ fn a_folder_named_like_the_copc_file_is_refused_at_once() {
         .map(|e| e.expect("entry").file_name())
         .collect();
     assert_eq!(left, ["taken.copc.laz"], "nothing beside the folder");
-    let copc = dir.path().join("dated.copc.laz");
-    run_ok(&["export", s(&dataset), "-o", s(&copc)]);
-    let head = std::fs::read(&copc).expect("read");
-    assert_eq!(&head[90..94], &[0, 0, 0, 0], "creation day and year");
+    let today = strata_converter::creation_date::today();
+    for name in ["dated.copc.laz", "dated.las"] {
+        let out = dir.path().join(name);
+        run_ok(&["export", s(&dataset), "-o", s(&out)]);
+        let head = std::fs::read(&out).expect("read");
+        let field = |at: usize| u16::from_le_bytes([head[at], head[at + 1]]);
+        let (day, year) = (field(90), field(92));
+        // Today, or (run across midnight) the day before.
+        assert!(
+            year == today.1 || year + 1 == today.1,
+            "{name}: year {year}"
+        );
+        assert!((1..=366).contains(&day), "{name}: day {day}");
+        assert!(
+            day == today.0 || day + 1 == today.0 || today.0 == 1,
+            "{name}: day {day}"
+        );
+    }
 }

@@ -425,10 +425,9 @@ fn finish(
     };
     h.extend_from_slice(&text("strata export"));
     h.extend_from_slice(&text(&format!("strata {}", env!("CARGO_PKG_VERSION"))));
-    // Creation day and year 0, unknown, as the LAS export writes them: a date of its own
-    // would differ from run to run, and the dataset keeps none of its inputs'.
-    h.extend_from_slice(&0u16.to_le_bytes());
-    h.extend_from_slice(&0u16.to_le_bytes());
+    let (day, year) = crate::creation_date::today();
+    h.extend_from_slice(&day.to_le_bytes());
+    h.extend_from_slice(&year.to_le_bytes());
     h.extend_from_slice(&(HEADER_SIZE as u16).to_le_bytes());
     h.extend_from_slice(&(point_data as u32).to_le_bytes());
     h.extend_from_slice(&(vlrs.len() as u32).to_le_bytes());

@@ -5,6 +5,7 @@ pub mod chunk_step;
 pub mod copc;
 pub mod copc_describe;
 pub mod copc_nodes;
+pub mod creation_date;
 pub mod crs_identity;
 pub mod disk;
 #[cfg(test)]
