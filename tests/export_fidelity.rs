@@ -508,3 +508,58 @@ fn ply_colour_named_r_g_b_is_a_colour() {
         "{names:?}"
     );
 }
+
+/// An extra attribute's no-data value (Extra Bytes descriptor option bit 0) goes back out to
+/// LAS and COPC as the input stated it; it was dropped, and the marker read as a real value.
+#[test]
+fn extra_bytes_no_data_goes_back_out() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let (input, ds) = (dir.path().join("nodata.las"), dir.path().join("ds"));
+    // "height" f64 (type 10) with no_data -9999; "count" u32 (type 5) with no_data u32::MAX.
+    let field = |name: &str, code: u8, no_data: u64| {
+        let mut d = vec![0u8; 192];
+        d[2] = code;
+        d[3] = 0x01;
+        d[4..4 + name.len()].copy_from_slice(name.as_bytes());
+        d[40..48].copy_from_slice(&no_data.to_le_bytes());
+        d
+    };
+    let height = (-9999.0f64).to_bits();
+    let count = u64::from(u32::MAX);
+    let descriptor = [field("height", 10, height), field("count", 5, count)].concat();
+    let extra = |h: f64, c: u32| [h.to_le_bytes().to_vec(), c.to_le_bytes().to_vec()].concat();
+    let points = [
+        ([0.0, 0.0, 0.0], extra(-9999.0, 7)),
+        ([1.0, 0.0, 0.0], extra(2.5, u32::MAX)),
+    ];
+    extra_bytes_las(&input, descriptor, false, &points);
+    run_ok(&["convert", s(&input), "-o", s(&ds), "-q"]);
+    for name in ["out.las", "out.copc.laz"] {
+        let out = dir.path().join(name);
+        run_ok(&["export", s(&ds), "-o", s(&out)]);
+        let reader = las::Reader::from_path(&out).expect("read");
+        let h = reader.header();
+        let vlr = h
+            .vlrs()
+            .iter()
+            .chain(h.evlrs())
+            .find(|v| v.user_id == "LASF_Spec" && v.record_id == 4)
+            .expect("an Extra Bytes VLR");
+        let stated: Vec<(String, u8, u64)> = vlr
+            .data
+            .chunks_exact(192)
+            .map(|d| {
+                let end = d[4..36].iter().position(|&b| b == 0).unwrap_or(32);
+                let name = String::from_utf8_lossy(&d[4..4 + end]).into_owned();
+                let no_data = u64::from_le_bytes(d[40..48].try_into().expect("8 bytes"));
+                (name, d[3] & 0x01, no_data)
+            })
+            .collect();
+        for (field, value) in [("height", height), ("count", count)] {
+            assert!(
+                stated.contains(&(field.to_string(), 1, value)),
+                "{name}: {field} in {stated:?}"
+            );
+        }
+    }
+}

@@ -263,7 +263,13 @@ pub fn widened(layout: &RowLayout, target: Target) -> Widened {
                 (Step::Copy, a.ty)
             };
             steps.push(step);
-            Attribute { ty, ..a.clone() }
+            // A no-value marker is a raw value of the stored type: of another, it means none.
+            let no_data = a.no_data.clone().filter(|_| ty == a.ty);
+            Attribute {
+                ty,
+                no_data,
+                ..a.clone()
+            }
         })
         .collect();
     Widened {

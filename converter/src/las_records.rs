@@ -420,6 +420,12 @@ fn eb_descriptor(a: &Attribute) -> Vec<u8> {
     };
     put(112, &a.scale, 0x08);
     put(136, &a.offset, 0x10);
+    if let (Some(values), true) = (&a.no_data, code != 0) {
+        for (i, v) in values.iter().take(3).enumerate() {
+            d[40 + i * 8..48 + i * 8].copy_from_slice(&v.to_le_bytes());
+        }
+        d[3] |= 0x01;
+    }
     let name = text_prefix(&a.name, 32);
     d[4..4 + name.len()].copy_from_slice(name);
     let desc = text_prefix(&a.description, 32);

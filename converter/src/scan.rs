@@ -139,6 +139,18 @@ pub fn union_attributes(inputs: &[PathBuf], warnings: &mut Vec<String>) -> Resul
                             ),
                         ));
                     }
+                    // One input's no-value marker may be another's real value: where they
+                    // differ, none is stated.
+                    if u.no_data.is_some() && u.no_data != a.no_data {
+                        u.no_data = None;
+                        warnings.push(format!(
+                            "{}: its \"{}\" has another no-data value than in {} (or none); the \
+                             dataset states none",
+                            path.display(),
+                            a.name,
+                            first.display()
+                        ));
+                    }
                 }
                 None => union.push((a.clone(), path.clone())),
             }

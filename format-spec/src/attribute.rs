@@ -102,6 +102,11 @@ pub struct Attribute {
     /// encoding's bit 0). Two time bases never meet in one attribute.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub time_base: Option<TimeBase>,
+    /// The raw value that stands for "no value" (LAS extra bytes' `no_data`, descriptor
+    /// option bit 0), per component as the descriptor's eight bytes hold it (an integer type's
+    /// value, a float's bits), read as little-endian u64: kept exact for exports to state again.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub no_data: Option<Vec<u64>>,
 }
 
 /// What the values of a time attribute count from (SPEC.md section 4).
@@ -134,6 +139,7 @@ impl Attribute {
             description: String::new(),
             encoding: None,
             time_base: None,
+            no_data: None,
         }
     }
 

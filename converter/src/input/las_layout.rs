@@ -313,6 +313,18 @@ pub fn parse_extra_bytes(
                     _ => attribute.offset = Some(values),
                 }
             }
+            // no_data (option bit 0; not for type 0, whose options byte is its length).
+            if data_type != 0 && options & 0x01 != 0 {
+                attribute.no_data = Some(
+                    (0..count as usize)
+                        .map(|i| {
+                            let mut b = [0u8; 8];
+                            b.copy_from_slice(&d[40 + i * 8..48 + i * 8]);
+                            u64::from_le_bytes(b)
+                        })
+                        .collect(),
+                );
+            }
             let desc_end = d[160..192].iter().position(|&b| b == 0).unwrap_or(32);
             attribute.description = String::from_utf8_lossy(&d[160..160 + desc_end])
                 .chars()
