@@ -109,6 +109,14 @@ fn inputs_merge_in_one_system_and_are_refused_in_two() {
         &["EPSG:32611", "EPSG:32610", "two systems"],
     );
     assert!(!two.exists());
+    // Behind a first input that names no code, the two are still told apart.
+    let local = dir.path().join("local.las");
+    let site = br#"LOCAL_CS["site grid",UNIT["metre",1]]"#.to_vec();
+    las_with_crs(&local, 1, true, &[(2112, site)], 3.0);
+    refused(
+        &["convert", s(&local), s(&a), s(&c), "-o", s(&two)],
+        &["EPSG:32611", "EPSG:32610", "two systems"],
+    );
 }
 
 /// The records of the `LASF_Projection` user in a LAS file, by record id.

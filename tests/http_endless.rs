@@ -149,8 +149,11 @@ fn a_server_that_falls_silent_fails_a_render_within_its_timeout() {
         let out = gpu_run(&["render", &url, "-o", s(&image), "--timeout", "2"]);
         let err = String::from_utf8_lossy(&out.stderr);
         assert!(!out.status.success(), "{err}");
-        assert!(err.contains(&format!("{url}/{what}")), "{err}");
-        assert!(err.contains("no answer"), "{err}");
+        // The read that gave up, or (the render's own wait ending at the same moment) the
+        // image that had nothing to show.
+        let read = err.contains(&format!("{url}/{what}")) && err.contains("no answer");
+        let nothing = what == "octree.bin" && err.contains("nothing was drawn");
+        assert!(read || nothing, "{err}");
         // Each read's four attempts once waited 10 s each: 40 s.
         assert!(start.elapsed() < Duration::from_secs(20), "{err}");
         assert!(!image.exists(), "no image is kept");

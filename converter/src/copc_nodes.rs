@@ -28,15 +28,27 @@ pub struct Grid {
     offset: [f64; 3],
 }
 
+/// The centre of a cube `half` either side of it whose low corner is `low` as a reader
+/// computes it (centre - half): rounding put that above the cube's, and so above its lowest
+/// point, by a hair, so the centre steps down until it is not.
+fn centre_above(low: f64, half: f64) -> f64 {
+    let mut centre = low + half;
+    while centre - half > low {
+        centre = centre.next_down();
+    }
+    centre
+}
+
 impl Grid {
     pub fn of(meta: &Metadata) -> Grid {
         let s = meta.scale;
         let edge = s.iter().fold(0.0f64, |m, v| m.max(*v)) * (1u64 << meta.cube.bits) as f64;
+        let half = edge / 2.0;
         Grid {
             centre: std::array::from_fn(|k| {
-                meta.offset[k] + s[k] * meta.cube.min[k] as f64 + edge / 2.0
+                centre_above(meta.offset[k] + s[k] * meta.cube.min[k] as f64, half)
             }),
-            half: edge / 2.0,
+            half,
             scale: s,
             offset: meta.offset,
         }
@@ -164,6 +176,18 @@ mod tests {
                         || (i == cells - 1.0 && real >= g.low(k, cells, i));
                     assert!(inside || at_ends, "{p:?} level {level} axis {k}: cell {i}");
                 }
+            }
+        }
+    }
+
+    #[test]
+    fn the_cube_a_reader_computes_holds_its_low_corner() {
+        // 100.08 with a half of 0.01 * 2^19: centre - half was 100.0800000000745.
+        for low in [100.08, 0.1, 1e6 + 0.07, -37.13, 3.3, 0.0] {
+            for half in [0.01 * 524_288.0, 655.36, 1e-9 * 512.0] {
+                let centre = centre_above(low, half);
+                assert!(centre - half <= low, "{low} {half}");
+                assert!(low + half - centre < 1e-9 * half.max(1.0), "{low} {half}");
             }
         }
     }

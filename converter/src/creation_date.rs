@@ -1,35 +1,33 @@
 //! A LAS file's creation date (LAS 1.4 R15: the day of the year, GMT, January 1 being day 1,
 //! and the year): today's, as PDAL and LAStools write it. Day and year 0 are no date.
 
+use chrono::{Datelike, NaiveDate};
 use std::time::{SystemTime, UNIX_EPOCH};
 
-/// Today's (day of the year, year), in UTC.
+/// Days from 0001-01-01 (chrono's day 1 of the common era) to 1970-01-01.
+const EPOCH_FROM_CE: i64 = 719_163;
+
+/// Today's (day of the year, year), in UTC; (0, 0) where the clock says no date after 1970.
 pub fn today() -> (u16, u16) {
-    let days = SystemTime::now()
+    SystemTime::now()
         .duration_since(UNIX_EPOCH)
-        .map_or(0, |d| d.as_secs() / 86_400);
-    day_of_year(days)
+        .map_or((0, 0), |d| day_of_year(d.as_secs() / 86_400))
 }
 
 /// The (day of the year, year) of the day `days` after 1970-01-01.
-pub fn day_of_year(mut days: u64) -> (u16, u16) {
-    let mut year = 1970u64;
-    loop {
-        let leap =
-            (year.is_multiple_of(4) && !year.is_multiple_of(100)) || year.is_multiple_of(400);
-        let length = if leap { 366 } else { 365 };
-        if days < length {
-            return ((days + 1) as u16, year.min(u16::MAX as u64) as u16);
-        }
-        days -= length;
-        year += 1;
-    }
+pub fn day_of_year(days: u64) -> (u16, u16) {
+    i64::try_from(days)
+        .ok()
+        .and_then(|d| i32::try_from(d + EPOCH_FROM_CE).ok())
+        .and_then(NaiveDate::from_num_days_from_ce_opt)
+        .and_then(|d| Some((d.ordinal() as u16, u16::try_from(d.year()).ok()?)))
+        .unwrap_or((0, 0))
 }
 
 /// Today as `las`'s header builder takes it.
-pub fn today_date() -> Option<chrono::NaiveDate> {
+pub fn today_date() -> Option<NaiveDate> {
     let (day, year) = today();
-    chrono::NaiveDate::from_yo_opt(i32::from(year), u32::from(day))
+    NaiveDate::from_yo_opt(i32::from(year), u32::from(day))
 }
 
 #[cfg(test)]

@@ -45,15 +45,21 @@ pub fn looks_like_wkt(text: &str) -> bool {
 
 /// The EPSG codes a WKT names, sorted; `None` where it names none.
 pub fn wkt_codes(wkt: &str) -> Option<Vec<u32>> {
-    let node = Node::parse(wkt.trim())?;
+    // Three levels are all the codes need (a compound, its parts, their authorities): a file's
+    // brackets nested thousands deep are not followed (each level is a call and a copy).
+    let node = Node::parse(wkt.trim(), 3)?;
+    let compound = matches!(node.keyword.as_str(), "COMPD_CS" | "COMPOUNDCRS");
     let mut codes = match node.authority() {
         Some(code) => vec![code],
-        // A compound without a code of its own: its parts'.
-        None => node
+        // A compound without a code of its own: its parts'. Another node's children (a datum,
+        // a unit) are no system.
+        None if compound => node
             .children
             .iter()
+            .filter(|c| c.keyword != "AUTHORITY" && c.keyword != "ID")
             .map(Node::authority)
             .collect::<Option<Vec<_>>>()?,
+        None => return None,
     };
     codes.sort_unstable();
     (!codes.is_empty()).then_some(codes)
@@ -106,17 +112,21 @@ struct Node {
 }
 
 impl Node {
-    fn parse(text: &str) -> Option<Node> {
+    /// `text` as a node, its children parsed `levels - 1` deep.
+    fn parse(text: &str, levels: u32) -> Option<Node> {
         let open = text.find(['[', '('])?;
         let keyword = text[..open].trim().to_ascii_uppercase();
         let inner = text[open + 1..].trim_end();
         let inner = inner.strip_suffix([']', ')'])?;
         let args = split_top_level(inner);
-        let children = args
-            .iter()
-            .filter(|a| a.contains(['[', '(']) && !a.trim_start().starts_with('"'))
-            .filter_map(|a| Node::parse(a.trim()))
-            .collect();
+        let children = match levels {
+            0 | 1 => Vec::new(),
+            _ => args
+                .iter()
+                .filter(|a| a.contains(['[', '(']) && !a.trim_start().starts_with('"'))
+                .filter_map(|a| Node::parse(a.trim(), levels - 1))
+                .collect(),
+        };
         Some(Node {
             keyword,
             args,
@@ -190,9 +200,16 @@ mod tests {
         assert_eq!(wkt_codes(COMPOUND), Some(vec![5703, 32610]));
         let both = keys(&[[1024, 0, 1, 1], [3072, 0, 1, 32610], [4096, 0, 1, 5703]]);
         assert_eq!(geotiff_codes(&both), Some(vec![5703, 32610]));
-        // No code: user-defined keys, a WKT without authority.
+        // No code: user-defined keys, a WKT without authority (its datum's and unit's codes
+        // are no system's).
         assert_eq!(geotiff_codes(&keys(&[[3072, 0, 1, 32767]])), None);
         assert_eq!(wkt_codes(r#"LOCAL_CS["site grid",UNIT["metre",1]]"#), None);
+        let datum_only = r#"GEOGCS["x",DATUM["d",AUTHORITY["EPSG","6326"]],UNIT["degree",0.01,AUTHORITY["EPSG","9122"]]]"#;
+        assert_eq!(wkt_codes(datum_only), None);
+        // Brackets nested far deeper than any system: no stack overflow, no code.
+        let deep = format!("{}{}", "A[".repeat(100_000), "]".repeat(100_000));
+        assert!(looks_like_wkt(&deep));
+        assert_eq!(wkt_codes(&deep), None);
     }
 
     #[test]

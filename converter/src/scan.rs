@@ -2,8 +2,10 @@
 //! records in the dataset's attribute layout (compressed, `rowfile`), checking coordinates and
 //! measuring extents.
 
+use crate::crs_identity::agreed_codes;
 use crate::error::{ConvertError, Result};
 use crate::input::{NO_SCANNER, SCANNER, SourceInfo, open_source};
+use crate::las_crs::epsg;
 use crate::quantize::SourceExtent;
 use crate::rowfile::RowWriter;
 use crate::rows::batch_records;
@@ -53,6 +55,7 @@ pub struct InputsSummary {
 pub fn union_attributes(inputs: &[PathBuf], warnings: &mut Vec<String>) -> Result<InputsSummary> {
     let mut union: Vec<(Attribute, PathBuf)> = Vec::new();
     let mut summary = InputsSummary::default();
+    let mut first_coded: Option<(Vec<u32>, PathBuf)> = None;
     let mut seen: Vec<(PathBuf, &PathBuf)> = Vec::new();
     for (i, path) in inputs.iter().enumerate() {
         let src = open_source(path)?;
@@ -176,10 +179,31 @@ pub fn union_attributes(inputs: &[PathBuf], warnings: &mut Vec<String>) -> Resul
         }
         summary.scanners.extend_from_slice(scanners);
         summary.scanner_inputs.extend(scanners.iter().map(|_| i));
+        // Every input that names EPSG codes names the first such input's: points in two
+        // systems make no dataset.
+        if let Some(codes) = src.info().crs.as_ref().and_then(agreed_codes) {
+            match &first_coded {
+                None => first_coded = Some((codes, path.clone())),
+                Some((first, at)) if *first != codes => {
+                    return Err(ConvertError::input(
+                        path,
+                        format!(
+                            "states the coordinate reference system {}, but {} states {}: \
+                             points in two systems make no dataset; bring them into one first \
+                             (PDAL's filters.reprojection, for one)",
+                            epsg(&codes),
+                            at.display(),
+                            epsg(first)
+                        ),
+                    ));
+                }
+                Some(_) => {}
+            }
+        }
         match (&summary.crs, &src.info().crs) {
             (None, Some(crs)) => summary.crs = Some(crs.clone()),
             (Some(kept), Some(crs)) if kept != crs => {
-                summary.crs = Some(merged_crs(kept, crs, path, warnings)?);
+                summary.crs = Some(merged_crs(kept, crs, path, warnings));
             }
             _ => {}
         }
@@ -188,28 +212,16 @@ pub fn union_attributes(inputs: &[PathBuf], warnings: &mut Vec<String>) -> Resul
     Ok(summary)
 }
 
-/// One system for inputs that state `kept` and then `crs`: the same EPSG codes, however
-/// written (WKT 1 or 2, GeoTIFF keys), are one system, stated every way the inputs did;
-/// different codes are refused, as points in two systems make no dataset; where the codes
-/// cannot be told, the first is kept, and said.
-fn merged_crs(kept: &Crs, crs: &Crs, path: &Path, warnings: &mut Vec<String>) -> Result<Crs> {
-    use crate::crs_identity::agreed_codes;
-    use crate::las_crs::epsg;
+/// One system for inputs that state `kept` and then `crs` (two EPSG systems were refused
+/// before): the same codes, however written (WKT 1 or 2, GeoTIFF keys), are one system,
+/// stated every way the inputs did; where the codes cannot be told, the first is kept, and
+/// said.
+fn merged_crs(kept: &Crs, crs: &Crs, path: &Path, warnings: &mut Vec<String>) -> Crs {
     match (agreed_codes(kept), agreed_codes(crs)) {
-        (Some(a), Some(b)) if a == b => Ok(Crs {
+        (Some(a), Some(b)) if a == b => Crs {
             wkt: kept.wkt.clone().or_else(|| crs.wkt.clone()),
             geotiff: kept.geotiff.clone().or_else(|| crs.geotiff.clone()),
-        }),
-        (Some(a), Some(b)) => Err(ConvertError::input(
-            path,
-            format!(
-                "states the coordinate reference system {}, but the inputs before it {}: points \
-                 in two systems make no dataset; bring them into one first (PDAL's \
-                 filters.reprojection, for one)",
-                epsg(&b),
-                epsg(&a)
-            ),
-        )),
+        },
         _ => {
             warnings.push(format!(
                 "{}: states another coordinate reference system than the inputs before it (one \
@@ -217,7 +229,7 @@ fn merged_crs(kept: &Crs, crs: &Crs, path: &Path, warnings: &mut Vec<String>) ->
                  stated is kept",
                 path.display()
             ));
-            Ok(kept.clone())
+            kept.clone()
         }
     }
 }

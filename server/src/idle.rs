@@ -6,7 +6,7 @@
 //! On HTTP/2, progress is a request or an answer's bytes (`h2_frames`), not the frames that
 //! only keep a connection open.
 
-use crate::h2_frames::{FROM_CLIENT, FROM_SERVER, FrameScan};
+use crate::h2_frames::{FrameScan, Side};
 use std::pin::Pin;
 use std::task::{Context, Poll};
 use std::time::Duration;
@@ -56,7 +56,7 @@ impl<S> IdleTimeout<S> {
                 return;
             }
             if bytes[..n] == PREFACE[at..at + n] {
-                self.http2 = Some((FrameScan::new(FROM_CLIENT), FrameScan::new(FROM_SERVER)));
+                self.http2 = Some((FrameScan::new(Side::Client), FrameScan::new(Side::Server)));
                 bytes = &bytes[n..];
                 // The preface itself is progress: the opening is over.
                 self.moved();

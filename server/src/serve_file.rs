@@ -53,7 +53,11 @@ impl Conditions {
         Conditions {
             // RFC 9110, 14.2: Range applies to GET alone; HEAD answers as for the whole.
             range: get(header::RANGE).filter(|_| !head),
-            if_range: get(header::IF_RANGE),
+            // Present but no single valid value: a validator nothing matches, so that the
+            // Range is not applied (taken as absent, it applied to whatever the file is now).
+            if_range: headers
+                .contains_key(header::IF_RANGE)
+                .then(|| get(header::IF_RANGE).unwrap_or_default()),
             if_none_match: list(header::IF_NONE_MATCH),
             if_match: list(header::IF_MATCH),
             if_unmodified_since: get(header::IF_UNMODIFIED_SINCE),

@@ -170,13 +170,9 @@ impl HttpSource {
         let started = tokio::time::Instant::now();
         let mut delay = Duration::from_millis(100);
         let mut attempt = 0;
+        let deadline = self.opts.give_up_after.map(|bound| started + bound);
         loop {
-            let left = self
-                .opts
-                .give_up_after
-                .map(|bound| bound.saturating_sub(started.elapsed()));
-            let wait = left.map_or(self.opts.timeout, |left| left.min(self.opts.timeout));
-            match self.fetch_once(&url, want, wait).await {
+            match self.fetch_once(&url, want, deadline).await {
                 Ok(b) => return Ok(b),
                 Err(Failure::Permanent(what)) => return Err(ViewerError::source(&url, what)),
                 Err(Failure::Transient(what))
@@ -207,19 +203,29 @@ impl HttpSource {
         }
     }
 
-    /// One attempt, waiting at most `wait` for the whole answer.
+    /// One attempt, waiting at most `timeout` for the whole answer, and not past `deadline`
+    /// (the wait for a request slot included).
     async fn fetch_once(
         &self,
         url: &str,
         want: Want,
-        wait: Duration,
+        deadline: Option<tokio::time::Instant>,
     ) -> Result<(Vec<u8>, Option<u64>), Failure> {
         let range = want.range();
-        let _slot = self
-            .slots
-            .acquire()
-            .await
-            .map_err(|_| Failure::Transient("client shutting down".into()))?;
+        let late = || Failure::Transient("no answer within the time given".into());
+        let slot = self.slots.acquire();
+        let _slot = match deadline {
+            Some(d) => tokio::time::timeout_at(d, slot).await.map_err(|_| late())?,
+            None => slot.await,
+        }
+        .map_err(|_| Failure::Transient("client shutting down".into()))?;
+        let wait = deadline.map_or(self.opts.timeout, |d| {
+            d.saturating_duration_since(tokio::time::Instant::now())
+                .min(self.opts.timeout)
+        });
+        if wait.is_zero() {
+            return Err(late());
+        }
         let mut req = Request::get(url);
         if let Some((offset, len)) = range {
             req = req.header(
