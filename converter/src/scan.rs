@@ -98,6 +98,24 @@ pub fn union_attributes(inputs: &[PathBuf], warnings: &mut Vec<String>) -> Resul
                         ),
                     ));
                 }
+                // An E57 without acquisitionStart stamps its points from an unknown start:
+                // beside times of a base they would be read in it.
+                Some((u, first))
+                    if (relative(path, a) && u.time_base.is_some())
+                        || (relative(first, u) && a.time_base.is_some()) =>
+                {
+                    return Err(ConvertError::input(
+                        path,
+                        format!(
+                            "its \"{}\" and that of {} cannot make one attribute: one of them \
+                             counts from an unknown start (an E57 without acquisitionStart), the \
+                             other in {}; convert them apart",
+                            a.name,
+                            first.display(),
+                            a.time_base.or(u.time_base).map_or("", TimeBase::name),
+                        ),
+                    ));
+                }
                 Some((u, first))
                     if u.time_base.is_some()
                         && a.time_base.is_some()
@@ -210,6 +228,16 @@ pub fn union_attributes(inputs: &[PathBuf], warnings: &mut Vec<String>) -> Resul
     }
     summary.attributes = union.into_iter().map(|(a, _)| a).collect();
     Ok(summary)
+}
+
+/// Whether `a`, read from `path`, is an E57's time from an unknown start (its file gave no
+/// acquisitionStart), where a PLY's time of no stated base may be of any.
+fn relative(path: &Path, a: &Attribute) -> bool {
+    a.name == "gps_time"
+        && a.time_base.is_none()
+        && path
+            .extension()
+            .is_some_and(|e| e.eq_ignore_ascii_case("e57"))
 }
 
 /// One system for inputs that state `kept` and then `crs` (two EPSG systems were refused

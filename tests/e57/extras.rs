@@ -117,3 +117,59 @@ fn return_numbers_and_time_stamps_are_kept() {
         assert_eq!((scanner, number, count, t), want, "point {k}");
     }
 }
+
+/// Time stamps from an unknown start (no acquisitionStart) beside a LAS's adjusted standard
+/// GPS time are refused: the dataset said adjusted standard time for all of them.
+#[test]
+fn stamps_from_an_unknown_start_do_not_join_times_of_a_base() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let e57_path = dir.path().join("relative.e57");
+    let mut w = e57::E57Writer::from_file(&e57_path, "strata-test-relative").expect("writer");
+    let prototype = vec![
+        e57::Record::CARTESIAN_X_F64,
+        e57::Record::CARTESIAN_Y_F64,
+        e57::Record::CARTESIAN_Z_F64,
+        e57::Record {
+            name: e57::RecordName::TimeStamp,
+            data_type: e57::RecordDataType::Double {
+                min: None,
+                max: None,
+            },
+        },
+    ];
+    let mut pc = w.add_pointcloud("untimed", prototype).expect("scan");
+    for k in 0..4 {
+        let values = [k as f64, 0.0, 0.0, 0.5 * k as f64].map(e57::RecordValue::Double);
+        pc.add_point(values.to_vec()).expect("point");
+    }
+    pc.finalize().expect("scan written");
+    w.finalize().expect("file written");
+    let las_path = dir.path().join("adjusted.las");
+    let mut builder = las::Builder::from((1, 4));
+    builder.point_format = las::point::Format::new(1).expect("format");
+    builder.gps_time_type = las::GpsTimeType::Standard;
+    let mut writer =
+        las::Writer::from_path(&las_path, builder.into_header().expect("header")).expect("LAS");
+    let point = las::Point {
+        gps_time: Some(3.1e8),
+        return_number: 1,
+        number_of_returns: 1,
+        ..Default::default()
+    };
+    writer.write_point(point).expect("point");
+    writer.close().expect("close");
+    for inputs in [[&e57_path, &las_path], [&las_path, &e57_path]] {
+        let out = dir.path().join("mixed");
+        common::refused(
+            &[
+                "convert",
+                common::s(inputs[0]),
+                common::s(inputs[1]),
+                "-o",
+                common::s(&out),
+            ],
+            &["unknown start", "adjusted standard GPS time"],
+        );
+        assert!(!out.exists());
+    }
+}
