@@ -166,6 +166,11 @@ fn the_inputs_crs_goes_back_out_with_every_export() {
     let copc = dir.path().join("out.copc.laz");
     run_ok(&["export", s(&ds), "-o", s(&copc)]);
     assert_eq!(trimmed(&crs_records(&copc)), trimmed(&stated[..1]));
+    // PLY has no place for one: said.
+    let ply = dir.path().join("out.ply");
+    let out = run_ok(&["export", s(&ds), "-o", s(&ply)]);
+    let said = String::from_utf8_lossy(&out.stderr);
+    assert!(said.contains("PLY has no place"), "{said}");
     // Potree 2: the WKT as its projection.
     let potree = dir.path().join("potree");
     run_ok(&["export", s(&ds), "-o", s(&potree), "--format", "potree2"]);

@@ -423,7 +423,7 @@ fn finish(
         f[..t.len().min(32)].copy_from_slice(&t.as_bytes()[..t.len().min(32)]);
         f
     };
-    h.extend_from_slice(&text("strata export"));
+    h.extend_from_slice(&text("strata"));
     h.extend_from_slice(&text(&format!("strata {}", env!("CARGO_PKG_VERSION"))));
     let (day, year) = crate::creation_date::today();
     h.extend_from_slice(&day.to_le_bytes());

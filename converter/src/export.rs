@@ -71,12 +71,24 @@ pub fn export(dataset: &Path, output: &Path, overwrite: bool) -> Result<u64> {
     write_then_finish(writer, output, write_all)
 }
 
-/// What the output cannot state of the dataset's coordinate reference system, to be said: one
-/// given as GeoTIFF keys only, where the output states a CRS as WKT alone (COPC, Potree 2.0,
-/// LAS point formats 6 to 10). Strata does not translate GeoTIFF keys into WKT.
+/// What the output cannot state of the dataset's coordinate reference system, to be said: any
+/// in PLY, which has no place for one; one given as GeoTIFF keys only, where the output states
+/// a CRS as WKT alone (COPC, Potree 2.0, LAS point formats 6 to 10). Strata does not translate
+/// GeoTIFF keys into WKT.
 pub fn crs_loss(dataset: &Path, output: &Path, potree2: bool) -> Result<Option<String>> {
     let ds = LocalDataset::open(dataset)?;
     let meta = ds.metadata();
+    let ply = !potree2
+        && output
+            .extension()
+            .is_some_and(|e| e.eq_ignore_ascii_case("ply"));
+    if ply && meta.crs.is_some() {
+        return Ok(Some(format!(
+            "{}: PLY has no place for the dataset's coordinate reference system; the output \
+             states none (LAS, COPC and Potree 2.0 do)",
+            output.display()
+        )));
+    }
     if !meta
         .crs
         .as_ref()

@@ -249,6 +249,7 @@ impl LasRowWriter {
         };
         builder.generating_software = format!("strata {}", env!("CARGO_PKG_VERSION"));
         builder.date = crate::creation_date::today_date();
+        builder.system_identifier = "strata".into();
         if gps_time_adjusted(&layout.attributes) {
             builder.gps_time_type = las::GpsTimeType::Standard;
         }
