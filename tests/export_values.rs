@@ -261,3 +261,26 @@ fn a_copc_las_name_is_refused() {
         export_refused(&ds, Path::new(&slashed), &["which names a folder"]);
     }
 }
+
+/// Time stamps of no base (a PLY's) go to LAS as GPS week time, LAS having no "unknown": that
+/// is said; to PLY, which states none, it is not.
+#[test]
+fn times_of_no_base_are_said_when_las_states_one() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let (input, ds) = (dir.path().join("timed.ply"), dir.path().join("ds"));
+    ply(
+        &input,
+        &[("double", "gps_time")],
+        &[vec!["5e8".into()], vec!["5.1e8".into()]],
+    );
+    run_ok(&["convert", s(&input), "-o", s(&ds), "-q"]);
+    for (name, warned) in [
+        ("out.las", true),
+        ("out.copc.laz", true),
+        ("out.ply", false),
+    ] {
+        let out = run_ok(&["export", s(&ds), "-o", s(&dir.path().join(name))]);
+        let said = String::from_utf8_lossy(&out.stderr).contains("states no time base");
+        assert_eq!(said, warned, "{name}");
+    }
+}

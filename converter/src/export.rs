@@ -71,6 +71,32 @@ pub fn export(dataset: &Path, output: &Path, overwrite: bool) -> Result<u64> {
     write_then_finish(writer, output, write_all)
 }
 
+/// What a LAS output (LAS, LAZ, COPC) would claim of time stamps with no base, to be said: LAS
+/// has no "unknown", and global encoding bit 0 clear states GPS week time.
+pub fn time_base_claim(dataset: &Path, output: &Path, potree2: bool) -> Result<Option<String>> {
+    let las = !potree2
+        && output
+            .extension()
+            .is_some_and(|e| e.eq_ignore_ascii_case("las") || e.eq_ignore_ascii_case("laz"));
+    if !las {
+        return Ok(None);
+    }
+    let ds = LocalDataset::open(dataset)?;
+    let unknown = ds
+        .metadata()
+        .attributes
+        .iter()
+        .any(|a| a.name == "gps_time" && a.time_base.is_none());
+    Ok(unknown.then(|| {
+        format!(
+            "{}: the dataset's gps_time states no time base (its inputs gave none), and LAS \
+             has no place for \"unknown\": the output states GPS week time (global encoding \
+             bit 0 clear)",
+            output.display()
+        )
+    }))
+}
+
 /// What the output cannot state of the dataset's coordinate reference system, to be said: any
 /// in PLY, which has no place for one; one given as GeoTIFF keys only, where the output states
 /// a CRS as WKT alone (COPC, Potree 2.0, LAS point formats 6 to 10). Strata does not translate

@@ -26,7 +26,11 @@ pub enum ExportFormat {
 
 pub fn run(a: Args) -> anyhow::Result<ExitCode> {
     let potree2 = a.format == Some(ExportFormat::Potree2);
-    if let Some(w) = strata_converter::export::crs_loss(&a.dataset, &a.output, potree2)? {
+    let said = [
+        strata_converter::export::crs_loss(&a.dataset, &a.output, potree2)?,
+        strata_converter::export::time_base_claim(&a.dataset, &a.output, potree2)?,
+    ];
+    for w in said.iter().flatten() {
         eprintln!("warning: {w}");
     }
     match a.format {
