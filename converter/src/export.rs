@@ -71,83 +71,89 @@ pub fn export(dataset: &Path, output: &Path, overwrite: bool) -> Result<u64> {
     write_then_finish(writer, output, write_all)
 }
 
-/// What a LAS output (LAS, LAZ, COPC) would claim of time stamps with no base, to be said: LAS
-/// has no "unknown", and global encoding bit 0 clear states GPS week time.
-pub fn time_base_claim(dataset: &Path, output: &Path, potree2: bool) -> Result<Option<String>> {
-    let las = !potree2
-        && output
-            .extension()
-            .is_some_and(|e| e.eq_ignore_ascii_case("las") || e.eq_ignore_ascii_case("laz"));
-    if !las {
-        return Ok(None);
-    }
+/// What an export to `output` cannot state of the dataset, to be said before it is written:
+/// its coordinate reference system (`crs_loss`), and a time base it lacks (`time_base_claim`).
+pub fn export_notes(dataset: &Path, output: &Path, potree2: bool) -> Result<Vec<String>> {
     let ds = LocalDataset::open(dataset)?;
+    let ext = output
+        .extension()
+        .and_then(|e| e.to_str())
+        .map(str::to_ascii_lowercase);
+    let kind = match ext.as_deref() {
+        _ if potree2 => Output::Potree2,
+        _ if is_copc(output) => Output::Copc,
+        Some("las" | "laz") => Output::Las,
+        Some("ply") => Output::Ply,
+        _ => Output::Other,
+    };
+    let said = |what: String| format!("{}: {what}", output.display());
+    Ok([crs_loss(&ds, kind), time_base_claim(&ds, kind)]
+        .into_iter()
+        .flatten()
+        .map(said)
+        .collect())
+}
+
+/// What an export writes.
+#[derive(Clone, Copy, PartialEq)]
+enum Output {
+    Las,
+    Copc,
+    Ply,
+    Potree2,
+    Other,
+}
+
+/// Time stamps of no base going to LAS or COPC: LAS has no "unknown", and global encoding
+/// bit 0 clear states GPS week time.
+fn time_base_claim(ds: &LocalDataset, kind: Output) -> Option<String> {
     let unknown = ds
         .metadata()
         .attributes
         .iter()
         .any(|a| a.name == "gps_time" && a.time_base.is_none());
-    Ok(unknown.then(|| {
-        format!(
-            "{}: the dataset's gps_time states no time base (its inputs gave none), and LAS \
-             has no place for \"unknown\": the output states GPS week time (global encoding \
-             bit 0 clear)",
-            output.display()
-        )
-    }))
+    (unknown && matches!(kind, Output::Las | Output::Copc)).then(|| {
+        "the dataset's gps_time states no time base (its inputs gave none), and LAS has no \
+         place for \"unknown\": the output states GPS week time (global encoding bit 0 clear)"
+            .to_string()
+    })
 }
 
-/// What the output cannot state of the dataset's coordinate reference system, to be said: any
-/// in PLY, which has no place for one; one given as GeoTIFF keys only, where the output states
-/// a CRS as WKT alone (COPC, Potree 2.0, LAS point formats 6 to 10). Strata does not translate
+/// The dataset's coordinate reference system where the output cannot state it: any in PLY,
+/// which has no place for one; one given as GeoTIFF keys only, where the output states a CRS
+/// as WKT alone (COPC, Potree 2.0, LAS point formats 6 to 10). Strata does not translate
 /// GeoTIFF keys into WKT.
-pub fn crs_loss(dataset: &Path, output: &Path, potree2: bool) -> Result<Option<String>> {
-    let ds = LocalDataset::open(dataset)?;
-    let meta = ds.metadata();
-    let ply = !potree2
-        && output
-            .extension()
-            .is_some_and(|e| e.eq_ignore_ascii_case("ply"));
-    if ply && meta.crs.is_some() {
-        return Ok(Some(format!(
-            "{}: PLY has no place for the dataset's coordinate reference system; the output \
-             states none (LAS, COPC and Potree 2.0 do)",
-            output.display()
-        )));
+fn crs_loss(ds: &LocalDataset, kind: Output) -> Option<String> {
+    let crs = ds.metadata().crs.as_ref()?;
+    if kind == Output::Ply {
+        return Some(
+            "PLY has no place for the dataset's coordinate reference system; the output states \
+             none (LAS, COPC and Potree 2.0 do)"
+                .into(),
+        );
     }
-    if !meta
-        .crs
-        .as_ref()
-        .is_some_and(|c| c.wkt.is_none() && c.geotiff.is_some())
-    {
-        return Ok(None);
+    if crs.wkt.is_some() || crs.geotiff.is_none() {
+        return None;
     }
-    let ext = output
-        .extension()
-        .and_then(|e| e.to_str())
-        .map(str::to_ascii_lowercase);
-    let lost = if potree2 {
-        Some("Potree 2.0 states one as WKT, so the output states none".to_string())
-    } else if is_copc(output) {
-        Some("COPC states one as WKT, so the output states none".to_string())
-    } else if matches!(ext.as_deref(), Some("las" | "laz")) {
-        let format = crate::writers::las_format_for(&widened(ds.layout(), Target::Las).layout);
-        (format >= 6).then(|| {
+    let lost = match kind {
+        Output::Potree2 => "Potree 2.0 states one as WKT, so the output states none".to_string(),
+        Output::Copc => "COPC states one as WKT, so the output states none".to_string(),
+        Output::Las => {
+            let format = crate::writers::las_format_for(&widened(ds.layout(), Target::Las).layout);
+            if format < 6 {
+                return None;
+            }
             format!(
                 "point format {format} states one as WKT; the output carries the GeoTIFF keys, \
                  which readers that follow the format ignore"
             )
-        })
-    } else {
-        None
+        }
+        Output::Ply | Output::Other => return None,
     };
-    Ok(lost.map(|lost| {
-        format!(
-            "{}: the dataset's coordinate reference system is given as GeoTIFF keys only, and \
-             {lost} (strata does not translate GeoTIFF keys into WKT)",
-            output.display()
-        )
-    }))
+    Some(format!(
+        "the dataset's coordinate reference system is given as GeoTIFF keys only, and {lost} \
+         (strata does not translate GeoTIFF keys into WKT)"
+    ))
 }
 
 /// Refuses a node whose coordinates the metadata's scale and offset make non-finite: a scale

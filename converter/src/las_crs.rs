@@ -32,9 +32,11 @@ pub fn crs_of<'a>(
         && wkt != keys
     {
         let (kept, dropped) = if wkt_bit {
-            (&wkt, crs.geotiff.take().map(|_| &keys))
+            crs.geotiff = None;
+            (&wkt, &keys)
         } else {
-            (&keys, crs.wkt.take().map(|_| &wkt))
+            crs.wkt = None;
+            (&keys, &wkt)
         };
         notes.push(format!(
             "its WKT ({}) and its GeoTIFF keys ({}) name two systems; the global encoding's WKT \
@@ -43,7 +45,7 @@ pub fn crs_of<'a>(
             epsg(&keys),
             u8::from(wkt_bit),
             epsg(kept),
-            dropped.map_or_else(String::new, |d| epsg(d)),
+            epsg(dropped),
         ));
     }
     let some = crs.wkt.is_some() || crs.geotiff.is_some();

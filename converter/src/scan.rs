@@ -53,7 +53,9 @@ pub struct InputsSummary {
 /// error naming both files) and their scanners. The inputs' own warnings (renamed attributes)
 /// are added to `warnings`.
 pub fn union_attributes(inputs: &[PathBuf], warnings: &mut Vec<String>) -> Result<InputsSummary> {
-    let mut union: Vec<(Attribute, PathBuf)> = Vec::new();
+    // Per attribute: as merged, the input it came from first, and whether an input's time so
+    // far counts from an unknown start.
+    let mut union: Vec<(Attribute, PathBuf, bool)> = Vec::new();
     let mut summary = InputsSummary::default();
     let mut first_coded: Option<(Vec<u32>, PathBuf)> = None;
     let mut seen: Vec<(PathBuf, &PathBuf)> = Vec::new();
@@ -83,8 +85,9 @@ pub fn union_attributes(inputs: &[PathBuf], warnings: &mut Vec<String>) -> Resul
             ));
         }
         for a in &src.info().attributes {
-            match union.iter_mut().find(|(u, _)| u.name == a.name) {
-                Some((u, first)) if u.ty != a.ty || u.count != a.count => {
+            let relative = src.info().time_from_unknown_start && a.name == "gps_time";
+            match union.iter_mut().find(|(u, ..)| u.name == a.name) {
+                Some((u, first, _)) if u.ty != a.ty || u.count != a.count => {
                     return Err(ConvertError::input(
                         path,
                         format!(
@@ -100,9 +103,9 @@ pub fn union_attributes(inputs: &[PathBuf], warnings: &mut Vec<String>) -> Resul
                 }
                 // An E57 without acquisitionStart stamps its points from an unknown start:
                 // beside times of a base they would be read in it.
-                Some((u, first))
-                    if (relative(path, a) && u.time_base.is_some())
-                        || (relative(first, u) && a.time_base.is_some()) =>
+                Some((u, first, any_relative))
+                    if (relative && u.time_base.is_some())
+                        || (*any_relative && a.time_base.is_some()) =>
                 {
                     return Err(ConvertError::input(
                         path,
@@ -116,7 +119,7 @@ pub fn union_attributes(inputs: &[PathBuf], warnings: &mut Vec<String>) -> Resul
                         ),
                     ));
                 }
-                Some((u, first))
+                Some((u, first, _))
                     if u.time_base.is_some()
                         && a.time_base.is_some()
                         && u.time_base != a.time_base =>
@@ -134,9 +137,11 @@ pub fn union_attributes(inputs: &[PathBuf], warnings: &mut Vec<String>) -> Resul
                         ),
                     ));
                 }
-                Some((u, first)) => {
-                    // An input that does not say (a PLY) takes the others' time base.
+                Some((u, first, any_relative)) => {
+                    // An input that does not say (a PLY) takes the others' time base; once
+                    // one counts from an unknown start, no later base may join.
                     u.time_base = u.time_base.or(a.time_base);
+                    *any_relative |= relative;
                     // The rows keep the raw integers: one scale must hold for every input.
                     let differs = (0..a.count as usize).find(|&c| u.scaling(c) != a.scaling(c));
                     if let Some(c) = differs {
@@ -173,7 +178,7 @@ pub fn union_attributes(inputs: &[PathBuf], warnings: &mut Vec<String>) -> Resul
                         ));
                     }
                 }
-                None => union.push((a.clone(), path.clone())),
+                None => union.push((a.clone(), path.clone(), relative)),
             }
         }
         if union.len() > MAX_ATTRIBUTES {
@@ -226,18 +231,8 @@ pub fn union_attributes(inputs: &[PathBuf], warnings: &mut Vec<String>) -> Resul
             _ => {}
         }
     }
-    summary.attributes = union.into_iter().map(|(a, _)| a).collect();
+    summary.attributes = union.into_iter().map(|(a, ..)| a).collect();
     Ok(summary)
-}
-
-/// Whether `a`, read from `path`, is an E57's time from an unknown start (its file gave no
-/// acquisitionStart), where a PLY's time of no stated base may be of any.
-fn relative(path: &Path, a: &Attribute) -> bool {
-    a.name == "gps_time"
-        && a.time_base.is_none()
-        && path
-            .extension()
-            .is_some_and(|e| e.eq_ignore_ascii_case("e57"))
 }
 
 /// One system for inputs that state `kept` and then `crs` (two EPSG systems were refused

@@ -236,7 +236,7 @@ fn convert_to_potree2(
     // that no --resume could continue).
     opts.overwrite = true;
     let summary = convert_with(&opts, step)?;
-    let crs_loss = strata_converter::export::crs_loss(&source, &output, true);
+    let notes = strata_converter::export::export_notes(&source, &output, true);
     let exported = strata_converter::potree2::export_potree2(&source, &output, replace);
     std::fs::remove_dir_all(&source)
         .with_context(|| format!("cannot remove {}", source.display()))?;
@@ -251,11 +251,7 @@ fn convert_to_potree2(
             output.display()
         );
     }
-    for w in summary
-        .warnings
-        .iter()
-        .chain(crs_loss.ok().flatten().as_ref())
-    {
+    for w in summary.warnings.iter().chain(notes.iter().flatten()) {
         eprintln!("warning: {w}");
     }
     write_stats(stats, serde_json::to_string_pretty(&summary))

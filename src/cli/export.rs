@@ -26,11 +26,7 @@ pub enum ExportFormat {
 
 pub fn run(a: Args) -> anyhow::Result<ExitCode> {
     let potree2 = a.format == Some(ExportFormat::Potree2);
-    let said = [
-        strata_converter::export::crs_loss(&a.dataset, &a.output, potree2)?,
-        strata_converter::export::time_base_claim(&a.dataset, &a.output, potree2)?,
-    ];
-    for w in said.iter().flatten() {
+    for w in strata_converter::export::export_notes(&a.dataset, &a.output, potree2)? {
         eprintln!("warning: {w}");
     }
     match a.format {

@@ -165,7 +165,8 @@ impl E57Source {
         }
         let rgb = clouds.iter().any(PointCloud::has_color);
         let intensity = clouds.iter().any(PointCloud::has_intensity);
-        let (shape, attributes) = RowShape::new(rgb, intensity, FileExtras::of(&clouds));
+        let extras = FileExtras::of(&clouds);
+        let (shape, attributes) = RowShape::new(rgb, intensity, extras);
         let ranges = own_ranges(reader.xml(), &clouds);
         let mut warnings = unstated_ranges(path, &clouds, &ranges);
         warnings.extend(FileExtras::warnings(path, &clouds));
@@ -194,6 +195,7 @@ impl E57Source {
             warnings,
             scanners: poses.iter().map(|p| p.translation).collect(),
             crs,
+            time_from_unknown_start: extras.time == Some(None),
         };
         Ok(E57Source {
             info,

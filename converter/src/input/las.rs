@@ -126,6 +126,7 @@ impl LasSource {
                 warnings,
                 scanners: Vec::new(),
                 crs,
+                time_from_unknown_start: false,
             },
             reader,
             data,

@@ -58,6 +58,10 @@ pub struct SourceInfo {
     pub scanners: Vec<[f64; 3]>,
     /// The coordinate reference system the file states (LAS), if any.
     pub crs: Option<strata_format::Crs>,
+    /// Its `gps_time` counts from a start the file does not give (an E57 scan without
+    /// acquisitionStart): beside times of a base it would be read in that base. A time of no
+    /// stated base otherwise (a PLY's) may be of any, and takes the others'.
+    pub time_from_unknown_start: bool,
 }
 
 impl SourceInfo {

@@ -165,6 +165,7 @@ impl PlySource {
                 warnings: Vec::new(),
                 scanners: Vec::new(),
                 crs: None,
+                time_from_unknown_start: false,
             },
             reader: body,
             encoding,
