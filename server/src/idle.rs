@@ -46,16 +46,13 @@ impl<S> IdleTimeout<S> {
         if self.opening > 0 {
             let at = PREFACE.len() - self.opening;
             let n = bytes.len().min(self.opening);
-            self.opening = if bytes[..n] == PREFACE[at..at + n] {
-                self.opening - n
-            } else {
-                0
-            };
+            let preface = bytes[..n] == PREFACE[at..at + n];
+            self.opening = if preface { self.opening - n } else { 0 };
             if self.opening > 0 {
                 // Still opening: the deadline stands.
                 return;
             }
-            if bytes[..n] == PREFACE[at..at + n] {
+            if preface {
                 self.http2 = Some((FrameScan::new(Side::Client), FrameScan::new(Side::Server)));
                 bytes = &bytes[n..];
                 // The preface itself is progress: the opening is over.

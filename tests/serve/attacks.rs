@@ -425,11 +425,22 @@ fn a_dataset_whose_metadata_is_not_json_is_reported_once_and_not_served() {
 #[test]
 fn a_download_the_client_leaves_is_logged_with_what_was_sent() {
     use std::io::{Read, Write};
-    let (server, log) = logging_server(&["--log-format", "json"]);
-    let path = "/city.strata/octree.bin";
-    let len = std::fs::metadata(root().join("city.strata/octree.bin"))
-        .expect("octree")
-        .len();
+    // An octree.bin of 256 MiB (the city's, padded): far more than a loopback connection's
+    // buffers hold, however they are tuned, so that most of it cannot have gone out.
+    let dir = tempfile::tempdir().expect("tempdir");
+    let ds = dir.path().join("big.strata");
+    std::fs::create_dir(&ds).expect("mkdir");
+    for name in ["metadata.json", "hierarchy.bin", "octree.bin"] {
+        std::fs::copy(root().join("city.strata").join(name), ds.join(name)).expect("copy");
+    }
+    let len = 256u64 << 20;
+    std::fs::File::options()
+        .write(true)
+        .open(ds.join("octree.bin"))
+        .and_then(|f| f.set_len(len))
+        .expect("pad");
+    let (server, log) = logging_server_in(dir.path(), &["--log-format", "json"]);
+    let path = "/big.strata/octree.bin";
     let mut stream = std::net::TcpStream::connect(&server.addr).expect("connect");
     write!(
         stream,

@@ -177,10 +177,7 @@ impl HttpSource {
                 Err(Failure::Permanent(what)) => return Err(ViewerError::source(&url, what)),
                 Err(Failure::Transient(what))
                     if attempt >= self.opts.retries
-                        || self
-                            .opts
-                            .give_up_after
-                            .is_some_and(|bound| started.elapsed() + delay >= bound) =>
+                        || deadline.is_some_and(|d| tokio::time::Instant::now() + delay >= d) =>
                 {
                     let tries = match attempt {
                         0 => "1 attempt".to_string(),
