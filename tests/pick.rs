@@ -174,7 +174,8 @@ fn a_64_bit_attribute_is_picked_whole() {
 }
 
 /// A view that draws nothing because the budget is below the root node's points is not
-/// "only background" (exit 3): it is an error naming the budget, for pick and measure alike.
+/// "only background" (exit 3): it is an error naming the budget, for pick and measure alike,
+/// and a render writes no empty image that would look like a view of nothing.
 #[test]
 fn a_budget_below_the_root_node_is_said_not_answered_as_background() {
     // 300 k points at random in a cube: the root keeps most of them (about 250 k).
@@ -192,7 +193,8 @@ fn a_budget_below_the_root_node_is_said_not_answered_as_background() {
     common::write_coloured_ply(&ply, &points, None);
     let dataset = dir.path().join("cube.strata");
     common::run_ok(&["convert", s(&ply), "-o", s(&dataset), "--quiet"]);
-    for command in ["pick", "measure"] {
+    let image = dir.path().join("empty.png");
+    for command in ["pick", "measure", "render"] {
         let mut args = vec![
             command,
             s(&dataset),
@@ -201,10 +203,10 @@ fn a_budget_below_the_root_node_is_said_not_answered_as_background() {
             "--budget",
             "100k",
         ];
-        if command == "pick" {
-            args.extend(["--pixel", "80,60"]);
-        } else {
-            args.extend(["--pixel", "80,60", "--pixel", "90,60"]);
+        match command {
+            "pick" => args.extend(["--pixel", "80,60"]),
+            "measure" => args.extend(["--pixel", "80,60", "--pixel", "90,60"]),
+            _ => args.extend(["-o", s(&image)]),
         }
         let o = gpu_run(&args);
         let err = String::from_utf8_lossy(&o.stderr);
@@ -214,6 +216,7 @@ fn a_budget_below_the_root_node_is_said_not_answered_as_background() {
             "{command}: {err}"
         );
     }
+    assert!(!image.exists(), "an empty image was written");
 }
 
 /// A wall sampled more sparsely than the pixels it covers, in front of a floor: the

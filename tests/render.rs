@@ -217,6 +217,34 @@ fn a_small_view_loads_only_what_it_can_show() {
     );
 }
 
+/// A camera that looks away from the data loads and draws nothing, the root included (it was
+/// loaded and charged to the budget).
+#[test]
+fn a_view_away_from_the_data_draws_no_node() {
+    let city = fixtures().join("city.strata");
+    let ds = StreamDataset::open_path(&city).expect("opens");
+    let a = ds.anchor();
+    let (min, max) = ds.bounds();
+    let (lo, hi) = (a + min.as_dvec3(), a + max.as_dvec3());
+    // Beyond the root's cube, which reaches past the data.
+    let beyond = hi.x + 2.0 * (hi - lo).max_element();
+    let eye = glam::DVec3::new(beyond, (lo.y + hi.y) / 2.0, (lo.z + hi.z) / 2.0);
+    let camera = format!(
+        "eye={},{},{};target={},{},{};fov=40",
+        eye.x,
+        eye.y,
+        eye.z,
+        eye.x + 100.0,
+        eye.y,
+        eye.z
+    );
+    let (st, _) = render_stats(&city, "away", &["--size", "160x120", "--camera", &camera]);
+    let frame = &st["frames"][0];
+    assert_eq!(frame["nodes_drawn"].as_u64(), Some(0), "{frame}");
+    assert_eq!(frame["points_drawn"].as_u64(), Some(0), "{frame}");
+    assert_eq!(frame["complete"].as_bool(), Some(true), "{frame}");
+}
+
 /// Of two images of the same points, the fraction of drawn pixels that `shaded` darkens, after
 /// checking it is nowhere brighter than `plain` and draws the same pixels.
 fn darkened_fraction(name: &str, plain: &Path, shaded: &Path) -> f64 {

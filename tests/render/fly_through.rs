@@ -78,3 +78,40 @@ fn fly_through_writes_numbered_frames_with_stats() {
     }
     std::fs::remove_dir(&blocked).expect("remove");
 }
+
+/// Keyframes whose eye and target swap: halfway the eye stands on the target, where the view
+/// has no direction (a frame there drew nothing and said nothing). Refused, naming the
+/// keyframes, before any frame is written.
+#[test]
+fn a_path_through_its_own_target_is_refused() {
+    let dataset = fixtures().join("city.strata");
+    let ds = StreamDataset::open_path(&dataset).expect("opens");
+    let a = ds.anchor();
+    let (min, max) = ds.bounds();
+    let (lo, hi) = (a + min.as_dvec3(), a + max.as_dvec3());
+    let dir = tempfile::tempdir().expect("tempdir");
+    let path = dir.path().join("swap.json");
+    let key = |eye: glam::DVec3, target: glam::DVec3| serde_json::json!({"eye": eye.to_array(), "target": target.to_array()});
+    let json = serde_json::json!({"keyframes": [key(lo, hi), key(hi, lo)]});
+    std::fs::write(&path, json.to_string()).expect("write path");
+    let out = dir.path().join("f.png");
+    let o = gpu_run(&[
+        "render",
+        s(&dataset),
+        "-o",
+        s(&out),
+        "--path",
+        s(&path),
+        "--frames",
+        "5",
+        "--size",
+        "64x48",
+    ]);
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(1), "{err}");
+    assert!(
+        err.contains("between keyframes 1 and 2 the eye passes through the target"),
+        "{err}"
+    );
+    assert!(!dir.path().join("f_0002.png").exists());
+}

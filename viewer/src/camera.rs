@@ -185,6 +185,23 @@ impl Camera {
         self.target += shift;
     }
 
+    /// Where on the way from `self` to `other` (a fraction, 0 to 1) the eye of their [`lerp`]
+    /// passes through its target, within a ten-thousandth of the farther key's distance:
+    /// there the view has no direction, and about it turns around at once.
+    ///
+    /// [`lerp`]: Camera::lerp
+    pub fn lerp_meets_target(&self, other: &Camera) -> Option<f32> {
+        let a = self.eye - self.target;
+        let b = other.eye - other.target;
+        let d = b - a;
+        let f = if d.length_squared() > 0.0 {
+            (-a.dot(d) / d.length_squared()).clamp(0.0, 1.0)
+        } else {
+            0.0
+        };
+        ((a + d * f).length() <= 1e-4 * a.length().max(b.length())).then_some(f)
+    }
+
     /// Linear interpolation between two cameras (for fly-through paths).
     pub fn lerp(&self, other: &Camera, t: f32) -> Camera {
         Camera {
@@ -293,6 +310,28 @@ mod tests {
             };
             assert!(Camera::parse(bad, shifted * 0.0, base).is_err(), "{bad}");
         }
+    }
+
+    /// Keys whose eye and target swap meet halfway; keys whose eye passes beside the target,
+    /// or stays put while the target moves, do not.
+    #[test]
+    fn a_flight_through_its_own_target_is_found() {
+        let key = |eye: [f32; 3], target: [f32; 3]| Camera {
+            eye: Vec3::from(eye),
+            target: Vec3::from(target),
+            fov_y: 1.0,
+        };
+        let a = key([0.0, 0.0, 0.0], [10.0, 0.0, 0.0]);
+        let swapped = key([10.0, 0.0, 0.0], [0.0, 0.0, 0.0]);
+        let f = a.lerp_meets_target(&swapped).expect("they meet");
+        assert!((f - 0.5).abs() < 1e-6, "{f}");
+        let lerped = a.lerp(&swapped, f);
+        assert!((lerped.eye - lerped.target).length() < 1e-5);
+        let beside = key([10.0, 1.0, 0.0], [0.0, 0.0, 0.0]);
+        assert_eq!(a.lerp_meets_target(&beside), None);
+        let turned = key([0.0, 0.0, 0.0], [0.0, 10.0, 0.0]);
+        assert_eq!(a.lerp_meets_target(&turned), None);
+        assert_eq!(a.lerp_meets_target(&a), None);
     }
 
     #[test]

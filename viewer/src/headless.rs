@@ -194,6 +194,9 @@ pub fn render_with(
                     last_progress = Instant::now();
                 }
                 drawn_before = stats.points_drawn;
+                if stats.points_drawn == 0 {
+                    root_fits(&ds, opts, &stats)?;
+                }
                 // Waiting for completeness ends early only when nothing arrives for `timeout`
                 // (a server that went away): the image shows what there is.
                 let done = if opts.wait_complete {
@@ -389,20 +392,7 @@ fn nothing_drawn(
     stats: &FrameStats,
     timed_out: bool,
 ) -> Result<(), ViewerError> {
-    let root = ds
-        .root_hierarchy_page()
-        .root_node()
-        .map_or(0, |n| u64::from(n.point_count));
-    let budget = opts.settings.budget;
-    if root > budget {
-        return Err(ViewerError::argument(
-            format!("--budget {budget}"),
-            format!(
-                "nothing is drawn: the dataset's root node alone holds {root} points, more \
-                 than the point budget"
-            ),
-        ));
-    }
+    root_fits(ds, opts, stats)?;
     if timed_out && !stats.complete {
         return Err(ViewerError::argument(
             format!("--timeout {}", opts.timeout.as_secs_f64()),
@@ -410,6 +400,38 @@ fn nothing_drawn(
         ));
     }
     Ok(())
+}
+
+/// Refuses a view whose point budget (as drawn: `--gpu-cache` may hold fewer) is below the
+/// root node's points: nothing can be drawn in it, and an empty image would look like a view
+/// of nothing.
+fn root_fits(
+    ds: &StreamDataset,
+    opts: &RenderOptions,
+    stats: &FrameStats,
+) -> Result<(), ViewerError> {
+    let root = ds
+        .root_hierarchy_page()
+        .root_node()
+        .map_or(0, |n| u64::from(n.point_count));
+    let budget = stats.budget_drawn;
+    if root <= budget {
+        return Ok(());
+    }
+    let (arg, limit) = if budget < opts.settings.budget {
+        (
+            "--gpu-cache".to_owned(),
+            format!("the {budget} points the GPU cache holds"),
+        )
+    } else {
+        (format!("--budget {budget}"), "the point budget".to_owned())
+    };
+    Err(ViewerError::argument(
+        arg,
+        format!(
+            "nothing is drawn: the dataset's root node alone holds {root} points, more than {limit}"
+        ),
+    ))
 }
 
 fn cameras(ds: &StreamDataset, opts: &RenderOptions) -> Result<Vec<Camera>, ViewerError> {
@@ -480,6 +502,22 @@ fn cameras(ds: &StreamDataset, opts: &RenderOptions) -> Result<Vec<Camera>, View
                 opts.fps,
                 FPS_RANGE.start(),
                 FPS_RANGE.end()
+            ),
+        ));
+    }
+    if let Some((i, f)) = keys
+        .windows(2)
+        .enumerate()
+        .find_map(|(i, k)| Some((i, k[0].lerp_meets_target(&k[1])?)))
+    {
+        return Err(ViewerError::argument(
+            path.display().to_string(),
+            format!(
+                "between keyframes {} and {} the eye passes through the target ({:.0} % of the \
+                 way), where the view has no direction; add a keyframe between them",
+                i + 1,
+                i + 2,
+                f * 100.0
             ),
         ));
     }

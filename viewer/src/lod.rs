@@ -137,8 +137,10 @@ pub fn select(
     let mut out = Selection::default();
     let mut heap = BinaryHeap::new();
     let (root_min, root_edge) = ds.node_cube(NodeKey::ROOT);
+    let root_max = root_min + Vec3::splat(root_edge);
     if tree.node(NodeKey::ROOT).is_some()
-        && clip.admits(root_min, root_min + Vec3::splat(root_edge))
+        && frustum.intersects_box(root_min, root_max)
+        && clip.admits(root_min, root_max)
     {
         heap.push(Candidate {
             priority: f32::MAX,

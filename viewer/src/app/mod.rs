@@ -212,6 +212,21 @@ impl ViewerApp {
             self.settings.budget = 10f64.powf(log_budget).round() as u64;
         }
         ui.label(format!("{} points", group_digits(self.settings.budget)));
+        let root = self
+            .renderer
+            .dataset()
+            .root_hierarchy_page()
+            .root_node()
+            .map_or(0, |n| u64::from(n.point_count));
+        if root > self.stats.budget_drawn && self.stats.frame > 0 {
+            ui.colored_label(
+                egui::Color32::LIGHT_RED,
+                format!(
+                    "Nothing is drawn: the root node alone holds {} points",
+                    group_digits(root)
+                ),
+            );
+        }
 
         ui.label("Pipeline");
         ui.horizontal_wrapped(|ui| {

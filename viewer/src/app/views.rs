@@ -86,7 +86,14 @@ impl ViewerApp {
             return;
         }
         let (seg, f) = segment_at(&times, t);
-        self.camera = cams[seg].lerp(&cams[seg + 1], f);
+        let next = cams[seg].lerp(&cams[seg + 1], f);
+        // Where the eye passes through the target the view has no direction: the frame
+        // before it stays.
+        if (next.eye - next.target).length()
+            > 1e-4 * (self.camera.eye - self.camera.target).length()
+        {
+            self.camera = next;
+        }
         ctx.request_repaint();
     }
 
