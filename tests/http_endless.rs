@@ -1,7 +1,9 @@
 //! A server whose answers never end: the client reads what it asked for, no more, and fails
 //! with an error naming the file instead of filling the memory. A server that ignores Range
 //! and sends whole files still serves: the client reads each up to the range's end. A server
-//! that falls silent fails a render within the render's --timeout.
+//! that falls silent fails a render within the render's --timeout. A node claimed beyond its
+//! file's end is refused without a read; files named otherwise, and a URL's query (a
+//! presigned URL's signature), are asked for as the dataset and the URL name them.
 
 mod common;
 use common::*;
@@ -69,6 +71,12 @@ fn range_ignoring_server(root: PathBuf) -> String {
 /// As `range_ignoring_server` for its first `answers` requests; then it reads requests and
 /// answers none, as a server that hangs.
 fn silent_after_server(root: PathBuf, answers: usize) -> String {
+    serve_whole_files(root, answers, None)
+}
+
+/// As `silent_after_server`; a request whose target lacks `?query` (where one is given) gets
+/// 403, as object storage answers a URL without its signature.
+fn serve_whole_files(root: PathBuf, answers: usize, query: Option<&'static str>) -> String {
     let listener = TcpListener::bind("127.0.0.1:0").expect("bind");
     let addr = listener.local_addr().expect("addr").to_string();
     let left = Arc::new(AtomicUsize::new(answers));
@@ -76,13 +84,13 @@ fn silent_after_server(root: PathBuf, answers: usize) -> String {
         for stream in listener.incoming().flatten() {
             let root = root.clone();
             let left = left.clone();
-            std::thread::spawn(move || answer_whole_files(stream, &root, &left));
+            std::thread::spawn(move || answer_whole_files(stream, &root, &left, query));
         }
     });
     addr
 }
 
-fn answer_whole_files(stream: TcpStream, root: &Path, left: &AtomicUsize) {
+fn answer_whole_files(stream: TcpStream, root: &Path, left: &AtomicUsize, query: Option<&str>) {
     let mut reader = BufReader::new(stream.try_clone().expect("clone"));
     let mut out = stream;
     loop {
@@ -100,7 +108,12 @@ fn answer_whole_files(stream: TcpStream, root: &Path, left: &AtomicUsize) {
             while reader.read_line(&mut line).unwrap_or(0) > 0 {}
             return;
         }
-        let path = first.split(' ').nth(1).unwrap_or("/").to_string();
+        let target = first.split(' ').nth(1).unwrap_or("/").to_string();
+        let (path, asked) = target.split_once('?').unwrap_or((&target, ""));
+        if query.is_some_and(|q| q != asked) {
+            let _ = out.write_all(b"HTTP/1.1 403 Forbidden\r\nContent-Length: 0\r\n\r\n");
+            continue;
+        }
         let data = std::fs::read(root.join(path.trim_start_matches('/'))).unwrap_or_default();
         let head = format!("HTTP/1.1 200 OK\r\nContent-Length: {}\r\n\r\n", data.len());
         if out.write_all(head.as_bytes()).is_err() || out.write_all(&data).is_err() {
@@ -158,4 +171,97 @@ fn a_server_that_falls_silent_fails_a_render_within_its_timeout() {
         assert!(start.elapsed() < Duration::from_secs(20), "{err}");
         assert!(!image.exists(), "no image is kept");
     }
+}
+
+/// A hierarchy entry whose range lies beyond octree.bin (its page's checksum can be right):
+/// refused, naming the range and the file's size, before anything is asked. Over a server
+/// that ignores Range the range's end once overflowed and panicked a loader thread, and the
+/// render went on without the node, exit 0.
+#[test]
+fn a_node_claimed_past_the_files_end_is_refused_not_read() {
+    let ds = converted("past-the-end", "autzen_trim.las", "ds");
+    let root = ds.parent().expect("parent").to_path_buf();
+    let url = format!("http://{}/ds.strata", range_ignoring_server(root));
+    let remote = StreamDataset::open(&url, HttpOptions::default()).expect("opens");
+    let node = remote
+        .root_hierarchy_page()
+        .nodes()
+        .nth(1)
+        .expect("a second node");
+    let size = std::fs::metadata(ds.join("octree.bin"))
+        .expect("octree")
+        .len();
+    for (offset, len) in [(u64::MAX - 255, 4096), (size, 1), (24, u32::MAX - 15)] {
+        let hostile = strata_format::NodeInfo {
+            offset,
+            size: len,
+            ..node
+        };
+        let err = match remote.load_node(
+            &hostile,
+            strata_viewer::dataset::ColourWord::Stored,
+            &Default::default(),
+        ) {
+            Ok(_) => panic!("a node at byte {offset} loaded"),
+            Err(e) => e.to_string(),
+        };
+        assert!(
+            err.contains(&format!(
+                "range of {len} bytes at byte {offset} lies past the end ({size} bytes)"
+            )),
+            "{err}"
+        );
+    }
+}
+
+/// Files named otherwise than hierarchy.bin and octree.bin (SPEC.md section 2), served where
+/// every request must carry the URL's query: both are kept, and a fragment is not sent.
+#[test]
+fn files_named_otherwise_and_a_query_are_asked_for_as_named() {
+    let ds = converted("named-otherwise", "autzen_trim.las", "ds");
+    let dir = fresh_dir("named-otherwise-served");
+    let renamed = dir.join("ren.strata");
+    std::fs::create_dir_all(&renamed).expect("dir");
+    std::fs::copy(ds.join("hierarchy.bin"), renamed.join("h.bin")).expect("copy");
+    std::fs::copy(ds.join("octree.bin"), renamed.join("o.bin")).expect("copy");
+    let text = std::fs::read_to_string(ds.join("metadata.json")).expect("metadata");
+    let mut meta: serde_json::Value = serde_json::from_str(&text).expect("json");
+    meta["files"]["hierarchy"]["name"] = "h.bin".into();
+    meta["files"]["octree"]["name"] = "o.bin".into();
+    std::fs::write(renamed.join("metadata.json"), meta.to_string()).expect("write");
+    let addr = serve_whole_files(dir.clone(), usize::MAX, Some("sig=abc"));
+    let url = format!("http://{addr}/ren.strata?sig=abc#view");
+    let remote = StreamDataset::open(&url, HttpOptions::default()).expect("opens");
+    let local = StreamDataset::open_path(&ds).expect("opens locally");
+    let colours = strata_viewer::dataset::ColourWord::Stored;
+    for node in remote.root_hierarchy_page().nodes().take(3) {
+        let got = remote
+            .load_node(&node, colours, &Default::default())
+            .expect("over HTTP");
+        let want = local
+            .load_node(&node, colours, &Default::default())
+            .expect("locally");
+        assert_eq!(got.points, want.points, "node {}", node.key);
+    }
+    // Without the query every file is refused.
+    let bare = format!("http://{addr}/ren.strata");
+    assert!(StreamDataset::open(&bare, HttpOptions::default()).is_err());
+}
+
+/// A user name and password in the URL would be neither sent nor kept out of messages and
+/// stats: refused, and not repeated.
+#[test]
+fn credentials_in_the_url_are_refused_and_not_repeated() {
+    let err = match StreamDataset::open(
+        "http://surveyor:s3cret@127.0.0.1:9/ds.strata",
+        HttpOptions::default(),
+    ) {
+        Ok(_) => panic!("opened"),
+        Err(e) => e.to_string(),
+    };
+    assert!(err.contains("user name or password"), "{err}");
+    assert!(
+        !err.contains("s3cret") && !err.contains("surveyor"),
+        "{err}"
+    );
 }

@@ -77,7 +77,8 @@ pub struct StreamDataset {
 
 /// Whether `location` names a dataset served over HTTP rather than a local directory.
 pub fn is_remote(location: &str) -> bool {
-    location.starts_with("http://") || location.starts_with("https://")
+    let scheme = location.get(..8).unwrap_or(location).to_ascii_lowercase();
+    scheme.starts_with("http://") || scheme.starts_with("https://")
 }
 
 impl StreamDataset {

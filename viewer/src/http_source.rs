@@ -56,7 +56,14 @@ impl Default for HttpOptions {
 }
 
 pub struct HttpSource {
+    /// The dataset's URL without its query: what errors and stats name.
     base: String,
+    /// The URL's `?query`, asked with every file (a presigned URL's signature), or empty.
+    query: String,
+    /// The names of hierarchy.bin and octree.bin, as metadata.json gives them.
+    names: [String; 2],
+    /// Their sizes, from metadata.json: no read asks beyond them.
+    sizes: [u64; 2],
     opts: HttpOptions,
     runtime: tokio::runtime::Runtime,
     client: Client<HttpConnector, Empty<Bytes>>,
@@ -94,13 +101,7 @@ enum Failure {
 impl HttpSource {
     /// Connects to `url` (`http://HOST:PORT/DATASET`) and reads its metadata.
     pub fn open(url: &str, opts: HttpOptions) -> Result<(HttpSource, Metadata), ViewerError> {
-        if url.starts_with("https://") {
-            return Err(ViewerError::source(
-                url,
-                "https is not supported; serve the dataset over http or put a TLS proxy in front",
-            ));
-        }
-        let base = url.trim_end_matches('/').to_string();
+        let (base, query) = split_url(url)?;
         let runtime = tokio::runtime::Builder::new_multi_thread()
             .worker_threads(2)
             .enable_all()
@@ -114,6 +115,9 @@ impl HttpSource {
             .build(connector);
         let mut source = HttpSource {
             base,
+            query,
+            names: [DatasetFile::Hierarchy, DatasetFile::Octree].map(|f| f.name().to_owned()),
+            sizes: [0; 2],
             slots: Arc::new(Semaphore::new(opts.concurrency.max(1))),
             opts,
             runtime,
@@ -133,6 +137,21 @@ impl HttpSource {
         let (bytes, _) = meta?;
         let meta_url = source.url(DatasetFile::Metadata);
         let metadata = Metadata::from_json(&bytes, std::path::Path::new(&meta_url))?;
+        let files = &metadata.files;
+        source.sizes = [files.hierarchy.size, files.octree.size];
+        let names = [files.hierarchy.name.clone(), files.octree.name.clone()];
+        // Files of other names than the usual (SPEC.md section 2) were asked for in vain.
+        let (hierarchy, octree) = if names == source.names {
+            (hierarchy, octree)
+        } else {
+            source.names = names;
+            source.runtime.block_on(async {
+                tokio::join!(
+                    source.fetch_async(DatasetFile::Hierarchy, Want::Prefix(0, prefix)),
+                    source.fetch_async(DatasetFile::Octree, Want::Prefix(0, OCTREE_HEAD_SIZE)),
+                )
+            })
+        };
         for (file, fetched) in [
             (DatasetFile::Hierarchy, hierarchy?),
             (DatasetFile::Octree, octree?),
@@ -147,8 +166,14 @@ impl HttpSource {
         Ok((source, metadata))
     }
 
+    /// The URL of `file` without the query, as messages name it.
     fn url(&self, file: DatasetFile) -> String {
-        format!("{}/{}", self.base, file.name())
+        let name = match file {
+            DatasetFile::Metadata => file.name(),
+            DatasetFile::Hierarchy => &self.names[0],
+            DatasetFile::Octree => &self.names[1],
+        };
+        format!("{}/{}", self.base, percent_encoded(name))
     }
 
     /// GET a file, or `range = (offset, len)` of it, retrying transient failures.
@@ -167,12 +192,13 @@ impl HttpSource {
         want: Want,
     ) -> Result<(Vec<u8>, Option<u64>), ViewerError> {
         let url = self.url(file);
+        let request = format!("{url}{}", self.query);
         let started = tokio::time::Instant::now();
         let mut delay = Duration::from_millis(100);
         let mut attempt = 0;
         let deadline = self.opts.give_up_after.map(|bound| started + bound);
         loop {
-            match self.fetch_once(&url, want, deadline).await {
+            match self.fetch_once(&request, want, deadline).await {
                 Ok(b) => return Ok(b),
                 Err(Failure::Permanent(what)) => return Err(ViewerError::source(&url, what)),
                 Err(Failure::Transient(what))
@@ -254,15 +280,33 @@ impl HttpSource {
                 .get(header::CONTENT_LENGTH)
                 .and_then(|v| v.to_str().ok())
                 .and_then(|v| v.trim().parse::<u64>().ok());
+            let location = resp
+                .headers()
+                .get(header::LOCATION)
+                .and_then(|v| v.to_str().ok())
+                .map(str::to_owned);
+            if let (Some((start, _)), StatusCode::PARTIAL_CONTENT, Some((offset, _))) =
+                (content_range(resp.headers()), status, range)
+                && start != offset
+            {
+                return Err(Failure::Permanent(format!(
+                    "HTTP {status} for the bytes from {start}, where those from {offset} were asked for"
+                )));
+            }
             let cap = body_cap(status, want);
-            let (body, more) = read_capped(resp.into_body(), cap)
+            // A whole file sent for a range: the bytes before it are passed over, not kept.
+            let skip = match (status, range) {
+                (StatusCode::OK, Some((offset, _))) => offset,
+                _ => 0,
+            };
+            let (body, seen, more) = read_capped(resp.into_body(), skip, cap)
                 .await
                 .map_err(|e| Failure::Transient(format!("body interrupted ({e})")))?;
             // A whole file sent for a range holds more than the range's end: its length is
             // then what the answer says, if it says. Any other answer longer than asked for
             // is wrong, but for an error page, whose start tells the error.
             let whole = match (more, status, want) {
-                (false, ..) => Some(body.len() as u64),
+                (false, ..) => Some(seen),
                 (true, StatusCode::OK, Want::Exact(..) | Want::Prefix(..)) => length,
                 (true, StatusCode::OK | StatusCode::PARTIAL_CONTENT, _) => {
                     return Err(Failure::Permanent(format!(
@@ -271,39 +315,36 @@ impl HttpSource {
                 }
                 (true, ..) => None,
             };
-            Ok::<_, Failure>((status, Bytes::from(body), total, whole))
+            Ok::<_, Failure>((status, body, seen, total, whole, location))
         };
-        let (status, body, total, whole) =
+        let (status, body, seen, total, whole, location) =
             tokio::time::timeout(wait, work).await.map_err(|_| {
                 Failure::Transient(format!("no answer within {:.1} s", wait.as_secs_f64()))
             })??;
         let got = body.len() as u64;
         match (status, want) {
-            (StatusCode::PARTIAL_CONTENT, Want::Exact(_, len)) if got == len => {
-                Ok((body.to_vec(), total))
-            }
+            (StatusCode::PARTIAL_CONTENT, Want::Exact(_, len)) if got == len => Ok((body, total)),
             // Less than asked only where the file ends (when the answer says where that is).
             (StatusCode::PARTIAL_CONTENT, Want::Prefix(offset, len))
                 if got <= len && total.is_none_or(|t| got == len.min(t.saturating_sub(offset))) =>
             {
-                Ok((body.to_vec(), total))
+                Ok((body, total))
             }
-            // A server that ignores Range sends the whole file: take the part we asked for.
-            (StatusCode::OK, Want::Exact(offset, len)) if got >= offset + len => Ok((
-                body[offset as usize..(offset + len) as usize].to_vec(),
-                whole,
-            )),
-            (StatusCode::OK, Want::Prefix(offset, len)) if got >= offset => Ok((
-                body[offset as usize..(offset + len).min(got) as usize].to_vec(),
-                whole,
-            )),
-            (StatusCode::OK, Want::Whole) => Ok((body.to_vec(), whole)),
+            // A server that ignores Range sends the whole file; `body` is the part asked for.
+            (StatusCode::OK, Want::Exact(offset, len)) if seen >= offset + len => Ok((body, whole)),
+            (StatusCode::OK, Want::Prefix(offset, _)) if seen >= offset => Ok((body, whole)),
+            (StatusCode::OK, Want::Whole) => Ok((body, whole)),
             (StatusCode::UNAUTHORIZED | StatusCode::FORBIDDEN, _) => Err(Failure::Permanent(
                 format!("HTTP {status}: the server refused access (check --token)"),
             )),
             (s, _) if s.is_server_error() || s == StatusCode::TOO_MANY_REQUESTS => {
                 Err(Failure::Transient(format!("HTTP {s}")))
             }
+            (s, _) if s.is_redirection() => Err(Failure::Permanent(format!(
+                "HTTP {s} to {}: redirects are not followed (a token must not go to another \
+                 host); give the URL it names",
+                location.as_deref().unwrap_or("nowhere named")
+            ))),
             (s, Want::Exact(offset, len) | Want::Prefix(offset, len)) => Err(Failure::Permanent(
                 format!("HTTP {s} with {got} bytes for the {len} bytes at byte {offset}"),
             )),
@@ -319,7 +360,9 @@ impl HttpSource {
 fn body_cap(status: StatusCode, want: Want) -> u64 {
     match (status, want) {
         (StatusCode::PARTIAL_CONTENT, Want::Exact(_, len) | Want::Prefix(_, len)) => len,
-        (StatusCode::OK, Want::Exact(offset, len) | Want::Prefix(offset, len)) => offset + len,
+        (StatusCode::OK, Want::Exact(offset, len) | Want::Prefix(offset, len)) => {
+            offset.saturating_add(len)
+        }
         (StatusCode::OK | StatusCode::PARTIAL_CONTENT, Want::Whole) => METADATA_MAX_BYTES,
         _ => ERROR_BODY_MAX_BYTES,
     }
@@ -328,24 +371,87 @@ fn body_cap(status: StatusCode, want: Want) -> u64 {
 /// The most of an error page read.
 const ERROR_BODY_MAX_BYTES: u64 = 64 << 10;
 
-/// The body up to `cap` bytes, and whether it held more (then left unread).
+/// The body's first `cap` bytes but for the first `skip`, which are read and passed over;
+/// how many bytes were read, and whether the body held more (then left unread).
 async fn read_capped(
     mut body: hyper::body::Incoming,
+    skip: u64,
     cap: u64,
-) -> Result<(Vec<u8>, bool), hyper::Error> {
+) -> Result<(Vec<u8>, u64, bool), hyper::Error> {
     let mut out = Vec::new();
+    let mut seen = 0u64;
     while let Some(frame) = body.frame().await {
         let Ok(data) = frame?.into_data() else {
             continue;
         };
-        let room = cap.saturating_sub(out.len() as u64);
+        let room = cap.saturating_sub(seen);
+        let take = (data.len() as u64).min(room);
+        let from = skip.saturating_sub(seen).min(take);
+        out.extend_from_slice(&data[from as usize..take as usize]);
+        seen += take;
         if data.len() as u64 > room {
-            out.extend_from_slice(&data[..room as usize]);
-            return Ok((out, true));
+            return Ok((out, seen, true));
         }
-        out.extend_from_slice(&data);
     }
-    Ok((out, false))
+    Ok((out, seen, false))
+}
+
+/// The start and end of a `Content-Range: bytes START-END/TOTAL` answer.
+fn content_range(headers: &header::HeaderMap) -> Option<(u64, u64)> {
+    let v = headers.get(header::CONTENT_RANGE)?.to_str().ok()?;
+    let (range, _) = v.trim().strip_prefix("bytes ")?.split_once('/')?;
+    let (start, end) = range.split_once('-')?;
+    Some((start.trim().parse().ok()?, end.trim().parse().ok()?))
+}
+
+/// `url` as the dataset's URL without a trailing slash or fragment, and its `?query` (or
+/// ""). Refused: https, and a user name or password in it, which would be neither sent nor
+/// kept out of messages (the URL is named in every error and in `--stats`).
+fn split_url(url: &str) -> Result<(String, String), ViewerError> {
+    let scheme = url.split_once("://").map_or("", |(s, _)| s);
+    let rest = match url.split_once("://") {
+        Some((s, rest)) if s.eq_ignore_ascii_case("http") => rest,
+        Some((s, _)) if s.eq_ignore_ascii_case("https") => {
+            return Err(ViewerError::source(
+                url,
+                "https is not supported; serve the dataset over http or put a TLS proxy in front",
+            ));
+        }
+        _ => {
+            return Err(ViewerError::source(
+                url,
+                format!("{scheme:?} is not a scheme this reads; give http://HOST:PORT/DATASET"),
+            ));
+        }
+    };
+    let rest = rest.split_once('#').map_or(rest, |(r, _)| r);
+    let (path, query) = rest.split_once('?').map_or((rest, ""), |(p, q)| (p, q));
+    let authority = path.split_once('/').map_or(path, |(a, _)| a);
+    if let Some((_, host)) = authority.rsplit_once('@') {
+        return Err(ViewerError::source(
+            format!("http://…@{host}"),
+            "the URL holds a user name or password, which is not sent; give a token with --token",
+        ));
+    }
+    let query = if query.is_empty() {
+        String::new()
+    } else {
+        format!("?{query}")
+    };
+    Ok((format!("http://{}", path.trim_end_matches('/')), query))
+}
+
+/// A file name as a URL path segment: bytes other than letters, digits and `-._~`
+/// percent-encoded (names are plain segments, SPEC.md section 2, but may hold spaces).
+fn percent_encoded(name: &str) -> String {
+    name.bytes()
+        .map(|b| match b {
+            b'A'..=b'Z' | b'a'..=b'z' | b'0'..=b'9' | b'-' | b'.' | b'_' | b'~' => {
+                (b as char).to_string()
+            }
+            _ => format!("%{b:02X}"),
+        })
+        .collect()
 }
 
 impl Source for HttpSource {
@@ -360,6 +466,17 @@ impl Source for HttpSource {
     fn read(&self, file: DatasetFile, offset: u64, len: u64) -> Result<Vec<u8>, ViewerError> {
         if len == 0 {
             return Ok(Vec::new());
+        }
+        let size = match file {
+            DatasetFile::Metadata => METADATA_MAX_BYTES,
+            DatasetFile::Hierarchy => self.sizes[0],
+            DatasetFile::Octree => self.sizes[1],
+        };
+        if offset.checked_add(len).is_none_or(|end| end > size) {
+            return Err(ViewerError::source(
+                self.url(file),
+                format!("range of {len} bytes at byte {offset} lies past the end ({size} bytes)"),
+            ));
         }
         let prefix = &self.hierarchy_prefix;
         if file == DatasetFile::Hierarchy

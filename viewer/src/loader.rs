@@ -7,6 +7,7 @@ use crate::dataset::{ColourWord, GpuNode, StreamDataset};
 use crate::marks::Marks;
 use crossbeam_channel::{Receiver, Sender, unbounded};
 use std::collections::HashSet;
+use std::panic::AssertUnwindSafe;
 use std::sync::{Arc, Condvar, Mutex, PoisonError};
 use std::thread::JoinHandle;
 use strata_format::{HierarchyPage, NodeInfo, NodeKey, PageRef};
@@ -177,16 +178,30 @@ fn worker(shared: &Shared, ds: &StreamDataset, tx: &Sender<Done>) {
                 q = shared.wake.wait(q).unwrap_or_else(PoisonError::into_inner);
             }
         };
-        let done = match job {
-            Job::Node(info) => match load(shared, ds, &info) {
-                Ok(node) => Done::Node(node),
-                Err(e) => Done::NodeFailed(info.key, e),
-            },
-            Job::Page(page) => match ds.load_page(&page) {
-                Ok(p) => Done::Page(p),
-                Err(e) => Done::PageFailed(page.root, e),
-            },
-        };
+        // A panic is a fault of ours, but it must fail its node, not leave it in flight for
+        // ever: the view would then be taken for complete without it.
+        let done = std::panic::catch_unwind(AssertUnwindSafe(|| run(shared, ds, &job)))
+            .unwrap_or_else(|panic| {
+                let what = panic
+                    .downcast_ref::<&str>()
+                    .map(|s| s.to_string())
+                    .or_else(|| panic.downcast_ref::<String>().cloned())
+                    .unwrap_or_default();
+                let e = ViewerError::source(
+                    ds.location(),
+                    format!(
+                        "loading {} failed unexpectedly ({what})",
+                        match &job {
+                            Job::Node(info) => format!("node {}", info.key),
+                            Job::Page(page) => format!("the hierarchy page of node {}", page.root),
+                        }
+                    ),
+                );
+                match &job {
+                    Job::Node(info) => Done::NodeFailed(info.key, e),
+                    Job::Page(page) => Done::PageFailed(page.root, e),
+                }
+            });
         let receiver_gone = tx.send(done).is_err();
         shared
             .queue
@@ -197,6 +212,19 @@ fn worker(shared: &Shared, ds: &StreamDataset, tx: &Sender<Done>) {
         if receiver_gone {
             return;
         }
+    }
+}
+
+fn run(shared: &Shared, ds: &StreamDataset, job: &Job) -> Done {
+    match job {
+        Job::Node(info) => match load(shared, ds, info) {
+            Ok(node) => Done::Node(node),
+            Err(e) => Done::NodeFailed(info.key, e),
+        },
+        Job::Page(page) => match ds.load_page(page) {
+            Ok(p) => Done::Page(p),
+            Err(e) => Done::PageFailed(page.root, e),
+        },
     }
 }
 
