@@ -1,7 +1,7 @@
 //! An open dataset seen through a `Source`: metadata, hierarchy pages on demand, and nodes decoded
 //! into the GPU point format.
 
-use crate::marks::Marks;
+use crate::marks::{Marks, RETURN_ABOVE_15, WordFit};
 use crate::pipelines::PointStream;
 use crate::settings::ColourMode;
 use crate::streams::{NormalKind, StreamSource, normal_attribute};
@@ -73,6 +73,8 @@ pub struct StreamDataset {
     anchor: DVec3,
     colour: ColourSource,
     streams: StreamSource,
+    /// Which filters the GPU's attribute word answers exactly for these attribute types.
+    word_fit: WordFit,
 }
 
 /// Whether `location` names a dataset served over HTTP rather than a local directory.
@@ -137,6 +139,7 @@ impl StreamDataset {
                 variation_max: MAX_VARIATION,
             },
             streams: StreamSource::of(&layout),
+            word_fit: WordFit::of(&layout),
             metadata,
             layout,
             anchor,
@@ -167,6 +170,13 @@ impl StreamDataset {
     /// The intensity shown at full brightness (the 99th percentile of the root node's).
     pub fn intensity_max(&self) -> f64 {
         self.colour.intensity_max
+    }
+
+    /// Whether the points carry a one-valued attribute `name` (one a range may filter on).
+    pub fn has_attribute(&self, name: &str) -> bool {
+        self.layout
+            .index_of(name)
+            .is_some_and(|i| self.layout.attributes[i].count == 1)
     }
 
     pub fn has_rgb(&self) -> bool {
@@ -402,10 +412,16 @@ impl StreamDataset {
         c
     }
 
-    /// The ranges of `filter` on attributes the GPU does not hold, resolved against the
-    /// dataset; an unknown attribute is refused, naming the ones there are.
+    /// The filters of `filter` the loader answers (attributes the GPU does not hold, or not
+    /// exactly: `word_fit`), resolved against the dataset; an unknown attribute is refused,
+    /// naming the ones there are.
     pub fn marks(&self, filter: &crate::settings::PointFilter) -> Result<Marks, ViewerError> {
-        Marks::resolve(&self.layout, &filter.attributes, &self.location())
+        Marks::of_filter(&self.layout, filter, self.word_fit, &self.location())
+    }
+
+    /// Which filters the GPU's attribute word answers exactly (the others: `marks`).
+    pub fn word_fit(&self) -> WordFit {
+        self.word_fit
     }
 
     fn to_gpu(
@@ -477,7 +493,10 @@ impl StreamDataset {
             });
             let ret = returns.map_or(0, |(col, ty)| {
                 let s = ty.size();
-                (ty.read_f64(&col[p * s..(p + 1) * s]) as u32).min(15)
+                match ty.read_f64(&col[p * s..(p + 1) * s]) as u32 {
+                    r @ 0..=15 => r,
+                    _ => 15 | (RETURN_ABOVE_15 >> 24),
+                }
             });
             let cls = class.map_or(0, |(col, ty)| {
                 let s = ty.size();

@@ -147,6 +147,9 @@ pub struct AttributeRange {
 pub struct PointFilter {
     /// The classes shown (bit c of word c / 32); `None`: every class.
     pub classes: Option<[u32; 8]>,
+    /// Where `classes` is set, whether a class no bit stands for (above 255, as a 16-bit
+    /// class of a PLY may be) is shown: as classes are hidden, not where only some are shown.
+    pub classes_beyond: bool,
     /// Raw intensity, inclusive.
     pub intensity: Option<(f64, f64)>,
     /// Real-world elevation (z), inclusive.
@@ -172,6 +175,7 @@ impl PointFilter {
             (false, Some(m)) => m,
             (false, None) => [u32::MAX; 8],
         };
+        self.classes_beyond = !only && self.classes.is_none_or(|_| self.classes_beyond);
         for &c in classes {
             let (word, bit) = (c as usize / 32, c as u32 % 32);
             if only {

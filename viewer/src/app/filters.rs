@@ -52,21 +52,26 @@ impl ViewerApp {
                     &mut self.settings.filter.elevation,
                     (lo, hi),
                 );
-                let imax = self.renderer.dataset().intensity_max().max(1.0) * 1.25;
-                range_control(
-                    ui,
-                    "intensity",
-                    &mut self.settings.filter.intensity,
-                    (0.0, imax),
-                );
-                let mut returns = self
-                    .settings
-                    .filter
-                    .return_number
-                    .map(|(a, b)| (a as f64, b as f64));
-                range_control(ui, "return number", &mut returns, (0.0, 15.0));
-                self.settings.filter.return_number =
-                    returns.map(|(a, b)| (a.round() as u32, b.round() as u32));
+                // Only what the points carry: a range of what they lack is refused.
+                if self.renderer.dataset().has_attribute("intensity") {
+                    let imax = self.renderer.dataset().intensity_max().max(1.0) * 1.25;
+                    range_control(
+                        ui,
+                        "intensity",
+                        &mut self.settings.filter.intensity,
+                        (0.0, imax),
+                    );
+                }
+                if self.renderer.dataset().has_attribute("return_number") {
+                    let mut returns = self
+                        .settings
+                        .filter
+                        .return_number
+                        .map(|(a, b)| (a as f64, b as f64));
+                    range_control(ui, "return number", &mut returns, (0.0, 15.0));
+                    self.settings.filter.return_number =
+                        returns.map(|(a, b)| (a.round() as u32, b.round() as u32));
+                }
                 self.attribute_range_controls(ui);
             });
     }

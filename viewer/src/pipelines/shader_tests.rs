@@ -235,6 +235,7 @@ fn shared_constants_agree() {
     for (name, v) in [
         ("FILTER_MARKED", FILTER_MARKED),
         ("MARK_HIDDEN", crate::marks::MARK_HIDDEN),
+        ("RETURN_ABOVE_15", crate::marks::RETURN_ABOVE_15),
         ("FILTER_CLIP", FILTER_CLIP),
         ("FILTER_CLASSES", FILTER_CLASSES),
         ("FILTER_INTENSITY", FILTER_INTENSITY),

@@ -166,7 +166,14 @@ impl Renderer {
             far,
             pad: [0; 1],
         };
-        set_filter(&mut uniforms, &settings.filter, self.ds.anchor());
+        // The loader marks what the word cannot answer (`StreamDataset::marks`).
+        let marked = !self.loader.form().1.is_empty();
+        set_filter(
+            &mut uniforms,
+            &settings.filter,
+            self.ds.anchor(),
+            (self.ds.word_fit(), marked),
+        );
         let wall = self.wall_clock(settings);
         let (Some(screen), Some(pipeline)) = (&self.screen, self.pipelines.get_mut(info.name))
         else {
@@ -323,7 +330,14 @@ fn filters_key(u: &FrameUniforms) -> u64 {
 }
 
 /// Puts `filter` into the frame's uniforms; `anchor_z` is the elevation the GPU's z is relative to.
-fn set_filter(u: &mut FrameUniforms, filter: &crate::settings::PointFilter, anchor: glam::DVec3) {
+/// The frame's filters the GPU answers; those the attribute word cannot answer exactly for this
+/// dataset (`fit`) the loader has marked instead (`StreamDataset::marks`).
+fn set_filter(
+    u: &mut FrameUniforms,
+    filter: &crate::settings::PointFilter,
+    anchor: glam::DVec3,
+    (fit, marked): (crate::marks::WordFit, bool),
+) {
     use crate::pipelines::projection::{
         FILTER_CLASSES, FILTER_CLIP, FILTER_ELEVATION, FILTER_INTENSITY, FILTER_RETURN,
     };
@@ -341,31 +355,34 @@ fn set_filter(u: &mut FrameUniforms, filter: &crate::settings::PointFilter, anch
         u.clip_boxes[2 * k + 1] = [hi.x, hi.y, hi.z, 0.0];
         u.clip_count = k as u32 + 1;
     }
-    if let Some(mask) = filter.classes {
+    if let Some(mask) = filter.classes.filter(|_| fit.classes) {
         u.filters |= FILTER_CLASSES;
         u.class_mask = [
             [mask[0], mask[1], mask[2], mask[3]],
             [mask[4], mask[5], mask[6], mask[7]],
         ];
     }
-    if let Some((lo, hi)) = filter.intensity {
+    if let Some((lo, hi)) = filter.intensity.filter(|_| fit.intensity) {
         u.filters |= FILTER_INTENSITY;
-        u.ranges[0] = lo as f32;
-        u.ranges[1] = hi as f32;
+        // Whole numbers of 16 bits, which f32 holds exactly.
+        u.ranges[0] = lo.ceil() as f32;
+        u.ranges[1] = hi.floor() as f32;
     }
     if let Some((lo, hi)) = filter.elevation {
         u.filters |= FILTER_ELEVATION;
-        // Widened by a hair: f32 positions must not lose a point that lies on a bound.
-        let slack = |v: f64| v.abs().max(1.0) * 1e-6;
+        // Rounded to f32 as the points' positions are (relative to the anchor; rounding keeps
+        // order, so no point within the bounds falls outside), widened by a few f64 steps only
+        // for the two subtractions' own rounding.
+        let slack = |v: f64| v.abs().max(1.0) * 1e-12;
         u.ranges[2] = (lo - anchor_z - slack(lo - anchor_z)) as f32;
         u.ranges[3] = (hi - anchor_z + slack(hi - anchor_z)) as f32;
     }
-    if let Some((lo, hi)) = filter.return_number {
+    if let Some((lo, hi)) = filter.return_number.filter(|_| fit.return_number) {
         u.filters |= FILTER_RETURN;
         u.return_lo = lo;
         u.return_hi = hi;
     }
-    if !filter.attributes.is_empty() {
+    if marked {
         u.filters |= crate::pipelines::projection::FILTER_MARKED;
     }
 }

@@ -9,7 +9,8 @@ fn passes_filters(pos: vec3<f32>, a: u32) -> bool {
     let cls = attribute_class(a);
     let word = frame.class_mask[cls / 128u][(cls / 32u) % 4u];
     let intensity = f32(a & 0xffffu);
-    let ret = (a >> 24u) & 0xfu;
+    // Above 15 (RETURN_ABOVE_15): past every range a return number filter takes.
+    let ret = select((a >> 24u) & 0xfu, 16u, (a & RETURN_ABOVE_15) != 0u);
     let kept = ((f & FILTER_CLASSES) == 0u || (word & (1u << (cls % 32u))) != 0u)
         && ((f & FILTER_INTENSITY) == 0u || (intensity >= frame.ranges.x && intensity <= frame.ranges.y))
         && ((f & FILTER_ELEVATION) == 0u || (pos.z >= frame.ranges.z && pos.z <= frame.ranges.w))

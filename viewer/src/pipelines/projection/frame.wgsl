@@ -62,8 +62,10 @@ const FILTER_CLIP: u32 = 16u;
 const FILTER_MARKED: u32 = 32u;
 
 // The GPU attribute word: intensity (16 bits), classification (8), return number (4), then
-// MARK_HIDDEN: outside a range of an attribute the word does not hold (marks.rs).
+// MARK_HIDDEN: outside a range of an attribute the word does not hold (marks.rs), and
+// RETURN_ABOVE_15: a return number the four bits cannot hold.
 const MARK_HIDDEN: u32 = 0x10000000u;
+const RETURN_ABOVE_15: u32 = 0x80000000u;
 fn attribute_class(a: u32) -> u32 {
     return (a >> 16u) & 0xffu;
 }
