@@ -243,6 +243,25 @@ fn files_named_otherwise_and_a_query_are_asked_for_as_named() {
             .expect("locally");
         assert_eq!(got.points, want.points, "node {}", node.key);
     }
+    // The signature stays out of what is shown: the location, and an error naming a file.
+    assert!(!remote.location().contains("sig"), "{}", remote.location());
+    let node = remote
+        .root_hierarchy_page()
+        .nodes()
+        .nth(1)
+        .expect("a second node");
+    let past = strata_format::NodeInfo {
+        offset: u64::MAX - 255,
+        ..node
+    };
+    let err = match remote.load_node(&past, colours, &Default::default()) {
+        Ok(_) => panic!("a node past the end loaded"),
+        Err(e) => e.to_string(),
+    };
+    assert!(
+        err.contains("/ren.strata/o.bin") && !err.contains("sig"),
+        "{err}"
+    );
     // Without the query every file is refused.
     let bare = format!("http://{addr}/ren.strata");
     assert!(StreamDataset::open(&bare, HttpOptions::default()).is_err());

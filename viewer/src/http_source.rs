@@ -106,7 +106,9 @@ impl HttpSource {
             .worker_threads(2)
             .enable_all()
             .build()
-            .map_err(|e| ViewerError::source(url, format!("cannot start the HTTP client ({e})")))?;
+            .map_err(|e| {
+                ViewerError::source(&base, format!("cannot start the HTTP client ({e})"))
+            })?;
         let mut connector = HttpConnector::new();
         connector.set_connect_timeout(Some(opts.timeout));
         connector.set_nodelay(true);
@@ -269,12 +271,8 @@ impl HttpSource {
                 .await
                 .map_err(|e| Failure::Transient(format!("request failed ({e})")))?;
             let status = resp.status();
-            let total = resp
-                .headers()
-                .get(header::CONTENT_RANGE)
-                .and_then(|v| v.to_str().ok())
-                .and_then(|v| v.rsplit_once('/'))
-                .and_then(|(_, t)| t.trim().parse::<u64>().ok());
+            let answered = content_range(resp.headers());
+            let total = answered.and_then(|(_, total)| total);
             let length = resp
                 .headers()
                 .get(header::CONTENT_LENGTH)
@@ -285,8 +283,8 @@ impl HttpSource {
                 .get(header::LOCATION)
                 .and_then(|v| v.to_str().ok())
                 .map(str::to_owned);
-            if let (Some((start, _)), StatusCode::PARTIAL_CONTENT, Some((offset, _))) =
-                (content_range(resp.headers()), status, range)
+            if let (Some((Some(start), _)), StatusCode::PARTIAL_CONTENT, Some((offset, _))) =
+                (answered, status, range)
                 && start != offset
             {
                 return Err(Failure::Permanent(format!(
@@ -343,7 +341,7 @@ impl HttpSource {
             (s, _) if s.is_redirection() => Err(Failure::Permanent(format!(
                 "HTTP {s} to {}: redirects are not followed (a token must not go to another \
                  host); give the URL it names",
-                location.as_deref().unwrap_or("nowhere named")
+                location.as_deref().map_or("nowhere named", without_query)
             ))),
             (s, Want::Exact(offset, len) | Want::Prefix(offset, len)) => Err(Failure::Permanent(
                 format!("HTTP {s} with {got} bytes for the {len} bytes at byte {offset}"),
@@ -396,30 +394,35 @@ async fn read_capped(
     Ok((out, seen, false))
 }
 
-/// The start and end of a `Content-Range: bytes START-END/TOTAL` answer.
-fn content_range(headers: &header::HeaderMap) -> Option<(u64, u64)> {
+/// The start and the file's length of a `Content-Range: bytes START-END/TOTAL` answer, each
+/// where it says (`*` for either).
+fn content_range(headers: &header::HeaderMap) -> Option<(Option<u64>, Option<u64>)> {
     let v = headers.get(header::CONTENT_RANGE)?.to_str().ok()?;
-    let (range, _) = v.trim().strip_prefix("bytes ")?.split_once('/')?;
-    let (start, end) = range.split_once('-')?;
-    Some((start.trim().parse().ok()?, end.trim().parse().ok()?))
+    let v = v.trim();
+    let (range, total) = v.strip_prefix("bytes ").unwrap_or(v).rsplit_once('/')?;
+    let start = range
+        .split_once('-')
+        .and_then(|(s, _)| s.trim().parse().ok());
+    Some((start, total.trim().parse().ok()))
 }
 
 /// `url` as the dataset's URL without a trailing slash or fragment, and its `?query` (or
 /// ""). Refused: https, and a user name or password in it, which would be neither sent nor
 /// kept out of messages (the URL is named in every error and in `--stats`).
 fn split_url(url: &str) -> Result<(String, String), ViewerError> {
+    let shown = without_query(url);
     let scheme = url.split_once("://").map_or("", |(s, _)| s);
     let rest = match url.split_once("://") {
         Some((s, rest)) if s.eq_ignore_ascii_case("http") => rest,
         Some((s, _)) if s.eq_ignore_ascii_case("https") => {
             return Err(ViewerError::source(
-                url,
+                shown,
                 "https is not supported; serve the dataset over http or put a TLS proxy in front",
             ));
         }
         _ => {
             return Err(ViewerError::source(
-                url,
+                shown,
                 format!("{scheme:?} is not a scheme this reads; give http://HOST:PORT/DATASET"),
             ));
         }
@@ -441,22 +444,31 @@ fn split_url(url: &str) -> Result<(String, String), ViewerError> {
     Ok((format!("http://{}", path.trim_end_matches('/')), query))
 }
 
-/// A file name as a URL path segment: bytes other than letters, digits and `-._~`
-/// percent-encoded (names are plain segments, SPEC.md section 2, but may hold spaces).
+/// `url` without its query or fragment, as messages name it: a presigned URL's signature is a
+/// credential.
+fn without_query(url: &str) -> &str {
+    url.split(['?', '#']).next().unwrap_or(url)
+}
+
+/// Bytes of a file name kept as they are in a URL path segment (RFC 3986's unreserved ones);
+/// names are plain segments (SPEC.md section 2) but may hold spaces or any other character.
+const SEGMENT_KEEPS: &percent_encoding::AsciiSet = &percent_encoding::NON_ALPHANUMERIC
+    .remove(b'-')
+    .remove(b'.')
+    .remove(b'_')
+    .remove(b'~');
+
 fn percent_encoded(name: &str) -> String {
-    name.bytes()
-        .map(|b| match b {
-            b'A'..=b'Z' | b'a'..=b'z' | b'0'..=b'9' | b'-' | b'.' | b'_' | b'~' => {
-                (b as char).to_string()
-            }
-            _ => format!("%{b:02X}"),
-        })
-        .collect()
+    percent_encoding::utf8_percent_encode(name, SEGMENT_KEEPS).to_string()
 }
 
 impl Source for HttpSource {
     fn location(&self) -> String {
         self.base.clone()
+    }
+
+    fn file_location(&self, file: DatasetFile) -> String {
+        self.url(file)
     }
 
     fn metadata_bytes(&self) -> Result<Vec<u8>, ViewerError> {

@@ -6,6 +6,7 @@ pub mod bookmarks;
 pub mod camera;
 pub mod dataset;
 mod error;
+mod flight;
 pub mod gpu;
 pub mod headless;
 mod http_source;

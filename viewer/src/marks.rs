@@ -198,12 +198,18 @@ pub fn attribute_ranges(ds: &crate::StreamDataset) -> Result<Vec<(String, f64, f
         Some(info) if info.point_count > 0 => Some(ds.read_columns(&info)?),
         _ => None,
     };
-    let word = ["intensity", "classification", "return_number"];
+    // Those the word holds have controls of their own (live ranges, class checkboxes).
+    let fit = ds.word_fit();
+    let word = [
+        ("intensity", fit.intensity),
+        ("classification", fit.classes),
+        ("return_number", fit.return_number),
+    ];
     Ok(layout
         .attributes
         .iter()
         .enumerate()
-        .filter(|(_, a)| a.count == 1 && !word.contains(&a.name.as_str()))
+        .filter(|(_, a)| a.count == 1 && !word.contains(&(a.name.as_str(), true)))
         .map(|(i, a)| {
             let (lo, hi) = cols.as_ref().map_or((0.0, 1.0), |c| {
                 c.attribute(&layout, i)

@@ -10,6 +10,8 @@ use strata_format::{DatasetFile, FormatError, Metadata, check_file_head};
 pub trait Source: Send + Sync {
     /// A human-readable location (path or URL) for messages.
     fn location(&self) -> String;
+    /// Where `file` is, for messages: under the name metadata.json gives it.
+    fn file_location(&self, file: DatasetFile) -> String;
     /// The whole `metadata.json`.
     fn metadata_bytes(&self) -> Result<Vec<u8>, ViewerError>;
     /// `len` bytes at `offset` of a binary file.
@@ -19,6 +21,8 @@ pub trait Source: Send + Sync {
 /// A local dataset directory with `hierarchy.bin` and `octree.bin` memory-mapped.
 pub struct MmapSource {
     dir: PathBuf,
+    /// The names of hierarchy.bin and octree.bin, as metadata.json gives them.
+    names: [String; 2],
     hierarchy: Mmap,
     octree: Mmap,
 }
@@ -48,6 +52,10 @@ impl MmapSource {
         Ok((
             MmapSource {
                 dir: dir.to_path_buf(),
+                names: [
+                    metadata.files.hierarchy.name.clone(),
+                    metadata.files.octree.name.clone(),
+                ],
                 hierarchy,
                 octree,
             },
@@ -59,6 +67,15 @@ impl MmapSource {
 impl Source for MmapSource {
     fn location(&self) -> String {
         self.dir.display().to_string()
+    }
+
+    fn file_location(&self, file: DatasetFile) -> String {
+        let name = match file {
+            DatasetFile::Metadata => file.name(),
+            DatasetFile::Hierarchy => &self.names[0],
+            DatasetFile::Octree => &self.names[1],
+        };
+        self.dir.join(name).display().to_string()
     }
 
     fn metadata_bytes(&self) -> Result<Vec<u8>, ViewerError> {
@@ -76,7 +93,7 @@ impl Source for MmapSource {
         match end {
             Some(end) => Ok(map[offset as usize..end as usize].to_vec()),
             None => Err(FormatError::corrupt(
-                self.dir.join(file.name()),
+                self.file_location(file),
                 format!(
                     "range of {len} bytes at byte {offset} lies past the end ({} bytes)",
                     map.len()

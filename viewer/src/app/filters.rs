@@ -15,65 +15,79 @@ impl ViewerApp {
         egui::CollapsingHeader::new("Filters")
             .default_open(false)
             .show(ui, |ui| {
-                ui.horizontal(|ui| {
-                    if ui.button("all classes").clicked() {
-                        self.settings.filter.classes = None;
-                    }
-                    if ui.button("none").clicked() {
-                        self.settings.filter.set_classes(&[], true);
-                    }
-                });
-                // With counts from the conversion, the classes present; else the standard ones.
-                let counts = self.renderer.dataset().metadata().classes.clone();
-                let mut listed: Vec<u8> = counts.keys().filter_map(|k| k.parse().ok()).collect();
-                if listed.is_empty() {
-                    listed = LISTED_CLASSES.collect();
-                }
-                listed.sort_unstable();
-                for c in listed {
-                    let count = counts.get(&c.to_string()).copied();
-                    let mut shown = self.settings.filter.shows_class(c);
-                    let label = match count {
-                        Some(n) => format!("{c} {} ({n})", asprs_class_name(c)),
-                        None => format!("{c} {}", asprs_class_name(c)),
-                    };
-                    if ui.checkbox(&mut shown, label).changed() {
-                        self.settings.filter.set_classes(&[c], false);
-                        if shown {
-                            let mask = self.settings.filter.classes.get_or_insert([u32::MAX; 8]);
-                            mask[c as usize / 32] |= 1 << (c as u32 % 32);
-                        }
-                    }
-                }
-                let (lo, hi) = (self.bounds_z.0, self.bounds_z.1);
-                range_control(
-                    ui,
-                    "elevation",
-                    &mut self.settings.filter.elevation,
-                    (lo, hi),
-                );
-                // Only what the points carry: a range of what they lack is refused.
-                if self.renderer.dataset().has_attribute("intensity") {
-                    let imax = self.renderer.dataset().intensity_max().max(1.0) * 1.25;
-                    range_control(
-                        ui,
-                        "intensity",
-                        &mut self.settings.filter.intensity,
-                        (0.0, imax),
-                    );
-                }
-                if self.renderer.dataset().has_attribute("return_number") {
-                    let mut returns = self
-                        .settings
-                        .filter
-                        .return_number
-                        .map(|(a, b)| (a as f64, b as f64));
-                    range_control(ui, "return number", &mut returns, (0.0, 15.0));
-                    self.settings.filter.return_number =
-                        returns.map(|(a, b)| (a.round() as u32, b.round() as u32));
-                }
+                self.class_controls(ui);
+                self.range_controls(ui);
                 self.attribute_range_controls(ui);
             });
+    }
+
+    /// A checkbox per class, where the points carry classes.
+    fn class_controls(&mut self, ui: &mut egui::Ui) {
+        if !self.renderer.dataset().has_attribute("classification") {
+            return;
+        }
+        ui.horizontal(|ui| {
+            if ui.button("all classes").clicked() {
+                self.settings.filter.classes = None;
+            }
+            if ui.button("none").clicked() {
+                self.settings.filter.set_classes(&[], true);
+            }
+        });
+        // With counts from the conversion, the classes present; else the standard ones.
+        let counts = self.renderer.dataset().metadata().classes.clone();
+        let mut listed: Vec<u8> = counts.keys().filter_map(|k| k.parse().ok()).collect();
+        if listed.is_empty() {
+            listed = LISTED_CLASSES.collect();
+        }
+        listed.sort_unstable();
+        for c in listed {
+            let count = counts.get(&c.to_string()).copied();
+            let mut shown = self.settings.filter.shows_class(c);
+            let label = match count {
+                Some(n) => format!("{c} {} ({n})", asprs_class_name(c)),
+                None => format!("{c} {}", asprs_class_name(c)),
+            };
+            if ui.checkbox(&mut shown, label).changed() {
+                self.settings.filter.set_classes(&[c], false);
+                if shown {
+                    let mask = self.settings.filter.classes.get_or_insert([u32::MAX; 8]);
+                    mask[c as usize / 32] |= 1 << (c as u32 % 32);
+                }
+            }
+        }
+    }
+
+    /// Elevation, and intensity and return number where the GPU's attribute word holds them
+    /// (live, as they are dragged); else they are among the ranges applied on a click.
+    fn range_controls(&mut self, ui: &mut egui::Ui) {
+        let (lo, hi) = (self.bounds_z.0, self.bounds_z.1);
+        range_control(
+            ui,
+            "elevation",
+            &mut self.settings.filter.elevation,
+            (lo, hi),
+        );
+        let fit = self.renderer.dataset().word_fit();
+        if fit.intensity {
+            let imax = self.renderer.dataset().intensity_max().max(1.0) * 1.25;
+            range_control(
+                ui,
+                "intensity",
+                &mut self.settings.filter.intensity,
+                (0.0, imax),
+            );
+        }
+        if fit.return_number {
+            let mut returns = self
+                .settings
+                .filter
+                .return_number
+                .map(|(a, b)| (a as f64, b as f64));
+            range_control(ui, "return number", &mut returns, (0.0, 15.0));
+            self.settings.filter.return_number =
+                returns.map(|(a, b)| (a.round() as u32, b.round() as u32));
+        }
     }
 
     /// A range of any other one-valued attribute (GPS time, point source, extra attributes).
@@ -129,11 +143,40 @@ impl ViewerApp {
                     .map(|e| e.to_string());
             }
             if ui.button("Clear").clicked() {
-                self.settings.filter.attributes.clear();
+                let fit = self.renderer.dataset().word_fit();
+                let filter = &mut self.settings.filter;
+                filter.attributes.clear();
+                if !fit.intensity {
+                    filter.intensity = None;
+                }
+                if !fit.return_number {
+                    filter.return_number = None;
+                }
             }
         });
-        for a in &self.settings.filter.attributes {
-            ui.label(egui::RichText::new(format!("{} {}..{}", a.name, a.lo, a.hi)).small());
+        let fit = self.renderer.dataset().word_fit();
+        let filter = &self.settings.filter;
+        let routed = [
+            ("intensity", filter.intensity.filter(|_| !fit.intensity)),
+            (
+                "return_number",
+                filter
+                    .return_number
+                    .filter(|_| !fit.return_number)
+                    .map(|(a, b)| (a.into(), b.into())),
+            ),
+        ];
+        let applied = filter
+            .attributes
+            .iter()
+            .map(|a| (a.name.as_str(), a.lo, a.hi));
+        let applied = applied.chain(
+            routed
+                .into_iter()
+                .filter_map(|(n, r)| Some((n, r?.0, r?.1))),
+        );
+        for (name, lo, hi) in applied {
+            ui.label(egui::RichText::new(format!("{name} {lo}..{hi}")).small());
         }
         if let Some(e) = &self.attribute_error {
             ui.colored_label(egui::Color32::LIGHT_RED, e);

@@ -212,17 +212,17 @@ impl ViewerApp {
             self.settings.budget = 10f64.powf(log_budget).round() as u64;
         }
         ui.label(format!("{} points", group_digits(self.settings.budget)));
-        let root = self
-            .renderer
-            .dataset()
-            .root_hierarchy_page()
-            .root_node()
-            .map_or(0, |n| u64::from(n.point_count));
+        let root = self.renderer.dataset().root_points();
         if root > self.stats.budget_drawn && self.stats.frame > 0 {
+            let limit = if self.stats.budget_drawn < self.settings.budget {
+                "what the GPU cache holds"
+            } else {
+                "the budget"
+            };
             ui.colored_label(
                 egui::Color32::LIGHT_RED,
                 format!(
-                    "Nothing is drawn: the root node alone holds {} points",
+                    "Nothing is drawn: the root node alone holds {} points, more than {limit}",
                     group_digits(root)
                 ),
             );

@@ -85,15 +85,22 @@ impl ViewerApp {
             }
             return;
         }
-        let (seg, f) = segment_at(&times, t);
-        let next = cams[seg].lerp(&cams[seg + 1], f);
-        // Where the eye passes through the target the view has no direction: the frame
-        // before it stays.
-        if (next.eye - next.target).length()
-            > 1e-4 * (self.camera.eye - self.camera.target).length()
+        // Where the eye passes through the target the view has no direction (as `render
+        // --path` refuses): the flight stops before it, saying between which views.
+        if let Some(i) = cams
+            .windows(2)
+            .position(|k| k[0].lerp_meets_target(&k[1]).is_some())
         {
-            self.camera = next;
+            self.views.flying = None;
+            self.views.error = Some(format!(
+                "between views {} and {} the eye passes through the target; add a view between them",
+                i + 1,
+                i + 2
+            ));
+            return;
         }
+        let (seg, f) = segment_at(&times, t);
+        self.camera = cams[seg].lerp(&cams[seg + 1], f);
         ctx.request_repaint();
     }
 
