@@ -115,7 +115,7 @@ pub fn verdict(now: Option<NormalSides>, t: Tallies) -> Option<NormalSides> {
 pub struct FacingCheck {
     sample: wgpu::ComputePipeline,
     tally: wgpu::ComputePipeline,
-    /// Two words per cell, and the screen size they were made for.
+    /// Three words per cell, and the screen size they were made for.
     cells: Option<(wgpu::Buffer, u32, u32)>,
     tallies: wgpu::Buffer,
     readback: AsyncReadback,
@@ -235,7 +235,7 @@ impl FacingCheck {
         let count = width.div_ceil(CELL) as u64 * height.div_ceil(CELL) as u64;
         let buffer = device.create_buffer(&wgpu::BufferDescriptor {
             label: Some("facing cells"),
-            size: count * 8,
+            size: count * 12,
             usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST,
             mapped_at_creation: false,
         });

@@ -8,12 +8,18 @@
 // the side turned away does. A closed surface's far side lies clearly behind its near side.
 // Where both lie at about the same depth the cell says nothing: a sheet seen at a slant, its
 // two faces a hair apart, puts either in front of the other within a cell as often as normals
-// pointing either way over one surface do.
+// pointing either way over one surface do. A cell counts only for the side of the front it
+// lies in: the nearest sampled point of either side, grazing ones included (then it counts
+// for neither), in it or the cells around it. Behind a sparse shell's near wall, whose points
+// a cell's sample may miss, the inner walls put the side turned away clearly in front of the
+// side facing the eye, and so do a gorge's walls behind the grazing ground before it; both
+// lie behind a front of the side facing the eye, or a grazing one, and say nothing.
 
 @group(0) @binding(0) var<uniform> frame: Frame;
 // Per cell: the nearest depth of the side facing the eye, then of the side turned away, as the
 // complement of the linear depth's bits (so that the largest is the nearest, and a cleared
-// buffer, 0, is empty).
+// buffer, 0, is empty); then the front, the same of any point around it, its lowest two bits
+// its side (0: facing the eye, 1: turned away, 2: grazing, which says nothing).
 @group(0) @binding(1) var<storage, read_write> cells: array<atomic<u32>>;
 // The cells where the side facing the eye lies clearly in front, then those where the side
 // turned away does.
@@ -77,11 +83,28 @@ fn sample(
     }
     let to_eye = frame.eye.xyz - pos;
     let facing = dot(decode_oct16(word), to_eye) / length(to_eye);
+    let side = select(0u, 1u, facing < 0.0);
+    // The front's side: 2 where it grazes, and says nothing.
+    let front_side = select(side, 2u, abs(facing) < GRAZING);
+    let nearness = ~bitcast<u32>(clip.w);
+    let cx = i32(u32(fx) / CELL);
+    let cy = i32(u32(fy) / CELL);
+    let rows = i32((frame.height + CELL - 1u) / CELL);
+    for (var dy = -1; dy <= 1; dy++) {
+        for (var dx = -1; dx <= 1; dx++) {
+            let x = cx + dx;
+            let y = cy + dy;
+            if x >= 0 && y >= 0 && x < i32(cells_across()) && y < rows {
+                let around = u32(y) * cells_across() + u32(x);
+                atomicMax(&cells[3u * around + 2u], (nearness & ~3u) | front_side);
+            }
+        }
+    }
     if abs(facing) < GRAZING {
         return;
     }
-    let cell = (u32(fy) / CELL) * cells_across() + u32(fx) / CELL;
-    atomicMax(&cells[2u * cell + select(0u, 1u, facing < 0.0)], ~bitcast<u32>(clip.w));
+    let cell = u32(cy) * cells_across() + u32(cx);
+    atomicMax(&cells[3u * cell + side], nearness);
 }
 
 var<workgroup> counted: array<atomic<u32>, 2>;
@@ -95,14 +118,15 @@ fn tally(
     let cell = (wg.x + wg.y * groups.x) * GROUP_SIZE + lane;
     let rows = (frame.height + CELL - 1u) / CELL;
     if cell < cells_across() * rows {
-        let towards = atomicLoad(&cells[2u * cell]);
-        let away = atomicLoad(&cells[2u * cell + 1u]);
+        let towards = atomicLoad(&cells[3u * cell]);
+        let away = atomicLoad(&cells[3u * cell + 1u]);
+        let front_side = atomicLoad(&cells[3u * cell + 2u]) & 3u;
         if towards != 0u && away != 0u {
             let t = bitcast<f32>(~towards);
             let a = bitcast<f32>(~away);
-            if t < a * (1.0 - DEPTH_MARGIN) {
+            if t < a * (1.0 - DEPTH_MARGIN) && front_side == 0u {
                 atomicAdd(&counted[0], 1u);
-            } else if a < t * (1.0 - DEPTH_MARGIN) {
+            } else if a < t * (1.0 - DEPTH_MARGIN) && front_side == 1u {
                 atomicAdd(&counted[1], 1u);
             }
         }

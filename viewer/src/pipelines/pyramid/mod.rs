@@ -16,7 +16,7 @@ pub use uniforms::{
 use super::params::{Auto, ParamSpec, ResolvedParams, Scale};
 use super::projection::FrameUniforms;
 use super::shadows::{self, DTILDE_SPACINGS};
-use super::{AlbedoResult, Lighting, Pipeline, PipelineFrame, PipelineInfo, edl};
+use super::{AlbedoResult, Lighting, Pipeline, PipelineFrame, PipelineInfo, PointStream, edl};
 use crate::ViewerError;
 use crate::gpu::GpuContext;
 use crate::gpu::async_readback::AsyncReadback;
@@ -32,7 +32,11 @@ pub static INFO: PipelineInfo = PipelineInfo {
     paper: Some("003_a7e57431d45858e9.txt (Bouchiba, Deschaud, Goulette 2018)"),
     lighting: Lighting::Headlight,
     params: &PARAMS,
-    streams: &[],
+    // Beyond the paper, which takes raw points: where the normals mark back faces, the
+    // projection culls them, so that the far side of a thin shell is not taken for visible
+    // through the near side's gaps (hidden-point removal cannot part two sheets a fraction of
+    // a percent of the depth apart).
+    streams: &[PointStream::Normals],
     passes: &[
         "shadows",
         "pyramid lit",
@@ -45,7 +49,7 @@ pub static INFO: PipelineInfo = PipelineInfo {
         "pyramid shade",
     ],
     previous_frame: false,
-    cull_back_faces: false,
+    cull_back_faces: true,
     reads_colour_plane: true,
     reads_planes: true,
     screen_buffers: PyramidPasses::screen_buffers,

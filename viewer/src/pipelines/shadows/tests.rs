@@ -5,9 +5,10 @@ use crate::pipelines::{PointStream, filters, pyramid};
 #[test]
 fn a_pipeline_holds_the_shadow_streams_only_while_it_casts_shadows() {
     let mut values = ParamValues::default();
-    assert!(
-        streams(&pyramid::INFO, &values).is_empty(),
-        "pyramid without shadows holds no per-point stream"
+    assert_eq!(
+        streams(&pyramid::INFO, &values),
+        [PointStream::Normals],
+        "pyramid without shadows holds only the normals it culls by"
     );
     values
         .set_text(&pyramid::INFO, "shadows", "1")

@@ -36,11 +36,18 @@ fn main(
         }
         let depth = hit.x;
         let p = y * frame.width + x;
-        let front = bitcast<f32>(~planes[2u * p]);
+        let front = bitcast<f32>(~planes[PLANE_WORDS * p]);
         if depth > front {
             continue;
         }
-        let nearest = bitcast<f32>(~planes[2u * p + 1u]);
+        // A back face behind a surfel facing the eye is the far side of a shell thinner than
+        // z_o: its colour would tint the near side (an open cup's inner wall through its
+        // outer one). A back face with nothing facing the eye in front of it stays.
+        let facing_front = planes[PLANE_WORDS * p + 2u];
+        if back && facing_front != 0u && bitcast<f32>(~facing_front) <= depth {
+            continue;
+        }
+        let nearest = bitcast<f32>(~planes[PLANE_WORDS * p + 1u]);
         let layer = clamp((depth - nearest) / max(front - nearest, 1e-30), 0.0, 1.0);
         // At least one unit: every pixel the depth pass covered is covered here too.
         let w = max(surfel_weight(hit.y) * WEIGHT_ONE, 1.0);

@@ -35,6 +35,8 @@ const SHADE_WGSL: &str = include_str!("shade.wgsl");
 
 /// `mode` of the planar surfels (`MODE_PLANAR` in uniforms.wgsl).
 pub const MODE_PLANAR: u32 = 0;
+/// Words per pixel of the depth planes (`PLANE_WORDS` in uniforms.wgsl).
+pub const PLANE_WORDS: u64 = 3;
 /// Words per pixel of the blend sums (`SUM_WORDS` in sums.wgsl).
 pub const SUM_WORDS: u64 = 9;
 /// Storage buffers the depth and blend passes bind in one stage.
@@ -251,7 +253,7 @@ impl SurfelPasses {
         vec![
             ScreenBuffer {
                 label: "surfel depth planes",
-                bytes: pixels * 8,
+                bytes: pixels * PLANE_WORDS * 4,
             },
             ScreenBuffer {
                 label: "surfel blend sums",
@@ -490,7 +492,7 @@ impl SurfelTargets {
                 usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
                 mapped_at_creation: false,
             }),
-            planes: storage("surfel depth planes", pixels * 8),
+            planes: storage("surfel depth planes", pixels * PLANE_WORDS * 4),
             sums: storage("surfel blend sums", pixels * SUM_WORDS * 4),
             surface: storage("surfel surface", pixels * 16),
             albedo: storage("surfel albedo", pixels * 4),

@@ -34,8 +34,8 @@ fn blend_at(p: u32) -> Blend {
         vec3<f32>(f32(sums[i + 4u]), f32(sums[i + 5u]), f32(sums[i + 6u])), 0.0,
         f32(sums[i + 8u]), 0.0);
     if w > 0.0 {
-        let front = bitcast<f32>(~planes[2u * p]);
-        let nearest = bitcast<f32>(~planes[2u * p + 1u]);
+        let front = bitcast<f32>(~planes[PLANE_WORDS * p]);
+        let nearest = bitcast<f32>(~planes[PLANE_WORDS * p + 1u]);
         b.depth = nearest + (front - nearest) * f32(sums[i + 7u]) / w;
         b.offset = front - nearest;
     }
@@ -74,13 +74,15 @@ fn near_side_towards(id: vec2<u32>, step: vec2<i32>, depth: f32, enclosed: bool)
         // Its blend lies no nearer than its nearest surfel, z_o (front - nearest) before its
         // front: where even that is not far enough in front, its whole blend (eleven words)
         // is not read. Every pixel of a surface searches, and most stop here.
-        let front = bitcast<f32>(~planes[2u * p]);
-        let nearest = bitcast<f32>(~planes[2u * p + 1u]);
+        let front = bitcast<f32>(~planes[PLANE_WORDS * p]);
+        let nearest = bitcast<f32>(~planes[PLANE_WORDS * p + 1u]);
         if depth - nearest <= 2.0 * (front - nearest) {
             if enclosed {
                 continue;
             }
-            break;
+            // Front faces about as deep as a back face: the near side of a shell thinner than
+            // z_o, whose far side shows through a gap its surfels left.
+            return blend_at(p);
         }
         let n = blend_at(p);
         if depth - n.depth > 2.0 * n.offset {

@@ -1,7 +1,9 @@
 //! The surfels' Rust structs and constants against their WGSL, and the pieces of their
 //! geometry that do not need a GPU.
 
-use super::passes::{LIST_HEADER, MODE_PLANAR, STORAGE_BUFFERS, SUM_WORDS, SurfelUniforms};
+use super::passes::{
+    LIST_HEADER, MODE_PLANAR, PLANE_WORDS, STORAGE_BUFFERS, SUM_WORDS, SurfelUniforms,
+};
 use crate::pipelines::projection::{GROUP_SIZE, GpuRange, range_table};
 use crate::pipelines::shader_tests::{
     module_named, most_storage_buffers, parse_and_validate, rust_layout, wgsl_const, wgsl_layout,
@@ -45,6 +47,13 @@ fn uniforms_and_ranges_match_their_wgsl() {
         wgsl_const(&module_named("surfel blend planar"), "SUM_WORDS"),
         SUM_WORDS
     );
+    for module in ["surfel depth planar", "surfel blend planar", "surfel shade"] {
+        assert_eq!(
+            wgsl_const(&module_named(module), "PLANE_WORDS"),
+            PLANE_WORDS,
+            "{module}"
+        );
+    }
     assert_eq!(
         wgsl_const(&module_named("surfel depth planar"), "MODE_PLANAR"),
         MODE_PLANAR as u64

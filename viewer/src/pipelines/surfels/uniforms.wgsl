@@ -1,5 +1,9 @@
 // The surfel pipeline's own uniforms, read by all its passes.
 
+// Words per pixel of the depth planes: the front (the nearest depth pushed back by z_o), the
+// nearest depth, and the nearest depth of a surfel facing the eye.
+const PLANE_WORDS: u32 = 3u;
+
 struct Surfels {
     // The eye; a pixel's ray is forward + ndc.x * right + ndc.y * up, so that the ray
     // parameter of a hit is its linear depth (the projection's clip.w).
