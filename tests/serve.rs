@@ -366,6 +366,20 @@ fn render_over_http_equals_render_from_disk() {
     ]);
     assert!(!o.status.success());
     assert!(String::from_utf8_lossy(&o.stderr).contains("401"));
+    // The token from a file (kept out of `ps`), its newline dropped, as `serve` reads one;
+    // an empty one is refused before any request, not sent as "Bearer ".
+    let file = fixtures().join("client-token.txt");
+    std::fs::write(&file, "t0k\n").expect("token file");
+    let image = fixtures().join("token-file.png");
+    let url = server.url("city.strata");
+    let o = gpu(&["render", &url, "-o", s(&image), "--token-file", s(&file)]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let o = gpu(&["render", &url, "-o", s(&image), "--token", ""]);
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(
+        !o.status.success() && err.contains("--token is empty"),
+        "{err}"
+    );
 }
 
 #[test]

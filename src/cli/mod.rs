@@ -10,6 +10,7 @@ mod profile;
 mod render;
 mod serve;
 mod synth;
+mod token;
 mod verify;
 mod view;
 mod view_args;

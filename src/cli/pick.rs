@@ -49,7 +49,7 @@ impl PickView {
             projection: self.view.projection()?,
             gpu_cache_bytes: self.view.gpu_cache,
             loader_threads: self.view.loaders,
-            token: self.view.token.clone(),
+            token: self.view.token()?,
             measurements: Default::default(),
         })
     }

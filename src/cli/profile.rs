@@ -30,8 +30,11 @@ pub struct Args {
     #[arg(long)]
     overwrite: bool,
     /// Bearer token for a dataset served with `strata serve --token`.
-    #[arg(long)]
+    #[arg(long, conflicts_with = "token_file")]
     token: Option<String>,
+    /// As --token, with the token read from FILE (kept out of `ps`).
+    #[arg(long, value_name = "FILE")]
+    token_file: Option<PathBuf>,
 }
 
 impl Args {
@@ -67,7 +70,7 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
         anyhow::bail!("{}: exists (use --overwrite)", a.output.display());
     }
     let http = HttpOptions {
-        token: a.token.clone(),
+        token: super::token::token(a.token.as_deref(), a.token_file.as_deref())?,
         ..HttpOptions::default()
     };
     let ds = StreamDataset::open(&a.dataset, http)?;

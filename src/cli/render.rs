@@ -168,7 +168,7 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
         projection: a.view.projection()?,
         gpu_cache_bytes: a.view.gpu_cache,
         loader_threads: a.view.loaders,
-        token: a.view.token.clone(),
+        token: a.view.token()?,
         measurements: match &a.measurements {
             Some(f) => Measurements::load_existing(f)?,
             None => Measurements::default(),

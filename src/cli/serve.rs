@@ -1,9 +1,8 @@
-use anyhow::Context;
 use std::io::Write;
 use std::path::PathBuf;
 use std::process::ExitCode;
 use std::time::Duration;
-use strata_server::{LogFormat, ServerConfig, bind, check_token, run, shutdown_signal};
+use strata_server::{LogFormat, ServerConfig, bind, run, shutdown_signal};
 
 /// A timeout longer than a year is a mistake, and one near 2^64 seconds overflows the clock.
 const MAX_SECONDS: u64 = 366 * 24 * 3600;
@@ -114,25 +113,9 @@ fn host_and_port(s: &str) -> bool {
     name_ok && port.is_none_or(port_ok)
 }
 
-/// The token from --token or --token-file, checked.
-fn token(a: &Args) -> anyhow::Result<Option<String>> {
-    if let Some(t) = &a.token {
-        return Ok(Some(check_token(t, "--token")?));
-    }
-    let Some(file) = &a.token_file else {
-        return Ok(None);
-    };
-    let raw = strata_format::read_side_file(file)
-        .with_context(|| format!("{}: cannot read the token file", file.display()))?;
-    Ok(Some(check_token(
-        &raw,
-        &format!("the token file {}", file.display()),
-    )?))
-}
-
 pub fn run_serve(a: Args) -> anyhow::Result<ExitCode> {
     let mut config = ServerConfig::new(&a.dir)?;
-    config.token = token(&a)?;
+    config.token = super::token::token(a.token.as_deref(), a.token_file.as_deref())?;
     config.cors = a.cors;
     config.max_connections = a.max_connections.max(1);
     config.request_timeout = Duration::from_secs(a.request_timeout.max(1));

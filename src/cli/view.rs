@@ -53,7 +53,7 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
             projection: a.view.projection()?,
             screenshot: a.screenshot.map(|p| (p, a.screenshot_after.max(1))),
             size,
-            token: a.view.token.clone(),
+            token: a.view.token()?,
             measurements: a
                 .measurements
                 .as_deref()

@@ -64,8 +64,11 @@ pub struct ViewArgs {
     #[arg(long, default_value = "auto")]
     pub pass_clock: String,
     /// Bearer token for a dataset served with `strata serve --token`.
-    #[arg(long)]
+    #[arg(long, conflicts_with = "token_file")]
     pub token: Option<String>,
+    /// As --token, with the token read from FILE (kept out of `ps`).
+    #[arg(long, value_name = "FILE")]
+    pub token_file: Option<std::path::PathBuf>,
     /// Loader threads fetching and decompressing nodes (1 to 256).
     #[arg(long, default_value_t = 4,
           value_parser = clap::builder::RangedU64ValueParser::<usize>::new().range(1..=256))]
@@ -73,6 +76,11 @@ pub struct ViewArgs {
 }
 
 impl ViewArgs {
+    /// The token of --token or --token-file, checked as `serve` checks its own.
+    pub fn token(&self) -> anyhow::Result<Option<String>> {
+        super::token::token(self.token.as_deref(), self.token_file.as_deref())
+    }
+
     pub fn settings(&self) -> anyhow::Result<Settings> {
         if !(MIN_BUDGET..=MAX_BUDGET).contains(&self.budget) {
             anyhow::bail!(
