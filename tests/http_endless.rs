@@ -284,3 +284,31 @@ fn credentials_in_the_url_are_refused_and_not_repeated() {
         "{err}"
     );
 }
+
+/// A server that sends files compressed (object storage does, for files uploaded with a
+/// Content-Encoding): bytes of the compressed body are not the file's, and the error says
+/// why, where it said "not valid JSON" or named a length.
+#[test]
+fn a_compressed_answer_is_refused_naming_its_encoding() {
+    let listener = TcpListener::bind("127.0.0.1:0").expect("bind");
+    let addr = listener.local_addr().expect("addr").to_string();
+    std::thread::spawn(move || {
+        for stream in listener.incoming().flatten() {
+            let mut reader = BufReader::new(stream.try_clone().expect("clone"));
+            let mut line = String::new();
+            while reader.read_line(&mut line).unwrap_or(0) > 0 && line != "\r\n" {
+                line.clear();
+            }
+            let mut out = stream;
+            let _ = out.write_all(
+                b"HTTP/1.1 200 OK\r\nContent-Encoding: gzip\r\nContent-Length: 4\r\n\r\n\x1f\x8b\x08\x00",
+            );
+        }
+    });
+    let url = format!("http://{addr}/ds.strata");
+    let err = match StreamDataset::open(&url, HttpOptions::default()) {
+        Ok(_) => panic!("a compressed dataset opened"),
+        Err(e) => e.to_string(),
+    };
+    assert!(err.contains("Content-Encoding gzip"), "{err}");
+}

@@ -291,6 +291,20 @@ impl HttpSource {
                     "HTTP {status} for the bytes from {start}, where those from {offset} were asked for"
                 )));
             }
+            // Bytes of a compressed body are not the file's: a range of them means nothing
+            // (object storage sends them for files uploaded with a Content-Encoding).
+            if let Some(coding) = resp
+                .headers()
+                .get(header::CONTENT_ENCODING)
+                .and_then(|v| v.to_str().ok())
+                .filter(|v| !v.trim().is_empty() && !v.trim().eq_ignore_ascii_case("identity"))
+                && status.is_success()
+            {
+                return Err(Failure::Permanent(format!(
+                    "HTTP {status} with Content-Encoding {coding}: the server sends the file \
+                     compressed, which byte ranges cannot address; serve it as it is"
+                )));
+            }
             let cap = body_cap(status, want);
             // A whole file sent for a range: the bytes before it are passed over, not kept.
             let skip = match (status, range) {
