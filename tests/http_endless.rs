@@ -3,7 +3,9 @@
 //! and sends whole files still serves: the client reads each up to the range's end. A server
 //! that falls silent fails a render within the render's --timeout. A node claimed beyond its
 //! file's end is refused without a read; files named otherwise, and a URL's query (a
-//! presigned URL's signature), are asked for as the dataset and the URL name them.
+//! presigned URL's signature), are asked for as the dataset and the URL name them. With no
+//! server at the address, the error says the connection was refused; a server that refuses
+//! access is asked once, and again later.
 
 mod common;
 use common::*;
@@ -311,4 +313,65 @@ fn a_compressed_answer_is_refused_naming_its_encoding() {
         Err(e) => e.to_string(),
     };
     assert!(err.contains("Content-Encoding gzip"), "{err}");
+}
+
+/// No server at the address: the error says the connection was refused, where it said
+/// "request failed (client error (Connect))".
+#[test]
+fn no_server_at_the_address_is_named_as_a_refused_connection() {
+    // A port just bound and let go: nothing listens there.
+    let addr = TcpListener::bind("127.0.0.1:0")
+        .and_then(|l| l.local_addr())
+        .expect("a free port");
+    let err = match StreamDataset::open(&format!("http://{addr}/ds.strata"), HttpOptions::default())
+    {
+        Ok(_) => panic!("opened"),
+        Err(e) => e.to_string(),
+    };
+    assert!(err.contains("cannot connect"), "{err}");
+    assert!(err.to_lowercase().contains("refused"), "{err}");
+    assert!(err.contains("metadata.json"), "{err}");
+}
+
+/// A server that refuses access (401): asked once, not again at once, and the failure is one a
+/// later request may get past (a token rotated, the server restarted with the one given), so
+/// the window asks again and shows why. It failed the nodes for good, holes for the session.
+#[test]
+fn refused_access_is_asked_once_and_may_pass_later() {
+    let listener = TcpListener::bind("127.0.0.1:0").expect("bind");
+    let addr = listener.local_addr().expect("addr").to_string();
+    let asked = Arc::new(std::sync::Mutex::new(Vec::new()));
+    let counted = asked.clone();
+    std::thread::spawn(move || {
+        for stream in listener.incoming().flatten() {
+            let mut reader = BufReader::new(stream.try_clone().expect("clone"));
+            let mut line = String::new();
+            while reader.read_line(&mut line).unwrap_or(0) > 0 && line != "\r\n" {
+                if line.starts_with("GET ") {
+                    counted
+                        .lock()
+                        .unwrap_or_else(std::sync::PoisonError::into_inner)
+                        .push(line.clone());
+                }
+                line.clear();
+            }
+            let mut out = stream;
+            let _ = out.write_all(b"HTTP/1.1 401 Unauthorized\r\nContent-Length: 0\r\n\r\n");
+        }
+    });
+    let err = match StreamDataset::open(&format!("http://{addr}/ds.strata"), HttpOptions::default())
+    {
+        Ok(_) => panic!("opened"),
+        Err(e) => e,
+    };
+    assert!(err.to_string().contains("refused access"), "{err}");
+    assert!(err.is_transient(), "{err:?}");
+    let mut asked = asked
+        .lock()
+        .unwrap_or_else(std::sync::PoisonError::into_inner)
+        .clone();
+    let n = asked.len();
+    asked.sort();
+    asked.dedup();
+    assert_eq!(asked.len(), n, "a file asked for again at once: {asked:?}");
 }

@@ -1,5 +1,6 @@
 //! A dataset with a damaged node: a render keeps no image with a hole in it, and a pick in
-//! that view gives no answer that could be another node's point.
+//! that view gives no answer that could be another node's point. A dataset cut short while it
+//! is open fails the nodes past its new end, without bringing the process down.
 
 use super::*;
 
@@ -71,4 +72,38 @@ fn a_corrupt_node_fails_the_render_and_leaves_no_image() {
         err.contains("could not be loaded, so a pick could name the wrong point"),
         "{err}"
     );
+}
+
+/// `octree.bin` truncated after the dataset was opened (a conversion or a copy writing over it
+/// while the window shows it): the nodes past the cut fail with an error naming the file. Its
+/// pages were memory-mapped, and the first read past the cut killed the process (SIGBUS).
+#[test]
+fn a_dataset_cut_short_while_open_fails_its_nodes_without_a_crash() {
+    let src = fixtures().join("autzen.strata");
+    let dataset = fixtures().join("cut-short").join("autzen.strata");
+    std::fs::create_dir_all(&dataset).expect("dir");
+    for f in ["metadata.json", "hierarchy.bin", "octree.bin"] {
+        std::fs::copy(src.join(f), dataset.join(f)).expect("copy");
+    }
+    let ds = StreamDataset::open_path(&dataset).expect("opens");
+    let nodes = strata_format::LocalDataset::open(&dataset)
+        .expect("opens")
+        .all_nodes()
+        .expect("nodes");
+    // Not the root, which the dataset kept from its opening.
+    let last = *nodes
+        .iter()
+        .filter(|n| n.key.level > 0)
+        .max_by_key(|n| n.offset)
+        .expect("a node below the root");
+    let octree = std::fs::OpenOptions::new()
+        .write(true)
+        .open(dataset.join("octree.bin"))
+        .expect("open to cut");
+    octree.set_len(last.offset + 1).expect("cut short");
+    let err = match ds.load_node(&last, Default::default(), &Default::default()) {
+        Ok(_) => panic!("a node past the end loaded"),
+        Err(e) => e.to_string(),
+    };
+    assert!(err.contains("octree.bin"), "{err}");
 }

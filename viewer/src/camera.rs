@@ -18,6 +18,10 @@ pub fn box_corners(min: Vec3, max: Vec3) -> [Vec3; 8] {
 /// Z is up, as in every survey coordinate system Strata reads.
 pub const UP: Vec3 = Vec3::Z;
 
+/// The farthest the wheel takes the eye from its target: the Earth seen whole from ten
+/// thousand of its radii, within f32's range for every product the projection forms.
+pub const MAX_DISTANCE: f32 = 1e11;
+
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Camera {
     pub eye: Vec3,
@@ -170,10 +174,20 @@ impl Camera {
         self.target += shift;
     }
 
-    /// Moves the eye towards the target by `factor` of their distance (< 1 comes closer).
+    /// Moves the eye towards the target by `factor` of their distance (< 1 comes closer), no
+    /// nearer than a hundred thousandth of the target's distance from the origin (or of a
+    /// unit) and no farther than `MAX_DISTANCE`. Unbounded, three hundred wheel clicks put the
+    /// eye on the target in f32, and two thousand at infinity: the view went blank, no zoom
+    /// brought it back, and a view saved then held no numbers.
     pub fn zoom(&mut self, factor: f32) {
         let offset = self.eye - self.target;
-        self.eye = self.target + offset * factor.clamp(0.01, 100.0);
+        let r = offset.length();
+        if !(r.is_finite() && r > 0.0) {
+            return;
+        }
+        let nearest = self.target.abs().max_element().max(1.0) * 1e-5;
+        let wanted = r * factor.clamp(0.01, 100.0);
+        self.eye = self.target + offset * (wanted.clamp(nearest, MAX_DISTANCE.max(nearest)) / r);
     }
 
     /// Moves eye and target along the view axes (forward, right, up) by `step` world units.
@@ -278,6 +292,34 @@ impl Frustum {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn the_wheel_keeps_the_eye_off_its_target_and_finite() {
+        let start = Camera {
+            eye: Vec3::new(3.0, -4.0, 0.0),
+            target: Vec3::ZERO,
+            fov_y: 1.0,
+        };
+        let mut c = start;
+        for _ in 0..2000 {
+            c.zoom(0.8);
+        }
+        let near = (c.eye - c.target).length();
+        assert!(near > 0.0 && c.eye != c.target, "{c:?}");
+        c.zoom(1.25);
+        assert!(
+            (c.eye - c.target).length() > near,
+            "zooming out moves away again"
+        );
+        for _ in 0..5000 {
+            c.zoom(1.25);
+        }
+        assert!(c.eye.is_finite(), "{c:?}");
+        assert!((c.eye - c.target).length() <= MAX_DISTANCE * 1.001);
+        // The direction is kept all the way.
+        let dir = (c.eye - c.target).normalize();
+        assert!((dir - (start.eye - start.target).normalize()).length() < 1e-4);
+    }
 
     #[test]
     fn parses_and_prints_real_world_cameras() {

@@ -5,7 +5,7 @@ use crate::marks::{Marks, WordFit};
 use crate::pipelines::PointStream;
 use crate::settings::ColourMode;
 use crate::streams::{NormalKind, StreamSource, normal_attribute};
-use crate::{HttpOptions, HttpSource, MmapSource, Source, ViewerError};
+use crate::{HttpOptions, HttpSource, LocalSource, Source, ViewerError};
 use glam::{DVec3, Vec3};
 use std::path::Path;
 use std::sync::{Arc, Mutex, PoisonError};
@@ -98,7 +98,7 @@ impl StreamDataset {
 
     /// Opens a local dataset directory.
     pub fn open_path(dir: &Path) -> Result<StreamDataset, ViewerError> {
-        let (source, metadata) = MmapSource::open(dir)?;
+        let (source, metadata) = LocalSource::open(dir)?;
         StreamDataset::from_source(Arc::new(source), metadata)
     }
 

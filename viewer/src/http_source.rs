@@ -94,8 +94,13 @@ impl Want {
 enum Failure {
     /// Worth retrying: connection refused or reset, timeout, 5xx.
     Transient(String),
-    /// Retrying cannot help: 401, 404, 416, a wrong length.
+    /// Retrying cannot help: 404, 416, a wrong length.
     Permanent(String),
+    /// 401 and 403: asking again at once gets the same answer, but a later request may not
+    /// (a token rotated, a server restarted with the one given). Failed for good, the nodes
+    /// asked for while it lasted stayed holes for the rest of the session, counted as failed
+    /// without a word of why; unavailable, they are asked for again and the reason is shown.
+    Refused(String),
 }
 
 impl HttpSource {
@@ -203,6 +208,7 @@ impl HttpSource {
             match self.fetch_once(&request, want, deadline).await {
                 Ok(b) => return Ok(b),
                 Err(Failure::Permanent(what)) => return Err(ViewerError::source(&url, what)),
+                Err(Failure::Refused(what)) => return Err(ViewerError::unavailable(&url, what)),
                 Err(Failure::Transient(what))
                     if attempt >= self.opts.retries
                         || deadline.is_some_and(|d| tokio::time::Instant::now() + delay >= d) =>
@@ -269,7 +275,7 @@ impl HttpSource {
                 .client
                 .request(req)
                 .await
-                .map_err(|e| Failure::Transient(format!("request failed ({e})")))?;
+                .map_err(|e| Failure::Transient(request_failure(&e)))?;
             let status = resp.status();
             let answered = content_range(resp.headers());
             let total = answered.and_then(|(_, total)| total);
@@ -346,7 +352,7 @@ impl HttpSource {
             (StatusCode::OK, Want::Exact(offset, len)) if seen >= offset + len => Ok((body, whole)),
             (StatusCode::OK, Want::Prefix(offset, _)) if seen >= offset => Ok((body, whole)),
             (StatusCode::OK, Want::Whole) => Ok((body, whole)),
-            (StatusCode::UNAUTHORIZED | StatusCode::FORBIDDEN, _) => Err(Failure::Permanent(
+            (StatusCode::UNAUTHORIZED | StatusCode::FORBIDDEN, _) => Err(Failure::Refused(
                 format!("HTTP {status}: the server refused access (check --token)"),
             )),
             (s, _) if s.is_server_error() || s == StatusCode::TOO_MANY_REQUESTS => {
@@ -513,5 +519,25 @@ impl Source for HttpSource {
             return Ok(prefix[offset as usize..end as usize].to_vec());
         }
         self.fetch(file, Some((offset, len)))
+    }
+}
+
+/// What a request that got no answer met: hyper's own message names only its stage ("client
+/// error (Connect)"); the cause below it says what happened ("Connection refused").
+fn request_failure(e: &(dyn std::error::Error + 'static)) -> String {
+    let mut causes = Vec::new();
+    let mut at = e.source();
+    while let Some(cause) = at {
+        causes.push(cause.to_string());
+        at = cause.source();
+    }
+    let connect = e
+        .downcast_ref::<hyper_util::client::legacy::Error>()
+        .is_some_and(|e| e.is_connect());
+    match (connect, causes.last()) {
+        (true, Some(cause)) => format!("cannot connect: {cause}"),
+        (true, None) => "cannot connect".into(),
+        (false, Some(cause)) => format!("request failed: {cause}"),
+        (false, None) => format!("request failed ({e})"),
     }
 }

@@ -31,4 +31,4 @@ pub use http_source::{HttpOptions, HttpSource};
 pub use pipelines::{PipelineInfo, REGISTRY};
 pub use renderer::{FrameStats, Renderer};
 pub use settings::{ColourMode, PointFilter, Settings};
-pub use source::{MmapSource, Source};
+pub use source::{LocalSource, Source};

@@ -1,10 +1,9 @@
-//! Where dataset bytes come from. The viewer reads through this trait only, so a memory-mapped
+//! Where dataset bytes come from. The viewer reads through this trait only, so a local
 //! directory and an HTTP server are interchangeable.
 
 use crate::ViewerError;
-use memmap2::Mmap;
-use std::path::{Path, PathBuf};
-use strata_format::{DatasetFile, FormatError, Metadata, check_file_head};
+use std::path::Path;
+use strata_format::{DatasetFile, LocalDataset, Metadata};
 
 /// Byte ranges of a dataset's files. Implementations are shared by the loader threads.
 pub trait Source: Send + Sync {
@@ -18,98 +17,41 @@ pub trait Source: Send + Sync {
     fn read(&self, file: DatasetFile, offset: u64, len: u64) -> Result<Vec<u8>, ViewerError>;
 }
 
-/// A local dataset directory with `hierarchy.bin` and `octree.bin` memory-mapped.
-pub struct MmapSource {
-    dir: PathBuf,
-    /// The names of hierarchy.bin and octree.bin, as metadata.json gives them.
-    names: [String; 2],
-    hierarchy: Mmap,
-    octree: Mmap,
+/// A local dataset directory, its binary files read at offsets (`LocalDataset`). They were
+/// memory-mapped: a file truncated or rewritten in place while the window was open (a
+/// conversion, a copy over it) killed the viewer with SIGBUS and no message when it touched a
+/// page past the new end. A read that comes up short is an error naming the file, and the node
+/// counts as failed.
+pub struct LocalSource {
+    ds: LocalDataset,
 }
 
-impl MmapSource {
-    pub fn open(dir: &Path) -> Result<(MmapSource, Metadata), ViewerError> {
-        if !dir.is_dir() {
-            return Err(FormatError::corrupt(
-                dir,
-                "is not a dataset directory (expected a directory holding metadata.json)",
-            )
-            .into());
-        }
-        let meta_path = dir.join(DatasetFile::Metadata.name());
-        let bytes = strata_format::read_metadata_file(&meta_path)?;
-        let metadata = Metadata::from_json(&bytes, &meta_path)?;
-        let hierarchy = map_checked(
-            &dir.join(&metadata.files.hierarchy.name),
-            DatasetFile::Hierarchy,
-            &metadata,
-        )?;
-        let octree = map_checked(
-            &dir.join(&metadata.files.octree.name),
-            DatasetFile::Octree,
-            &metadata,
-        )?;
-        Ok((
-            MmapSource {
-                dir: dir.to_path_buf(),
-                names: [
-                    metadata.files.hierarchy.name.clone(),
-                    metadata.files.octree.name.clone(),
-                ],
-                hierarchy,
-                octree,
-            },
-            metadata,
-        ))
+impl LocalSource {
+    pub fn open(dir: &Path) -> Result<(LocalSource, Metadata), ViewerError> {
+        let ds = LocalDataset::open(dir)?;
+        let metadata = ds.metadata().clone();
+        Ok((LocalSource { ds }, metadata))
     }
 }
 
-impl Source for MmapSource {
+impl Source for LocalSource {
     fn location(&self) -> String {
-        self.dir.display().to_string()
+        self.ds.dir().display().to_string()
     }
 
     fn file_location(&self, file: DatasetFile) -> String {
-        let name = match file {
-            DatasetFile::Metadata => file.name(),
-            DatasetFile::Hierarchy => &self.names[0],
-            DatasetFile::Octree => &self.names[1],
-        };
-        self.dir.join(name).display().to_string()
+        self.ds.path_of(file).display().to_string()
     }
 
     fn metadata_bytes(&self) -> Result<Vec<u8>, ViewerError> {
-        let path = self.dir.join(DatasetFile::Metadata.name());
+        let path = self.ds.path_of(DatasetFile::Metadata);
         Ok(strata_format::read_metadata_file(&path)?)
     }
 
     fn read(&self, file: DatasetFile, offset: u64, len: u64) -> Result<Vec<u8>, ViewerError> {
-        let map = match file {
-            DatasetFile::Hierarchy => &self.hierarchy,
-            DatasetFile::Octree => &self.octree,
-            DatasetFile::Metadata => return self.metadata_bytes(),
-        };
-        let end = offset.checked_add(len).filter(|&e| e <= map.len() as u64);
-        match end {
-            Some(end) => Ok(map[offset as usize..end as usize].to_vec()),
-            None => Err(FormatError::corrupt(
-                self.file_location(file),
-                format!(
-                    "range of {len} bytes at byte {offset} lies past the end ({} bytes)",
-                    map.len()
-                ),
-            )
-            .into()),
+        match file {
+            DatasetFile::Metadata => self.metadata_bytes(),
+            _ => Ok(self.ds.read(file, offset, len)?),
         }
     }
-}
-
-fn map_checked(path: &Path, file: DatasetFile, meta: &Metadata) -> Result<Mmap, FormatError> {
-    // Refused where it is not a regular file: opening a pipe waits for a writer.
-    let (f, _) = strata_format::open_regular(path)?;
-    // SAFETY: the dataset is read-only by contract (written once, renamed into place); a file
-    // truncated under us would fault, which is why sizes are checked against the metadata first.
-    let map = unsafe { Mmap::map(&f) }.map_err(|e| FormatError::io(path, e))?;
-    check_file_head(path, file, Some(map.len() as u64), &map, meta)?;
-    Ok(map)
 }
