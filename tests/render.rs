@@ -1,6 +1,7 @@
 //! Headless rendering on the software adapter (lavapipe): coverage, the point budget, the two
 //! projection paths, corrupt nodes, fly-throughs, bad arguments, colouring by normal and by
-//! curvature, the surfels, the filters, the triangulation, and the window under Xvfb.
+//! curvature, the surfels, the filters, the triangulation, leaves sized by their measured
+//! density, and the window under Xvfb.
 
 #[path = "render/colours.rs"]
 mod colours;
@@ -17,6 +18,8 @@ mod filters;
 mod fly_through;
 #[path = "render/footprint.rs"]
 mod footprint;
+#[path = "render/leaf_density.rs"]
+mod leaf_density;
 #[path = "render/near.rs"]
 mod near;
 #[path = "render/paths.rs"]

@@ -26,9 +26,10 @@ fn a_point_of_size_n_covers_a_disc_n_pixels_across() {
 #[test]
 fn attenuated_points_default_to_two_spacings() {
     // Sized by their spacing, points keep the default multiple of 2 (the pixel default of 3
-    // would draw them half again as wide).
-    let grid: Vec<[f64; 3]> = (0..400)
-        .map(|i| [(i % 20) as f64, (i / 20) as f64, 0.0])
+    // would draw them half again as wide). Fine enough that neither reaches the largest splat
+    // (15 pixels), at about four pixels a spacing.
+    let grid: Vec<[f64; 3]> = (0..3600)
+        .map(|i| [(i % 60) as f64, (i / 60) as f64, 0.0])
         .collect();
     let dataset = converted_points("attenuated", &grid, false);
     let covered = |args: &[&str]| {

@@ -15,6 +15,7 @@ use strata_format::{
 };
 
 mod gpu_words;
+pub(crate) mod sampling;
 
 /// One node ready for upload: per point `[x, y, z, colour]` (f32 bits, then packed RGBA8) and
 /// `intensity16 | classification << 16 | return_number << 24` (raw intensity, return number up
@@ -33,6 +34,9 @@ pub struct GpuNode {
     pub streams: Vec<(PointStream, Vec<u8>)>,
     /// Stored (compressed) bytes read for this node.
     pub bytes_read: u64,
+    /// The spacing its points are sampled at, measured from them (`sampling`); `None` for a
+    /// node too small to tell.
+    pub sampling: Option<f32>,
 }
 
 /// What the RGB bytes of a point's colour hold. The projection colours by the others from the

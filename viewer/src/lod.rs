@@ -11,6 +11,9 @@ use strata_format::{HierarchyPage, NodeInfo, NodeKey, PageRef};
 #[derive(Default)]
 pub struct Tree {
     nodes: HashMap<NodeKey, NodeInfo>,
+    /// The spacing each node's points were measured at when it was loaded
+    /// (`dataset::sampling`), where they told one.
+    sampling: HashMap<NodeKey, f32>,
     /// Pages known from a loaded page but not loaded themselves, by their root (a proxy).
     unloaded_pages: HashMap<NodeKey, PageRef>,
     loaded_pages: HashSet<NodeKey>,
@@ -39,6 +42,18 @@ impl Tree {
 
     pub fn node(&self, key: NodeKey) -> Option<&NodeInfo> {
         self.nodes.get(&key)
+    }
+
+    /// Keeps what a loaded node's points measured (`GpuNode::sampling`).
+    pub fn measured(&mut self, key: NodeKey, spacing: Option<f32>) {
+        if let Some(s) = spacing {
+            self.sampling.insert(key, s);
+        }
+    }
+
+    /// The spacing node `key`'s points were measured at, once it has been loaded.
+    pub fn sampling(&self, key: NodeKey) -> Option<f32> {
+        self.sampling.get(&key).copied()
     }
 
     /// The page rooted at `key` that is known but not loaded: in 1.1 the one holding a
@@ -251,9 +266,12 @@ pub fn clip_range(ds: &StreamDataset, camera: &Camera, aspect: f32) -> (f32, f32
 }
 
 /// The metric spacing of the points drawn, for the pyramid pipeline's default s0: the median,
-/// over the finest drawn node at each place, of its edge over the square root of the points
-/// that cover it (its own, plus a quarter of its parent's per level up, since a surface crossing
-/// a cube takes about a quarter of its parent's area). `None` when nothing is drawn.
+/// over the finest drawn node at each place, of the spacing of the points that cover it (its
+/// own, plus a quarter of its parent's per level up, since a surface crossing a cube takes
+/// about a quarter of its parent's area). A node's own points are taken at the spacing they
+/// were measured at (`Tree::sampling`); before it is measured, at its edge over the root of
+/// their count, as if the surface crossing it covered its face once. `None` when nothing is
+/// drawn.
 pub fn drawn_spacing(tree: &Tree, ds: &StreamDataset, draw: &[NodeKey]) -> Option<f32> {
     let drawn: HashSet<NodeKey> = draw.iter().copied().collect();
     let has_drawn_child: HashSet<NodeKey> = draw.iter().filter_map(|k| k.parent()).collect();
@@ -271,8 +289,13 @@ pub fn drawn_spacing(tree: &Tree, ds: &StreamDataset, draw: &[NodeKey]) -> Optio
                 share *= 0.25;
                 at = k.parent();
             }
-            let (_, edge) = ds.node_cube(key);
-            (cover >= 1.0).then(|| edge / cover.sqrt() as f32)
+            // The area the points cover: each point takes a square of the spacing.
+            let own = tree.node(key).map_or(0, |n| n.point_count) as f64;
+            let area = match tree.sampling(key) {
+                Some(s) if own > 0.0 => own * (s as f64).powi(2),
+                _ => (ds.node_cube(key).1 as f64).powi(2),
+            };
+            (cover >= 1.0).then(|| (area / cover).sqrt() as f32)
         })
         .collect();
     if spacings.is_empty() {

@@ -94,6 +94,8 @@ impl StreamDataset {
             ]);
             attributes.push(inten | (cls << 16) | (ret << 24) | hidden[p]);
         }
+        let (_, edge) = self.node_cube(info.key);
+        let sampling = super::sampling::sampling_spacing(&points, edge);
         GpuNode {
             key: info.key,
             colours,
@@ -102,6 +104,7 @@ impl StreamDataset {
             attributes,
             streams: self.streams.streams(&self.layout, cols),
             bytes_read: info.size as u64,
+            sampling,
         }
     }
 }

@@ -432,6 +432,7 @@ mod stream_tests {
             attributes: vec![0; points],
             streams: Vec::new(),
             bytes_read: 0,
+            sampling: None,
         }
     }
 

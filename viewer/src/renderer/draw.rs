@@ -5,6 +5,7 @@
 use super::Renderer;
 use crate::ViewerError;
 use crate::camera::Camera;
+use crate::dataset::sampling::covering_radius;
 use crate::lod::{Selection, Tree, clip_range};
 use crate::pipelines::params::ResolvedParams;
 use crate::pipelines::projection::{
@@ -86,6 +87,14 @@ impl Renderer {
                 let whole = drawn_to_the_leaves(&self.tree, &drawn, child, &mut complete);
                 mask | is_drawn << c | u32::from(whole) << (16 + c)
             });
+            // A leaf's points are all there is, at whatever density the scan left: drawn at
+            // least as wide as discs that cover the density they were measured at, not at its
+            // level's spacing, which says nothing of them.
+            let level = self.ds.node_spacing(*key);
+            let spacing = match self.tree.sampling(*key) {
+                Some(s) if exist == 0 => level.max(covering_radius(s)),
+                _ => level,
+            };
             for p in self.cache.pieces(*key).unwrap_or_default() {
                 let d = per_arena.entry(p.arena).or_insert_with(|| ArenaDraw {
                     arena: p.arena,
@@ -95,7 +104,7 @@ impl Renderer {
                     start: p.start,
                     count: p.count,
                     first_group: 0,
-                    spacing: self.ds.node_spacing(*key),
+                    spacing,
                     centre,
                     children,
                 });

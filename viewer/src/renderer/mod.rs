@@ -180,6 +180,7 @@ impl Renderer {
         match done {
             Done::Node(node) => {
                 *bytes += node.bytes_read;
+                self.tree.measured(node.key, node.sampling);
                 self.uploads.push_back(node);
             }
             Done::NodeFailed(key, e) if e.is_transient() => self.unavailable(JobKey::Node(key), e),

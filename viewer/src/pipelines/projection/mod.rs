@@ -122,6 +122,8 @@ pub struct GpuRange {
     pub start: u32,
     pub count: u32,
     pub first_group: u32,
+    /// The node's spacing: its level's, or for a leaf the larger of that and the covering
+    /// radius of the density its points were measured at (`Tree::sampling`).
     pub spacing: f32,
     /// The node's centre, relative to the anchor.
     pub centre: [f32; 3],

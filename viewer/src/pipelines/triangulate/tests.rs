@@ -145,8 +145,9 @@ fn a_still_waits_the_warmup_and_the_first_frame_reprojects_nothing() {
         .expect("stored_normals");
     let fans = ResolvedParams::resolve(&fans, &INFO, || Some(0.3));
     assert_eq!(uniforms(&view, None, &fans, true).stored_normals, 0);
-    // max_connection left automatic: four drawn spacings, and two of each point's own node.
-    assert!((first.max_connection - 1.2).abs() < 1e-6);
+    // max_connection left automatic: five drawn spacings, and two of each point's own node.
+    let auto = super::CONNECTION_SPACINGS as f32 * 0.3;
+    assert!((first.max_connection - auto).abs() < 1e-6);
     assert_eq!(first.spacing_factor, super::NODE_SPACINGS);
     let mut set = ParamValues::default();
     set.set_text(&INFO, "max_connection", "0.5")
