@@ -8,7 +8,7 @@ use crate::copc_nodes::{Grid, plan};
 use crate::error::{ConvertError, Result};
 use crate::export::{Target, widened};
 use crate::las_records::LasRecords;
-use crate::writers::part_path;
+use crate::part_file::create_part;
 use laz::{LasZipCompressor, LazVlrBuilder};
 use std::fs::File;
 use std::io::{BufWriter, Read, Seek, SeekFrom, Write};
@@ -108,8 +108,19 @@ pub fn export_copc(dataset: &Path, output: &Path, overwrite: bool) -> Result<u64
             .map(|v| VLR_HEADER + v.3.len() as u64)
             .sum::<u64>();
 
-    let part = part_path(output);
-    let written = write_points(&ds, output, &wide, &records, laz_vlr, point_data, &vlrs);
+    // Read too: the chunk table's offset is read back at the end. Removed below on a failure
+    // only once it is this run's: a part another run holds is not.
+    let (part, file) = create_part(output)?;
+    let written = write_points(
+        &ds,
+        output,
+        (file, &part),
+        &wide,
+        &records,
+        laz_vlr,
+        point_data,
+        &vlrs,
+    );
     // Every point goes to exactly one COPC node, its cell at its level: a dataset whose nodes
     // hold points outside their cubes, or other than the count it states, loses or repeats
     // some, and is refused as the other exports refuse it.
@@ -149,25 +160,18 @@ pub fn export_copc(dataset: &Path, output: &Path, overwrite: bool) -> Result<u64
 
 /// Writes the header space, the VLRs and every node's chunk; returns the file, the chunks and
 /// the totals.
+#[allow(clippy::too_many_arguments)]
 fn write_points(
     ds: &LocalDataset,
     output: &Path,
+    (file, part): (File, &Path),
     wide: &crate::export::Widened,
     records: &LasRecords,
     laz_vlr: laz::LazVlr,
     point_data: u64,
     vlrs: &[(&str, u16, &str, Vec<u8>)],
 ) -> Result<(File, Vec<Entry>, Totals)> {
-    let part = &part_path(output);
     let io = |e: std::io::Error| ConvertError::io(part, "cannot write", e);
-    // Read too: the chunk table's offset is read back at the end.
-    let file = std::fs::OpenOptions::new()
-        .read(true)
-        .write(true)
-        .create(true)
-        .truncate(true)
-        .open(part)
-        .map_err(|e| ConvertError::io(part, "cannot create", e))?;
     let mut out = BufWriter::with_capacity(1 << 20, file);
     out.write_all(&[0u8; HEADER_SIZE as usize]).map_err(io)?;
     for (user, id, description, data) in vlrs {

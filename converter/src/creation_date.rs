@@ -8,7 +8,15 @@ use std::time::{SystemTime, UNIX_EPOCH};
 const EPOCH_FROM_CE: i64 = 719_163;
 
 /// Today's (day of the year, year), in UTC; (0, 0) where the clock says no date after 1970.
+/// `SOURCE_DATE_EPOCH` (seconds since 1970, the reproducible-builds convention) stands for
+/// the clock where it is set to one, so that a file written twice is the same byte for byte.
 pub fn today() -> (u16, u16) {
+    if let Some(secs) = std::env::var("SOURCE_DATE_EPOCH")
+        .ok()
+        .and_then(|v| v.trim().parse::<u64>().ok())
+    {
+        return day_of_year(secs / 86_400);
+    }
     SystemTime::now()
         .duration_since(UNIX_EPOCH)
         .map_or((0, 0), |d| day_of_year(d.as_secs() / 86_400))

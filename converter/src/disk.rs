@@ -22,15 +22,19 @@ pub const OUTPUT_PER_ROW_BYTE: f64 = 0.7;
 /// Bytes free to an unprivileged writer on the file system holding `path` (or the nearest
 /// folder above it that exists), and that file system's device.
 pub fn free_space(path: &Path) -> Option<(u64, u64)> {
-    let mut at = path;
-    while !at.exists() {
-        at = at.parent()?;
+    // A bare file name's parent is "", which does not exist: it is the working folder (the
+    // check was skipped for `-o big.laz`).
+    fn here(p: &Path) -> &Path {
+        if p.as_os_str().is_empty() {
+            Path::new(".")
+        } else {
+            p
+        }
     }
-    let at = if at.as_os_str().is_empty() {
-        Path::new(".")
-    } else {
-        at
-    };
+    let mut at = here(path);
+    while !at.exists() {
+        at = here(at.parent()?);
+    }
     let dev = std::fs::metadata(at).ok()?.dev();
     let c = std::ffi::CString::new(at.as_os_str().as_encoded_bytes()).ok()?;
     // SAFETY: statvfs fills the struct it is given from a NUL-terminated path; it is zeroed

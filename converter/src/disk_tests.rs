@@ -299,3 +299,13 @@ fn an_export_that_fills_the_disk_fails_cleanly_and_leaves_nothing() {
     assert!(err.to_string().contains("is a folder"), "{err}");
     assert!(!crate::writers::part_path(&folder).exists());
 }
+
+/// A bare file name lies in the working folder: its free space is that folder's (the space
+/// check was skipped for `-o big.laz` and the write ran until the disk filled).
+#[test]
+fn a_bare_file_name_has_the_working_folders_free_space() {
+    let bare = crate::disk::free_space(Path::new("not-written-here.laz"));
+    let here = crate::disk::free_space(Path::new("."));
+    assert!(bare.is_some(), "no free space found for a bare name");
+    assert_eq!(bare.map(|(_, dev)| dev), here.map(|(_, dev)| dev));
+}

@@ -23,6 +23,7 @@ pub mod las_records;
 pub mod merge;
 pub mod morton;
 pub mod normals;
+mod part_file;
 pub mod plan;
 pub mod ply_writer;
 pub mod potree2;

@@ -4,7 +4,8 @@
 
 use crate::error::{ConvertError, Result};
 use crate::las_records::refuse_encoded;
-use crate::writers::{RowWriter, part_path};
+use crate::part_file::create_part;
+use crate::writers::RowWriter;
 use std::fs::File;
 use std::io::{BufWriter, Write};
 use std::path::{Path, PathBuf};
@@ -64,8 +65,7 @@ impl PlyRowWriter {
         points: u64,
     ) -> Result<Self> {
         refuse_encoded(path, layout)?;
-        let part = part_path(path);
-        let file = File::create(&part).map_err(|e| ConvertError::io(&part, "cannot create", e))?;
+        let (part, file) = create_part(path)?;
         let mut out = BufWriter::with_capacity(1 << 20, file);
         let mut h = format!(
             "ply\nformat binary_little_endian 1.0\ncomment written by strata {}\nelement vertex {points}\nproperty double x\nproperty double y\nproperty double z\n",

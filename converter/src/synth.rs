@@ -236,20 +236,31 @@ impl World {
     }
 }
 
-/// The attribute layout synth writes: that of LAS point format 3.
+/// The attribute layout synth writes: that of LAS point format 3, its GPS times adjusted
+/// standard time (the header said GPS week time, which cannot pass 604 800 s; the scenes'
+/// times start at 10^8 s).
 pub fn synth_layout() -> RowLayout {
-    RowLayout::new(las_fields(3, &[]).0)
+    let mut attributes = las_fields(3, &[]).0;
+    for a in attributes.iter_mut().filter(|a| a.name == "gps_time") {
+        a.time_base = Some(strata_format::TimeBase::GpsAdjustedStandard);
+    }
+    RowLayout::new(attributes)
 }
 
 /// Refuses a scene the disk under `output` cannot hold, before writing any of it (10^12
 /// points ran on for hours towards 34 TB). LAZ is counted at a tenth of its rows, less than
-/// any scene of ours compresses to, so that only what cannot fit is refused.
+/// any scene of ours compresses to, so that only what cannot fit is refused; PLY at its rows
+/// with the position as three doubles where a row holds three 32-bit integers.
 fn check_room(output: &Path, points: u64, stride: usize) -> Result<()> {
-    let laz = output
-        .extension()
-        .is_some_and(|e| e.eq_ignore_ascii_case("laz"));
-    let per_point = if laz {
+    let is = |ext: &str| {
+        output
+            .extension()
+            .is_some_and(|e| e.eq_ignore_ascii_case(ext))
+    };
+    let per_point = if is("laz") {
         stride as f64 / 10.0
+    } else if is("ply") {
+        (stride + 12) as f64
     } else {
         stride as f64
     };

@@ -4,6 +4,8 @@
 
 use crate::error::{ConvertError, Result};
 use crate::las_records::{BIT_FIELDS, LasRecords};
+use crate::part_file::create_part;
+pub(crate) use crate::part_file::part_path;
 use crate::ply_writer::PlyRowWriter;
 use las::{PointDataBuilder, Transform, Vector, Vlr, Writer};
 use std::fs::File;
@@ -16,13 +18,6 @@ pub trait RowWriter {
     fn write_rows(&mut self, rows: &[u8]) -> Result<()>;
     /// Flushes and moves the file into place.
     fn finish(self: Box<Self>) -> Result<()>;
-}
-
-/// Where an output is written before it is renamed into place: `NAME.part` beside it.
-pub(crate) fn part_path(path: &Path) -> PathBuf {
-    let mut name = path.file_name().unwrap_or_default().to_os_string();
-    name.push(".part");
-    path.with_file_name(name)
 }
 
 /// The LAS writer's file, which after its first failure (a full disk) takes every further
@@ -297,8 +292,7 @@ impl LasRowWriter {
         let header = builder
             .into_header()
             .map_err(|e| ConvertError::output(path, format!("cannot build LAS header ({e})")))?;
-        let part = part_path(path);
-        let file = File::create(&part).map_err(|e| ConvertError::io(&part, "cannot create", e))?;
+        let (part, file) = create_part(path)?;
         let sink = Latched {
             inner: BufWriter::with_capacity(1 << 20, file),
             failed: false,

@@ -13,7 +13,9 @@ pub struct Args {
     /// The scene: city (buildings, trees, streets) or terrain.
     #[arg(long, default_value = "city", value_parser = ["city", "terrain"])]
     scene: String,
-    /// Seed: the same seed and arguments always give the same file.
+    /// Seed: the same seed and arguments always give the same points (and, with
+    /// SOURCE_DATE_EPOCH set, the same file: a LAS header dates itself to the day it is
+    /// written).
     #[arg(long, default_value_t = 1, allow_negative_numbers = true)]
     seed: u64,
     /// Gaussian noise added to every coordinate, as a deviation in metres (a scanner's
