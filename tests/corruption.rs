@@ -1,4 +1,6 @@
-//! A flipped byte anywhere in a node or the hierarchy is found, and the damaged part named.
+//! A flipped byte anywhere in a node or the hierarchy is found, and the damaged part named,
+//! once: not again as bounds the skipped node's points no longer reach. What `metadata.json`
+//! says of the points (their classes, the spacing its cube gives) is checked against them.
 
 mod common;
 use common::*;
@@ -291,4 +293,63 @@ fn bounds_beyond_the_root_cube_are_refused_at_open() {
         );
     }
     every_export_refuses(&ds, dir.path(), "outside the root cube");
+}
+
+/// A damaged node is one fault: the points it could not give were counted as the bounds
+/// falling short, a second fault against metadata.json.
+#[test]
+fn a_damaged_node_is_not_also_blamed_on_the_metadata() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let ds = dataset(dir.path());
+    let local = strata_format::LocalDataset::open(&ds).expect("opens");
+    let nodes = local.all_nodes().expect("nodes");
+    drop(local);
+    for n in nodes.iter().filter(|n| n.size > 0) {
+        flip(&ds.join("octree.bin"), n.offset + n.size as u64 / 2);
+        let o = run(&["verify", s(&ds)]);
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert!(err.contains("1 fault(s) found"), "{}: {err}", n.key);
+        assert!(!err.contains("metadata.json"), "{}: {err}", n.key);
+        flip(&ds.join("octree.bin"), n.offset + n.size as u64 / 2);
+    }
+}
+
+/// Class counts and a spacing that are not the points' were passed as "ok" and printed by
+/// `info`.
+#[test]
+fn metadata_that_misstates_the_classes_or_the_spacing_is_a_fault() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let ds = dataset(dir.path());
+    let path = ds.join("metadata.json");
+    let clean = std::fs::read(&path).expect("read");
+    let doc: serde_json::Value = serde_json::from_slice(&clean).expect("json");
+    assert!(doc["classes"].as_object().is_some_and(|c| !c.is_empty()));
+    type Edit = fn(&mut serde_json::Value);
+    let edits: [(&str, Edit); 3] = [
+        ("counts the points by class", |d| {
+            let (_, n) = d["classes"]
+                .as_object_mut()
+                .and_then(|c| c.iter_mut().next())
+                .expect("a class");
+            *n = serde_json::json!(n.as_u64().expect("a count") + 5);
+        }),
+        ("counts the points by class", |d| {
+            d["classes"]["9"] = serde_json::json!(12345);
+        }),
+        ("gives spacing", |d| {
+            let v = d["spacing"].as_f64().expect("spacing");
+            d["spacing"] = serde_json::json!(v * 10.0);
+        }),
+    ];
+    for (said, edit) in edits {
+        let mut d = doc.clone();
+        edit(&mut d);
+        std::fs::write(&path, serde_json::to_vec(&d).expect("json")).expect("write");
+        let o = run(&["verify", s(&ds)]);
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert_eq!(o.status.code(), Some(1), "{err}");
+        assert!(err.contains(said) && err.contains("metadata.json"), "{err}");
+    }
+    std::fs::write(&path, clean).expect("restore");
+    run_ok(&["verify", s(&ds)]);
 }

@@ -72,9 +72,32 @@ pub fn verify_dataset(dir: &Path) -> VerifyReport {
     let meta = ds.metadata().clone();
     report.version = Some(meta.version);
     report.id = meta.id;
+    // The root's spacing follows from the cube (SPEC.md); a reader sizes points by it.
+    let spacing = meta.scale[0] * 2f64.powi(meta.cube.bits as i32) / 128.0;
+    if !meta.spacing.is_finite() || (meta.spacing - spacing).abs() > 1e-9 * spacing.abs() {
+        report.fault(
+            "metadata.json",
+            format!(
+                "gives spacing {} where its cube's (scale[0] * 2^{} / 128) is {spacing}",
+                meta.spacing, meta.cube.bits
+            ),
+        );
+    }
     let (nodes, pages_ok) = check_pages(&ds, &mut report);
-    let (max_level, extent) = check_nodes(&ds, &nodes, &mut report);
+    let seen = check_nodes(&ds, &nodes, &mut report);
+    let (max_level, extent) = (seen.max_level, seen.extent);
     report.nodes_checked = nodes.len() as u64;
+    // Counted from every point only where every node decoded: one that failed would show
+    // as a count or a bound off, beside its own fault.
+    if pages_ok && seen.complete && !meta.classes.is_empty() && meta.classes != seen.classes {
+        report.fault(
+            "metadata.json",
+            format!(
+                "counts the points by class as {:?}, but they are {:?}",
+                meta.classes, seen.classes
+            ),
+        );
+    }
     if pages_ok {
         if report.points_checked != meta.points {
             report.fault(
@@ -96,7 +119,7 @@ pub fn verify_dataset(dir: &Path) -> VerifyReport {
             );
         }
         // The bounds are the stored points' own (a reader frames and culls by them).
-        if let Some((lo, hi)) = extent {
+        if let Some((lo, hi)) = extent.filter(|_| seen.complete) {
             let real = |a: usize, v: i32| meta.offset[a] + meta.scale[a] * v as f64;
             // A point whose coordinate is not a finite number (a scale that overflows them)
             // is off any bounds.
@@ -241,13 +264,25 @@ type Extent = ([i32; 3], [i32; 3]);
 
 /// Checks every node's payload; returns the deepest level and the integer extent of the
 /// points that decoded.
-fn check_nodes(
-    ds: &LocalDataset,
-    nodes: &[NodeInfo],
-    report: &mut VerifyReport,
-) -> (u32, Option<Extent>) {
+/// What the nodes' points add up to.
+struct NodesSeen {
+    max_level: u32,
+    extent: Option<Extent>,
+    /// Points per classification code, as `metadata.json` keys them.
+    classes: BTreeMap<String, u64>,
+    /// Whether every node with points decoded: the extent and the classes are then whole.
+    complete: bool,
+}
+
+fn check_nodes(ds: &LocalDataset, nodes: &[NodeInfo], report: &mut VerifyReport) -> NodesSeen {
     let meta = ds.metadata();
     let layout = meta.layout();
+    let class = ds
+        .layout()
+        .index_of("classification")
+        .map(|i| (i, ds.layout().attributes[i].ty));
+    let mut class_counts: BTreeMap<u64, u64> = BTreeMap::new();
+    let mut complete = true;
     let octree_len = meta.files.octree.size;
     let octree_path = ds.path_of(DatasetFile::Octree);
     let mut by_offset: Vec<&NodeInfo> = nodes.iter().collect();
@@ -260,6 +295,7 @@ fn check_nodes(
         report.points_checked += n.point_count as u64;
         let part = format!("node {}", n.key);
         if n.key.level as u32 > meta.cube.bits {
+            complete = false;
             report.fault(
                 part,
                 format!(
@@ -276,6 +312,7 @@ fn check_nodes(
         }
         let end = n.offset.saturating_add(n.size as u64);
         if n.offset < last_end || end > octree_len {
+            complete = false;
             report.fault(
                 part,
                 format!(
@@ -304,12 +341,29 @@ fn check_nodes(
                         hi[a] = hi[a].max(p[a]);
                     }
                 }
+                if let Some((i, ty)) = class {
+                    let col = cols.attribute(ds.layout(), i);
+                    for v in col.chunks_exact(ty.size()).take(cols.count) {
+                        *class_counts.entry(ty.read_f64(v) as u64).or_default() += 1;
+                    }
+                }
                 if let Some(i) = cols.first_outside(n.key, meta.cube.min, meta.cube.bits) {
                     report.fault(part, format!("point {i} lies outside the node's cube"));
                 }
             }
-            Err(what) => report.fault(part, what),
+            Err(what) => {
+                complete = false;
+                report.fault(part, what);
+            }
         }
     }
-    (max_level, extent)
+    NodesSeen {
+        max_level,
+        extent,
+        classes: class_counts
+            .into_iter()
+            .map(|(c, n)| (c.to_string(), n))
+            .collect(),
+        complete,
+    }
 }

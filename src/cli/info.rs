@@ -81,7 +81,7 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
         m.spacing, m.sampling
     );
     println!(
-        "size      {} ({:.1} bytes/point stored, {} uncompressed)",
+        "size      {} in hierarchy.bin and octree.bin ({:.1} bytes/point stored, {} uncompressed)",
         format_bytes(bytes),
         bytes as f64 / m.points.max(1) as f64,
         m.point_bytes()
