@@ -179,3 +179,68 @@ fn a_scene_larger_than_the_free_disk_is_refused_up_front() {
         assert!(left.is_empty(), "{ext}: {left:?}");
     }
 }
+
+/// A bare file name is the working folder's: the space check once skipped it (its parent, "",
+/// does not exist) and the write ran until the disk filled.
+#[test]
+fn a_bare_output_name_is_checked_for_space_too() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let o = strata()
+        .current_dir(dir.path())
+        .args(["synth", "--points", "1e14", "-o", "huge.laz"])
+        .output()
+        .expect("runs");
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(1), "{err}");
+    assert!(err.contains("of free disk there"), "{err}");
+}
+
+/// SOURCE_DATE_EPOCH dates the LAS header, so the same seed gives the same file on any day;
+/// the times are marked adjusted standard GPS time (global encoding bit 0), which 10^8 s is,
+/// where the header said GPS week time.
+#[test]
+fn a_dated_scene_is_the_same_file_and_its_times_are_adjusted_standard() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let write = |name: &str| {
+        let out = dir.path().join(name);
+        let o = strata()
+            .env("SOURCE_DATE_EPOCH", "31622400") // 1971-01-02
+            .args(["synth", "--points", "5k", "-o", s(&out)])
+            .output()
+            .expect("runs");
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        std::fs::read(out).expect("read")
+    };
+    let (a, b) = (write("a.las"), write("b.las"));
+    assert_eq!(a, b);
+    // Day of the year and year (LAS 1.4 header bytes 90 to 93).
+    assert_eq!(u16::from_le_bytes([a[90], a[91]]), 2);
+    assert_eq!(u16::from_le_bytes([a[92], a[93]]), 1971);
+    assert_eq!(
+        u16::from_le_bytes([a[6], a[7]]) & 1,
+        1,
+        "adjusted standard GPS time"
+    );
+}
+
+/// A part another writer holds (locked) refuses a second writer, which leaves it alone; once
+/// it is let go (its writer killed), the next run replaces it. Two runs to one output wrote
+/// into one file, and the first to finish moved the mixture into place with exit 0.
+#[test]
+fn a_second_writer_of_one_output_is_refused_and_a_left_part_replaced() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let out = dir.path().join("x.las");
+    let part = dir.path().join("x.las.part");
+    std::fs::write(&part, b"another writer's").expect("write");
+    let held = std::fs::File::open(&part).expect("open");
+    held.try_lock().expect("lock");
+    let o = run(&["synth", "--points", "1k", "-o", s(&out)]);
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(1), "{err}");
+    assert!(err.contains("another strata is writing it"), "{err}");
+    assert_eq!(std::fs::read(&part).expect("read"), b"another writer's");
+    assert!(!out.exists());
+    drop(held);
+    run_ok(&["synth", "--points", "1k", "-o", s(&out)]);
+    assert!(out.exists() && !part.exists());
+}
