@@ -585,3 +585,36 @@ fn a_file_given_twice_is_said() {
         "{err}"
     );
 }
+
+/// The views and measurements the window saved in a dataset's folder are the user's, of the
+/// scene: converting it again over itself keeps them, where `--overwrite` deleted them.
+#[test]
+fn overwriting_a_dataset_keeps_the_views_and_measurements_saved_in_it() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let out = dir.path().join("ds");
+    run_ok(&["convert", s(&data("autzen_trim.las")), "-o", s(&out), "-q"]);
+    let saved = [
+        ("bookmarks.json", "{\"views\": []}\n"),
+        (
+            "measurements.geojson",
+            "{\"type\": \"FeatureCollection\", \"features\": []}\n",
+        ),
+    ];
+    for (name, body) in saved {
+        std::fs::write(out.join(name), body).expect("save");
+    }
+    run_ok(&[
+        "convert",
+        s(&data("autzen_trim.las")),
+        "-o",
+        s(&out),
+        "-q",
+        "--overwrite",
+        "--normals",
+    ]);
+    for (name, body) in saved {
+        let kept = std::fs::read_to_string(out.join(name)).expect("kept");
+        assert_eq!(kept, body, "{name}");
+    }
+    run_ok(&["verify", s(&out)]);
+}

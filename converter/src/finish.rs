@@ -200,6 +200,7 @@ pub fn finish(
     let old = wd.replaced();
     let replacing = opts.output.exists();
     if replacing {
+        keep_what_the_viewer_saved(&opts.output, wd.root())?;
         fs::rename(&opts.output, &old).map_err(io_err(&opts.output, "cannot replace"))?;
     }
     fs::rename(wd.root(), &opts.output).map_err(io_err(
@@ -216,6 +217,23 @@ pub fn finish(
         dataset_bytes: octree_len + hier.len() as u64,
     })
 }
+
+/// Copies into the new dataset what the viewer saved beside the one it replaces: the user's
+/// views and measurements are of the scene, not of this conversion of it (one with `--normals`
+/// added, or at another scale), and `--overwrite` deleted them without a word.
+fn keep_what_the_viewer_saved(replaced: &Path, new: &Path) -> Result<()> {
+    for name in VIEWER_FILES {
+        let from = replaced.join(name);
+        if from.is_file() {
+            let to = new.join(name);
+            fs::copy(&from, &to).map_err(io_err(&to, "cannot keep the replaced dataset's"))?;
+        }
+    }
+    Ok(())
+}
+
+/// What the window saves in a dataset's folder.
+pub const VIEWER_FILES: [&str; 2] = ["bookmarks.json", "measurements.geojson"];
 
 /// The dataset id: a hash of everything the files hold that decides what a reader sees (the
 /// pages, which hold every payload's place, size and checksum; the octree's length; the grid;
