@@ -107,3 +107,46 @@ fn a_dataset_cut_short_while_open_fails_its_nodes_without_a_crash() {
     };
     assert!(err.contains("octree.bin"), "{err}");
 }
+
+/// The window names the nodes that failed and why (in its panel, and once each on stderr for
+/// the log), where it showed only their count.
+#[test]
+fn the_window_says_which_nodes_failed_and_why() {
+    if !common::have_xvfb() {
+        return;
+    }
+    let src = fixtures().join("autzen.strata");
+    let dir = fixtures().join("window-failures");
+    let dataset = dir.join("autzen.strata");
+    std::fs::create_dir_all(&dataset).expect("dir");
+    for f in ["metadata.json", "hierarchy.bin", "octree.bin"] {
+        std::fs::copy(src.join(f), dataset.join(f)).expect("copy");
+    }
+    let ds = strata_format::LocalDataset::open(&dataset).expect("opens");
+    let victim = ds
+        .all_nodes()
+        .expect("nodes")
+        .into_iter()
+        .find(|n| n.key.level == 1)
+        .expect("a level-1 node");
+    drop(ds);
+    let mut octree = std::fs::read(dataset.join("octree.bin")).expect("read");
+    octree[victim.offset as usize + victim.size as usize / 2] ^= 0x5a;
+    std::fs::write(dataset.join("octree.bin"), octree).expect("write");
+    let shot = dir.join("window.png");
+    let backend = std::env::var("WGPU_BACKEND").unwrap_or_else(|_| "vulkan".into());
+    let o = std::process::Command::new("xvfb-run")
+        .args(["-a", "-s", "-screen 0 1400x900x24"])
+        .arg(env!("CARGO_BIN_EXE_strata"))
+        .args(["view", s(&dataset), "--size", "800x500", "--screenshot"])
+        .arg(&shot)
+        .args(["--screenshot-after", "20"])
+        .env("WGPU_BACKEND", backend)
+        .output()
+        .expect("xvfb-run runs");
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(o.status.success(), "view failed: {err}");
+    let named = format!("node {}", victim.key);
+    assert_eq!(err.matches("warning:").count(), 1, "{err}");
+    assert!(err.contains(&named) || err.contains("octree.bin"), "{err}");
+}

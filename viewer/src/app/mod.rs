@@ -65,6 +65,8 @@ struct ViewerApp {
     auto_values: std::collections::HashMap<(&'static str, &'static str), f32>,
     /// The frame failed (a GPU fault, a lost device): shown in the panel, nothing drawn.
     error: Option<String>,
+    /// The renderer's node failures already written to stderr.
+    errors_reported: usize,
     views: views::Views,
     measuring: measure::Measuring,
     /// The clip box handle being dragged.
@@ -111,6 +113,7 @@ pub fn run_window(location: &str, opts: WindowOptions) -> Result<(), ViewerError
         settings: opts.settings,
         auto_values: Default::default(),
         error: None,
+        errors_reported: 0,
         views: views::Views::open(location),
         measuring: measure::Measuring::open(location, opts.measurements),
         clip_drag: None,
@@ -353,11 +356,43 @@ impl ViewerApp {
         } else {
             "streaming..."
         });
+        self.failures(ui);
         ui.separator();
         ui.label(&self.renderer.context().adapter_name);
         ui.label(
             egui::RichText::new(self.camera.to_spec(self.renderer.dataset().anchor())).small(),
         );
+    }
+
+    /// Why nodes failed, and the latest fetch that found no server: the counts alone said
+    /// nothing of which or why. Each failure also goes to stderr once, for the log.
+    fn failures(&mut self, ui: &mut egui::Ui) {
+        let errors = self.renderer.errors();
+        for e in &errors[self.errors_reported.min(errors.len())..] {
+            eprintln!("warning: {e}");
+        }
+        self.errors_reported = errors.len();
+        if !errors.is_empty() {
+            egui::CollapsingHeader::new(format!("{} failed", errors.len()))
+                .id_salt("failures")
+                .show(ui, |ui| {
+                    // The first ones: a damaged file fails its nodes alike.
+                    for e in errors.iter().take(20) {
+                        ui.colored_label(egui::Color32::LIGHT_RED, egui::RichText::new(e).small());
+                    }
+                    if errors.len() > 20 {
+                        ui.label(format!("and {} more", errors.len() - 20));
+                    }
+                });
+        }
+        if self.stats.nodes_unavailable > 0
+            && let Some(e) = self.renderer.last_fetch_error()
+        {
+            ui.colored_label(
+                egui::Color32::YELLOW,
+                egui::RichText::new(format!("asked again later: {e}")).small(),
+            );
+        }
     }
 
     fn scene(&mut self, ui: &mut egui::Ui, frame: &mut eframe::Frame) {

@@ -155,7 +155,10 @@ impl ViewerApp {
         if self.profiling.receive() {
             ctx.request_repaint();
         }
-        if self.profiling.result.is_none() && self.profiling.pending.is_none() {
+        // Shown for an error alone too: a line with no length (its two clicks on one point)
+        // did nothing, where the command line says why.
+        let p = &self.profiling;
+        if p.result.is_none() && p.pending.is_none() && p.error.is_none() {
             return;
         }
         let ds = self.renderer.dataset().clone();
@@ -170,7 +173,10 @@ impl ViewerApp {
             .show(ctx, |ui| {
                 let p = &mut self.profiling;
                 let Some(profile) = &p.result else {
-                    ui.label("reading...");
+                    match &p.error {
+                        Some(e) => ui.colored_label(egui::Color32::LIGHT_RED, e),
+                        None => ui.label("reading..."),
+                    };
                     return;
                 };
                 let key = (p.generation, profile.points.len(), profile.level);
@@ -218,6 +224,7 @@ impl ViewerApp {
         if !open {
             self.profiling.result = None;
             self.profiling.pending = None;
+            self.profiling.error = None;
         }
     }
 
