@@ -4,25 +4,38 @@
 
 use super::*;
 
-#[test]
-fn a_corrupt_node_fails_the_render_and_leaves_no_image() {
+/// A copy of the autzen fixture in `dir`, to damage.
+fn autzen_copy(dir: &Path) -> PathBuf {
     let src = fixtures().join("autzen.strata");
-    let dir = fixtures().join("corrupt-node");
     let dataset = dir.join("autzen.strata");
     std::fs::create_dir_all(&dataset).expect("dir");
     for f in ["metadata.json", "hierarchy.bin", "octree.bin"] {
         std::fs::copy(src.join(f), dataset.join(f)).expect("copy");
     }
-    let ds = strata_format::LocalDataset::open(&dataset).expect("opens");
+    dataset
+}
+
+/// Flips a byte in the middle of a level-1 node's payload; the node.
+fn corrupt_a_level_1_node(dataset: &Path) -> strata_format::NodeInfo {
+    let ds = strata_format::LocalDataset::open(dataset).expect("opens");
     let victim = ds
         .all_nodes()
         .expect("nodes")
         .into_iter()
         .find(|n| n.key.level == 1)
         .expect("a level-1 node");
+    drop(ds);
     let mut octree = std::fs::read(dataset.join("octree.bin")).expect("read");
     octree[victim.offset as usize + victim.size as usize / 2] ^= 0x5a;
     std::fs::write(dataset.join("octree.bin"), octree).expect("write");
+    victim
+}
+
+#[test]
+fn a_corrupt_node_fails_the_render_and_leaves_no_image() {
+    let dir = fixtures().join("corrupt-node");
+    let dataset = autzen_copy(&dir);
+    let victim = corrupt_a_level_1_node(&dataset);
 
     let out = dir.join("corrupt.png");
     let st = dir.join("corrupt.json");
@@ -79,12 +92,7 @@ fn a_corrupt_node_fails_the_render_and_leaves_no_image() {
 /// pages were memory-mapped, and the first read past the cut killed the process (SIGBUS).
 #[test]
 fn a_dataset_cut_short_while_open_fails_its_nodes_without_a_crash() {
-    let src = fixtures().join("autzen.strata");
-    let dataset = fixtures().join("cut-short").join("autzen.strata");
-    std::fs::create_dir_all(&dataset).expect("dir");
-    for f in ["metadata.json", "hierarchy.bin", "octree.bin"] {
-        std::fs::copy(src.join(f), dataset.join(f)).expect("copy");
-    }
+    let dataset = autzen_copy(&fixtures().join("cut-short"));
     let ds = StreamDataset::open_path(&dataset).expect("opens");
     let nodes = strata_format::LocalDataset::open(&dataset)
         .expect("opens")
@@ -115,24 +123,9 @@ fn the_window_says_which_nodes_failed_and_why() {
     if !common::have_xvfb() {
         return;
     }
-    let src = fixtures().join("autzen.strata");
     let dir = fixtures().join("window-failures");
-    let dataset = dir.join("autzen.strata");
-    std::fs::create_dir_all(&dataset).expect("dir");
-    for f in ["metadata.json", "hierarchy.bin", "octree.bin"] {
-        std::fs::copy(src.join(f), dataset.join(f)).expect("copy");
-    }
-    let ds = strata_format::LocalDataset::open(&dataset).expect("opens");
-    let victim = ds
-        .all_nodes()
-        .expect("nodes")
-        .into_iter()
-        .find(|n| n.key.level == 1)
-        .expect("a level-1 node");
-    drop(ds);
-    let mut octree = std::fs::read(dataset.join("octree.bin")).expect("read");
-    octree[victim.offset as usize + victim.size as usize / 2] ^= 0x5a;
-    std::fs::write(dataset.join("octree.bin"), octree).expect("write");
+    let dataset = autzen_copy(&dir);
+    let victim = corrupt_a_level_1_node(&dataset);
     let shot = dir.join("window.png");
     let backend = std::env::var("WGPU_BACKEND").unwrap_or_else(|_| "vulkan".into());
     let o = std::process::Command::new("xvfb-run")
