@@ -2,7 +2,8 @@
 //! 16-bit class, a return number above 15. The word packed them into 16, 8 and 4 bits, and a
 //! filter compared the packed value (intensity 0.3 as 0, class 258 as 2, return 200 as 15); the
 //! loader now compares them exact. Also: elevation bounds as exact as the points' positions,
-//! intensity bounds between whole numbers, and filters on attributes the points lack refused.
+//! intensity bounds between whole numbers, and filters on attributes the points lack refused,
+//! as are classes of which the dataset holds no point.
 
 mod common;
 
@@ -145,4 +146,22 @@ fn a_filter_on_what_the_points_lack_is_refused() {
             "{filters:?}: {err}"
         );
     }
+}
+
+/// Classes to show of which the dataset holds no point are refused, naming the ones it has,
+/// where a blank image came back with exit 0; one it has among them is drawn.
+#[test]
+fn classes_the_dataset_has_no_point_of_are_refused() {
+    let dir = common::fresh_dir("filter-values-classes");
+    let las = dir.join("city.las");
+    run_ok(&["synth", "--points", "20k", "-o", s(&las)]);
+    let ds = dir.join("city.strata");
+    run_ok(&["convert", s(&las), "-o", s(&ds), "--quiet"]);
+    let err = drawn(&ds, &["--classes", "1,3"]).expect_err("classes of no point");
+    assert!(
+        err.contains("no point has a class the filter shows")
+            && err.contains("classes are 2, 5, 6"),
+        "{err}"
+    );
+    assert!(drawn(&ds, &["--classes", "1,6"]).is_ok_and(|n| n > 0));
 }

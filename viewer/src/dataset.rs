@@ -432,6 +432,33 @@ impl StreamDataset {
         Marks::of_filter(&self.layout, filter, self.word_fit, &self.location())
     }
 
+    /// Refuses, before anything is drawn, a filter the dataset cannot answer: an attribute it
+    /// lacks (`marks`), or classes to show none of which it holds a point of, where its
+    /// metadata counts them (a mistyped code gave a blank image and exit 0).
+    pub fn check_filter(&self, filter: &crate::settings::PointFilter) -> Result<(), ViewerError> {
+        self.marks(filter)?;
+        let counted = &self.metadata.classes;
+        if let (Some(mask), false) = (filter.classes, filter.classes_beyond)
+            && !counted.is_empty()
+        {
+            let shown = |c: u64| c < 256 && (mask[(c / 32) as usize] >> (c % 32)) & 1 == 1;
+            let held = counted
+                .iter()
+                .any(|(code, &n)| n > 0 && code.parse::<u64>().is_ok_and(shown));
+            if !held {
+                let codes: Vec<&str> = counted.keys().map(String::as_str).collect();
+                return Err(ViewerError::source(
+                    self.location(),
+                    format!(
+                        "no point has a class the filter shows (the dataset's classes are {})",
+                        codes.join(", ")
+                    ),
+                ));
+            }
+        }
+        Ok(())
+    }
+
     /// Which filters the GPU's attribute word answers exactly (the others: `marks`).
     pub fn word_fit(&self) -> WordFit {
         self.word_fit

@@ -81,7 +81,7 @@ pub fn render(location: &str, opts: &RenderOptions) -> Result<RenderReport, View
     // Before the GPU is opened: a colouring or a filter the dataset cannot give is refused at
     // once.
     ds.check_colour(opts.settings.colour)?;
-    ds.marks(&opts.settings.filter)?;
+    ds.check_filter(&opts.settings.filter)?;
     let ctx = Arc::new(GpuContext::new(opts.projection)?);
     render_with(ds, ctx, opts, t0)
 }

@@ -94,7 +94,7 @@ pub fn run_window(location: &str, opts: WindowOptions) -> Result<(), ViewerError
     };
     let ds = Arc::new(StreamDataset::open(location, http)?);
     ds.check_colour(opts.settings.colour)?;
-    ds.marks(&opts.settings.filter)?;
+    ds.check_filter(&opts.settings.filter)?;
     let ctx = Arc::new(GpuContext::new(opts.projection)?);
     let renderer = Renderer::new(
         ctx.clone(),
