@@ -312,6 +312,7 @@ pub fn pick_all(
     radius: u32,
 ) -> Result<Vec<Option<PickedPoint>>, ViewerError> {
     let ds = Arc::new(StreamDataset::open(location, http_options(opts))?);
+    ds.check_filter(&opts.settings.filter)?;
     let ctx = Arc::new(GpuContext::new(opts.projection)?);
     let camera = match &opts.camera {
         Some(spec) => Camera::parse(
