@@ -68,12 +68,23 @@ impl Measuring {
         }
     }
 
-    /// Keeps the measurement being made if it has its points.
+    /// Keeps the measurement being made if it has its points and they measure something:
+    /// points that coincide (one point clicked three times for an angle) are refused as
+    /// `strata measure` refuses them, not kept without a value.
     fn finish(&mut self) {
-        if let Some(m) = self.current.take().filter(Measurement::is_complete) {
-            self.all.items.push(m);
-            self.changed();
+        let Some(m) = self.current.take().filter(Measurement::is_complete) else {
+            return;
+        };
+        if m.values().is_empty() {
+            self.error = Some(format!(
+                "{}: the points measure no {}: they coincide where the measure needs them apart",
+                m.name,
+                m.kind.name()
+            ));
+            return;
         }
+        self.all.items.push(m);
+        self.changed();
     }
 
     /// Saves beside the dataset after a change, so that closing the window loses nothing.
@@ -250,5 +261,26 @@ mod tests {
         let mut given = Measuring::open(&location, Some(Measurements::default()));
         given.changed();
         assert_eq!(std::fs::read(&file).expect("read"), b"{ not geojson");
+    }
+
+    #[test]
+    fn an_angle_of_coincident_points_is_refused_not_kept_without_a_value() {
+        let mut m = Measuring::default();
+        let at = [1.0, 2.0, 3.0];
+        for (points, kept) in [
+            (vec![at; 3], false),
+            (vec![at, [2.0, 2.0, 3.0], [1.0, 3.0, 3.0]], true),
+        ] {
+            m.current = Some(Measurement {
+                kind: MeasureKind::Angle,
+                name: "angle".into(),
+                points,
+                source: None,
+            });
+            m.finish();
+            assert_eq!(m.all.items.len(), usize::from(kept));
+            assert_eq!(m.error.is_some(), !kept, "{:?}", m.error);
+            m.error = None;
+        }
     }
 }

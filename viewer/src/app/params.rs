@@ -81,7 +81,14 @@ impl ViewerApp {
                 let slider = egui::Slider::new(&mut log_v, range).show_value(false);
                 let changed = ui.add(slider).on_hover_text(spec.help).changed();
                 v = 10f32.powf(log_v);
-                ui.label(format!("{} = {v:.4}", spec.name));
+                // Four decimals of a count in the millions showed f32's rounding of its
+                // power of ten (shadow_budget = 2000000.7500).
+                let shown = if v >= 1000.0 {
+                    format!("{v:.0}")
+                } else {
+                    format!("{v:.4}")
+                };
+                ui.label(format!("{} = {shown}", spec.name));
                 changed
             }
             Scale::Integer => {
