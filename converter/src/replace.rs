@@ -29,17 +29,14 @@ impl Folder {
     fn holds(self, name: &str, is_file: bool) -> bool {
         match self {
             Folder::Dataset => {
-                const FILES: [&str; 6] = [
-                    "metadata.json",
-                    "hierarchy.bin",
-                    "octree.bin",
-                    "log.txt",
-                    "measurements.geojson",
-                    "bookmarks.json",
-                ];
+                const FILES: [&str; 4] =
+                    ["metadata.json", "hierarchy.bin", "octree.bin", "log.txt"];
                 const CLUTTER: [&str; 3] = [".DS_Store", "Thumbs.db", "desktop.ini"];
                 let base = name.strip_suffix(".part").unwrap_or(name);
-                is_file && (FILES.contains(&base) || CLUTTER.contains(&name))
+                is_file
+                    && (FILES.contains(&base)
+                        || crate::finish::VIEWER_FILES.contains(&base)
+                        || CLUTTER.contains(&name))
             }
             Folder::Plan => match name {
                 "plan.json" | UNFINISHED_PLAN => is_file,
