@@ -1,13 +1,15 @@
 //! Headless rendering on the software adapter (lavapipe): coverage, the point budget, the two
 //! projection paths, corrupt nodes, fly-throughs, bad arguments, colouring by normal and by
 //! curvature, the surfels, the filters, the triangulation, leaves sized by their measured
-//! density, and the window under Xvfb.
+//! density, the demo, and the window under Xvfb.
 
 #[path = "render/colours.rs"]
 mod colours;
 mod common;
 #[path = "render/damaged.rs"]
 mod damaged;
+#[path = "render/demo.rs"]
+mod demo;
 #[path = "render/facing.rs"]
 mod facing;
 #[path = "render/filter_shadows.rs"]
@@ -472,32 +474,6 @@ fn a_small_gpu_cache_evicts_and_still_completes_every_frame() {
         said.contains("holds fewer points than the budget of 1000000"),
         "{said}"
     );
-}
-
-#[test]
-fn demo_synthesizes_converts_and_renders_without_a_display() {
-    let dir = fixtures().join("demo");
-    let backend = std::env::var("WGPU_BACKEND").unwrap_or_else(|_| "vulkan".into());
-    let o = strata()
-        .env("WGPU_BACKEND", backend)
-        .env_remove("DISPLAY")
-        .env_remove("WAYLAND_DISPLAY")
-        .args(["demo", "--dir", s(&dir), "--points", "200k"])
-        .output()
-        .expect("demo runs");
-    assert!(
-        o.status.success(),
-        "demo failed: {}",
-        String::from_utf8_lossy(&o.stderr)
-    );
-    let (w, h, rgba) = read_png(&dir.join("city.png"));
-    assert_eq!((w, h), (1280, 720));
-    let drawn_px = rgba.chunks_exact(4).filter(|p| drawn(p)).count();
-    assert!(
-        drawn_px > 50_000,
-        "the demo image shows {drawn_px} drawn pixels"
-    );
-    assert!(String::from_utf8_lossy(&o.stdout).contains("points drawn"));
 }
 
 #[test]

@@ -7,11 +7,11 @@ use std::time::Duration;
 use strata_converter::replace::{Folder, check_output};
 use strata_converter::synth::{Scene, synth};
 use strata_converter::{ConvertOptions, Sampling, convert};
-use strata_viewer::Settings;
 use strata_viewer::app::{WindowOptions, run_window};
 use strata_viewer::gpu::ProjectionPath;
 use strata_viewer::headless::{RenderOptions, check_png_replaceable, render};
 use strata_viewer::renderer::DEFAULT_GPU_CACHE;
+use strata_viewer::{Settings, ViewerError};
 
 #[derive(Debug, clap::Args)]
 pub struct Args {
@@ -74,7 +74,7 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
         || std::env::var_os("WAYLAND_DISPLAY").is_some_and(|d| !d.is_empty());
     if has_display && !a.png {
         println!("4/4 opening the viewer (close the window to end the demo)");
-        run_window(
+        let opened = run_window(
             &dataset.to_string_lossy(),
             WindowOptions {
                 settings: Settings::default(),
@@ -88,10 +88,22 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
                 profile: None,
                 points_writer: Some(super::view::write_profile_points),
             },
-        )?;
-        return Ok(ExitCode::SUCCESS);
+        );
+        match opened {
+            Ok(()) => return Ok(ExitCode::SUCCESS),
+            // A display that is set but does not answer (a stale DISPLAY over ssh): the demo
+            // still shows its result, as a picture.
+            Err(ViewerError::Window(why)) => {
+                eprintln!("warning: cannot open a window: {why}");
+                println!("4/4 rendering {} instead", png.display());
+            }
+            Err(e) => return Err(e.into()),
+        }
+    } else if a.png {
+        println!("4/4 rendering {}", png.display());
+    } else {
+        println!("4/4 no display: rendering {}", png.display());
     }
-    println!("4/4 no display: rendering {}", png.display());
     let report = render(
         &dataset.to_string_lossy(),
         &RenderOptions {

@@ -17,6 +17,9 @@ pub enum ViewerError {
     NoAdapter(String),
     #[error("GPU: {0}")]
     Gpu(String),
+    /// No window opened: no display, or one that does not answer.
+    #[error("cannot open a window: {0}; `strata render` draws views to PNG without one")]
+    Window(String),
     #[error("{}: {what}", path.display())]
     Output { path: PathBuf, what: String },
     #[error("{what}: {input:?}")]

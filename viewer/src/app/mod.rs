@@ -21,6 +21,7 @@ mod navigate;
 mod params;
 mod profile;
 mod views;
+mod window_failure;
 
 pub use profile::PointsWriter;
 
@@ -162,7 +163,7 @@ pub fn run_window(location: &str, opts: WindowOptions) -> Result<(), ViewerError
         ..Default::default()
     };
     eframe::run_native("strata", native, Box::new(move |_cc| Ok(Box::new(app))))
-        .map_err(|e| ViewerError::Gpu(format!("cannot open the window: {e}")))?;
+        .map_err(|e| ViewerError::Window(window_failure::window_failure(&e)))?;
     match screenshot_error.lock().map(|mut e| e.take()) {
         Ok(Some(e)) => Err(ViewerError::Gpu(e)),
         _ => Ok(()),
