@@ -103,15 +103,23 @@ fn convert(dir: &Path, inputs: &[&Path]) -> PathBuf {
     ds
 }
 
-/// Converting a shared E57 file stores exactly the crate's valid points.
-fn shared_file(name: &str, coloured: bool) {
+/// Converting a shared E57 file stores exactly the crate's valid points. Where the file says
+/// where its scanner stood (`stood`: spherical coordinates, or a pose) the points name it;
+/// Cartesian points without a pose name none.
+fn shared_file(name: &str, coloured: bool, stood: bool) {
     let dir = tempfile::tempdir().expect("tempdir");
     let input = data(name);
     let ds = convert(dir.path(), &[&input]);
     let (meta, got) = stored(&ds);
     let expected: Vec<_> = crate_points(&input)
         .iter()
-        .map(|p| (p.position, tags(&meta, p, 0)))
+        .map(|p| {
+            let mut t = tags(&meta, p, 0);
+            if !stood {
+                t[0] = u16::MAX;
+            }
+            (p.position, t)
+        })
         .collect();
     assert!(!expected.is_empty());
     assert_same_points(&meta, &got, &expected);
@@ -120,23 +128,23 @@ fn shared_file(name: &str, coloured: bool) {
         .iter()
         .any(|a| a.name == "rgb" && a.count == 3 && a.ty.name() == "u16");
     assert_eq!(has_rgb, coloured, "{name}: rgb attribute");
-    assert_eq!(meta.scanners.len(), 1);
-    assert_eq!(meta.scanners[0].source, name);
+    let sources: Vec<&str> = meta.scanners.iter().map(|s| s.source.as_str()).collect();
+    assert_eq!(sources, if stood { vec![name] } else { vec![] });
 }
 
 #[test]
 fn e57_scaled_integer_bunny_converts_exactly() {
-    shared_file("e57_bunnyInt21.e57", false);
+    shared_file("e57_bunnyInt21.e57", false, false);
 }
 
 #[test]
 fn e57_spherical_scan_converts_its_valid_points() {
-    shared_file("e57_tiny_spherical.e57", false);
+    shared_file("e57_tiny_spherical.e57", false, true);
 }
 
 #[test]
 fn e57_float_rgb_scan_keeps_its_colour() {
-    shared_file("e57_tinyCartesianFloatRgb.e57", true);
+    shared_file("e57_tinyCartesianFloatRgb.e57", true, false);
 }
 
 fn three_scans() -> Vec<ScanSpec> {
@@ -263,6 +271,27 @@ fn points_of_inputs_without_scanners_name_none() {
     assert_eq!((none, first), (110_000, 3000));
     assert_eq!(meta.scanners.len(), 1);
     assert_eq!(meta.scanners[0].source, "scan.E57");
+}
+
+#[test]
+fn cartesian_scans_without_a_pose_name_no_scanner() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let input = dir.path().join("merged.e57");
+    // A Cartesian cloud without a pose between two posed scans: the scanner indices of the
+    // others close up (its normals: tests/normals.rs).
+    let mut specs = three_scans();
+    specs[1].posed = false;
+    write_e57(&input, &specs);
+    let ds = convert(dir.path(), &[&input]);
+    let (meta, got) = stored(&ds);
+    let listed: Vec<[f64; 3]> = meta.scanners.iter().map(|s| s.position).collect();
+    assert_eq!(listed, [specs[0].translation, specs[2].translation]);
+    let count = |tag: u16| got.iter().filter(|(_, t)| t[0] == tag).count();
+    // Scan b: 2500 points, every 7th invalid.
+    assert_eq!(count(u16::MAX), 2500 - 2500 / 7);
+    assert_eq!(count(0), 3000);
+    assert_eq!(count(1), 2000 - 2000 / 11);
+    assert_eq!(count(2), 0);
 }
 
 // Malformed files: one sentence naming the file, no panic, no output.

@@ -9,8 +9,9 @@ use std::path::Path;
 use strata_format::{LocalDataset, oct16_decode};
 
 /// Two scanners, 3 m above and 3 m below the plane z = 0, each scanning its own interleaved
-/// half of a 10 m square of it.
-fn write_two_sided_plane(path: &Path) {
+/// half of a 10 m square of it. Without `below_posed` the scan from below is written as a tool
+/// that merged it writes it: Cartesian, in world coordinates, without a pose.
+fn write_two_sided_plane(path: &Path, below_posed: bool) {
     let mut w = E57Writer::from_file(path, "strata-normals-test").expect("e57 writer");
     for (i, height) in [3.0f64, -3.0].into_iter().enumerate() {
         let mut pc = w
@@ -23,24 +24,28 @@ fn write_two_sided_plane(path: &Path) {
                 ],
             )
             .expect("scan writer");
-        pc.set_transform(Some(Transform {
-            rotation: Quaternion {
-                w: 1.0,
-                x: 0.0,
-                y: 0.0,
-                z: 0.0,
-            },
-            translation: Translation {
-                x: 0.0,
-                y: 0.0,
-                z: height,
-            },
-        }));
+        let posed = i == 0 || below_posed;
+        if posed {
+            pc.set_transform(Some(Transform {
+                rotation: Quaternion {
+                    w: 1.0,
+                    x: 0.0,
+                    y: 0.0,
+                    z: 0.0,
+                },
+                translation: Translation {
+                    x: 0.0,
+                    y: 0.0,
+                    z: height,
+                },
+            }));
+        }
         for gx in 0..100 {
             for gy in 0..50 {
                 // Scan 0 takes the even rows, scan 1 the odd ones, both on z = 0 in the world.
                 let (x, y) = (gx as f64 * 0.1 - 5.0, (2 * gy + i) as f64 * 0.1 - 5.0);
-                let local = [x + 0.013 * ((gx * 7 + gy) % 5) as f64, y, -height];
+                let z = if posed { -height } else { 0.0 };
+                let local = [x + 0.013 * ((gx * 7 + gy) % 5) as f64, y, z];
                 pc.add_point(local.map(RecordValue::Double).to_vec())
                     .expect("point");
             }
@@ -54,37 +59,18 @@ fn write_two_sided_plane(path: &Path) {
 fn normals_face_the_scanner_that_took_each_point() {
     let dir = tempfile::tempdir().expect("tempdir");
     let e57 = dir.path().join("plane.e57");
-    write_two_sided_plane(&e57);
+    write_two_sided_plane(&e57, true);
     let out = dir.path().join("ds");
     run_ok(&["convert", s(&e57), "-o", s(&out), "--normals", "-q"]);
-    let ds = LocalDataset::open(&out).expect("open");
-    let meta = ds.metadata().clone();
+    let meta = LocalDataset::open(&out).expect("open").metadata().clone();
     let info = meta.normals.clone().expect("normals recorded");
     assert_eq!(info.orient, "scanner");
     assert_eq!(info.computed, 10_000);
-    let layout = ds.layout().clone();
-    let (n_at, s_at) = (
-        layout.index_of("normal").expect("normal"),
-        layout.index_of("scanner").expect("scanner"),
-    );
     let mut seen = [0; 2];
-    for node in ds.all_nodes().expect("nodes") {
-        if node.point_count == 0 {
-            continue;
-        }
-        let cols = ds.read_node(&node).expect("node");
-        let (nc, sc) = (cols.attribute(&layout, n_at), cols.attribute(&layout, s_at));
-        for i in 0..node.point_count as usize {
-            let n = oct16_decode([
-                u16::from_le_bytes([nc[4 * i], nc[4 * i + 1]]),
-                u16::from_le_bytes([nc[4 * i + 2], nc[4 * i + 3]]),
-            ])
-            .expect("a normal");
-            let scan = u16::from_le_bytes([sc[2 * i], sc[2 * i + 1]]) as usize;
-            let want = if scan == 0 { 1.0 } else { -1.0 };
-            assert!(n[2] * want > 0.999, "scan {scan}: normal {n:?}");
-            seen[scan] += 1;
-        }
+    for (scan, n) in normals_by_scanner(&out) {
+        let want = if scan == 0 { 1.0 } else { -1.0 };
+        assert!(n[2] * want > 0.999, "scan {scan}: normal {n:?}");
+        seen[scan as usize] += 1;
     }
     assert_eq!(seen, [5_000, 5_000]);
 
@@ -102,6 +88,50 @@ fn normals_face_the_scanner_that_took_each_point() {
     ]);
     let meta = LocalDataset::open(&up).expect("open").metadata().clone();
     assert_eq!(meta.normals.expect("normals").orient, "up");
+}
+
+/// Every point's `scanner` and normal.
+fn normals_by_scanner(out: &Path) -> Vec<(u16, [f64; 3])> {
+    let ds = LocalDataset::open(out).expect("open");
+    let layout = ds.layout().clone();
+    let (n_at, s_at) = (
+        layout.index_of("normal").expect("normal"),
+        layout.index_of("scanner").expect("scanner"),
+    );
+    let mut all = Vec::new();
+    for node in ds.all_nodes().expect("nodes") {
+        let cols = ds.read_node(&node).expect("node");
+        let (nc, sc) = (cols.attribute(&layout, n_at), cols.attribute(&layout, s_at));
+        for i in 0..node.point_count as usize {
+            let n = oct16_decode([
+                u16::from_le_bytes([nc[4 * i], nc[4 * i + 1]]),
+                u16::from_le_bytes([nc[4 * i + 2], nc[4 * i + 3]]),
+            ])
+            .expect("a normal");
+            all.push((u16::from_le_bytes([sc[2 * i], sc[2 * i + 1]]), n));
+        }
+    }
+    all
+}
+
+#[test]
+fn a_cartesian_scan_without_a_pose_names_no_scanner_and_its_normals_face_up() {
+    // Its origin is the file's, not where a scanner stood: turned towards it, normals of a
+    // surface through it would face either way.
+    let dir = tempfile::tempdir().expect("tempdir");
+    let e57 = dir.path().join("merged.e57");
+    write_two_sided_plane(&e57, false);
+    let out = dir.path().join("ds");
+    run_ok(&["convert", s(&e57), "-o", s(&out), "--normals", "-q"]);
+    let meta = LocalDataset::open(&out).expect("open").metadata().clone();
+    let stood: Vec<[f64; 3]> = meta.scanners.iter().map(|s| s.position).collect();
+    assert_eq!(stood, [[0.0, 0.0, 3.0]]);
+    let mut seen = [0; 2];
+    for (scan, n) in normals_by_scanner(&out) {
+        assert!(n[2] > 0.999, "scanner {scan}: normal {n:?}");
+        seen[usize::from(scan == u16::MAX)] += 1;
+    }
+    assert_eq!(seen, [5_000, 5_000]);
 }
 
 #[test]

@@ -64,6 +64,8 @@ fn return_numbers_and_time_stamps_are_kept() {
         },
     });
     let mut pc = w.add_pointcloud("timed", prototype).expect("scan");
+    // Posed, so that its points name their scanner (a Cartesian scan without a pose names none).
+    pc.set_transform(Some(crate::write::pose([1.0, 0.0, 0.0, 0.0], [0.0; 3])));
     pc.set_acquisition_start(Some(e57::DateTime {
         gps_time: 1.3e9,
         atomic_reference: true,
@@ -87,6 +89,7 @@ fn return_numbers_and_time_stamps_are_kept() {
             ],
         )
         .expect("scan");
+    pc.set_transform(Some(crate::write::pose([1.0, 0.0, 0.0, 0.0], [0.0; 3])));
     pc.add_point([100.0, 0.0, 0.0].map(e57::RecordValue::Double).to_vec())
         .expect("point");
     pc.finalize().expect("scan written");

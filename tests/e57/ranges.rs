@@ -34,6 +34,8 @@ fn scan_of(
         });
     }
     let mut pc = w.add_pointcloud("scan", prototype).expect("scan");
+    // Posed, so that its points name their scanner (a Cartesian scan without a pose names none).
+    pc.set_transform(Some(crate::write::pose([1.0, 0.0, 0.0, 0.0], [0.0; 3])));
     if let Some((lo, hi)) = limits {
         pc.set_color_limits(Some(e57::ColorLimits {
             red_min: Some(lo.clone()),

@@ -38,6 +38,8 @@ pub struct ScanSpec {
     pub scale: f64,
     /// The offset it declares with that scale.
     pub offset: f64,
+    /// Written with its pose (else none: Cartesian clouds merged or edited by a tool).
+    pub posed: bool,
 }
 
 impl ScanSpec {
@@ -52,6 +54,7 @@ impl ScanSpec {
             translation: [0.0; 3],
             scale: 1e-4,
             offset: 0.0,
+            posed: true,
         }
     }
 
@@ -159,7 +162,9 @@ pub fn write_e57(path: &Path, scans: &[ScanSpec]) -> Vec<Vec<[f64; 3]>> {
         let mut pc = w
             .add_pointcloud(&format!("strata-test-scan-{i}"), prototype(spec))
             .expect("point cloud writer");
-        pc.set_transform(Some(pose(spec.rotation, spec.translation)));
+        if spec.posed {
+            pc.set_transform(Some(pose(spec.rotation, spec.translation)));
+        }
         let mut valid = Vec::new();
         for k in 0..spec.points {
             let state = match spec.invalid_every {

@@ -1,7 +1,8 @@
 //! E57 (ASTM E2807) files from terrestrial scanners, read with the `e57` crate: every scan
-//! (data3D entry), in world coordinates, with the position its scanner stood at. Rows hold
-//! `rgb`, `intensity`, returns and `gps_time` when a scan has them (`e57_extras`) and always
-//! `scanner`, the scan's global index.
+//! (data3D entry), in world coordinates, with the position its scanner stood at where the file
+//! states it (`e57_decode::scanner_positions`). Rows hold `rgb`, `intensity`, returns and
+//! `gps_time` when a scan has them (`e57_extras`) and always `scanner`, the global index of
+//! the scan's scanner (`NO_SCANNER` where its position is not known).
 //! Decoding runs on a thread of its own (`e57_decode`), started by the first `read`.
 
 use super::e57_decode::{self, Batch, Job, Msg, Pose, QUEUED, RowShape};
@@ -187,13 +188,15 @@ impl E57Source {
                 text.chars().take(24).collect::<String>()
             ));
         }
+        let stood = e57_decode::scanner_positions(&clouds, &poses);
+        let slots = e57_decode::scanner_slots(&stood);
         let info = SourceInfo {
             path: path.to_path_buf(),
             points,
             attributes,
             precision: precision(&clouds),
             warnings,
-            scanners: poses.iter().map(|p| p.translation).collect(),
+            scanners: stood.iter().flatten().copied().collect(),
             crs,
             time_from_unknown_start: extras.time == Some(None),
         };
@@ -207,6 +210,7 @@ impl E57Source {
                 shape,
                 path: path.to_path_buf(),
                 first: 0,
+                slots,
             }),
             feed: None,
             batch: Batch::default(),

@@ -35,7 +35,7 @@ pub struct RowShape {
     pub time: Option<usize>,
     /// The stamps become GPS time from each scan's start (`FileExtras::absolute_time`).
     pub absolute_time: bool,
-    /// `scanner`, u16: the scan's global index.
+    /// `scanner`, u16: the global index of the scan's scanner, where its position is known.
     pub scanner: usize,
     pub len: usize,
 }
@@ -172,8 +172,40 @@ pub struct Job {
     pub shape: RowShape,
     /// The file, opened again for the fields the simple reader does not give.
     pub path: std::path::PathBuf,
-    /// The global index of the first scan.
+    /// The global index of the first scan listed with a scanner position.
     pub first: u16,
+    /// Per scan, its place among the scans listed with a scanner position (`scanner_slots`);
+    /// none where the file says nothing of where it stood.
+    pub slots: Vec<Option<u16>>,
+}
+
+/// Where the scanner of each scan stood, where the file says: a scan with a pose stood at its
+/// translation, one in spherical coordinates (without one) at the origin its ranges are
+/// measured from. A scan in Cartesian coordinates without a pose says nothing of it: tools
+/// that merge or edit clouds write them so, in the coordinates of the whole file, and
+/// orienting normals towards its origin would turn most of them into the surface.
+pub fn scanner_positions(clouds: &[PointCloud], poses: &[Pose]) -> Vec<Option<[f64; 3]>> {
+    clouds
+        .iter()
+        .zip(poses)
+        .map(|(pc, pose)| {
+            (pc.transform.is_some() || !pc.has_cartesian()).then_some(pose.translation)
+        })
+        .collect()
+}
+
+/// Each scan's place among those with a known position, in order.
+pub fn scanner_slots(stood: &[Option<[f64; 3]>]) -> Vec<Option<u16>> {
+    let mut next = 0u16;
+    stood
+        .iter()
+        .map(|s| {
+            s.map(|_| {
+                next += 1;
+                next - 1
+            })
+        })
+        .collect()
 }
 
 /// Decodes every scan of `job` into batches sent on `tx`, then `Done`; or `Failed` at the first
@@ -187,12 +219,17 @@ pub fn run(job: Job, tx: &SyncSender<Msg>) {
         shape,
         path,
         first,
+        slots,
     } = job;
     let n = clouds.len();
     let mut valid = 0u64;
     for (i, ((pc, pose), own)) in clouds.iter().zip(&poses).zip(&ranges).enumerate() {
         let scan = format!("scan {i} of {n}");
-        let scanner = (first as usize + i) as u16;
+        let scanner = slots
+            .get(i)
+            .copied()
+            .flatten()
+            .map_or(super::NO_SCANNER, |k| first + k);
         let sent = guarded(&format!("the point data of {scan}"), || {
             let own = with_value_ranges(&mut reader, pc, own, &scan)?;
             let at = Place {

@@ -376,9 +376,7 @@ impl ChunkStep for NormalStep {
         let triangles = t(total::TRIANGLES);
         meta.normals = Some(NormalsInfo {
             k: self.opts.k as u32,
-            orient: self
-                .orient_name(meta.attributes.iter().any(|a| a.name == attrs::SCANNER))
-                .into(),
+            orient: self.orient_name(!meta.scanners.is_empty()).into(),
             computed: t(total::COMPUTED) as u64,
             kept: t(total::KEPT) as u64,
             partial: t(total::PARTIAL) as u64,
