@@ -21,7 +21,7 @@ pub enum ConvertError {
     #[error("{0}")]
     Unfit(Box<Unfit>),
     /// Checked before any work: the conversion would not fit on the disk.
-    #[error("{}: this needs about {} of free disk there, but only {} is free", path.display(), crate::sys::format_bytes(*needed), crate::sys::format_bytes(*free))]
+    #[error("{}: this needs about {} of free disk there, but only {} is free", path.display(), crate::sys::format_bytes_apart(*needed, *free).0, crate::sys::format_bytes_apart(*needed, *free).1)]
     NoSpace {
         path: PathBuf,
         needed: u64,

@@ -58,6 +58,10 @@ pub fn parse_memory_limit(s: &str) -> Result<u64, String> {
 
 /// Human-readable byte count.
 pub fn format_bytes(b: u64) -> String {
+    bytes_with_decimals(b, 1)
+}
+
+fn bytes_with_decimals(b: u64, decimals: usize) -> String {
     let units = ["B", "KiB", "MiB", "GiB", "TiB"];
     let mut v = b as f64;
     let mut u = 0;
@@ -68,8 +72,23 @@ pub fn format_bytes(b: u64) -> String {
     if u == 0 {
         format!("{b} B")
     } else {
-        format!("{v:.1} {}", units[u])
+        format!("{v:.decimals$} {}", units[u])
     }
+}
+
+/// Sizes `a` and `b` as `format_bytes` writes them, with as many more decimals as it takes to
+/// tell them apart ("needs 1.3 MiB, only 1.3 MiB free" says nothing), down to single bytes.
+pub fn format_bytes_apart(a: u64, b: u64) -> (String, String) {
+    for decimals in 1..=3 {
+        let pair = (
+            bytes_with_decimals(a, decimals),
+            bytes_with_decimals(b, decimals),
+        );
+        if pair.0 != pair.1 || a == b {
+            return pair;
+        }
+    }
+    (format!("{a} B"), format!("{b} B"))
 }
 
 #[cfg(test)]
@@ -86,6 +105,19 @@ mod tests {
         assert!(parse_size("5 parsecs").is_err());
         assert!(parse_size("18446744073709551615GiB").is_err());
         assert_eq!(parse_memory_limit("64MiB"), Ok(64 << 20));
+        // Two sizes shown alike get the decimals that tell them apart.
+        assert_eq!(
+            format_bytes_apart(1_363_148, 1_341_000),
+            ("1.30 MiB".into(), "1.28 MiB".into())
+        );
+        assert_eq!(
+            format_bytes_apart(1_048_577, 1_048_576),
+            ("1048577 B".into(), "1048576 B".into())
+        );
+        assert_eq!(
+            format_bytes_apart(3 << 30, 1 << 20),
+            ("3.0 GiB".into(), "1.0 MiB".into())
+        );
         for small in ["0", "1KiB", "63MiB"] {
             let e = parse_memory_limit(small).expect_err(small);
             assert!(e.contains("less than the 64.0 MiB"), "{e}");
