@@ -12,6 +12,8 @@ mod damaged;
 mod demo;
 #[path = "render/facing.rs"]
 mod facing;
+#[path = "render/filter_holes.rs"]
+mod filter_holes;
 #[path = "render/filter_shadows.rs"]
 mod filter_shadows;
 #[path = "render/filters.rs"]

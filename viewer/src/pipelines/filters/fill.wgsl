@@ -82,12 +82,41 @@ fn finish(id: vec2<u32>, i: u32, keep: Texel, fill: bool, source: i32, carried: 
     }
 }
 
+// Whether surface lies within `reach` pixels of background pixel `c` to its left, its right,
+// above and below it: then it lies inside a hole, where a straight outline leaves one side
+// open. The masks see three by three pixels and take the edge of a hole four pixels across
+// for an outline: such a hole never closes (only its corners fill).
+fn enclosed(c: vec2<i32>, reach: u32) -> bool {
+    let far = i32(min(reach, MAX_ENCLOSED_PX));
+    for (var a = 0; a < 4; a++) {
+        let step = AXES[a];
+        var hit = false;
+        for (var k = 1; k <= far && !hit; k++) {
+            let q = c + k * step;
+            if q.x < 0 || q.y < 0 || q.x >= i32(frame.width) || q.y >= i32(frame.height) {
+                break;
+            }
+            hit = src[u32(q.y) * frame.width + u32(q.x)].x != 0u;
+        }
+        if !hit {
+            return false;
+        }
+    }
+    return true;
+}
+
+const AXES = array<vec2<i32>, 4>(vec2<i32>(1, 0), vec2<i32>(-1, 0), vec2<i32>(0, 1), vec2<i32>(0, -1));
+// The widest hole `enclosed` looks across.
+const MAX_ENCLOSED_PX: u32 = 16u;
+
 // Section 3.2: a background pixel is filled unless it lies beyond the silhouette, or beside a
 // point whose sampling leaves no empty pixel (reach 0, `sampling_reach`): but for the 1 % its
 // radius leaves open, no gap of its sampling can be there, as between the points scattered
 // along a scan's outline, which the masks take for a hole. Else it takes the texel of its
 // nearest neighbour that may be carried a pixel further (`texel_reach`): a texel travels no
-// farther than two radii from its point.
+// farther than two radii from its point. Where that width is known (a stored radius), a pixel
+// the masks take for one beyond the silhouette is filled all the same when surface encloses it
+// within that width (`enclosed`): a hole in the sampling no wider than two radii.
 @compute @workgroup_size(16, 16)
 fn background(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_id) local: vec3<u32>) {
     let listed = listed_tile(wg.xy);
@@ -121,7 +150,13 @@ fn background(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_id
             }
         }
     }
-    finish(id, i, t, !dense && nearest >= 0 && !some_mask_white(n.background), nearest, true, tile);
+    var fill = !dense && nearest >= 0;
+    if fill && some_mask_white(n.background) {
+        let q = vec2<i32>(id.xy) + OFFSETS[nearest];
+        let reach = texel_reach(src[u32(q.y) * frame.width + u32(q.x)]);
+        fill = reach < MAX_REACH_PX && enclosed(vec2<i32>(id.xy), reach);
+    }
+    finish(id, i, t, fill, nearest, true, tile);
 }
 
 // Section 3.3: a pixel showing a surface more than d~ behind its neighbours is filled with one

@@ -12,7 +12,9 @@ const OFFSETS = array<vec2<i32>, 8>(
 // one of the two cells beside the centre next to it. Beyond a straight outline, and beside a
 // pixel sticking out of one, some mask is all background, so iterating does not grow the
 // silhouette (half-plane masks of five cells let it grow by a pixel an iteration along every
-// protrusion); inside a hole none is, and a hole n pixels across closes in n iterations.
+// protrusion); inside a hole up to three pixels across none is once its corners are filled,
+// and it closes. The edge of a wider hole matches a mask as an outline does: the background
+// fill closes those with `enclosed` (fill.wgsl) where the sampling's width is known.
 const MASKS = array<u32, 8>(
     0x0fu,  // top row and L
     0x17u,  // top row and R
