@@ -332,6 +332,27 @@ fn e57_with_a_flipped_byte_fails_its_checksum() {
     let xml = u64::from_le_bytes(b[24..32].try_into().expect("8 bytes")) as usize;
     b[xml + 10] ^= 0x10;
     convert_fails(&written(dir.path(), "xml.e57", &b), "checksum");
+    // In the header's XML offset: the header's own page checksum says so (the offset was
+    // followed first, and the file called truncated).
+    let mut b = tiny();
+    b[31] ^= 0x10;
+    convert_fails(
+        &written(dir.path(), "header.e57", &b),
+        "page 0, the file header, fails its CRC-32C checksum",
+    );
+    // A stated length that is not the file's, its checksum repaired.
+    let mut b = tiny();
+    let stated = b.len() as u64 + 1024;
+    b[16..24].copy_from_slice(&stated.to_le_bytes());
+    let crc = e57_crc32c(&b[..1020]);
+    b[1020..1024].copy_from_slice(&crc.to_be_bytes());
+    convert_fails(
+        &written(dir.path(), "length.e57", &b),
+        &format!(
+            "its header states a length of {stated} bytes, but the file has {}",
+            stated - 1024
+        ),
+    );
 }
 
 #[test]

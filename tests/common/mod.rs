@@ -315,20 +315,8 @@ pub fn have_xvfb() -> bool {
 
 /// CRC-32C (Castagnoli), the checksum that ends every 1024-byte E57 page: tests that edit an
 /// E57 file repair it with this.
-pub fn e57_crc32c(bytes: &[u8]) -> u32 {
-    let mut crc = !0u32;
-    for &b in bytes {
-        crc ^= b as u32;
-        for _ in 0..8 {
-            crc = if crc & 1 == 1 {
-                (crc >> 1) ^ 0x82F6_3B78
-            } else {
-                crc >> 1
-            };
-        }
-    }
-    !crc
-}
+#[allow(unused_imports)] // Shared by every test crate; only the E57 ones use it.
+pub use strata_converter::input::e57_header::crc32c as e57_crc32c;
 
 /// The names in the `attributes` list of a metadata or `info --json` document, in order.
 pub fn attribute_names(doc: &serde_json::Value) -> Vec<&str> {

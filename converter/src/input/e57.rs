@@ -7,6 +7,7 @@
 
 use super::e57_decode::{self, Batch, Job, Msg, Pose, QUEUED, RowShape};
 use super::e57_extras::FileExtras;
+use super::e57_header::check_header;
 use super::e57_limits::{OwnRanges, own_ranges};
 use super::las_header::range_lost;
 use super::laz_check::guarded;
@@ -16,13 +17,10 @@ use crate::error::{ConvertError, Result};
 use crate::quantize::float_scale;
 use e57::{E57Reader, PointCloud, RecordDataType, RecordName};
 use std::fs::File;
-use std::io::BufReader;
+use std::io::{BufReader, Seek, SeekFrom};
 use std::path::Path;
 use std::sync::mpsc::{Receiver, sync_channel};
 use strata_format::Crs;
-
-/// Bytes of the E57 file header.
-const HEADER_LEN: u64 = 48;
 
 pub struct E57Source {
     info: SourceInfo,
@@ -52,18 +50,17 @@ const READ: [RecordName; 10] = [
 
 impl E57Source {
     pub fn open(path: &Path) -> Result<E57Source> {
-        let file = File::open(path).map_err(|e| ConvertError::io(path, "cannot open input", e))?;
+        let mut file =
+            File::open(path).map_err(|e| ConvertError::io(path, "cannot open input", e))?;
         let bad = |what: String| ConvertError::input(path, what);
         let len = file
             .metadata()
             .map_err(|e| ConvertError::io(path, "cannot read file size", e))?
             .len();
-        if len < HEADER_LEN {
-            return Err(bad(format!(
-                "the file is {len} bytes, too short to be an E57 file (its header alone is {HEADER_LEN})"
-            )));
-        }
-        // The header, the page checksums of the XML section and the XML itself are checked here.
+        check_header(&mut file, len).map_err(bad)?;
+        file.seek(SeekFrom::Start(0))
+            .map_err(|e| ConvertError::io(path, "cannot read", e))?;
+        // The page checksums of the XML section and the XML itself are checked here.
         let reader = guarded("the E57 header or XML section", || {
             E57Reader::new(BufReader::with_capacity(1 << 20, file))
                 .map_err(|e| format!("not a readable E57 file ({})", e57_decode::plain(&e)))

@@ -3,6 +3,7 @@
 pub mod e57;
 pub mod e57_decode;
 mod e57_extras;
+pub mod e57_header;
 mod e57_limits;
 pub mod las;
 pub mod las_header;
