@@ -276,6 +276,30 @@ fn points_of_inputs_without_scanners_name_none() {
 }
 
 #[test]
+fn info_describes_an_e57_file_as_convert_reads_it() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let input = dir.path().join("site.e57");
+    let mut specs = three_scans();
+    specs[1].posed = false;
+    write_e57(&input, &specs);
+    let doc: serde_json::Value =
+        serde_json::from_slice(&run_ok(&["info", s(&input), "--json"]).stdout).expect("JSON");
+    assert_eq!(doc["kind"], "E57");
+    assert_eq!(doc["points"], 3000 + 2500 + 2000);
+    assert_eq!(
+        attribute_names(&doc),
+        ["rgb", "intensity", "scanner"],
+        "{doc}"
+    );
+    // Scan b states no pose: its scanner is not listed.
+    let stood: Vec<[f64; 3]> =
+        serde_json::from_value(doc["scanners"].clone()).expect("scanner positions");
+    assert_eq!(stood, [specs[0].translation, specs[2].translation]);
+    let text = String::from_utf8_lossy(&run_ok(&["info", s(&input)]).stdout).to_string();
+    assert!(text.contains("points    7500 records"), "{text}");
+}
+
+#[test]
 fn cartesian_scans_without_a_pose_name_no_scanner() {
     let dir = tempfile::tempdir().expect("tempdir");
     let input = dir.path().join("merged.e57");

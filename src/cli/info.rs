@@ -5,7 +5,8 @@ use strata_format::LocalDataset;
 
 #[derive(Debug, clap::Args)]
 pub struct Args {
-    /// The dataset directory, or a LAS/LAZ file (a COPC file says so, with its octree).
+    /// The dataset directory, or a LAS/LAZ file (a COPC file says so, with its octree), or a
+    /// PLY or E57 file (its points, attributes and scanners, as `convert` reads them).
     dataset: PathBuf,
     /// Print JSON instead of text.
     #[arg(long)]
@@ -102,16 +103,7 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
         println!("  {:<30} {shape}", at.name);
     }
     if let Some(crs) = &m.crs {
-        let mut stated = Vec::new();
-        if let Some(wkt) = &crs.wkt {
-            // The WKT's name: what its first quoted word says.
-            let name = wkt.split('"').nth(1).unwrap_or("");
-            stated.push(format!("WKT {name:?}"));
-        }
-        if let Some(g) = &crs.geotiff {
-            stated.push(format!("GeoTIFF keys ({} values)", g.keys.len()));
-        }
-        println!("crs       {}", stated.join(", "));
+        println!("crs       {}", crs_stated(crs));
     }
     if !m.scanners.is_empty() {
         println!(
@@ -156,9 +148,27 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
     Ok(ExitCode::SUCCESS)
 }
 
-/// A LAS or LAZ file: its header, and for a COPC file its octree and hierarchy.
+/// What a CRS states: the WKT's name, and whether GeoTIFF keys are there.
+pub fn crs_stated(crs: &strata_format::Crs) -> String {
+    let mut stated = Vec::new();
+    if let Some(wkt) = &crs.wkt {
+        // The WKT's name: what its first quoted word says.
+        let name = wkt.split('"').nth(1).unwrap_or("");
+        stated.push(format!("WKT {name:?}"));
+    }
+    if let Some(g) = &crs.geotiff {
+        stated.push(format!("GeoTIFF keys ({} values)", g.keys.len()));
+    }
+    stated.join(", ")
+}
+
+/// A LAS or LAZ file: its header, and for a COPC file its octree and hierarchy. A PLY or E57
+/// file: what `convert` reads of it (`info_input`).
 fn point_file(a: &Args) -> anyhow::Result<ExitCode> {
     let path = &a.dataset;
+    if super::info_input::is_read_as_input(path) {
+        return super::info_input::input_file(path, a.json);
+    }
     let f = strata_converter::copc_describe::describe(path)?;
     if a.json {
         println!("{}", serde_json::to_string_pretty(&f)?);

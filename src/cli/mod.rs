@@ -3,6 +3,7 @@ mod convert;
 mod demo;
 mod export;
 mod info;
+mod info_input;
 mod measure;
 mod pick;
 mod pipelines;
