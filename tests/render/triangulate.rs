@@ -17,22 +17,22 @@ use strata_viewer::pipelines::triangulate::{CULLED, HOLE_RATE, TRIANGLES};
 use strata_viewer::{Camera, Renderer, Settings};
 
 /// One renderer on one dataset, drawing with `pipeline`.
-struct Session {
+pub(super) struct Session {
     r: Renderer,
     settings: Settings,
     anchor: glam::Vec3,
 }
 
-struct Shot {
+pub(super) struct Shot {
     rgb: Vec<[u8; 3]>,
-    covered: Vec<bool>,
+    pub(super) covered: Vec<bool>,
     /// The shaded normal per pixel, in view space.
     normals: Vec<Option<[f32; 3]>>,
     measures: BTreeMap<&'static str, f32>,
 }
 
 impl Session {
-    fn new(path: ProjectionPath, dataset: &Path, pipeline: &str) -> Session {
+    pub(super) fn new(path: ProjectionPath, dataset: &Path, pipeline: &str) -> Session {
         let ds = Arc::new(StreamDataset::open_path(dataset).expect("dataset opens"));
         let ctx = Arc::new(GpuContext::new(path).expect("GPU adapter"));
         let r = Renderer::new(ctx, ds.clone(), 1 << 30, 1).expect("renderer");
@@ -52,7 +52,7 @@ impl Session {
     }
 
     /// The camera at `DISTANCE` from the centre (the origin) along `from`, looking at it.
-    fn camera(&self, from: glam::Vec3) -> Camera {
+    pub(super) fn camera(&self, from: glam::Vec3) -> Camera {
         Camera {
             eye: from.normalize() * DISTANCE - self.anchor,
             target: -self.anchor,
@@ -60,7 +60,7 @@ impl Session {
         }
     }
 
-    fn load(&mut self, camera: &Camera) {
+    pub(super) fn load(&mut self, camera: &Camera) {
         paths::frame_until_complete(&mut self.r, camera, W, H, &self.settings);
     }
 
@@ -78,7 +78,7 @@ impl Session {
     }
 
     /// The frame after `warmup` frames of the same view (the pipeline's default).
-    fn settled(&mut self, camera: &Camera) -> Shot {
+    pub(super) fn settled(&mut self, camera: &Camera) -> Shot {
         for _ in 0..8 {
             self.frame(camera);
         }

@@ -8,7 +8,8 @@
 @group(0) @binding(2) var<storage, read> depths: array<u32>;
 @group(0) @binding(3) var<storage, read> indices: array<u32>;
 @group(0) @binding(4) var<storage, read> reprojected: array<u32>;
-// Per pixel: the point's position (relative to the anchor) and search radius; w 0: none.
+// Per pixel: the point's position (relative to the anchor) and search radius; w 0: none; w < 0:
+// culled, a neighbour only (the passes that draw, estimate normals or learn radii skip w <= 0).
 @group(0) @binding(5) var<storage, read_write> pts: array<vec4<f32>>;
 @group(0) @binding(6) var<storage, read_write> counts: array<atomic<u32>>;
 // Per pixel, where SIDES or `stored_normals`: the point's normal as four snorm8 (x, y, z, 1),
@@ -38,16 +39,20 @@ fn main(@builtin(global_invocation_id) id: vec3<u32>) {
     let depth = bitcast<f32>(depths[p]);
     let limit = connection_limit(depth, ranges[range_holding(local)].spacing);
     let front = reprojected_at(id.xy);
-    if front != 0u && depth > bitcast<f32>(~front) + limit {
+    let hidden = front != 0u && depth > bitcast<f32>(~front) + limit;
+    if hidden {
         atomicAdd(&counts[COUNT_CULLED], 1u);
-        return;
     }
     var radius = min(kept[local].x, limit);
     if radius <= 0.0 {
         // The paper's "average search radius between zero and the maximum connection".
         radius = 0.5 * limit;
     }
-    pts[p] = vec4<f32>(pos, radius);
+    // A culled point is kept as a neighbour only (w < 0): no fan of its own, no normal, no
+    // radius of its own to learn, but the visible points of its surface beside the surface
+    // that hides it connect to it, so that their fans reach under that surface's outline
+    // rather than stopping a spacing short of it (a ring of holes round every near object).
+    pts[p] = vec4<f32>(pos, select(radius, -radius, hidden));
     if SIDES || tri.stored_normals != 0u {
         let w = normals[local];
         point_normals[p] = select(0u, pack4x8snorm(vec4<f32>(decode_oct16(w) * normal_sign(), 1.0)), w != 0u);

@@ -1,6 +1,7 @@
 //! `triangulate` (paper 002, Preiner and Wimmer 2012): closed surfaces from positions and
 //! colours alone (and shaded with the dataset's normals where it has them). Each frame projects the points one pixel each, culled against the previous
-//! frame's reconstructed depth reprojected into this view; every point finds its nearest
+//! frame's reconstructed depth reprojected into this view (a culled point draws no fan but
+//! stays a neighbour, gather.wgsl); every point finds its nearest
 //! neighbour in each of eight screen sectors within its world-space search radius (one pass of
 //! 64-bit keys, or two: distance, then id), estimates a normal from the fan of those neighbours and rasterizes the
 //! fan, colours and normals summed and normalised, depth by minimum; each point's search radius

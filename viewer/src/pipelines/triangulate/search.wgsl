@@ -14,10 +14,13 @@ fn main(@builtin(global_invocation_id) id: vec3<u32>) {
         return;
     }
     let p = id.y * frame.width + id.x;
-    let me = pts[p];
-    if me.w <= 0.0 {
+    var me = pts[p];
+    if me.w == 0.0 {
         return;
     }
+    // A culled point (w < 0) offers itself to the points round it; it takes none (search
+    // skips it below as a receiver).
+    me.w = abs(me.w);
     // The screen box of the search sphere, exact (its tangent planes through the eye): off the
     // axis a sphere projects larger than r f / d; one reaching behind the eye takes the largest.
     let rel = me.xyz - tri.eye.xyz;
