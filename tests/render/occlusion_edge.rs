@@ -26,13 +26,8 @@ fn pixel_at(depth: f64) -> f64 {
 /// four pixels.
 fn sampled(depth: f64, half_px: (f64, f64), rgb: [u8; 3], seed: u64) -> Vec<([f64; 3], [u8; 3])> {
     let size = pixel_at(depth);
-    let mut state = seed;
-    let mut unit = move || {
-        state = state
-            .wrapping_mul(6364136223846793005)
-            .wrapping_add(1442695040888963407);
-        (state >> 11) as f64 / (1u64 << 53) as f64
-    };
+    let mut rng = strata_converter::synth::Rng::new(seed, 0, 0);
+    let mut unit = move || rng.unit();
     let n = (half_px.0 * half_px.1) as usize;
     (0..n)
         .map(|_| {
