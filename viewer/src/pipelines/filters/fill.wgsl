@@ -136,6 +136,7 @@ fn background(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_id
     }
     let n = neighbours(vec2<i32>(id.xy));
     var nearest = -1;
+    var nearest_reach = 0u;
     var dense = false;
     for (var k = 0; k < 8; k++) {
         let d = n.depth[k];
@@ -147,14 +148,13 @@ fn background(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_id
             dense = dense || (reach == 0u && (w & CARRIED) == 0u);
             if reach > 0u && (nearest < 0 || d < n.depth[nearest]) {
                 nearest = k;
+                nearest_reach = reach;
             }
         }
     }
     var fill = !dense && nearest >= 0;
     if fill && some_mask_white(n.background) {
-        let q = vec2<i32>(id.xy) + OFFSETS[nearest];
-        let reach = texel_reach(src[u32(q.y) * frame.width + u32(q.x)]);
-        fill = reach < MAX_REACH_PX && enclosed(vec2<i32>(id.xy), reach);
+        fill = nearest_reach < MAX_REACH_PX && enclosed(vec2<i32>(id.xy), nearest_reach);
     }
     finish(id, i, t, fill, nearest, true, tile);
 }
