@@ -91,6 +91,24 @@ fn pipelines_lists_every_pipeline_with_its_parameters() {
         assert!(filter_params.contains(&name), "{name} in {filter_params:?}");
     }
     assert_eq!(filters["params"][0]["default"], "auto");
+    // Modes are listed by name, in the order of their numbers.
+    let param = |p: &serde_json::Value, name: &str| -> serde_json::Value {
+        p["params"]
+            .as_array()
+            .and_then(|a| a.iter().find(|q| q["name"] == name).cloned())
+            .unwrap_or_else(|| panic!("{name} is listed"))
+    };
+    let antialias = param(filters, "antialias");
+    assert_eq!(antialias["scale"], "choice");
+    assert_eq!(
+        antialias["choices"],
+        serde_json::json!(["off", "silhouettes", "edges"])
+    );
+    assert_eq!(
+        param(filters, "shadows")["choices"],
+        serde_json::json!(["off", "hard", "soft"])
+    );
+    assert_eq!(param(filters, "layers")["choices"], serde_json::json!([]));
     let surfels = &list[3];
     assert!(
         surfels["paper"]
@@ -261,6 +279,47 @@ fn set_takes_any_parameter_and_names_a_wrong_one() {
     let params = &st["frames"][0]["params"];
     assert_eq!(params["edl"].as_f64(), Some(1.0));
     assert!(params["s0"].as_f64().is_some_and(|v| v > 0.0), "{params}");
+    // A mode by its name, in any case, or by its number.
+    let o = gpu_run(&[
+        "render",
+        s(ds),
+        "-o",
+        s(&out),
+        "--size",
+        "64x48",
+        "--pipeline",
+        "filters",
+        "--set",
+        "shadows=Hard",
+        "--set",
+        "antialias=edges",
+        "--set",
+        "layers=2",
+        "--stats",
+        s(&stats),
+    ]);
+    assert!(o.status.success(), "{}", text(&o));
+    let st: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(&stats).expect("stats")).expect("JSON");
+    let params = &st["frames"][0]["params"];
+    assert_eq!(params["shadows"].as_f64(), Some(1.0), "{params}");
+    assert_eq!(params["antialias"].as_f64(), Some(2.0), "{params}");
+    let o = gpu_run(&[
+        "render",
+        s(ds),
+        "-o",
+        s(&out),
+        "--size",
+        "64x48",
+        "--pipeline",
+        "filters",
+        "--set",
+        "shadows=bright",
+    ]);
+    let t = text(&o);
+    assert!(!o.status.success(), "shadows=bright was accepted");
+    assert_eq!(t.trim().lines().count(), 1, "not one sentence: {t}");
+    assert!(t.contains("off, hard or soft"), "{t}");
 }
 
 #[test]

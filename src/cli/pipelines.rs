@@ -17,6 +17,7 @@ fn scale_name(s: Scale) -> &'static str {
         Scale::Log => "log",
         Scale::Integer => "integer",
         Scale::Toggle => "toggle",
+        Scale::Choice(_) => "choice",
     }
 }
 
@@ -37,6 +38,10 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
                     .params
                     .iter()
                     .map(|s| {
+                        let choices = match s.scale {
+                            Scale::Choice(names) => names.to_vec(),
+                            _ => Vec::new(),
+                        };
                         serde_json::json!({
                             "name": s.name,
                             "help": s.help,
@@ -48,6 +53,7 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
                             "min": s.min,
                             "max": s.max,
                             "scale": scale_name(s.scale),
+                            "choices": choices,
                         })
                     })
                     .collect();

@@ -1,5 +1,6 @@
 //! The panel's controls for the chosen pipeline's parameters, drawn from its table in the
-//! registry: sliders (linear, logarithmic, whole numbers), checkboxes, automatic toggles.
+//! registry: sliders (linear, logarithmic, whole numbers), checkboxes, a mode's radio buttons,
+//! automatic toggles.
 
 use super::ViewerApp;
 use crate::pipelines::params::{ParamSpec, ParamValue, Scale};
@@ -89,6 +90,16 @@ impl ViewerApp {
                     format!("{v:.4}")
                 };
                 ui.label(format!("{} = {shown}", spec.name));
+                changed
+            }
+            Scale::Choice(names) => {
+                let mut changed = false;
+                ui.horizontal(|ui| {
+                    ui.label(spec.name).on_hover_text(spec.help);
+                    for (k, name) in names.iter().enumerate() {
+                        changed |= ui.radio_value(&mut v, k as f32, *name).changed();
+                    }
+                });
                 changed
             }
             Scale::Integer => {

@@ -15,6 +15,8 @@ pub enum Scale {
     Integer,
     /// 0 (off) or 1 (on): a checkbox.
     Toggle,
+    /// One of these modes, by name or by its index (the value): `shadows=hard` or `shadows=1`.
+    Choice(&'static [&'static str]),
 }
 
 /// Where a parameter left automatic takes its value each frame.
@@ -41,7 +43,10 @@ pub struct ParamSpec {
 impl ParamSpec {
     /// Checks a value against the range and the scale; the error names the parameter.
     pub fn check(&self, pipeline: &str, value: f32) -> Result<f32, ViewerError> {
-        let whole = matches!(self.scale, Scale::Integer | Scale::Toggle);
+        let whole = matches!(
+            self.scale,
+            Scale::Integer | Scale::Toggle | Scale::Choice(_)
+        );
         if !value.is_finite() || value < self.min || value > self.max {
             return Err(ViewerError::argument(
                 format!("{}={value}", self.name),
@@ -64,14 +69,36 @@ impl ParamSpec {
     pub fn describe(&self) -> String {
         let range = match self.scale {
             Scale::Toggle => "0 or 1".to_string(),
+            Scale::Choice(names) => format!("{}, or {} to {}", or_list(names), self.min, self.max),
             _ => format!("{} to {}", self.min, self.max),
         };
         let default = if self.auto.is_some() {
             "auto".to_string()
+        } else if let Some(name) = self.choice_name(self.default) {
+            name.to_string()
         } else {
             format!("{}", self.default)
         };
         format!("{range}, default {default}")
+    }
+}
+
+impl ParamSpec {
+    /// The name of a choice parameter's value `v`; `None` for other scales.
+    pub fn choice_name(&self, v: f32) -> Option<&'static str> {
+        match self.scale {
+            Scale::Choice(names) if v >= 0.0 => names.get(v as usize).copied(),
+            _ => None,
+        }
+    }
+}
+
+/// "a, b or c".
+fn or_list(names: &[&str]) -> String {
+    match names.split_last() {
+        Some((last, rest)) if !rest.is_empty() => format!("{} or {last}", rest.join(", ")),
+        Some((last, _)) => last.to_string(),
+        None => String::new(),
     }
 }
 
@@ -91,7 +118,8 @@ pub struct ParamValues {
 
 impl ParamValues {
     /// Sets `name` of `pipeline` from text (`NAME=VALUE` of `--set`): a number, `auto` where
-    /// the parameter allows it, and `on`/`off`/`true`/`false` for toggles.
+    /// the parameter allows it, `on`/`off`/`true`/`false` for toggles and a mode's name for
+    /// choices.
     pub fn set_text(
         &mut self,
         pipeline: &'static PipelineInfo,
@@ -141,6 +169,7 @@ impl ParamValues {
         let spec = pipeline.param(name)?;
         let text = text.trim();
         let value = match text {
+            _ if let Some(k) = choice_index(spec, text) => ParamValue::Value(k as f32),
             "auto" if spec.auto.is_some() => ParamValue::Auto,
             "on" | "true" if spec.scale == Scale::Toggle => ParamValue::Value(1.0),
             "off" | "false" if spec.scale == Scale::Toggle => ParamValue::Value(0.0),
@@ -149,9 +178,12 @@ impl ParamValues {
                     ViewerError::argument(
                         format!("{name}={text}"),
                         format!(
-                            "{}'s parameter {name} takes a number ({})",
+                            "{}'s parameter {name} takes {}",
                             pipeline.name,
-                            spec.describe()
+                            match spec.scale {
+                                Scale::Choice(_) => spec.describe(),
+                                _ => format!("a number ({})", spec.describe()),
+                            }
                         ),
                     )
                 })?;
@@ -174,6 +206,14 @@ impl ParamValues {
             None if spec.auto.is_some() => ParamValue::Auto,
             None => ParamValue::Value(spec.default),
         }
+    }
+}
+
+/// The index of the mode `text` names (in any case) where `spec` is a choice.
+fn choice_index(spec: &ParamSpec, text: &str) -> Option<usize> {
+    match spec.scale {
+        Scale::Choice(names) => names.iter().position(|n| n.eq_ignore_ascii_case(text)),
+        _ => None,
     }
 }
 

@@ -70,11 +70,11 @@ static PARAMS: [ParamSpec; OWN + CLASSES] = {
         ),
         param(
             "antialias",
-            "Laplace anti-aliasing on depth: 0 off, 1 silhouettes, 2 all edges",
+            "Laplace anti-aliasing on depth, at silhouettes or at all edges",
             1.0,
             0.0,
             2.0,
-            Scale::Integer,
+            Scale::Choice(&["off", "silhouettes", "edges"]),
         ),
         param(
             "layers",

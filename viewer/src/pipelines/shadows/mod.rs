@@ -77,11 +77,11 @@ pub const PARAMS: [ParamSpec; 7] = [
     ),
     param(
         "shadows",
-        "point shadow textures: 0 off, 1 hard (a point light), 2 soft (an area light)",
+        "point shadow textures: hard from a point light, soft from an area light",
         0.0,
         0.0,
         2.0,
-        Scale::Integer,
+        Scale::Choice(&["off", "hard", "soft"]),
     ),
     param(
         "shadow_samples",

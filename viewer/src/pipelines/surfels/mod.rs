@@ -30,11 +30,11 @@ pub static INFO: PipelineInfo = PipelineInfo {
     params: &[
         ParamSpec {
             name: "mode",
-            help: "0 planar surfels, 1 curved c-surfels, 2 hybrid: curved near the silhouette",
+            help: "planar surfels, curved c-surfels, or hybrid: c-surfels near the silhouette",
             default: 2.0,
             min: 0.0,
             max: 2.0,
-            scale: Scale::Integer,
+            scale: Scale::Choice(&["planar", "curved", "hybrid"]),
             auto: None,
         },
         ParamSpec {
