@@ -26,6 +26,8 @@ mod footprint;
 mod leaf_density;
 #[path = "render/near.rs"]
 mod near;
+#[path = "render/notches.rs"]
+mod notches;
 #[path = "render/occlusion_edge.rs"]
 mod occlusion_edge;
 #[path = "render/paths.rs"]

@@ -99,9 +99,13 @@ fn reference(depths: &[u32], w: u32, h: u32, p: &PyramidUniforms) -> Vec<(u32, f
             let coarse = cells[((y >> c) * *cw as i32 + (x >> c)) as usize];
             let z = f32::from_bits(coarse.0).max(1e-6) as f64;
             let reach = ((p.hpr_scale as f64 / z).log2().round() as i32).clamp(1, top.max(1));
+            let dense = (p.dense_scale as f64) < z;
+            let background = if dense { 0 } else { reach };
+            let d = depths[(y * w as i32 + x) as usize];
+            let last = if d == EMPTY { background } else { reach };
             let me = point(levels[0].2[(y * w as i32 + x) as usize]);
             let mut sectors = [1.0f64; 8];
-            for (l, (lw, lh, cells)) in levels.iter().enumerate().take(reach as usize + 1) {
+            for (l, (lw, lh, cells)) in levels.iter().enumerate().take(last as usize + 1) {
                 let (lx, ly) = (x >> l, y >> l);
                 for (s, (dx, dy)) in ring.iter().enumerate() {
                     let (nx, ny) = (lx + dx, ly + dy);
@@ -115,7 +119,6 @@ fn reference(depths: &[u32], w: u32, h: u32, p: &PyramidUniforms) -> Vec<(u32, f
                 }
             }
             let mean = sectors.iter().sum::<f64>() / 8.0;
-            let d = depths[(y * w as i32 + x) as usize];
             let label = match (mean >= p.threshold as f64, d == EMPTY) {
                 (false, _) => LABEL_HOLE,
                 (true, true) => LABEL_BACKGROUND,

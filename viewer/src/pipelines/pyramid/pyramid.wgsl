@@ -21,6 +21,12 @@ struct Pyramid {
     // The depth noise's normal level at depth z is 0.5 log2(noise_scale / z); written on the
     // GPU by the noise estimate each frame, 0 before it.
     noise_scale: f32,
+    // s0 * focal length in pixels / DENSE_SPACING_PX: below 1 at depth z (dense_scale / z),
+    // the points there lie too close to leave a hole wider than a pixel.
+    dense_scale: f32,
+    pad0: f32,
+    pad1: f32,
+    pad2: f32,
     // The direction towards a light fixed in the world, in view space (0: the headlight);
     // w: 1 where the shading is Blinn-Phong with the lit share (a world light or shadows),
     // 0 for the plain two-sided headlight.

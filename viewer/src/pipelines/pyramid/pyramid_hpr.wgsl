@@ -65,14 +65,21 @@ fn ring(p: vec2<i32>, size: vec2<i32>, off: u32) -> array<vec4<f32>, 8> {
     );
 }
 
-// The highest level whose ring counts for pixel `p`: equation 1 with the coarse level's depth
-// at `p`.
-fn reach_at(p: vec2<u32>) -> i32 {
+// The highest levels whose rings count for pixel `p`: equation 1 with the coarse level's depth
+// at `p`; for a background pixel the same, but level 0 where the points lie too densely to
+// leave a hole wider than a pixel (`dense_scale`).
+struct Reach {
+    point: i32,
+    background: i32,
+}
+
+fn reach_at(p: vec2<u32>) -> Reach {
     let c = pyr.coarse_level;
     let coarse = pts[level_offset(c) + (p.y >> c) * level_size(c).x + (p.x >> c)];
     let z = max(bitcast<f32>(coarse.x), 1e-6);
     let top = i32(pyr.levels) - 1;
-    return clamp(i32(round(log2(pyr.hpr_scale / z))), 1, max(top, 1));
+    let point = clamp(i32(round(log2(pyr.hpr_scale / z))), 1, max(top, 1));
+    return Reach(point, select(point, 0, pyr.dense_scale < z));
 }
 
 // The nearest depth among cells `lo` to `hi` (inclusive, clamped into level `l`). Where it is
@@ -91,15 +98,16 @@ fn nearest_in(l: u32, lo: vec2<i32>, hi: vec2<i32>) -> u32 {
     return nearest;
 }
 
-// Labels pixel `px` (skipped where it lies outside the frame) from its sectors and seeds the
-// pull-push with it.
-fn finish(px: vec2<u32>, s: Sectors) {
+// Labels pixel `px` (skipped where it lies outside the frame) from its sectors, `s` up to its
+// point reach and `b` up to its background reach, and seeds the pull-push with it.
+fn finish(px: vec2<u32>, s: Sectors, b: Sectors) {
     if px.x >= frame.width || px.y >= frame.height {
         return;
     }
     let i = px.y * frame.width + px.x;
-    let visible = dot(s.lo + s.hi, vec4<f32>(0.125)) >= pyr.threshold;
     let d = depths[i];
+    let sectors = select(s.lo + s.hi, b.lo + b.hi, d == EMPTY);
+    let visible = dot(sectors, vec4<f32>(0.125)) >= pyr.threshold;
     var label = LABEL_HOLE;
     if visible {
         label = select(LABEL_POINT, LABEL_BACKGROUND, d == EMPTY);

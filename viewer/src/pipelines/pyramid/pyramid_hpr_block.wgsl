@@ -86,12 +86,13 @@ fn fold_row(s: Row, x: array<vec3<f32>, 4>, r: array<vec4<f32>, 8>) -> Row {
     return Row(fold(s[0], x[0], r), fold(s[1], x[1], r), fold(s[2], x[2], r), fold(s[3], x[3], r));
 }
 
-// Labels the four pixels of row `b` of the block at `base`.
-fn finish_row(base: vec2<u32>, b: u32, s: Row) {
-    finish(base + vec2<u32>(0u, b), s[0]);
-    finish(base + vec2<u32>(1u, b), s[1]);
-    finish(base + vec2<u32>(2u, b), s[2]);
-    finish(base + vec2<u32>(3u, b), s[3]);
+// Labels the four pixels of row `b` of the block at `base`: `s` their sectors up to the point
+// reach, `g` up to the background reach.
+fn finish_row(base: vec2<u32>, b: u32, s: Row, g: Row) {
+    finish(base + vec2<u32>(0u, b), s[0], g[0]);
+    finish(base + vec2<u32>(1u, b), s[1], g[1]);
+    finish(base + vec2<u32>(2u, b), s[2], g[2]);
+    finish(base + vec2<u32>(3u, b), s[3], g[3]);
 }
 
 @compute @workgroup_size(8, 8)
@@ -101,7 +102,9 @@ fn main(@builtin(global_invocation_id) id: vec3<u32>) {
         return;
     }
     // From level 2 up the block lies in one cell of the coarse level: one reach for all.
-    let reach = reach_at(base);
+    let reaches = reach_at(base);
+    let reach = reaches.point;
+    let background = reaches.background;
     // The ring of every level up to `reach` lies inside the cells at `reach` around the block's
     // (3x3, or 4x4 at level 1).
     let lo = (vec2<i32>(base) >> vec2<u32>(u32(reach))) - 1;
@@ -112,6 +115,11 @@ fn main(@builtin(global_invocation_id) id: vec3<u32>) {
     var s1 = s0;
     var s2 = s0;
     var s3 = s0;
+    // The rows' sectors up to the background reach (the block shares it, as it shares `reach`).
+    var g0 = s0;
+    var g1 = s0;
+    var g2 = s0;
+    var g3 = s0;
     if nearest < bitcast<u32>(pyr.far) {
         let size0 = vec2<i32>(level_size(0u));
         let corner0 = vec2<i32>(base) - 1;
@@ -131,6 +139,12 @@ fn main(@builtin(global_invocation_id) id: vec3<u32>) {
         s1 = fold_row0(s1, x1, &q0, 1);
         s2 = fold_row0(s2, x2, &q0, 2);
         s3 = fold_row0(s3, x3, &q0, 3);
+        if background == 0 {
+            g0 = s0;
+            g1 = s1;
+            g2 = s2;
+            g3 = s3;
+        }
         let size1 = vec2<i32>(level_size(1u));
         let corner1 = vec2<i32>(base >> vec2<u32>(1u)) - 1;
         let off1 = level_offset(1u);
@@ -144,6 +158,12 @@ fn main(@builtin(global_invocation_id) id: vec3<u32>) {
         s1 = fold_row1(s1, x1, &q1, 1);
         s2 = fold_row1(s2, x2, &q1, 2);
         s3 = fold_row1(s3, x3, &q1, 3);
+        if background == 1 {
+            g0 = s0;
+            g1 = s1;
+            g2 = s2;
+            g3 = s3;
+        }
         for (var l = 2; l <= reach; l++) {
             let size = vec2<i32>(level_size(u32(l)));
             let r = ring(vec2<i32>(base >> vec2<u32>(u32(l))), size, level_offset(u32(l)));
@@ -151,11 +171,17 @@ fn main(@builtin(global_invocation_id) id: vec3<u32>) {
             s1 = fold_row(s1, x1, r);
             s2 = fold_row(s2, x2, r);
             s3 = fold_row(s3, x3, r);
+            if background == l {
+                g0 = s0;
+                g1 = s1;
+                g2 = s2;
+                g3 = s3;
+            }
         }
     }
-    finish_row(base, 0u, s0);
-    finish_row(base, 1u, s1);
-    finish_row(base, 2u, s2);
-    finish_row(base, 3u, s3);
+    finish_row(base, 0u, s0, g0);
+    finish_row(base, 1u, s1, g1);
+    finish_row(base, 2u, s2, g2);
+    finish_row(base, 3u, s3, g3);
 }
 

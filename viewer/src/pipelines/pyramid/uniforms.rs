@@ -6,6 +6,14 @@ use bytemuck::{Pod, Zeroable};
 
 /// The paper's HPR neighbourhood size, in multiples of s0 (its section 3.1.2).
 pub const HPR_SCALE_S0: f32 = 10.0;
+/// Point spacing, in pixels, below which the sampling leaves no hole wider than a pixel (four
+/// points or more a pixel: random sampling leaves a pixel empty 2 % of the time, and two
+/// neighbours empty 0.3 %). A background pixel there looks for enclosing surface on level 0
+/// only, the eight pixels about it: beyond the paper, whose 10·s0 neighbourhood takes
+/// background enclosed that far for a hole, and closes the notches of a dense scan's outline
+/// (between a bunny's ears). Sparser points keep the paper's neighbourhood, whose reach their
+/// holes need.
+pub const DENSE_SPACING_PX: f32 = 0.5;
 /// Mean sector occlusion below which a pixel is a hole (the paper's 0.1 for all datasets).
 pub const HPR_THRESHOLD: f32 = 0.1;
 /// The pyramid level whose min depth decides each pixel's HPR neighbourhood (the paper's 4th).
@@ -47,6 +55,10 @@ pub(crate) struct PyramidUniforms {
     pub(super) s0: f32,
     /// Copied on the GPU from the noise estimate (`PyramidTargets::noise`) each frame.
     pub(super) noise_scale: f32,
+    pub(super) dense_scale: f32,
+    pub(super) pad0: f32,
+    pub(super) pad1: f32,
+    pub(super) pad2: f32,
     pub(super) light: [f32; 4],
     pub(super) table: [[u32; 4]; MAX_LEVELS],
 }
@@ -67,6 +79,10 @@ impl PyramidUniforms {
             coarse_level: COARSE_LEVEL.min(top),
             s0: frame.s0,
             noise_scale: 0.0,
+            dense_scale: frame.s0 * frame.focal_px / DENSE_SPACING_PX,
+            pad0: 0.0,
+            pad1: 0.0,
+            pad2: 0.0,
             light: frame.light,
             table: [[0; 4]; MAX_LEVELS],
         };
@@ -114,6 +130,10 @@ pub(crate) fn uniforms_layout() -> (u32, Vec<(String, u32)>) {
             coarse_level,
             s0,
             noise_scale,
+            dense_scale,
+            pad0,
+            pad1,
+            pad2,
             light,
             table
         ),
