@@ -205,6 +205,52 @@ fn the_export_holds_every_point_once_in_its_node_as_potree_reads_it() {
     assert!(!dir.path().join("autzen.part").exists());
 }
 
+/// `strata info` reads a Potree 2.0 dataset's metadata.json as it reads a Strata dataset's: the
+/// points, depth, bounds and attributes it states; a damaged field is named in one sentence.
+#[test]
+fn info_describes_a_potree2_dataset_and_names_a_damaged_field() {
+    let dataset = common::converted("potree2-fixture", "autzen_trim.laz", "autzen");
+    let dir = tempfile::tempdir().expect("tempdir");
+    let out = dir.path().join("autzen");
+    common::run_ok(&["export", s(&dataset), "-o", s(&out), "--format", "potree2"]);
+    let meta: Value =
+        serde_json::from_slice(&std::fs::read(out.join("metadata.json")).expect("metadata"))
+            .expect("JSON");
+    let text = String::from_utf8_lossy(&common::run_ok(&["info", s(&out)]).stdout).to_string();
+    assert!(text.contains("Potree 2.0"), "{text}");
+    assert!(
+        text.contains(&format!("points    {}", meta["points"])),
+        "{text}"
+    );
+    assert!(text.contains("classification"), "{text}");
+    let json: Value =
+        serde_json::from_slice(&common::run_ok(&["info", s(&out), "--json"]).stdout).expect("JSON");
+    assert_eq!(json["format"], "potree 2.0");
+    assert_eq!(json["points"], meta["points"]);
+    assert_eq!(json["depth"], meta["hierarchy"]["depth"]);
+    assert_eq!(
+        json["attributes"].as_array().map(Vec::len),
+        meta["attributes"].as_array().map(Vec::len)
+    );
+    // The points' own bounds lie within the octree's cube.
+    for k in 0..3 {
+        let (lo, hi) = (&json["bounds"]["min"][k], &json["bounds"]["max"][k]);
+        assert!(lo.as_f64() >= json["cube"]["min"][k].as_f64(), "{json}");
+        assert!(hi.as_f64() <= json["cube"]["max"][k].as_f64(), "{json}");
+    }
+    let mut damaged = meta.clone();
+    damaged["points"] = "many".into();
+    std::fs::write(out.join("metadata.json"), damaged.to_string()).expect("write");
+    let o = common::run(&["info", s(&out)]);
+    let err = String::from_utf8_lossy(&o.stderr).to_string();
+    assert!(!o.status.success());
+    assert_eq!(err.trim().lines().count(), 1, "{err}");
+    assert!(
+        err.contains("metadata.json") && err.contains("\"points\""),
+        "{err}"
+    );
+}
+
 #[test]
 fn convert_to_potree2_in_one_step_equals_convert_then_export_and_keeps_normals() {
     let dataset = converted_city("potree2-normals", true);

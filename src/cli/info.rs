@@ -5,7 +5,7 @@ use strata_format::LocalDataset;
 
 #[derive(Debug, clap::Args)]
 pub struct Args {
-    /// The dataset directory, or a LAS/LAZ file (a COPC file says so, with its octree), or a
+    /// The dataset directory (Strata, or Potree 2.0), or a LAS/LAZ file (a COPC file says so, with its octree), or a
     /// PLY or E57 file (its points, attributes and scanners, as `convert` reads them).
     dataset: PathBuf,
     /// Print JSON instead of text.
@@ -16,6 +16,9 @@ pub struct Args {
 pub fn run(a: Args) -> anyhow::Result<ExitCode> {
     if a.dataset.is_file() {
         return point_file(&a);
+    }
+    if let Some(potree) = super::info_potree2::metadata(&a.dataset) {
+        return super::info_potree2::describe(&a.dataset, &potree, a.json);
     }
     let ds = LocalDataset::open(&a.dataset)?;
     let m = ds.metadata();

@@ -4,6 +4,7 @@ mod demo;
 mod export;
 mod info;
 mod info_input;
+mod info_potree2;
 mod measure;
 mod pick;
 mod pipelines;
