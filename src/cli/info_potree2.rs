@@ -29,8 +29,15 @@ struct Potree2 {
     cube: [[f64; 3]; 2],
     encoding: String,
     projection: String,
-    /// Name, type and element count of each attribute, with its min and max where given.
-    attributes: Vec<(String, String, u64, Option<(Vec<f64>, Vec<f64>)>)>,
+    attributes: Vec<Attribute>,
+}
+
+/// An attribute's name, type and element count, with its min and max where given.
+struct Attribute {
+    name: String,
+    ty: String,
+    count: u64,
+    range: Option<(Vec<f64>, Vec<f64>)>,
 }
 
 fn read(dir: &Path, v: &Value) -> anyhow::Result<Potree2> {
@@ -86,7 +93,12 @@ fn read(dir: &Path, v: &Value) -> anyhow::Result<Potree2> {
             )),
             _ => None,
         };
-        attributes.push((name.to_string(), ty.to_string(), count, range));
+        attributes.push(Attribute {
+            name: name.to_string(),
+            ty: ty.to_string(),
+            count,
+            range,
+        });
     }
     let spacing = field(&["spacing"])?
         .as_f64()
@@ -122,13 +134,13 @@ pub fn describe(dir: &Path, v: &Value, json: bool) -> anyhow::Result<ExitCode> {
     let tight = p
         .attributes
         .iter()
-        .find(|a| a.0 == "position")
-        .and_then(|a| a.3.clone());
+        .find(|a| a.name == "position")
+        .and_then(|a| a.range.clone());
     if json {
         let attributes: Vec<Value> = p
             .attributes
             .iter()
-            .map(|(name, ty, count, _)| serde_json::json!({"name": name, "type": ty, "count": count}))
+            .map(|a| serde_json::json!({"name": a.name, "type": a.ty, "count": a.count}))
             .collect();
         let out = serde_json::json!({
             "format": "potree 2.0",
@@ -176,13 +188,13 @@ pub fn describe(dir: &Path, v: &Value, json: bool) -> anyhow::Result<ExitCode> {
         bytes as f64 / p.points.max(1) as f64
     );
     println!("attributes:");
-    for (name, ty, count, _) in &p.attributes {
-        let shape = if *count > 1 {
-            format!("{count} x {ty}")
+    for a in &p.attributes {
+        let shape = if a.count > 1 {
+            format!("{} x {}", a.count, a.ty)
         } else {
-            ty.clone()
+            a.ty.clone()
         };
-        println!("  {name:<30} {shape}");
+        println!("  {:<30} {shape}", a.name);
     }
     if !p.projection.is_empty() {
         println!("crs       {}", p.projection);
