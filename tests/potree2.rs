@@ -206,9 +206,10 @@ fn the_export_holds_every_point_once_in_its_node_as_potree_reads_it() {
 }
 
 /// `strata info` reads a Potree 2.0 dataset's metadata.json as it reads a Strata dataset's: the
-/// points, depth, bounds and attributes it states; a damaged field is named in one sentence.
+/// points, depth, bounds and attributes it states; a damaged field is named in one sentence. A
+/// Potree 2.0 output named as a point file (`city.las`) is refused.
 #[test]
-fn info_describes_a_potree2_dataset_and_names_a_damaged_field() {
+fn info_describes_a_potree2_dataset_and_a_folder_named_as_a_point_file_is_refused() {
     let dataset = common::converted("potree2-fixture", "autzen_trim.laz", "autzen");
     let dir = tempfile::tempdir().expect("tempdir");
     let out = dir.path().join("autzen");
@@ -237,6 +238,33 @@ fn info_describes_a_potree2_dataset_and_names_a_damaged_field() {
         let (lo, hi) = (&json["bounds"]["min"][k], &json["bounds"]["max"][k]);
         assert!(lo.as_f64() >= json["cube"]["min"][k].as_f64(), "{json}");
         assert!(hi.as_f64() <= json["cube"]["max"][k].as_f64(), "{json}");
+    }
+    // A folder named as a point file is refused before anything is written, by export and by
+    // convert alike.
+    for args in [
+        vec!["export", s(&dataset), "-o", "NAME", "--format", "potree2"],
+        vec!["convert", "IN", "-o", "NAME", "--format", "potree2"],
+    ] {
+        let named = dir.path().join("city.LAS");
+        let input = common::data("autzen_trim.laz");
+        let args: Vec<&str> = args
+            .iter()
+            .map(|a| match *a {
+                "NAME" => s(&named),
+                "IN" => s(&input),
+                a => a,
+            })
+            .collect();
+        let o = common::run(&args);
+        let err = String::from_utf8_lossy(&o.stderr).to_string();
+        assert!(!o.status.success(), "{args:?}");
+        assert!(err.contains("LAS file") && err.contains("folder"), "{err}");
+        let left: Vec<_> = std::fs::read_dir(dir.path())
+            .expect("dir")
+            .filter_map(|e| e.ok().map(|e| e.file_name()))
+            .filter(|n| n.to_string_lossy().contains("city"))
+            .collect();
+        assert!(left.is_empty(), "{args:?} left {left:?}");
     }
     let mut damaged = meta.clone();
     damaged["points"] = "many".into();

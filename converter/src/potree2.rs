@@ -282,11 +282,34 @@ fn node_records(
     Ok(NodeRecords { rows, ranges })
 }
 
+/// A Potree 2.0 dataset is a folder: a name that ends as a point file's (`city.las`) asked for
+/// that file, which `export` writes without `--format potree2`.
+pub fn refuse_file_name(output: &Path) -> Result<()> {
+    let name = output
+        .file_name()
+        .map(|n| n.to_string_lossy().to_ascii_lowercase())
+        .unwrap_or_default();
+    match [".las", ".laz", ".ply", ".e57"]
+        .iter()
+        .find(|ext| name.ends_with(*ext))
+    {
+        Some(ext) => Err(ConvertError::output(
+            output,
+            format!(
+                "names a {} file, but a Potree 2.0 dataset is a folder: name the folder otherwise, or leave out --format potree2 to write the file",
+                ext[1..].to_ascii_uppercase()
+            ),
+        )),
+        None => Ok(()),
+    }
+}
+
 /// Writes `dataset` to the folder `output` as a Potree 2.0 dataset. The folder appears
 /// whole or not at all: it is written as `OUTPUT.part` and renamed at the end.
 pub fn export_potree2(dataset: &Path, output: &Path, overwrite: bool) -> Result<Potree2Summary> {
     crate::replace::refuse_source(dataset, output)?;
     check_output(output, overwrite, Folder::Dataset)?;
+    refuse_file_name(output)?;
     let ds = LocalDataset::open(dataset)?;
     // octree.bin holds every export row uncompressed (the hierarchy is 22 bytes a node): refused
     // now rather than when the disk fills.

@@ -221,6 +221,7 @@ fn convert_to_potree2(
 ) -> anyhow::Result<ExitCode> {
     let output = opts.output.clone();
     check_output(&output, opts.overwrite, Folder::Dataset)?;
+    strata_converter::potree2::refuse_file_name(&output)?;
     // Held through the export too: a second run would replace the hidden source this one
     // exports from.
     let _lock = strata_converter::workdir::WorkDir::for_output(&output).lock_only(&output)?;
