@@ -12,8 +12,8 @@ use strata_viewer::gpu::ProjectionPath;
 const PLANE: [u8; 3] = [200, 190, 170];
 /// The plane's half width and half height in pixels, its sample spacing in pixels.
 const HALF_PX: (f64, f64) = (60.0, 40.0);
-/// Measured from the octree, the spacing comes out about a fifth wider: under half a pixel.
-const SPACING_PX: f64 = 0.35;
+/// Measured from the octree the spacing comes out about a fifth wider, still under half a pixel.
+const SPACING_PX: f64 = 0.3;
 /// The notches: cut down from the plane's top edge, this wide and deep (pixels), one every
 /// `NOTCH_EVERY` pixels across.
 const NOTCH_WIDE_PX: f64 = 1.6;
@@ -34,7 +34,19 @@ fn notch_centres() -> Vec<f64> {
         .collect()
 }
 
-/// A plane facing the eye, sampled on a grid `SPACING_PX` apart, the notches left out.
+/// Pinholes: one pixel each (its lower left corner, in pixels from the view's centre) whose
+/// points are left out, surface on every side.
+const PINHOLES: [(f64, f64); 6] = [
+    (-30.0, -20.0),
+    (-10.0, -20.0),
+    (10.0, -20.0),
+    (-30.0, 0.0),
+    (10.0, 0.0),
+    (30.0, 0.0),
+];
+
+/// A plane facing the eye, sampled on a grid `SPACING_PX` apart, the notches and the pinholes
+/// left out.
 fn notched_plane() -> &'static Path {
     static CELL: OnceLock<PathBuf> = OnceLock::new();
     CELL.get_or_init(|| {
@@ -55,7 +67,10 @@ fn notched_plane() -> &'static Path {
                 );
                 let in_notch = z > HALF_PX.1 - NOTCH_DEEP_PX
                     && centres.iter().any(|c| (x - c).abs() < NOTCH_WIDE_PX / 2.0);
-                if !in_notch {
+                let in_pinhole = PINHOLES.iter().any(|&(px, pz)| {
+                    (px - 0.05..px + 1.05).contains(&x) && (pz - 0.05..pz + 1.05).contains(&z)
+                });
+                if !in_notch && !in_pinhole {
                     points.push(([x * size, 0.0, z * size], PLANE));
                     normals.push([0.0, -1.0, 0.0]);
                 }
@@ -107,7 +122,26 @@ fn a_notch_in_a_dense_surface_stays_background() {
         "pyramid closed {} of the {open} notch pixels points leaves open",
         open - kept
     );
-    // The plane itself, sampled densely, is whole in both.
-    let centre = (H / 2 * W + W / 2) as usize;
-    assert!(points.covered[centre] && pyramid.covered[centre]);
+    // Background enclosed by the plane is still a hole: the pinholes `points` leaves open are
+    // closed, and the plane's inside, clear of the notches and the outline, is whole.
+    let pinholes: Vec<usize> = PINHOLES
+        .iter()
+        .map(|&(px, pz)| {
+            let (x, y) = (W as f64 / 2.0 + px, H as f64 / 2.0 - pz - 1.0);
+            (y as u32 * W + x as u32) as usize
+        })
+        .collect();
+    assert!(
+        pinholes.iter().all(|&i| !points.covered[i]),
+        "points covers a pinhole"
+    );
+    let inside = |x: u32, y: u32| {
+        let (dx, dy) = (x as f64 - W as f64 / 2.0, H as f64 / 2.0 - y as f64);
+        dx.abs() < HALF_PX.0 - 3.0 && dy > -HALF_PX.1 + 3.0 && dy < HALF_PX.1 - NOTCH_DEEP_PX - 3.0
+    };
+    let open: Vec<(u32, u32)> = (0..H)
+        .flat_map(|y| (0..W).map(move |x| (x, y)))
+        .filter(|&(x, y)| inside(x, y) && !pyramid.covered[(y * W + x) as usize])
+        .collect();
+    assert!(open.is_empty(), "pyramid leaves the plane open at {open:?}");
 }

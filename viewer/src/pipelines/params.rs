@@ -47,6 +47,21 @@ impl ParamSpec {
             self.scale,
             Scale::Integer | Scale::Toggle | Scale::Choice(_)
         );
+        if let Scale::Choice(names) = self.scale
+            && (!value.is_finite()
+                || value < 0.0
+                || value >= names.len() as f32
+                || value.fract() != 0.0)
+        {
+            return Err(ViewerError::argument(
+                format!("{}={value}", self.name),
+                format!(
+                    "{pipeline}'s parameter {} takes {}",
+                    self.name,
+                    self.modes()
+                ),
+            ));
+        }
         if !value.is_finite() || value < self.min || value > self.max {
             return Err(ViewerError::argument(
                 format!("{}={value}", self.name),
@@ -69,7 +84,7 @@ impl ParamSpec {
     pub fn describe(&self) -> String {
         let range = match self.scale {
             Scale::Toggle => "0 or 1".to_string(),
-            Scale::Choice(names) => format!("{}, or {} to {}", or_list(names), self.min, self.max),
+            Scale::Choice(_) => self.modes(),
             _ => format!("{} to {}", self.min, self.max),
         };
         let default = if self.auto.is_some() {
@@ -84,6 +99,18 @@ impl ParamSpec {
 }
 
 impl ParamSpec {
+    /// A choice parameter's modes, "off, hard or soft (or its number, 0 to 2)".
+    fn modes(&self) -> String {
+        match self.scale {
+            Scale::Choice(names) => format!(
+                "{} (or its number, 0 to {})",
+                or_list(names),
+                names.len().saturating_sub(1)
+            ),
+            _ => String::new(),
+        }
+    }
+
     /// The name of a choice parameter's value `v`; `None` for other scales.
     pub fn choice_name(&self, v: f32) -> Option<&'static str> {
         match self.scale {
@@ -168,26 +195,29 @@ impl ParamValues {
         }
         let spec = pipeline.param(name)?;
         let text = text.trim();
-        let value = match text {
-            _ if let Some(k) = choice_index(spec, text) => ParamValue::Value(k as f32),
-            "auto" if spec.auto.is_some() => ParamValue::Auto,
-            "on" | "true" if spec.scale == Scale::Toggle => ParamValue::Value(1.0),
-            "off" | "false" if spec.scale == Scale::Toggle => ParamValue::Value(0.0),
-            _ => {
-                let v: f32 = text.parse().map_err(|_| {
-                    ViewerError::argument(
-                        format!("{name}={text}"),
-                        format!(
-                            "{}'s parameter {name} takes {}",
-                            pipeline.name,
-                            match spec.scale {
-                                Scale::Choice(_) => spec.describe(),
-                                _ => format!("a number ({})", spec.describe()),
-                            }
-                        ),
-                    )
-                })?;
-                ParamValue::Value(spec.check(pipeline.name, v)?)
+        let value = if let Some(k) = choice_index(spec, text) {
+            ParamValue::Value(k as f32)
+        } else {
+            match text {
+                "auto" if spec.auto.is_some() => ParamValue::Auto,
+                "on" | "true" if spec.scale == Scale::Toggle => ParamValue::Value(1.0),
+                "off" | "false" if spec.scale == Scale::Toggle => ParamValue::Value(0.0),
+                _ => {
+                    let v: f32 = text.parse().map_err(|_| {
+                        ViewerError::argument(
+                            format!("{name}={text}"),
+                            format!(
+                                "{}'s parameter {name} takes {}",
+                                pipeline.name,
+                                match spec.scale {
+                                    Scale::Choice(_) => spec.modes(),
+                                    _ => format!("a number ({})", spec.describe()),
+                                }
+                            ),
+                        )
+                    })?;
+                    ParamValue::Value(spec.check(pipeline.name, v)?)
+                }
             }
         };
         self.set.insert((pipeline.name, spec.name), value);
@@ -291,5 +321,48 @@ impl ResolvedParams {
 
     pub fn iter(&self) -> impl Iterator<Item = (&'static str, f32)> + '_ {
         self.values.iter().map(|(k, v)| (*k, *v))
+    }
+}
+
+#[cfg(test)]
+mod choice_tests {
+    use super::{ParamValue, ParamValues, Scale};
+    use crate::pipelines::REGISTRY;
+
+    /// Every mode parameter of the registry: its range is its modes' numbers, and each mode is
+    /// set by its name in any case or by its number; another name, a fraction or a number past
+    /// the modes is refused naming them.
+    #[test]
+    fn every_mode_is_set_by_name_or_number_and_a_wrong_one_names_them() {
+        let mut seen = 0;
+        for &info in REGISTRY {
+            for spec in info.params {
+                let Scale::Choice(names) = spec.scale else {
+                    continue;
+                };
+                seen += 1;
+                assert_eq!(spec.min, 0.0, "{}", spec.name);
+                assert_eq!(spec.max, (names.len() - 1) as f32, "{}", spec.name);
+                assert!(spec.choice_name(spec.default).is_some(), "{}", spec.name);
+                for (k, name) in names.iter().enumerate() {
+                    for text in [name.to_string(), name.to_uppercase(), k.to_string()] {
+                        let mut values = ParamValues::default();
+                        values.set_text(info, spec.name, &text).expect("a mode");
+                        assert_eq!(values.get(info, spec), ParamValue::Value(k as f32));
+                    }
+                }
+                let past = names.len().to_string();
+                for wrong in ["bright", "0.5", "-1", past.as_str()] {
+                    let e = ParamValues::default()
+                        .set_text(info, spec.name, wrong)
+                        .expect_err(wrong)
+                        .to_string();
+                    assert!(e.contains(names[names.len() - 1]), "{wrong}: {e}");
+                    assert!(e.contains(spec.name), "{wrong}: {e}");
+                }
+            }
+        }
+        // shadows (pyramid and filters), antialias, the surfels' mode.
+        assert!(seen >= 4, "{seen} mode parameters");
     }
 }

@@ -1,6 +1,7 @@
 //! The GPU hidden-point removal against a direct CPU reading of paper 003, 3.1.2: per pixel,
-//! the eight-cell ring on every level of the min-depth pyramid up to equation 1's level, the
-//! most occluding neighbour per sector, and the mean against the threshold. Both shapes of the
+//! the eight-cell ring on every level of the min-depth pyramid up to equation 1's level (level 0
+//! for a background pixel where the points lie denser than DENSE_SPACING_PX), the most
+//! occluding neighbour per sector, and the mean against the threshold. Both shapes of the
 //! pass (`HprShape`: one pixel an invocation, or a 4x4 block with shared reads) are pinned to it.
 
 use super::*;
@@ -46,7 +47,7 @@ fn scene(w: u32, h: u32) -> Vec<u32> {
     depths
 }
 
-/// The labels of paper 003's operator, and per pixel the margin of its mean occlusion over the
+/// The labels of paper 003's operator (with the dense background rule), and per pixel the margin of its mean occlusion over the
 /// threshold (where the GPU's single precision may decide either way).
 fn reference(depths: &[u32], w: u32, h: u32, p: &PyramidUniforms) -> Vec<(u32, f64)> {
     // Level 0: every pixel's point, background at the far plane; then min-depth levels, ties
@@ -173,7 +174,8 @@ fn hpr_labels_match_the_per_pixel_definition() {
     });
     let fov_y = 60f32.to_radians();
     let frame = PyramidFrame {
-        // Equation 1 then asks for levels 3-4 on the disc and 1-2 on the wall.
+        // Equation 1 then asks for levels 3-4 on the disc and 1-2 on the wall; the wall's
+        // spacing, 0.1 at depths 40-60, is under half a pixel: its background looks at level 0.
         s0: 0.1,
         fov_y,
         far: 100.0,

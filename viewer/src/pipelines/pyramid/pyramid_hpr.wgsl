@@ -1,6 +1,7 @@
 // Hidden-point removal over the whole image (paper 003, 3.1.2). Each pixel's neighbourhood is
 // the ring of eight cells around it on every pyramid level up to the level of equation 1, with
-// the coarse depth taken from `pyr.coarse_level`. Per sector the most occluding neighbour
+// the coarse depth taken from `pyr.coarse_level` (a background pixel where the points lie
+// denser than half a pixel: level 0 only, see `reach_at`). Per sector the most occluding neighbour
 // counts; a mean occlusion below the threshold marks the pixel as a hole (a hidden point, or
 // background enclosed by surface), else it stays a visible point or visible background.
 // Also seeds level 0 of the pull-push pyramid with the visible points.
