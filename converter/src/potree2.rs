@@ -296,8 +296,7 @@ pub fn refuse_file_name(output: &Path) -> Result<()> {
         Some(ext) => Err(ConvertError::output(
             output,
             format!(
-                "names a {} file, but a Potree 2.0 dataset is a folder: name the folder otherwise, or leave out --format potree2 to write the file",
-                ext[1..].to_ascii_uppercase()
+                "ends in {ext}, a point file's name, but a Potree 2.0 dataset is a folder: give the folder a name without it"
             ),
         )),
         None => Ok(()),

@@ -13,7 +13,18 @@ pub struct Args {
     json: bool,
 }
 
-pub fn run(a: Args) -> anyhow::Result<ExitCode> {
+pub fn run(mut a: Args) -> anyhow::Result<ExitCode> {
+    // A dataset's metadata.json, given for its folder (as Potree users name a dataset).
+    if a.dataset.is_file()
+        && a.dataset.file_name().is_some_and(|n| n == "metadata.json")
+        && let Some(dir) = a.dataset.parent()
+    {
+        a.dataset = if dir.as_os_str().is_empty() {
+            PathBuf::from(".")
+        } else {
+            dir.to_path_buf()
+        };
+    }
     if a.dataset.is_file() {
         return point_file(&a);
     }

@@ -7,13 +7,15 @@ use std::path::Path;
 use std::process::ExitCode;
 use strata_converter::sys::format_bytes;
 
-/// The metadata of the Potree 2.0 dataset in `dir`, where `dir/metadata.json` is one (version
-/// "2.0" with a hierarchy); `None` for anything else, which `info` then reads as before.
+/// The metadata of the Potree dataset in `dir`, where `dir/metadata.json` is one (a version
+/// given as text, or a hierarchy without Strata's "format"); `None` for anything else, which
+/// `info` then reads as a Strata dataset (and refuses as one: a pipe, a file too large to be
+/// metadata, text that is not JSON).
 pub fn metadata(dir: &Path) -> Option<Value> {
-    let bytes = std::fs::read(dir.join("metadata.json")).ok()?;
+    let bytes = strata_format::read_metadata_file(&dir.join("metadata.json")).ok()?;
     let v: Value = serde_json::from_slice(&bytes).ok()?;
-    let potree =
-        v.get("version")?.as_str()? == "2.0" && v.get("hierarchy")?.get("firstChunkSize").is_some();
+    let potree = v.get("version").is_some_and(Value::is_string)
+        || (v.get("hierarchy").is_some() && v.get("format").is_none());
     potree.then_some(v)
 }
 
@@ -66,15 +68,26 @@ fn read(dir: &Path, v: &Value) -> anyhow::Result<Potree2> {
         let name = path.join(".");
         let n = numbers(field(path)?, &name)?;
         <[f64; 3]>::try_from(n.as_slice())
+            .ok()
             .with_context(|| format!("{}: \"{name}\" is not three numbers", file.display()))
     };
-    let text = |path: &[&str]| -> String {
-        field(path)
-            .ok()
-            .and_then(Value::as_str)
-            .unwrap_or("")
-            .to_string()
+    // Text where given; `absent` where the field is not there.
+    let text = |name: &str, absent: &str| -> anyhow::Result<String> {
+        match v.get(name) {
+            None => Ok(absent.to_string()),
+            Some(t) => t
+                .as_str()
+                .map(str::to_string)
+                .with_context(|| format!("{}: \"{name}\" is not text", file.display())),
+        }
     };
+    let version = text("version", "")?;
+    if version != "2.0" {
+        bail!(
+            "{}: \"version\" is {version:?}: strata info reads Potree 2.0 datasets (and Strata's)",
+            file.display()
+        );
+    }
     let mut attributes = Vec::new();
     let list = field(&["attributes"])?
         .as_array()
@@ -86,11 +99,19 @@ fn read(dir: &Path, v: &Value) -> anyhow::Result<Potree2> {
             .with_context(|| format!("{}: attribute {i} has no \"name\"", file.display()))?;
         let ty = a.get("type").and_then(Value::as_str).unwrap_or("undefined");
         let count = a.get("numElements").and_then(Value::as_u64).unwrap_or(1);
-        let range = match (a.get("min"), a.get("max")) {
-            (Some(lo), Some(hi)) => Some((
-                numbers(lo, &format!("{name}.min"))?,
-                numbers(hi, &format!("{name}.max"))?,
-            )),
+        // Only the position's range is shown (the points' bounds): three numbers each.
+        let range = match (name, a.get("min"), a.get("max")) {
+            ("position", Some(lo), Some(hi)) => {
+                let lo = numbers(lo, "position.min")?;
+                let hi = numbers(hi, "position.max")?;
+                if lo.len() != 3 || hi.len() != 3 {
+                    bail!(
+                        "{}: the position's \"min\" and \"max\" are not three numbers each",
+                        file.display()
+                    );
+                }
+                Some((lo, hi))
+            }
             _ => None,
         };
         attributes.push(Attribute {
@@ -119,8 +140,9 @@ fn read(dir: &Path, v: &Value) -> anyhow::Result<Potree2> {
             triple(&["boundingBox", "min"])?,
             triple(&["boundingBox", "max"])?,
         ],
-        encoding: text(&["encoding"]),
-        projection: text(&["projection"]),
+        // Potree takes a dataset without one as uncompressed.
+        encoding: text("encoding", "DEFAULT")?,
+        projection: text("projection", "")?,
         attributes,
     })
 }
@@ -166,7 +188,10 @@ pub fn describe(dir: &Path, v: &Value, json: bool) -> anyhow::Result<ExitCode> {
             .join(" ")
     };
     println!("dataset   {}", dir.display());
-    println!("format    Potree 2.0, {} encoding", p.encoding);
+    println!(
+        "format    Potree 2.0, {} encoding",
+        p.encoding.escape_debug()
+    );
     println!("points    {}", p.points);
     println!(
         "depth     {} (hierarchy chunks of {} levels, the first {} bytes)",
@@ -194,10 +219,14 @@ pub fn describe(dir: &Path, v: &Value, json: bool) -> anyhow::Result<ExitCode> {
         } else {
             a.ty.clone()
         };
-        println!("  {:<30} {shape}", a.name);
+        println!(
+            "  {:<30} {}",
+            a.name.escape_debug().to_string(),
+            shape.escape_debug()
+        );
     }
     if !p.projection.is_empty() {
-        println!("crs       {}", p.projection);
+        println!("crs       {}", p.projection.escape_debug());
     }
     println!("served    by `strata serve` as it is (Potree, potree-core)");
     Ok(ExitCode::SUCCESS)
