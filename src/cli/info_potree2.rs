@@ -150,8 +150,12 @@ fn read(dir: &Path, v: &Value) -> anyhow::Result<Potree2> {
 /// Prints what the Potree 2.0 dataset in `dir` holds (`v`: its metadata).
 pub fn describe(dir: &Path, v: &Value, json: bool) -> anyhow::Result<ExitCode> {
     let p = read(dir, v)?;
-    let size = |name: &str| std::fs::metadata(dir.join(name)).map_or(0, |m| m.len());
-    let bytes = size("hierarchy.bin") + size("octree.bin");
+    let size = |name: &str| std::fs::metadata(dir.join(name)).ok().map(|m| m.len());
+    let missing: Vec<&str> = ["hierarchy.bin", "octree.bin"]
+        .into_iter()
+        .filter(|f| size(f).is_none())
+        .collect();
+    let bytes = size("hierarchy.bin").unwrap_or(0) + size("octree.bin").unwrap_or(0);
     // The points' own bounds: the position attribute's range (the bounding box is the cube).
     let tight = p
         .attributes
@@ -181,9 +185,12 @@ pub fn describe(dir: &Path, v: &Value, json: bool) -> anyhow::Result<ExitCode> {
         println!("{}", serde_json::to_string_pretty(&out)?);
         return Ok(ExitCode::SUCCESS);
     }
+    // Coordinates to the decimals of the finest scale (a millimetre scale: three).
+    let finest = p.scale.iter().fold(f64::INFINITY, |m, &s| m.min(s.abs()));
+    let decimals = (-finest.log10()).ceil().clamp(0.0, 12.0) as usize;
     let xyz = |v: &[f64]| {
         v.iter()
-            .map(|c| format!("{c:.3}"))
+            .map(|c| format!("{c:.decimals$}"))
             .collect::<Vec<_>>()
             .join(" ")
     };
@@ -207,11 +214,20 @@ pub fn describe(dir: &Path, v: &Value, json: bool) -> anyhow::Result<ExitCode> {
     );
     println!("scale     {:?}\noffset    {:?}", p.scale, p.offset);
     println!("spacing   {:.6} at the root", p.spacing);
-    println!(
-        "size      {} in hierarchy.bin and octree.bin ({:.1} bytes/point)",
-        format_bytes(bytes),
-        bytes as f64 / p.points.max(1) as f64
-    );
+    if missing.is_empty() {
+        println!(
+            "size      {} in hierarchy.bin and octree.bin ({:.1} bytes/point, {})",
+            format_bytes(bytes),
+            bytes as f64 / p.points.max(1) as f64,
+            if p.encoding == "DEFAULT" {
+                "uncompressed"
+            } else {
+                "compressed"
+            }
+        );
+    } else {
+        println!("size      {} missing", missing.join(" and "));
+    }
     println!("attributes:");
     for a in &p.attributes {
         let shape = if a.count > 1 {
