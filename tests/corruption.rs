@@ -113,11 +113,7 @@ fn truncated_or_missing_files_are_reported() {
         );
     }
     std::fs::remove_file(ds.join("metadata.json")).expect("remove");
-    let fifo = std::process::Command::new("mkfifo")
-        .arg(ds.join("metadata.json"))
-        .status()
-        .expect("mkfifo");
-    assert!(fifo.success());
+    mkfifo(&ds.join("metadata.json"));
     verify_fails_naming(&ds, "not a regular file");
 }
 
@@ -129,11 +125,7 @@ fn data_files_that_are_pipes_are_refused_not_waited_on() {
         let copy = dir.path().join(format!("pipe-{name}"));
         run_ok(&["convert", s(&data("autzen_trim.las")), "-o", s(&copy), "-q"]);
         std::fs::remove_file(copy.join(name)).expect("remove");
-        let fifo = std::process::Command::new("mkfifo")
-            .arg(copy.join(name))
-            .status()
-            .expect("mkfifo");
-        assert!(fifo.success());
+        mkfifo(&copy.join(name));
         // Bounded: opening a pipe for reading waits for a writer that never comes.
         let png = dir.path().join("pipe.png");
         for cmd in ["verify", "info", "render"] {

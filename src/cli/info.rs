@@ -5,8 +5,9 @@ use strata_format::LocalDataset;
 
 #[derive(Debug, clap::Args)]
 pub struct Args {
-    /// The dataset directory (Strata, or Potree 2.0), or a LAS/LAZ file (a COPC file says so, with its octree), or a
-    /// PLY or E57 file (its points, attributes and scanners, as `convert` reads them).
+    /// The dataset directory (Strata, or Potree 2.0; or its metadata.json), or a LAS/LAZ file
+    /// (a COPC file says so, with its octree), or a PLY or E57 file (its points, attributes and
+    /// scanners, as `convert` reads them).
     dataset: PathBuf,
     /// Print JSON instead of text.
     #[arg(long)]

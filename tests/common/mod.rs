@@ -15,6 +15,15 @@ pub fn strata() -> Command {
     Command::new(env!("CARGO_BIN_EXE_strata"))
 }
 
+/// Makes a named pipe at `path` (what a reader opening it waits on for a writer).
+pub fn mkfifo(path: &Path) {
+    let ok = Command::new("mkfifo")
+        .arg(path)
+        .status()
+        .expect("mkfifo runs");
+    assert!(ok.success(), "mkfifo {}", path.display());
+}
+
 /// Runs strata with `args`; returns the output.
 pub fn run(args: &[&str]) -> Output {
     match strata().args(args).output() {

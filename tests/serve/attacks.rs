@@ -30,14 +30,6 @@ fn copy_autzen(dir: &Path, files: &[&str]) {
 
 const ALL: [&str; 3] = ["metadata.json", "hierarchy.bin", "octree.bin"];
 
-fn mkfifo(path: &Path) {
-    let ok = std::process::Command::new("mkfifo")
-        .arg(path)
-        .status()
-        .expect("mkfifo runs");
-    assert!(ok.success(), "mkfifo {}", path.display());
-}
-
 /// Threads, open descriptors and resident KiB of process `pid`.
 pub fn process_counts(pid: u32) -> (u64, usize, u64) {
     let status = std::fs::read_to_string(format!("/proc/{pid}/status")).expect("status");
@@ -151,7 +143,7 @@ fn a_fifo_metadata_json_blocks_neither_the_listing_nor_the_server() {
     let dir = scratch("fifo-meta");
     copy_autzen(&dir.path().join("good.strata"), &ALL);
     std::fs::create_dir_all(dir.path().join("trap.strata")).expect("dir");
-    mkfifo(&dir.path().join("trap.strata/metadata.json"));
+    common::mkfifo(&dir.path().join("trap.strata/metadata.json"));
     let server = Server::start_in(dir.path(), &["--quiet", "--request-timeout", "2"]);
     let addr = server.addr.clone();
     // More listings at once than the runtime has workers.
@@ -178,7 +170,7 @@ fn a_fifo_octree_bin_answers_404_and_leaves_no_thread_behind() {
     let dir = scratch("fifo-octree");
     let ds = dir.path().join("trap.strata");
     copy_autzen(&ds, &["metadata.json", "hierarchy.bin"]);
-    mkfifo(&ds.join("octree.bin"));
+    common::mkfifo(&ds.join("octree.bin"));
     let server = Server::start_in(
         dir.path(),
         &[
