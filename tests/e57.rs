@@ -9,6 +9,8 @@ mod extras;
 mod malformed;
 #[path = "e57/ranges.rs"]
 mod ranges;
+#[path = "e57/sections.rs"]
+mod sections;
 #[path = "e57/write.rs"]
 mod write;
 

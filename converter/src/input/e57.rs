@@ -9,6 +9,7 @@ use super::e57_decode::{self, Batch, Job, Msg, Pose, QUEUED, RowShape};
 use super::e57_extras::FileExtras;
 use super::e57_header::check_header;
 use super::e57_limits::{OwnRanges, own_ranges};
+use super::e57_section::check_sections;
 use super::las_header::range_lost;
 use super::laz_check::guarded;
 use super::{NO_SCANNER, PointSource, Precision, SourceInfo};
@@ -105,6 +106,11 @@ impl E57Source {
                 }
             )));
         }
+        let mut sections = BufReader::with_capacity(
+            1 << 16,
+            File::open(path).map_err(|e| ConvertError::io(path, "cannot open input", e))?,
+        );
+        check_sections(&mut sections, len, &clouds).map_err(bad)?;
         let mut poses = Vec::with_capacity(n);
         for (i, pc) in clouds.iter().enumerate() {
             if !pc.has_cartesian() && !pc.has_spherical() {

@@ -312,7 +312,7 @@ fn simple_points<'r>(
     reader: &'r mut E57Reader<BufReader<File>>,
     pc: &PointCloud,
     scan: &str,
-) -> Result<e57::PointCloudReaderSimple<'r, BufReader<File>>, String> {
+) -> Result<PastEmptyPackets<e57::PointCloudReaderSimple<'r, BufReader<File>>>, String> {
     let mut points = reader
         .pointcloud_simple(pc)
         .map_err(|e| format!("{scan} cannot be read ({})", plain(&e)))?;
@@ -321,7 +321,30 @@ fn simple_points<'r>(
     points.spherical_to_cartesian(true);
     points.normalize_intensity(false);
     points.normalize_color(false);
-    Ok(points)
+    Ok(PastEmptyPackets(points))
+}
+
+/// What the crate's simple reader reports where the packet it read held no point.
+const EMPTY_PACKET: &str = "Cannot read next point because of logic error";
+
+/// The crate's simple reader reads one packet when it has no point left, and reports a logic
+/// error where that packet held none: an ignored or index packet between data packets (which
+/// ASTM E2807 allows), or a data packet that completes no point. A valid file was refused.
+/// Its state is whole (it counted no point), and the next call reads the packet after; every
+/// call reads a packet, and the packets were walked before (`e57_section`), so a run ends.
+struct PastEmptyPackets<I>(I);
+
+impl<I: Iterator<Item = e57::Result<e57::Point>>> Iterator for PastEmptyPackets<I> {
+    type Item = I::Item;
+
+    fn next(&mut self) -> Option<I::Item> {
+        loop {
+            match self.0.next() {
+                Some(Err(e57::Error::Internal { desc, .. })) if desc == EMPTY_PACKET => {}
+                other => return other,
+            }
+        }
+    }
 }
 
 /// What a scan's points are placed and scaled by.

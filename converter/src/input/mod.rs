@@ -5,6 +5,7 @@ pub mod e57_decode;
 mod e57_extras;
 pub mod e57_header;
 mod e57_limits;
+mod e57_section;
 pub mod las;
 pub mod las_header;
 pub mod las_layout;

@@ -1,0 +1,194 @@
+//! The binary sections of an E57 file's scans (ASTM E2807 section 9.8, compressed vectors),
+//! walked before the `e57` crate decodes them. The crate reads a data packet's byte streams by
+//! the sizes it states and never compares them with the packet's length, nor the packets with
+//! the section's length, nor the values with the record count: a stream size off by a few
+//! bytes shifted every later packet and decoded garbage, a record count one too high decoded a
+//! point from the padding bits, and a section that states no room for its packets was read all
+//! the same, each converted without a word. A scan whose fields all take no bits (each
+//! minimum equal to its maximum) made the crate grow a queue until memory ran out.
+//! Only the packet headers are read here: a few bytes a packet of up to 64 KiB.
+
+use super::e57_header::PAGE;
+use e57::{PointCloud, RecordDataType};
+use std::io::{Read, Seek, SeekFrom};
+
+/// The bytes of a page before its checksum: what logical offsets count.
+const PAYLOAD: u64 = PAGE as u64 - 4;
+
+fn logical(physical: u64) -> u64 {
+    physical / PAGE as u64 * PAYLOAD + physical % PAGE as u64
+}
+
+fn physical(logical: u64) -> u64 {
+    logical / PAYLOAD * PAGE as u64 + logical % PAYLOAD
+}
+
+/// Bits a value of `data` takes in its byte stream (the crate's packing).
+fn bits(data: &RecordDataType) -> u64 {
+    let integer = |min: i64, max: i64| {
+        let range = i128::from(max) - i128::from(min);
+        if range > 0 {
+            u64::from(range.ilog2()) + 1
+        } else {
+            0
+        }
+    };
+    match *data {
+        RecordDataType::Single { .. } => 32,
+        RecordDataType::Double { .. } => 64,
+        RecordDataType::ScaledInteger { min, max, .. } | RecordDataType::Integer { min, max } => {
+            integer(min, max)
+        }
+    }
+}
+
+/// Reads `buf.len()` bytes at logical offset `at`, across page checksums.
+fn read_logical<F: Read + Seek>(file: &mut F, at: u64, buf: &mut [u8]) -> std::io::Result<()> {
+    let mut done = 0;
+    while done < buf.len() {
+        let l = at + done as u64;
+        let room = (PAYLOAD - l % PAYLOAD) as usize;
+        let take = room.min(buf.len() - done);
+        file.seek(SeekFrom::Start(physical(l)))?;
+        file.read_exact(&mut buf[done..done + take])?;
+        done += take;
+    }
+    Ok(())
+}
+
+/// Checks the binary section of every scan in `clouds`, read from `file` of `len` bytes. The
+/// fault, as the end of a sentence that names the file, where one is found.
+pub fn check_sections<F: Read + Seek>(
+    file: &mut F,
+    len: u64,
+    clouds: &[PointCloud],
+) -> Result<(), String> {
+    let n = clouds.len();
+    for (i, pc) in clouds.iter().enumerate() {
+        if let Some(j) = clouds[..i]
+            .iter()
+            .position(|o| o.file_offset == pc.file_offset)
+        {
+            return Err(format!(
+                "scans {j} and {i} of {n} name the same binary section (at byte {}): one \
+                 scan's points would be read twice",
+                pc.file_offset
+            ));
+        }
+        if pc.prototype.iter().all(|r| bits(&r.data_type) == 0) {
+            return Err(format!(
+                "scan {i} of {n}: every field of its points takes no bits (each minimum equals \
+                 its maximum), so its binary section cannot say how many points it holds"
+            ));
+        }
+        check_section(file, len, pc).map_err(|e| format!("scan {i} of {n}: {e}"))?;
+    }
+    Ok(())
+}
+
+fn check_section<F: Read + Seek>(file: &mut F, len: u64, pc: &PointCloud) -> Result<(), String> {
+    let io = |at: u64| move |e: std::io::Error| format!("cannot read byte {at} ({e})");
+    let start = pc.file_offset;
+    let mut header = [0u8; 32];
+    read_logical(file, logical(start), &mut header).map_err(io(start))?;
+    let u64_at = |at: usize| {
+        let mut b = [0u8; 8];
+        b.copy_from_slice(&header[at..at + 8]);
+        u64::from_le_bytes(b)
+    };
+    let (section_len, data_at) = (u64_at(8), u64_at(16));
+    let end = logical(start).saturating_add(section_len);
+    if section_len < 32 || end > logical(len) {
+        return Err(format!(
+            "its binary section at byte {start} states a length of {section_len} bytes, which \
+             {}",
+            if section_len < 32 {
+                "leaves no room for its own header"
+            } else {
+                "runs past the end of the file"
+            }
+        ));
+    }
+    // A scan of no points has no packet: its data starts where its section ends.
+    let first = logical(data_at);
+    if data_at % PAGE as u64 >= PAYLOAD || first < logical(start) + 32 || first > end {
+        return Err(format!(
+            "its binary section at byte {start} ({section_len} bytes) puts its first data \
+             packet at byte {data_at}, outside the section"
+        ));
+    }
+    let streams = pc.prototype.len();
+    let mut stream_bytes = vec![0u64; streams];
+    let mut at = first;
+    let mut word = [0u8; 4];
+    // The first index or ignored packet: the crate steps over one by its whole length after
+    // reading its header, landing inside the packet after, so none may come before a data
+    // packet (writers put the index after the data).
+    let mut skipped: Option<(u8, u64)> = None;
+    while at < end {
+        let here = physical(at);
+        if end - at < 4 {
+            return Err(format!(
+                "its binary section at byte {start} ends inside a packet header at byte {here}"
+            ));
+        }
+        read_logical(file, at, &mut word).map_err(io(here))?;
+        let packet_len = u64::from(u16::from_le_bytes([word[2], word[3]])) + 1;
+        if at + packet_len > end {
+            return Err(format!(
+                "its packet at byte {here} is {packet_len} bytes long, past the end of its \
+                 binary section at byte {start} ({section_len} bytes)"
+            ));
+        }
+        if word[0] != 1 {
+            skipped = skipped.or(Some((word[0], here)));
+        } else if let Some((kind, there)) = skipped {
+            return Err(format!(
+                "its binary section holds {} packet at byte {there} before the data packet at \
+                 byte {here}, which the e57 reader cannot step over (it reads on inside that \
+                 packet): such a file must be rewritten without it first",
+                if kind == 0 { "an index" } else { "an ignored" }
+            ));
+        } else {
+            let mut sizes = vec![0u8; 2 + 2 * streams];
+            if packet_len < 6 + 2 * streams as u64 {
+                return Err(format!(
+                    "its data packet at byte {here} is {packet_len} bytes long, too short for \
+                     the sizes of its {streams} byte streams"
+                ));
+            }
+            read_logical(file, at + 4, &mut sizes).map_err(io(here))?;
+            let count = u16::from_le_bytes([sizes[0], sizes[1]]) as usize;
+            if count != streams {
+                return Err(format!(
+                    "its data packet at byte {here} holds {count} byte streams, but its points \
+                     have {streams} fields"
+                ));
+            }
+            let mut used = 6 + 2 * streams as u64;
+            for (k, total) in stream_bytes.iter_mut().enumerate() {
+                let size = u64::from(u16::from_le_bytes([sizes[2 + 2 * k], sizes[3 + 2 * k]]));
+                *total += size;
+                used += size;
+            }
+            if used.next_multiple_of(4) != packet_len {
+                return Err(format!(
+                    "its data packet at byte {here} states a length of {packet_len} bytes, but \
+                     the byte streams it lists take {used}"
+                ));
+            }
+        }
+        at += packet_len;
+    }
+    for (r, total) in pc.prototype.iter().zip(&stream_bytes) {
+        let b = bits(&r.data_type);
+        let held = total.saturating_mul(8).checked_div(b);
+        if let Some(held) = held.filter(|&h| h < pc.records) {
+            return Err(format!(
+                "its {:?} field holds values for {held} of the {} points it states",
+                r.name, pc.records
+            ));
+        }
+    }
+    Ok(())
+}
