@@ -155,6 +155,7 @@ fn pipelines_lists_every_pipeline_with_its_parameters() {
             "edl",
             "edl_strength",
             "edl_radius",
+            "stored_normals",
             // The filters' light and point shadows, carried through the pull-push.
             "light.x",
             "light.y",

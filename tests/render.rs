@@ -36,6 +36,8 @@ mod paths;
 mod pyramid;
 #[path = "render/slits.rs"]
 mod slits;
+#[path = "render/stored_normals.rs"]
+mod stored_normals;
 #[path = "render/surfels.rs"]
 mod surfels;
 #[path = "render/triangulate.rs"]

@@ -27,7 +27,7 @@ pub(super) struct Shot {
     rgb: Vec<[u8; 3]>,
     pub(super) covered: Vec<bool>,
     /// The shaded normal per pixel, in view space.
-    normals: Vec<Option<[f32; 3]>>,
+    pub(super) normals: Vec<Option<[f32; 3]>>,
     measures: BTreeMap<&'static str, f32>,
 }
 
@@ -58,6 +58,11 @@ impl Session {
             target: -self.anchor,
             fov_y: FOV_DEG.to_radians(),
         }
+    }
+
+    /// Sets one of the pipeline's parameters, `name=value`.
+    pub(super) fn set(&mut self, param: &str) {
+        self.settings.set_param(param).expect("parameter");
     }
 
     pub(super) fn load(&mut self, camera: &Camera) {

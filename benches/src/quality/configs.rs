@@ -72,7 +72,8 @@ type Variant = (
 /// c-surfels, each bent alike rather than by its curvature; the filters' transparency, six
 /// layers at half opacity (paper 004's Figure 17); the point shadows (paper 004, section 6) in
 /// the filters and carried through the pyramid's pull-push; the triangulation shaded with its
-/// fans' normals (paper 002's) where its default takes the dataset's.
+/// fans' normals (paper 002's) and the pyramid with its depth's (paper 003's), where their
+/// defaults take the dataset's.
 const VARIANTS: &[Variant] = &[
     (
         "pyramid",
@@ -84,6 +85,14 @@ const VARIANTS: &[Variant] = &[
         ],
         1.0,
         "shadows=1 1px",
+    ),
+    // The pyramid shaded with the normals it estimates from depth (paper 003's), where its
+    // default takes the dataset's.
+    (
+        "pyramid",
+        &[("stored_normals", 0.0)],
+        1.0,
+        "stored_normals=0",
     ),
     ("surfels", &[("mode", 0.0)], 1.0, "mode=planar"),
     ("surfels", &[("mode", 1.0)], 1.0, "mode=curved"),

@@ -181,6 +181,8 @@ fn hpr_labels_match_the_per_pixel_definition() {
         far: 100.0,
         focal_px: h as f32 * 0.5 / (fov_y * 0.5).tan(),
         light: [0.0; 4],
+        stored_normals: false,
+        view_rows: [[0.0; 4]; 3],
     };
     // Both shapes of the pass give the same labels, whichever this adapter would run.
     for shape in HprShape::ALL {

@@ -4,6 +4,7 @@
 
 mod lit;
 mod passes;
+mod stored;
 
 mod hpr;
 mod uniforms;
@@ -40,6 +41,7 @@ pub static INFO: PipelineInfo = PipelineInfo {
     passes: &[
         "shadows",
         "pyramid lit",
+        "stored normals",
         "pyramid",
         "hpr",
         "noise",
@@ -57,6 +59,7 @@ pub static INFO: PipelineInfo = PipelineInfo {
     shaders: |_| {
         let mut all = passes::shaders();
         all.extend(lit::shaders());
+        all.extend(stored::shaders());
         all.extend(shadows::shaders());
         all
     },
@@ -64,7 +67,7 @@ pub static INFO: PipelineInfo = PipelineInfo {
 
 /// Its own parameters, then the light and shadows' (`shadows`: beyond the paper, the point
 /// shadows of paper 004 carried through the pull-push).
-const OWN: [ParamSpec; 4] = [
+const OWN: [ParamSpec; 5] = [
     ParamSpec {
         name: "s0",
         help: "the metric scale of the sampling, in dataset units: about the point spacing",
@@ -85,6 +88,15 @@ const OWN: [ParamSpec; 4] = [
     },
     edl::STRENGTH,
     edl::RADIUS,
+    ParamSpec {
+        name: "stored_normals",
+        help: "shade with the dataset's normals where it has them, carried through the pull-push (off: the normals the paper estimates from the filled depth, as for a dataset without)",
+        default: 1.0,
+        min: 0.0,
+        max: 1.0,
+        scale: Scale::Toggle,
+        auto: None,
+    },
 ];
 
 static PARAMS: [ParamSpec; OWN.len() + shadows::PARAMS.len()] = {
@@ -114,6 +126,7 @@ struct Pyramid {
     device: wgpu::Device,
     shadows: shadows::Shadows,
     lit: lit::LitPass,
+    stored: stored::StoredNormals,
 }
 
 fn create(ctx: &GpuContext) -> Result<Box<dyn Pipeline>, ViewerError> {
@@ -128,6 +141,7 @@ fn create(ctx: &GpuContext) -> Result<Box<dyn Pipeline>, ViewerError> {
         device: ctx.device.clone(),
         shadows: shadows::Shadows::new(&ctx.device)?,
         lit: lit::LitPass::new(&ctx.device),
+        stored: stored::StoredNormals::new(&ctx.device),
     }))
 }
 
@@ -198,13 +212,21 @@ impl Pipeline for Pyramid {
                 self.lit.encode(frame, encoder, lit_scale, timer)?;
             }
         }
+        let stored_normals = frame.has_normals && frame.params.on("stored_normals");
+        let rotation = glam::Mat3::from_mat4(frame.view.view);
+        let row = |k: usize| rotation.row(k).extend(0.0).to_array();
         let pyramid_frame = PyramidFrame {
             s0,
             fov_y: frame.view.fov_y,
             far: frame.view.far,
             focal_px: frame.view.focal_px,
             light: light.to_array(),
+            stored_normals,
+            view_rows: [row(0), row(1), row(2)],
         };
+        if stored_normals {
+            self.stored.encode(frame, targets, encoder, timer)?;
+        }
         self.passes.encode(
             &frame.ctx.device,
             &frame.ctx.queue,

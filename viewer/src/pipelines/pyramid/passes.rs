@@ -17,14 +17,17 @@ use crate::pipelines::projection::pixel_groups;
 use crate::pipelines::shader::ShaderSource;
 use wgpu::util::DeviceExt;
 
-const COMMON_WGSL: &str = include_str!("pyramid.wgsl");
+pub(super) const COMMON_WGSL: &str = include_str!("pyramid.wgsl");
 const NOISE_WGSL: &str = include_str!("pyramid_noise.wgsl");
 const HPR_WGSL: &str = include_str!("pyramid_hpr.wgsl");
 
 /// Bins of the depth-noise histogram (`NOISE_BINS` in pyramid_noise.wgsl); the noise scale
-/// and the deviation follow them in the same buffer.
+/// and the deviation follow them in the same buffer, then the stored normals' histogram and
+/// the level they are averaged at.
 pub const NOISE_BINS: u64 = 80;
-const NOISE_BYTES: u64 = (NOISE_BINS + 2) * 4;
+const NOISE_BYTES: u64 = (2 * NOISE_BINS + 3) * 4;
+/// Where the noise estimate leaves the stored normals' level (`STORED_LEVEL_AT`).
+const STORED_LEVEL_AT: u64 = (2 * NOISE_BINS + 2) * 4;
 /// Where the noise estimate leaves σ: after the bins and the noise scale.
 const NOISE_SIGMA_AT: u64 = (NOISE_BINS + 1) * 4;
 
@@ -57,13 +60,14 @@ pub struct PyramidTargets {
     fill: wgpu::Buffer,
     /// Level 0 holds the filled colour each pixel is shaded with.
     pub fill_colour: wgpu::Buffer,
-    normals: wgpu::Buffer,
+    /// With `stored_normals`, level 0 seeded by `stored::StoredNormals`.
+    pub(super) normals: wgpu::Buffer,
     labels: wgpu::Buffer,
     /// The depth-noise histogram and the estimate drawn from it.
     noise: wgpu::Buffer,
     /// Per pixel (depth bits or EMPTY, octahedral normal), for readback.
     pub surface: wgpu::Buffer,
-    params: wgpu::Buffer,
+    pub(super) params: wgpu::Buffer,
     level_uniforms: Vec<wgpu::Buffer>,
 }
 
@@ -194,6 +198,7 @@ impl PyramidPasses {
             label: Some("pyramid noise"),
             entries: &[
                 storage_entry(0, true),
+                storage_entry(5, false),
                 storage_entry(6, false),
                 storage_entry(9, false),
             ],
@@ -258,7 +263,9 @@ impl PyramidPasses {
             device.create_buffer(&wgpu::BufferDescriptor {
                 label: Some(label),
                 size: bytes.max(16),
-                usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
+                usage: wgpu::BufferUsages::STORAGE
+                    | wgpu::BufferUsages::COPY_SRC
+                    | wgpu::BufferUsages::COPY_DST,
                 mapped_at_creation: false,
             })
         };
@@ -381,6 +388,10 @@ impl PyramidPasses {
                     resource: inputs.depths.as_entire_binding(),
                 },
                 wgpu::BindGroupEntry {
+                    binding: 5,
+                    resource: t.normals.as_entire_binding(),
+                },
+                wgpu::BindGroupEntry {
                     binding: 6,
                     resource: t.labels.as_entire_binding(),
                 },
@@ -468,6 +479,8 @@ impl PyramidPasses {
         );
         let noise_field = std::mem::offset_of!(PyramidUniforms, noise_scale) as u64;
         e.copy_buffer_to_buffer(&t.noise, NOISE_BINS * 4, &t.params, noise_field, 4);
+        let level_field = std::mem::offset_of!(PyramidUniforms, stored_level) as u64;
+        e.copy_buffer_to_buffer(&t.noise, STORED_LEVEL_AT, &t.params, level_field, 4);
         run(e, tm, "pull", &self.pull, &data, &mut (1..levels).map(at));
         run(
             e,
@@ -477,14 +490,17 @@ impl PyramidPasses {
             &data,
             &mut (0..levels).rev().map(at),
         );
-        run(
-            e,
-            tm,
-            "normals",
-            &self.normals,
-            &data,
-            &mut (0..levels).map(at),
-        );
+        // Stored normals came through the pull-push: none to estimate.
+        if !frame.stored_normals {
+            run(
+                e,
+                tm,
+                "normals",
+                &self.normals,
+                &data,
+                &mut (0..levels).map(at),
+            );
+        }
         run(
             e,
             tm,

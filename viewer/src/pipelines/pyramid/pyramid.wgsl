@@ -24,13 +24,19 @@ struct Pyramid {
     // s0 * focal length in pixels / DENSE_SPACING_PX: below 1 at depth z (dense_scale / z),
     // the points there lie too close to leave a hole wider than a pixel.
     dense_scale: f32,
-    pad0: f32,
-    pad1: f32,
+    // 1: the dataset's normals, seeded per pixel (pyramid_stored.wgsl), are carried through the
+    // pull-push in `normals` and shade; the pyramid's own from depth are not estimated.
+    stored_normals: u32,
+    // The pyramid level the stored normals are averaged at for their noise (pyramid_noise.wgsl);
+    // written on the GPU each frame, 0 before it.
+    stored_level: f32,
     pad2: f32,
     // The direction towards a light fixed in the world, in view space (0: the headlight);
     // w: 1 where the shading is Blinn-Phong with the lit share (a world light or shadows),
     // 0 for the plain two-sided headlight.
     light: vec4<f32>,
+    // The rows of the view's rotation: world directions to view space.
+    view_rows: array<vec4<f32>, 3>,
     table: array<vec4<u32>, MAX_LEVELS>,
 }
 
@@ -52,7 +58,8 @@ struct Level {
 // Pull-push pyramid: (depth, weight) and colour.
 @group(1) @binding(3) var<storage, read_write> fill: array<vec2<f32>>;
 @group(1) @binding(4) var<storage, read_write> fill_colour: array<u32>;
-// Normal pyramid, octahedral-encoded; 0 where a level has no surface.
+// Normal pyramid, octahedral-encoded; 0 where a level has no surface. With `stored_normals`,
+// the dataset's normals, pulled and pushed like colour.
 @group(1) @binding(5) var<storage, read_write> normals: array<u32>;
 // Per pixel: LABEL_POINT, LABEL_HOLE or LABEL_BACKGROUND.
 @group(1) @binding(6) var<storage, read_write> labels: array<u32>;

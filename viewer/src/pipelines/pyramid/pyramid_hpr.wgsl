@@ -117,4 +117,7 @@ fn finish(px: vec2<u32>, s: Sectors, b: Sectors) {
     let point = label == LABEL_POINT;
     fill[i] = vec2<f32>(select(0.0, bitcast<f32>(d), point), select(0.0, 1.0, point));
     fill_colour[i] = select(0u, colours[i], point);
+    if pyr.stored_normals != 0u && !point {
+        normals[i] = NO_NORMAL;
+    }
 }

@@ -6,6 +6,11 @@
 // that also leave residuals, and turns it into the level scale the shading uses.
 // The residual is taken on inverse depth, which is linear across the pixels of a plane in
 // perspective: slanted planes leave none, so grazing views do not read as noise.
+// With `stored_normals` the dataset's normals are measured alike, for how many of them the
+// shading averages: the angle between each visible point's normal and the mean of its two
+// neighbours' (a normal turning steadily across a curved surface leaves none), its median
+// giving their noise. Normals sampled from a mesh have none; normals a converter estimated
+// from a noisy scan do.
 
 // Quarter octaves of |residual| / s0 from 2^-12 (bin 0, also exact zeros) to 2^8.
 const NOISE_BINS: u32 = 80u;
@@ -22,12 +27,22 @@ const MEDIAN_TO_SIGMA: f32 = 1.211;
 // best SSIM on the real bunny scans (22.2 dB / 0.823, against 21.9 / 0.817 and 22.2 / 0.821),
 // with the noisy sampled meshes between the two.
 const NOISE_SLOPE_TOLERANCE: f32 = 0.05;
+// The same for the stored normals: their mean over cells of 2^l pixels (4^l normals) has an
+// angular error of sigma / 2^l; the median angle against the mean of two neighbours is 0.826
+// sqrt(1.5) sigma as above.
+const NORMAL_ANGLE_TOLERANCE: f32 = 0.05;
 
 // NOISE_BINS counts, then as f32 bits the noise scale (copied into `pyr.noise_scale`) and the
-// deviation in dataset units (read back for the statistics).
+// deviation in dataset units (read back for the statistics); then NOISE_BINS counts of the
+// stored normals' angles, and as f32 bits the level the shading averages them at (copied into
+// `pyr.stored_level`).
 @group(1) @binding(9) var<storage, read_write> noise: array<atomic<u32>>;
 // Counted per workgroup first: one global add per bin and workgroup, not one per residual.
-var<workgroup> local_bins: array<atomic<u32>, NOISE_BINS>;
+// The stored normals' angles from NOISE_BINS on.
+var<workgroup> local_bins: array<atomic<u32>, 2 * NOISE_BINS>;
+
+const ANGLE_BINS_AT: u32 = NOISE_BINS + 2u;
+const STORED_LEVEL_AT: u32 = 2u * NOISE_BINS + 2u;
 
 fn visible_depth(p: vec2<i32>) -> f32 {
     let i = u32(p.y) * frame.width + u32(p.x);
@@ -43,6 +58,25 @@ fn add_residual(d: f32, a: f32, b: f32) {
     atomicAdd(&local_bins[u32(bin)], 1u);
 }
 
+// The stored normal at visible point `p`; none (zero) elsewhere.
+fn visible_normal(p: vec2<i32>) -> vec3<f32> {
+    let i = u32(p.y) * frame.width + u32(p.x);
+    if labels[i] != LABEL_POINT || normals[i] == NO_NORMAL {
+        return vec3<f32>(0.0);
+    }
+    return decode_normal(normals[i]);
+}
+
+fn add_angle(n: vec3<f32>, a: vec3<f32>, b: vec3<f32>) {
+    let mean = a + b;
+    if dot(a, a) == 0.0 || dot(b, b) == 0.0 || dot(mean, mean) < 1e-6 {
+        return;
+    }
+    let angle = acos(clamp(dot(n, normalize(mean)), -1.0, 1.0));
+    let bin = clamp(floor(log2(angle) * BINS_PER_OCTAVE) + ZERO_BIN, 0.0, f32(NOISE_BINS - 1u));
+    atomicAdd(&local_bins[NOISE_BINS + u32(bin)], 1u);
+}
+
 fn add_pixel(id: vec2<u32>) {
     if id.x == 0u || id.y == 0u || id.x + 1u >= frame.width || id.y + 1u >= frame.height {
         return;
@@ -54,6 +88,13 @@ fn add_pixel(id: vec2<u32>) {
     }
     add_residual(d, visible_depth(p - vec2<i32>(1, 0)), visible_depth(p + vec2<i32>(1, 0)));
     add_residual(d, visible_depth(p - vec2<i32>(0, 1)), visible_depth(p + vec2<i32>(0, 1)));
+    if pyr.stored_normals != 0u {
+        let n = visible_normal(p);
+        if dot(n, n) > 0.0 {
+            add_angle(n, visible_normal(p - vec2<i32>(1, 0)), visible_normal(p + vec2<i32>(1, 0)));
+            add_angle(n, visible_normal(p - vec2<i32>(0, 1)), visible_normal(p + vec2<i32>(0, 1)));
+        }
+    }
 }
 
 @compute @workgroup_size(16, 16)
@@ -61,18 +102,42 @@ fn histogram(
     @builtin(global_invocation_id) id: vec3<u32>,
     @builtin(local_invocation_index) lane: u32,
 ) {
-    if lane < NOISE_BINS {
+    if lane < 2u * NOISE_BINS {
         atomicStore(&local_bins[lane], 0u);
     }
     workgroupBarrier();
     add_pixel(id.xy);
     workgroupBarrier();
-    if lane < NOISE_BINS {
+    if lane < 2u * NOISE_BINS {
         let n = atomicLoad(&local_bins[lane]);
         if n > 0u {
-            atomicAdd(&noise[lane], n);
+            atomicAdd(&noise[lane + select(0u, 2u, lane >= NOISE_BINS)], n);
         }
     }
+}
+
+// The median bin of the NOISE_BINS counts from `first`, as the value it stands for (bin 0,
+// which also holds exact zeros, and too few counts: 0).
+fn median_of(first: u32) -> f32 {
+    var total = 0u;
+    for (var b = 0u; b < NOISE_BINS; b++) {
+        total += atomicLoad(&noise[first + b]);
+    }
+    if total < MIN_RESIDUALS {
+        return 0.0;
+    }
+    var seen = 0u;
+    var b = 0u;
+    for (; b < NOISE_BINS; b++) {
+        seen += atomicLoad(&noise[first + b]);
+        if 2u * seen >= total {
+            break;
+        }
+    }
+    if b == 0u {
+        return 0.0;
+    }
+    return exp2((f32(b) + 0.5 - ZERO_BIN) / BINS_PER_OCTAVE);
 }
 
 // One invocation: the median bin, as the noise scale. The shading's noise level at depth z is
@@ -82,28 +147,12 @@ fn histogram(
 // points per pixel.
 @compute @workgroup_size(1)
 fn estimate() {
-    var total = 0u;
-    for (var b = 0u; b < NOISE_BINS; b++) {
-        total += atomicLoad(&noise[b]);
-    }
-    var sigma = 0.0;
-    if total >= MIN_RESIDUALS {
-        var seen = 0u;
-        var b = 0u;
-        for (; b < NOISE_BINS; b++) {
-            seen += atomicLoad(&noise[b]);
-            if 2u * seen >= total {
-                break;
-            }
-        }
-        // Bin 0 also holds the exact zeros of clean data: no noise.
-        if b > 0u {
-            let median = exp2((f32(b) + 0.5 - ZERO_BIN) / BINS_PER_OCTAVE) * pyr.s0;
-            sigma = MEDIAN_TO_SIGMA * median;
-        }
-    }
+    let sigma = MEDIAN_TO_SIGMA * median_of(0u) * pyr.s0;
     let pixel = abs(pyr.pixel_scale.y);
     let scale = 1.4142135 * sigma / (pixel * NOISE_SLOPE_TOLERANCE);
     atomicStore(&noise[NOISE_BINS], bitcast<u32>(scale));
     atomicStore(&noise[NOISE_BINS + 1u], bitcast<u32>(sigma));
+    let angle = MEDIAN_TO_SIGMA * median_of(ANGLE_BINS_AT);
+    let level = select(0.0, log2(angle / NORMAL_ANGLE_TOLERANCE), angle > NORMAL_ANGLE_TOLERANCE);
+    atomicStore(&noise[STORED_LEVEL_AT], bitcast<u32>(level));
 }

@@ -1,6 +1,7 @@
 // Pull: one coarser level of the pull-push pyramid, the weighted mean of each 2x2 block, its
 // weight the sum of the block's weights clamped to 1 (Kraus 2009). The colour's alpha is the
-// share of the light that reaches the surface (pyramid_lit.wgsl), averaged like colour.
+// share of the light that reaches the surface (pyramid_lit.wgsl), averaged like colour; so are
+// the stored normals (`stored_normals`), over the cells that have one.
 @compute @workgroup_size(16, 16)
 fn main(@builtin(global_invocation_id) id: vec3<u32>) {
     let l = level.index;
@@ -13,6 +14,8 @@ fn main(@builtin(global_invocation_id) id: vec3<u32>) {
     var depth = 0.0;
     var colour = vec4<f32>(0.0);
     var weight = 0.0;
+    var normal = vec3<f32>(0.0);
+    let stored = pyr.stored_normals != 0u;
     for (var dy = 0u; dy < 2u; dy++) {
         for (var dx = 0u; dx < 2u; dx++) {
             let c = id.xy * 2u + vec2<u32>(dx, dy);
@@ -22,6 +25,9 @@ fn main(@builtin(global_invocation_id) id: vec3<u32>) {
                 depth += f.x * f.y;
                 colour += unpack4x8unorm(fill_colour[j]) * f.y;
                 weight += f.y;
+                if stored && normals[j] != NO_NORMAL {
+                    normal += decode_normal(normals[j]) * f.y;
+                }
             }
         }
     }
@@ -32,5 +38,8 @@ fn main(@builtin(global_invocation_id) id: vec3<u32>) {
     } else {
         fill[o] = vec2<f32>(0.0, 0.0);
         fill_colour[o] = 0u;
+    }
+    if stored {
+        normals[o] = select(NO_NORMAL, encode_normal(normalize(normal)), dot(normal, normal) > 1e-12);
     }
 }

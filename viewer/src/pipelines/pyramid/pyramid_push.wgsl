@@ -3,7 +3,8 @@
 // holds a value wherever the coarser one did, and its weight becomes 1 + w: at least 1 means
 // filled, and the part above 1 keeps how much real data the cell had, which the normals need
 // to tell measured surface from extrapolated. The top level only gets its weights marked.
-// Colour's alpha (the lit share) is interpolated with it.
+// Colour's alpha (the lit share) is interpolated with it, and so are the stored normals
+// (`stored_normals`), which also fill a cell whose point had none.
 @compute @workgroup_size(16, 16)
 fn main(@builtin(global_invocation_id) id: vec3<u32>) {
     let l = level.index;
@@ -13,10 +14,14 @@ fn main(@builtin(global_invocation_id) id: vec3<u32>) {
     }
     let o = level_offset(l) + id.y * size.x + id.x;
     let f = fill[o];
-    if f.y >= 1.0 || l + 1u >= pyr.levels {
-        if f.y > 0.0 {
-            fill[o] = vec2<f32>(f.x, 1.0 + min(f.y, 1.0));
-        }
+    let top = l + 1u >= pyr.levels;
+    let fine_normal = normals[o];
+    let push_values = f.y < 1.0 && !top;
+    let push_normal = pyr.stored_normals != 0u && !top && (f.y < 1.0 || fine_normal == NO_NORMAL);
+    if !push_values && f.y > 0.0 {
+        fill[o] = vec2<f32>(f.x, 1.0 + min(f.y, 1.0));
+    }
+    if !push_values && !push_normal {
         return;
     }
     let coarse = level_size(l + 1u);
@@ -27,6 +32,7 @@ fn main(@builtin(global_invocation_id) id: vec3<u32>) {
     var depth = 0.0;
     var colour = vec4<f32>(0.0);
     var weight = 0.0;
+    var normal = vec3<f32>(0.0);
     for (var dy = 0; dy < 2; dy++) {
         for (var dx = 0; dx < 2; dx++) {
             let c = clamp(base + vec2<i32>(dx, dy), vec2<i32>(0), vec2<i32>(coarse) - 1);
@@ -36,9 +42,23 @@ fn main(@builtin(global_invocation_id) id: vec3<u32>) {
             depth += fill[j].x * w;
             colour += unpack4x8unorm(fill_colour[j]) * w;
             weight += w;
+            if push_normal && normals[j] != NO_NORMAL {
+                normal += decode_normal(normals[j]) * w;
+            }
         }
     }
-    if weight <= 0.0 {
+    if push_normal && dot(normal, normal) > 1e-12 {
+        // The cell's own normal keeps the share of the cell its data covered.
+        let keep = select(0.0, min(f.y, 1.0), fine_normal != NO_NORMAL);
+        var n = (1.0 - keep) * normalize(normal);
+        if keep > 0.0 {
+            n += keep * decode_normal(fine_normal);
+        }
+        if dot(n, n) > 1e-12 {
+            normals[o] = encode_normal(normalize(n));
+        }
+    }
+    if !push_values || weight <= 0.0 {
         return;
     }
     let keep = f.y;

@@ -2,7 +2,8 @@
 // background, else the filled colour lit by the headlight (or a light fixed in the world, with
 // the shadows' lit share) with the normal interpolated between
 // the two pyramid levels nearest the pixel's normal radius, or the coarser level the frame's
-// depth noise calls for (bilinear within each level). EDL may darken it on top. Writes the
+// depth noise calls for (bilinear within each level); with `stored_normals`, the dataset's
+// normals the pull-push carried, at the level their own noise calls for. EDL may darken it on top. Writes the
 // output image and the per-pixel surface for readback.
 
 fn pixel_depth(i: u32) -> u32 {
@@ -50,9 +51,13 @@ fn main(@builtin(global_invocation_id) id: vec3<u32>) {
     let v = normalize(-p);
     let top = f32(pyr.levels - 1u);
     // The level of the normal radius, or coarser where the depth noise needs more averaging.
+    // Stored normals need no radius, only as much averaging as their own noise calls for.
     let spacing_level = log2(max(pyr.normal_scale / depth, 1e-6));
     let noise_level = 0.5 * log2(max(pyr.noise_scale / depth, 1e-12));
-    let lambda = clamp(max(spacing_level, noise_level), 0.0, top);
+    var lambda = clamp(max(spacing_level, noise_level), 0.0, top);
+    if pyr.stored_normals != 0u {
+        lambda = clamp(pyr.stored_level, 0.0, top);
+    }
     let l0 = u32(floor(lambda));
     let l1 = min(l0 + 1u, pyr.levels - 1u);
     var n = mix(level_normal(l0, px), level_normal(l1, px), lambda - f32(l0));

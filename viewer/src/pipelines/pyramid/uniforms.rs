@@ -39,6 +39,10 @@ pub struct PyramidFrame {
     /// `light` of pyramid.wgsl's uniforms: a world light's view-space direction, and w = 1 for
     /// Blinn-Phong with the lit share.
     pub light: [f32; 4],
+    /// Shade with the dataset's normals, carried through the pull-push (`stored_normals`).
+    pub stored_normals: bool,
+    /// The rows of the view's rotation: world directions to view space.
+    pub view_rows: [[f32; 4]; 3],
 }
 
 #[repr(C)]
@@ -56,10 +60,13 @@ pub(crate) struct PyramidUniforms {
     /// Copied on the GPU from the noise estimate (`PyramidTargets::noise`) each frame.
     pub(super) noise_scale: f32,
     pub(super) dense_scale: f32,
-    pub(super) pad0: f32,
-    pub(super) pad1: f32,
+    /// 1: the stored normals are carried through the pull-push and shade (pyramid_stored.wgsl).
+    pub(super) stored_normals: u32,
+    /// Copied on the GPU from the noise estimate (`PyramidTargets::noise`) each frame.
+    pub(super) stored_level: f32,
     pub(super) pad2: f32,
     pub(super) light: [f32; 4],
+    pub(super) view_rows: [[f32; 4]; 3],
     pub(super) table: [[u32; 4]; MAX_LEVELS],
 }
 
@@ -80,10 +87,11 @@ impl PyramidUniforms {
             s0: frame.s0,
             noise_scale: 0.0,
             dense_scale: frame.s0 * frame.focal_px / DENSE_SPACING_PX,
-            pad0: 0.0,
-            pad1: 0.0,
+            stored_normals: frame.stored_normals as u32,
+            stored_level: 0.0,
             pad2: 0.0,
             light: frame.light,
+            view_rows: frame.view_rows,
             table: [[0; 4]; MAX_LEVELS],
         };
         for (slot, l) in params.table.iter_mut().zip(&t.levels) {
@@ -131,10 +139,11 @@ pub(crate) fn uniforms_layout() -> (u32, Vec<(String, u32)>) {
             s0,
             noise_scale,
             dense_scale,
-            pad0,
-            pad1,
+            stored_normals,
+            stored_level,
             pad2,
             light,
+            view_rows,
             table
         ),
     )
