@@ -179,16 +179,29 @@ fn check_section<F: Read + Seek>(file: &mut F, len: u64, pc: &PointCloud) -> Res
             }
         }
         at += packet_len;
-    }
-    for (r, total) in pc.prototype.iter().zip(&stream_bytes) {
-        let b = bits(&r.data_type);
-        let held = total.saturating_mul(8).checked_div(b);
-        if let Some(held) = held.filter(|&h| h < pc.records) {
-            return Err(format!(
-                "its {:?} field holds values for {held} of the {} points it states",
-                r.name, pc.records
-            ));
+        // The crate reads no packet past the one that completes the last point: a run of
+        // packets after it (a file of 4-byte ignored packets) is not walked either.
+        if word[0] == 1 && short_field(pc, &stream_bytes).is_none() {
+            return Ok(());
         }
     }
-    Ok(())
+    match short_field(pc, &stream_bytes) {
+        Some((r, held)) => Err(format!(
+            "its {:?} field holds values for {held} of the {} points it states",
+            r.name, pc.records
+        )),
+        None => Ok(()),
+    }
+}
+
+/// The first field whose stream, of `stream_bytes` so far, holds values for fewer points than
+/// the scan states, and for how many.
+fn short_field<'a>(pc: &'a PointCloud, stream_bytes: &[u64]) -> Option<(&'a e57::Record, u64)> {
+    pc.prototype
+        .iter()
+        .zip(stream_bytes)
+        .find_map(|(r, total)| {
+            let held = total.saturating_mul(8).checked_div(bits(&r.data_type))?;
+            (held < pc.records).then_some((r, held))
+        })
 }
