@@ -3,10 +3,10 @@
 //! and HTTP/2 are told apart) has a deadline of its own, from when the connection opens:
 //! hyper's header timeout starts only after that, and a client sending nothing, or HTTP/2's
 //! preface a byte at a time, held a connection for the idle limit, and again with each byte.
-//! On HTTP/2, progress is a request or an answer's bytes (`h2_frames`), not the frames that
-//! only keep a connection open.
+//! On HTTP/2, progress is an answer going out (`h2_frames`), not the frames that only keep a
+//! connection open, nor requests the client may send while it holds their answers back.
 
-use crate::h2_frames::{FrameScan, Side};
+use crate::h2_frames::FrameScan;
 use std::pin::Pin;
 use std::task::{Context, Poll};
 use std::time::Duration;
@@ -24,8 +24,8 @@ pub struct IdleTimeout<S> {
     /// Bytes of the preface still to read before the opening is over (0: over); a byte that
     /// differs from the preface, or the first write (an answer), ends it too.
     opening: usize,
-    /// Once the whole preface came: the frames read and written.
-    http2: Option<(FrameScan, FrameScan)>,
+    /// Once the whole preface came: the frames written.
+    http2: Option<FrameScan>,
 }
 
 impl<S> IdleTimeout<S> {
@@ -42,7 +42,7 @@ impl<S> IdleTimeout<S> {
     }
 
     /// Bytes that came in.
-    fn came_in(&mut self, mut bytes: &[u8]) {
+    fn came_in(&mut self, bytes: &[u8]) {
         if self.opening > 0 {
             let at = PREFACE.len() - self.opening;
             let n = bytes.len().min(self.opening);
@@ -53,24 +53,21 @@ impl<S> IdleTimeout<S> {
                 return;
             }
             if preface {
-                self.http2 = Some((FrameScan::new(Side::Client), FrameScan::new(Side::Server)));
-                bytes = &bytes[n..];
+                self.http2 = Some(FrameScan::new());
                 // The preface itself is progress: the opening is over.
                 self.moved();
+                return;
             }
         }
-        if let Some((client, _)) = &mut self.http2
-            && !client.feed(bytes)
-        {
-            return;
+        if self.http2.is_none() && !bytes.is_empty() {
+            self.moved();
         }
-        self.moved();
     }
 
     /// Bytes that went out: the first `written` of those in `bufs`.
     fn wrote<'b>(&mut self, bufs: impl Iterator<Item = &'b [u8]>, written: usize) {
         self.opening = 0;
-        if let Some((_, server)) = &mut self.http2 {
+        if let Some(server) = &mut self.http2 {
             let mut left = written;
             let mut moving = false;
             for b in bufs {

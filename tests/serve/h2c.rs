@@ -105,3 +105,74 @@ fn pings_alone_do_not_hold_an_h2c_connection() {
         start.elapsed()
     );
 }
+
+/// Sends a GET of `path` as a new stream every 300 ms on an h2c connection whose streams'
+/// windows are shut (SETTINGS_INITIAL_WINDOW_SIZE 0: no answer's body can go out) for up to
+/// `hold`; whether the server closed it, and when.
+fn shut_window_requests(server: &Server, path: &str, hold: Duration) -> Option<Duration> {
+    use std::io::{Read, Write};
+    let mut conn = std::net::TcpStream::connect(&server.addr).expect("connect");
+    conn.set_read_timeout(Some(Duration::from_millis(50)))
+        .expect("timeout");
+    let mut opening = b"PRI * HTTP/2.0\r\n\r\nSM\r\n\r\n".to_vec();
+    // SETTINGS: INITIAL_WINDOW_SIZE (4) = 0.
+    opening.extend_from_slice(&[0, 0, 6, 4, 0, 0, 0, 0, 0, 0, 4, 0, 0, 0, 0]);
+    conn.write_all(&opening).expect("preface");
+    // :method GET, :scheme http (indexed); :path and :authority literal, not indexed.
+    let mut block = vec![0x82, 0x86, 0x04, path.len() as u8];
+    block.extend_from_slice(path.as_bytes());
+    block.extend_from_slice(&[0x01, 9]);
+    block.extend_from_slice(b"localhost");
+    let start = std::time::Instant::now();
+    let mut buf = [0u8; 65536];
+    let mut stream = 1u32;
+    while start.elapsed() < hold {
+        let len = (block.len() as u32).to_be_bytes();
+        // HEADERS, END_STREAM | END_HEADERS.
+        let mut headers = vec![len[1], len[2], len[3], 1, 5];
+        headers.extend_from_slice(&stream.to_be_bytes());
+        headers.extend_from_slice(&block);
+        stream += 2;
+        if conn.write_all(&headers).is_err() {
+            return Some(start.elapsed());
+        }
+        // One request a period, answered or not: h2 sends GOAWAY to a client whose requests
+        // it keeps refusing faster.
+        std::thread::sleep(Duration::from_millis(250));
+        match conn.read(&mut buf) {
+            Ok(0) => return Some(start.elapsed()),
+            Ok(_) => {}
+            Err(e)
+                if matches!(
+                    e.kind(),
+                    std::io::ErrorKind::WouldBlock | std::io::ErrorKind::TimedOut
+                ) => {}
+            Err(_) => return Some(start.elapsed()),
+        }
+    }
+    None
+}
+
+/// Requests alone make no progress on a connection whose answers cannot go out: it is closed
+/// at the idle limit. Each request counted as progress (answered with headers, or refused once
+/// the connection's streams were all taken), so a client sending one every so often with its
+/// windows shut held the connection, and the answers buffered on it, for good.
+#[test]
+fn requests_with_their_windows_shut_do_not_hold_an_h2c_connection() {
+    let path = "/city.strata/octree.bin";
+    // Within a long limit the connection stands: the requests are well formed, and nothing
+    // else closes it.
+    let patient = Server::start_in(&root(), &["--quiet", "--idle-timeout", "60"]);
+    assert_eq!(
+        shut_window_requests(&patient, path, Duration::from_secs(4)),
+        None,
+        "closed within 4 s with an idle limit of 60 s"
+    );
+    let server = Server::start_in(&root(), &["--quiet", "--idle-timeout", "2"]);
+    let closed = shut_window_requests(&server, path, Duration::from_secs(10));
+    assert!(
+        closed.is_some_and(|t| t < Duration::from_secs(6)),
+        "a connection sending requests with its windows shut was held {closed:?} with an \
+         idle limit of 2 s"
+    );
+}
