@@ -30,6 +30,10 @@ pub struct Entry {
     /// Body bytes sent.
     pub bytes: u64,
     pub ms: f64,
+    /// Why the answer's body was cut short (a file that shrank or failed while it was read);
+    /// none where it went out whole or the client left.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub error: Option<String>,
 }
 
 impl Entry {
@@ -45,6 +49,7 @@ impl Entry {
             status,
             bytes,
             ms: elapsed.as_secs_f64() * 1e3,
+            error: None,
         }
     }
 
@@ -54,14 +59,17 @@ impl Entry {
             // where it seems to, and any character but printable ASCII (an HTTP/2 path may
             // carry raw UTF-8: a right-to-left mark turns the line around on a terminal).
             LogFormat::Text => format!(
-                "{} \"{} {} {}\" {} {} {:.1}ms\n",
+                "{} \"{} {} {}\" {} {} {:.1}ms{}\n",
                 self.client,
                 self.method,
                 escaped(&self.path),
                 self.version,
                 self.status,
                 self.bytes,
-                self.ms
+                self.ms,
+                self.error
+                    .as_ref()
+                    .map_or(String::new(), |e| format!(" cut short: {e}"))
             ),
             LogFormat::Json => {
                 let mut s = serde_json::to_string(self).unwrap_or_default();

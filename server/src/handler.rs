@@ -75,9 +75,10 @@ pub async fn handle<B>(
 }
 
 /// An answer's body that logs its request when it ends or is dropped: with the bytes that went
-/// out and the time until then. Logged when the headers were ready, a download the client left,
-/// or a file cut short while it was read, showed the bytes the answer promised, and a download
-/// of minutes the milliseconds its headers took.
+/// out and the time until then, and why it was cut short where the file failed. Logged when the
+/// headers were ready, a download the client left, or a file cut short while it was read,
+/// showed the bytes the answer promised, and a download of minutes the milliseconds its
+/// headers took; a file cut short then looked like a client that left.
 struct LoggedBody {
     inner: ResponseBody,
     entry: Entry,
@@ -95,10 +96,15 @@ impl Body for LoggedBody {
     ) -> Poll<Option<Result<Frame<Bytes>, std::io::Error>>> {
         let this = self.get_mut();
         let frame = std::task::ready!(Pin::new(&mut this.inner).poll_frame(cx));
-        if let Some(Ok(f)) = &frame
-            && let Some(data) = f.data_ref()
-        {
-            this.entry.bytes += data.len() as u64;
+        match &frame {
+            Some(Ok(f)) => {
+                if let Some(data) = f.data_ref() {
+                    this.entry.bytes += data.len() as u64;
+                }
+            }
+            // The connection is closed with the answer short of its length; the line says why.
+            Some(Err(e)) => this.entry.error = Some(e.to_string()),
+            None => {}
         }
         Poll::Ready(frame)
     }

@@ -451,3 +451,50 @@ fn a_download_the_client_leaves_is_logged_with_what_was_sent() {
         "{sent} of {len} bytes logged for a download left after 64 KiB"
     );
 }
+
+/// A file that shrinks while it is being served: the connection is closed short of the length
+/// the answer promised, and its log line says why. The line looked like a client that left.
+#[test]
+fn a_file_cut_short_while_served_is_logged_as_such() {
+    use std::io::{Read, Write};
+    let dir = tempfile::tempdir().expect("tempdir");
+    let ds = dir.path().join("city.strata");
+    std::fs::create_dir(&ds).expect("dataset folder");
+    for entry in std::fs::read_dir(super::root().join("city.strata")).expect("dataset") {
+        let entry = entry.expect("entry");
+        if entry.file_type().expect("type").is_file() {
+            std::fs::copy(entry.path(), ds.join(entry.file_name())).expect("copy");
+        }
+    }
+    // Far longer than the sockets' buffers hold: the server is still reading it when it
+    // shrinks.
+    let octree = ds.join("octree.bin");
+    let file = std::fs::OpenOptions::new()
+        .write(true)
+        .open(&octree)
+        .expect("octree.bin");
+    file.set_len(256 << 20).expect("grow");
+    let (server, log) = logging_server_in(dir.path(), &[]);
+    let mut conn = std::net::TcpStream::connect(&server.addr).expect("connect");
+    conn.set_read_timeout(Some(Duration::from_secs(10)))
+        .expect("timeout");
+    conn.write_all(b"GET /city.strata/octree.bin HTTP/1.1\r\nHost: x\r\n\r\n")
+        .expect("request");
+    let mut buf = vec![0u8; 1 << 16];
+    let first = conn.read(&mut buf).expect("the answer starts");
+    assert!(first > 0);
+    file.set_len(1 << 20).expect("shrink");
+    let mut got = first as u64;
+    loop {
+        match conn.read(&mut buf) {
+            Ok(0) | Err(_) => break,
+            Ok(n) => got += n as u64,
+        }
+    }
+    assert!(got < 256 << 20, "all {got} bytes came");
+    let line = next_line_with(&log, "octree.bin").expect("a log line");
+    assert!(
+        line.contains(" 200 ") && line.contains("cut short: file shrank while being served"),
+        "{line}"
+    );
+}
