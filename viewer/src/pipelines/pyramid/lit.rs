@@ -71,30 +71,56 @@ impl LitPass {
                 (4, screen.colours.as_entire_binding()),
             ],
         );
-        let (gx, gy) = pixel_groups(screen.width, screen.height);
-        let timestamp_writes = timer.pass(encoder, "pyramid lit");
-        let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
-            label: Some("pyramid lit"),
-            timestamp_writes,
-        });
-        pass.set_pipeline(&self.pipe);
-        pass.set_bind_group(0, &planes, &[]);
-        for (g, lit) in &groups {
-            if g.groups == 0 {
-                continue;
-            }
-            let arena = bind(
-                device,
-                &self.pipe,
-                1,
-                &[
-                    (0, g.ranges.as_entire_binding()),
-                    (1, lit.as_entire_binding()),
-                ],
-            );
-            pass.set_bind_group(1, &arena, &[]);
-            pass.dispatch_workgroups(gx, gy, 1);
-        }
+        per_arena_pass(
+            encoder,
+            timer,
+            ("pyramid lit", &self.pipe),
+            (screen.width, screen.height),
+            &[&planes],
+            &groups,
+            |g, lit| {
+                bind(
+                    device,
+                    &self.pipe,
+                    1,
+                    &[
+                        (0, g.ranges.as_entire_binding()),
+                        (1, lit.as_entire_binding()),
+                    ],
+                )
+            },
+        );
         Ok(())
+    }
+}
+
+/// Runs `pipe` (named `name` in the pass times) over a `size` screen once per drawn arena:
+/// the bind groups `fixed` from group 0 on, then each arena's, made by `bind_arena`, after
+/// them. The pyramid's passes that take each pixel's point from its arena use it.
+pub(super) fn per_arena_pass<T>(
+    encoder: &mut wgpu::CommandEncoder,
+    timer: &mut Timer,
+    (name, pipe): (&str, &wgpu::ComputePipeline),
+    (width, height): (u32, u32),
+    fixed: &[&wgpu::BindGroup],
+    arenas: &[(ArenaGroup, T)],
+    bind_arena: impl Fn(&ArenaGroup, &T) -> wgpu::BindGroup,
+) {
+    let (gx, gy) = pixel_groups(width, height);
+    let timestamp_writes = timer.pass(encoder, name);
+    let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
+        label: Some(name),
+        timestamp_writes,
+    });
+    pass.set_pipeline(pipe);
+    for (k, group) in fixed.iter().enumerate() {
+        pass.set_bind_group(k as u32, *group, &[]);
+    }
+    for (g, extra) in arenas {
+        if g.groups == 0 {
+            continue;
+        }
+        pass.set_bind_group(fixed.len() as u32, &bind_arena(g, extra), &[]);
+        pass.dispatch_workgroups(gx, gy, 1);
     }
 }

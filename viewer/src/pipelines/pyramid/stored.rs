@@ -9,7 +9,8 @@ use super::passes::{COMMON_WGSL, PyramidTargets};
 use crate::ViewerError;
 use crate::gpu::timing::Timer;
 use crate::pipelines::filters::bind;
-use crate::pipelines::projection::{ArenaGroup, GROUP_SIZE, OCT16_WGSL, pixel_groups};
+use super::lit::per_arena_pass;
+use crate::pipelines::projection::{ArenaGroup, GROUP_SIZE, OCT16_WGSL};
 use crate::pipelines::shader::ShaderSource;
 use crate::pipelines::{PipelineFrame, PointStream};
 
@@ -74,32 +75,26 @@ impl StoredNormals {
                 (5, targets.normals.as_entire_binding()),
             ],
         );
-        let (gx, gy) = pixel_groups(screen.width, screen.height);
-        let timestamp_writes = timer.pass(encoder, "stored normals");
-        let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
-            label: Some("stored normals"),
-            timestamp_writes,
-        });
-        pass.set_pipeline(&self.pipe);
-        pass.set_bind_group(0, &uniforms, &[]);
-        pass.set_bind_group(1, &planes, &[]);
-        for (g, normals) in &groups {
-            if g.groups == 0 {
-                continue;
-            }
-            let arena = bind(
-                device,
-                &self.pipe,
-                2,
-                &[
-                    (0, g.ranges.as_entire_binding()),
-                    (1, normals.as_entire_binding()),
-                    (2, screen.indices.as_entire_binding()),
-                ],
-            );
-            pass.set_bind_group(2, &arena, &[]);
-            pass.dispatch_workgroups(gx, gy, 1);
-        }
+        per_arena_pass(
+            encoder,
+            timer,
+            ("stored normals", &self.pipe),
+            (screen.width, screen.height),
+            &[&uniforms, &planes],
+            &groups,
+            |g, normals| {
+                bind(
+                    device,
+                    &self.pipe,
+                    2,
+                    &[
+                        (0, g.ranges.as_entire_binding()),
+                        (1, normals.as_entire_binding()),
+                        (2, screen.indices.as_entire_binding()),
+                    ],
+                )
+            },
+        );
         Ok(())
     }
 }
