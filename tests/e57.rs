@@ -151,7 +151,7 @@ fn e57_float_rgb_scan_keeps_its_colour() {
     shared_file("e57_tinyCartesianFloatRgb.e57", true, false);
 }
 
-fn three_scans() -> Vec<ScanSpec> {
+pub(crate) fn three_scans() -> Vec<ScanSpec> {
     let mut a = ScanSpec::new(Storage::Double, 3000)
         .rotated([0.0, 0.0, 1.0], 30.0)
         .at([10.0, -5.0, 2.0]);

@@ -102,7 +102,8 @@ impl Body for LoggedBody {
                     this.entry.bytes += data.len() as u64;
                 }
             }
-            // The connection is closed with the answer short of its length; the line says why.
+            // The answer ends short of its length (HTTP/1 closes the connection, HTTP/2 resets
+            // the stream); the line says why.
             Some(Err(e)) => this.entry.error = Some(e.to_string()),
             None => {}
         }

@@ -243,3 +243,31 @@ fn a_packet_that_completes_no_point_is_read_past() {
          packet at byte 84, which the e57 reader cannot step over",
     );
 }
+
+#[test]
+fn an_empty_scan_whose_data_offset_is_zero_is_read() {
+    // libE57Format leaves an empty scan's data offset 0 (no packet written); the crate never
+    // reads it. Written here by the crate, which points it at the section's end, then set so.
+    let dir = tempfile::tempdir().expect("tempdir");
+    let input = dir.path().join("gap.e57");
+    let mut specs = super::three_scans();
+    specs[1].points = 0;
+    write_e57(&input, &specs);
+    let b = std::fs::read(&input).expect("written");
+    let l = logical(&b);
+    let (at, len) = (u64_at(&b, 24) as usize, u64_at(&b, 32) as usize);
+    let at = at / PAGE * DATA + at % PAGE;
+    let xml = String::from_utf8(l[at..at + len].to_vec()).expect("XML text");
+    let offsets: Vec<u64> = xml
+        .split("fileOffset=\"")
+        .skip(1)
+        .filter_map(|t| t.split('"').next()?.parse().ok())
+        .collect();
+    assert_eq!(offsets.len(), 3, "{xml}");
+    let zeroed = patched(&b, offsets[1] as usize + 16, &0u64.to_le_bytes());
+    let input = written(dir.path(), "zeroed.e57", &zeroed);
+    let out = dir.path().join("zeroed.strata");
+    run_ok(&["convert", s(&input), "-o", s(&out), "--quiet"]);
+    let (meta, _) = stored(&out);
+    assert_eq!(meta.scanners.len(), 3);
+}

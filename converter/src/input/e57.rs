@@ -106,8 +106,9 @@ impl E57Source {
                 }
             )));
         }
+        // Packet headers a few bytes each, one seek apart: a small buffer, refilled each seek.
         let mut sections = BufReader::with_capacity(
-            1 << 16,
+            1 << 12,
             File::open(path).map_err(|e| ConvertError::io(path, "cannot open input", e))?,
         );
         check_sections(&mut sections, len, &clouds).map_err(bad)?;

@@ -328,8 +328,9 @@ fn simple_points<'r>(
 const EMPTY_PACKET: &str = "Cannot read next point because of logic error";
 
 /// The crate's simple reader reads one packet when it has no point left, and reports a logic
-/// error where that packet held none: an ignored or index packet between data packets (which
-/// ASTM E2807 allows), or a data packet that completes no point. A valid file was refused.
+/// error where that packet completes no point (an empty data packet, or one whose streams hold
+/// only parts of values, which ASTM E2807 allows). A valid file was refused. (An ignored or
+/// index packet before a data packet the crate misreads; `e57_section` refuses those.)
 /// Its state is whole (it counted no point), and the next call reads the packet after; every
 /// call reads a packet, and the packets were walked before (`e57_section`), so a run ends.
 struct PastEmptyPackets<I>(I);

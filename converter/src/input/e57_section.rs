@@ -97,6 +97,10 @@ fn check_section<F: Read + Seek>(file: &mut F, len: u64, pc: &PointCloud) -> Res
         u64::from_le_bytes(b)
     };
     let (section_len, data_at) = (u64_at(8), u64_at(16));
+    // A scan of no points is read without a packet; libE57Format leaves its data offset 0.
+    if pc.records == 0 {
+        return Ok(());
+    }
     let end = logical(start).saturating_add(section_len);
     if section_len < 32 || end > logical(len) {
         return Err(format!(
@@ -109,7 +113,8 @@ fn check_section<F: Read + Seek>(file: &mut F, len: u64, pc: &PointCloud) -> Res
             }
         ));
     }
-    // A scan of no points has no packet: its data starts where its section ends.
+    // A section whose data starts where it ends holds no packet (the crate writes an empty
+    // scan so); its fields then hold no values, refused below.
     let first = logical(data_at);
     if data_at % PAGE as u64 >= PAYLOAD || first < logical(start) + 32 || first > end {
         return Err(format!(
