@@ -1,33 +1,57 @@
-//! Which bytes of an HTTP/2 connection are progress: an answer's body going out (DATA), or a
-//! whole answer without one (HEADERS that end the stream: a 304, 404 or 416). Nothing the
-//! client sends is: PING, SETTINGS and WINDOW_UPDATE keep a connection open without moving
-//! anything, and so does a request, which the server may only refuse (RST_STREAM, once the
-//! connection's streams are all taken) or answer with headers whose body then waits on a
-//! window the client holds shut. Counted as progress, a client sending a request every 25 s
-//! with its windows shut held its connection, and the answers buffered on it, past the idle
-//! limit for good (512 such connections held 4.2 GB and every slot).
+//! Which bytes of an HTTP/2 connection are progress. From the server: an answer going out, as
+//! `MIN_DATA_PROGRESS` bytes of bodies (DATA), or the end of a stream (DATA or HEADERS that end
+//! it: a whole answer, a 304, 404 or 416 included). From the client: a request, once its header
+//! block has come whole, which `IdleTimeout` counts only while no answer has moved since the
+//! last it counted, so that a request that comes just before the limit has its time.
+//! PING, SETTINGS and WINDOW_UPDATE keep a connection open without moving anything, and a
+//! client that holds its windows shut keeps its answers from moving: counted as progress,
+//! requests every 25 s held such a connection, and the answers buffered on it, for good (512
+//! connections held 4.2 GB and every slot), and so would a window opened a byte at a time for
+//! a one-byte DATA frame.
 
 const DATA: u8 = 0x0;
 const HEADERS: u8 = 0x1;
+const CONTINUATION: u8 = 0x9;
 const END_STREAM: u8 = 0x1;
+const END_HEADERS: u8 = 0x4;
 
-/// Follows the server's frames, given its bytes in order, however they are cut.
+/// Bytes of answers' bodies that make progress: 16 KiB within the idle limit (60 s by
+/// default), under 300 bytes a second, is a client that is not reading.
+pub const MIN_DATA_PROGRESS: usize = 16 << 10;
+
+/// Which side's frames a scan follows.
+#[derive(Clone, Copy, PartialEq)]
+pub enum Side {
+    Client,
+    Server,
+}
+
+/// Follows the frames of one direction, given its bytes in order, however they are cut.
 pub struct FrameScan {
+    side: Side,
     head: [u8; 9],
     have: usize,
     /// Payload bytes of the current frame still to come.
     left: usize,
-    /// Whether the current frame's bytes are progress.
-    moving: bool,
+    /// The current frame is DATA (server): its payload counts towards `MIN_DATA_PROGRESS`.
+    data: bool,
+    /// The current frame is progress once its last byte has passed: it ends a stream (server)
+    /// or a request's header block (client).
+    ends: bool,
+    /// DATA payload bytes since the last progress.
+    sent: usize,
 }
 
 impl FrameScan {
-    pub fn new() -> Self {
+    pub fn new(side: Side) -> Self {
         FrameScan {
+            side,
             head: [0; 9],
             have: 0,
             left: 0,
-            moving: false,
+            data: false,
+            ends: false,
+            sent: 0,
         }
     }
 
@@ -39,19 +63,40 @@ impl FrameScan {
                 let n = self.left.min(bytes.len());
                 self.left -= n;
                 bytes = &bytes[n..];
-                moved |= self.moving;
-                continue;
-            }
-            let n = (self.head.len() - self.have).min(bytes.len());
-            self.head[self.have..self.have + n].copy_from_slice(&bytes[..n]);
-            self.have += n;
-            bytes = &bytes[n..];
-            if self.have == self.head.len() {
+                if self.data {
+                    self.sent += n;
+                }
+            } else {
+                let n = (self.head.len() - self.have).min(bytes.len());
+                self.head[self.have..self.have + n].copy_from_slice(&bytes[..n]);
+                self.have += n;
+                bytes = &bytes[n..];
+                if self.have < self.head.len() {
+                    continue;
+                }
                 self.have = 0;
                 let [a, b, c, kind, flags, ..] = self.head;
                 self.left = u32::from_be_bytes([0, a, b, c]) as usize;
-                self.moving = kind == DATA || (kind == HEADERS && flags & END_STREAM != 0);
-                moved |= self.moving;
+                (self.data, self.ends) = match self.side {
+                    Side::Server => (
+                        kind == DATA,
+                        matches!(kind, DATA | HEADERS) && flags & END_STREAM != 0,
+                    ),
+                    Side::Client => (
+                        false,
+                        matches!(kind, HEADERS | CONTINUATION) && flags & END_HEADERS != 0,
+                    ),
+                };
+            }
+            if self.left == 0 && self.ends {
+                self.ends = false;
+                moved = true;
+            }
+            if self.sent >= MIN_DATA_PROGRESS {
+                moved = true;
+            }
+            if moved {
+                self.sent = 0;
             }
         }
         moved
@@ -73,38 +118,64 @@ mod tests {
         frame_with(kind, 0, payload)
     }
 
-    #[test]
-    fn only_answers_going_out_are_progress_however_the_bytes_are_cut() {
-        let ping = frame(0x6, &[7; 8]);
-        let settings = frame(0x4, &[0, 4, 0, 0, 0, 0]);
-        let data = frame(DATA, &[1; 300]);
-        let stream: Vec<u8> = [ping.clone(), settings, data.clone(), ping.clone()].concat();
-        let data_at = ping.len() + 15; // after the PING and the SETTINGS
-        for cut in [1, 2, 5, 9, 17, 64, stream.len()] {
-            let mut scan = FrameScan::new();
-            let mut moved_at = Vec::new();
-            for (i, piece) in stream.chunks(cut).enumerate() {
-                if scan.feed(piece) {
-                    moved_at.push(i);
-                }
-            }
-            // The pieces that hold a byte of the DATA frame from its header's last (where its
-            // kind is known), and no others.
-            let known = data_at + 8;
-            let want: Vec<usize> = (0..stream.len().div_ceil(cut))
-                .filter(|&i| i * cut < data_at + data.len() && (i + 1) * cut > known)
-                .collect();
-            assert_eq!(moved_at, want, "pieces of {cut} bytes");
-        }
+    /// The indices of the pieces of `stream`, cut every `cut` bytes, that made progress.
+    fn progress(side: Side, stream: &[u8], cut: usize) -> Vec<usize> {
+        let mut scan = FrameScan::new(side);
+        (0..)
+            .zip(stream.chunks(cut))
+            .filter(|(_, piece)| scan.feed(piece))
+            .map(|(i, _)| i)
+            .collect()
     }
 
     #[test]
-    fn headers_are_progress_only_where_they_are_the_whole_answer() {
-        // An answer's headers whose body waits on the client's window: nothing moved yet.
-        assert!(!FrameScan::new().feed(&frame(HEADERS, &[0x88; 20])));
-        // A 304 or a 404: the answer is complete.
-        assert!(FrameScan::new().feed(&frame_with(HEADERS, END_STREAM, &[0x89; 20])));
-        // A refusal of a stream (RST_STREAM) is none.
-        assert!(!FrameScan::new().feed(&frame(0x3, &[0, 0, 0, 7])));
+    fn an_answer_is_progress_as_it_ends_or_its_bodies_add_up() {
+        let ping = frame(0x6, &[7; 8]);
+        let settings = frame(0x4, &[0, 4, 0, 0, 0, 0]);
+        // Headers whose body waits on the client's window: nothing moved yet.
+        let opening = frame(HEADERS, &[0x88; 20]);
+        let small = frame(DATA, &[1; 300]);
+        let last = frame_with(DATA, END_STREAM, &[1; 300]);
+        let stream: Vec<u8> = [ping.clone(), settings, opening, small.clone(), ping].concat();
+        for cut in [1, 2, 5, 9, 17, 64, stream.len()] {
+            assert_eq!(progress(Side::Server, &stream, cut), Vec::<usize>::new());
+            // The stream's end: the piece with its last byte.
+            let ended = [stream.clone(), last.clone()].concat();
+            assert_eq!(
+                progress(Side::Server, &ended, cut),
+                vec![(ended.len() - 1) / cut],
+                "pieces of {cut} bytes"
+            );
+        }
+        // Small DATA frames count once they add up to MIN_DATA_PROGRESS bytes, not before.
+        let frames = MIN_DATA_PROGRESS / 300 + 1;
+        let many: Vec<u8> = std::iter::repeat_n(small, frames).flatten().collect();
+        assert_eq!(progress(Side::Server, &many, many.len()).len(), 1);
+        assert_eq!(
+            progress(Side::Server, &many[..many.len() - 309], many.len()).len(),
+            0
+        );
+        // A whole answer without a body, a 304 or a 404; a stream's refusal is none.
+        assert!(FrameScan::new(Side::Server).feed(&frame_with(HEADERS, END_STREAM, &[0x89; 9])));
+        assert!(!FrameScan::new(Side::Server).feed(&frame(0x3, &[0, 0, 0, 7])));
+        // From the client, DATA is no progress (a GET has no body to read).
+        assert!(!FrameScan::new(Side::Client).feed(&small_data()));
+    }
+
+    fn small_data() -> Vec<u8> {
+        frame_with(DATA, END_STREAM, &[1; 30])
+    }
+
+    #[test]
+    fn a_request_is_progress_once_its_header_block_has_ended_and_arrived() {
+        let whole = frame_with(HEADERS, END_HEADERS | END_STREAM, &[0x82; 40]);
+        assert!(FrameScan::new(Side::Client).feed(&whole));
+        // Trickled: only the piece with its last byte.
+        assert_eq!(progress(Side::Client, &whole, 1), vec![whole.len() - 1]);
+        // A block that goes on in CONTINUATION frames: only the one that ends it.
+        let mut scan = FrameScan::new(Side::Client);
+        assert!(!scan.feed(&frame(HEADERS, &[0x82; 10])));
+        assert!(!scan.feed(&frame(CONTINUATION, &[0x82; 10])));
+        assert!(scan.feed(&frame_with(CONTINUATION, END_HEADERS, &[0x82; 10])));
     }
 }

@@ -4,9 +4,10 @@
 //! hyper's header timeout starts only after that, and a client sending nothing, or HTTP/2's
 //! preface a byte at a time, held a connection for the idle limit, and again with each byte.
 //! On HTTP/2, progress is an answer going out (`h2_frames`), not the frames that only keep a
-//! connection open, nor requests the client may send while it holds their answers back.
+//! connection open; a request counts only while no answer has moved since the last one that
+//! counted, so that a client holding its answers back cannot hold the connection by asking.
 
-use crate::h2_frames::FrameScan;
+use crate::h2_frames::{FrameScan, Side};
 use std::pin::Pin;
 use std::task::{Context, Poll};
 use std::time::Duration;
@@ -24,8 +25,16 @@ pub struct IdleTimeout<S> {
     /// Bytes of the preface still to read before the opening is over (0: over); a byte that
     /// differs from the preface, or the first write (an answer), ends it too.
     opening: usize,
-    /// Once the whole preface came: the frames written.
-    http2: Option<FrameScan>,
+    /// Once the whole preface came: the frames read and written.
+    http2: Option<Http2>,
+}
+
+/// What an HTTP/2 connection's progress is read from.
+struct Http2 {
+    client: FrameScan,
+    server: FrameScan,
+    /// A request counted as progress, and no answer has moved since.
+    asked: bool,
 }
 
 impl<S> IdleTimeout<S> {
@@ -42,7 +51,7 @@ impl<S> IdleTimeout<S> {
     }
 
     /// Bytes that came in.
-    fn came_in(&mut self, bytes: &[u8]) {
+    fn came_in(&mut self, mut bytes: &[u8]) {
         if self.opening > 0 {
             let at = PREFACE.len() - self.opening;
             let n = bytes.len().min(self.opening);
@@ -53,31 +62,40 @@ impl<S> IdleTimeout<S> {
                 return;
             }
             if preface {
-                self.http2 = Some(FrameScan::new());
+                self.http2 = Some(Http2 {
+                    client: FrameScan::new(Side::Client),
+                    server: FrameScan::new(Side::Server),
+                    asked: false,
+                });
+                bytes = &bytes[n..];
                 // The preface itself is progress: the opening is over.
                 self.moved();
-                return;
             }
         }
-        if self.http2.is_none() && !bytes.is_empty() {
-            self.moved();
+        if let Some(h) = &mut self.http2 {
+            if !h.client.feed(bytes) || h.asked {
+                return;
+            }
+            h.asked = true;
         }
+        self.moved();
     }
 
     /// Bytes that went out: the first `written` of those in `bufs`.
     fn wrote<'b>(&mut self, bufs: impl Iterator<Item = &'b [u8]>, written: usize) {
         self.opening = 0;
-        if let Some(server) = &mut self.http2 {
+        if let Some(h) = &mut self.http2 {
             let mut left = written;
             let mut moving = false;
             for b in bufs {
                 let n = left.min(b.len());
-                moving |= server.feed(&b[..n]);
+                moving |= h.server.feed(&b[..n]);
                 left -= n;
             }
             if !moving {
                 return;
             }
+            h.asked = false;
         }
         self.moved();
     }
