@@ -132,6 +132,11 @@ pub fn fresh_dir(tag: &str) -> PathBuf {
 /// `input` (a file of ../shared/data) converted once per test binary, fresh each run, into
 /// `target/tmp/TAG/NAME.strata`.
 pub fn converted(tag: &str, input: &str, name: &str) -> PathBuf {
+    converted_with(tag, input, name, &[])
+}
+
+/// `converted`, with `options` given to `convert` (the tag must differ from the plain one's).
+pub fn converted_with(tag: &str, input: &str, name: &str, options: &[&str]) -> PathBuf {
     static MADE: std::sync::Mutex<Vec<PathBuf>> = std::sync::Mutex::new(Vec::new());
     let dir = Path::new(env!("CARGO_TARGET_TMPDIR")).join(tag);
     let out = dir.join(format!("{name}.strata"));
@@ -140,7 +145,10 @@ pub fn converted(tag: &str, input: &str, name: &str) -> PathBuf {
         // Left over from an earlier run: rebuilt so every run starts from the same files.
         let _ = std::fs::remove_dir_all(&out);
         std::fs::create_dir_all(&dir).expect("fixture dir");
-        run_ok(&["convert", s(&data(input)), "-o", s(&out), "--quiet"]);
+        let input = data(input);
+        let mut args = vec!["convert", s(&input), "-o", s(&out), "--quiet"];
+        args.extend_from_slice(options);
+        run_ok(&args);
         made.push(out.clone());
     }
     out

@@ -54,6 +54,12 @@ fn every_declared_pass_runs_and_the_stats_list_them_in_run_order() {
     let stats = dir.join("passes.json");
     let out = dir.join("passes.png");
     let path = moving_path(ds);
+    let normals_ds = common::converted_with(
+        "pipelines-normals-fixture",
+        "autzen_trim.laz",
+        "autzen",
+        &["--normals"],
+    );
     for p in registry() {
         let name = p["name"].as_str().expect("name");
         let declared: Vec<&str> = p["passes"]
@@ -78,22 +84,26 @@ fn every_declared_pass_runs_and_the_stats_list_them_in_run_order() {
         // The 32-bit path too: passes that replace a 64-bit one there (the triangulation's
         // two search passes) run only on it.
         // A filter adds the count of the points it lets through.
-        let mut runs: Vec<&[&str]> = vec![
-            &[],
-            &["--separate-passes"],
-            &["--projection", "int32"],
-            &["--hide-classes", "7"],
+        let mut runs: Vec<(&Path, &[&str])> = vec![
+            (ds, &[]),
+            (ds, &["--separate-passes"]),
+            (ds, &["--projection", "int32"]),
+            (ds, &["--hide-classes", "7"]),
         ];
         if has("layers") {
-            runs.push(&["--set", "layers=2"]);
+            runs.push((ds, &["--set", "layers=2"]));
+        }
+        // The dataset's own normals, carried through a pipeline where it has them.
+        if has("stored_normals") {
+            runs.push((&normals_ds, &[]));
         }
         // Shadows are computed when the view or what is drawn changes: a moving camera, one
         // light sample a frame.
         let moving = ["--set", "shadows=2", "--path", s(&path), "--frames", "2"];
         if has("shadows") {
-            runs.push(&moving);
+            runs.push((ds, &moving));
         }
-        for extra in runs {
+        for (ds, extra) in runs {
             let mut args = vec![
                 "render",
                 s(ds),
