@@ -271,3 +271,42 @@ fn an_empty_scan_whose_data_offset_is_zero_is_read() {
     let (meta, _) = stored(&out);
     assert_eq!(meta.scanners.len(), 3);
 }
+
+#[test]
+fn a_record_count_below_the_data_is_refused() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    // One float fewer than the tiny file's section holds: the crate read 2089 points and
+    // dropped the last without a word.
+    let fewer = with_xml(&tiny(), |x| {
+        x.replace("recordCount=\"2090\"", "recordCount=\"2089\"")
+    });
+    convert_fails(
+        &written(dir.path(), "fewer.e57", &fewer),
+        "scan 0 of 1: its CartesianX field's stream holds the bits of 2090 values, but it \
+         states 2089 points: the points past that count would be dropped",
+    );
+    // Bit-packed integers: far fewer than the section holds (a few fewer hide in the
+    // padding a writer may leave, up to 64 bits).
+    let fewer = with_xml(&bunny(), |x| {
+        x.replace("recordCount=\"30571\"", "recordCount=\"30000\"")
+    });
+    convert_fails(
+        &written(dir.path(), "fewer_int.e57", &fewer),
+        "scan 0 of 1: its CartesianX field's stream holds the bits of 30572 values, but it \
+         states 30000 points",
+    );
+    // A field stated to take no bits, whose stream holds the values all the same: the crate
+    // gave every point the one value and ignored them.
+    let flat_x = with_xml(&bunny(), |x| {
+        x.replacen(
+            "minimum=\"-1048576\" maximum=\"1048575\"",
+            "minimum=\"0\" maximum=\"0\"",
+            1,
+        )
+    });
+    convert_fails(
+        &written(dir.path(), "flat_x.e57", &flat_x),
+        "scan 0 of 1: its CartesianX field takes no bits (its minimum equals its maximum), \
+         yet its stream holds",
+    );
+}

@@ -3,8 +3,8 @@
 //! the sizes it states and never compares them with the packet's length, nor the packets with
 //! the section's length, nor the values with the record count: a stream size off by a few
 //! bytes shifted every later packet and decoded garbage, a record count one too high decoded a
-//! point from the padding bits, and a section that states no room for its packets was read all
-//! the same, each converted without a word. A scan whose fields all take no bits (each
+//! point from the padding bits, one too low dropped the points past it, and a section that
+//! states no room for its packets was read all the same, each converted without a word. A scan whose fields all take no bits (each
 //! minimum equal to its maximum) made the crate grow a queue until memory ran out.
 //! Only the packet headers are read here: a few bytes a packet of up to 64 KiB.
 
@@ -125,69 +125,46 @@ fn check_section<F: Read + Seek>(file: &mut F, len: u64, pc: &PointCloud) -> Res
     let streams = pc.prototype.len();
     let mut stream_bytes = vec![0u64; streams];
     let mut at = first;
-    let mut word = [0u8; 4];
     // The first index or ignored packet: the crate steps over one by its whole length after
     // reading its header, landing inside the packet after, so none may come before a data
     // packet (writers put the index after the data).
     let mut skipped: Option<(u8, u64)> = None;
     while at < end {
         let here = physical(at);
-        if end - at < 4 {
-            return Err(format!(
-                "its binary section at byte {start} ends inside a packet header at byte {here}"
-            ));
-        }
-        read_logical(file, at, &mut word).map_err(io(here))?;
-        let packet_len = u64::from(u16::from_le_bytes([word[2], word[3]])) + 1;
-        if at + packet_len > end {
-            return Err(format!(
-                "its packet at byte {here} is {packet_len} bytes long, past the end of its \
-                 binary section at byte {start} ({section_len} bytes)"
-            ));
-        }
-        if word[0] != 1 {
-            skipped = skipped.or(Some((word[0], here)));
-        } else if let Some((kind, there)) = skipped {
-            return Err(format!(
-                "its binary section holds {} packet at byte {there} before the data packet at \
-                 byte {here}, which the e57 reader cannot step over (it reads on inside that \
-                 packet): such a file must be rewritten without it first",
-                if kind == 0 { "an index" } else { "an ignored" }
-            ));
-        } else {
-            let mut sizes = vec![0u8; 2 + 2 * streams];
-            if packet_len < 6 + 2 * streams as u64 {
+        let packet = read_packet(file, at, end, streams, start, section_len)?;
+        match (&packet.sizes, skipped) {
+            (None, _) => skipped = skipped.or(Some((packet.kind, here))),
+            (Some(_), Some((kind, there))) => {
                 return Err(format!(
-                    "its data packet at byte {here} is {packet_len} bytes long, too short for \
-                     the sizes of its {streams} byte streams"
+                    "its binary section holds {} packet at byte {there} before the data packet \
+                     at byte {here}, which the e57 reader cannot step over (it reads on inside \
+                     that packet): such a file must be rewritten without it first",
+                    if kind == 0 { "an index" } else { "an ignored" }
                 ));
             }
-            read_logical(file, at + 4, &mut sizes).map_err(io(here))?;
-            let count = u16::from_le_bytes([sizes[0], sizes[1]]) as usize;
-            if count != streams {
-                return Err(format!(
-                    "its data packet at byte {here} holds {count} byte streams, but its points \
-                     have {streams} fields"
-                ));
-            }
-            let mut used = 6 + 2 * streams as u64;
-            for (k, total) in stream_bytes.iter_mut().enumerate() {
-                let size = u64::from(u16::from_le_bytes([sizes[2 + 2 * k], sizes[3 + 2 * k]]));
-                *total += size;
-                used += size;
-            }
-            if used.next_multiple_of(4) != packet_len {
-                return Err(format!(
-                    "its data packet at byte {here} states a length of {packet_len} bytes, but \
-                     the byte streams it lists take {used}"
-                ));
-            }
+            (Some(sizes), None) => stream_bytes
+                .iter_mut()
+                .zip(sizes)
+                .for_each(|(t, s)| *t += s),
         }
-        at += packet_len;
+        at += packet.len;
         // The crate reads no packet past the one that completes the last point: a run of
-        // packets after it (a file of 4-byte ignored packets) is not walked either.
-        if word[0] == 1 && short_field(pc, &stream_bytes).is_none() {
-            return Ok(());
+        // packets after it (a file of 4-byte ignored packets) is not walked either, but the
+        // data packets right after it are, to find points the scan does not count.
+        if packet.sizes.is_some() && short_field(pc, &stream_bytes).is_none() {
+            while let Ok(Packet {
+                len,
+                sizes: Some(sizes),
+                ..
+            }) = read_packet(file, at, end, streams, start, section_len)
+            {
+                stream_bytes
+                    .iter_mut()
+                    .zip(sizes)
+                    .for_each(|(t, s)| *t += s);
+                at += len;
+            }
+            return uncounted_field(pc, &stream_bytes).map_or(Ok(()), Err);
         }
     }
     match short_field(pc, &stream_bytes) {
@@ -197,6 +174,118 @@ fn check_section<F: Read + Seek>(file: &mut F, len: u64, pc: &PointCloud) -> Res
         )),
         None => Ok(()),
     }
+}
+
+/// A packet's header: its type (1 data, 0 index, 2 ignored), its length and, for a data
+/// packet, the sizes of its byte streams.
+struct Packet {
+    kind: u8,
+    len: u64,
+    sizes: Option<Vec<u64>>,
+}
+
+/// The packet at logical offset `at` of the section at `start` that ends at `end`, of a scan
+/// with `streams` fields; its fault, where its header does not fit its section or its streams.
+fn read_packet<F: Read + Seek>(
+    file: &mut F,
+    at: u64,
+    end: u64,
+    streams: usize,
+    start: u64,
+    section_len: u64,
+) -> Result<Packet, String> {
+    let here = physical(at);
+    let io = |e: std::io::Error| format!("cannot read byte {here} ({e})");
+    if end - at < 4 {
+        return Err(format!(
+            "its binary section at byte {start} ends inside a packet header at byte {here}"
+        ));
+    }
+    let mut word = [0u8; 4];
+    read_logical(file, at, &mut word).map_err(io)?;
+    let len = u64::from(u16::from_le_bytes([word[2], word[3]])) + 1;
+    if at + len > end {
+        return Err(format!(
+            "its packet at byte {here} is {len} bytes long, past the end of its binary section \
+             at byte {start} ({section_len} bytes)"
+        ));
+    }
+    if word[0] != 1 {
+        return Ok(Packet {
+            kind: word[0],
+            len,
+            sizes: None,
+        });
+    }
+    if len < 6 + 2 * streams as u64 {
+        return Err(format!(
+            "its data packet at byte {here} is {len} bytes long, too short for the sizes of its \
+             {streams} byte streams"
+        ));
+    }
+    let mut raw = vec![0u8; 2 + 2 * streams];
+    read_logical(file, at + 4, &mut raw).map_err(io)?;
+    let count = u16::from_le_bytes([raw[0], raw[1]]) as usize;
+    if count != streams {
+        return Err(format!(
+            "its data packet at byte {here} holds {count} byte streams, but its points have \
+             {streams} fields"
+        ));
+    }
+    let sizes: Vec<u64> = raw[2..]
+        .chunks_exact(2)
+        .map(|b| u64::from(u16::from_le_bytes([b[0], b[1]])))
+        .collect();
+    let used = 6 + 2 * streams as u64 + sizes.iter().sum::<u64>();
+    if used.next_multiple_of(4) != len {
+        return Err(format!(
+            "its data packet at byte {here} states a length of {len} bytes, but the byte streams \
+             it lists take {used}"
+        ));
+    }
+    Ok(Packet {
+        kind: 1,
+        len,
+        sizes: Some(sizes),
+    })
+}
+
+/// The fault of the first field whose stream holds values for more points than the scan
+/// states, beyond the padding a writer leaves (libE57Format flushes a bit-packed integer stream
+/// by its last register, of up to 64 bits; floats take none), or whose values take no bits
+/// but whose stream holds bytes all the same.
+fn uncounted_field(pc: &PointCloud, stream_bytes: &[u64]) -> Option<String> {
+    pc.prototype
+        .iter()
+        .zip(stream_bytes)
+        .find_map(|(r, &total)| {
+            let bits = bits(&r.data_type);
+            if bits == 0 {
+                return (total > 0).then(|| {
+                    format!(
+                        "its {:?} field takes no bits (its minimum equals its maximum), yet its \
+                         stream holds {total} bytes: the values in them would be ignored",
+                        r.name
+                    )
+                });
+            }
+            let padding = match r.data_type {
+                RecordDataType::Single { .. } | RecordDataType::Double { .. } => 0,
+                _ => 63,
+            };
+            let extra = total
+                .saturating_mul(8)
+                .saturating_sub(pc.records.saturating_mul(bits));
+            (extra > padding.max(bits - 1)).then(|| {
+                format!(
+                    "its {:?} field's stream holds the bits of {} values, but it states {} \
+                     points: the points past that count would be dropped",
+                    r.name,
+                    total.saturating_mul(8) / bits,
+                    pc.records
+                )
+            })
+        })
 }
 
 /// The first field whose stream, of `stream_bytes` so far, holds values for fewer points than
