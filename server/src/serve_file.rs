@@ -104,6 +104,31 @@ fn seconds(t: std::time::SystemTime) -> Option<u64> {
     t.duration_since(UNIX_EPOCH).ok().map(|d| d.as_secs())
 }
 
+/// The first second an HTTP date cannot state (year 10000); `httpdate` panics from there on,
+/// and before 1970.
+const PAST_HTTP_DATES: u64 = 253_402_300_800;
+
+/// The file's modification time, where an HTTP date can state it as a strong validator: a
+/// second past, so that the file cannot change again within the second its date names (RFC
+/// 9110, 8.8.2.2; else a file written twice within a second and resumed with If-Range by date
+/// mixed two versions). A file modified within the last second, or dated in the future, before
+/// 1970 or after 9999 (`touch -d @-1`), is served with no Last-Modified and no date validators.
+fn http_modified(meta: &std::fs::Metadata) -> Option<std::time::SystemTime> {
+    let now = seconds(std::time::SystemTime::now())?;
+    meta.modified()
+        .ok()
+        .filter(|&m| seconds(m).is_some_and(|s| s < now && s < PAST_HTTP_DATES))
+}
+
+/// The entity tag of a file: its size, modification time to the nanosecond and inode, so that
+/// a file replaced by one of the same size keeping the old time (`cp -p`, `rsync -t`, then a
+/// rename) gets a new one.
+fn entity_tag(meta: &std::fs::Metadata) -> String {
+    use std::os::unix::fs::MetadataExt;
+    let mtime_ns = i128::from(meta.mtime()) * 1_000_000_000 + i128::from(meta.mtime_nsec());
+    format!("\"{:x}-{mtime_ns:x}-{:x}\"", meta.len(), meta.ino())
+}
+
 fn prepare(
     catalog: &Catalog,
     dataset: &str,
@@ -113,11 +138,8 @@ fn prepare(
     let path = catalog.file(dataset, name).ok_or(Failure::NotFound)?;
     let (file, meta) = crate::files::open_regular(&path).ok_or(Failure::NotFound)?;
     let len = meta.len();
-    let modified = meta.modified().ok();
-    let mtime_ns = modified
-        .and_then(|m| m.duration_since(UNIX_EPOCH).ok())
-        .map_or(0, |d| d.as_nanos());
-    let etag = format!("\"{len:x}-{mtime_ns:x}\"");
+    let modified = http_modified(&meta);
+    let etag = entity_tag(&meta);
     let content_type = match path.extension().and_then(|e| e.to_str()) {
         Some("json") => "application/json",
         _ => "application/octet-stream",

@@ -498,3 +498,46 @@ fn a_file_cut_short_while_served_is_logged_as_such() {
         "{line}"
     );
 }
+
+/// A file dated before 1970 or after 9999, which no HTTP date states: served whole, with no
+/// Last-Modified. Every request for it was a 500 (the date formatter panicked). A file dated
+/// within the current second or ahead of it gets no date validator either, so that a range
+/// resumed by date cannot splice two versions written within one second: If-Range with its
+/// date gives the whole file.
+#[test]
+fn files_dated_where_no_http_date_holds_them_are_served() {
+    let dir = scratch("dates");
+    copy_autzen(&dir.path().join("good.strata"), &ALL);
+    let meta = dir.path().join("good.strata/metadata.json");
+    let len = std::fs::metadata(&meta).expect("metadata.json").len();
+    let server = Server::start_in(dir.path(), &["--quiet"]);
+    let epoch = std::time::UNIX_EPOCH;
+    for (what, seconds, date) in [
+        ("before 1970", -1i64, "Wed, 31 Dec 1969 23:59:59 GMT"),
+        (
+            "in year 10000",
+            253_402_300_800,
+            "Sat, 01 Jan 10000 00:00:00 GMT",
+        ),
+        ("in 2100", 4_102_444_800, "Fri, 01 Jan 2100 00:00:00 GMT"),
+    ] {
+        let when = if seconds < 0 {
+            epoch - Duration::from_secs(seconds.unsigned_abs())
+        } else {
+            epoch + Duration::from_secs(seconds as u64)
+        };
+        let file = std::fs::File::options()
+            .write(true)
+            .open(&meta)
+            .expect("open");
+        file.set_modified(when).expect("set the time");
+        let path = "/good.strata/metadata.json";
+        let r = get(&server.addr, path, &[]).expect("an answer");
+        assert_eq!((r.status, r.body.len() as u64), (200, len), "{what}");
+        assert_eq!(r.header("Last-Modified"), None, "{what}");
+        assert!(r.header("ETag").is_some(), "{what}");
+        let range = [("Range", "bytes=0-9"), ("If-Range", date)];
+        let r = get(&server.addr, path, &range).expect("an answer");
+        assert_eq!((r.status, r.body.len() as u64), (200, len), "{what}");
+    }
+}
