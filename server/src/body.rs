@@ -2,6 +2,7 @@
 //! read on the blocking pool.
 
 use crate::blocking::BlockingPool;
+use crate::budget::{ConnectionBudget, charged};
 use bytes::Bytes;
 use http_body_util::{BodyExt, Full, combinators::UnsyncBoxBody};
 use hyper::body::{Body, Frame, SizeHint};
@@ -32,16 +33,24 @@ type Read = Pin<Box<dyn Future<Output = std::io::Result<Bytes>> + Send>>;
 pub struct FileStream {
     file: Arc<File>,
     pool: BlockingPool,
+    budget: ConnectionBudget,
     pos: u64,
     end: u64,
     pending: Option<Read>,
 }
 
 impl FileStream {
-    pub fn boxed_body(file: File, pool: BlockingPool, start: u64, end: u64) -> ResponseBody {
+    pub fn boxed_body(
+        file: File,
+        pool: BlockingPool,
+        budget: ConnectionBudget,
+        start: u64,
+        end: u64,
+    ) -> ResponseBody {
         FileStream {
             file: Arc::new(file),
             pool,
+            budget,
             pos: start,
             end,
             pending: None,
@@ -51,11 +60,18 @@ impl FileStream {
 
     fn next_read(&self) -> Read {
         let (file, pool, pos) = (self.file.clone(), self.pool.clone(), self.pos);
+        let budget = self.budget.clone();
         let len = (self.end - pos).min(CHUNK) as usize;
         Box::pin(async move {
-            pool.run(move || crate::files::read_range(&file, pos, len))
+            let held = budget
+                .take(len)
                 .await
-                .map_err(std::io::Error::other)?
+                .ok_or_else(|| std::io::Error::other("the server is stopping"))?;
+            let bytes = pool
+                .run(move || crate::files::read_range(&file, pos, len))
+                .await
+                .map_err(std::io::Error::other)??;
+            Ok(charged(bytes, held))
         })
     }
 }

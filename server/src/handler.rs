@@ -5,6 +5,7 @@ use crate::access_log::{AccessLog, Entry};
 use crate::auth::bearer_matches;
 use crate::blocking::BlockingPool;
 use crate::body::{ResponseBody, empty, full};
+use crate::budget::{ConnectionBudget, ServerBudget};
 use crate::catalog::Catalog;
 use crate::path::{Refusal, segments};
 use crate::serve_file::{self, Conditions, Failure};
@@ -27,16 +28,19 @@ pub struct Shared {
     pub catalog: Arc<Catalog>,
     pub pool: BlockingPool,
     pub log: Option<AccessLog>,
+    /// Memory for answers in flight; each connection draws its share from it.
+    pub budget: ServerBudget,
 }
 
 pub async fn handle<B>(
     req: Request<B>,
     peer: SocketAddr,
     shared: Arc<Shared>,
+    budget: ConnectionBudget,
 ) -> Result<Response<ResponseBody>, std::convert::Infallible> {
     let start = Instant::now();
     let timeout = shared.config.request_timeout;
-    let mut resp = match tokio::time::timeout(timeout, respond(&req, &shared)).await {
+    let mut resp = match tokio::time::timeout(timeout, respond(&req, &shared, &budget)).await {
         Ok(r) => r,
         Err(_) => status(StatusCode::SERVICE_UNAVAILABLE, "request timed out\n"),
     };
@@ -171,7 +175,11 @@ fn host_ok<B>(req: &Request<B>) -> bool {
                 .is_ok_and(|h| h.parse::<hyper::http::uri::Authority>().is_ok()))
 }
 
-async fn respond<B>(req: &Request<B>, shared: &Shared) -> Response<ResponseBody> {
+async fn respond<B>(
+    req: &Request<B>,
+    shared: &Shared,
+    budget: &ConnectionBudget,
+) -> Response<ResponseBody> {
     let config = &shared.config;
     if !host_ok(req) {
         return status(
@@ -248,7 +256,7 @@ async fn respond<B>(req: &Request<B>, shared: &Shared) -> Response<ResponseBody>
     };
     let conditions = Conditions::of(req.headers(), head, config.token.is_some());
     let catalog = shared.catalog.clone();
-    match serve_file::serve(catalog, &shared.pool, dataset, name, conditions).await {
+    match serve_file::serve(catalog, &shared.pool, budget, dataset, name, conditions).await {
         Ok(r) => r,
         Err(Failure::NotFound) => not_found(),
         Err(Failure::Io) => status(StatusCode::INTERNAL_SERVER_ERROR, "cannot read\n"),

@@ -7,6 +7,7 @@ mod access_log;
 mod auth;
 mod blocking;
 mod body;
+mod budget;
 mod catalog;
 mod error;
 mod files;

@@ -4,6 +4,7 @@
 
 use crate::blocking::BlockingPool;
 use crate::body::{FileStream, ResponseBody, empty, full};
+use crate::budget::{ConnectionBudget, Held, charged};
 use crate::catalog::Catalog;
 use crate::range::{RangeRequest, parse_range};
 use bytes::Bytes;
@@ -129,11 +130,14 @@ fn entity_tag(meta: &std::fs::Metadata) -> String {
     format!("\"{:x}-{mtime_ns:x}-{:x}\"", meta.len(), meta.ino())
 }
 
+/// `held`: room in the memory budget for a range read whole, given back but for what the read
+/// keeps.
 fn prepare(
     catalog: &Catalog,
     dataset: &str,
     name: &str,
     c: Conditions,
+    held: Option<Held>,
 ) -> Result<Prepared, Failure> {
     let path = catalog.file(dataset, name).ok_or(Failure::NotFound)?;
     let (file, meta) = crate::files::open_regular(&path).ok_or(Failure::NotFound)?;
@@ -201,9 +205,12 @@ fn prepare(
         let count = end - start;
         let (read, file) = if c.head || count == 0 {
             (None, None)
-        } else if count <= READ_WHOLE_MAX {
+        } else if count <= READ_WHOLE_MAX
+            && let Some(mut held) = held
+        {
             let bytes = crate::files::read_range(&file, start, count as usize);
-            (Some(bytes.map_err(|_| Failure::Io)?), None)
+            held.keep(count as usize);
+            (Some(charged(bytes.map_err(|_| Failure::Io)?, held)), None)
         } else {
             (None, Some(file))
         };
@@ -228,6 +235,7 @@ fn prepare(
 pub async fn serve(
     catalog: Arc<Catalog>,
     pool: &BlockingPool,
+    budget: &ConnectionBudget,
     dataset: String,
     name: String,
     c: Conditions,
@@ -237,7 +245,17 @@ pub async fn serve(
     } else {
         "public, max-age=60"
     };
-    let job = move || prepare(&catalog, &dataset, &name, c);
+    // Room for a range read whole, taken before the read (a HEAD reads nothing).
+    let held = match c.head {
+        true => None,
+        false => Some(
+            budget
+                .take(READ_WHOLE_MAX as usize)
+                .await
+                .ok_or(Failure::Io)?,
+        ),
+    };
+    let job = move || prepare(&catalog, &dataset, &name, c, held);
     let p = pool.run(job).await.map_err(|_| Failure::Io)??;
     let mut builder = Response::builder()
         .header(header::ACCEPT_RANGES, "bytes")
@@ -278,7 +296,9 @@ pub async fn serve(
             }
             let body = match (read, file) {
                 (Some(bytes), _) => full(bytes),
-                (None, Some(file)) => FileStream::boxed_body(file, pool.clone(), start, end),
+                (None, Some(file)) => {
+                    FileStream::boxed_body(file, pool.clone(), budget.clone(), start, end)
+                }
                 (None, None) => empty(),
             };
             builder

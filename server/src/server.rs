@@ -4,6 +4,7 @@
 use crate::ServerError;
 use crate::access_log::{AccessLog, Entry, LogFormat};
 use crate::blocking::BlockingPool;
+use crate::budget::{self, ServerBudget};
 use crate::catalog::Catalog;
 use crate::handler::{Shared, handle};
 use crate::idle::IdleTimeout;
@@ -142,6 +143,7 @@ pub async fn run(
         catalog: Arc::new(Catalog::new(config.root.clone())),
         pool: BlockingPool::new(config.blocking_workers, config.blocking_threads),
         log,
+        budget: ServerBudget::new(budget::SERVER),
         config,
     });
     let config = &shared.config;
@@ -178,7 +180,10 @@ pub async fn run(
             config.header_timeout,
         ));
         let for_service = shared.clone();
-        let service = service_fn(move |req| handle(req, peer, for_service.clone()));
+        let budget = shared
+            .budget
+            .connection(budget::PER_CONNECTION, budget::RESERVED);
+        let service = service_fn(move |req| handle(req, peer, for_service.clone(), budget.clone()));
         let conn = graceful.watch(builder.serve_connection(io, service).into_owned());
         let for_log = shared.clone();
         tokio::spawn(async move {
