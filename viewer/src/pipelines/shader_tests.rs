@@ -366,3 +366,76 @@ pub(crate) fn run_kernel(
     ctx.queue.submit([encoder.finish()]);
     crate::gpu::readback::read_buffer(ctx, output, output.size()).expect("kernel output readback")
 }
+
+/// The loops of a WGSL text, comments taken out: the keyword each starts with, and for a `for`
+/// whether its header has a condition.
+fn loops_of(wgsl: &str) -> Vec<(&'static str, bool)> {
+    let code: String = wgsl
+        .lines()
+        .map(|l| l.split("//").next().unwrap_or(""))
+        .collect::<Vec<_>>()
+        .join("\n");
+    let words: Vec<(usize, &str)> = code
+        .match_indices(|c: char| !(c.is_alphanumeric() || c == '_'))
+        .scan(0, |start, (at, sep)| {
+            let word = (*start, &code[*start..at]);
+            *start = at + sep.len();
+            Some(word)
+        })
+        .filter(|(_, w)| matches!(*w, "for" | "while" | "loop"))
+        .collect();
+    words
+        .into_iter()
+        .map(|(at, w)| match w {
+            "for" => {
+                // The text between the header's two semicolons, at the header's own depth.
+                let header = &code[at..];
+                let (mut depth, mut semis, mut condition) = (0, 0, String::new());
+                for c in header.chars() {
+                    match c {
+                        '(' => depth += 1,
+                        ')' if depth == 1 => break,
+                        ')' => depth -= 1,
+                        ';' if depth == 1 => semis += 1,
+                        _ if semis == 1 => condition.push(c),
+                        _ => {}
+                    }
+                }
+                ("for", !condition.trim().is_empty())
+            }
+            "while" => ("while", true),
+            _ => ("loop", false),
+        })
+        .collect()
+}
+
+/// The pipelines' modules are made without naga's loop bound (`ShaderSource::module`), so a
+/// loop that never ended would be undefined behaviour on the GPU. Each loop must end by its
+/// form: a `for` with a condition over a count, or the one binary search; a `loop`, a `while`
+/// elsewhere, or a `for` without a condition must be shown to end before it is let in here.
+#[test]
+fn viewer_loops_all_end() {
+    let mut seen_for = 0;
+    for int64 in [false, true] {
+        for s in all_shaders(int64) {
+            for part in s.parts.iter().chain([&projection::FRAME_WGSL]) {
+                let is_search = *part == projection::RANGE_SEARCH_WGSL;
+                for (kind, bounded) in loops_of(part) {
+                    match kind {
+                        "for" => {
+                            assert!(bounded, "{}: a `for` loop without a condition", s.label);
+                            seen_for += 1;
+                        }
+                        "while" => assert!(is_search, "{}: a `while` loop", s.label),
+                        _ => panic!("{}: a `loop` statement", s.label),
+                    }
+                }
+            }
+        }
+    }
+    assert!(seen_for > 20, "the scan found only {seen_for} `for` loops");
+    assert_eq!(
+        loops_of("for (var i = 0; ; i++) {} // loop\nloop { break; } while x {}"),
+        vec![("for", false), ("loop", false), ("while", true)]
+    );
+}
