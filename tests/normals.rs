@@ -260,3 +260,66 @@ fn a_surface_too_sparse_for_the_search_is_said() {
         "nothing to say of the dense one"
     );
 }
+
+/// A PLY's own `scanner` property names no scan whose position the dataset knows: it is kept
+/// as `extra_scanner`, said, and its points' normals face up. Taken for the dataset's
+/// `scanner`, its 1 made them face the E57's second scanner (below the plane), and alone it
+/// let `--orient scanner` run with no scanner known (normals then faced up, recorded as
+/// oriented towards the scanner).
+#[test]
+fn a_ply_scanner_property_is_not_taken_for_a_scan() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let e57 = dir.path().join("plane.e57");
+    write_two_sided_plane(&e57, true);
+    let ply = dir.path().join("beside.ply");
+    let mut text = String::from(
+        "ply\nformat ascii 1.0\nelement vertex 400\nproperty double x\nproperty double y\n\
+         property double z\nproperty ushort scanner\nend_header\n",
+    );
+    for gx in 0..20 {
+        for gy in 0..20 {
+            let (x, y) = (6.0 + gx as f64 * 0.1, gy as f64 * 0.1 - 1.0);
+            text.push_str(&format!(
+                "{x} {y} {} 1\n",
+                0.013 * ((gx * 7 + gy) % 5) as f64
+            ));
+        }
+    }
+    std::fs::write(&ply, text).expect("ply");
+    let out = dir.path().join("ds");
+    let o = run(&["convert", s(&e57), s(&ply), "-o", s(&out), "--normals"]);
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(o.status.success(), "{err}");
+    assert!(
+        err.contains("beside.ply: its \"scanner\" attribute names no scan")
+            && err.contains("kept as \"extra_scanner\""),
+        "{err}"
+    );
+    let ds = LocalDataset::open(&out).expect("open");
+    assert!(ds.layout().index_of("extra_scanner").is_some());
+    let mut from_ply = 0;
+    for (scan, n) in normals_by_scanner(&out) {
+        if scan == u16::MAX {
+            assert!(n[2] > 0.99, "a PLY point's normal {n:?}");
+            from_ply += 1;
+        }
+    }
+    assert_eq!(from_ply, 400);
+    let alone = dir.path().join("alone");
+    let o = run(&[
+        "convert",
+        s(&ply),
+        "-o",
+        s(&alone),
+        "--normals",
+        "--orient",
+        "scanner",
+    ]);
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(1), "{err}");
+    assert!(
+        err.contains("needs to know where the scanner stood"),
+        "{err}"
+    );
+    assert!(!alone.exists());
+}

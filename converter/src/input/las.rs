@@ -82,6 +82,10 @@ impl LasSource {
             .map(|w| format!("{}: {w}", path.display()))
             .collect();
         let (mut attributes, ops, std_len) = las_fields(format_number, &extra);
+        warnings.extend(
+            super::keep_scanner_name_free(&mut attributes)
+                .map(|w| format!("{}: {w}", path.display())),
+        );
         // GPS times count from one of two origins, said once for the file.
         let time_base = if header.gps_time_type().is_standard() {
             TimeBase::GpsAdjustedStandard

@@ -42,6 +42,26 @@ pub enum Precision {
 /// across inputs: input i's scans follow those of inputs 0..i-1.
 pub const SCANNER: &str = "scanner";
 
+/// Renames an attribute of a file that holds no scan poses (a PLY property, a LAS extra-bytes
+/// field) named `scanner` to `extra_scanner` (then `extra_scanner_2`, ...): its values index no
+/// scanner position of the dataset, and taken for `SCANNER` they oriented normals towards
+/// another input's scanners, or let `--orient scanner` run where no scanner was known. The
+/// warning for the user, where one was renamed.
+pub fn keep_scanner_name_free(attributes: &mut [Attribute]) -> Option<String> {
+    let at = attributes.iter().position(|a| a.name == SCANNER)?;
+    let mut new = format!("extra_{SCANNER}");
+    let mut n = 2;
+    while attributes.iter().any(|a| a.name == new) {
+        new = format!("extra_{SCANNER}_{n}");
+        n += 1;
+    }
+    attributes[at].name = new.clone();
+    Some(format!(
+        "its \"{SCANNER}\" attribute names no scan this dataset knows the position of (only an \
+         E57 file's scans have one); kept as \"{new}\""
+    ))
+}
+
 /// The `scanner` value of points whose input says nothing of scanners (LAS or PLY converted
 /// together with E57). Every index at or above the list's length means "no known scanner".
 pub const NO_SCANNER: u16 = u16::MAX;

@@ -156,13 +156,17 @@ impl PlySource {
             Precision::Integer
         };
         let points = vertex.count;
+        let warnings = super::keep_scanner_name_free(&mut attributes)
+            .map(|w| format!("{}: {w}", path.display()))
+            .into_iter()
+            .collect();
         Ok(PlySource {
             info: SourceInfo {
                 path: path.to_path_buf(),
                 points,
                 attributes,
                 precision,
-                warnings: Vec::new(),
+                warnings,
                 scanners: Vec::new(),
                 crs: None,
                 time_from_unknown_start: false,
