@@ -2,7 +2,7 @@
 //! read on the blocking pool.
 
 use crate::blocking::BlockingPool;
-use crate::budget::{ConnectionBudget, charged};
+use crate::budget::{ConnectionBudget, LARGEST_READ, charged};
 use bytes::Bytes;
 use http_body_util::{BodyExt, Full, combinators::UnsyncBoxBody};
 use hyper::body::{Body, Frame, SizeHint};
@@ -16,6 +16,7 @@ pub type ResponseBody = UnsyncBoxBody<Bytes, std::io::Error>;
 
 /// Chunk size when streaming a range too large to read in one go.
 const CHUNK: u64 = 256 << 10;
+const _: () = assert!(CHUNK as usize <= LARGEST_READ);
 
 pub fn full(bytes: impl Into<Bytes>) -> ResponseBody {
     Full::new(bytes.into())

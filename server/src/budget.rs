@@ -4,9 +4,11 @@
 //! held 8.6 MB a connection, 4.3 GB over 500 connections, with a megabyte of requests. Each
 //! read now first takes its size from its connection's share, then from the connection's own
 //! reserve or else the server's pool; both come back when the bytes are dropped (written out,
-//! or the stream gone). A read that finds no room waits, within the request's time limit. The
-//! reserve, never lent to another connection, answers a new client while stalled ones hold the
-//! whole pool. At most 512 connections x 256 KiB + 128 MiB: 256 MiB.
+//! or the stream gone). A chunk that finds no room waits (until the idle limit closes a
+//! connection that makes no progress); a range read whole that finds none is streamed
+//! instead. The reserve, never lent to another connection, answers a new client while stalled
+//! ones hold the whole pool. At most `--max-connections` x 256 KiB + 128 MiB: 256 MiB at the
+//! default 512 connections.
 
 use bytes::Bytes;
 use std::sync::Arc;
@@ -14,12 +16,20 @@ use tokio::sync::{OwnedSemaphorePermit, Semaphore};
 
 /// The unit budgets count in.
 const UNIT: usize = 4 << 10;
-/// One connection's share: eight 256 KiB chunks in flight, far more than a client that reads
-/// keeps waiting (the kernel's socket buffers hold what is on its way).
-pub const PER_CONNECTION: usize = 2 << 20;
-/// Each connection's own, not drawn from the server's pool: a range read whole.
-pub const RESERVED: usize = 256 << 10;
-/// The server's pool, what 64 connections at their share hold.
+/// The most one read of an answer takes (a range read whole, a streamed chunk).
+pub const LARGEST_READ: usize = 256 << 10;
+/// HTTP/2 streams a connection may have open at once.
+pub const H2_STREAMS: u32 = 32;
+/// One connection's share: two reads for each of its streams, and one more. A client may read
+/// its streams one at a time, as flow control lets it: each stream it does not read yet keeps
+/// two chunks (hyper reads the next while the one before waits for the window), and the one it
+/// reads must still find room for its next (with room for 8 chunks, a client reading 9
+/// downloads in turn waited until the idle limit closed its connection). Only the pool bounds
+/// the server as a whole.
+pub const PER_CONNECTION: usize = (2 * H2_STREAMS as usize + 1) * LARGEST_READ;
+/// Each connection's own, not drawn from the server's pool: one read.
+pub const RESERVED: usize = LARGEST_READ;
+/// The server's pool, what 8 connections at their share hold.
 pub const SERVER: usize = 128 << 20;
 
 fn units(bytes: usize) -> usize {
@@ -35,11 +45,12 @@ impl ServerBudget {
         ServerBudget(Arc::new(Semaphore::new(units(bytes))))
     }
 
-    /// A connection's budget: `share` bytes at most, the first `reserved` its own.
+    /// A connection's budget: `share` bytes at most, the first `reserved` its own (each at
+    /// least one read, or a read could wait for room that never comes).
     pub fn connection(&self, share: usize, reserved: usize) -> ConnectionBudget {
+        let (share, reserved) = (share.max(LARGEST_READ), reserved.max(LARGEST_READ));
         ConnectionBudget {
             own: Arc::new(Semaphore::new(units(share))),
-            share: units(share),
             reserved: Arc::new(Semaphore::new(units(reserved))),
             server: self.0.clone(),
         }
@@ -50,17 +61,15 @@ impl ServerBudget {
 #[derive(Debug, Clone)]
 pub struct ConnectionBudget {
     own: Arc<Semaphore>,
-    /// Units in `own` when none are taken.
-    share: usize,
     reserved: Arc<Semaphore>,
     server: Arc<Semaphore>,
 }
 
 impl ConnectionBudget {
-    /// Room for `bytes` (at most the connection's share), once both budgets have it. `None`
-    /// only where a semaphore was closed, which never happens while the server runs.
+    /// Room for `bytes` (at most one read), once the connection's share and a pool have it.
+    /// `None` only where a semaphore was closed, which never happens while the server runs.
     pub async fn take(&self, bytes: usize) -> Option<Held> {
-        let n = u32::try_from(units(bytes).min(self.share)).ok()?;
+        let n = u32::try_from(units(bytes.min(LARGEST_READ))).ok()?;
         // The connection's share first: a connection waiting for the server's pool holds only
         // its own, and never the pool's while it waits for its own.
         let own = self.own.clone().acquire_many_owned(n).await.ok()?;
@@ -72,25 +81,35 @@ impl ConnectionBudget {
             p = self.server.clone().acquire_many_owned(n) => p,
         }
         .ok()?;
-        Some(Held { own, pool })
+        Some(Held {
+            _own: own,
+            _pool: pool,
+        })
+    }
+
+    /// Room for `bytes` (at most one read) where there is some now.
+    pub fn try_take(&self, bytes: usize) -> Option<Held> {
+        let n = u32::try_from(units(bytes.min(LARGEST_READ))).ok()?;
+        let own = self.own.clone().try_acquire_many_owned(n).ok()?;
+        let pool = self
+            .reserved
+            .clone()
+            .try_acquire_many_owned(n)
+            .or_else(|_| self.server.clone().try_acquire_many_owned(n))
+            .ok()?;
+        Some(Held {
+            _own: own,
+            _pool: pool,
+        })
     }
 }
 
 /// Room taken from the connection's share and a pool, given back when dropped.
 #[derive(Debug)]
 pub struct Held {
-    own: OwnedSemaphorePermit,
+    _own: OwnedSemaphorePermit,
     /// From the connection's reserve, or the server's pool.
-    pool: OwnedSemaphorePermit,
-}
-
-impl Held {
-    /// Gives back what `bytes` do not need.
-    pub fn keep(&mut self, bytes: usize) {
-        let excess = self.own.num_permits().saturating_sub(units(bytes));
-        drop(self.own.split(excess));
-        drop(self.pool.split(excess));
-    }
+    _pool: OwnedSemaphorePermit,
 }
 
 struct Charged {

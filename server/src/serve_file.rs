@@ -4,7 +4,7 @@
 
 use crate::blocking::BlockingPool;
 use crate::body::{FileStream, ResponseBody, empty, full};
-use crate::budget::{ConnectionBudget, Held, charged};
+use crate::budget::{ConnectionBudget, LARGEST_READ, charged};
 use crate::catalog::Catalog;
 use crate::range::{RangeRequest, parse_range};
 use bytes::Bytes;
@@ -18,6 +18,7 @@ use std::time::UNIX_EPOCH;
 /// at a time as the client takes them. Small, since an answer's buffer lives until the client
 /// reads it (4 MiB let 64 stalled HTTP/2 streams hold 265 MiB).
 const READ_WHOLE_MAX: u64 = 256 << 10;
+const _: () = assert!(READ_WHOLE_MAX as usize <= LARGEST_READ);
 
 /// The request headers the answer depends on, owned so they can travel to the pool.
 pub struct Conditions {
@@ -130,19 +131,22 @@ fn entity_tag(meta: &std::fs::Metadata) -> String {
     format!("\"{:x}-{mtime_ns:x}-{:x}\"", meta.len(), meta.ino())
 }
 
-/// `held`: room in the memory budget for a range read whole, given back but for what the read
-/// keeps.
+/// A range up to `READ_WHOLE_MAX` is read whole where `budget` has room for it now, else
+/// streamed (a stream waits for room).
 fn prepare(
     catalog: &Catalog,
     dataset: &str,
     name: &str,
     c: Conditions,
-    held: Option<Held>,
+    budget: &ConnectionBudget,
 ) -> Result<Prepared, Failure> {
     let path = catalog.file(dataset, name).ok_or(Failure::NotFound)?;
     let (file, meta) = crate::files::open_regular(&path).ok_or(Failure::NotFound)?;
     let len = meta.len();
-    let modified = http_modified(&meta);
+    // The file's time for the conditions; its date, for Last-Modified, only where strong
+    // (If-Unmodified-Since still compares with a file changed this second).
+    let modified = meta.modified().ok();
+    let last_modified = http_modified(&meta).map(httpdate::fmt_http_date);
     let etag = entity_tag(&meta);
     let content_type = match path.extension().and_then(|e| e.to_str()) {
         Some("json") => "application/json",
@@ -154,7 +158,6 @@ fn prepare(
             .map(str::trim)
             .any(|t| t == "*" || t.strip_prefix("W/").unwrap_or(t) == etag)
     };
-    let last_modified = modified.map(httpdate::fmt_http_date);
     // RFC 9110, 13.2.2: If-Match (strong comparison), else If-Unmodified-Since, then
     // If-None-Match, else If-Modified-Since, then If-Range.
     let strong = |v: &str| v.split(',').map(str::trim).any(|t| t == "*" || t == etag);
@@ -206,10 +209,9 @@ fn prepare(
         let (read, file) = if c.head || count == 0 {
             (None, None)
         } else if count <= READ_WHOLE_MAX
-            && let Some(mut held) = held
+            && let Some(held) = budget.try_take(count as usize)
         {
             let bytes = crate::files::read_range(&file, start, count as usize);
-            held.keep(count as usize);
             (Some(charged(bytes.map_err(|_| Failure::Io)?, held)), None)
         } else {
             (None, Some(file))
@@ -245,17 +247,8 @@ pub async fn serve(
     } else {
         "public, max-age=60"
     };
-    // Room for a range read whole, taken before the read (a HEAD reads nothing).
-    let held = match c.head {
-        true => None,
-        false => Some(
-            budget
-                .take(READ_WHOLE_MAX as usize)
-                .await
-                .ok_or(Failure::Io)?,
-        ),
-    };
-    let job = move || prepare(&catalog, &dataset, &name, c, held);
+    let for_job = budget.clone();
+    let job = move || prepare(&catalog, &dataset, &name, c, &for_job);
     let p = pool.run(job).await.map_err(|_| Failure::Io)??;
     let mut builder = Response::builder()
         .header(header::ACCEPT_RANGES, "bytes")

@@ -104,7 +104,7 @@ fn connection_builder(config: &ServerConfig) -> auto::Builder<TokioExecutor> {
         // Each open stream may hold an answer's buffer (a range up to 256 KiB, or a streamed
         // chunk) until the client reads it: few streams, small buffers (256 streams of 4 MiB
         // let one connection hold a gigabyte).
-        .max_concurrent_streams(32)
+        .max_concurrent_streams(budget::H2_STREAMS)
         // Windows large enough that a 64 KiB node never waits on a WINDOW_UPDATE.
         .initial_stream_window_size(1 << 20)
         .initial_connection_window_size(16 << 20)

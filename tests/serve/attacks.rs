@@ -503,7 +503,7 @@ fn a_file_cut_short_while_served_is_logged_as_such() {
 /// Last-Modified. Every request for it was a 500 (the date formatter panicked). A file dated
 /// within the current second or ahead of it gets no date validator either, so that a range
 /// resumed by date cannot splice two versions written within one second: If-Range with its
-/// date gives the whole file.
+/// date gives the whole file, while If-Unmodified-Since still holds.
 #[test]
 fn files_dated_where_no_http_date_holds_them_are_served() {
     let dir = scratch("dates");
@@ -539,5 +539,9 @@ fn files_dated_where_no_http_date_holds_them_are_served() {
         let range = [("Range", "bytes=0-9"), ("If-Range", date)];
         let r = get(&server.addr, path, &range).expect("an answer");
         assert_eq!((r.status, r.body.len() as u64), (200, len), "{what}");
+        // The conditions still compare with the file's time where there is one.
+        let epoch_date = [("If-Unmodified-Since", "Thu, 01 Jan 1970 00:00:00 GMT")];
+        let r = get(&server.addr, path, &epoch_date).expect("an answer");
+        assert_eq!(r.status, if seconds > 0 { 412 } else { 200 }, "{what}");
     }
 }
