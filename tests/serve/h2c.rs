@@ -8,8 +8,9 @@ use hyper_util::client::legacy::Client;
 use hyper_util::rt::TokioExecutor;
 use std::time::Duration;
 
-#[test]
-fn an_h2c_client_gets_ranges_over_one_connection() {
+/// A server of the fixtures, the city's octree file as on disk, its URL, and a runtime for
+/// the client.
+fn octree_server() -> (Server, Vec<u8>, String, tokio::runtime::Runtime) {
     let server = Server::start_in(&super::root(), &["--quiet"]);
     let disk = std::fs::read(root().join("city.strata/octree.bin")).expect("read");
     let url = format!("http://{}/city.strata/octree.bin", server.addr);
@@ -18,6 +19,12 @@ fn an_h2c_client_gets_ranges_over_one_connection() {
         .enable_all()
         .build()
         .expect("runtime");
+    (server, disk, url, runtime)
+}
+
+#[test]
+fn an_h2c_client_gets_ranges_over_one_connection() {
+    let (server, disk, url, runtime) = octree_server();
     let client: Client<_, Empty<Bytes>> = Client::builder(TokioExecutor::new())
         .http2_only(true)
         .build_http();
@@ -245,14 +252,7 @@ fn stalled_h2c_streams_hold_a_bounded_share_of_memory() {
 /// connection, the 9th download waited until the idle limit closed the connection.
 #[test]
 fn an_h2c_client_reading_its_streams_in_turn_gets_them_all() {
-    let server = Server::start_in(&super::root(), &["--quiet"]);
-    let disk = std::fs::read(root().join("city.strata/octree.bin")).expect("read");
-    let url = format!("http://{}/city.strata/octree.bin", server.addr);
-    let runtime = tokio::runtime::Builder::new_multi_thread()
-        .worker_threads(2)
-        .enable_all()
-        .build()
-        .expect("runtime");
+    let (server, disk, url, runtime) = octree_server();
     let client: Client<_, Empty<Bytes>> = Client::builder(TokioExecutor::new())
         .http2_only(true)
         .http2_initial_stream_window_size(65_535)
