@@ -295,6 +295,16 @@ fn a_record_count_below_the_data_is_refused() {
         "scan 0 of 1: its CartesianX field's stream holds the bits of 30572 values, but it \
          states 30000 points",
     );
+    // Far fewer still: the packet that completes the stated points is the first of several,
+    // and the points are in the packets after it.
+    let fewest = with_xml(&bunny(), |x| {
+        x.replace("recordCount=\"30571\"", "recordCount=\"100\"")
+    });
+    convert_fails(
+        &written(dir.path(), "fewest_int.e57", &fewest),
+        "scan 0 of 1: its CartesianX field's stream holds the bits of 30572 values, but it \
+         states 100 points",
+    );
     // A field stated to take no bits, whose stream holds the values all the same: the crate
     // gave every point the one value and ignored them.
     let flat_x = with_xml(&bunny(), |x| {

@@ -252,8 +252,9 @@ fn read_packet<F: Read + Seek>(
 
 /// The fault of the first field whose stream holds values for more points than the scan
 /// states, beyond the padding a writer leaves (libE57Format flushes a bit-packed integer stream
-/// by its last register, of up to 64 bits; floats take none), or whose values take no bits
-/// but whose stream holds bytes all the same.
+/// by its last register, of 8, 16, 32 or 64 bits as the field's width needs; the e57 crate by
+/// its last byte; floats take none), or whose values take no bits but whose stream holds bytes
+/// all the same.
 fn uncounted_field(pc: &PointCloud, stream_bytes: &[u64]) -> Option<String> {
     pc.prototype
         .iter()
@@ -271,7 +272,7 @@ fn uncounted_field(pc: &PointCloud, stream_bytes: &[u64]) -> Option<String> {
             }
             let padding = match r.data_type {
                 RecordDataType::Single { .. } | RecordDataType::Double { .. } => 0,
-                _ => 63,
+                _ => bits.next_power_of_two().max(8) - 1,
             };
             let extra = total
                 .saturating_mul(8)

@@ -59,9 +59,11 @@ impl ShaderSource {
         // the driver from unrolling the short fixed loops over a pixel's neighbours: on
         // lavapipe the filters' fill takes about a fifth less (README, Benchmarks).
         // SAFETY: the bound guards against a loop that never ends, which a driver may take
-        // for unreachable code. Every loop in the viewer's WGSL ends: each is a `for` over a
-        // count, or the binary search of range_search.wgsl, whose interval shrinks each
-        // step (`viewer_loops_all_end` checks that no other kind of loop comes in).
+        // for unreachable code. Every loop in the viewer's WGSL ends: each is a `for` whose
+        // condition is on a counter its step advances, up to a bound the CPU clamps (search
+        // radius, rings, pyramid levels, clip count), or the binary search of
+        // range_search.wgsl, whose interval shrinks each step
+        // (`viewer_loops_take_a_form_that_ends` checks that no other kind of loop comes in).
         let checks = wgpu::ShaderRuntimeChecks {
             force_loop_bounding: false,
             ..wgpu::ShaderRuntimeChecks::checked()

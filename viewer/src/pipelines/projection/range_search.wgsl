@@ -5,7 +5,7 @@ fn last_row_not_after(key: u32, by_start: bool) -> u32 {
     var lo = 1u;
     var hi = ranges[0].count;
     while lo < hi {
-        let mid = (lo + hi + 1u) / 2u;
+        let mid = lo + (hi - lo + 1u) / 2u;
         if select(ranges[mid].first_group, ranges[mid].start, by_start) <= key {
             lo = mid;
         } else {
