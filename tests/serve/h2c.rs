@@ -24,7 +24,7 @@ fn octree_server() -> (Server, Vec<u8>, String, tokio::runtime::Runtime) {
 
 #[test]
 fn an_h2c_client_gets_ranges_over_one_connection() {
-    let (server, disk, url, runtime) = octree_server();
+    let (_server, disk, url, runtime) = octree_server();
     let client: Client<_, Empty<Bytes>> = Client::builder(TokioExecutor::new())
         .http2_only(true)
         .build_http();
@@ -252,7 +252,7 @@ fn stalled_h2c_streams_hold_a_bounded_share_of_memory() {
 /// connection, the 9th download waited until the idle limit closed the connection.
 #[test]
 fn an_h2c_client_reading_its_streams_in_turn_gets_them_all() {
-    let (server, disk, url, runtime) = octree_server();
+    let (_server, disk, url, runtime) = octree_server();
     let client: Client<_, Empty<Bytes>> = Client::builder(TokioExecutor::new())
         .http2_only(true)
         .http2_initial_stream_window_size(65_535)
