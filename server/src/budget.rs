@@ -27,7 +27,8 @@ pub const H2_STREAMS: u32 = 32;
 /// downloads in turn waited until the idle limit closed its connection). Only the pool bounds
 /// the server as a whole.
 pub const PER_CONNECTION: usize = (2 * H2_STREAMS as usize + 1) * LARGEST_READ;
-/// Each connection's own, not drawn from the server's pool: one read.
+/// Each connection's own, not drawn from the server's pool: one read (less, and a read could
+/// wait for room that never comes).
 pub const RESERVED: usize = LARGEST_READ;
 /// The server's pool, what 8 connections at their share hold.
 pub const SERVER: usize = 128 << 20;
@@ -45,13 +46,11 @@ impl ServerBudget {
         ServerBudget(Arc::new(Semaphore::new(units(bytes))))
     }
 
-    /// A connection's budget: `share` bytes at most, the first `reserved` its own (each at
-    /// least one read, or a read could wait for room that never comes).
-    pub fn connection(&self, share: usize, reserved: usize) -> ConnectionBudget {
-        let (share, reserved) = (share.max(LARGEST_READ), reserved.max(LARGEST_READ));
+    /// A new connection's budget: `PER_CONNECTION` at most, the first `RESERVED` its own.
+    pub fn connection(&self) -> ConnectionBudget {
         ConnectionBudget {
-            own: Arc::new(Semaphore::new(units(share))),
-            reserved: Arc::new(Semaphore::new(units(reserved))),
+            own: Arc::new(Semaphore::new(units(PER_CONNECTION))),
+            reserved: Arc::new(Semaphore::new(units(RESERVED))),
             server: self.0.clone(),
         }
     }

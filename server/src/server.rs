@@ -180,9 +180,7 @@ pub async fn run(
             config.header_timeout,
         ));
         let for_service = shared.clone();
-        let budget = shared
-            .budget
-            .connection(budget::PER_CONNECTION, budget::RESERVED);
+        let budget = shared.budget.connection();
         let service = service_fn(move |req| handle(req, peer, for_service.clone(), budget.clone()));
         let conn = graceful.watch(builder.serve_connection(io, service).into_owned());
         let for_log = shared.clone();

@@ -4,8 +4,9 @@
 //! the section's length, nor the values with the record count: a stream size off by a few
 //! bytes shifted every later packet and decoded garbage, a record count one too high decoded a
 //! point from the padding bits, one too low dropped the points past it, and a section that
-//! states no room for its packets was read all the same, each converted without a word. A scan whose fields all take no bits (each
-//! minimum equal to its maximum) made the crate grow a queue until memory ran out.
+//! states no room for its packets was read all the same, each converted without a word. A
+//! scan whose fields all take no bits (each minimum equal to its maximum) made the crate grow
+//! a queue until memory ran out.
 //! Only the packet headers are read here: a few bytes a packet of up to 64 KiB.
 
 use super::e57_header::PAGE;

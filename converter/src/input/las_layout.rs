@@ -367,13 +367,7 @@ pub fn rename_clashes(format_number: u8, extra: &mut [ExtraBytesField]) -> Vec<S
     for field in extra.iter_mut() {
         let name = field.attribute.name.clone();
         if taken.contains(&name) {
-            let base = format!("extra_{name}");
-            let mut new = base.clone();
-            let mut n = 2;
-            while taken.contains(&new) {
-                new = format!("{base}_{n}");
-                n += 1;
-            }
+            let new = super::extra_name(&name, |n| taken.iter().any(|t| t == n));
             warnings.push(format!(
                 "extra bytes field \"{name}\" has the name of another field of the points; kept as \"{new}\""
             ));

@@ -49,17 +49,25 @@ pub const SCANNER: &str = "scanner";
 /// warning for the user, where one was renamed.
 pub fn keep_scanner_name_free(attributes: &mut [Attribute]) -> Option<String> {
     let at = attributes.iter().position(|a| a.name == SCANNER)?;
-    let mut new = format!("extra_{SCANNER}");
-    let mut n = 2;
-    while attributes.iter().any(|a| a.name == new) {
-        new = format!("extra_{SCANNER}_{n}");
-        n += 1;
-    }
+    let new = extra_name(SCANNER, |n| attributes.iter().any(|a| a.name == n));
     attributes[at].name = new.clone();
     Some(format!(
         "its \"{SCANNER}\" attribute names no scan this dataset knows the position of (only an \
          E57 file's scans have one); kept as \"{new}\""
     ))
+}
+
+/// The name a field called `name` is kept under where that one is taken: `extra_NAME`, then
+/// `extra_NAME_2`, ..., the first of them not `taken`.
+pub fn extra_name(name: &str, taken: impl Fn(&str) -> bool) -> String {
+    let base = format!("extra_{name}");
+    let mut new = base.clone();
+    let mut n = 2;
+    while taken(&new) {
+        new = format!("{base}_{n}");
+        n += 1;
+    }
+    new
 }
 
 /// The `scanner` value of points whose input says nothing of scanners (LAS or PLY converted
