@@ -3,7 +3,7 @@
 
 mod common;
 
-use common::{run, run_ok, s};
+use common::{refused, run, run_ok, s};
 use e57::{E57Writer, Quaternion, Record, RecordValue, Transform, Translation};
 use std::path::Path;
 use strata_format::{LocalDataset, oct16_decode};
@@ -322,4 +322,53 @@ fn a_ply_scanner_property_is_not_taken_for_a_scan() {
         "{err}"
     );
     assert!(!alone.exists());
+}
+
+/// A normal radius that takes in the whole scan: every chunk's halo is all the points. Workers
+/// index fewer at once so that the memory limit holds (214 MiB under a 160 MiB limit at 4
+/// threads before), and a limit that cannot hold even one is said before indexing begins.
+#[test]
+fn a_normal_radius_wider_than_the_scan_keeps_within_the_memory_limit_or_is_refused() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let las = dir.path().join("city.las");
+    run_ok(&["synth", "--points", "400k", "-o", s(&las), "--seed", "2"]);
+    let (ds, st) = (dir.path().join("ds"), dir.path().join("st.json"));
+    let wide = [
+        "--normals",
+        "--normal-radius",
+        "1e6",
+        "--threads",
+        "4",
+        "-q",
+    ];
+    let convert = |limit: &str| -> Vec<String> {
+        let head = ["convert", s(&las), "-o", s(&ds), "--memory-limit", limit];
+        let tail = ["--stats", s(&st)];
+        [&head[..], &wide, &tail]
+            .concat()
+            .iter()
+            .map(|a| a.to_string())
+            .collect()
+    };
+    let args = convert("160MiB");
+    run_ok(&args.iter().map(String::as_str).collect::<Vec<_>>());
+    let stats: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(&st).expect("stats")).expect("json");
+    let peak = stats["peak_memory_bytes"].as_u64().unwrap_or(u64::MAX);
+    assert!(
+        peak < 160 << 20,
+        "peaked at {peak} bytes under a 160 MiB limit"
+    );
+    std::fs::remove_dir_all(&ds).expect("remove");
+    let args = convert("64MiB");
+    let err = refused(
+        &args.iter().map(String::as_str).collect::<Vec<_>>(),
+        &[
+            "within 1000000 of chunk",
+            "--normal-radius",
+            "--memory-limit 64 MiB",
+        ],
+    );
+    assert_eq!(err.trim().lines().count(), 1, "one sentence: {err}");
+    assert!(!ds.exists(), "no output may appear: {err}");
 }

@@ -66,6 +66,44 @@ fn synth_split_into_many_chunks_round_trips_exactly() {
     assert!(las_multiset(&las) == las_multiset(&out));
 }
 
+/// Many more threads than a small memory limit has room for: the chunks' floor and the
+/// distribution's blocks must not multiply by the thread count (159 MB at 64 threads under a
+/// 64 MiB limit before the workers were bounded by memory), and the dataset is the same.
+#[test]
+fn many_threads_stay_near_a_small_memory_limit() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let las = dir.path().join("city.las");
+    run_ok(&["synth", "--points", "1.5M", "-o", s(&las), "--seed", "1"]);
+    let convert = |threads: &str| {
+        let (ds, st) = (
+            dir.path().join(threads),
+            dir.path().join(format!("{threads}.json")),
+        );
+        let limit = ["--memory-limit", "64MiB", "--threads", threads];
+        run_ok(
+            &[
+                &["convert", s(&las), "-o", s(&ds), "-q", "--stats", s(&st)][..],
+                &limit,
+            ]
+            .concat(),
+        );
+        let stats: serde_json::Value =
+            serde_json::from_slice(&std::fs::read(&st).expect("stats")).expect("json");
+        let octree = std::fs::read(ds.join("octree.bin")).expect("octree");
+        (
+            stats["peak_memory_bytes"].as_u64().unwrap_or(u64::MAX),
+            octree,
+        )
+    };
+    let (_, two) = convert("2");
+    let (peak, many) = convert("64");
+    assert!(two == many, "64 threads built another octree than 2");
+    assert!(
+        peak < 96 << 20,
+        "64 threads peaked at {peak} bytes under a 64 MiB limit"
+    );
+}
+
 /// Header bounds that miss some points (a real fault of some writers): the converter must
 /// notice, measure the bounds itself, keep every point and say so.
 #[test]

@@ -147,6 +147,7 @@ fn run(
             layout: &layout,
             sampling: opts.sampling,
             threads,
+            memory_limit: opts.memory_limit,
             parts: threads,
             step,
             halos: &halos,

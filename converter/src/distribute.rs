@@ -12,6 +12,7 @@ use indicatif::ProgressBar;
 use std::ops::Range;
 use std::path::{Path, PathBuf};
 use std::sync::Mutex;
+use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
 use strata_format::{Cube, row_position};
 
 /// The file holding part `part` of chunk `index`.
@@ -91,15 +92,29 @@ pub type ClassCounts = [u64; 256];
 
 /// Distributes every row into its chunk's files; returns the points per classification code.
 pub fn distribute(d: &Distribution, bar: &ProgressBar, memory: &RowBuffers) -> Result<ClassCounts> {
-    in_parts(d.threads, "distributing points", |part| {
-        let Some(Ok(mut buffers)) = memory.0.get(part).map(|m| m.lock()) else {
+    let workers = distribute_workers(d);
+    in_parts(d.threads, workers, "distributing points", |part, worker| {
+        let Some(Ok(mut buffers)) = memory.0.get(worker).map(|m| m.lock()) else {
             return Err(ConvertError::internal(
                 "distributing points",
-                format!("no row buffers for worker {part}"),
+                format!("no row buffers for worker {worker}"),
             ));
         };
-        distribute_part(d, part, bar, &mut buffers)
+        distribute_part(d, part, workers, bar, &mut buffers)
     })
+}
+
+/// Bytes a chunk's row buffer holds at least before it is written: smaller blocks compress
+/// poorly and make many small writes.
+const MIN_BLOCK: u64 = 16 << 10;
+
+/// Workers that distribute at once: one per part, or fewer where a block per chunk for each
+/// would not fit the buffer budget (one at least): parts are input ranges, not memory.
+fn distribute_workers(d: &Distribution) -> usize {
+    let per_worker = d.chunk_count.max(1) as u64 * MIN_BLOCK;
+    usize::try_from(d.buffer_budget / per_worker)
+        .unwrap_or(usize::MAX)
+        .clamp(1, d.threads.max(1))
 }
 
 /// The workers' row buffers, one per chunk, kept from one distribution to the next: a task
@@ -112,19 +127,32 @@ impl RowBuffers {
     }
 }
 
-/// Runs `part(0..parts)` on threads of their own and adds up their class counts; a panicking
-/// part is an internal error naming `what`.
+/// Runs `part(0..parts, worker)` on `workers` threads of their own, each taking the next part
+/// left, and adds up their class counts; the first error stops the others at their next part,
+/// and a panicking part is an internal error naming `what`.
 pub(crate) fn in_parts(
     parts: usize,
+    workers: usize,
     what: &str,
-    part: impl Fn(usize) -> Result<ClassCounts> + Sync,
+    part: impl Fn(usize, usize) -> Result<ClassCounts> + Sync,
 ) -> Result<ClassCounts> {
-    let part = &part;
+    let (part, next, failed) = (&part, &AtomicUsize::new(0), &AtomicBool::new(false));
+    let work = move |worker: usize| -> Result<ClassCounts> {
+        let mut total = [0u64; 256];
+        loop {
+            let k = next.fetch_add(1, Ordering::SeqCst);
+            if k >= parts || failed.load(Ordering::SeqCst) {
+                return Ok(total);
+            }
+            let counts = part(k, worker).inspect_err(|_| failed.store(true, Ordering::SeqCst))?;
+            add_counts(&mut total, &counts);
+        }
+    };
     let results: Vec<Result<ClassCounts>> = std::thread::scope(|scope| {
-        let workers: Vec<_> = (0..parts)
-            .map(|k| spawn_worker(scope, what, k, move || part(k)))
+        let started: Vec<_> = (0..workers.clamp(1, parts.max(1)))
+            .map(|w| spawn_worker(scope, what, w, move || work(w)))
             .collect();
-        workers
+        started
             .into_iter()
             .map(|w| {
                 w?.join().unwrap_or_else(|p| {
@@ -135,16 +163,21 @@ pub(crate) fn in_parts(
     });
     let mut total = [0u64; 256];
     for r in results {
-        for (t, c) in total.iter_mut().zip(r?) {
-            *t += c;
-        }
+        add_counts(&mut total, &r?);
     }
     Ok(total)
+}
+
+fn add_counts(total: &mut ClassCounts, counts: &ClassCounts) {
+    for (t, c) in total.iter_mut().zip(counts) {
+        *t += c;
+    }
 }
 
 fn distribute_part(
     d: &Distribution,
     part: usize,
+    workers: usize,
     bar: &ProgressBar,
     buffers: &mut Vec<Vec<u8>>,
 ) -> Result<ClassCounts> {
@@ -153,9 +186,9 @@ fn distribute_part(
     // The batches read take as much again as the row buffers: many workers under a small
     // limit read fewer records at a time.
     let batch_bytes =
-        usize::try_from(d.buffer_budget / d.threads.max(1) as u64).unwrap_or(usize::MAX);
-    let per_chunk = (d.buffer_budget / (d.chunk_count.max(1) * d.threads.max(1)) as u64)
-        .clamp(16 << 10, 4 << 20) as usize;
+        usize::try_from(d.buffer_budget / workers.max(1) as u64).unwrap_or(usize::MAX);
+    let per_chunk = (d.buffer_budget / (d.chunk_count.max(1) * workers.max(1)) as u64)
+        .clamp(MIN_BLOCK, 4 << 20) as usize;
     // Emptied (one that failed may have left rows), keeping their memory.
     buffers.resize_with(d.chunk_count, Vec::new);
     buffers.iter_mut().for_each(Vec::clear);

@@ -7,7 +7,7 @@
 use crate::chunk_step::{GridBox, Halo, row_in};
 use crate::error::{ConvertError, Result, io_err, panic_message, spawn_worker};
 use crate::prepare::Plan;
-use crate::rowfile::{RowWriter, for_each_block};
+use crate::rowfile::{RowWriter, count_rows, for_each_block};
 use crate::workdir::WorkDir;
 use indicatif::ProgressBar;
 use std::fs;
@@ -90,6 +90,20 @@ impl Halos {
     /// Whether any chunk can have a halo, so that bands are worth writing.
     pub fn needed(&self) -> bool {
         self.margin != [0; 3]
+    }
+
+    /// The rows chunk `chunk`'s halo will gather: its bands', counted from their headers.
+    pub fn rows_for(&self, wd: &WorkDir, chunk: usize) -> Result<u64> {
+        let bands = self.neighbours.get(chunk).map_or(&[][..], Vec::as_slice);
+        bands
+            .iter()
+            .map(|&j| count_rows(&wd.chunk_band(j, chunk), self.stride))
+            .sum()
+    }
+
+    /// The margin in real units, as the step asked for it.
+    pub fn margin(&self) -> f64 {
+        self.asked
     }
 
     pub fn rows_read(&self) -> u64 {

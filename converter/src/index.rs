@@ -6,6 +6,7 @@ use crate::chunk_step::{ChunkRows, ChunkStep, GridBox, Halo};
 use crate::error::{ConvertError, Result, panic_message, spawn_worker};
 use crate::halo::Halos;
 use crate::journal::{BuiltChunk, Committer, JournalEntry};
+use crate::plan::{index_room, index_workers};
 use crate::prepare::Plan;
 use crate::rowfile::{Scratch, read_rows};
 use crate::sampling::Sampling;
@@ -25,7 +26,10 @@ pub struct Indexing<'a> {
     pub plan: &'a Plan,
     pub layout: &'a RowLayout,
     pub sampling: Sampling,
+    /// Workers asked for; fewer index at once where the memory limit holds fewer chunks
+    /// (`index_workers`).
     pub threads: usize,
+    pub memory_limit: u64,
     /// Part files per chunk (`Share::parts`).
     pub parts: usize,
     pub step: &'a dyn ChunkStep,
@@ -55,7 +59,7 @@ pub fn index_chunks(
     bar: &ProgressBar,
 ) -> Result<(Vec<JournalEntry>, Committer)> {
     let (first, n) = (chunks.start, chunks.end);
-    let threads = ix.threads;
+    let threads = workers_for(ix, chunks.clone())?;
     let next_chunk = AtomicUsize::new(first);
     let abort = AtomicBool::new(false);
     let state = Mutex::new(CommitState {
@@ -241,16 +245,52 @@ fn commit_ready<'s>(
     }
 }
 
+/// Workers that index `chunks` at once (`index_workers`, for their largest chunk and their
+/// widest halo); an error where one chunk with its halo does not fit in the memory limit.
+fn workers_for(ix: &Indexing, chunks: Range<usize>) -> Result<usize> {
+    let stride = ix.layout.stride;
+    let (mut largest, mut widest) = (0, (0, 0));
+    for i in chunks {
+        largest = largest.max(ix.plan.chunks.get(i).map_or(0, |c| c.points));
+        if ix.halos.needed() {
+            let rows = ix.halos.rows_for(ix.wd, i)?;
+            widest = widest.max((rows, i));
+        }
+    }
+    let step = ix.step.bytes_per_point(stride);
+    index_workers(ix.memory_limit, ix.threads, stride, step, largest, widest.0).map_err(|need| {
+        let (rows, i) = widest;
+        ConvertError::Usage(format!(
+            "the {rows} points within {} of chunk {i} {}, which its normals are estimated from, \
+             take {} MiB with the chunk's own, more than the {} MiB --memory-limit {} MiB leaves \
+             for indexing; give a smaller --normal-radius or a larger --memory-limit",
+            ix.halos.margin(),
+            chunk_place(ix.plan, i),
+            need.div_ceil(1 << 20),
+            index_room(ix.memory_limit) >> 20,
+            ix.memory_limit >> 20
+        ))
+    })
+}
+
 /// The fault of a worker that panicked on chunk `i`, named with the chunk's real bounds.
 fn chunk_fault(plan: &Plan, i: usize, message: String) -> ConvertError {
-    let b = GridBox::of_chunk(&plan.chunks[i], &plan.cube);
-    let (lo, hi) = (plan.to_real(b.min), plan.to_real(b.max));
     ConvertError::internal(
-        format!(
-            "indexing chunk {i} (x {:.3}..{:.3}, y {:.3}..{:.3}, z {:.3}..{:.3})",
-            lo[0], hi[0], lo[1], hi[1], lo[2], hi[2]
-        ),
+        format!("indexing chunk {i} {}", chunk_place(plan, i)),
         message,
+    )
+}
+
+/// Where chunk `i` lies, in real units.
+fn chunk_place(plan: &Plan, i: usize) -> String {
+    let Some(chunk) = plan.chunks.get(i) else {
+        return String::new();
+    };
+    let b = GridBox::of_chunk(chunk, &plan.cube);
+    let (lo, hi) = (plan.to_real(b.min), plan.to_real(b.max));
+    format!(
+        "(x {:.3}..{:.3}, y {:.3}..{:.3}, z {:.3}..{:.3})",
+        lo[0], hi[0], lo[1], hi[1], lo[2], hi[2]
     )
 }
 

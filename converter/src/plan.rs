@@ -326,13 +326,54 @@ pub fn max_chunk_points(
     stride: usize,
     step_bytes: usize,
 ) -> u64 {
-    const RESERVED: u64 = 96 << 20;
-    let avail = memory_limit.saturating_sub(RESERVED).max(32 << 20);
-    let per_point = (3 * stride + 48 + step_bytes) as u64;
-    let n = avail * 6 / 10 / (threads.max(1) as u64 * per_point);
+    let per_point = index_bytes_per_point(stride, step_bytes);
+    let n = index_share(memory_limit) / (threads.max(1) as u64 * per_point);
     // A floor keeps chunks from getting absurdly many, but only up to 64 MiB of rows: wide
-    // rows (thousands of attributes) would otherwise make one chunk gigabytes.
+    // rows (thousands of attributes) would otherwise make one chunk gigabytes. Where the
+    // floor wins, `index_workers` runs fewer workers at once.
     n.max(((64 << 20) / per_point).clamp(1, 1 << 16))
+}
+
+/// Workers that may index at once within `memory_limit` when the largest chunk holds
+/// `largest_chunk` points and the largest halo `largest_halo`: as many as `threads` unless
+/// chunks at `max_chunk_points`' floor would take more than the limit's share for them, or
+/// halos as wide as chunks, or wider, would take more than the limit (one worker at least).
+/// `Err` holds the bytes one worker needs where even one does not fit.
+pub fn index_workers(
+    memory_limit: u64,
+    threads: usize,
+    stride: usize,
+    step_bytes: usize,
+    largest_chunk: u64,
+    largest_halo: u64,
+) -> std::result::Result<usize, u64> {
+    let chunk = largest_chunk.max(1) * index_bytes_per_point(stride, step_bytes);
+    // A halo's rows go to the step with the chunk's, not through the tree's build.
+    let one = chunk + largest_halo * (stride + step_bytes) as u64;
+    if largest_halo > 0 && one > index_room(memory_limit) {
+        return Err(one);
+    }
+    let workers = (index_share(memory_limit) / chunk).min(index_room(memory_limit) / one);
+    Ok(usize::try_from(workers)
+        .unwrap_or(usize::MAX)
+        .clamp(1, threads.max(1)))
+}
+
+/// Bytes an indexing worker holds per point of its chunk: rows three times over (read,
+/// sorted, written), index arrays, and the per-chunk step's.
+fn index_bytes_per_point(stride: usize, step_bytes: usize) -> u64 {
+    (3 * stride + 48 + step_bytes) as u64
+}
+
+/// The part of `memory_limit` the indexing workers' chunks may take.
+fn index_share(memory_limit: u64) -> u64 {
+    index_room(memory_limit) * 6 / 10
+}
+
+/// What `memory_limit` leaves for indexing: the rest of the program takes about 96 MiB.
+pub fn index_room(memory_limit: u64) -> u64 {
+    const RESERVED: u64 = 96 << 20;
+    memory_limit.saturating_sub(RESERVED).max(32 << 20)
 }
 
 /// Root spacing in real units.
@@ -370,6 +411,40 @@ mod tests {
             "a large limit keeps every thread"
         );
         assert_eq!(count_workers(1 << 20, 0), 1);
+    }
+
+    #[test]
+    fn chunks_at_the_floor_run_fewer_workers_at_once() {
+        let (stride, step) = (40, 24);
+        let per_point = index_bytes_per_point(stride, step);
+        for (limit, threads) in [
+            (64u64 << 20, 64),
+            (256 << 20, 64),
+            (2 << 30, 8),
+            (1 << 20, 4),
+        ] {
+            let chunk = max_chunk_points(limit, threads, stride, step);
+            let workers = index_workers(limit, threads, stride, step, chunk, 0).unwrap_or(0);
+            assert!((1..=threads).contains(&workers), "{limit} {threads}");
+            assert!(
+                workers == 1 || workers as u64 * chunk * per_point <= index_share(limit),
+                "{limit} {threads}: {workers} workers of {chunk} points"
+            );
+        }
+        // Chunks below the floor keep every thread; the floor's chunks under 64 MiB, few.
+        let chunk = max_chunk_points(2 << 30, 8, stride, step);
+        assert_eq!(
+            index_workers(2 << 30, 8, stride, step, chunk, chunk / 4),
+            Ok(8)
+        );
+        assert!(index_workers(64 << 20, 64, stride, step, 1 << 16, 0).is_ok_and(|w| w <= 3));
+        assert_eq!(index_workers(64 << 20, 64, stride, step, 0, 0), Ok(64));
+        // Halos as wide as the data: fewer workers, and none where one does not fit.
+        let halo_bytes = (stride + step) as u64;
+        let wide = index_room(2 << 30) / 3 / halo_bytes;
+        assert_eq!(index_workers(2 << 30, 8, stride, step, 1000, wide), Ok(2));
+        let over = index_room(2 << 30) / halo_bytes;
+        assert!(index_workers(2 << 30, 8, stride, step, 1000, over).is_err());
     }
 
     #[test]

@@ -90,16 +90,27 @@ pub fn append_block(path: &Path, rows: &[u8], stride: usize, scratch: &mut Scrat
     write_block(&mut f, rows, stride, scratch, path)
 }
 
-/// Appends the next block's rows to `rows`; false at the end of the file. `at` is where the
-/// block starts in the file, for the message when it is damaged.
-fn read_block(
-    r: &mut impl Read,
-    stride: usize,
-    path: &Path,
-    at: u64,
-    scratch: &mut Scratch,
-    rows: &mut Vec<u8>,
-) -> Result<bool> {
+struct BlockHead {
+    /// Bytes of rows.
+    raw: usize,
+    /// Bytes compressed, after the header.
+    len: usize,
+    crc: u32,
+    head: [u8; HEADER],
+}
+
+fn damaged_block(path: &Path, at: u64, what: &str) -> ConvertError {
+    ConvertError::input(
+        path,
+        format!(
+            "the block of rows at byte {at} {what}: the work file was damaged or changed since it was written; convert again from the start (or, for a plan, make the plan again)"
+        ),
+    )
+}
+
+/// The header of the block at `at`; `None` at the file's end. Lengths no writer makes are
+/// refused before anything is read or allocated for them.
+fn read_head(r: &mut impl Read, path: &Path, at: u64) -> Result<Option<BlockHead>> {
     let mut head = [0u8; HEADER];
     // Read in pieces: no byte of a header is the file's clean end, part of one is a cut.
     let mut got = 0;
@@ -111,27 +122,61 @@ fn read_block(
             Err(e) => return Err(ConvertError::io(path, "cannot read", e)),
         }
     }
-    let damaged = |what: &str| {
-        ConvertError::input(
-            path,
-            format!(
-                "the block of rows at byte {at} {what}: the work file was damaged or changed since it was written; convert again from the start (or, for a plan, make the plan again)"
-            ),
-        )
-    };
     if got == 0 {
-        return Ok(false);
+        return Ok(None);
     }
     if got < HEADER {
-        return Err(damaged("is cut short"));
+        return Err(damaged_block(path, at, "is cut short"));
     }
-    let raw = u32::from_le_bytes([head[0], head[1], head[2], head[3]]) as usize;
-    let len = u32::from_le_bytes([head[4], head[5], head[6], head[7]]) as usize;
-    let crc = u32::from_le_bytes([head[8], head[9], head[10], head[11]]);
-    // Lengths no writer makes are refused before anything is read or allocated for them.
+    let word = |i: usize| u32::from_le_bytes([head[i], head[i + 1], head[i + 2], head[i + 3]]);
+    let (raw, len, crc) = (word(0) as usize, word(4) as usize, word(8));
     if raw > MAX_BLOCK_BYTES || len > lz4_flex::block::get_maximum_output_size(raw) {
-        return Err(damaged("has lengths no block has"));
+        return Err(damaged_block(path, at, "has lengths no block has"));
     }
+    Ok(Some(BlockHead {
+        raw,
+        len,
+        crc,
+        head,
+    }))
+}
+
+/// Rows in the file at `path`, from its blocks' headers alone (no file, no rows): what a
+/// chunk's halo will hold, known before it is read.
+pub fn count_rows(path: &Path, stride: usize) -> Result<u64> {
+    let Some(mut r) = open_blocks(path)? else {
+        return Ok(0);
+    };
+    let (mut rows, mut at) = (0u64, 0u64);
+    while let Some(b) = read_head(&mut r, path, at)? {
+        rows += (b.raw / stride.max(1)) as u64;
+        r.seek_relative(b.len as i64)
+            .map_err(io_err(path, "cannot read"))?;
+        at += (HEADER + b.len) as u64;
+    }
+    Ok(rows)
+}
+
+/// Appends the next block's rows to `rows`; false at the end of the file. `at` is where the
+/// block starts in the file, for the message when it is damaged.
+fn read_block(
+    r: &mut impl Read,
+    stride: usize,
+    path: &Path,
+    at: u64,
+    scratch: &mut Scratch,
+    rows: &mut Vec<u8>,
+) -> Result<bool> {
+    let Some(BlockHead {
+        raw,
+        len,
+        crc,
+        head,
+    }) = read_head(r, path, at)?
+    else {
+        return Ok(false);
+    };
+    let damaged = |what: &str| damaged_block(path, at, what);
     // Read as far as the file goes, not sized by the header.
     scratch.packed.clear();
     let got = r

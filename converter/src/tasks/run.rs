@@ -162,6 +162,7 @@ fn build(
             layout: &layout,
             sampling: tp.sampling,
             threads,
+            memory_limit: tp.memory_limit,
             parts,
             step,
             halos: &halos,
