@@ -155,26 +155,77 @@ pub fn decode_node(
             computed,
         });
     }
-    // LZ4 expands at most 255-fold: a count that needs more is a damaged entry, refused before
-    // its output is allocated.
-    let expected = count
-        .checked_mul(layout.stride)
-        .filter(|&n| n <= payload.len().saturating_mul(255).saturating_add(16))
-        .ok_or_else(|| {
-            NodeDecodeError::Decompress(format!(
-                "{count} points cannot come from a payload of {} bytes",
-                payload.len()
-            ))
-        })?;
-    let bytes = lz4_flex::block::decompress(payload, expected)
+    // The payload's own sequence headers say how many bytes it decodes to: a count that needs
+    // other than that is a damaged entry, refused before anything is allocated for it.
+    let expected = count.checked_mul(layout.stride);
+    let decoded = lz4_decoded_len(payload);
+    let expected = match (expected, decoded) {
+        (Some(e), Some(d)) if e == d => e,
+        (_, Some(d)) => {
+            return Err(NodeDecodeError::Decompress(format!(
+                "{count} points need {} bytes, and the payload decodes to {d}",
+                count as u128 * layout.stride as u128
+            )));
+        }
+        (_, None) => {
+            return Err(NodeDecodeError::Decompress(
+                "the payload's LZ4 sequences end early".into(),
+            ));
+        }
+    };
+    let mut bytes = Vec::new();
+    bytes.try_reserve_exact(expected).map_err(|_| {
+        NodeDecodeError::Decompress(format!(
+            "{count} points take {expected} bytes, more than can be allocated"
+        ))
+    })?;
+    bytes.resize(expected, 0);
+    let got = lz4_flex::block::decompress_into(payload, &mut bytes)
         .map_err(|e| NodeDecodeError::Decompress(e.to_string()))?;
-    if bytes.len() != expected {
+    if got != expected {
         return Err(NodeDecodeError::Decompress(format!(
-            "{} bytes where {count} points need {expected}",
-            bytes.len()
+            "{got} bytes where {count} points need {expected}"
         )));
     }
     Ok(NodeColumns { count, bytes })
+}
+
+/// The bytes an LZ4 block decodes to, from its sequences' lengths alone (no output is made);
+/// `None` where a sequence runs past the block's end.
+fn lz4_decoded_len(block: &[u8]) -> Option<usize> {
+    // A length of 15 in a token's nibble goes on in bytes, each added, until one below 255.
+    fn length(block: &[u8], at: &mut usize, nibble: usize) -> Option<usize> {
+        let mut n = nibble;
+        if nibble == 15 {
+            loop {
+                let b = *block.get(*at)?;
+                *at += 1;
+                n = n.checked_add(b as usize)?;
+                if b != 255 {
+                    break;
+                }
+            }
+        }
+        Some(n)
+    }
+    let (mut at, mut total) = (0usize, 0usize);
+    while at < block.len() {
+        let token = block[at] as usize;
+        at += 1;
+        let literals = length(block, &mut at, token >> 4)?;
+        at = at.checked_add(literals).filter(|&a| a <= block.len())?;
+        total = total.checked_add(literals)?;
+        // The last sequence is literals alone.
+        if at == block.len() {
+            return Some(total);
+        }
+        // Two bytes of match offset, then the match's length beyond its least, 4.
+        at = at.checked_add(2).filter(|&a| a <= block.len())?;
+        let matched = length(block, &mut at, token & 15)?;
+        total = total.checked_add(matched)?.checked_add(4)?;
+    }
+    // An empty block decodes to nothing; any other ends in literals.
+    block.is_empty().then_some(0)
 }
 
 /// Column order: for each field (x, y, z, attributes...), that field of every point in turn.
@@ -270,5 +321,48 @@ mod tests {
                 Err(NodeDecodeError::Checksum { .. })
             ));
         }
+    }
+
+    /// The decoded size read from the sequences is the size LZ4 makes, for data that
+    /// compresses not at all, some, and 255-fold.
+    #[test]
+    fn the_sequences_say_how_long_a_block_decodes() {
+        let noisy: Vec<u8> = (0..5000u32)
+            .map(|i| (i.wrapping_mul(2654435761) >> 13) as u8)
+            .collect();
+        let mixed: Vec<u8> = (0..70_000u32).map(|i| (i / 300 % 7) as u8).collect();
+        for data in [noisy, mixed, vec![0u8; 1 << 20], vec![9u8; 5], Vec::new()] {
+            let block = lz4_flex::block::compress(&data);
+            assert_eq!(lz4_decoded_len(&block), Some(data.len()));
+            // Cut by a byte, the last literals run past the end.
+            if !data.is_empty() {
+                assert_eq!(lz4_decoded_len(&block[..block.len() - 1]), None);
+            }
+        }
+    }
+
+    /// A count far beyond the payload, its checksum right: refused with a message, before
+    /// anything the size of the count is allocated (a payload of 200 MB of zeros claiming
+    /// 51 GB of points aborted the process before).
+    #[test]
+    fn a_count_the_payload_does_not_decode_to_is_refused_without_allocating_it() {
+        let l = layout();
+        let zeros = vec![0u8; 200_000 * l.stride];
+        let (payload, crc) = encode_node(&zeros, &l);
+        let raw = vec![0u8; 1 << 22];
+        for (payload, crc) in [(payload, crc), (raw.clone(), payload_checksum(&raw))] {
+            let forged = payload.len() * 255 / l.stride;
+            let err = decode_node(&payload, forged, crc, &l).map(|n| n.count);
+            assert!(
+                matches!(&err, Err(NodeDecodeError::Decompress(m)) if m.contains("decodes to")),
+                "{err:?}"
+            );
+            assert!(decode_node(&payload, usize::MAX / 2, crc, &l).is_err());
+        }
+        let (payload, crc) = encode_node(&zeros, &l);
+        assert_eq!(
+            decode_node(&payload, 200_000, crc, &l).map(|n| n.count),
+            Ok(200_000)
+        );
     }
 }
