@@ -191,8 +191,7 @@ fn descend(dataset: &Path, prefix_from: &Path) -> (Vec<u32>, Vec<Logged>) {
     };
     let ds =
         Arc::new(StreamDataset::open(&format!("http://{}/ds", server.addr), opts).expect("opens"));
-    let mut tree = Tree::default();
-    tree.add_page(ds.root_hierarchy_page());
+    let mut tree = Tree::of(&ds).expect("a sound hierarchy");
     let loader = Loader::new(ds.clone(), 64);
     let anchor = ds.anchor();
     let centre = (glam::DVec3::from_array(DEEP_CENTRE) - anchor).as_vec3();
@@ -242,7 +241,7 @@ fn descend(dataset: &Path, prefix_from: &Path) -> (Vec<u32>, Vec<Logged>) {
                 Done::Node(n) => {
                     resident.insert(n.key);
                 }
-                Done::Page(p) => tree.add_page(&p),
+                Done::Page(p) => tree.add_page(&p).expect("a sound hierarchy"),
                 Done::NodeFailed(k, e) | Done::PageFailed(k, e) => panic!("{k}: {e}"),
             }
         }

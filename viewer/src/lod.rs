@@ -2,6 +2,7 @@
 
 use crate::camera::{Camera, Frustum};
 use crate::dataset::StreamDataset;
+use crate::error::ViewerError;
 use glam::Vec3;
 use std::cmp::Ordering;
 use std::collections::{BinaryHeap, HashMap, HashSet};
@@ -17,22 +18,45 @@ pub struct Tree {
     /// Pages known from a loaded page but not loaded themselves, by their root (a proxy).
     unloaded_pages: HashMap<NodeKey, PageRef>,
     loaded_pages: HashSet<NodeKey>,
+    /// Whose page lies at each byte of the hierarchy file that a known page refers to.
+    page_owners: HashMap<u64, NodeKey>,
 }
 
 impl Tree {
+    /// The tree of `ds` as its root page describes it; an error where that page refers to
+    /// itself.
+    pub fn of(ds: &StreamDataset) -> Result<Tree, ViewerError> {
+        let mut tree = Tree::default();
+        let root = ds.root_page();
+        tree.page_owners.insert(root.offset, root.root);
+        tree.add_page(ds.root_hierarchy_page())
+            .map_err(|what| ViewerError::source(ds.location(), what))?;
+        Ok(tree)
+    }
+
     /// Takes in a page's nodes (in 1.1 its proxies too, whose payloads it locates) and the
-    /// pages below it.
-    pub fn add_page(&mut self, page: &HierarchyPage) {
+    /// pages below it. A page that another node's proxy already refers to is left out, and
+    /// is the error: read again under this proxy, the same nodes would come twice, or without
+    /// end where a page refers to itself (a damaged or forged hierarchy).
+    pub fn add_page(&mut self, page: &HierarchyPage) -> Result<(), String> {
         self.loaded_pages.insert(page.root);
         self.unloaded_pages.remove(&page.root);
         for info in page.nodes() {
             self.nodes.insert(info.key, info);
         }
+        let mut fault = Ok(());
         for child in page.child_pages() {
-            if !self.loaded_pages.contains(&child.root) {
+            let owner = *self.page_owners.entry(child.offset).or_insert(child.root);
+            if owner != child.root {
+                fault = Err(format!(
+                    "the hierarchy page at byte {} is referred to by the proxies of nodes {owner} and {}",
+                    child.offset, child.root
+                ));
+            } else if !self.loaded_pages.contains(&child.root) {
                 self.unloaded_pages.insert(child.root, child);
             }
         }
+        fault
     }
 
     /// A page that failed to load: its subtree is left out for the rest of the session.
@@ -304,4 +328,66 @@ pub fn drawn_spacing(tree: &Tree, ds: &StreamDataset, draw: &[NodeKey]) -> Optio
     let mid = spacings.len() / 2;
     let (_, median, _) = spacings.select_nth_unstable_by(mid, f32::total_cmp);
     Some(*median)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use strata_format::{EntryKind, Layout, PageEntry};
+
+    /// A page at `root` whose two proxies, children 0 and 1 of the root, lead to the pages
+    /// at `offsets`.
+    fn page(root: NodeKey, offsets: [u64; 2]) -> HierarchyPage {
+        let entry = |kind, child_mask| PageEntry {
+            kind,
+            child_mask,
+            point_count: 1,
+            offset: 0,
+            size: 1,
+            checksum: 0,
+        };
+        let children = [0u8, 1].map(|o| root.child(o));
+        HierarchyPage {
+            root,
+            layout: Layout::V1_1,
+            entries: vec![
+                (root, entry(EntryKind::Node, 0b11)),
+                (children[0], entry(EntryKind::Proxy, 1)),
+                (children[1], entry(EntryKind::Proxy, 1)),
+            ],
+            children: (0..2)
+                .map(|i| PageRef {
+                    root: children[i],
+                    offset: offsets[i],
+                    size: 64,
+                    checksum: Some(0),
+                })
+                .collect(),
+        }
+    }
+
+    /// Two proxies leading to one page would read its nodes twice, under two keys; a page
+    /// that leads back to one already known (its own: every proxy of a forged root page did)
+    /// without end. Either is an error, and only the first proxy's page is taken.
+    #[test]
+    fn a_page_two_proxies_lead_to_is_refused() {
+        let mut tree = Tree::default();
+        let err = tree.add_page(&page(NodeKey::ROOT, [100, 100]));
+        assert!(
+            err.is_err_and(|e| e.contains("byte 100")),
+            "two proxies, one page"
+        );
+        let first = NodeKey::ROOT.child(0);
+        assert!(tree.unloaded_page(first).is_some());
+        assert!(tree.unloaded_page(NodeKey::ROOT.child(1)).is_none());
+        // The first proxy's page, whose own proxies lead to the root page's byte again.
+        tree.page_owners.insert(32, NodeKey::ROOT);
+        assert!(
+            tree.add_page(&page(first, [32, 200])).is_err(),
+            "a page leading back"
+        );
+        assert!(tree.unloaded_page(first.child(1)).is_some());
+        let sound = page(first.child(1), [300, 400]);
+        assert_eq!(tree.add_page(&sound), Ok(()));
+    }
 }

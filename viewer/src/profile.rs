@@ -9,7 +9,7 @@ use crate::lod::Tree;
 use crate::pick::{attribute_values, exact_integers, to_decimals};
 use std::io::Write;
 use std::path::Path;
-use strata_format::{NodeInfo, NodeKey, RowLayout};
+use strata_format::{NodeInfo, NodeKey, PageRef, RowLayout};
 
 /// A polyline in the horizontal plane (dataset coordinates) and the width of the band around
 /// it: a point belongs to the profile where it lies across a segment (its foot on the segment)
@@ -250,8 +250,7 @@ pub fn extract(
         complete: true,
         decimals: csv_decimals(m.scale),
     };
-    let mut tree = Tree::default();
-    tree.add_page(ds.root_hierarchy_page());
+    let mut tree = Tree::of(ds)?;
     let mut level: Vec<NodeInfo> = tree.node(NodeKey::ROOT).copied().into_iter().collect();
     let mut depth = 0u32;
     while !level.is_empty() {
@@ -304,7 +303,7 @@ fn children(
         }
         // 1.1: the page below a proxy holds its children.
         if let Some(page) = tree.unloaded_page(info.key) {
-            tree.add_page(&ds.load_page(&page)?);
+            add_page(ds, tree, &page)?;
         }
         for octant in 0..8u8 {
             if info.child_mask & (1 << octant) == 0 {
@@ -319,7 +318,7 @@ fn children(
             if tree.node(child).is_none()
                 && let Some(page) = tree.unloaded_page(child)
             {
-                tree.add_page(&ds.load_page(&page)?);
+                add_page(ds, tree, &page)?;
             }
             if let Some(c) = tree.node(child) {
                 next.push(*c);
@@ -327,6 +326,12 @@ fn children(
         }
     }
     Ok(next)
+}
+
+fn add_page(ds: &StreamDataset, tree: &mut Tree, page: &PageRef) -> Result<(), ViewerError> {
+    let loaded = ds.load_page(page)?;
+    tree.add_page(&loaded)
+        .map_err(|what| ViewerError::source(ds.location(), what))
 }
 
 fn read_node(

@@ -90,8 +90,7 @@ impl Renderer {
         gpu_cache_bytes: u64,
         loader_threads: usize,
     ) -> Result<Renderer, ViewerError> {
-        let mut tree = Tree::default();
-        tree.add_page(ds.root_hierarchy_page());
+        let tree = Tree::of(&ds)?;
         let loader = Loader::new(ds.clone(), loader_threads);
         let cache = NodeCache::new(ctx.max_binding(), gpu_cache_bytes);
         let (projection, drawn_count, facing) =
@@ -188,7 +187,12 @@ impl Renderer {
                 self.failed.insert(key);
                 self.errors.push(e.to_string());
             }
-            Done::Page(page) => self.tree.add_page(&page),
+            Done::Page(page) => {
+                if let Err(what) = self.tree.add_page(&page) {
+                    self.pages_failed += 1;
+                    self.errors.push(format!("{}: {what}", self.ds.location()));
+                }
+            }
             Done::PageFailed(root, e) if e.is_transient() => {
                 self.unavailable(JobKey::Page(root), e)
             }
