@@ -397,7 +397,23 @@ impl Metadata {
                 return bad("hierarchy.root_page_size does not fit the head's 32 bits");
             }
         }
+        // Attributes are found by name (`rgb`, `classification`, a LAS field on export): a
+        // second of one name would never be read, and an empty name names nothing.
+        let mut names = std::collections::HashSet::new();
         for a in &self.attributes {
+            if a.name.is_empty() || ["x", "y", "z"].contains(&a.name.as_str()) {
+                return bad(&format!(
+                    "an attribute is named {:?}, which names no attribute (a name is not empty, \
+                     and x, y and z are the position)",
+                    a.name
+                ));
+            }
+            if !names.insert(a.name.as_str()) {
+                return bad(&format!(
+                    "two attributes are named '{}'; names are unique",
+                    a.name
+                ));
+            }
             if a.count == 0 {
                 return bad(&format!("attribute '{}' has count 0", a.name));
             }

@@ -115,6 +115,27 @@ fn a_dataset_lists_at_most_max_attributes() {
     assert!(err.contains("1025 attributes"), "{err}");
 }
 
+/// A second attribute of a name would never be read (`export` wrote one LAS field from the
+/// other's values, and `verify` passed it); an empty name or a position axis names nothing.
+#[test]
+fn attribute_names_are_unique_and_name_something() {
+    let attr = |name: &str| serde_json::json!({"name": name, "type": "u8", "count": 1});
+    let mut m = meta_1_1();
+    m["attributes"] = serde_json::json!([attr("intensity"), attr("return_number")]);
+    assert!(parse(&m).is_ok());
+    m["attributes"] = serde_json::json!([attr("intensity"), attr("intensity")]);
+    let err = parse(&m).err().unwrap_or_default();
+    assert!(
+        err.contains("two attributes are named 'intensity'"),
+        "{err}"
+    );
+    for name in ["", "x", "z"] {
+        m["attributes"] = serde_json::json!([attr("intensity"), attr(name)]);
+        let err = parse(&m).err().unwrap_or_default();
+        assert!(err.contains(&format!("named {name:?}")), "{name:?}: {err}");
+    }
+}
+
 #[test]
 fn spacing_and_bounds_are_checked() {
     for spacing in [0.0, -4.0] {
