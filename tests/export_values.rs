@@ -284,3 +284,39 @@ fn times_of_no_base_are_said_when_las_states_one() {
         assert_eq!(said, warned, "{name}");
     }
 }
+
+/// Fields laspy and PDAL take for standard ones (`X`, `Intensity` in another case or
+/// spelling) go out as `extra_NAME`, said: laspy refused a LAS whose extra field was `X`.
+#[test]
+fn extra_fields_named_like_standard_ones_are_renamed_on_export() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let (input, ds) = (dir.path().join("named.ply"), dir.path().join("ds"));
+    let props = [("float", "X"), ("float", "Intensity"), ("float", "height")];
+    ply(
+        &input,
+        &props,
+        &[vec!["1.5".into(), "7".into(), "3".into()]],
+    );
+    run_ok(&["convert", s(&input), "-o", s(&ds), "-q"]);
+    for name in ["out.las", "out.copc.laz"] {
+        let out = dir.path().join(name);
+        let o = run_ok(&["export", s(&ds), "-o", s(&out)]);
+        let err = String::from_utf8_lossy(&o.stderr);
+        for said in [
+            "\"X\" is written as \"extra_X\"",
+            "\"Intensity\" is written as",
+        ] {
+            assert!(err.contains(said), "{name}: {err}");
+        }
+        let back = dir.path().join(format!("{name}.strata"));
+        run_ok(&["convert", s(&out), "-o", s(&back), "-q"]);
+        let meta = strata_format::LocalDataset::open(&back)
+            .expect("opens")
+            .metadata()
+            .clone();
+        let names: Vec<&str> = meta.attributes.iter().map(|a| a.name.as_str()).collect();
+        for kept in ["extra_X", "extra_Intensity", "height"] {
+            assert!(names.contains(&kept), "{name}: {names:?}");
+        }
+    }
+}

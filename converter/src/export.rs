@@ -2,6 +2,7 @@
 //! Potree 2.0 in `potree2.rs`), and the widening of stored rows every export shares.
 
 use crate::error::{ConvertError, Result};
+use crate::las_export_names::las_export_renames;
 use crate::writers::{RowWriter, open_writer, write_then_finish};
 use std::path::Path;
 use strata_format::{
@@ -87,9 +88,20 @@ pub fn export_notes(dataset: &Path, output: &Path, potree2: bool) -> Result<Vec<
         _ => Output::Other,
     };
     let said = |what: String| format!("{}: {what}", output.display());
+    let renamed = matches!(kind, Output::Las | Output::Copc)
+        .then(|| las_export_renames(&ds.metadata().attributes))
+        .unwrap_or_default()
+        .into_iter()
+        .map(|(i, new)| {
+            format!(
+                "attribute \"{}\" is written as \"{new}\": LAS readers take its name for a standard field",
+                ds.metadata().attributes[i].name
+            )
+        });
     Ok([crs_loss(&ds, kind), time_base_claim(&ds, kind)]
         .into_iter()
         .flatten()
+        .chain(renamed)
         .map(said)
         .collect())
 }
@@ -270,7 +282,7 @@ enum Step {
 /// The export layout of `layout` for `target`, and how its rows are converted.
 pub fn widened(layout: &RowLayout, target: Target) -> Widened {
     let mut steps = Vec::with_capacity(layout.attributes.len());
-    let attributes = layout
+    let mut attributes: Vec<Attribute> = layout
         .attributes
         .iter()
         .map(|a| {
@@ -316,6 +328,11 @@ pub fn widened(layout: &RowLayout, target: Target) -> Widened {
             }
         })
         .collect();
+    if target == Target::Las {
+        for (i, name) in las_export_renames(&attributes) {
+            attributes[i].name = name;
+        }
+    }
     Widened {
         layout: RowLayout::new(attributes),
         from: layout.clone(),

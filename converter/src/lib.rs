@@ -19,6 +19,7 @@ pub mod index;
 pub mod input;
 pub mod journal;
 pub mod las_crs;
+pub mod las_export_names;
 pub mod las_records;
 pub mod merge;
 pub mod morton;
