@@ -210,3 +210,47 @@ fn an_e57_states_its_crs_in_its_coordinate_metadata() {
         assert_eq!(said, !want, "{name}");
     }
 }
+
+/// A WKT longer than a VLR holds (64 KiB), in the second of two EVLRs: read (the las crate
+/// keeps the first EVLR only, and the CRS was lost), and written back by COPC export as an
+/// EVLR of its own (it was left out without a word).
+#[test]
+fn a_long_wkt_in_a_later_evlr_is_read_and_exported_to_copc() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let input = dir.path().join("long.las");
+    // Spaces between a WKT's tokens are allowed anywhere.
+    let long = UTM10.replacen(',', &format!(",{}", " ".repeat(70_000)), 1);
+    let mut wkt = long.clone().into_bytes();
+    wkt.push(0);
+    let mut builder = las::Builder::from((1, 4));
+    builder.point_format = las::point::Format::new(6).expect("format");
+    builder.has_wkt_crs = true;
+    let evlr = |user: &str, record_id, data| las::Vlr {
+        user_id: user.into(),
+        record_id,
+        description: String::new(),
+        data,
+    };
+    builder.evlrs = vec![
+        evlr("strata_test", 7, vec![1; 300]),
+        evlr("LASF_Projection", 2112, wkt),
+    ];
+    let header = builder.into_header().expect("header");
+    let mut writer = las::Writer::from_path(&input, header).expect("writer");
+    let point = las::Point {
+        return_number: 1,
+        number_of_returns: 1,
+        gps_time: Some(0.0),
+        ..Default::default()
+    };
+    writer.write_point(point).expect("write");
+    writer.close().expect("close");
+    let ds = dir.path().join("ds");
+    run_ok(&["convert", s(&input), "-o", s(&ds), "-q"]);
+    assert_eq!(dataset_crs(&ds)["wkt"], long.as_str());
+    let copc = dir.path().join("out.copc.laz");
+    run_ok(&["export", s(&ds), "-o", s(&copc)]);
+    let back = dir.path().join("back");
+    run_ok(&["convert", s(&copc), "-o", s(&back), "-q"]);
+    assert_eq!(dataset_crs(&back)["wkt"], long.as_str());
+}

@@ -25,6 +25,9 @@ pub(crate) const INFO_SIZE: u64 = 160;
 /// One hierarchy entry: key (4 x i32), offset (u64), byte size (i32), point count (i32).
 pub(crate) const ENTRY_SIZE: usize = 32;
 
+/// A (E)VLR: user, record id, description, payload.
+type Vlr<'a> = (&'a str, u16, &'a str, Vec<u8>);
+
 /// One node's chunk, as the hierarchy lists it.
 struct Entry {
     key: [i32; 4],
@@ -86,13 +89,15 @@ pub fn export_copc(dataset: &Path, output: &Path, overwrite: bool) -> Result<u64
             d.len()
         )));
     }
-    let crs = meta
+    // A WKT longer than a VLR holds (64 KiB) goes into an EVLR after the hierarchy's, as LAS
+    // 1.4 allows, rather than nowhere.
+    let (crs, long_wkt): (Vec<_>, Vec<_>) = meta
         .crs
         .as_ref()
-        .map(crate::las_crs::wkt_record)
+        .and_then(crate::las_crs::wkt_record)
         .into_iter()
-        .flatten()
-        .map(Some);
+        .partition(|r| r.3.len() <= u16::MAX as usize);
+    let crs = crs.into_iter().map(Some);
     let vlrs: Vec<(&str, u16, &str, Vec<u8>)> = [
         Some(("copc", 1, "COPC info", vec![0u8; INFO_SIZE as usize])),
         Some(("laszip encoded", 22204, "laz variable chunks", laz_payload)),
@@ -146,7 +151,14 @@ pub fn export_copc(dataset: &Path, output: &Path, overwrite: bool) -> Result<u64
         }
     };
     let finished = finish(
-        file, &part, &meta, format, &records, point_data, &vlrs, &entries, &totals,
+        file,
+        &part,
+        &meta,
+        format,
+        &records,
+        (point_data, &vlrs, long_wkt.first()),
+        &entries,
+        &totals,
     );
     if let Err(e) = finished.and_then(|_| {
         std::fs::rename(&part, output)
@@ -363,8 +375,7 @@ fn finish(
     meta: &strata_format::Metadata,
     format: u8,
     records: &LasRecords,
-    point_data: u64,
-    vlrs: &[(&str, u16, &str, Vec<u8>)],
+    (point_data, vlrs, long_wkt): (u64, &[Vlr], Option<&Vlr>),
     entries: &[Entry],
     totals: &Totals,
 ) -> Result<()> {
@@ -388,6 +399,12 @@ fn finish(
     ))
     .map_err(io)?;
     file.write_all(&page).map_err(io)?;
+    if let Some((user, id, description, payload)) = long_wkt {
+        let len = payload.len() as u64;
+        file.write_all(&vlr_header(user, *id, description, len, true))
+            .map_err(io)?;
+        file.write_all(payload).map_err(io)?;
+    }
 
     // The octree's cube in real coordinates, and the points' bounds.
     let s = meta.scale;
@@ -449,7 +466,7 @@ fn finish(
     }
     h.extend_from_slice(&0u64.to_le_bytes()); // waveform data
     h.extend_from_slice(&evlr_at.to_le_bytes());
-    h.extend_from_slice(&1u32.to_le_bytes());
+    h.extend_from_slice(&(1 + u32::from(long_wkt.is_some())).to_le_bytes());
     h.extend_from_slice(&totals.points.to_le_bytes());
     for n in totals.by_return {
         h.extend_from_slice(&n.to_le_bytes());

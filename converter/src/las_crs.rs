@@ -113,15 +113,13 @@ pub fn crs_records(crs: &Crs) -> Vec<(&'static str, u16, &'static str, Vec<u8>)>
 }
 
 /// The WKT record alone, for COPC, which states a CRS in WKT only (its point formats are 6 to
-/// 8); none where there is no WKT or it is longer than a VLR holds (64 KiB).
+/// 8); none where there is no WKT.
 pub fn wkt_record(crs: &Crs) -> Option<(&'static str, u16, &'static str, Vec<u8>)> {
     let wkt_only = Crs {
         wkt: crs.wkt.clone(),
         geotiff: None,
     };
-    crs_records(&wkt_only)
-        .into_iter()
-        .find(|r| r.3.len() <= u16::MAX as usize)
+    crs_records(&wkt_only).into_iter().next()
 }
 
 #[cfg(test)]

@@ -43,6 +43,7 @@ impl LasSource {
             raw.check_uncompressed_records().map_err(bad)?;
             None
         };
+        let records = raw.records(&file).map_err(bad)?;
         let (compressed, format_number) = (raw.compressed, raw.format);
         // Everything the reader allocates or seeks by has been checked above; what still panics
         // inside it (for a LAZ it builds the `laz` decoder too, which sizes a buffer by the
@@ -69,10 +70,8 @@ impl LasSource {
         }
         let (scale, offset) = (raw.scale, raw.offset);
         // Writers may place the record among the extended VLRs after the points (LAS 1.4).
-        let eb_vlr = header
-            .vlrs()
+        let eb_vlr = records
             .iter()
-            .chain(header.evlrs())
             .find(|v| v.user_id == "LASF_Spec" && v.record_id == 4)
             .map(|v| v.data.as_slice());
         let mut extra = parse_extra_bytes(eb_vlr, format.extra_bytes as usize)
@@ -96,7 +95,7 @@ impl LasSource {
             a.time_base = Some(time_base);
         }
         // The waveforms themselves (descriptor VLRs, the data record or file) are not read.
-        let waveforms = header.vlrs().iter().chain(header.evlrs()).any(|v| {
+        let waveforms = records.iter().any(|v| {
             v.user_id == "LASF_Spec" && ((100..355).contains(&v.record_id) || v.record_id == 65535)
         });
         if matches!(format_number, 4 | 5 | 9 | 10) && waveforms {
@@ -114,10 +113,7 @@ impl LasSource {
                 ),
             ));
         }
-        let (crs, crs_notes) = crate::las_crs::crs_of(
-            header.vlrs().iter().chain(header.evlrs()),
-            header.has_wkt_crs(),
-        );
+        let (crs, crs_notes) = crate::las_crs::crs_of(records.iter(), header.has_wkt_crs());
         warnings.extend(crs_notes.iter().map(|n| format!("{}: {n}", path.display())));
         let data = PointDataBuilder::new().for_header(&header).build();
         let header_bounds = (raw.min, raw.max);

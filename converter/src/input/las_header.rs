@@ -288,6 +288,35 @@ impl LasHeader {
         Ok(())
     }
 
+    /// Every VLR and EVLR the header lists, with the payloads of those the converter reads
+    /// (the extra bytes' descriptions, the coordinate reference system); others by their ids
+    /// alone. The las crate keeps only the first EVLR: a file stating its extra bytes or its
+    /// CRS in a later one (a COPC file's follow its hierarchy's) lost them.
+    pub fn records(&self, file: &File) -> Result<Vec<las::Vlr>, String> {
+        const MOST: u64 = 16 << 20;
+        let mut out = Vec::with_capacity(self.vlrs.len());
+        for v in &self.vlrs {
+            let read = v.is("LASF_Spec", 4) || v.user_id == "LASF_Projection";
+            if read && v.data_len > MOST {
+                return Err(format!(
+                    "record {} of {:?} (at byte {}) is {} bytes long, more than any such record ({MOST} at most)",
+                    v.record_id, v.user_id, v.data_at, v.data_len
+                ));
+            }
+            let data = match read {
+                true => read_at(file, v.data_at, v.data_len as usize)?,
+                false => Vec::new(),
+            };
+            out.push(las::Vlr {
+                user_id: v.user_id.clone(),
+                record_id: v.record_id,
+                description: String::new(),
+                data,
+            });
+        }
+        Ok(out)
+    }
+
     pub fn find(&self, user_id: &str, record_id: u16) -> Option<&Vlr> {
         self.vlrs.iter().find(|v| v.is(user_id, record_id))
     }
