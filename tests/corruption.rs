@@ -117,6 +117,24 @@ fn truncated_or_missing_files_are_reported() {
     verify_fails_naming(&ds, "not a regular file");
 }
 
+/// A hierarchy cut inside its head, its size in the metadata edited to match: said as a head
+/// cut short, not as "8 bytes but metadata.json says 8".
+#[test]
+fn a_file_cut_inside_its_head_is_said_to_be() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let ds = dataset(dir.path());
+    let hierarchy = ds.join("hierarchy.bin");
+    let bytes = std::fs::read(&hierarchy).expect("read");
+    for keep in [8, 20, 28] {
+        std::fs::write(&hierarchy, &bytes[..keep]).expect("write");
+        edit_metadata(&ds, |m| m["files"]["hierarchy"]["size"] = keep.into());
+        verify_fails_naming(
+            &ds,
+            &format!("is {keep} bytes long, too short for the head"),
+        );
+    }
+}
+
 #[test]
 fn data_files_that_are_pipes_are_refused_not_waited_on() {
     let dir = tempfile::tempdir().expect("tempdir");

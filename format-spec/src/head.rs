@@ -196,6 +196,15 @@ pub fn check_file_head(
             "file is {len} bytes but metadata.json says {expected} (truncated or replaced)"
         ))
     };
+    // A file cut inside its head, the metadata's size edited to match, is not "N bytes but
+    // metadata.json says N".
+    let short_head = || {
+        fault(format!(
+            "is {} bytes long, too short for the head of a format {} file (cut short)",
+            len.unwrap_or(head.len() as u64),
+            layout.name()
+        ))
+    };
     let magic = layout.magic(file);
     if head.get(..8) != Some(&magic[..]) {
         let other = [Layout::V1_0, Layout::V1_1]
@@ -222,7 +231,7 @@ pub fn check_file_head(
                 (Some(found), Some(said)) => fault(format!(
                     "belongs to another dataset (id {found}, metadata.json says {said})"
                 )),
-                _ => size_fault(len.unwrap_or(head.len() as u64)),
+                _ => short_head(),
             };
         }
     }
@@ -231,7 +240,7 @@ pub fn check_file_head(
     }
     if layout == Layout::V1_1 && file == DatasetFile::Hierarchy {
         let Some(h) = HierarchyHead::decode(head) else {
-            return size_fault(len.unwrap_or(head.len() as u64));
+            return short_head();
         };
         let (size, levels) = (meta.hierarchy.root_page_size, meta.hierarchy.page_levels);
         if h.root_page_size as u64 != size || h.page_levels != levels {
