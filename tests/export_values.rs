@@ -320,3 +320,36 @@ fn extra_fields_named_like_standard_ones_are_renamed_on_export() {
         }
     }
 }
+
+/// What an output has no place for is said, not dropped without a word: the scanners'
+/// positions (E57 poses) in every format, a time base in PLY and Potree 2.0.
+#[test]
+fn scanner_positions_and_time_bases_an_output_cannot_hold_are_said() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let scans = dir.path().join("scans");
+    run_ok(&[
+        "convert",
+        s(&data("e57_tiny_spherical.e57")),
+        "-o",
+        s(&scans),
+        "-q",
+    ]);
+    for name in ["out.las", "out.ply", "out.copc.laz"] {
+        let o = run_ok(&["export", s(&scans), "-o", s(&dir.path().join(name))]);
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert!(err.contains("1 scanner(s) stood"), "{name}: {err}");
+    }
+    let timed = dir.path().join("timed");
+    run_ok(&[
+        "convert",
+        s(&data("autzen_trim.las")),
+        "-o",
+        s(&timed),
+        "-q",
+    ]);
+    for (name, said) in [("t.ply", true), ("t.las", false)] {
+        let o = run_ok(&["export", s(&timed), "-o", s(&dir.path().join(name))]);
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert_eq!(err.contains("counts from"), said, "{name}: {err}");
+    }
+}

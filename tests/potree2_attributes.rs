@@ -134,7 +134,9 @@ fn a_64_bit_integer_a_double_cannot_hold_is_refused() {
             "export to .las",
         ],
     );
-    assert_eq!(err.trim().lines().count(), 1, "one sentence: {err}");
+    // (A warning may come before it: Potree 2.0 has no place for the times' base.)
+    let errors = err.lines().filter(|l| l.starts_with("error:")).count();
+    assert_eq!(errors, 1, "one sentence: {err}");
     assert!(!out.exists() && !dir.path().join("p2.part").exists());
     // Within 2^53: exact, as doubles.
     let (input, ds) = (dir.path().join("small.las"), dir.path().join("small"));

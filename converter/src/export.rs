@@ -98,7 +98,13 @@ pub fn export_notes(dataset: &Path, output: &Path, potree2: bool) -> Result<Vec<
                 ds.metadata().attributes[i].name
             )
         });
-    Ok([crs_loss(&ds, kind), time_base_claim(&ds, kind)]
+    let facts = [
+        crs_loss(&ds, kind),
+        time_base_claim(&ds, kind),
+        time_base_loss(&ds, kind),
+        scanners_loss(&ds, kind),
+    ];
+    Ok(facts
         .into_iter()
         .flatten()
         .chain(renamed)
@@ -128,6 +134,38 @@ fn time_base_claim(ds: &LocalDataset, kind: Output) -> Option<String> {
         "the dataset's gps_time states no time base (its inputs gave none), and LAS has no \
          place for \"unknown\": the output states GPS week time (global encoding bit 0 clear)"
             .to_string()
+    })
+}
+
+/// A time base PLY and Potree 2.0 have no place for: their readers get the times without it.
+fn time_base_loss(ds: &LocalDataset, kind: Output) -> Option<String> {
+    let format = match kind {
+        Output::Ply => "PLY",
+        Output::Potree2 => "Potree 2.0",
+        _ => return None,
+    };
+    let a = ds
+        .metadata()
+        .attributes
+        .iter()
+        .find(|a| a.time_base.is_some())?;
+    let base = a.time_base?.name();
+    Some(format!(
+        "{format} has no place for what \"{}\" counts from ({base}); the output keeps the \
+         times, not their base",
+        a.name
+    ))
+}
+
+/// Where the scanners stood (E57 poses): no export format has a place for them. Each point's
+/// `scanner` index goes out as an attribute.
+fn scanners_loss(ds: &LocalDataset, kind: Output) -> Option<String> {
+    let n = ds.metadata().scanners.len();
+    (n > 0 && kind != Output::Other).then(|| {
+        format!(
+            "the output has no place for where the dataset's {n} scanner(s) stood (metadata.json \
+             \"scanners\"); it keeps each point's scanner index, not the positions"
+        )
     })
 }
 
