@@ -19,17 +19,35 @@ fn keys(epsg: u16) -> Vec<u8> {
 /// A LAS 1.4 file of format `format` with one point at `x`, the WKT bit as given, and these
 /// `LASF_Projection` records (id, payload).
 fn las_with_crs(path: &Path, format: u8, wkt_bit: bool, records: &[(u16, Vec<u8>)], x: f64) {
+    let vlrs = records
+        .iter()
+        .map(|(id, data)| vlr("LASF_Projection", *id, data.clone()))
+        .collect();
+    las_with_records(path, format, wkt_bit, (vlrs, Vec::new()), x);
+}
+
+fn vlr(user: &str, record_id: u16, data: Vec<u8>) -> las::Vlr {
+    las::Vlr {
+        user_id: user.into(),
+        record_id,
+        description: String::new(),
+        data,
+    }
+}
+
+/// As `las_with_crs`, with any VLRs and EVLRs.
+fn las_with_records(
+    path: &Path,
+    format: u8,
+    wkt_bit: bool,
+    (vlrs, evlrs): (Vec<las::Vlr>, Vec<las::Vlr>),
+    x: f64,
+) {
     let mut builder = las::Builder::from((1, 4));
     builder.point_format = las::point::Format::new(format).expect("format");
     builder.has_wkt_crs = wkt_bit;
-    for (id, data) in records {
-        builder.vlrs.push(las::Vlr {
-            user_id: "LASF_Projection".into(),
-            record_id: *id,
-            description: String::new(),
-            data: data.clone(),
-        });
-    }
+    builder.vlrs = vlrs;
+    builder.evlrs = evlrs;
     let header = builder.into_header().expect("header");
     let mut writer = las::Writer::from_path(path, header).expect("writer");
     let point = las::Point {
@@ -222,29 +240,11 @@ fn a_long_wkt_in_a_later_evlr_is_read_and_exported_to_copc() {
     let long = UTM10.replacen(',', &format!(",{}", " ".repeat(70_000)), 1);
     let mut wkt = long.clone().into_bytes();
     wkt.push(0);
-    let mut builder = las::Builder::from((1, 4));
-    builder.point_format = las::point::Format::new(6).expect("format");
-    builder.has_wkt_crs = true;
-    let evlr = |user: &str, record_id, data| las::Vlr {
-        user_id: user.into(),
-        record_id,
-        description: String::new(),
-        data,
-    };
-    builder.evlrs = vec![
-        evlr("strata_test", 7, vec![1; 300]),
-        evlr("LASF_Projection", 2112, wkt),
+    let evlrs = vec![
+        vlr("strata_test", 7, vec![1; 300]),
+        vlr("LASF_Projection", 2112, wkt),
     ];
-    let header = builder.into_header().expect("header");
-    let mut writer = las::Writer::from_path(&input, header).expect("writer");
-    let point = las::Point {
-        return_number: 1,
-        number_of_returns: 1,
-        gps_time: Some(0.0),
-        ..Default::default()
-    };
-    writer.write_point(point).expect("write");
-    writer.close().expect("close");
+    las_with_records(&input, 6, true, (Vec::new(), evlrs), 0.0);
     let ds = dir.path().join("ds");
     run_ok(&["convert", s(&input), "-o", s(&ds), "-q"]);
     assert_eq!(dataset_crs(&ds)["wkt"], long.as_str());

@@ -98,7 +98,7 @@ pub fn export_copc(dataset: &Path, output: &Path, overwrite: bool) -> Result<u64
         .into_iter()
         .partition(|r| r.3.len() <= u16::MAX as usize);
     let crs = crs.into_iter().map(Some);
-    let vlrs: Vec<(&str, u16, &str, Vec<u8>)> = [
+    let vlrs: Vec<Vlr> = [
         Some(("copc", 1, "COPC info", vec![0u8; INFO_SIZE as usize])),
         Some(("laszip encoded", 22204, "laz variable chunks", laz_payload)),
         extra_payload.map(|d| ("LASF_Spec", 4, "Extra Bytes Record", d)),
@@ -181,7 +181,7 @@ fn write_points(
     records: &LasRecords,
     laz_vlr: laz::LazVlr,
     point_data: u64,
-    vlrs: &[(&str, u16, &str, Vec<u8>)],
+    vlrs: &[Vlr],
 ) -> Result<(File, Vec<Entry>, Totals)> {
     let io = |e: std::io::Error| ConvertError::io(part, "cannot write", e);
     let mut out = BufWriter::with_capacity(1 << 20, file);

@@ -1,6 +1,6 @@
-//! Phase 3: stream every input's rows into chunk files. Each of the `threads` workers takes
-//! the same part of every input and writes its own file per chunk, so a chunk's rows are its
-//! part files read in order: the input order, whatever the timing. A plan's tasks distribute
+//! Phase 3: stream every input's rows into chunk files. Each of `threads` parts is the same
+//! part of every input and writes its own file per chunk, so a chunk's rows are its part files
+//! read in order: the input order, whatever the timing or how many workers take the parts. A plan's tasks distribute
 //! in shares (`Share`): share s of n takes the s-th n-th of each worker's part and writes part
 //! files numbered so that, read in order, they are the same rows in the same order.
 
@@ -37,8 +37,11 @@ pub struct Distribution<'a> {
     pub lut: &'a [u32],
     pub chunk_count: usize,
     pub chunk_dir: &'a Path,
-    /// Bytes of row buffers, all workers together.
+    /// Bytes of row buffers, all workers together, where blocks of `MIN_BLOCK` a chunk allow.
     pub buffer_budget: u64,
+    /// Bytes the workers' row buffers may take at most (`distribute_room`): fewer work at once
+    /// where a block per chunk for each would take more.
+    pub room: u64,
     pub threads: usize,
     /// Byte of the classification in a row, where the rows have one: its points per code are
     /// counted on the way.
@@ -109,12 +112,16 @@ pub fn distribute(d: &Distribution, bar: &ProgressBar, memory: &RowBuffers) -> R
 const MIN_BLOCK: u64 = 16 << 10;
 
 /// Workers that distribute at once: one per part, or fewer where a block per chunk for each
-/// would not fit the buffer budget (one at least): parts are input ranges, not memory.
+/// would not fit the room (one at least): parts are input ranges, not memory.
 fn distribute_workers(d: &Distribution) -> usize {
-    let per_worker = d.chunk_count.max(1) as u64 * MIN_BLOCK;
-    usize::try_from(d.buffer_budget / per_worker)
+    workers_for_blocks(d.room, d.chunk_count, d.threads)
+}
+
+fn workers_for_blocks(room: u64, chunks: usize, threads: usize) -> usize {
+    let per_worker = chunks.max(1) as u64 * MIN_BLOCK;
+    usize::try_from(room / per_worker)
         .unwrap_or(usize::MAX)
-        .clamp(1, d.threads.max(1))
+        .clamp(1, threads.max(1))
 }
 
 /// The workers' row buffers, one per chunk, kept from one distribution to the next: a task
@@ -215,6 +222,11 @@ fn distribute_part(
                     classes[c as usize] += 1;
                 }
                 let buf = &mut buffers[chunk];
+                // Sized once to the block, not grown by doubling past it: the worker count
+                // counts a block a chunk.
+                if buf.capacity() == 0 {
+                    buf.reserve_exact(per_chunk + d.stride);
+                }
                 buf.extend_from_slice(row);
                 if buf.len() >= per_chunk {
                     flush(
@@ -242,7 +254,18 @@ fn distribute_part(
 
 #[cfg(test)]
 mod tests {
-    use super::Share;
+    use super::{MIN_BLOCK, Share, workers_for_blocks};
+
+    /// A block a chunk for every worker within the room; all threads where it holds them (a
+    /// large input at the default limit: 2,200 chunks), one at least.
+    #[test]
+    fn workers_take_a_block_a_chunk_within_the_room() {
+        let room = crate::prepare::distribute_room(2 << 30);
+        assert_eq!(workers_for_blocks(room, 2200, 16), 16);
+        let few = workers_for_blocks(room, 50_000, 16);
+        assert!(few < 16 && few as u64 * 50_000 * MIN_BLOCK <= room, "{few}");
+        assert_eq!(workers_for_blocks(1 << 20, 50_000, 16), 1);
+    }
 
     /// A worker's records of every input, its shares in order: each record once, in order.
     #[test]

@@ -262,8 +262,8 @@ fn workers_for(ix: &Indexing, chunks: Range<usize>) -> Result<usize> {
         let (rows, i) = widest;
         ConvertError::Usage(format!(
             "the {rows} points within {} of chunk {i} {}, which its normals are estimated from, \
-             take {} MiB with the chunk's own, more than the {} MiB --memory-limit {} MiB leaves \
-             for indexing; give a smaller --normal-radius or a larger --memory-limit",
+             take {} MiB with the largest chunk's own, more than the {} MiB --memory-limit {} MiB \
+             leaves for indexing; give a smaller --normal-radius or a larger --memory-limit",
             ix.halos.margin(),
             chunk_place(ix.plan, i),
             need.div_ceil(1 << 20),

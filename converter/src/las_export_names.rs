@@ -43,8 +43,14 @@ fn key(name: &str) -> String {
 /// The attributes renamed for a LAS or COPC export, each with its new name (`attributes` keep
 /// theirs). A standard field's own name is left: it is written as that field.
 pub fn las_export_renames(attributes: &[Attribute]) -> Vec<(usize, String)> {
-    let (standard, _, _) = las_fields(10, &[]);
-    let own: Vec<&str> = standard.iter().map(|a| a.name.as_str()).collect();
+    // The legacy formats' fields (scan_angle_rank) and the extended ones'.
+    let (legacy, _, _) = las_fields(5, &[]);
+    let (extended, _, _) = las_fields(10, &[]);
+    let own: Vec<&str> = legacy
+        .iter()
+        .chain(&extended)
+        .map(|a| a.name.as_str())
+        .collect();
     let read_as: Vec<String> = own.iter().copied().chain(READER_NAMES).map(key).collect();
     let mut names: Vec<String> = attributes.iter().map(|a| a.name.clone()).collect();
     let mut renames = Vec::new();
@@ -69,7 +75,16 @@ mod tests {
 
     #[test]
     fn names_readers_take_for_standard_fields_are_renamed() {
-        let attrs: Vec<Attribute> = ["intensity", "X", "GpsTime", "extra_X", "Red", "height"]
+        let names = [
+            "intensity",
+            "X",
+            "GpsTime",
+            "extra_X",
+            "Red",
+            "height",
+            "ScanAngleRank",
+        ];
+        let attrs: Vec<Attribute> = names
             .iter()
             .map(|n| Attribute::new(n, AttrType::F32, 1))
             .collect();
@@ -78,7 +93,8 @@ mod tests {
             vec![
                 (1, "extra_X_2".to_string()),
                 (2, "extra_GpsTime".to_string()),
-                (4, "extra_Red".to_string())
+                (4, "extra_Red".to_string()),
+                (6, "extra_ScanAngleRank".to_string())
             ]
         );
     }

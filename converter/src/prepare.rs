@@ -120,6 +120,7 @@ pub fn prepare(
                 chunk_count: plan.chunks.len(),
                 chunk_dir: &wd.chunks(),
                 buffer_budget: distribute_budget(opts.memory_limit),
+                room: distribute_room(opts.memory_limit),
                 threads,
                 class_at,
                 share: Share::WHOLE,
@@ -136,6 +137,12 @@ pub fn prepare(
 /// Bytes of row buffers the distribution may hold, all workers together.
 pub fn distribute_budget(memory_limit: u64) -> u64 {
     (memory_limit / 6).min(256 << 20)
+}
+
+/// What the distribution's row buffers may take at most: the distribution runs alone, in half
+/// of what the limit leaves (the batches read and the rest take the other half).
+pub fn distribute_room(memory_limit: u64) -> u64 {
+    crate::plan::index_room(memory_limit) / 2
 }
 
 /// The plan's points per classification code, from the distribution's counts (none where the

@@ -144,15 +144,18 @@ fn read_head(r: &mut impl Read, path: &Path, at: u64) -> Result<Option<BlockHead
 /// Rows in the file at `path`, from its blocks' headers alone (no file, no rows): what a
 /// chunk's halo will hold, known before it is read.
 pub fn count_rows(path: &Path, stride: usize) -> Result<u64> {
-    let Some(mut r) = open_blocks(path)? else {
-        return Ok(0);
+    // Unbuffered: a buffer would read the blocks too, which is all a band holds.
+    let mut file = match File::open(path) {
+        Ok(f) => f,
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => return Ok(0),
+        Err(e) => return Err(ConvertError::io(path, "cannot open", e)),
     };
     let (mut rows, mut at) = (0u64, 0u64);
-    while let Some(b) = read_head(&mut r, path, at)? {
+    while let Some(b) = read_head(&mut file, path, at)? {
         rows += (b.raw / stride.max(1)) as u64;
-        r.seek_relative(b.len as i64)
-            .map_err(io_err(path, "cannot read"))?;
         at += (HEADER + b.len) as u64;
+        file.seek(SeekFrom::Start(at))
+            .map_err(io_err(path, "cannot read"))?;
     }
     Ok(rows)
 }

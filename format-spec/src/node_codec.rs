@@ -173,6 +173,8 @@ pub fn decode_node(
             ));
         }
     };
+    // Only a payload that truly decodes to this much gets here; an allocation the system
+    // refuses outright is still an error, not an abort (one it overcommits is not caught).
     let mut bytes = Vec::new();
     bytes.try_reserve_exact(expected).map_err(|_| {
         NodeDecodeError::Decompress(format!(

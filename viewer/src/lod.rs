@@ -26,11 +26,15 @@ impl Tree {
     /// The tree of `ds` as its root page describes it; an error where that page refers to
     /// itself.
     pub fn of(ds: &StreamDataset) -> Result<Tree, ViewerError> {
+        Tree::with_root(ds.root_hierarchy_page(), ds.root_page())
+            .map_err(|what| ViewerError::source(ds.location(), what))
+    }
+
+    /// The tree of a root page `page`, which lies at `at`.
+    fn with_root(page: &HierarchyPage, at: PageRef) -> Result<Tree, String> {
         let mut tree = Tree::default();
-        let root = ds.root_page();
-        tree.page_owners.insert(root.offset, root.root);
-        tree.add_page(ds.root_hierarchy_page())
-            .map_err(|what| ViewerError::source(ds.location(), what))?;
+        tree.page_owners.insert(at.offset, at.root);
+        tree.add_page(page)?;
         Ok(tree)
     }
 
@@ -386,6 +390,16 @@ mod tests {
             tree.add_page(&page(first, [32, 200])).is_err(),
             "a page leading back"
         );
+        // A root page whose proxies lead back to it (every one of a forged root page did).
+        let at = |offset| PageRef {
+            root: NodeKey::ROOT,
+            offset,
+            size: 64,
+            checksum: None,
+        };
+        let looping = page(NodeKey::ROOT, [100, 32]);
+        assert!(Tree::with_root(&looping, at(32)).is_err_and(|e| e.contains("byte 32")));
+        assert!(Tree::with_root(&looping, at(500)).is_ok());
         assert!(tree.unloaded_page(first.child(1)).is_some());
         let sound = page(first.child(1), [300, 400]);
         assert_eq!(tree.add_page(&sound), Ok(()));

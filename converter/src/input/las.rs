@@ -43,7 +43,7 @@ impl LasSource {
             raw.check_uncompressed_records().map_err(bad)?;
             None
         };
-        let records = raw.records(&file).map_err(bad)?;
+        let (records, record_notes) = raw.records(&file).map_err(bad)?;
         let (compressed, format_number) = (raw.compressed, raw.format);
         // Everything the reader allocates or seeks by has been checked above; what still panics
         // inside it (for a LAZ it builds the `laz` decoder too, which sizes a buffer by the
@@ -78,6 +78,7 @@ impl LasSource {
             .map_err(|e| ConvertError::input(path, e))?;
         let mut warnings: Vec<String> = rename_clashes(format_number, &mut extra)
             .into_iter()
+            .chain(record_notes)
             .map(|w| format!("{}: {w}", path.display()))
             .collect();
         let (mut attributes, ops, std_len) = las_fields(format_number, &extra);

@@ -291,19 +291,29 @@ impl LasHeader {
     /// Every VLR and EVLR the header lists, with the payloads of those the converter reads
     /// (the extra bytes' descriptions, the coordinate reference system); others by their ids
     /// alone. The las crate keeps only the first EVLR: a file stating its extra bytes or its
-    /// CRS in a later one (a COPC file's follow its hierarchy's) lost them.
-    pub fn records(&self, file: &File) -> Result<Vec<las::Vlr>, String> {
+    /// CRS in a later one (a COPC file's follow its hierarchy's) lost them. A CRS record
+    /// larger than any is left out, said in the notes; an extra-bytes one is an error (the
+    /// points cannot be read without it).
+    pub fn records(&self, file: &File) -> Result<(Vec<las::Vlr>, Vec<String>), String> {
         const MOST: u64 = 16 << 20;
-        let mut out = Vec::with_capacity(self.vlrs.len());
+        let (mut out, mut notes) = (Vec::with_capacity(self.vlrs.len()), Vec::new());
         for v in &self.vlrs {
-            let read = v.is("LASF_Spec", 4) || v.user_id == "LASF_Projection";
-            if read && v.data_len > MOST {
-                return Err(format!(
-                    "record {} of {:?} (at byte {}) is {} bytes long, more than any such record ({MOST} at most)",
-                    v.record_id, v.user_id, v.data_at, v.data_len
+            let extra_bytes = v.is("LASF_Spec", 4);
+            let crs = v.user_id == "LASF_Projection";
+            let too_long = format!(
+                "record {} of {:?} (at byte {}) is {} bytes long, more than any such record ({MOST} at most)",
+                v.record_id, v.user_id, v.data_at, v.data_len
+            );
+            if (extra_bytes || crs) && v.data_len > MOST {
+                if extra_bytes {
+                    return Err(too_long);
+                }
+                notes.push(format!(
+                    "{too_long}: its coordinate reference system is not read"
                 ));
+                continue;
             }
-            let data = match read {
+            let data = match extra_bytes || crs {
                 true => read_at(file, v.data_at, v.data_len as usize)?,
                 false => Vec::new(),
             };
@@ -314,7 +324,7 @@ impl LasHeader {
                 data,
             });
         }
-        Ok(out)
+        Ok((out, notes))
     }
 
     pub fn find(&self, user_id: &str, record_id: u16) -> Option<&Vlr> {

@@ -21,7 +21,7 @@ use super::{TaskPlan, plan_file};
 use crate::distribute::{ClassCounts, Distribution, RowBuffers, Share, distribute};
 use crate::error::{ConvertError, Result, io_err};
 use crate::plan::chunk_lut;
-use crate::prepare::distribute_budget;
+use crate::prepare::{distribute_budget, distribute_room};
 use crate::workdir::SharedChunks;
 use indicatif::ProgressBar;
 use serde::{Deserialize, Serialize};
@@ -169,6 +169,7 @@ fn distribute_share(
             chunk_count: plan.chunks.len(),
             chunk_dir: &tmp,
             buffer_budget: distribute_budget(tp.memory_limit),
+            room: distribute_room(tp.memory_limit),
             threads: tp.threads.max(1),
             class_at: tp.class_at,
             share: Share {
