@@ -1,8 +1,9 @@
 //! Phase 3: stream every input's rows into chunk files. Each of `threads` parts is the same
 //! part of every input and writes its own file per chunk, so a chunk's rows are its part files
-//! read in order: the input order, whatever the timing or how many workers take the parts. A plan's tasks distribute
-//! in shares (`Share`): share s of n takes the s-th n-th of each worker's part and writes part
-//! files numbered so that, read in order, they are the same rows in the same order.
+//! read in order: the input order, whatever the timing or how many workers take the parts. A
+//! plan's tasks distribute in shares (`Share`): share s of n takes the s-th n-th of each part
+//! and writes part files numbered so that, read in order, they are the same rows in the same
+//! order.
 
 use crate::error::{ConvertError, Result, panic_message, spawn_worker};
 use crate::plan::{grid_cell_checked, grid_shape};
