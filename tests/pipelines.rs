@@ -373,7 +373,7 @@ fn a_frame_larger_than_the_adapter_holds_is_an_error_and_the_fitted_size_renders
     };
     let (w, h) = (8192, 6144);
     let camera = default_camera(&ds, w, h);
-    let (fw, fh) = r.fit_size(settings.pipeline, w, h);
+    let (fw, fh) = r.fit_size(&settings, w, h);
     if (fw, fh) == (w, h) {
         eprintln!("this adapter holds {w}x{h}; nothing to fit");
         return;
@@ -391,6 +391,17 @@ fn a_frame_larger_than_the_adapter_holds_is_an_error_and_the_fitted_size_renders
     assert_eq!(r.read_image().expect("image").0, fw);
     // The renderer goes on after the refusal: the frame drew the scan.
     assert!(stats.frame > 1);
+    // A pipeline drawn with a guard band fits with its band: its fitted size is smaller, and
+    // holds where a pixel more does not.
+    let banded = Settings {
+        pipeline: find("triangulate").expect("registered"),
+        ..Settings::default()
+    };
+    let (bw, bh) = r.fit_size(&banded, w, h);
+    assert!(bw < fw && bh < fh, "{bw}x{bh} against {fw}x{fh}");
+    r.check_size(&banded, bw, bh).expect("the fitted size fits");
+    r.check_size(&banded, bw + 2, bh + 2)
+        .expect_err("a larger size does not");
 }
 
 #[test]

@@ -22,6 +22,8 @@ mod filters;
 mod fly_through;
 #[path = "render/footprint.rs"]
 mod footprint;
+#[path = "render/guard_band.rs"]
+mod guard_band;
 #[path = "render/leaf_density.rs"]
 mod leaf_density;
 #[path = "render/near.rs"]

@@ -68,6 +68,7 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
                     "previous_frame": p.previous_frame,
                     "reads_colour_plane": p.reads_colour_plane,
                     "reads_planes": p.reads_planes,
+                    "guard_band": p.guard.describe(),
                 })
             })
             .collect();
@@ -87,6 +88,9 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
         println!("  passes: {}", p.passes.join(", "));
         if p.previous_frame {
             println!("  keeps the previous frame's view and depth");
+        }
+        if let Some(band) = p.guard.describe() {
+            println!("  {band}");
         }
         for s in p.params {
             println!("  --set {}=VALUE  {} ({})", s.name, s.help, s.describe());

@@ -134,7 +134,7 @@ pub fn render_with(
         opts.loader_threads,
     )?;
     // Before anything is loaded or drawn: a size the adapter cannot hold is refused at once.
-    renderer.check_size(opts.settings.pipeline, opts.width, opts.height)?;
+    renderer.check_size(&opts.settings, opts.width, opts.height)?;
     let open_ms = t0.elapsed().as_secs_f64() * 1e3;
     let mut report = RenderReport {
         dataset: ds.location(),
@@ -335,7 +335,7 @@ pub fn pick_all(
         ));
     }
     let mut renderer = Renderer::new(ctx, ds.clone(), opts.gpu_cache_bytes, opts.loader_threads)?;
-    renderer.check_size(opts.settings.pipeline, opts.width, opts.height)?;
+    renderer.check_size(&opts.settings, opts.width, opts.height)?;
     let start = Instant::now();
     loop {
         let stats = renderer.frame(&camera, opts.width, opts.height, &opts.settings)?;

@@ -411,7 +411,7 @@ impl ViewerApp {
         self.last_frame = now;
         // A window larger than the adapter holds renders at the largest size of its shape
         // that fits, scaled up to the window.
-        let (rw, rh) = self.renderer.fit_size(self.settings.pipeline, w, h);
+        let (rw, rh) = self.renderer.fit_size(&self.settings, w, h);
         self.reduced = ((rw, rh) != (w, h)).then_some((w, h, rw, rh));
         let (w, h) = (rw, rh);
         match self.renderer.frame(&self.camera, w, h, &self.settings) {

@@ -106,6 +106,37 @@ impl PointStream {
     }
 }
 
+/// How far a pipeline reaches beyond the view (`PipelineInfo::guard`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum GuardBand {
+    /// A pixel depends on its own point alone, or on neighbours a pixel or two off, whose
+    /// absence at the edge shows no band.
+    None,
+    /// A fixed number of pixels.
+    Px(u32),
+    /// The value of parameter `name` (pixels, or iterations that each reach a pixel further),
+    /// rounded up, plus `extra`.
+    Param { name: &'static str, extra: u32 },
+}
+
+impl GuardBand {
+    /// The widest band drawn, whatever the parameters ask.
+    pub const MAX_PX: u32 = 64;
+
+    /// The band in words, for `strata pipelines`; `None` without one.
+    pub fn describe(&self) -> Option<String> {
+        let what = match self {
+            GuardBand::None => return None,
+            GuardBand::Px(px) => format!("{px} pixels"),
+            GuardBand::Param { name, extra } => format!("{name} + {extra} pixels"),
+        };
+        Some(format!(
+            "draws {what} beyond each edge of the view (at most {}), for what reaches into it",
+            GuardBand::MAX_PX
+        ))
+    }
+}
+
 /// What a pipeline declares; `strata pipelines` prints it.
 pub struct PipelineInfo {
     pub name: &'static str,
@@ -133,6 +164,9 @@ pub struct PipelineInfo {
     /// The buffers its `make_targets` creates for a `width` x `height` screen, for the check
     /// against the adapter's limits before anything is created or compiled.
     pub screen_buffers: fn(width: u32, height: u32) -> Vec<ScreenBuffer>,
+    /// How far, in pixels, what it draws at a pixel reaches from points outside the view:
+    /// the frame is drawn that much wider on every side and the view cut out of it.
+    pub guard: GuardBand,
     /// Compiles its GPU passes.
     pub create: fn(&GpuContext) -> Result<Box<dyn Pipeline>, ViewerError>,
     /// Every shader module it compiles, composed as it compiles them (for validation without
@@ -144,13 +178,32 @@ impl PipelineInfo {
     /// Frames of one view a still image waits for: a pipeline that keeps the previous frame
     /// converges over frames and declares how many in its parameter `warmup`.
     pub fn warmup_frames(&self, values: &params::ParamValues) -> u32 {
-        match self.params.iter().find(|p| p.name == "warmup") {
-            Some(spec) if self.previous_frame => match values.get(self, spec) {
-                params::ParamValue::Value(v) => v as u32,
-                params::ParamValue::Auto => spec.default as u32,
-            },
-            _ => 0,
+        match self.previous_frame {
+            true => self.set_or_default(values, "warmup").unwrap_or(0.0) as u32,
+            false => 0,
         }
+    }
+
+    /// Pixels of the guard band around the view (`GuardBand`), at most `GuardBand::MAX_PX`.
+    pub fn guard_px(&self, values: &params::ParamValues) -> u32 {
+        let px = match self.guard {
+            GuardBand::None => 0,
+            GuardBand::Px(px) => px,
+            GuardBand::Param { name, extra } => {
+                self.set_or_default(values, name).unwrap_or(0.0).ceil() as u32 + extra
+            }
+        };
+        px.min(GuardBand::MAX_PX)
+    }
+
+    /// The value `values` give parameter `name`, its default where automatic; `None` where
+    /// the pipeline has no such parameter.
+    fn set_or_default(&self, values: &params::ParamValues, name: &str) -> Option<f32> {
+        let spec = self.params.iter().find(|p| p.name == name)?;
+        Some(match values.get(self, spec) {
+            params::ParamValue::Value(v) => v,
+            params::ParamValue::Auto => spec.default,
+        })
     }
 
     /// The parameter `name`; the error lists the ones there are.

@@ -2,7 +2,7 @@
 //! uniforms (filters and clip boxes among them), then the projection and the pipeline's passes
 //! inside one error scope.
 
-use super::Renderer;
+use super::{Guard, Renderer};
 use crate::ViewerError;
 use crate::camera::Camera;
 use crate::dataset::sampling::covering_radius;
@@ -17,18 +17,20 @@ use std::collections::{BTreeMap, HashMap, HashSet};
 use strata_format::NodeKey;
 
 impl Renderer {
-    /// Makes the screen and the active pipeline's buffers for this size and pipeline.
+    /// Makes the screen and the active pipeline's buffers for this size, guard band and
+    /// pipeline.
     fn prepare_screen(
         &mut self,
         info: &'static PipelineInfo,
-        width: u32,
-        height: u32,
+        guard: Guard,
     ) -> Result<(), ViewerError> {
-        self.check_size(info, width, height)?;
-        let resized = self
-            .screen
-            .as_ref()
-            .is_none_or(|s| s.width != width || s.height != height);
+        self.check_guarded(info, guard)?;
+        let (width, height) = guard.padded();
+        let resized = self.guard != guard
+            || self
+                .screen
+                .as_ref()
+                .is_none_or(|s| s.width != width || s.height != height);
         let switched = self.active != Some(info.name);
         if resized || switched {
             // Free what the old pipeline made before making anything new: both at once may not
@@ -46,12 +48,20 @@ impl Renderer {
             .as_ref()
             .is_some_and(|s| s.previous_depths.is_some() != info.previous_frame);
         if resized || previous_mismatch {
-            self.screen = None;
+            (self.screen, self.shown) = (None, None);
             let (ctx, projection) = (&self.ctx, &self.projection);
-            let screen = ctx.scoped(&format!("making a {width}x{height} screen"), || {
-                projection.screen(&ctx.device, &ctx.queue, width, height, info.previous_frame)
-            })?;
-            self.screen = Some(screen);
+            let (screen, shown) =
+                ctx.scoped(&format!("making a {width}x{height} screen"), || {
+                    let screen = projection.screen(
+                        &ctx.device,
+                        &ctx.queue,
+                        width,
+                        height,
+                        info.previous_frame,
+                    );
+                    (screen, guard.shown_texture(&ctx.device))
+                })?;
+            (self.screen, self.shown, self.guard) = (Some(screen), shown, guard);
         }
         if self.active != Some(info.name) {
             let (Some(screen), Some(p)) = (&self.screen, self.pipelines.get_mut(info.name)) else {
@@ -119,14 +129,14 @@ impl Renderer {
     pub(super) fn draw(
         &mut self,
         camera: &Camera,
-        width: u32,
-        height: u32,
+        guard: Guard,
         settings: &Settings,
         (sel, extra): (&Selection, Option<&Selection>),
         params: &ResolvedParams,
     ) -> Result<Option<(bool, NormalSides)>, ViewerError> {
         let info = settings.pipeline;
-        self.prepare_screen(info, width, height)?;
+        self.prepare_screen(info, guard)?;
+        let (width, height) = guard.padded();
         let draws = self.arena_draws(&sel.draw);
         // The extra view's nodes beside the drawn ones, each once.
         let casters = match extra {
@@ -216,13 +226,14 @@ impl Renderer {
         let normals_outward = self.ds.normals_face_outward() && sides.mark_sides();
         let marks_back_faces = self.ds.normals_mark_back_faces() && sides.mark_sides();
         let cull = info.cull_back_faces && marks_back_faces && with_normals;
-        let (ctx, projection, cache, timer, count, facing) = (
+        let (ctx, projection, cache, timer, count, facing, shown) = (
             &self.ctx,
             &self.projection,
             &self.cache,
             &mut self.timer,
             &mut self.drawn_count,
             &mut self.facing,
+            &self.shown,
         );
         let int64 = screen.keys.is_some() && !settings.force_int32;
         // Until this frame is drawn, no colour plane is known to be this frame's.
@@ -280,6 +291,9 @@ impl Renderer {
             }
             if info.previous_frame {
                 screen.keep_depths(&mut encoder, pipeline.kept_depth());
+            }
+            if let Some(shown) = shown {
+                guard.copy_shown(&mut encoder, &screen.output, shown);
             }
             timer.resolve(&mut encoder);
             ctx.queue.submit([encoder.finish()]);

@@ -13,15 +13,19 @@ use crate::lod::{ClipRegion, Selection, SelectionParams, Tree, drawn_spacing, se
 use crate::marks::Marks;
 use crate::pipelines::params::ResolvedParams;
 use crate::pipelines::projection::{DrawnCount, FacingCheck};
-use crate::pipelines::projection::{Projection, Screen, check_screen, largest_fitting};
+use crate::pipelines::projection::{
+    Projection, Screen, ScreenLimitError, check_screen, largest_fitting,
+};
 use crate::pipelines::{self, Pipeline, PipelineInfo, ScreenBuffer};
 use crate::settings::Settings;
 use std::collections::{BTreeMap, HashMap, HashSet, VecDeque};
 
 mod draw;
+mod guard;
 mod readback;
 mod stats;
 
+use guard::Guard;
 pub use readback::SurfacePixel;
 pub use stats::FrameStats;
 use std::sync::Arc;
@@ -48,6 +52,10 @@ pub struct Renderer {
     /// The pipeline whose screen buffers exist.
     active: Option<&'static str>,
     screen: Option<Screen>,
+    /// The guard band the screen was made for, and the view cut out of its output where the
+    /// band is not empty.
+    guard: Guard,
+    shown: Option<wgpu::Texture>,
     timer: Timer,
     /// What the active pipeline measured, latest first arrived.
     measures: BTreeMap<&'static str, f32>,
@@ -71,6 +79,15 @@ pub struct Renderer {
     previous_view: Option<crate::pipelines::ViewFrame>,
     frame: u64,
     bytes_total: u64,
+}
+
+/// The guard band of a `width` x `height` view drawn with the settings' pipeline.
+fn guard_of(settings: &Settings, width: u32, height: u32) -> Guard {
+    Guard {
+        px: settings.pipeline.guard_px(&settings.params),
+        width: width.max(1),
+        height: height.max(1),
+    }
 }
 
 /// Pixels on a side of a pipeline's extra view, for its level of detail (the light map's
@@ -122,6 +139,8 @@ impl Renderer {
             pipelines: HashMap::new(),
             active: None,
             screen: None,
+            guard: Guard::default(),
+            shown: None,
             timer,
             measures: BTreeMap::new(),
             auto_wall_clock,
@@ -164,8 +183,11 @@ impl Renderer {
         &self.errors
     }
 
+    /// The last frame's image, the view without its guard band.
     pub fn output(&self) -> Option<&wgpu::Texture> {
-        self.screen.as_ref().map(|s| &s.output)
+        self.shown
+            .as_ref()
+            .or_else(|| self.screen.as_ref().map(|s| &s.output))
     }
 
     /// Blocks until a loader finishes something or `timeout` passes (headless use only).
@@ -228,36 +250,55 @@ impl Renderer {
         b
     }
 
-    /// Whether a `width` x `height` frame of `pipeline` fits the adapter, in one sentence
-    /// naming the size, the buffer and the limit where it does not.
+    /// Whether a `width` x `height` frame of the settings' pipeline fits the adapter, its
+    /// guard band included, in one sentence naming the size, the buffer and the limit where it
+    /// does not.
     pub fn check_size(
         &mut self,
-        pipeline: &'static PipelineInfo,
+        settings: &Settings,
         width: u32,
         height: u32,
     ) -> Result<(), ViewerError> {
+        self.check_guarded(settings.pipeline, guard_of(settings, width, height))
+    }
+
+    fn check_guarded(
+        &mut self,
+        pipeline: &'static PipelineInfo,
+        guard: Guard,
+    ) -> Result<(), ViewerError> {
         self.pipeline(pipeline)?;
         let limits = self.ctx.device.limits();
-        check_screen(
-            &limits,
-            width,
-            height,
-            &self.screen_buffers(pipeline, width, height),
-        )
-        .map_err(|e| {
-            let (w, h) = self.fit_size(pipeline, width, height);
+        let (w, h) = guard.padded();
+        check_screen(&limits, w, h, &self.screen_buffers(pipeline, w, h)).map_err(|e| {
+            let (fit_w, fit_h) = self.fit_guarded(pipeline, guard);
+            let e = ScreenLimitError {
+                width: guard.width,
+                height: guard.height,
+                ..e
+            };
             ViewerError::Gpu(format!(
-                "{e} on {}; the largest image of that shape it holds is {w}x{h}",
+                "{e} on {}; the largest image of that shape it holds is {fit_w}x{fit_h}",
                 self.ctx.adapter_name
             ))
         })
     }
 
-    /// The largest size of the shape of `width` x `height`, at most that, that a frame of
-    /// `pipeline` can have on this adapter (the window renders at that and scales up).
-    pub fn fit_size(&self, pipeline: &PipelineInfo, width: u32, height: u32) -> (u32, u32) {
+    /// The largest size of the shape of `width` x `height`, at most that, that a frame of the
+    /// settings' pipeline can have on this adapter (the window renders at that and scales up).
+    pub fn fit_size(&self, settings: &Settings, width: u32, height: u32) -> (u32, u32) {
+        self.fit_guarded(settings.pipeline, guard_of(settings, width, height))
+    }
+
+    fn fit_guarded(&self, pipeline: &PipelineInfo, guard: Guard) -> (u32, u32) {
         let limits = self.ctx.device.limits();
-        largest_fitting(width.max(1), height.max(1), |w, h| {
+        largest_fitting(guard.width, guard.height, |width, height| {
+            let (w, h) = Guard {
+                width,
+                height,
+                ..guard
+            }
+            .padded();
             check_screen(&limits, w, h, &self.screen_buffers(pipeline, w, h)).is_ok()
         })
     }
@@ -286,7 +327,10 @@ impl Renderer {
         }
         let start = Instant::now();
         self.frame += 1;
-        let (width, height) = (width.max(1), height.max(1));
+        // Everything below draws the padded frame; the view is cut out of it at the end.
+        let guard = guard_of(settings, width, height);
+        let (width, height) = guard.padded();
+        let camera = &guard.camera(camera);
         let mut bytes = 0u64;
         let finished: Vec<Done> = self.loader.finished().collect();
         for done in finished {
@@ -382,14 +426,7 @@ impl Renderer {
             self.counted_filter = settings.filter.clone();
             self.drawn_count.filters_changed();
         }
-        let facing = self.draw(
-            camera,
-            width,
-            height,
-            settings,
-            (&sel, extra.as_ref()),
-            &resolved,
-        )?;
+        let facing = self.draw(camera, guard, settings, (&sel, extra.as_ref()), &resolved)?;
         self.collect_readbacks();
         // Drawn with the check of its own view, and no verdict arrived since (one made for
         // another view, still in flight).

@@ -15,14 +15,14 @@ impl Renderer {
         self.timer.last().clone()
     }
 
-    /// Reads the output image back as tightly packed RGBA8 rows.
+    /// Reads the output image (the view, without its guard band) back as tightly packed
+    /// RGBA8 rows.
     pub fn read_image(&self) -> Result<(u32, u32, Vec<u8>), ViewerError> {
-        let screen = self
-            .screen
-            .as_ref()
+        let output = self
+            .output()
             .ok_or_else(|| ViewerError::Gpu("no frame has been rendered".into()))?;
-        let rgba = read_texture(&self.ctx, &screen.output, 4)?;
-        Ok((screen.width, screen.height, rgba))
+        let rgba = read_texture(&self.ctx, output, 4)?;
+        Ok((output.width(), output.height(), rgba))
     }
 
     /// What the pipeline of the last frame measured in it, waiting for the GPU.
@@ -33,9 +33,14 @@ impl Renderer {
         }
     }
 
-    /// The unlit colour of the surface the last frame shows, per pixel (`None`: background):
-    /// the pipeline's reconstructed colour, or the resolved colour plane of the projection.
+    /// The unlit colour of the surface the last frame shows, per pixel of the view
+    /// (`None`: background): the pipeline's reconstructed colour, or the resolved colour plane
+    /// of the projection.
     pub fn read_albedo(&self) -> Result<Vec<Option<[u8; 3]>>, ViewerError> {
+        self.guard.crop_plane(&self.read_padded_albedo()?, "albedo")
+    }
+
+    fn read_padded_albedo(&self) -> Result<Vec<Option<[u8; 3]>>, ViewerError> {
         let screen = self
             .screen
             .as_ref()
@@ -73,11 +78,12 @@ impl Renderer {
             .collect())
     }
 
-    /// The stored point nearest pixel `(x, y)` of the last frame, within `radius` pixels: read
-    /// from its node with every attribute in full precision. Where the pipeline reconstructs a
-    /// surface, a point of the surface it shows (`ShownSurface`). `None` where only background
-    /// lies within reach.
+    /// The stored point nearest pixel `(x, y)` of the last frame's view, within `radius` pixels
+    /// of it and in the view (not in its guard band): read from its node with every attribute
+    /// in full precision. Where the pipeline reconstructs a surface, a point of the surface it
+    /// shows (`ShownSurface`). `None` where only background lies within reach.
     pub fn pick(&self, x: u32, y: u32, radius: u32) -> Result<Option<PickedPoint>, ViewerError> {
+        let (x, y) = self.guard.padded_pixel((x, y));
         let screen = self
             .screen
             .as_ref()
@@ -112,11 +118,19 @@ impl Renderer {
             };
             shown.hide_points_behind(&mut planes, (x, y), radius);
         }
+        // What the guard band holds is not in the picture.
+        for (i, p) in planes.iter_mut().enumerate() {
+            let i = i as u32;
+            if !self.guard.in_view((i % screen.width, i / screen.width)) {
+                *p = None;
+            }
+        }
         let Some((pixel, depth, global)) =
             nearest_drawn(&planes, screen.width, screen.height, (x, y), radius)
         else {
             return Ok(None);
         };
+        let pixel = [pixel[0] - self.guard.px, pixel[1] - self.guard.px];
         let shift = self.cache.arena_shift;
         let (arena, local) = (global >> shift, global & ((1 << shift) - 1));
         let missing = || {
@@ -133,7 +147,8 @@ impl Renderer {
         Ok(Some(point))
     }
 
-    /// Linear depth per pixel (`None` where nothing was drawn), for picking and tests.
+    /// Linear depth per pixel of the view (`None` where nothing was drawn), for picking and
+    /// tests.
     pub fn read_depths(&self) -> Result<Vec<Option<f32>>, ViewerError> {
         Ok(self
             .read_surface()?
@@ -150,9 +165,15 @@ impl Renderer {
             .transpose()
     }
 
-    /// The surface the last frame shows, per pixel: its linear depth, and its view-space normal
-    /// where the pipeline reconstructs one. `None` where the frame shows background.
+    /// The surface the last frame shows, per pixel of the view: its linear depth, and its
+    /// view-space normal where the pipeline reconstructs one. `None` where the frame shows
+    /// background.
     pub fn read_surface(&self) -> Result<Vec<Option<SurfacePixel>>, ViewerError> {
+        self.guard
+            .crop_plane(&self.read_padded_surface()?, "surface")
+    }
+
+    fn read_padded_surface(&self) -> Result<Vec<Option<SurfacePixel>>, ViewerError> {
         let screen = self
             .screen
             .as_ref()

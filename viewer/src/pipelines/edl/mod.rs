@@ -5,7 +5,7 @@
 use super::params::{ParamSpec, ResolvedParams, Scale};
 use super::pixel_shading::PixelShading;
 use super::projection::FrameUniforms;
-use super::{Lighting, PipelineInfo};
+use super::{GuardBand, Lighting, PipelineInfo};
 
 /// `edl_factor(id, d)`: the darkening of a drawn pixel; needs `pixel_depth(i)` from the pass.
 pub const EDL_WGSL: &str = include_str!("edl.wgsl");
@@ -51,6 +51,7 @@ pub static INFO: PipelineInfo = PipelineInfo {
     reads_colour_plane: true,
     reads_planes: true,
     screen_buffers: super::no_screen_buffers,
+    guard: GuardBand::None,
     create: |ctx| Ok(SHADING.create(ctx)),
     shaders: |int64| SHADING.shaders(int64),
 };

@@ -14,7 +14,8 @@ mod targets;
 use super::params::{Auto, ParamSpec, ResolvedParams, Scale};
 use super::shadows::{self, LIT_STREAM, param};
 use super::{
-    AlbedoResult, Lighting, Pipeline, PipelineFrame, PipelineInfo, PointStream, ViewFrame,
+    AlbedoResult, GuardBand, Lighting, Pipeline, PipelineFrame, PipelineInfo, PointStream,
+    ViewFrame,
 };
 use crate::ViewerError;
 use crate::gpu::GpuContext;
@@ -161,6 +162,10 @@ pub static INFO: PipelineInfo = PipelineInfo {
     reads_colour_plane: false,
     reads_planes: false,
     screen_buffers: FiltersTargets::screen_buffers,
+    guard: GuardBand::Param {
+        name: "fill_iterations",
+        extra: 2,
+    },
     create,
     shaders: |int64| {
         let mut all = passes::shaders(int64);

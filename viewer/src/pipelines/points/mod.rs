@@ -2,7 +2,7 @@
 //! by the point spacing). The baseline every chart compares against.
 
 use super::pixel_shading::PixelShading;
-use super::{Lighting, PipelineInfo};
+use super::{GuardBand, Lighting, PipelineInfo};
 
 static SHADING: PixelShading = PixelShading {
     info: &INFO,
@@ -25,6 +25,7 @@ pub static INFO: PipelineInfo = PipelineInfo {
     reads_colour_plane: true,
     reads_planes: true,
     screen_buffers: super::no_screen_buffers,
+    guard: GuardBand::None,
     create: |ctx| Ok(SHADING.create(ctx)),
     shaders: |int64| SHADING.shaders(int64),
 };

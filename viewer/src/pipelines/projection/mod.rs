@@ -10,7 +10,9 @@ mod screen;
 
 pub use count::DrawnCount;
 pub use facing::{FacingCheck, NormalSides};
-pub use screen::{Screen, ScreenLimitError, check_screen, largest_fitting, plane_buffer};
+pub use screen::{
+    Screen, ScreenLimitError, check_screen, image_texture, largest_fitting, plane_buffer,
+};
 
 use super::ScreenBuffer;
 use super::shader::ShaderSource;

@@ -68,22 +68,12 @@ impl Screen {
             depths: buffer("depths", pixels * 4),
             indices: buffer("indices", pixels * 4),
             colours: buffer("colours", pixels * 4),
-            output: device.create_texture(&wgpu::TextureDescriptor {
-                label: Some("output"),
-                size: wgpu::Extent3d {
-                    width,
-                    height,
-                    depth_or_array_layers: 1,
-                },
-                mip_level_count: 1,
-                sample_count: 1,
-                dimension: wgpu::TextureDimension::D2,
-                format: OUTPUT_FORMAT,
-                usage: wgpu::TextureUsages::STORAGE_BINDING
-                    | wgpu::TextureUsages::TEXTURE_BINDING
-                    | wgpu::TextureUsages::COPY_SRC,
-                view_formats: &[],
-            }),
+            output: image_texture(
+                device,
+                "output",
+                (width, height),
+                wgpu::TextureUsages::STORAGE_BINDING,
+            ),
             uniforms: device.create_buffer(&wgpu::BufferDescriptor {
                 label: Some("frame uniforms"),
                 size: std::mem::size_of::<super::FrameUniforms>() as u64,
@@ -113,6 +103,30 @@ impl Screen {
             encoder.copy_buffer_to_buffer(source, 0, prev, 0, self.depths.size());
         }
     }
+}
+
+/// An image of the output's format, `width` x `height`, that the window can show and a
+/// readback or copy can take from, with `usage` besides.
+pub fn image_texture(
+    device: &wgpu::Device,
+    label: &str,
+    (width, height): (u32, u32),
+    usage: wgpu::TextureUsages,
+) -> wgpu::Texture {
+    device.create_texture(&wgpu::TextureDescriptor {
+        label: Some(label),
+        size: wgpu::Extent3d {
+            width,
+            height,
+            depth_or_array_layers: 1,
+        },
+        mip_level_count: 1,
+        sample_count: 1,
+        dimension: wgpu::TextureDimension::D2,
+        format: OUTPUT_FORMAT,
+        usage: usage | wgpu::TextureUsages::TEXTURE_BINDING | wgpu::TextureUsages::COPY_SRC,
+        view_formats: &[],
+    })
 }
 
 /// A per-pixel buffer that passes read and write and that can be cleared and read back.

@@ -17,7 +17,9 @@ pub use uniforms::{
 use super::params::{Auto, ParamSpec, ResolvedParams, Scale};
 use super::projection::FrameUniforms;
 use super::shadows::{self, DTILDE_SPACINGS};
-use super::{AlbedoResult, Lighting, Pipeline, PipelineFrame, PipelineInfo, PointStream, edl};
+use super::{
+    AlbedoResult, GuardBand, Lighting, Pipeline, PipelineFrame, PipelineInfo, PointStream, edl,
+};
 use crate::ViewerError;
 use crate::gpu::GpuContext;
 use crate::gpu::async_readback::AsyncReadback;
@@ -26,6 +28,11 @@ use crate::gpu::timing::Timer;
 use crate::renderer::SurfacePixel;
 use passes::{PyramidInputs, PyramidPasses, PyramidTargets};
 use std::collections::BTreeMap;
+
+/// The guard band of the pyramid: a hole's pixels take the pull-push's coarse levels and the
+/// hidden-point removal's rings up to 16 pixels off (level 4), which cover the holes of a
+/// surface whose points lie up to 16 pixels apart; sparser than that, the image is holes.
+const PYRAMID_GUARD_PX: u32 = 16;
 
 pub static INFO: PipelineInfo = PipelineInfo {
     name: "pyramid",
@@ -55,6 +62,7 @@ pub static INFO: PipelineInfo = PipelineInfo {
     reads_colour_plane: true,
     reads_planes: true,
     screen_buffers: PyramidPasses::screen_buffers,
+    guard: GuardBand::Px(PYRAMID_GUARD_PX),
     create,
     shaders: |_| {
         let mut all = passes::shaders();

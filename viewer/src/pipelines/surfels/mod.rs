@@ -12,7 +12,9 @@
 mod passes;
 
 use super::params::{ParamSpec, ResolvedParams, Scale};
-use super::{AlbedoResult, Lighting, Pipeline, PipelineFrame, PipelineInfo, PointStream};
+use super::{
+    AlbedoResult, GuardBand, Lighting, Pipeline, PipelineFrame, PipelineInfo, PointStream,
+};
 use crate::ViewerError;
 use crate::gpu::GpuContext;
 use crate::gpu::timing::Timer;
@@ -117,6 +119,7 @@ pub static INFO: PipelineInfo = PipelineInfo {
     reads_colour_plane: false,
     reads_planes: false,
     screen_buffers: SurfelPasses::screen_buffers,
+    guard: GuardBand::None,
     create,
     shaders: |_| passes::shaders(passes::DEFAULT_SIDES),
 };

@@ -22,7 +22,8 @@ mod targets;
 use super::params::{Auto, ParamSpec, ResolvedParams, Scale};
 use super::projection::FrameUniforms;
 use super::{
-    AlbedoResult, Lighting, Pipeline, PipelineFrame, PipelineInfo, PointStream, ViewFrame,
+    AlbedoResult, GuardBand, Lighting, Pipeline, PipelineFrame, PipelineInfo, PointStream,
+    ViewFrame,
 };
 use crate::ViewerError;
 use crate::gpu::GpuContext;
@@ -111,6 +112,10 @@ pub static INFO: PipelineInfo = PipelineInfo {
     reads_colour_plane: true,
     reads_planes: true,
     screen_buffers: TriangulateTargets::screen_buffers,
+    guard: GuardBand::Param {
+        name: "max_search_px",
+        extra: 1,
+    },
     create,
     shaders: passes::shaders,
 };
