@@ -391,16 +391,24 @@ fn a_frame_larger_than_the_adapter_holds_is_an_error_and_the_fitted_size_renders
     assert_eq!(r.read_image().expect("image").0, fw);
     // The renderer goes on after the refusal: the frame drew the scan.
     assert!(stats.frame > 1);
-    // A pipeline drawn with a guard band fits with its band: its fitted size is smaller, and
-    // holds where a pixel more does not.
-    let banded = Settings {
-        pipeline: find("triangulate").expect("registered"),
-        ..Settings::default()
+    // A pipeline drawn with a guard band fits with its band: the wider its band, the smaller
+    // the view that fits, and the fitted size holds where a pixel more does not.
+    let banded = |search_px: &str| {
+        let mut s = Settings {
+            pipeline: find("triangulate").expect("registered"),
+            ..Settings::default()
+        };
+        s.params
+            .set_text(s.pipeline, "max_search_px", search_px)
+            .expect("a value in range");
+        s
     };
-    let (bw, bh) = r.fit_size(&banded, w, h);
-    assert!(bw < fw && bh < fh, "{bw}x{bh} against {fw}x{fh}");
-    r.check_size(&banded, bw, bh).expect("the fitted size fits");
-    r.check_size(&banded, bw + 2, bh + 2)
+    let (narrow, wide) = (banded("1"), banded("47"));
+    let (nw, nh) = r.fit_size(&narrow, w, h);
+    let (bw, bh) = r.fit_size(&wide, w, h);
+    assert!(bw < nw && bh < nh, "{bw}x{bh} against {nw}x{nh}");
+    r.check_size(&wide, bw, bh).expect("the fitted size fits");
+    r.check_size(&wide, bw + 2, bh + 2)
         .expect_err("a larger size does not");
 }
 

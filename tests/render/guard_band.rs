@@ -4,7 +4,7 @@
 use super::near::{converted_points, rendered_320x240};
 use super::*;
 
-/// A 4 x 4 grid of points 3 cm apart, and a view of it from 1 above that the grid fills, its
+/// A grid of points 3 cm apart over 4 x 4 m, and a view of it from 1 above that it fills, its
 /// points 3 to 6 pixels apart on the screen; converted once for the tests here.
 fn filled_view() -> (&'static Path, &'static str) {
     static DATASET: OnceLock<PathBuf> = OnceLock::new();

@@ -17,9 +17,16 @@ pub struct Guard {
 }
 
 impl Guard {
-    /// The size of the drawn frame.
+    /// The size of the drawn frame (an empty view stays empty, for the size check to refuse).
     pub fn padded(&self) -> (u32, u32) {
-        (self.width + 2 * self.px, self.height + 2 * self.px)
+        if self.width == 0 || self.height == 0 {
+            return (self.width, self.height);
+        }
+        let band = self.px.saturating_mul(2);
+        (
+            self.width.saturating_add(band),
+            self.height.saturating_add(band),
+        )
     }
 
     /// `camera` widened to the padded frame: the same eye, direction and pixel scale, its
@@ -65,13 +72,16 @@ impl Guard {
 
     /// The padded frame's pixel of the view's pixel `(x, y)`.
     pub fn padded_pixel(&self, (x, y): (u32, u32)) -> (u32, u32) {
-        (x + self.px, y + self.px)
+        (x.saturating_add(self.px), y.saturating_add(self.px))
     }
 
     /// Whether the padded frame's pixel `(x, y)` lies in the view.
     pub fn in_view(&self, (x, y): (u32, u32)) -> bool {
-        (self.px..self.px + self.width).contains(&x)
-            && (self.px..self.px + self.height).contains(&y)
+        let (x_end, y_end) = (
+            self.px.saturating_add(self.width),
+            self.px.saturating_add(self.height),
+        );
+        (self.px..x_end).contains(&x) && (self.px..y_end).contains(&y)
     }
 
     /// The image the view shows, cut from the padded output; `None` without a band (the
@@ -146,6 +156,31 @@ mod tests {
         }
     }
 
+    /// A band a parameter sets names a parameter its pipeline has (a renamed one would leave
+    /// only the extra pixels), follows its value rounded up, and stops at the cap; the
+    /// pipelines that fill pixels from their neighbours have one.
+    #[test]
+    fn every_band_follows_its_parameter_within_the_cap() {
+        use crate::pipelines::params::{ParamValue, ParamValues};
+        use crate::pipelines::{GuardBand, REGISTRY};
+        for &info in REGISTRY {
+            let GuardBand::Param { name, extra } = info.guard else {
+                continue;
+            };
+            let spec = info.param(name).expect("the band's parameter exists");
+            for v in [spec.min, spec.default, spec.max] {
+                let mut values = ParamValues::default();
+                values.set(info, spec, ParamValue::Value(v));
+                let want = (v.ceil() as u32 + extra).min(GuardBand::MAX_PX);
+                assert_eq!(info.guard_px(&values), want, "{} {name}={v}", info.name);
+            }
+        }
+        for name in ["pyramid", "filters", "triangulate"] {
+            let info = crate::pipelines::find(name).expect("registered");
+            assert!(info.guard_px(&ParamValues::default()) >= 16, "{name}");
+        }
+    }
+
     #[test]
     fn the_crop_takes_the_middle_rows_and_columns() {
         let guard = Guard {
@@ -158,5 +193,9 @@ mod tests {
         assert_eq!(guard.crop(&padded[1..]), None);
         assert_eq!(guard.padded_pixel((1, 0)), (2, 1));
         assert!(guard.in_view((2, 1)) && !guard.in_view((3, 1)) && !guard.in_view((1, 0)));
+        // An empty view stays empty (the size check refuses it); a pixel far out saturates.
+        let empty = Guard { width: 0, ..guard };
+        assert_eq!(empty.padded(), (0, 1));
+        assert!(!guard.in_view(guard.padded_pixel((u32::MAX, 0))));
     }
 }

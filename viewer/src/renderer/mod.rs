@@ -85,8 +85,8 @@ pub struct Renderer {
 fn guard_of(settings: &Settings, width: u32, height: u32) -> Guard {
     Guard {
         px: settings.pipeline.guard_px(&settings.params),
-        width: width.max(1),
-        height: height.max(1),
+        width,
+        height,
     }
 }
 
@@ -277,8 +277,12 @@ impl Renderer {
                 height: guard.height,
                 ..e
             };
+            let band = match guard.px {
+                0 => String::new(),
+                px => format!(" (drawn with {px} pixels more on every side, the guard band)"),
+            };
             ViewerError::Gpu(format!(
-                "{e} on {}; the largest image of that shape it holds is {fit_w}x{fit_h}",
+                "{e}{band} on {}; the largest image of that shape it holds is {fit_w}x{fit_h}",
                 self.ctx.adapter_name
             ))
         })
@@ -287,7 +291,8 @@ impl Renderer {
     /// The largest size of the shape of `width` x `height`, at most that, that a frame of the
     /// settings' pipeline can have on this adapter (the window renders at that and scales up).
     pub fn fit_size(&self, settings: &Settings, width: u32, height: u32) -> (u32, u32) {
-        self.fit_guarded(settings.pipeline, guard_of(settings, width, height))
+        let guard = guard_of(settings, width.max(1), height.max(1));
+        self.fit_guarded(settings.pipeline, guard)
     }
 
     fn fit_guarded(&self, pipeline: &PipelineInfo, guard: Guard) -> (u32, u32) {
@@ -328,7 +333,7 @@ impl Renderer {
         let start = Instant::now();
         self.frame += 1;
         // Everything below draws the padded frame; the view is cut out of it at the end.
-        let guard = guard_of(settings, width, height);
+        let guard = guard_of(settings, width.max(1), height.max(1));
         let (width, height) = guard.padded();
         let camera = &guard.camera(camera);
         let mut bytes = 0u64;
