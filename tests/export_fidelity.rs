@@ -100,16 +100,17 @@ fn points_without_returns_merged_with_returns_are_single_returns() {
 }
 
 #[test]
-fn a_class_the_legacy_format_cannot_hold_is_refused_not_cut() {
+fn a_return_number_the_legacy_format_cannot_hold_is_refused_not_cut() {
     // A legacy LAS beside a PLY: the union carries the legacy scan angle rank, so the export
-    // picks a legacy format, and the PLY's class 200 does not fit it.
+    // picks a legacy format (the metadata counts the classes, which would tell it otherwise,
+    // but not the returns), and the PLY's return number 12 does not fit it.
     let dir = tempfile::tempdir().expect("tempdir");
     let (ply, ds, las) = (
         dir.path().join("c.ply"),
         dir.path().join("ds"),
         dir.path().join("c.las"),
     );
-    classed_ply(&ply, &[(637000.0, 200, 1), (637001.0, 2, 1)]);
+    classed_ply(&ply, &[(637000.0, 2, 12), (637001.0, 2, 1)]);
     let autzen = data("autzen_trim.las");
     let reader = las::Reader::from_path(&autzen).expect("autzen");
     assert!(
@@ -121,7 +122,7 @@ fn a_class_the_legacy_format_cannot_hold_is_refused_not_cut() {
     let err = String::from_utf8_lossy(&out.stderr);
     assert!(!out.status.success(), "export must fail: {err}");
     assert!(
-        err.contains("classification is 200"),
+        err.contains("return_number is 12"),
         "the error names the value: {err}"
     );
     assert!(!las.exists(), "no output that looks complete");

@@ -353,3 +353,35 @@ fn scanner_positions_and_time_bases_an_output_cannot_hold_are_said() {
         assert_eq!(err.contains("counts from"), said, "{name}: {err}");
     }
 }
+
+/// A legacy LAS merged with a PLY whose classes go past 31: the LAS export takes a point
+/// format that holds them (it took the legacy format of the LAS input and refused the PLY's
+/// class 40), and keeps every class, the legacy input's among them.
+#[test]
+fn classes_past_31_merged_with_a_legacy_las_take_an_extended_format() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let (las_in, ply_in) = (dir.path().join("a.las"), dir.path().join("b.ply"));
+    run_ok(&["synth", "--points", "500", "-o", s(&las_in), "--seed", "3"]);
+    ply(
+        &ply_in,
+        &[("uchar", "classification")],
+        &[vec!["40".into()], vec!["200".into()]],
+    );
+    let ds = dir.path().join("ds");
+    run_ok(&["convert", s(&las_in), s(&ply_in), "-o", s(&ds), "-q"]);
+    for name in ["out.las", "out.laz"] {
+        let out = dir.path().join(name);
+        run_ok(&["export", s(&ds), "-o", s(&out)]);
+        let r = las::Reader::from_path(&out).expect("read export");
+        assert!(r.header().point_format().is_extended, "{name}");
+        let classes: std::collections::BTreeSet<u8> = las_points_by_x(&out)
+            .iter()
+            .map(|p| u8::from(p.classification))
+            .collect();
+        assert!(
+            classes.contains(&40) && classes.contains(&200),
+            "{name}: {classes:?}"
+        );
+        assert!(classes.iter().any(|&c| c <= 31), "{name}: {classes:?}");
+    }
+}

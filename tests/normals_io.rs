@@ -5,7 +5,7 @@
 mod common;
 use common::*;
 use std::path::Path;
-use strata_converter::writers::open_writer;
+use strata_converter::writers::{LasChoices, open_writer};
 use strata_format::{AttrType, Attribute, LocalDataset, RowLayout, oct16_decode};
 
 /// One point of a dataset: position on a common grid, normal, radius, surface variation.
@@ -126,7 +126,7 @@ fn las_extra_bytes_nx_ny_nz_are_one_normal_that_normals_keeps() {
         [0.0; 3],
         (side * side) as u64,
         false,
-        None,
+        LasChoices::default(),
     )
     .expect("LAS writer");
     w.write_rows(&rows).expect("rows written");

@@ -3,7 +3,7 @@
 
 use crate::error::{ConvertError, Result};
 use crate::las_export_names::las_export_renames;
-use crate::writers::{RowWriter, open_writer, write_then_finish};
+use crate::writers::{LasChoices, RowWriter, open_writer, write_then_finish};
 use std::path::Path;
 use strata_format::{
     AttrType, Attribute, Crs, DatasetFile, LocalDataset, Metadata, NodeKey, RowLayout,
@@ -36,7 +36,10 @@ pub fn export(dataset: &Path, output: &Path, overwrite: bool) -> Result<u64> {
         meta.offset,
         meta.points,
         overwrite,
-        meta.crs.as_ref(),
+        LasChoices {
+            crs: meta.crs.as_ref(),
+            high_classes: high_classes(meta),
+        },
     )?;
     let write_all = |writer: &mut dyn RowWriter| -> Result<u64> {
         let mut written = 0u64;
@@ -189,7 +192,8 @@ fn crs_loss(ds: &LocalDataset, kind: Output) -> Option<String> {
         Output::Potree2 => "Potree 2.0 states one as WKT, so the output states none".to_string(),
         Output::Copc => "COPC states one as WKT, so the output states none".to_string(),
         Output::Las => {
-            let format = crate::writers::las_format_for(&widened(ds.layout(), Target::Las).layout);
+            let layout = widened(ds.layout(), Target::Las).layout;
+            let format = crate::writers::las_format_for(&layout, high_classes(ds.metadata()));
             if format < 6 {
                 return None;
             }
@@ -237,6 +241,24 @@ pub(crate) fn check_finite(
     Ok(())
 }
 
+/// Whether the dataset's points have a classification code above LAS formats 0 to 5's 31, as
+/// its metadata counts them (a code that is no number counts as one).
+fn high_classes(meta: &Metadata) -> bool {
+    meta.classes
+        .keys()
+        .any(|code| !code.parse::<u64>().is_ok_and(|c| c <= 31))
+}
+
+/// Whether a row of `layout` in `rows` has a classification above 31.
+fn rows_have_high_classes(layout: &RowLayout, rows: &[u8]) -> bool {
+    let Some(i) = layout.index_of("classification") else {
+        return false;
+    };
+    let (at, ty) = (layout.offsets[i], layout.attributes[i].ty);
+    rows.chunks_exact(layout.stride.max(1))
+        .any(|row| ty.read_f64(&row[at..]) > 31.0)
+}
+
 /// Writes `rows` of a dataset's `layout` (a selection of its points, such as a profile) to
 /// `output` as LAS, LAZ or PLY, every attribute kept as `export` keeps it.
 pub fn export_rows(
@@ -250,7 +272,11 @@ pub fn export_rows(
 ) -> Result<u64> {
     let wide = widened(layout, Target::of_file(output));
     let n = (rows.len() / layout.stride.max(1)) as u64;
-    let writer = open_writer(output, &wide.layout, scale, offset, n, overwrite, crs)?;
+    let las = LasChoices {
+        crs,
+        high_classes: rows_have_high_classes(layout, rows),
+    };
+    let writer = open_writer(output, &wide.layout, scale, offset, n, overwrite, las)?;
     write_then_finish(writer, output, |writer| {
         if wide.is_identity() {
             writer.write_rows(rows)?;

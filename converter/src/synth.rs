@@ -6,7 +6,7 @@
 
 use crate::error::{ConvertError, Result};
 use crate::input::las_layout::las_fields;
-use crate::writers::{open_writer, write_then_finish};
+use crate::writers::{LasChoices, open_writer, write_then_finish};
 use rayon::prelude::*;
 use std::path::Path;
 use strata_format::RowLayout;
@@ -302,7 +302,15 @@ pub fn synth(
         seed,
         side: (points as f64 / DENSITY).sqrt().max(10.0),
     };
-    let writer = open_writer(output, &layout, [SCALE; 3], ORIGIN, points, overwrite, None)?;
+    let writer = open_writer(
+        output,
+        &layout,
+        [SCALE; 3],
+        ORIGIN,
+        points,
+        overwrite,
+        LasChoices::default(),
+    )?;
     let off = |n: &str| layout.range_of(n).map_or(0, |r| r.start);
     let (o_int, o_ret, o_nret, o_class, o_gps, o_rgb, o_psid) = (
         off("intensity"),

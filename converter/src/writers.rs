@@ -93,9 +93,18 @@ pub fn check_file_output(path: &Path, overwrite: bool) -> Result<()> {
     Ok(())
 }
 
+/// What a LAS or LAZ output states, and what its points hold that their layout does not say.
+#[derive(Debug, Clone, Copy, Default)]
+pub struct LasChoices<'a> {
+    /// The coordinate reference system the file states.
+    pub crs: Option<&'a Crs>,
+    /// A point has a classification code above 31, which point formats 0 to 5 cannot hold
+    /// (rows merged from a legacy LAS and a PLY have the legacy fields, and the PLY's codes).
+    pub high_classes: bool,
+}
+
 /// Opens a writer chosen by the extension of `path`. `points` is the exact number of rows
-/// that will be written (PLY needs it up front); the file states `crs` where its format can
-/// (LAS and LAZ).
+/// that will be written (PLY needs it up front); a LAS or LAZ file takes `las` too.
 pub fn open_writer(
     path: &Path,
     layout: &RowLayout,
@@ -103,7 +112,7 @@ pub fn open_writer(
     offset: [f64; 3],
     points: u64,
     overwrite: bool,
-    crs: Option<&Crs>,
+    las: LasChoices<'_>,
 ) -> Result<Box<dyn RowWriter>> {
     // A COPC file is a LAZ file with an octree inside: only `export` of a dataset makes one.
     if crate::export::is_copc(path) {
@@ -134,7 +143,7 @@ pub fn open_writer(
         .unwrap_or_default();
     match ext.as_str() {
         "las" | "laz" => Ok(Box::new(LasRowWriter::create(
-            path, layout, scale, offset, crs,
+            path, layout, scale, offset, las,
         )?)),
         "ply" => Ok(Box::new(PlyRowWriter::create(
             path, layout, scale, offset, points,
@@ -147,8 +156,9 @@ pub fn open_writer(
     }
 }
 
-/// The LAS point format that holds a layout's attributes best.
-pub(crate) fn las_format_for(layout: &RowLayout) -> u8 {
+/// The LAS point format that holds a layout's attributes best; `high_classes`: a point's
+/// classification is above 31 (`LasChoices::high_classes`).
+pub(crate) fn las_format_for(layout: &RowLayout, high_classes: bool) -> u8 {
     let has = |n: &str| layout.index_of(n).is_some();
     let rgb = layout
         .index_of("rgb")
@@ -157,10 +167,11 @@ pub(crate) fn las_format_for(layout: &RowLayout) -> u8 {
     // Formats 0 to 5 hold classes up to 31 and return numbers up to 7. Rows read from those
     // formats (the ones with a scan angle rank) fit them; a class or return number from
     // anywhere else (a PLY's uchar) may not, and goes to formats 6 to 10.
-    let legacy_fits = has("scan_angle_rank")
-        || !BIT_FIELDS
-            .iter()
-            .any(|&(n, legacy, extended)| legacy < extended && has(n));
+    let legacy_fits = !high_classes
+        && (has("scan_angle_rank")
+            || !BIT_FIELDS
+                .iter()
+                .any(|&(n, legacy, extended)| legacy < extended && has(n)));
     // Only formats 8 and 10 have a near-infrared field.
     if has("scan_angle") || has("scanner_channel") || has("nir") || !legacy_fits {
         match (wave, has("nir"), rgb) {
@@ -212,9 +223,9 @@ impl LasRowWriter {
         layout: &RowLayout,
         scale: [f64; 3],
         offset: [f64; 3],
-        crs: Option<&Crs>,
+        las: LasChoices<'_>,
     ) -> Result<Self> {
-        let format_number = las_format_for(layout);
+        let format_number = las_format_for(layout, las.high_classes);
         let mut records = LasRecords::new(path, layout, format_number)?;
         if format_number >= 6 {
             records = records.single_returns_where_missing();
@@ -253,17 +264,19 @@ impl LasRowWriter {
         // (they name one system), the legacy formats take the keys, which their readers know,
         // and the others the WKT; keys alone go out as the inputs gave them, there being no
         // conversion here. The global encoding's WKT bit says which a reader takes.
-        let stated = crs.map(|c| match (format_number < 6, &c.wkt, &c.geotiff) {
-            (true, _, Some(keys)) => Crs {
-                wkt: None,
-                geotiff: Some(keys.clone()),
-            },
-            (false, Some(wkt), _) => Crs {
-                wkt: Some(wkt.clone()),
-                geotiff: None,
-            },
-            _ => c.clone(),
-        });
+        let stated = las
+            .crs
+            .map(|c| match (format_number < 6, &c.wkt, &c.geotiff) {
+                (true, _, Some(keys)) => Crs {
+                    wkt: None,
+                    geotiff: Some(keys.clone()),
+                },
+                (false, Some(wkt), _) => Crs {
+                    wkt: Some(wkt.clone()),
+                    geotiff: None,
+                },
+                _ => c.clone(),
+            });
         builder.has_wkt_crs = stated.as_ref().is_some_and(|c| c.wkt.is_some());
         for (user_id, record_id, description, data) in stated
             .as_ref()
