@@ -61,12 +61,14 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
     let opts = a.at.options()?;
     let picked = pick_all(&a.at.dataset, &opts, &pixels, a.at.radius)?;
     let mut points = Vec::with_capacity(picked.len());
+    let mut step = f64::INFINITY;
     for (p, (x, y)) in picked.into_iter().zip(&pixels) {
         let Some(p) = p else {
             eprintln!("no point within {} pixels of {x},{y}", a.at.radius);
             return Ok(ExitCode::from(3));
         };
         points.push(p.position);
+        step = step.min(p.step);
     }
     let m = Measurement {
         kind,
@@ -96,7 +98,7 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
             serde_json::to_string_pretty(&one.to_geojson()["features"][0])?
         );
     } else {
-        for line in m.lines() {
+        for line in m.lines(step) {
             println!("{line}");
         }
     }

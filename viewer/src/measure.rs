@@ -91,6 +91,27 @@ pub struct Measurement {
     pub source: Option<Value>,
 }
 
+/// The finest step of coordinates stored at `scale`: what a measure is exact to.
+pub fn finest_step(scale: [f64; 3]) -> f64 {
+    scale.into_iter().fold(f64::INFINITY, f64::min)
+}
+
+/// The most decimals a measured value is printed with.
+const MAX_DECIMALS: usize = 12;
+
+/// The decimals that show a multiple of `step` (0.001: 3; 0.25: 2), 3 for no step.
+fn decimals_of(step: f64) -> usize {
+    if !(step.is_finite() && step > 0.0) {
+        return 3;
+    }
+    (0..MAX_DECIMALS)
+        .find(|&d| {
+            let scaled = step * 10f64.powi(d as i32);
+            (scaled - scaled.round()).abs() <= scaled * 1e-9
+        })
+        .unwrap_or(MAX_DECIMALS)
+}
+
 fn sub(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
     [a[0] - b[0], a[1] - b[1], a[2] - b[2]]
 }
@@ -229,16 +250,24 @@ impl Measurement {
         }
     }
 
-    /// One line a value, for the panel and `strata measure`.
-    pub fn lines(&self) -> Vec<String> {
+    /// One line a value, for the panel and `strata measure`, lengths to the decimals of the
+    /// coordinates' `step` (the dataset's scale: 0.001 gives millimetres, a scan in degrees of
+    /// latitude its 1e-7), areas to twice as many, angles to a thousandth of a degree.
+    pub fn lines(&self, step: f64) -> Vec<String> {
+        let length_decimals = decimals_of(step);
         let mut out = vec![format!("{} ({})", self.name, self.kind.name())];
         if self.kind == MeasureKind::Distance && self.points.len() > 2 {
             for (i, l) in self.segment_lengths().iter().enumerate() {
-                out.push(format!("  segment {} {l:.3}", i + 1));
+                out.push(format!("  segment {} {l:.length_decimals$}", i + 1));
             }
         }
         for (name, v) in self.values() {
-            out.push(format!("  {} {v:.3}", name.replace('_', " ")));
+            let d = match name {
+                "angle_deg" => 3,
+                _ if name.contains("area") => (2 * length_decimals).min(MAX_DECIMALS),
+                _ => length_decimals,
+            };
+            out.push(format!("  {} {v:.d$}", name.replace('_', " ")));
         }
         if let Some((i, j)) = self.crossing_edges() {
             out.push(format!(

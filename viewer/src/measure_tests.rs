@@ -26,7 +26,12 @@ fn a_polygon_that_crosses_itself_is_said() {
         ],
     );
     assert_eq!(bowtie.crossing_edges(), Some((1, 3)));
-    assert!(bowtie.lines().iter().any(|l| l.contains("crosses itself")));
+    assert!(
+        bowtie
+            .lines(0.001)
+            .iter()
+            .any(|l| l.contains("crosses itself"))
+    );
     let path = m(MeasureKind::Distance, &bowtie.points);
     assert_eq!(path.crossing_edges(), None, "a distance has no area");
     // The GeoJSON says it too, and a crossing undone is not kept from the file it was read from.
@@ -195,4 +200,34 @@ fn measurements_survive_geojson_and_bad_files_are_named() {
         let e = e.to_string();
         assert!(e.contains("m.geojson") && e.contains(says), "{bad}: {e}");
     }
+}
+
+#[test]
+fn values_print_to_the_decimals_of_the_coordinates() {
+    // A scan in degrees (step 1e-7): 3 decimals printed every length of it as 0.000.
+    let deg = m(
+        MeasureKind::Distance,
+        &[[11.0, 48.0, 300.0], [11.0000123, 48.0, 300.0]],
+    );
+    let lines = deg.lines(1e-7);
+    assert!(
+        lines.contains(&"  total length 0.0000123".to_string()),
+        "{lines:?}"
+    );
+    // Millimetres, and an area to square millimetres.
+    let mm = m(MeasureKind::Height, &[O, at(3.0, 4.0, 1.25)]);
+    assert!(mm.lines(0.001).contains(&"  distance 5.154".to_string()));
+    let square = m(
+        MeasureKind::Area,
+        &[O, at(1.0, 0.0, 0.0), at(1.0, 0.5, 0.0), at(0.0, 0.5, 0.0)],
+    );
+    let lines = square.lines(0.01);
+    assert!(
+        lines.contains(&"  horizontal area 0.5000".to_string()),
+        "{lines:?}"
+    );
+    assert!(lines.contains(&"  perimeter 3.00".to_string()), "{lines:?}");
+    // A step of no power of ten, and none at all.
+    assert_eq!(decimals_of(0.25), 2);
+    assert_eq!(decimals_of(0.0), 3);
 }

@@ -20,6 +20,10 @@ pub struct PickedPoint {
     pub index: usize,
     /// Real-world coordinates: offset + scale x the stored integers.
     pub position: [f64; 3],
+    /// The finest step of the stored coordinates (the dataset's smallest scale): what a
+    /// measure between picked points is exact to.
+    #[serde(skip)]
+    pub step: f64,
     pub attributes: Vec<PickedAttribute>,
 }
 
@@ -160,6 +164,7 @@ impl StreamDataset {
             node: info.key.to_string(),
             index,
             position,
+            step: crate::measure::finest_step(m.scale),
             attributes,
         })
     }
@@ -499,6 +504,7 @@ mod tests {
             node: "r".into(),
             index: 0,
             position: [11.0000001, 48.0008986, 300.125],
+            step: 1e-7,
             attributes: Vec::new(),
         };
         let lines = point.lines();

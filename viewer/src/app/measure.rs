@@ -3,7 +3,7 @@
 //! dataset (`measurements.geojson`) or in any file given.
 
 use super::ViewerApp;
-use crate::measure::{MeasureKind, Measurement, Measurements};
+use crate::measure::{MeasureKind, Measurement, Measurements, finest_step};
 use crate::overlay::{ScreenProjector, kind_colour, measurement_segments};
 use crate::pick::PickedPoint;
 use eframe::egui;
@@ -103,6 +103,7 @@ impl ViewerApp {
     pub(super) fn measure_controls(&mut self, ui: &mut egui::Ui) {
         // Open where there are measurements to list.
         let open = !self.measuring.all.items.is_empty();
+        let step = finest_step(self.renderer.dataset().metadata().scale);
         egui::CollapsingHeader::new("Measure")
             .default_open(open)
             .show(ui, |ui| {
@@ -126,7 +127,7 @@ impl ViewerApp {
                     });
                 }
                 if let Some(c) = &m.current {
-                    for line in c.lines() {
+                    for line in c.lines(step) {
                         ui.label(egui::RichText::new(line).monospace().small());
                     }
                     let done = c.is_complete() && c.takes_more();
@@ -146,7 +147,7 @@ impl ViewerApp {
                             remove = Some(i);
                         }
                         ui.vertical(|ui| {
-                            for line in item.lines() {
+                            for line in item.lines(step) {
                                 ui.label(egui::RichText::new(line).monospace().small());
                             }
                         });
