@@ -384,4 +384,15 @@ fn classes_past_31_merged_with_a_legacy_las_take_an_extended_format() {
         );
         assert!(classes.iter().any(|&c| c <= 31), "{name}: {classes:?}");
     }
+    // A profile through the PLY's points alone: its rows say so, whatever the dataset counts.
+    let prof = dir.path().join("profile.las");
+    let line = "--line=-1,0;3,0";
+    run_ok(&["profile", s(&ds), line, "--width", "1", "-o", s(&prof)]);
+    let r = las::Reader::from_path(&prof).expect("read profile");
+    assert!(r.header().point_format().is_extended, "profile");
+    let classes: Vec<u8> = las_points_by_x(&prof)
+        .iter()
+        .map(|p| u8::from(p.classification))
+        .collect();
+    assert_eq!(classes, [40, 200]);
 }

@@ -95,9 +95,9 @@ pub fn export_notes(dataset: &Path, output: &Path, potree2: bool) -> Result<Vec<
         .then(|| las_export_renames(&ds.metadata().attributes))
         .unwrap_or_default()
         .into_iter()
-        .map(|(i, new)| {
+        .map(|(i, new, why)| {
             format!(
-                "attribute \"{}\" is written as \"{new}\": LAS readers take its name for a standard field",
+                "attribute \"{}\" is written as \"{new}\": {why}",
                 ds.metadata().attributes[i].name
             )
         });
@@ -393,7 +393,7 @@ pub fn widened(layout: &RowLayout, target: Target) -> Widened {
         })
         .collect();
     if target == Target::Las {
-        for (i, name) in las_export_renames(&attributes) {
+        for (i, name, _) in las_export_renames(&attributes) {
             attributes[i].name = name;
         }
     }

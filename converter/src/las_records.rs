@@ -426,9 +426,9 @@ fn eb_descriptor(a: &Attribute) -> Vec<u8> {
         }
         d[3] |= 0x01;
     }
-    let name = text_prefix(&a.name, 32);
+    let name = text_prefix(&a.name, NAME_BYTES).as_bytes();
     d[4..4 + name.len()].copy_from_slice(name);
-    let desc = text_prefix(&a.description, 32);
+    let desc = text_prefix(&a.description, NAME_BYTES).as_bytes();
     d[160..160 + desc.len()].copy_from_slice(desc);
     d
 }
@@ -473,12 +473,16 @@ fn store(ty: AttrType, v: f64, out: &mut [u8]) {
 
 /// The longest start of `text` of at most `max` bytes that ends between characters: a field
 /// cut inside a UTF-8 sequence is text no reader can decode (laspy refuses the whole file).
-fn text_prefix(text: &str, max: usize) -> &[u8] {
+/// The bytes an extra-bytes record keeps of a field's name (and of its description).
+pub(crate) const NAME_BYTES: usize = 32;
+
+/// The longest start of `text` of at most `max` bytes that ends between characters.
+pub(crate) fn text_prefix(text: &str, max: usize) -> &str {
     let mut end = text.len().min(max);
     while !text.is_char_boundary(end) {
         end -= 1;
     }
-    &text.as_bytes()[..end]
+    &text[..end]
 }
 
 #[cfg(test)]

@@ -84,8 +84,9 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
     } else {
         write_points(&ds, &profile, &a.output, a.overwrite)?;
     }
+    let d = strata_format::step_decimals(strata_viewer::measure::finest_step(ds.metadata().scale));
     println!(
-        "{} points within {} of a {:.3} long line (a corridor {} wide; levels 0 to {}, spacing {:.4}, {} points read){} -> {}",
+        "{} points within {} of a {:.d$} long line (a corridor {} wide; levels 0 to {}, spacing {:.d$}, {} points read){} -> {}",
         profile.points.len(),
         strata_format::number(a.width / 2.0),
         corridor.length(),

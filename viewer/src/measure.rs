@@ -91,25 +91,21 @@ pub struct Measurement {
     pub source: Option<Value>,
 }
 
-/// The finest step of coordinates stored at `scale`: what a measure is exact to.
+/// The finest step of coordinates stored at `scale`: the resolution of what is measured.
 pub fn finest_step(scale: [f64; 3]) -> f64 {
     scale.into_iter().fold(f64::INFINITY, f64::min)
 }
 
-/// The most decimals a measured value is printed with.
-const MAX_DECIMALS: usize = 12;
-
-/// The decimals that show a multiple of `step` (0.001: 3; 0.25: 2), 3 for no step.
-fn decimals_of(step: f64) -> usize {
-    if !(step.is_finite() && step > 0.0) {
-        return 3;
+/// The decimals value `name` of a measure prints with, its coordinates stored at `step`:
+/// lengths to the step's (`strata_format::step_decimals`), areas to twice as many (the square
+/// of the step), angles to a thousandth of a degree.
+pub fn value_decimals(name: &str, step: f64) -> usize {
+    let length = strata_format::step_decimals(step);
+    match name {
+        "angle_deg" => 3,
+        _ if name.contains("area") => (2 * length).min(12),
+        _ => length,
     }
-    (0..MAX_DECIMALS)
-        .find(|&d| {
-            let scaled = step * 10f64.powi(d as i32);
-            (scaled - scaled.round()).abs() <= scaled * 1e-9
-        })
-        .unwrap_or(MAX_DECIMALS)
 }
 
 fn sub(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
@@ -250,23 +246,18 @@ impl Measurement {
         }
     }
 
-    /// One line a value, for the panel and `strata measure`, lengths to the decimals of the
-    /// coordinates' `step` (the dataset's scale: 0.001 gives millimetres, a scan in degrees of
-    /// latitude its 1e-7), areas to twice as many, angles to a thousandth of a degree.
+    /// One line a value, for the panel and `strata measure`, to the decimals of the
+    /// coordinates' `step` (`value_decimals`).
     pub fn lines(&self, step: f64) -> Vec<String> {
-        let length_decimals = decimals_of(step);
         let mut out = vec![format!("{} ({})", self.name, self.kind.name())];
         if self.kind == MeasureKind::Distance && self.points.len() > 2 {
+            let d = value_decimals("segment", step);
             for (i, l) in self.segment_lengths().iter().enumerate() {
-                out.push(format!("  segment {} {l:.length_decimals$}", i + 1));
+                out.push(format!("  segment {} {l:.d$}", i + 1));
             }
         }
         for (name, v) in self.values() {
-            let d = match name {
-                "angle_deg" => 3,
-                _ if name.contains("area") => (2 * length_decimals).min(MAX_DECIMALS),
-                _ => length_decimals,
-            };
+            let d = value_decimals(name, step);
             out.push(format!("  {} {v:.d$}", name.replace('_', " ")));
         }
         if let Some((i, j)) = self.crossing_edges() {

@@ -228,6 +228,8 @@ fn values_print_to_the_decimals_of_the_coordinates() {
     );
     assert!(lines.contains(&"  perimeter 3.00".to_string()), "{lines:?}");
     // A step of no power of ten, and none at all.
-    assert_eq!(decimals_of(0.25), 2);
-    assert_eq!(decimals_of(0.0), 3);
+    assert_eq!(strata_format::step_decimals(0.25), 2);
+    assert_eq!(strata_format::step_decimals(0.1), 1);
+    assert_eq!(strata_format::step_decimals(0.0), 3);
+    assert_eq!(value_decimals("angle_deg", 1e-7), 3);
 }

@@ -20,8 +20,8 @@ pub struct PickedPoint {
     pub index: usize,
     /// Real-world coordinates: offset + scale x the stored integers.
     pub position: [f64; 3],
-    /// The finest step of the stored coordinates (the dataset's smallest scale): what a
-    /// measure between picked points is exact to.
+    /// The finest step of the stored coordinates (the dataset's smallest scale): the
+    /// resolution of a measure between picked points.
     #[serde(skip)]
     pub step: f64,
     pub attributes: Vec<PickedAttribute>,

@@ -3,7 +3,7 @@
 //! dataset (`measurements.geojson`) or in any file given.
 
 use super::ViewerApp;
-use crate::measure::{MeasureKind, Measurement, Measurements, finest_step};
+use crate::measure::{MeasureKind, Measurement, Measurements, finest_step, value_decimals};
 use crate::overlay::{ScreenProjector, kind_colour, measurement_segments};
 use crate::pick::PickedPoint;
 use eframe::egui;
@@ -187,6 +187,7 @@ impl ViewerApp {
         size: (u32, u32),
     ) {
         let proj = ScreenProjector::new(self.renderer.dataset(), &self.camera, size.0, size.1);
+        let step = finest_step(self.renderer.dataset().metadata().scale);
         let to_screen = |[x, y]: [f32; 2]| {
             egui::pos2(
                 rect.min.x + x / proj.width * rect.width(),
@@ -218,11 +219,14 @@ impl ViewerApp {
                 );
             }
             // The main value beside the last point.
-            let label = m.values().first().map(|(name, v)| match *name {
-                "angle_deg" => format!("{v:.1}°"),
-                // In the dataset's units, whatever they are.
-                "horizontal_area" => format!("{v:.2} sq"),
-                _ => format!("{v:.3}"),
+            let label = m.values().first().map(|(name, v)| {
+                let d = value_decimals(name, step);
+                match *name {
+                    "angle_deg" => format!("{v:.d$}°"),
+                    // In the dataset's units, whatever they are.
+                    "horizontal_area" => format!("{v:.d$} sq"),
+                    _ => format!("{v:.d$}"),
+                }
             });
             if let (Some(label), Some(p)) = (label, m.points.last().and_then(|p| proj.to_pixel(*p)))
             {

@@ -162,6 +162,7 @@ impl ViewerApp {
             return;
         }
         let ds = self.renderer.dataset().clone();
+        let step = crate::measure::finest_step(ds.metadata().scale);
         let mut open = true;
         // Below the scene's middle, so that the line it was drawn along stays in sight.
         let corner = ctx.content_rect().right_bottom() - egui::vec2(12.0, 12.0);
@@ -188,8 +189,9 @@ impl ViewerApp {
                     ui.image((tex.id(), egui::vec2(PLOT[0], PLOT[1])));
                 }
                 let (lo, hi) = height_range(profile);
+                let d = strata_format::step_decimals(step);
                 ui.label(format!(
-                    "{} points; 0 to {:.2} along, heights {lo:.2} to {hi:.2}; level {} (spacing {:.3}){}",
+                    "{} points; 0 to {:.d$} along, heights {lo:.d$} to {hi:.d$}; level {} (spacing {:.d$}){}",
                     profile.points.len(),
                     profile.corridor.length(),
                     profile.level,

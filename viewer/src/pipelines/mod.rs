@@ -190,7 +190,8 @@ impl PipelineInfo {
             GuardBand::None => 0,
             GuardBand::Px(px) => px,
             GuardBand::Param { name, extra } => {
-                self.set_or_default(values, name).unwrap_or(0.0).ceil() as u32 + extra
+                (self.set_or_default(values, name).unwrap_or(0.0).ceil() as u32)
+                    .saturating_add(extra)
             }
         };
         px.min(GuardBand::MAX_PX)
