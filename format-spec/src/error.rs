@@ -38,6 +38,11 @@ impl FormatError {
     }
 }
 
+/// The finest step of coordinates stored at `scale` (per axis).
+pub fn finest_step(scale: [f64; 3]) -> f64 {
+    scale.into_iter().fold(f64::INFINITY, f64::min)
+}
+
 /// The decimals that show a multiple of `step` exactly (0.001: 3; 0.25: 2; 1e-7: 7), at most
 /// 12; 3 for no step (zero, negative or not finite). Coordinates stored at a scale print to its
 /// decimals: fewer hide what was measured (a scan in degrees printed as 11.000), more add

@@ -26,7 +26,7 @@ pub use attribute::{
 pub use dataset::{
     DatasetFile, LocalDataset, METADATA_MAX_BYTES, open_regular, read_metadata_file,
 };
-pub use error::{FormatError, number, step_decimals};
+pub use error::{FormatError, finest_step, number, step_decimals};
 pub use head::{
     DatasetId, HIERARCHY_HEAD_SIZE, HIERARCHY_MAGIC, HIERARCHY_MAGIC_1_0, HierarchyHead, Layout,
     OCTREE_HEAD_SIZE, OCTREE_MAGIC, OCTREE_MAGIC_1_0, ROOT_PAGE_OFFSET, check_file_head,

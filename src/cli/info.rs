@@ -2,7 +2,6 @@ use std::path::PathBuf;
 use std::process::ExitCode;
 use strata_converter::sys::format_bytes;
 use strata_format::LocalDataset;
-use strata_viewer::measure::finest_step;
 
 #[derive(Debug, clap::Args)]
 pub struct Args {
@@ -84,7 +83,7 @@ pub fn run(mut a: Args) -> anyhow::Result<ExitCode> {
     println!("points    {}", m.points);
     println!("nodes     {} (depth {})", m.nodes, m.depth);
     // To the decimals of the stored coordinates (a scan in degrees showed 11.000 48.001).
-    let d = strata_format::step_decimals(finest_step(m.scale));
+    let d = strata_format::step_decimals(strata_format::finest_step(m.scale));
     println!(
         "bounds    min {:.d$} {:.d$} {:.d$}\n          max {:.d$} {:.d$} {:.d$}",
         m.bounds.min[0],
@@ -203,7 +202,7 @@ fn point_file(a: &Args) -> anyhow::Result<ExitCode> {
         f.version, f.point_format
     );
     println!("points    {}", f.points);
-    let d = strata_format::step_decimals(finest_step(f.scale));
+    let d = strata_format::step_decimals(strata_format::finest_step(f.scale));
     println!(
         "bounds    min {:.d$} {:.d$} {:.d$}",
         f.min[0], f.min[1], f.min[2]
@@ -216,8 +215,12 @@ fn point_file(a: &Args) -> anyhow::Result<ExitCode> {
     println!("offset    {:?}", f.offset);
     if let Some(c) = &f.copc {
         println!(
-            "octree    centre {:.d$} {:.d$} {:.d$}, half size {:.d$}, spacing {:.d$}",
-            c.centre[0], c.centre[1], c.centre[2], c.halfsize, c.spacing
+            "octree    centre {:.d$} {:.d$} {:.d$}, half size {:.d$}, spacing {}",
+            c.centre[0],
+            c.centre[1],
+            c.centre[2],
+            c.halfsize,
+            strata_format::number(c.spacing)
         );
         println!(
             "hierarchy {} nodes with {} points, depth {}",

@@ -84,15 +84,15 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
     } else {
         write_points(&ds, &profile, &a.output, a.overwrite)?;
     }
-    let d = strata_format::step_decimals(strata_viewer::measure::finest_step(ds.metadata().scale));
+    let d = strata_format::step_decimals(strata_format::finest_step(ds.metadata().scale));
     println!(
-        "{} points within {} of a {:.d$} long line (a corridor {} wide; levels 0 to {}, spacing {:.d$}, {} points read){} -> {}",
+        "{} points within {} of a {:.d$} long line (a corridor {} wide; levels 0 to {}, spacing {}, {} points read){} -> {}",
         profile.points.len(),
         strata_format::number(a.width / 2.0),
         corridor.length(),
         strata_format::number(a.width),
         profile.level,
-        profile.spacing,
+        strata_format::number(profile.spacing),
         profile.points_read,
         if profile.complete {
             ""

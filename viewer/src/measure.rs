@@ -91,11 +91,6 @@ pub struct Measurement {
     pub source: Option<Value>,
 }
 
-/// The finest step of coordinates stored at `scale`: the resolution of what is measured.
-pub fn finest_step(scale: [f64; 3]) -> f64 {
-    scale.into_iter().fold(f64::INFINITY, f64::min)
-}
-
 /// The decimals value `name` of a measure prints with, its coordinates stored at `step`:
 /// lengths to the step's (`strata_format::step_decimals`), areas to twice as many (the square
 /// of the step), angles to a thousandth of a degree.

@@ -164,7 +164,7 @@ impl StreamDataset {
             node: info.key.to_string(),
             index,
             position,
-            step: crate::measure::finest_step(m.scale),
+            step: strata_format::finest_step(m.scale),
             attributes,
         })
     }

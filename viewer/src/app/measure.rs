@@ -3,11 +3,12 @@
 //! dataset (`measurements.geojson`) or in any file given.
 
 use super::ViewerApp;
-use crate::measure::{MeasureKind, Measurement, Measurements, finest_step, value_decimals};
+use crate::measure::{MeasureKind, Measurement, Measurements, value_decimals};
 use crate::overlay::{ScreenProjector, kind_colour, measurement_segments};
 use crate::pick::PickedPoint;
 use eframe::egui;
 use std::path::PathBuf;
+use strata_format::finest_step;
 
 #[derive(Default)]
 pub struct Measuring {

@@ -162,7 +162,7 @@ impl ViewerApp {
             return;
         }
         let ds = self.renderer.dataset().clone();
-        let step = crate::measure::finest_step(ds.metadata().scale);
+        let step = strata_format::finest_step(ds.metadata().scale);
         let mut open = true;
         // Below the scene's middle, so that the line it was drawn along stays in sight.
         let corner = ctx.content_rect().right_bottom() - egui::vec2(12.0, 12.0);
@@ -191,11 +191,11 @@ impl ViewerApp {
                 let (lo, hi) = height_range(profile);
                 let d = strata_format::step_decimals(step);
                 ui.label(format!(
-                    "{} points; 0 to {:.d$} along, heights {lo:.d$} to {hi:.d$}; level {} (spacing {:.d$}){}",
+                    "{} points; 0 to {:.d$} along, heights {lo:.d$} to {hi:.d$}; level {} (spacing {}){}",
                     profile.points.len(),
                     profile.corridor.length(),
                     profile.level,
-                    profile.spacing,
+                    strata_format::number(profile.spacing),
                     if p.pending.is_some() {
                         ", reading finer levels..."
                     } else if !profile.complete {
