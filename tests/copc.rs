@@ -393,3 +393,48 @@ fn a_folder_named_like_the_copc_file_is_refused_at_once() {
         );
     }
 }
+
+/// A COPC file whose hierarchy is not its first EVLR (another writer put a record before it):
+/// `strata info` found the hierarchy through the las crate, which keeps only the first EVLR,
+/// and said "hierarchy EVLR is missing".
+#[test]
+fn info_finds_the_hierarchy_behind_another_evlr() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let dataset = common::converted("copc-fixture", "autzen_trim.laz", "autzen");
+    let copc = dir.path().join("plain.copc.laz");
+    run_ok(&["export", s(&dataset), "-o", s(&copc)]);
+    let mut b = std::fs::read(&copc).expect("read");
+    let u64_at = |b: &[u8], at: usize| u64::from_le_bytes(b[at..at + 8].try_into().expect("8"));
+    let first_evlr = u64_at(&b, 235) as usize;
+    // A record of 100 bytes, inserted before the first EVLR (the hierarchy's).
+    let mut record = vec![0u8; 60 + 100];
+    record[2..13].copy_from_slice(b"other_maker");
+    record[18..20].copy_from_slice(&7u16.to_le_bytes());
+    record[20..28].copy_from_slice(&100u64.to_le_bytes());
+    let moved = record.len() as u64;
+    // What points into the hierarchy moves with it: the info VLR's root page, and pages
+    // that entries of -1 points name.
+    let info = b.windows(4).position(|w| w == b"copc").expect("info VLR") - 2 + 54;
+    let root = u64_at(&b, info + 40);
+    b[info + 40..info + 48].copy_from_slice(&(root + moved).to_le_bytes());
+    let hierarchy = &mut b[first_evlr + 60..];
+    for e in hierarchy.chunks_exact_mut(32) {
+        if i32::from_le_bytes(e[28..32].try_into().expect("4")) == -1 {
+            let at = u64::from_le_bytes(e[16..24].try_into().expect("8"));
+            e[16..24].copy_from_slice(&(at + moved).to_le_bytes());
+        }
+    }
+    let evlrs = u32::from_le_bytes(b[243..247].try_into().expect("4"));
+    b[243..247].copy_from_slice(&(evlrs + 1).to_le_bytes());
+    b.splice(first_evlr..first_evlr, record);
+    let moved_copc = dir.path().join("moved.copc.laz");
+    std::fs::write(&moved_copc, &b).expect("write");
+    let summary = |path: &std::path::Path| {
+        let o = run_ok(&["info", s(path), "--json"]);
+        let v: serde_json::Value = serde_json::from_slice(&o.stdout).expect("info JSON");
+        v["copc"].clone()
+    };
+    let (want, got) = (summary(&copc), summary(&moved_copc));
+    assert!(want["points"].as_u64() > Some(0), "{want}");
+    assert_eq!(got, want);
+}

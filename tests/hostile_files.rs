@@ -333,6 +333,43 @@ fn a_temp_dir_that_is_a_file_or_a_link_to_nothing_is_refused_before_the_run() {
     }
 }
 
+/// The folders of a --temp-dir that did not exist are made for the run and removed with its
+/// work, whether it succeeds or fails before it could be resumed; they were left behind, empty.
+/// A folder that existed stays.
+#[test]
+fn the_temp_dir_folders_a_run_makes_go_with_its_work() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let input = data("autzen_trim.las");
+    let kept = dir.path().join("kept");
+    std::fs::create_dir(&kept).expect("mkdir");
+    let bad = written(dir.path(), "bad.las", b"not a LAS file at all");
+    let runs = [
+        (&input, kept.join("a/b"), "good"),
+        (&bad, dir.path().join("c/d"), "failed"),
+    ];
+    for (input, temp, out) in runs {
+        let out = dir.path().join(out);
+        let args = [
+            "convert",
+            s(input),
+            "-o",
+            s(&out),
+            "--temp-dir",
+            s(&temp),
+            "-q",
+        ];
+        let ok = common::run(&args).status.success();
+        assert_eq!(ok, out.ends_with("good"), "{input:?}");
+    }
+    let mut left: Vec<_> = std::fs::read_dir(dir.path())
+        .expect("list")
+        .map(|e| e.expect("entry").file_name().to_string_lossy().into_owned())
+        .collect();
+    left.sort();
+    assert_eq!(left, ["bad.las", "good", "kept"]);
+    assert_eq!(std::fs::read_dir(&kept).expect("list").count(), 0);
+}
+
 /// `bytes` written to `dir/name`.
 fn written(dir: &std::path::Path, name: &str, bytes: &[u8]) -> std::path::PathBuf {
     let path = dir.join(name);

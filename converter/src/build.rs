@@ -16,7 +16,7 @@ use crate::sampling::Sampling;
 use crate::sys::peak_rss_bytes;
 use crate::workdir::WorkDir;
 use serde::Serialize;
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 use std::time::Instant;
 use strata_format::RowLayout;
 
@@ -91,6 +91,15 @@ pub fn convert_with(opts: &ConvertOptions, step: &dyn ChunkStep) -> Result<Conve
     let _ = rayon::ThreadPoolBuilder::new()
         .num_threads(threads)
         .build_global();
+    // The folders of --temp-dir this run makes, deepest first: removed again once the work
+    // in them is gone (a plan kept for --resume keeps them).
+    let made: Vec<PathBuf> = opts
+        .temp_dir
+        .iter()
+        .flat_map(|t| t.ancestors())
+        .take_while(|a| !a.as_os_str().is_empty() && a.symlink_metadata().is_err())
+        .map(Path::to_path_buf)
+        .collect();
     let wd = WorkDir::new(&opts.output, opts.temp_dir.as_deref());
     // Refused here, before the run whose failure would clear the folder the other run owns.
     let _lock = wd.lock(&opts.output)?;
@@ -104,6 +113,11 @@ pub fn convert_with(opts: &ConvertOptions, step: &dyn ChunkStep) -> Result<Conve
     // or an earlier one's under another --temp-dir).
     if result.is_err() && !wd.plan().exists() && wd.plan_elsewhere().is_none() {
         wd.remove_all();
+    }
+    for folder in &made {
+        if std::fs::remove_dir(folder).is_err() {
+            break;
+        }
     }
     result
 }

@@ -3,6 +3,7 @@
 
 use crate::copc::{ENTRY_SIZE, INFO_SIZE};
 use crate::error::{ConvertError, Result};
+use crate::input::las_header::{LasHeader, read_at};
 use std::fs::File;
 use std::path::Path;
 
@@ -44,8 +45,7 @@ pub fn describe(path: &Path) -> Result<FileSummary> {
         .metadata()
         .map_err(|e| ConvertError::io(path, "cannot read file size", e))?
         .len();
-    let raw = crate::input::las_header::LasHeader::read(&file, len)
-        .map_err(|e| ConvertError::input(path, e))?;
+    let raw = LasHeader::read(&file, len).map_err(|e| ConvertError::input(path, e))?;
     if raw.compressed {
         crate::input::laz_check::check_laz(&file, &raw)
             .map_err(|e| ConvertError::input(path, e))?;
@@ -58,7 +58,7 @@ pub fn describe(path: &Path) -> Result<FileSummary> {
     let reader = las::Reader::from_path(path)
         .map_err(|e| ConvertError::output(path, format!("not a LAS or LAZ file ({e})")))?;
     let h = reader.header();
-    let copc = read_summary(h, path)?;
+    let copc = read_summary(&raw, &file, path)?;
     let (b, t, v, format) = (h.bounds(), h.transforms(), h.version(), h.point_format());
     Ok(FileSummary {
         kind: match (&copc, format.is_compressed) {
@@ -78,25 +78,23 @@ pub fn describe(path: &Path) -> Result<FileSummary> {
 }
 
 /// The COPC info of a LAS/LAZ file whose first VLR is COPC's, with its hierarchy summed up;
-/// `None` for a file that is not COPC.
-fn read_summary(header: &las::Header, path: &Path) -> Result<Option<CopcSummary>> {
-    let Some(info) = header
-        .vlrs()
-        .first()
-        .filter(|v| v.user_id == "copc" && v.record_id == 1)
-    else {
+/// `None` for a file that is not COPC. The records come from our own header reader: the las
+/// crate keeps only the first EVLR, and a writer may put another (a CRS) before the hierarchy.
+fn read_summary(raw: &LasHeader, file: &File, path: &Path) -> Result<Option<CopcSummary>> {
+    let Some(info) = raw.vlrs.first().filter(|v| v.is("copc", 1)) else {
         return Ok(None);
     };
     let bad = |what: &str| ConvertError::output(path, format!("COPC {what}"));
-    let d = &info.data;
-    if d.len() < INFO_SIZE as usize {
+    if info.data_len < INFO_SIZE {
         return Err(bad("info VLR is shorter than 160 bytes"));
     }
+    let read = |at: u64, len: u64| {
+        read_at(file, at, len as usize).map_err(|e| bad(&format!("record cannot be read: {e}")))
+    };
+    let d = read(info.data_at, INFO_SIZE)?;
     let f = |i: usize| f64::from_le_bytes(d[i * 8..i * 8 + 8].try_into().unwrap_or([0; 8]));
-    let hierarchy = header
-        .evlrs()
-        .iter()
-        .find(|v| v.user_id == "copc" && v.record_id == 1000)
+    let hierarchy = raw
+        .find("copc", 1000)
         .ok_or_else(|| bad("hierarchy EVLR is missing"))?;
     // What a COPC reader takes on trust: the cube, and where the root hierarchy page is.
     let u = |i: usize| u64::from_le_bytes(d[i * 8..i * 8 + 8].try_into().unwrap_or([0; 8]));
@@ -112,33 +110,28 @@ fn read_summary(header: &las::Header, path: &Path) -> Result<Option<CopcSummary>
         )));
     }
     let (root_at, root_size) = (u(5), u(6));
-    let file_len = std::fs::metadata(path)
-        .map_err(|e| ConvertError::io(path, "cannot read the file's size", e))?
-        .len();
-    // The page is in an EVLR's data: after the first EVLR's 60-byte header (LAS 1.4 keeps
-    // where that is at byte 235 of the file header).
-    let mut first_evlr = [0u8; 8];
-    std::fs::File::open(path)
-        .and_then(|f| std::os::unix::fs::FileExt::read_exact_at(&f, &mut first_evlr, 235))
-        .map_err(|e| ConvertError::io(path, "cannot read the header", e))?;
-    let evlr_data = u64::from_le_bytes(first_evlr).saturating_add(60);
+    let (data_at, data_end) = (
+        hierarchy.data_at,
+        hierarchy.data_at.saturating_add(hierarchy.data_len),
+    );
     if root_size == 0
         || root_size % ENTRY_SIZE as u64 != 0
-        || root_size > hierarchy.data.len() as u64
-        || root_at < evlr_data
+        || root_at < data_at
         || root_at
             .checked_add(root_size)
-            .is_none_or(|end| end > file_len)
+            .is_none_or(|end| end > data_end)
     {
         return Err(bad(&format!(
             "info VLR puts the root hierarchy page at byte {root_at}, {root_size} bytes long, \
-             which is not a page of whole entries inside the hierarchy EVLR and the file"
+             which is not a page of whole entries inside the hierarchy EVLR \
+             (bytes {data_at} to {data_end})"
         )));
     }
+    let hierarchy = read(data_at, hierarchy.data_len)?;
     let (mut nodes, mut depth, mut points) = (0u64, 0i32, 0u64);
     // Every entry of the EVLR (the pages a writer puts there one after the other; entries
     // of -1 points, pointing at pages elsewhere, are not counted).
-    for e in hierarchy.data.chunks_exact(ENTRY_SIZE) {
+    for e in hierarchy.chunks_exact(ENTRY_SIZE) {
         let int = |i: usize| i32::from_le_bytes(e[i..i + 4].try_into().unwrap_or([0; 4]));
         let count = int(28);
         if count > 0 {
