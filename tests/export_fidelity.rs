@@ -100,33 +100,68 @@ fn points_without_returns_merged_with_returns_are_single_returns() {
 }
 
 #[test]
-fn a_return_number_the_legacy_format_cannot_hold_is_refused_not_cut() {
+fn a_return_number_past_the_legacy_format_takes_an_extended_one_and_past_that_is_refused() {
     // A legacy LAS beside a PLY: the union carries the legacy scan angle rank, so the export
     // picks a legacy format (the metadata counts the classes, which would tell it otherwise,
-    // but not the returns), and the PLY's return number 12 does not fit it.
+    // but not the returns). The PLY's return number 12 does not fit it: the export was
+    // refused; it is written in an extended format, and the profile through those points too.
+    // A return number of 20 fits no LAS format and is refused, with nothing left behind.
     let dir = tempfile::tempdir().expect("tempdir");
-    let (ply, ds, las) = (
-        dir.path().join("c.ply"),
-        dir.path().join("ds"),
-        dir.path().join("c.las"),
-    );
-    classed_ply(&ply, &[(637000.0, 2, 12), (637001.0, 2, 1)]);
     let autzen = data("autzen_trim.las");
     let reader = las::Reader::from_path(&autzen).expect("autzen");
     assert!(
         !reader.header().point_format().is_extended,
         "the test needs a legacy LAS"
     );
-    run_ok(&["convert", s(&autzen), s(&ply), "-o", s(&ds), "-q"]);
-    let out = run(&["export", s(&ds), "-o", s(&las)]);
-    let err = String::from_utf8_lossy(&out.stderr);
-    assert!(!out.status.success(), "export must fail: {err}");
-    assert!(
-        err.contains("return_number is 12"),
-        "the error names the value: {err}"
-    );
-    assert!(!las.exists(), "no output that looks complete");
-    assert!(!dir.path().join("c.las.part").exists(), "no leftover");
+    for (ret, fits) in [(12u8, true), (20, false)] {
+        let ply = dir.path().join(format!("c{ret}.ply"));
+        let (ds, las) = (
+            dir.path().join(format!("ds{ret}")),
+            dir.path().join(format!("c{ret}.las")),
+        );
+        classed_ply(&ply, &[(637000.0, 2, ret), (637001.0, 2, 1)]);
+        run_ok(&["convert", s(&autzen), s(&ply), "-o", s(&ds), "-q"]);
+        let out = run(&["export", s(&ds), "-o", s(&las)]);
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert!(
+            !dir.path().join(format!("c{ret}.las.part")).exists(),
+            "no leftover"
+        );
+        if !fits {
+            assert!(!out.status.success(), "export must fail: {err}");
+            assert!(
+                err.contains("return_number is 20") && err.contains("holds (0 to 15)"),
+                "the error names the value and the extended format: {err}"
+            );
+            assert!(!las.exists(), "no output that looks complete");
+            continue;
+        }
+        assert!(out.status.success(), "{err}");
+        let mut reader = las::Reader::from_path(&las).expect("read export");
+        assert!(reader.header().point_format().is_extended);
+        let returns: Vec<u8> = reader
+            .read_all()
+            .expect("all points")
+            .points()
+            .map(|p| p.expect("point"))
+            .filter(|p| p.x == 637000.0)
+            .map(|p| p.return_number)
+            .collect();
+        assert_eq!(returns, [12]);
+        let prof = dir.path().join("profile.las");
+        let line = "--line=636999,0;637002,0";
+        run_ok(&["profile", s(&ds), line, "--width", "1", "-o", s(&prof)]);
+        let mut reader = las::Reader::from_path(&prof).expect("read profile");
+        assert!(reader.header().point_format().is_extended, "profile");
+        let mut returns: Vec<u8> = reader
+            .read_all()
+            .expect("all points")
+            .points()
+            .map(|p| p.expect("point").return_number)
+            .collect();
+        returns.sort_unstable();
+        assert_eq!(returns, [1, 12]);
+    }
 }
 
 #[test]

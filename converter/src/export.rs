@@ -26,6 +26,33 @@ pub fn export(dataset: &Path, output: &Path, overwrite: bool) -> Result<u64> {
         return crate::copc::export_copc(dataset, output, overwrite);
     }
     let ds = LocalDataset::open(dataset)?;
+    let extended = high_classes(ds.metadata());
+    match write_dataset(&ds, dataset, output, overwrite, extended) {
+        // The metadata counts the classes but not the return numbers: one past what the
+        // legacy format chosen holds is met only as it is written, and the file is written
+        // again in a format of 6 to 10, which holds it (a value past those fails there too).
+        Err(ConvertError::Unfit(u)) if !extended && legacy_bit_field(&u.field) => {
+            write_dataset(&ds, dataset, output, overwrite, true)
+        }
+        written => written,
+    }
+}
+
+/// Whether `field` is one LAS's formats 6 to 10 hold more of than formats 0 to 5.
+fn legacy_bit_field(field: &str) -> bool {
+    crate::las_records::BIT_FIELDS
+        .iter()
+        .any(|&(name, legacy, extended)| name == field && legacy < extended)
+}
+
+/// `export`'s LAS, LAZ or PLY output, in formats 6 to 10 where `extended` (`LasChoices`).
+fn write_dataset(
+    ds: &LocalDataset,
+    dataset: &Path,
+    output: &Path,
+    overwrite: bool,
+    extended: bool,
+) -> Result<u64> {
     let meta = ds.metadata();
     let layout = ds.layout().clone();
     let wide = widened(&layout, Target::of_file(output));
@@ -38,7 +65,7 @@ pub fn export(dataset: &Path, output: &Path, overwrite: bool) -> Result<u64> {
         overwrite,
         LasChoices {
             crs: meta.crs.as_ref(),
-            high_classes: high_classes(meta),
+            extended,
         },
     )?;
     let write_all = |writer: &mut dyn RowWriter| -> Result<u64> {
@@ -249,14 +276,26 @@ fn high_classes(meta: &Metadata) -> bool {
         .any(|code| !code.parse::<u64>().is_ok_and(|c| c <= 31))
 }
 
-/// Whether a row of `layout` in `rows` has a classification above 31.
-fn rows_have_high_classes(layout: &RowLayout, rows: &[u8]) -> bool {
-    let Some(i) = layout.index_of("classification") else {
-        return false;
-    };
-    let (at, ty) = (layout.offsets[i], layout.attributes[i].ty);
-    rows.chunks_exact(layout.stride.max(1))
-        .any(|row| ty.read_f64(&row[at..]) > 31.0)
+/// Whether a row of `layout` in `rows` holds a value of a bit field past what LAS formats 0
+/// to 5 hold (a classification above 31, a return number above 7).
+fn rows_need_extended(layout: &RowLayout, rows: &[u8]) -> bool {
+    let fields: Vec<(usize, AttrType, f64)> = crate::las_records::BIT_FIELDS
+        .iter()
+        .filter(|&&(_, legacy, extended)| legacy < extended)
+        .filter_map(|&(name, legacy, _)| {
+            let i = layout.index_of(name)?;
+            Some((
+                layout.offsets[i],
+                layout.attributes[i].ty,
+                f64::from(legacy),
+            ))
+        })
+        .collect();
+    rows.chunks_exact(layout.stride.max(1)).any(|row| {
+        fields
+            .iter()
+            .any(|&(at, ty, most)| ty.read_f64(&row[at..]) > most)
+    })
 }
 
 /// Writes `rows` of a dataset's `layout` (a selection of its points, such as a profile) to
@@ -274,7 +313,7 @@ pub fn export_rows(
     let n = (rows.len() / layout.stride.max(1)) as u64;
     let las = LasChoices {
         crs,
-        high_classes: rows_have_high_classes(layout, rows),
+        extended: rows_need_extended(layout, rows),
     };
     let writer = open_writer(output, &wide.layout, scale, offset, n, overwrite, las)?;
     write_then_finish(writer, output, |writer| {

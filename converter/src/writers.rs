@@ -98,9 +98,10 @@ pub fn check_file_output(path: &Path, overwrite: bool) -> Result<()> {
 pub struct LasChoices<'a> {
     /// The coordinate reference system the file states.
     pub crs: Option<&'a Crs>,
-    /// A point has a classification code above 31, which point formats 0 to 5 cannot hold
-    /// (rows merged from a legacy LAS and a PLY have the legacy fields, and the PLY's codes).
-    pub high_classes: bool,
+    /// A point holds a value of a bit field past what point formats 0 to 5 hold (a class
+    /// above 31, a return number above 7): rows merged from a legacy LAS and a PLY have the
+    /// legacy fields, and the PLY's values. Formats 6 to 10 are taken.
+    pub extended: bool,
 }
 
 /// Opens a writer chosen by the extension of `path`. `points` is the exact number of rows
@@ -156,9 +157,9 @@ pub fn open_writer(
     }
 }
 
-/// The LAS point format that holds a layout's attributes best; `high_classes`: a point's
-/// classification is above 31 (`LasChoices::high_classes`).
-pub(crate) fn las_format_for(layout: &RowLayout, high_classes: bool) -> u8 {
+/// The LAS point format that holds a layout's attributes best; `extended`: a point holds a
+/// value only formats 6 to 10 hold (`LasChoices::extended`).
+pub(crate) fn las_format_for(layout: &RowLayout, extended: bool) -> u8 {
     let has = |n: &str| layout.index_of(n).is_some();
     let rgb = layout
         .index_of("rgb")
@@ -167,7 +168,7 @@ pub(crate) fn las_format_for(layout: &RowLayout, high_classes: bool) -> u8 {
     // Formats 0 to 5 hold classes up to 31 and return numbers up to 7. Rows read from those
     // formats (the ones with a scan angle rank) fit them; a class or return number from
     // anywhere else (a PLY's uchar) may not, and goes to formats 6 to 10.
-    let legacy_fits = !high_classes
+    let legacy_fits = !extended
         && (has("scan_angle_rank")
             || !BIT_FIELDS
                 .iter()
@@ -225,7 +226,7 @@ impl LasRowWriter {
         offset: [f64; 3],
         las: LasChoices<'_>,
     ) -> Result<Self> {
-        let format_number = las_format_for(layout, las.high_classes);
+        let format_number = las_format_for(layout, las.extended);
         let mut records = LasRecords::new(path, layout, format_number)?;
         if format_number >= 6 {
             records = records.single_returns_where_missing();
