@@ -504,3 +504,27 @@ fn a_lost_device_is_reported_by_every_frame_after_it() {
     }
     assert!(r.wait_gpu().is_err());
 }
+
+/// `uses_point_size` says what the point size does: the pictures of the pipelines that declare
+/// it change with the size, the others' stay the same to the byte (the quality harness
+/// measures those at one size, and the window greys the size out for them).
+#[test]
+fn the_point_size_changes_the_pictures_of_the_pipelines_that_say_it_does() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let ds = dataset();
+    for p in registry() {
+        let name = p["name"].as_str().expect("name");
+        let uses = p["uses_point_size"].as_bool().expect("uses_point_size");
+        let image = |size: &str| {
+            let out = dir.path().join(format!("{name}_{size}.png"));
+            let args = ["render", s(&ds), "-o", s(&out), "--size", "160x120"];
+            common::gpu_ok(&[&args[..], &["--pipeline", name, "--point-size", size]].concat());
+            common::read_png(&out).2
+        };
+        let changed = image("1") != image("4");
+        assert_eq!(
+            changed, uses,
+            "{name}: the point size changes its picture: {changed}"
+        );
+    }
+}

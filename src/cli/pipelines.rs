@@ -68,6 +68,7 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
                     "previous_frame": p.previous_frame,
                     "reads_colour_plane": p.reads_colour_plane,
                     "reads_planes": p.reads_planes,
+                    "uses_point_size": p.uses_point_size,
                     "guard_band": p.guard.describe(),
                 })
             })
@@ -91,6 +92,9 @@ pub fn run(a: Args) -> anyhow::Result<ExitCode> {
         }
         if let Some(band) = p.guard.describe() {
             println!("  {band}");
+        }
+        if !p.uses_point_size {
+            println!("  --point-size does not change its picture");
         }
         for s in p.params {
             println!("  --set {}=VALUE  {} ({})", s.name, s.help, s.describe());

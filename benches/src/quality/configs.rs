@@ -155,13 +155,20 @@ const SHADOW_SCENE: &str = "shadow";
 const SHADOW_LIGHT: [f32; 3] = [0.5, -0.3, 1.0];
 const GRAZING_LIGHT: [f32; 3] = [0.25, -0.95, 0.27];
 
-/// Every registered pipeline at its defaults with one- and two-pixel points, and, in the full
+/// Every registered pipeline at its defaults with one- and two-pixel points (one-pixel only
+/// where the point size does not change its picture), and, in the full
 /// run, each automatic parameter at half and twice its automatic value: the sweeps come from
 /// the pipelines' parameter tables.
 pub fn configs(full: bool) -> Vec<Config> {
     let mut v = Vec::new();
     for &pipeline in REGISTRY {
-        for point_size in [1.0f32, 2.0] {
+        // A pipeline whose picture the point size does not change is measured once.
+        let sizes: &[f32] = if pipeline.uses_point_size {
+            &[1.0, 2.0]
+        } else {
+            &[1.0]
+        };
+        for &point_size in sizes {
             v.push(Config {
                 pipeline,
                 setting: format!("{point_size}px"),

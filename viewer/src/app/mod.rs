@@ -253,19 +253,26 @@ impl ViewerApp {
         self.profile_controls(ui);
         self.view_controls(ui);
 
-        ui.label("Point size");
-        ui.add(egui::Slider::new(&mut self.settings.point_size, 0.5..=10.0));
-        let mut attenuate = self.settings.size_mode == SizeMode::Attenuated;
-        if ui
-            .checkbox(&mut attenuate, "size by point spacing")
-            .changed()
-        {
-            self.settings.set_size_mode(if attenuate {
-                SizeMode::Attenuated
-            } else {
-                SizeMode::Fixed
-            });
-        }
+        let sized = self.settings.pipeline.uses_point_size;
+        let size = ui.add_enabled_ui(sized, |ui| {
+            ui.label("Point size");
+            ui.add(egui::Slider::new(&mut self.settings.point_size, 0.5..=10.0));
+            let mut attenuate = self.settings.size_mode == SizeMode::Attenuated;
+            if ui
+                .checkbox(&mut attenuate, "size by point spacing")
+                .changed()
+            {
+                self.settings.set_size_mode(if attenuate {
+                    SizeMode::Attenuated
+                } else {
+                    SizeMode::Fixed
+                });
+            }
+        });
+        size.response.on_disabled_hover_text(format!(
+            "the point size does not change what {} draws",
+            self.settings.pipeline.name
+        ));
 
         ui.label("Colour");
         let ds = self.renderer.dataset().clone();

@@ -164,6 +164,10 @@ pub struct PipelineInfo {
     /// The buffers its `make_targets` creates for a `width` x `height` screen, for the check
     /// against the adapter's limits before anything is created or compiled.
     pub screen_buffers: fn(width: u32, height: u32) -> Vec<ScreenBuffer>,
+    /// Its picture follows the point size (`Settings::point_size`): the projection's splats.
+    /// A pipeline that sizes its own (surfels) or joins single pixels (triangulate) does not,
+    /// and the window greys the size out for it.
+    pub uses_point_size: bool,
     /// How far, in pixels, what it draws at a pixel reaches from points outside the view:
     /// the frame is drawn that much wider on every side and the view cut out of it.
     pub guard: GuardBand,

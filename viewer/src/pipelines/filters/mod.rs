@@ -162,6 +162,7 @@ pub static INFO: PipelineInfo = PipelineInfo {
     reads_colour_plane: false,
     reads_planes: false,
     screen_buffers: FiltersTargets::screen_buffers,
+    uses_point_size: true,
     guard: GuardBand::Param {
         name: "fill_iterations",
         extra: 2,

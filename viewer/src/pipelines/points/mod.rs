@@ -25,6 +25,7 @@ pub static INFO: PipelineInfo = PipelineInfo {
     reads_colour_plane: true,
     reads_planes: true,
     screen_buffers: super::no_screen_buffers,
+    uses_point_size: true,
     guard: GuardBand::None,
     create: |ctx| Ok(SHADING.create(ctx)),
     shaders: |int64| SHADING.shaders(int64),

@@ -62,6 +62,7 @@ pub static INFO: PipelineInfo = PipelineInfo {
     reads_colour_plane: true,
     reads_planes: true,
     screen_buffers: PyramidPasses::screen_buffers,
+    uses_point_size: true,
     guard: GuardBand::Px(PYRAMID_GUARD_PX),
     create,
     shaders: |_| {

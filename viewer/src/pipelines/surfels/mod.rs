@@ -119,6 +119,7 @@ pub static INFO: PipelineInfo = PipelineInfo {
     reads_colour_plane: false,
     reads_planes: false,
     screen_buffers: SurfelPasses::screen_buffers,
+    uses_point_size: false,
     guard: GuardBand::None,
     create,
     shaders: |_| passes::shaders(passes::DEFAULT_SIDES),

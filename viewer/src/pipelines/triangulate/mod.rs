@@ -112,6 +112,7 @@ pub static INFO: PipelineInfo = PipelineInfo {
     reads_colour_plane: true,
     reads_planes: true,
     screen_buffers: TriangulateTargets::screen_buffers,
+    uses_point_size: false,
     guard: GuardBand::Param {
         name: "max_search_px",
         extra: 1,
