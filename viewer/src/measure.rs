@@ -340,15 +340,25 @@ impl Measurements {
     /// otherwise. `place` names the file in errors.
     pub fn from_geojson(text: &str, place: &str) -> Result<Measurements, ViewerError> {
         let fail = |what: String| ViewerError::source(place, what);
-        let root: Value =
+        let mut root: Value =
             serde_json::from_str(text).map_err(|e| fail(format!("not JSON ({e})")))?;
-        let root_is_collection = root["type"] == "FeatureCollection";
-        let features = match root["type"].as_str() {
-            Some("FeatureCollection") => root["features"]
-                .as_array()
-                .ok_or_else(|| fail("the FeatureCollection has no features array".into()))?
-                .clone(),
-            Some("Feature") => vec![root.clone()],
+        // The features are taken out of the tree, not copied: a file of many holds them once.
+        let (features, members) = match root["type"].as_str() {
+            Some("FeatureCollection") => {
+                let features = match root.get_mut("features").map(Value::take) {
+                    Some(Value::Array(f)) => f,
+                    _ => {
+                        return Err(fail("the FeatureCollection has no features array".into()));
+                    }
+                };
+                let mut members = match root {
+                    Value::Object(m) => m,
+                    _ => serde_json::Map::new(),
+                };
+                members.remove("features");
+                (features, members)
+            }
+            Some("Feature") => (vec![root], serde_json::Map::new()),
             _ => {
                 return Err(fail(
                     "not GeoJSON: expected a FeatureCollection or a Feature".into(),
@@ -362,11 +372,6 @@ impl Measurements {
                 feature_measurement(f, i).map_err(|what| fail(format!("feature {i}: {what}")))
             })
             .collect::<Result<_, _>>()?;
-        let mut members = match root {
-            Value::Object(m) if root_is_collection => m,
-            _ => serde_json::Map::new(),
-        };
-        members.remove("features");
         Ok(Measurements { items, members })
     }
 
