@@ -438,3 +438,88 @@ fn info_finds_the_hierarchy_behind_another_evlr() {
     assert!(want["points"].as_u64() > Some(0), "{want}");
     assert_eq!(got, want);
 }
+
+/// What `strata info` takes from a COPC hierarchy is checked as a reader takes it on trust: an
+/// entry whose chunk lies outside the point data, one naming no node of the octree, and
+/// counts that do not sum to the header's were printed as if whole.
+#[test]
+fn info_refuses_a_damaged_hierarchy_entry() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let dataset = common::converted("copc-fixture", "autzen_trim.laz", "autzen");
+    let copc = dir.path().join("whole.copc.laz");
+    run_ok(&["export", s(&dataset), "-o", s(&copc)]);
+    let bytes = std::fs::read(&copc).expect("read");
+    let entries = u64::from_le_bytes(bytes[235..243].try_into().expect("8")) as usize + 60;
+    // The second entry of the root page, and what is damaged in it.
+    let at = entries + 32;
+    let damage: [(usize, Vec<u8>, &str); 4] = [
+        (16, u64::MAX.to_le_bytes().to_vec(), "outside bytes"),
+        (
+            0,
+            40i32.to_le_bytes().to_vec(),
+            "names no node of an octree",
+        ),
+        (4, 5i32.to_le_bytes().to_vec(), "names no node of an octree"),
+        (28, (-7i32).to_le_bytes().to_vec(), "holds -7 points"),
+    ];
+    for (field, value, expect) in damage {
+        let mut b = bytes.clone();
+        b[at + field..at + field + value.len()].copy_from_slice(&value);
+        let bad = dir.path().join("bad.copc.laz");
+        std::fs::write(&bad, b).expect("write");
+        let err = common::refused(&["info", s(&bad)], &[expect, "hierarchy entry 1"]);
+        assert!(err.contains(s(&bad)), "{err}");
+    }
+    // One point more in an entry than its chunk holds: the sum is not the header's count.
+    let mut b = bytes.clone();
+    let count = i32::from_le_bytes(b[at + 28..at + 32].try_into().expect("4"));
+    b[at + 28..at + 32].copy_from_slice(&(count + 1).to_le_bytes());
+    let bad = dir.path().join("sum.copc.laz");
+    std::fs::write(&bad, b).expect("write");
+    common::refused(&["info", s(&bad)], &["hierarchy lists", "and the header"]);
+
+    // The hierarchy split in two pages, as writers of deep octrees do: the root page holds the
+    // root's entry and one of -1 points naming the page of the rest, which follows it. The
+    // same summary; and that page named outside the hierarchy is refused.
+    let evlr = entries - 60;
+    let (mut head, page) = (bytes[..entries].to_vec(), &bytes[entries..]);
+    assert_eq!(
+        evlr + 60 + page.len(),
+        bytes.len(),
+        "the hierarchy is the last EVLR"
+    );
+    let rest = &page[32..];
+    let mut refer = page[32..64].to_vec();
+    refer[16..24].copy_from_slice(&(entries as u64 + 64).to_le_bytes());
+    refer[24..28].copy_from_slice(&(rest.len() as i32).to_le_bytes());
+    refer[28..32].copy_from_slice(&(-1i32).to_le_bytes());
+    head[evlr + 20..evlr + 28].copy_from_slice(&(page.len() as u64 + 32).to_le_bytes());
+    let info = head
+        .windows(4)
+        .position(|w| w == b"copc")
+        .expect("info VLR")
+        - 2
+        + 54;
+    head[info + 48..info + 56].copy_from_slice(&64u64.to_le_bytes());
+    let split = [head, page[..32].to_vec(), refer, rest.to_vec()].concat();
+    let summary = |b: &[u8], name: &str| {
+        let path = dir.path().join(name);
+        std::fs::write(&path, b).expect("write");
+        let o = run_ok(&["info", s(&path), "--json"]);
+        let v: serde_json::Value = serde_json::from_slice(&o.stdout).expect("info JSON");
+        v["copc"].clone()
+    };
+    assert_eq!(
+        summary(&split, "split.copc.laz"),
+        summary(&bytes, "whole.copc.laz")
+    );
+    let mut b = split.clone();
+    let refer_at = entries + 32;
+    b[refer_at + 16..refer_at + 24].copy_from_slice(&64u64.to_le_bytes());
+    let bad = dir.path().join("page.copc.laz");
+    std::fs::write(&bad, b).expect("write");
+    common::refused(
+        &["info", s(&bad)],
+        &["page inside the hierarchy EVLR at byte 64"],
+    );
+}

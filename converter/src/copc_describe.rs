@@ -7,6 +7,9 @@ use crate::input::las_header::{LasHeader, read_at};
 use std::fs::File;
 use std::path::Path;
 
+/// The deepest level a hierarchy entry may name: a node's cells are 32-bit in COPC's key.
+const MAX_DEPTH: i32 = 31;
+
 /// What `strata info` says of a COPC file: its octree and its hierarchy.
 #[derive(Debug, Clone, serde::Serialize)]
 pub struct CopcSummary {
@@ -129,16 +132,54 @@ fn read_summary(raw: &LasHeader, file: &File, path: &Path) -> Result<Option<Copc
     }
     let hierarchy = read(data_at, hierarchy.data_len)?;
     let (mut nodes, mut depth, mut points) = (0u64, 0i32, 0u64);
+    let chunks = (raw.offset_to_points, raw.points_end());
     // Every entry of the EVLR (the pages a writer puts there one after the other; entries
-    // of -1 points, pointing at pages elsewhere, are not counted).
-    for e in hierarchy.chunks_exact(ENTRY_SIZE) {
+    // of -1 points, pointing at pages elsewhere, are not counted), each checked as a reader
+    // takes it on trust: its node inside the octree, its chunk among the points, its page
+    // inside the hierarchy.
+    for (k, e) in hierarchy.chunks_exact(ENTRY_SIZE).enumerate() {
         let int = |i: usize| i32::from_le_bytes(e[i..i + 4].try_into().unwrap_or([0; 4]));
-        let count = int(28);
+        let (key, count) = ([int(0), int(4), int(8), int(12)], int(28));
+        let (at, size) = (
+            u64::from_le_bytes(e[16..24].try_into().unwrap_or([0; 8])),
+            i64::from(int(24)),
+        );
+        let entry = |fault: String| {
+            let [d, x, y, z] = key;
+            bad(&format!(
+                "hierarchy entry {k} (node {d}-{x}-{y}-{z}) {fault}"
+            ))
+        };
+        let side = 1i64.checked_shl(key[0].clamp(0, 62) as u32).unwrap_or(0);
+        if !(0..=MAX_DEPTH).contains(&key[0])
+            || key[1..].iter().any(|&c| !(0..side).contains(&i64::from(c)))
+        {
+            return Err(entry("names no node of an octree".into()));
+        }
+        let (lo, hi, what) = match count {
+            -1 => (data_at, data_end, "page inside the hierarchy EVLR"),
+            0 => continue,
+            c if c > 0 => (chunks.0, chunks.1, "chunk among the point data"),
+            c => return Err(entry(format!("holds {c} points"))),
+        };
+        let end = u64::try_from(size).ok().and_then(|n| at.checked_add(n));
+        let whole_page = count != -1 || size % ENTRY_SIZE as i64 == 0;
+        if size <= 0 || !whole_page || at < lo || end.is_none_or(|end| end > hi) {
+            return Err(entry(format!(
+                "puts its {what} at byte {at}, {size} bytes long, outside bytes {lo} to {hi}"
+            )));
+        }
         if count > 0 {
             nodes += 1;
             points += count as u64;
-            depth = depth.max(int(0));
+            depth = depth.max(key[0]);
         }
+    }
+    if points != raw.points {
+        return Err(bad(&format!(
+            "hierarchy lists {points} points, and the header {}",
+            raw.points
+        )));
     }
     Ok(Some(CopcSummary {
         centre: [f(0), f(1), f(2)],
