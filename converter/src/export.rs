@@ -27,11 +27,13 @@ pub fn export(dataset: &Path, output: &Path, overwrite: bool) -> Result<u64> {
     }
     let ds = LocalDataset::open(dataset)?;
     let extended = high_classes(ds.metadata());
+    let legacy = Target::of_file(output) == Target::Las
+        && crate::writers::las_format_for(&widened(ds.layout(), Target::Las).layout, extended) < 6;
     match write_dataset(&ds, dataset, output, overwrite, extended) {
         // The metadata counts the classes but not the return numbers: one past what the
         // legacy format chosen holds is met only as it is written, and the file is written
         // again in a format of 6 to 10, which holds it (a value past those fails there too).
-        Err(ConvertError::Unfit(u)) if !extended && legacy_bit_field(&u.field) => {
+        Err(ConvertError::Unfit(u)) if legacy && legacy_bit_field(&u.field) => {
             write_dataset(&ds, dataset, output, overwrite, true)
         }
         written => written,
