@@ -5,6 +5,7 @@
 
 mod all_nearest;
 mod attrs;
+mod coverage;
 mod duplicates;
 mod kdtree;
 mod pca;
@@ -85,8 +86,9 @@ const SEARCH_FACTOR: f64 = 2.0;
 
 /// The estimate's rules, in a run's fingerprint: a run begun by a build that estimated
 /// otherwise (before points that fit no plane got none; before neighbourhoods on one line
-/// grew) does not resume into a mix of both.
-pub(crate) const RULES: u32 = 3;
+/// grew; before the radius at a surface's edge took the share of the disc its neighbours fill)
+/// does not resume into a mix of both.
+pub(crate) const RULES: u32 = 4;
 
 /// The surface variation of a point with no normal: the most any neighbourhood has (an
 /// isotropic one), since none of its planes fits.
@@ -262,6 +264,15 @@ impl ChunkStep for NormalStep {
                     }
                     None => (near, pc, k, 0.0),
                 };
+                // At a surface's open edge the neighbours fill part of the disc, and the
+                // density they measure is that much too low (`coverage`).
+                let edge = match plane {
+                    true => {
+                        let offsets = near.index.iter().map(|&j| tree.offset(t, j as usize));
+                        coverage::angular_cover(offsets, pc.normal).sqrt()
+                    }
+                    false => 1.0,
+                };
                 let radius = if !plane {
                     // No surface to cover: a disc as wide as the gap to its nearest neighbour
                     // (a wire's points touch), and a point alone within the search radius (a
@@ -285,7 +296,7 @@ impl ChunkStep for NormalStep {
                     // the search looked.
                     let n = near.len() as f64;
                     if search.is_finite() {
-                        let r = search * COVER / n.sqrt();
+                        let r = search * COVER / n.sqrt() * edge;
                         if r >= search {
                             totals[total::CAPPED] += 1.0;
                         }
@@ -293,10 +304,10 @@ impl ChunkStep for NormalStep {
                     } else {
                         // No bound on the search (no density estimate): every point was
                         // found, and the farthest of them gives the density.
-                        near.farthest().sqrt() * COVER / n.sqrt()
+                        near.farthest().sqrt() * COVER / n.sqrt() * edge
                     }
                 } else {
-                    near.farthest().sqrt() * COVER / (k as f64).sqrt()
+                    near.farthest().sqrt() * COVER / (k as f64).sqrt() * edge
                 }
                 .max(cover);
                 let p = tree.points[t];

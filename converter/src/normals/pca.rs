@@ -291,7 +291,7 @@ fn norm2(u: [f64; 3]) -> f64 {
     dot(u, u)
 }
 
-fn any_perpendicular(v: [f64; 3]) -> [f64; 3] {
+pub fn any_perpendicular(v: [f64; 3]) -> [f64; 3] {
     let other = if v[0].abs() < 0.9 {
         [1.0, 0.0, 0.0]
     } else {

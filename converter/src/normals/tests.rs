@@ -10,6 +10,16 @@ use strata_format::{LocalDataset, oct16_decode};
 /// Per point of a dataset: quantized position, real position, normal, radius, σ.
 type PointNormals = Vec<([i32; 3], [f64; 3], Option<[f64; 3]>, f64, f64)>;
 
+/// Numbers in 0..1 from `seed`, the same every run.
+pub(super) fn unit_randoms(mut s: u64) -> impl FnMut() -> f64 {
+    move || {
+        s = s
+            .wrapping_mul(6364136223846793005)
+            .wrapping_add(1442695040888963407);
+        (s >> 11) as f64 / (1u64 << 53) as f64
+    }
+}
+
 fn read_normals(dir: &Path) -> PointNormals {
     let ds = LocalDataset::open(dir).expect("open");
     let layout = ds.layout().clone();
@@ -106,13 +116,7 @@ fn write_ply(path: &Path, points: &[[f64; 3]], normals: Option<&[[f64; 3]]>) {
 
 /// Uniform random points on a sphere of radius `r` around `c`.
 fn sphere(n: usize, c: [f64; 3], r: f64, seed: u64) -> Vec<[f64; 3]> {
-    let mut s = seed;
-    let mut next = move || {
-        s = s
-            .wrapping_mul(6364136223846793005)
-            .wrapping_add(1442695040888963407);
-        (s >> 11) as f64 / (1u64 << 53) as f64
-    };
+    let mut next = unit_randoms(seed);
     (0..n)
         .map(|_| {
             let z = next() * 2.0 - 1.0;
@@ -229,13 +233,7 @@ fn a_sphere_gets_radial_normals_facing_the_viewpoint() {
 fn discs_of_the_radius_cover_a_randomly_sampled_plane() {
     let dir = tempfile::tempdir().expect("tempdir");
     let ply = dir.path().join("plane.ply");
-    let mut s = 77u64;
-    let mut next = move || {
-        s = s
-            .wrapping_mul(6364136223846793005)
-            .wrapping_add(1442695040888963407);
-        (s >> 11) as f64 / (1u64 << 53) as f64
-    };
+    let mut next = unit_randoms(77u64);
     let side = 20.0;
     let pts: Vec<[f64; 3]> = (0..40_000)
         .map(|_| [next() * side, next() * side, 5.0])
@@ -287,6 +285,26 @@ fn discs_of_the_radius_cover_a_randomly_sampled_plane() {
     assert!(
         mean < 1.5 * spacing,
         "mean radius {mean} for spacing {spacing}"
+    );
+    // Along the plane's edges the neighbours lie on one side: the radius is the density's all
+    // the same, where it was about 1.4 times the inner one, and the edge's discs reached past
+    // the edge by about their radius.
+    let median = |within: &dyn Fn(f64) -> bool| {
+        let mut r: Vec<f64> = got
+            .iter()
+            .filter(|g| within(g.1[0].min(g.1[1]).min(side - g.1[0]).min(side - g.1[1])))
+            .map(|g| g.3)
+            .collect();
+        r.sort_by(f64::total_cmp);
+        r[r.len() / 2]
+    };
+    let (edge, inner) = (
+        median(&|d| d < 0.5 * spacing),
+        median(&|d| d > 3.0 * spacing),
+    );
+    assert!(
+        edge < 1.2 * inner,
+        "radius {edge} at the edge against {inner} inside"
     );
 }
 
@@ -354,13 +372,7 @@ fn orienting_towards_a_scanner_without_one_is_refused() {
 #[test]
 fn radii_hold_where_neighbours_are_few_or_distances_tiny() {
     let dir = tempfile::tempdir().expect("tempdir");
-    let mut s = 5u64;
-    let mut next = move || {
-        s = s
-            .wrapping_mul(6364136223846793005)
-            .wrapping_add(1442695040888963407);
-        (s >> 11) as f64 / (1u64 << 53) as f64
-    };
+    let mut next = unit_randoms(5u64);
     // Micrometre-sized: a plane of 4000 points 10 µm wide, with a cluster of 5 points (not in
     // a line) and a row of 4, and a lone point far from it; neighbours are searched within R.
     let (side, r) = (1e-5, 2e-6);
@@ -402,9 +414,10 @@ fn radii_hold_where_neighbours_are_few_or_distances_tiny() {
             g.3
         );
     }
-    // Five found within R: the density they give, R √(ln 100 / 5).
+    // Five found within R: the density they give, R √(ln 100 / 5), at the end of their row
+    // (all on one side, the least share of the disc: a quarter, so half that).
     let five = radius_at(pts[4000]);
-    let want = r * COVER / 5f64.sqrt();
+    let want = r * COVER / 5f64.sqrt() * super::coverage::LEAST.sqrt();
     assert!((five / want - 1.0).abs() < 1e-3, "{five} against {want}");
     // Alone: no surface to cover, and not a disc as wide as the search; the disc of the
     // density the search radius was made for.
@@ -435,13 +448,7 @@ fn upward_normals_of_a_wall_never_face_down() {
     // A vertical wall: every normal is horizontal, where rounding the octahedral grid alone
     // decodes some a hair below the horizon.
     let dir = tempfile::tempdir().expect("tempdir");
-    let mut s = 9u64;
-    let mut next = move || {
-        s = s
-            .wrapping_mul(6364136223846793005)
-            .wrapping_add(1442695040888963407);
-        (s >> 11) as f64 / (1u64 << 53) as f64
-    };
+    let mut next = unit_randoms(9u64);
     let pts: Vec<[f64; 3]> = (0..20_000)
         .map(|_| [3.0, next() * 10.0, next() * 10.0])
         .collect();
