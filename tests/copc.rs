@@ -400,9 +400,7 @@ fn a_folder_named_like_the_copc_file_is_refused_at_once() {
 #[test]
 fn info_finds_the_hierarchy_behind_another_evlr() {
     let dir = tempfile::tempdir().expect("tempdir");
-    let dataset = common::converted("copc-fixture", "autzen_trim.laz", "autzen");
-    let copc = dir.path().join("plain.copc.laz");
-    run_ok(&["export", s(&dataset), "-o", s(&copc)]);
+    let copc = exported_copc(dir.path(), "plain.copc.laz");
     let mut b = std::fs::read(&copc).expect("read");
     let u64_at = |b: &[u8], at: usize| u64::from_le_bytes(b[at..at + 8].try_into().expect("8"));
     let first_evlr = u64_at(&b, 235) as usize;
@@ -429,12 +427,7 @@ fn info_finds_the_hierarchy_behind_another_evlr() {
     b.splice(first_evlr..first_evlr, record);
     let moved_copc = dir.path().join("moved.copc.laz");
     std::fs::write(&moved_copc, &b).expect("write");
-    let summary = |path: &std::path::Path| {
-        let o = run_ok(&["info", s(path), "--json"]);
-        let v: serde_json::Value = serde_json::from_slice(&o.stdout).expect("info JSON");
-        v["copc"].clone()
-    };
-    let (want, got) = (summary(&copc), summary(&moved_copc));
+    let (want, got) = (copc_summary(&copc), copc_summary(&moved_copc));
     assert!(want["points"].as_u64() > Some(0), "{want}");
     assert_eq!(got, want);
 }
@@ -445,15 +438,13 @@ fn info_finds_the_hierarchy_behind_another_evlr() {
 #[test]
 fn info_refuses_a_damaged_hierarchy_entry() {
     let dir = tempfile::tempdir().expect("tempdir");
-    let dataset = common::converted("copc-fixture", "autzen_trim.laz", "autzen");
-    let copc = dir.path().join("whole.copc.laz");
-    run_ok(&["export", s(&dataset), "-o", s(&copc)]);
+    let copc = exported_copc(dir.path(), "whole.copc.laz");
     let bytes = std::fs::read(&copc).expect("read");
     let entries = u64::from_le_bytes(bytes[235..243].try_into().expect("8")) as usize + 60;
     // The second entry of the root page, and what is damaged in it.
     let at = entries + 32;
     let damage: [(usize, Vec<u8>, &str); 4] = [
-        (16, u64::MAX.to_le_bytes().to_vec(), "outside bytes"),
+        (16, 0u64.to_le_bytes().to_vec(), "outside bytes"),
         (
             0,
             40i32.to_le_bytes().to_vec(),
@@ -502,17 +493,9 @@ fn info_refuses_a_damaged_hierarchy_entry() {
         + 54;
     head[info + 48..info + 56].copy_from_slice(&64u64.to_le_bytes());
     let split = [head, page[..32].to_vec(), refer, rest.to_vec()].concat();
-    let summary = |b: &[u8], name: &str| {
-        let path = dir.path().join(name);
-        std::fs::write(&path, b).expect("write");
-        let o = run_ok(&["info", s(&path), "--json"]);
-        let v: serde_json::Value = serde_json::from_slice(&o.stdout).expect("info JSON");
-        v["copc"].clone()
-    };
-    assert_eq!(
-        summary(&split, "split.copc.laz"),
-        summary(&bytes, "whole.copc.laz")
-    );
+    let split_copc = dir.path().join("split.copc.laz");
+    std::fs::write(&split_copc, &split).expect("write");
+    assert_eq!(copc_summary(&split_copc), copc_summary(&copc));
     let mut b = split.clone();
     let refer_at = entries + 32;
     b[refer_at + 16..refer_at + 24].copy_from_slice(&64u64.to_le_bytes());
@@ -522,4 +505,33 @@ fn info_refuses_a_damaged_hierarchy_entry() {
         &["info", s(&bad)],
         &["page inside the hierarchy EVLR at byte 64"],
     );
+    // Pages begun mid-entry: the named page, and the root page, 16 bytes on.
+    let mut b = split.clone();
+    let mid = entries as u64 + 64 + 16;
+    b[refer_at + 16..refer_at + 24].copy_from_slice(&mid.to_le_bytes());
+    b[refer_at + 24..refer_at + 28].copy_from_slice(&32i32.to_le_bytes());
+    let bad = dir.path().join("mid.copc.laz");
+    std::fs::write(&bad, b).expect("write");
+    common::refused(&["info", s(&bad)], &["not whole entries"]);
+    let mut b = bytes.clone();
+    b[info + 40..info + 48].copy_from_slice(&(entries as u64 + 16).to_le_bytes());
+    b[info + 48..info + 56].copy_from_slice(&32u64.to_le_bytes());
+    let bad = dir.path().join("root.copc.laz");
+    std::fs::write(&bad, b).expect("write");
+    common::refused(&["info", s(&bad)], &["not a page of whole entries"]);
+}
+
+/// The autzen fixture exported to `dir/name` as COPC.
+fn exported_copc(dir: &std::path::Path, name: &str) -> std::path::PathBuf {
+    let dataset = common::converted("copc-fixture", "autzen_trim.laz", "autzen");
+    let copc = dir.join(name);
+    run_ok(&["export", s(&dataset), "-o", s(&copc)]);
+    copc
+}
+
+/// `strata info --json`'s COPC summary of `path`.
+fn copc_summary(path: &std::path::Path) -> serde_json::Value {
+    let o = run_ok(&["info", s(path), "--json"]);
+    let v: serde_json::Value = serde_json::from_slice(&o.stdout).expect("info JSON");
+    v["copc"].clone()
 }

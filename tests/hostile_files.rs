@@ -346,6 +346,8 @@ fn the_temp_dir_folders_a_run_makes_go_with_its_work() {
     let runs = [
         (&input, kept.join("a/b"), "good"),
         (&bad, dir.path().join("c/d"), "failed"),
+        // Through `..`: `gone` is made and goes; `kept`, missing as written, stays.
+        (&input, dir.path().join("gone/../kept"), "good2"),
     ];
     for (input, temp, out) in runs {
         let out = dir.path().join(out);
@@ -359,14 +361,14 @@ fn the_temp_dir_folders_a_run_makes_go_with_its_work() {
             "-q",
         ];
         let ok = common::run(&args).status.success();
-        assert_eq!(ok, out.ends_with("good"), "{input:?}");
+        assert_eq!(ok, !out.ends_with("failed"), "{input:?}");
     }
     let mut left: Vec<_> = std::fs::read_dir(dir.path())
         .expect("list")
         .map(|e| e.expect("entry").file_name().to_string_lossy().into_owned())
         .collect();
     left.sort();
-    assert_eq!(left, ["bad.las", "good", "kept"]);
+    assert_eq!(left, ["bad.las", "good", "good2", "kept"]);
     assert_eq!(std::fs::read_dir(&kept).expect("list").count(), 0);
 }
 

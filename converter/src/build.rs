@@ -92,13 +92,23 @@ pub fn convert_with(opts: &ConvertOptions, step: &dyn ChunkStep) -> Result<Conve
         .num_threads(threads)
         .build_global();
     // The folders of --temp-dir this run makes, deepest first: removed again once the work
-    // in them is gone (a plan kept for --resume keeps them).
+    // in them is gone (a plan kept for --resume keeps them). Only up to a `..`: in
+    // `gone/../kept` the run makes `gone`, and `kept`, which does not exist as written, may.
     let made: Vec<PathBuf> = opts
         .temp_dir
         .iter()
-        .flat_map(|t| t.ancestors())
-        .take_while(|a| !a.as_os_str().is_empty() && a.symlink_metadata().is_err())
-        .map(Path::to_path_buf)
+        .flat_map(|t| {
+            let before_up: PathBuf = t
+                .components()
+                .take_while(|c| *c != std::path::Component::ParentDir)
+                .collect();
+            let missing: Vec<PathBuf> = before_up
+                .ancestors()
+                .take_while(|a| !a.as_os_str().is_empty() && a.symlink_metadata().is_err())
+                .map(Path::to_path_buf)
+                .collect();
+            missing
+        })
         .collect();
     let wd = WorkDir::new(&opts.output, opts.temp_dir.as_deref());
     // Refused here, before the run whose failure would clear the folder the other run owns.

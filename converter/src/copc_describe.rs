@@ -117,9 +117,18 @@ fn read_summary(raw: &LasHeader, file: &File, path: &Path) -> Result<Option<Copc
         hierarchy.data_at,
         hierarchy.data_at.saturating_add(hierarchy.data_len),
     );
+    // Pages are whole entries on the EVLR's grid of entries: a page begun mid-entry gives a
+    // reader other entries than those checked below.
+    let on_grid = |at: u64| at >= data_at && (at - data_at).is_multiple_of(ENTRY_SIZE as u64);
+    if hierarchy.data_len % ENTRY_SIZE as u64 != 0 {
+        return Err(bad(&format!(
+            "hierarchy EVLR is {} bytes long, not whole entries of {ENTRY_SIZE}",
+            hierarchy.data_len
+        )));
+    }
     if root_size == 0
         || root_size % ENTRY_SIZE as u64 != 0
-        || root_at < data_at
+        || !on_grid(root_at)
         || root_at
             .checked_add(root_size)
             .is_none_or(|end| end > data_end)
@@ -163,10 +172,16 @@ fn read_summary(raw: &LasHeader, file: &File, path: &Path) -> Result<Option<Copc
             c => return Err(entry(format!("holds {c} points"))),
         };
         let end = u64::try_from(size).ok().and_then(|n| at.checked_add(n));
-        let whole_page = count != -1 || size % ENTRY_SIZE as i64 == 0;
-        if size <= 0 || !whole_page || at < lo || end.is_none_or(|end| end > hi) {
+        let whole_page = count != -1 || (size % ENTRY_SIZE as i64 == 0 && on_grid(at));
+        if size <= 0 || at < lo || end.is_none_or(|end| end > hi) {
             return Err(entry(format!(
                 "puts its {what} at byte {at}, {size} bytes long, outside bytes {lo} to {hi}"
+            )));
+        }
+        if !whole_page {
+            return Err(entry(format!(
+                "puts its page at byte {at}, {size} bytes long, which is not whole entries of \
+                 the hierarchy EVLR"
             )));
         }
         if count > 0 {

@@ -63,6 +63,15 @@ pub const BIT_FIELDS: [(&str, u8, u8); 7] = [
     ("scanner_channel", 255, 3),
 ];
 
+/// The bit fields formats 6 to 10 hold more of than formats 0 to 5, with the largest value
+/// formats 0 to 5 hold.
+pub fn legacy_limited() -> impl Iterator<Item = (&'static str, u8)> {
+    BIT_FIELDS
+        .iter()
+        .filter(|&&(_, legacy, extended)| legacy < extended)
+        .map(|&(name, legacy, _)| (name, legacy))
+}
+
 pub struct LasRecords {
     stride: usize,
     format_number: u8,

@@ -13,6 +13,7 @@ mod disk_tests;
 pub mod distribute;
 pub mod error;
 pub mod export;
+mod export_notes;
 pub mod finish;
 pub mod halo;
 pub mod index;

@@ -104,20 +104,20 @@ fn atan2(y: f32, x: f32) -> f32 {
 
 #[cfg(test)]
 mod tests {
+    use super::*;
+
     #[test]
     fn the_polynomial_atan2_is_libms_within_2e_5() {
         for i in 0..10_000 {
             let t = i as f32 * 0.000_628_3;
             for r in [1e-3f32, 1.0, 7e4] {
                 let (x, y) = (r * t.cos(), r * t.sin());
-                let d = (super::atan2(y, x) - y.atan2(x)).abs();
+                let d = (atan2(y, x) - y.atan2(x)).abs();
                 let d = d.min((d - std::f32::consts::TAU).abs());
                 assert!(d < 2e-5, "{x} {y}: {d}");
             }
         }
     }
-
-    use super::*;
 
     fn ring(from: f64, to: f64, n: usize) -> Vec<[f64; 3]> {
         (0..n)
@@ -168,5 +168,54 @@ mod tests {
         // Too few to tell: whole. All on one side: a quarter at the least.
         assert_eq!(angular_cover(ring(0.0, 1.0, 2).into_iter(), up), 1.0);
         assert_eq!(angular_cover(ring(0.0, 0.1, 6).into_iter(), up), LEAST);
+    }
+
+    /// The rule as SPEC states it, in double precision with libm's atan2 and no shortcut.
+    fn spelled_out(offsets: &[[f64; 3]], normal: [f64; 3]) -> f64 {
+        let (u, v) = (
+            any_perpendicular(normal),
+            cross(normal, any_perpendicular(normal)),
+        );
+        let mut a: Vec<f64> = offsets
+            .iter()
+            .map(|&o| dot(o, v).atan2(dot(o, u)))
+            .collect();
+        a.sort_by(f64::total_cmp);
+        let m = a.len() as f64;
+        let g = a
+            .windows(2)
+            .map(|w| w[1] - w[0])
+            .fold(a[0] + TAU - a[a.len() - 1], f64::max);
+        if g <= TAU * (1.0 - (CHANCE / m).powf(1.0 / (m - 1.0))) {
+            return 1.0;
+        }
+        let h: f64 = (1..=a.len()).map(|i| 1.0 / i as f64).sum();
+        ((TAU - g) / (TAU - TAU * h / m)).clamp(LEAST, 1.0)
+    }
+
+    #[test]
+    fn the_shortcuts_give_the_rule_as_spelled_out() {
+        let mut next = crate::normals::tests::unit_randoms(21);
+        let normal = [0.36, -0.48, 0.8];
+        let (u, v) = (
+            any_perpendicular(normal),
+            cross(normal, any_perpendicular(normal)),
+        );
+        let (mut edges, mut worst) = (0, 0.0f64);
+        for _ in 0..5000 {
+            // Neighbours over an arc of random width (an edge, a corner, all round).
+            let (m, arc) = (3 + (next() * 30.0) as usize, TAU * (0.2 + 0.8 * next()));
+            let offsets: Vec<[f64; 3]> = (0..m)
+                .map(|_| {
+                    let (a, r) = (arc * next(), 0.1 + next());
+                    [0, 1, 2].map(|k| r * (a.cos() * u[k] + a.sin() * v[k]))
+                })
+                .collect();
+            let want = spelled_out(&offsets, normal);
+            edges += usize::from(want < 1.0);
+            worst = worst.max((angular_cover(offsets.into_iter(), normal) - want).abs());
+        }
+        assert!(edges > 1000, "{edges} edges");
+        assert!(worst < 1e-4, "{worst}");
     }
 }
